@@ -1,0 +1,420 @@
+"""Marching cubes over a block-sparse regular grid (seed §16.4.1 exhaustive enumeration,
+§16.4.2 marching cubes).
+
+The grid of ``n = (nx, ny, nz)`` nodes is cut into blocks of ``BLOCK`` cells a side; a
+block stores the values of its ``SIDE = BLOCK + 1`` nodes a side (faces shared with the
+neighbours are stored twice). Blocks that cannot hold the surface are culled before any
+point is evaluated; the others are compacted into *slots*.
+
+Every grid edge has exactly one owner block, the block of its origin node
+(``owner = min(g // BLOCK, nb - 1)`` per axis), and that block creates the single
+vertex of the edge when it crosses the surface, so the output is welded by construction.
+Variable-size output is count -> prefix sum -> allocate -> write. A thread works on one
+slot (a whole block); launches take ``first`` so the host can split them across cores.
+"""
+
+import numpy as np
+import warp as wp
+
+from warpmesh.kernels import mc_tables as T
+
+BLOCK = 8
+SIDE = BLOCK + 1
+NODES = SIDE * SIDE * SIDE  # values stored per block
+EDGE_SLOTS = NODES * 3  # edge -> vertex ids stored per block
+
+_BLOCK = wp.constant(BLOCK)
+_SIDE = wp.constant(SIDE)
+_NODES = wp.constant(NODES)
+_EDGE_SLOTS = wp.constant(EDGE_SLOTS)
+_MAX_TRIS = wp.constant(int(T.MAX_TRIS))
+
+TABLE_ARRAYS = {
+    "corners": np.ascontiguousarray(T.CORNERS, dtype=np.int32),
+    "edge_origin": np.ascontiguousarray(T.EDGE_ORIGIN, dtype=np.int32),
+    "tri_count": np.ascontiguousarray(T.TRI_COUNT, dtype=np.int32),
+    "tri_table": np.ascontiguousarray(T.TRI_TABLE.reshape(256, -1), dtype=np.int32),
+}
+
+
+@wp.func
+def local_index(i: int, j: int, k: int):
+    return i + _SIDE * (j + _SIDE * k)
+
+
+@wp.func
+def block_coords(b: int, nb: wp.vec3i):
+    return wp.vec3i(b % nb[0], (b / nb[0]) % nb[1], b / (nb[0] * nb[1]))
+
+
+@wp.kernel
+def block_boxes_kernel(
+    nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
+    box_lo: wp.array(dtype=wp.vec3), box_hi: wp.array(dtype=wp.vec3),
+):
+    """One thread: the axis-aligned box spanned by the nodes of one block."""
+    b = wp.tid()
+    c = block_coords(b, nb)
+    lo = wp.vec3(0.0)
+    hi = wp.vec3(0.0)
+    for a in range(3):
+        g0 = c[a] * _BLOCK
+        g1 = wp.min(g0 + _BLOCK, n[a] - 1)
+        lo[a] = origin[a] + float(g0) * h[a]
+        hi[a] = origin[a] + float(g1) * h[a]
+    box_lo[b] = lo
+    box_hi[b] = hi
+
+
+@wp.kernel
+def cull_blocks_kernel(
+    nb: wp.vec3i, n: wp.vec3i, cap: int, intervals: wp.array(dtype=wp.vec2),
+    active: wp.array(dtype=wp.int32),
+):
+    """One thread: 1 if the block may hold the surface (its interval straddles 0)."""
+    b = wp.tid()
+    lo = intervals[b][0]
+    hi = intervals[b][1]
+    margin = 1.0e-4 * wp.max(wp.abs(lo), wp.abs(hi)) + 1.0e-7  # float32 rounding slack
+    keep = int(1)
+    if hi < -margin:
+        keep = 0  # every node outside
+    elif lo > margin:
+        keep = 0  # every node inside ...
+        if cap != 0:  # ... unless capping at the grid boundary turns its boundary nodes out
+            c = block_coords(b, nb)
+            for a in range(3):
+                if c[a] == 0 or c[a] * _BLOCK + _BLOCK >= n[a] - 1:
+                    keep = 1
+    active[b] = keep
+
+
+@wp.kernel
+def compact_blocks_kernel(
+    active: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32),
+    slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
+):
+    """One thread per block: its slot (or -1), and the slot -> block list."""
+    b = wp.tid()
+    if active[b] != 0:
+        s = offsets[b]
+        slot_block[s] = b
+        block_slot[b] = s
+    else:
+        block_slot[b] = -1
+
+
+@wp.kernel
+def block_points_kernel(
+    slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
+    points: wp.array(dtype=wp.vec3),
+):
+    """One thread per (slot, node): the node's coordinates (clamped into the grid)."""
+    s, l = wp.tid()
+    c = block_coords(slot_block[s], nb)
+    li = wp.vec3i(l % _SIDE, (l / _SIDE) % _SIDE, l / (_SIDE * _SIDE))
+    p = wp.vec3(0.0)
+    for a in range(3):
+        g = wp.min(c[a] * _BLOCK + li[a], n[a] - 1)
+        p[a] = origin[a] + float(g) * h[a]
+    points[s * _NODES + l] = p
+
+
+@wp.kernel
+def gather_volume_kernel(
+    slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32),
+    level: float, sign: float, values: wp.array(dtype=wp.float32),
+):
+    """One thread per (slot, node): sign * (volume - level) at the node (clamped)."""
+    s, l = wp.tid()
+    c = block_coords(slot_block[s], nb)
+    i = wp.min(c[0] * _BLOCK + l % _SIDE, volume.shape[0] - 1)
+    j = wp.min(c[1] * _BLOCK + (l / _SIDE) % _SIDE, volume.shape[1] - 1)
+    k = wp.min(c[2] * _BLOCK + l / (_SIDE * _SIDE), volume.shape[2] - 1)
+    values[s * _NODES + l] = sign * (volume[i, j, k] - level)
+
+
+@wp.kernel
+def volume_block_range_kernel(
+    nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32), level: float, sign: float,
+    intervals: wp.array(dtype=wp.vec2),
+):
+    """One thread per block: exact (min, max) of sign * (volume - level) over its nodes."""
+    b = wp.tid()
+    c = block_coords(b, nb)
+    lo = float(3.0e38)
+    hi = float(-3.0e38)
+    for k in range(c[2] * _BLOCK, wp.min(c[2] * _BLOCK + _SIDE, volume.shape[2])):
+        for j in range(c[1] * _BLOCK, wp.min(c[1] * _BLOCK + _SIDE, volume.shape[1])):
+            for i in range(c[0] * _BLOCK, wp.min(c[0] * _BLOCK + _SIDE, volume.shape[0])):
+                v = sign * (volume[i, j, k] - level)
+                lo = wp.min(lo, v)
+                hi = wp.max(hi, v)
+    intervals[b] = wp.vec2(lo, hi)
+
+
+@wp.kernel
+def finish_values_kernel(
+    slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, cap: int,
+    values: wp.array(dtype=wp.float32), bad: wp.array(dtype=wp.int32),
+):
+    """One thread per (slot, node): count non-finite values; cap the grid boundary
+    (boundary nodes become outside, so every surface closes on the bounds)."""
+    s, l = wp.tid()
+    c = block_coords(slot_block[s], nb)
+    li = wp.vec3i(l % _SIDE, (l / _SIDE) % _SIDE, l / (_SIDE * _SIDE))
+    on_boundary = int(0)
+    for a in range(3):
+        g = c[a] * _BLOCK + li[a]
+        if g > n[a] - 1:
+            return  # a padding node beyond the grid: never read
+        if g == 0 or g == n[a] - 1:
+            on_boundary = 1
+    i = s * _NODES + l
+    v = values[i]
+    if not wp.isfinite(v):
+        wp.atomic_add(bad, 0, 1)
+    elif cap != 0 and on_boundary != 0:
+        values[i] = wp.min(v, 0.0)
+
+
+@wp.func
+def owned_hi(c: int, nb: int, n: int):
+    """Highest local node index (inclusive) of the nodes a block owns along one axis."""
+    hi = _BLOCK - 1
+    if c == nb - 1:
+        hi = _BLOCK
+    return wp.min(hi, n - 1 - c * _BLOCK)
+
+
+@wp.func
+def cube_index(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int,
+               corners: wp.array2d(dtype=wp.int32)):
+    ci = int(0)
+    for q in range(8):
+        v = values[base + local_index(i + corners[q, 0], j + corners[q, 1], k + corners[q, 2])]
+        if v > 0.0:
+            ci = ci | (1 << q)
+    return ci
+
+
+@wp.kernel
+def count_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
+    values: wp.array(dtype=wp.float32), corners: wp.array2d(dtype=wp.int32),
+    tri_count: wp.array(dtype=wp.int32),
+    vertex_count: wp.array(dtype=wp.int32), triangle_count: wp.array(dtype=wp.int32),
+):
+    """One thread per slot: crossing edges the block owns, and triangles of its cells."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    base = s * _NODES
+    nv = int(0)
+    hx = owned_hi(c[0], nb[0], n[0])
+    hy = owned_hi(c[1], nb[1], n[1])
+    hz = owned_hi(c[2], nb[2], n[2])
+    for k in range(hz + 1):
+        for j in range(hy + 1):
+            for i in range(hx + 1):
+                inside = values[base + local_index(i, j, k)] > 0.0
+                if c[0] * _BLOCK + i < n[0] - 1:
+                    if (values[base + local_index(i + 1, j, k)] > 0.0) != inside:
+                        nv += 1
+                if c[1] * _BLOCK + j < n[1] - 1:
+                    if (values[base + local_index(i, j + 1, k)] > 0.0) != inside:
+                        nv += 1
+                if c[2] * _BLOCK + k < n[2] - 1:
+                    if (values[base + local_index(i, j, k + 1)] > 0.0) != inside:
+                        nv += 1
+    nt = int(0)
+    cx = wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK)
+    cy = wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK)
+    cz = wp.min(_BLOCK, n[2] - 1 - c[2] * _BLOCK)
+    for k in range(cz):
+        for j in range(cy):
+            for i in range(cx):
+                nt += tri_count[cube_index(values, base, i, j, k, corners)]
+    vertex_count[s] = nv
+    triangle_count[s] = nt
+
+
+@wp.func
+def edge_vertex(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int,
+                a: int, origin: wp.vec3, h: wp.vec3, g: wp.vec3i, t_min: float):
+    """(position, t, inside end, outside end) of the crossing on edge (i,j,k)+axis a."""
+    e = wp.vec3i(0, 0, 0)
+    e[a] = 1
+    v0 = values[base + local_index(i, j, k)]
+    v1 = values[base + local_index(i + e[0], j + e[1], k + e[2])]
+    t = wp.clamp(v0 / (v0 - v1), t_min, 1.0 - t_min)
+    p0 = wp.vec3(origin[0] + float(g[0]) * h[0], origin[1] + float(g[1]) * h[1],
+                 origin[2] + float(g[2]) * h[2])
+    p1 = p0
+    p1[a] = p1[a] + h[a]
+    return p0 + t * (p1 - p0), t, p0, p1
+
+
+@wp.kernel
+def vertices_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
+    origin: wp.vec3, h: wp.vec3, t_min: float,
+    values: wp.array(dtype=wp.float32), vertex_offset: wp.array(dtype=wp.int32),
+    edge_vertex_id: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3),
+    edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
+    edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32),
+):
+    """One thread per slot: place the vertex of every crossing edge the block owns by
+    linear interpolation (eq. 16.12), t clamped to [t_min, 1 - t_min]; remember the
+    edge so a root finder can refine it. Flags: bit 0 = first end inside, bit 1 = an
+    end has the value 0 exactly (on the surface, or capped: keep the clamped t)."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    base = s * _NODES
+    vid = vertex_offset[s]
+    hx = owned_hi(c[0], nb[0], n[0])
+    hy = owned_hi(c[1], nb[1], n[1])
+    hz = owned_hi(c[2], nb[2], n[2])
+    for k in range(hz + 1):
+        for j in range(hy + 1):
+            for i in range(hx + 1):
+                l = local_index(i, j, k)
+                v0 = values[base + l]
+                inside = v0 > 0.0
+                g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
+                for a in range(3):
+                    if g[a] < n[a] - 1:
+                        e = wp.vec3i(0, 0, 0)
+                        e[a] = 1
+                        v1 = values[base + local_index(i + e[0], j + e[1], k + e[2])]
+                        if (v1 > 0.0) != inside:
+                            p, t, p0, p1 = edge_vertex(values, base, i, j, k, a, origin, h, g, t_min)
+                            points[vid] = p
+                            edge_t[vid] = t
+                            edge_p0[vid] = p0
+                            edge_p1[vid] = p1
+                            flags = int(0)
+                            if inside:
+                                flags = 1
+                            if v0 == 0.0 or v1 == 0.0:
+                                flags = flags | 2
+                            edge_flags[vid] = flags
+                            edge_vertex_id[s * _EDGE_SLOTS + l * 3 + a] = vid
+                            vid += 1
+
+
+@wp.kernel
+def triangles_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
+    nb: wp.vec3i, n: wp.vec3i, values: wp.array(dtype=wp.float32),
+    corners: wp.array2d(dtype=wp.int32), edge_origin: wp.array2d(dtype=wp.int32),
+    tri_count: wp.array(dtype=wp.int32), tri_table: wp.array2d(dtype=wp.int32),
+    triangle_offset: wp.array(dtype=wp.int32), edge_vertex_id: wp.array(dtype=wp.int32),
+    triangles: wp.array(dtype=wp.vec3i),
+):
+    """One thread per slot: the table's triangles of every cell of the block, with vertex
+    ids looked up at the owner block of each edge."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    base = s * _NODES
+    out = triangle_offset[s]
+    cx = wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK)
+    cy = wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK)
+    cz = wp.min(_BLOCK, n[2] - 1 - c[2] * _BLOCK)
+    for k in range(cz):
+        for j in range(cy):
+            for i in range(cx):
+                ci = cube_index(values, base, i, j, k, corners)
+                for q in range(tri_count[ci]):
+                    tri = wp.vec3i(0, 0, 0)
+                    for m in range(3):
+                        e = tri_table[ci, q * 3 + m]
+                        g = wp.vec3i(c[0] * _BLOCK + i + edge_origin[e, 0],
+                                     c[1] * _BLOCK + j + edge_origin[e, 1],
+                                     c[2] * _BLOCK + k + edge_origin[e, 2])
+                        ob = wp.vec3i(0, 0, 0)
+                        lo = wp.vec3i(0, 0, 0)
+                        for a in range(3):
+                            ob[a] = wp.min(g[a] / _BLOCK, nb[a] - 1)
+                            lo[a] = g[a] - ob[a] * _BLOCK
+                        os = block_slot[ob[0] + nb[0] * (ob[1] + nb[1] * ob[2])]
+                        tri[m] = edge_vertex_id[os * _EDGE_SLOTS + local_index(lo[0], lo[1], lo[2]) * 3
+                                                + edge_origin[e, 3]]
+                    triangles[out] = tri
+                    out += 1
+
+
+# -- root refinement along crossing edges (seed §16.3.3) ------------------------------------
+@wp.kernel
+def edge_points_kernel(
+    t: wp.array(dtype=wp.float32), p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
+    points: wp.array(dtype=wp.vec3),
+):
+    """One thread per vertex: p0 + t (p1 - p0)."""
+    v = wp.tid()
+    points[v] = p0[v] + t[v] * (p1[v] - p0[v])
+
+
+@wp.kernel
+def bracket_init_kernel(
+    flags: wp.array(dtype=wp.int32), midpoint: int, t_lo: wp.array(dtype=wp.float32),
+    t_hi: wp.array(dtype=wp.float32), t: wp.array(dtype=wp.float32),
+):
+    """One thread per vertex: the bracket [0, 1] of the edge parameter; start at its
+    midpoint (bisection) or keep the linear estimate (Newton)."""
+    v = wp.tid()
+    t_lo[v] = 0.0
+    t_hi[v] = 1.0
+    if midpoint != 0 and (flags[v] & 2) == 0:
+        t[v] = 0.5
+
+
+@wp.kernel
+def bisection_step_kernel(
+    flags: wp.array(dtype=wp.int32), f_mid: wp.array(dtype=wp.float32),
+    t_lo: wp.array(dtype=wp.float32), t_hi: wp.array(dtype=wp.float32), t: wp.array(dtype=wp.float32),
+):
+    """One thread per vertex: keep the half of the bracket where f changes sign. The end
+    at t_lo is the p0 end; 'inside' is f > 0, as in the classification, so a sub-segment
+    where f vanishes is kept on the side of the outside end (seed Fig. 16.9)."""
+    v = wp.tid()
+    if (flags[v] & 2) != 0:
+        return
+    p0_inside = (flags[v] & 1) != 0
+    if (f_mid[v] > 0.0) == p0_inside:
+        t_lo[v] = t[v]
+    else:
+        t_hi[v] = t[v]
+    t[v] = 0.5 * (t_lo[v] + t_hi[v])
+
+
+@wp.kernel
+def newton_step_kernel(
+    flags: wp.array(dtype=wp.int32), fg: wp.array(dtype=wp.vec4), p0: wp.array(dtype=wp.vec3),
+    p1: wp.array(dtype=wp.vec3), t_lo: wp.array(dtype=wp.float32), t_hi: wp.array(dtype=wp.float32),
+    t: wp.array(dtype=wp.float32),
+):
+    """One thread per vertex: a Newton step on g(t) = f(p0 + t (p1 - p0)) kept inside the
+    sign-change bracket (a bisection step where Newton would leave it)."""
+    v = wp.tid()
+    if (flags[v] & 2) != 0:
+        return
+    p0_inside = (flags[v] & 1) != 0
+    f = fg[v][0]
+    if (f > 0.0) == p0_inside:
+        t_lo[v] = t[v]
+    else:
+        t_hi[v] = t[v]
+    slope = wp.dot(wp.vec3(fg[v][1], fg[v][2], fg[v][3]), p1[v] - p0[v])
+    tn = t_lo[v] - 1.0  # invalid unless the step below succeeds
+    if slope != 0.0:
+        tn = t[v] - f / slope
+    if tn > t_lo[v] and tn < t_hi[v]:
+        t[v] = tn
+    else:
+        t[v] = 0.5 * (t_lo[v] + t_hi[v])
+
+
+@wp.kernel
+def clamp_t_kernel(t: wp.array(dtype=wp.float32), t_min: float):
+    v = wp.tid()
+    t[v] = wp.clamp(t[v], t_min, 1.0 - t_min)

@@ -1,0 +1,517 @@
+"""The tape interpreter family: values, values with gradients (forward mode), intervals.
+
+One thread evaluates the whole tape over a batch of ``batch`` points, one instruction at
+a time over the batch (column-wise evaluation, as libfive does): the dispatch on the
+opcode is paid once per instruction and batch, not per point, and the inner loops are
+plain array arithmetic. Registers live in a flat scratch array laid out
+``[thread][register][point]``.
+
+Opcodes are defined in :mod:`warpmesh.kernels.opcodes`; the numpy semantics of each are
+in :mod:`warpmesh.expr` (the test oracle).
+"""
+
+import warp as wp
+
+from warpmesh.kernels import opcodes as O
+
+OP_X = wp.constant(O.X)
+OP_Y = wp.constant(O.Y)
+OP_Z = wp.constant(O.Z)
+OP_CONST = wp.constant(O.CONST)
+OP_ADD = wp.constant(O.ADD)
+OP_SUB = wp.constant(O.SUB)
+OP_MUL = wp.constant(O.MUL)
+OP_DIV = wp.constant(O.DIV)
+OP_MIN = wp.constant(O.MIN)
+OP_MAX = wp.constant(O.MAX)
+OP_ADDC = wp.constant(O.ADDC)
+OP_MULC = wp.constant(O.MULC)
+OP_RSUBC = wp.constant(O.RSUBC)
+OP_RDIVC = wp.constant(O.RDIVC)
+OP_MINC = wp.constant(O.MINC)
+OP_MAXC = wp.constant(O.MAXC)
+OP_NEG = wp.constant(O.NEG)
+OP_ABS = wp.constant(O.ABS)
+OP_SQUARE = wp.constant(O.SQUARE)
+OP_SQRT = wp.constant(O.SQRT)
+OP_SIN = wp.constant(O.SIN)
+OP_COS = wp.constant(O.COS)
+OP_EXP = wp.constant(O.EXP)
+OP_LOG = wp.constant(O.LOG)
+OP_POWI = wp.constant(O.POWI)
+OP_POWF = wp.constant(O.POWF)
+OP_RUNION = wp.constant(O.RUNION)
+OP_RINTER = wp.constant(O.RINTER)
+
+BIG = wp.constant(1.0e30)  # interval bounds are clamped to [-BIG, BIG]
+TWO_PI = wp.constant(6.283185307179586)
+HALF_PI = wp.constant(1.5707963267948966)
+
+
+# -- scalar semantics ----------------------------------------------------------------------
+@wp.func
+def powi(a: float, n: int):
+    m = n
+    if m < 0:
+        m = -m
+    r = float(1.0)
+    base = a
+    while m > 0:
+        if m % 2 == 1:
+            r = r * base
+        base = base * base
+        m = m // 2
+    if n < 0:
+        r = 1.0 / r
+    return r
+
+
+@wp.func
+def apply_value(op: int, a: float, b: float, c: float):
+    """The value of one instruction (used for the less common opcodes)."""
+    r = float(0.0)
+    if op == OP_DIV:
+        r = a / b
+    elif op == OP_RSUBC:
+        r = c - a
+    elif op == OP_RDIVC:
+        r = c / a
+    elif op == OP_SIN:
+        r = wp.sin(a)
+    elif op == OP_COS:
+        r = wp.cos(a)
+    elif op == OP_EXP:
+        r = wp.exp(a)
+    elif op == OP_LOG:
+        r = wp.log(a)
+    elif op == OP_POWI:
+        r = powi(a, int(c))
+    elif op == OP_POWF:
+        r = wp.pow(wp.abs(a), c)
+    return r
+
+
+@wp.kernel
+def eval_tape_kernel(
+    code: wp.array2d(dtype=wp.int32),
+    imm: wp.array(dtype=wp.float32),
+    n_regs: int,
+    out_reg: int,
+    points: wp.array(dtype=wp.vec3),
+    start: int,
+    stop: int,
+    batch: int,
+    scratch: wp.array(dtype=wp.float32),
+    out: wp.array(dtype=wp.float32),
+):
+    """One thread: the whole tape over points [start + tid*batch, ... + batch) ∩ [.., stop)."""
+    t = wp.tid()
+    p0 = start + t * batch
+    cnt = wp.min(batch, stop - p0)
+    if cnt <= 0:
+        return
+    base = t * n_regs * batch
+    for i in range(code.shape[0]):
+        op = code[i, 0]
+        d = base + code[i, 1] * batch
+        a = base + code[i, 2] * batch
+        b = base + code[i, 3] * batch
+        c = imm[i]
+        if op == OP_X:
+            for p in range(cnt):
+                scratch[d + p] = points[p0 + p][0]
+        elif op == OP_Y:
+            for p in range(cnt):
+                scratch[d + p] = points[p0 + p][1]
+        elif op == OP_Z:
+            for p in range(cnt):
+                scratch[d + p] = points[p0 + p][2]
+        elif op == OP_CONST:
+            for p in range(cnt):
+                scratch[d + p] = c
+        elif op == OP_ADD:
+            for p in range(cnt):
+                scratch[d + p] = scratch[a + p] + scratch[b + p]
+        elif op == OP_SUB:
+            for p in range(cnt):
+                scratch[d + p] = scratch[a + p] - scratch[b + p]
+        elif op == OP_MUL:
+            for p in range(cnt):
+                scratch[d + p] = scratch[a + p] * scratch[b + p]
+        elif op == OP_MIN:
+            for p in range(cnt):
+                scratch[d + p] = wp.min(scratch[a + p], scratch[b + p])
+        elif op == OP_MAX:
+            for p in range(cnt):
+                scratch[d + p] = wp.max(scratch[a + p], scratch[b + p])
+        elif op == OP_ADDC:
+            for p in range(cnt):
+                scratch[d + p] = scratch[a + p] + c
+        elif op == OP_MULC:
+            for p in range(cnt):
+                scratch[d + p] = scratch[a + p] * c
+        elif op == OP_MINC:
+            for p in range(cnt):
+                scratch[d + p] = wp.min(scratch[a + p], c)
+        elif op == OP_MAXC:
+            for p in range(cnt):
+                scratch[d + p] = wp.max(scratch[a + p], c)
+        elif op == OP_NEG:
+            for p in range(cnt):
+                scratch[d + p] = -scratch[a + p]
+        elif op == OP_ABS:
+            for p in range(cnt):
+                scratch[d + p] = wp.abs(scratch[a + p])
+        elif op == OP_SQUARE:
+            for p in range(cnt):
+                v = scratch[a + p]
+                scratch[d + p] = v * v
+        elif op == OP_SQRT:
+            for p in range(cnt):
+                scratch[d + p] = wp.sqrt(wp.max(scratch[a + p], 0.0))
+        elif op == OP_RUNION:
+            for p in range(cnt):
+                u = scratch[a + p]
+                v = scratch[b + p]
+                scratch[d + p] = u + v + wp.sqrt(u * u + v * v)
+        elif op == OP_RINTER:
+            for p in range(cnt):
+                u = scratch[a + p]
+                v = scratch[b + p]
+                scratch[d + p] = u + v - wp.sqrt(u * u + v * v)
+        else:
+            for p in range(cnt):
+                bv = float(0.0)
+                if code[i, 3] >= 0:
+                    bv = scratch[b + p]
+                scratch[d + p] = apply_value(op, scratch[a + p], bv, c)
+    o = base + out_reg * batch
+    for p in range(cnt):
+        out[p0 + p] = scratch[o + p]
+
+
+# -- forward mode: (value, d/dx, d/dy, d/dz) -------------------------------------------------
+@wp.func
+def chain(a: wp.vec4, value: float, slope: float):
+    return wp.vec4(value, slope * a[1], slope * a[2], slope * a[3])
+
+
+@wp.func
+def apply_dual(op: int, a: wp.vec4, b: wp.vec4, c: float):
+    """Value and gradient of one instruction from its operands' values and gradients."""
+    r = wp.vec4(0.0)
+    if op == OP_CONST:
+        r = wp.vec4(c, 0.0, 0.0, 0.0)
+    elif op == OP_ADD:
+        r = a + b
+    elif op == OP_SUB:
+        r = a - b
+    elif op == OP_MUL:
+        r = wp.vec4(a[0] * b[0], a[1] * b[0] + a[0] * b[1], a[2] * b[0] + a[0] * b[2],
+                    a[3] * b[0] + a[0] * b[3])
+    elif op == OP_DIV:
+        q = a[0] / b[0]
+        r = (a - q * b) / b[0]
+        r[0] = q
+    elif op == OP_MIN:
+        r = a
+        if b[0] < a[0]:
+            r = b
+    elif op == OP_MAX:
+        r = a
+        if b[0] > a[0]:
+            r = b
+    elif op == OP_ADDC:
+        r = a
+        r[0] = a[0] + c
+    elif op == OP_MULC:
+        r = a * c
+    elif op == OP_RSUBC:
+        r = -a
+        r[0] = c - a[0]
+    elif op == OP_RDIVC:
+        r = chain(a, c / a[0], -c / (a[0] * a[0]))
+    elif op == OP_MINC:
+        r = a
+        if c < a[0]:
+            r = wp.vec4(c, 0.0, 0.0, 0.0)
+    elif op == OP_MAXC:
+        r = a
+        if c > a[0]:
+            r = wp.vec4(c, 0.0, 0.0, 0.0)
+    elif op == OP_NEG:
+        r = -a
+    elif op == OP_ABS:
+        r = a
+        if a[0] < 0.0:
+            r = -a
+    elif op == OP_SQUARE:
+        r = chain(a, a[0] * a[0], 2.0 * a[0])
+    elif op == OP_SQRT:
+        s = wp.sqrt(wp.max(a[0], 0.0))
+        slope = float(0.0)
+        if s > 0.0:
+            slope = 0.5 / s
+        r = chain(a, s, slope)
+    elif op == OP_SIN:
+        r = chain(a, wp.sin(a[0]), wp.cos(a[0]))
+    elif op == OP_COS:
+        r = chain(a, wp.cos(a[0]), -wp.sin(a[0]))
+    elif op == OP_EXP:
+        e = wp.exp(a[0])
+        r = chain(a, e, e)
+    elif op == OP_LOG:
+        r = chain(a, wp.log(a[0]), 1.0 / a[0])
+    elif op == OP_POWI:
+        n = int(c)
+        r = chain(a, powi(a[0], n), float(n) * powi(a[0], n - 1))
+    elif op == OP_POWF:
+        m = wp.abs(a[0])
+        slope = float(0.0)
+        if m > 0.0:
+            slope = c * wp.pow(m, c - 1.0) * wp.sign(a[0])
+        r = chain(a, wp.pow(m, c), slope)
+    elif op == OP_RUNION or op == OP_RINTER:
+        s = float(1.0)
+        if op == OP_RINTER:
+            s = -1.0
+        h = wp.sqrt(a[0] * a[0] + b[0] * b[0])
+        da = float(1.0)
+        db = float(1.0)
+        if h > 0.0:
+            da = 1.0 + s * a[0] / h
+            db = 1.0 + s * b[0] / h
+        r = da * a + db * b
+        r[0] = a[0] + b[0] + s * h
+    return r
+
+
+@wp.kernel
+def eval_tape_dual_kernel(
+    code: wp.array2d(dtype=wp.int32),
+    imm: wp.array(dtype=wp.float32),
+    n_regs: int,
+    out_reg: int,
+    points: wp.array(dtype=wp.vec3),
+    start: int,
+    stop: int,
+    batch: int,
+    scratch: wp.array(dtype=wp.vec4),
+    out: wp.array(dtype=wp.vec4),
+):
+    """One thread: value and exact gradient over a batch of points (as eval_tape_kernel)."""
+    t = wp.tid()
+    p0 = start + t * batch
+    cnt = wp.min(batch, stop - p0)
+    if cnt <= 0:
+        return
+    base = t * n_regs * batch
+    for i in range(code.shape[0]):
+        op = code[i, 0]
+        d = base + code[i, 1] * batch
+        a = base + wp.max(code[i, 2], 0) * batch
+        b = base + wp.max(code[i, 3], 0) * batch
+        c = imm[i]
+        if op == OP_X or op == OP_Y or op == OP_Z:
+            for p in range(cnt):
+                r = wp.vec4(points[p0 + p][op], 0.0, 0.0, 0.0)
+                r[op + 1] = 1.0
+                scratch[d + p] = r
+        else:
+            for p in range(cnt):
+                scratch[d + p] = apply_dual(op, scratch[a + p], scratch[b + p], c)
+    o = base + out_reg * batch
+    for p in range(cnt):
+        out[p0 + p] = scratch[o + p]
+
+
+# -- interval arithmetic: (lo, hi) --------------------------------------------------------------
+@wp.func
+def iv(lo: float, hi: float):
+    """An interval, clamped to [-BIG, BIG]; NaN bounds widen to the whole range."""
+    l = lo
+    h = hi
+    if not (l >= -BIG):
+        l = -BIG
+    if not (h <= BIG):
+        h = BIG
+    if l > BIG:
+        l = BIG
+    if h < -BIG:
+        h = -BIG
+    return wp.vec2(l, h)
+
+
+@wp.func
+def iv_mul(a: wp.vec2, b: wp.vec2):
+    p = a[0] * b[0]
+    q = a[0] * b[1]
+    r = a[1] * b[0]
+    s = a[1] * b[1]
+    return iv(wp.min(wp.min(p, q), wp.min(r, s)), wp.max(wp.max(p, q), wp.max(r, s)))
+
+
+@wp.func
+def iv_recip(b: wp.vec2):
+    if b[0] <= 0.0 and b[1] >= 0.0:
+        return wp.vec2(-BIG, BIG)
+    return iv(1.0 / b[1], 1.0 / b[0])
+
+
+@wp.func
+def iv_even_pow(a: wp.vec2, n: int):
+    """a^n for even n >= 2 (also |a|^c when called with the magnitudes)."""
+    lo = powi(a[0], n)
+    hi = powi(a[1], n)
+    if a[0] <= 0.0 and a[1] >= 0.0:
+        return iv(0.0, wp.max(lo, hi))
+    return iv(wp.min(lo, hi), wp.max(lo, hi))
+
+
+@wp.func
+def iv_abs(a: wp.vec2):
+    if a[0] >= 0.0:
+        return a
+    if a[1] <= 0.0:
+        return wp.vec2(-a[1], -a[0])
+    return wp.vec2(0.0, wp.max(-a[0], a[1]))
+
+
+@wp.func
+def iv_cos(a: wp.vec2):
+    """Range of cos over [lo, hi]: the end values, widened at multiples of pi inside."""
+    if a[1] - a[0] >= TWO_PI:
+        return wp.vec2(-1.0, 1.0)
+    lo = wp.min(wp.cos(a[0]), wp.cos(a[1]))
+    hi = wp.max(wp.cos(a[0]), wp.cos(a[1]))
+    k = wp.ceil(a[0] / TWO_PI)  # a maximum (cos = 1) at 2 k pi
+    if k * TWO_PI <= a[1]:
+        hi = 1.0
+    k = wp.ceil((a[0] - 3.141592653589793) / TWO_PI)  # a minimum at (2k + 1) pi
+    if k * TWO_PI + 3.141592653589793 <= a[1]:
+        lo = -1.0
+    return wp.vec2(lo, hi)
+
+
+@wp.func
+def iv_runion(a: wp.vec2, b: wp.vec2, s: float):
+    # a + b + s*sqrt(a^2 + b^2) is nondecreasing in a and b for s = +1 and s = -1
+    lo = a[0] + b[0] + s * wp.sqrt(a[0] * a[0] + b[0] * b[0])
+    hi = a[1] + b[1] + s * wp.sqrt(a[1] * a[1] + b[1] * b[1])
+    return iv(lo, hi)
+
+
+@wp.func
+def apply_interval(op: int, a: wp.vec2, b: wp.vec2, c: float):
+    """An interval enclosing the instruction's value for operands in a and b."""
+    r = wp.vec2(0.0)
+    if op == OP_CONST:
+        r = wp.vec2(c, c)
+    elif op == OP_ADD:
+        r = iv(a[0] + b[0], a[1] + b[1])
+    elif op == OP_SUB:
+        r = iv(a[0] - b[1], a[1] - b[0])
+    elif op == OP_MUL:
+        r = iv_mul(a, b)
+    elif op == OP_DIV:
+        r = iv_mul(a, iv_recip(b))
+    elif op == OP_MIN:
+        r = wp.vec2(wp.min(a[0], b[0]), wp.min(a[1], b[1]))
+    elif op == OP_MAX:
+        r = wp.vec2(wp.max(a[0], b[0]), wp.max(a[1], b[1]))
+    elif op == OP_ADDC:
+        r = iv(a[0] + c, a[1] + c)
+    elif op == OP_MULC:
+        r = iv(wp.min(a[0] * c, a[1] * c), wp.max(a[0] * c, a[1] * c))
+    elif op == OP_RSUBC:
+        r = iv(c - a[1], c - a[0])
+    elif op == OP_RDIVC:
+        r = iv_mul(wp.vec2(c, c), iv_recip(a))
+    elif op == OP_MINC:
+        r = wp.vec2(wp.min(a[0], c), wp.min(a[1], c))
+    elif op == OP_MAXC:
+        r = wp.vec2(wp.max(a[0], c), wp.max(a[1], c))
+    elif op == OP_NEG:
+        r = wp.vec2(-a[1], -a[0])
+    elif op == OP_ABS:
+        r = iv_abs(a)
+    elif op == OP_SQUARE:
+        r = iv_even_pow(a, 2)
+    elif op == OP_SQRT:
+        r = wp.vec2(wp.sqrt(wp.max(a[0], 0.0)), wp.sqrt(wp.max(a[1], 0.0)))
+    elif op == OP_SIN:
+        r = iv_cos(wp.vec2(a[0] - HALF_PI, a[1] - HALF_PI))
+    elif op == OP_COS:
+        r = iv_cos(a)
+    elif op == OP_EXP:
+        r = iv(wp.exp(a[0]), wp.exp(a[1]))
+    elif op == OP_LOG:
+        lo = -BIG
+        hi = -BIG
+        if a[0] > 0.0:
+            lo = wp.log(a[0])
+        if a[1] > 0.0:
+            hi = wp.log(a[1])
+        r = iv(lo, hi)
+    elif op == OP_POWI:
+        n = int(c)
+        m = n
+        if m < 0:
+            m = -m
+        if m % 2 == 0:
+            r = iv_even_pow(a, m)
+        else:
+            r = iv(powi(a[0], m), powi(a[1], m))
+        if n < 0:
+            r = iv_recip(r)
+    elif op == OP_POWF:
+        mag = iv_abs(a)
+        if c >= 0.0:
+            r = iv(wp.pow(mag[0], c), wp.pow(mag[1], c))
+        elif mag[0] > 0.0:
+            r = iv(wp.pow(mag[1], c), wp.pow(mag[0], c))
+        else:
+            r = iv(wp.pow(mag[1], c), BIG)
+    elif op == OP_RUNION:
+        r = iv_runion(a, b, 1.0)
+    elif op == OP_RINTER:
+        r = iv_runion(a, b, -1.0)
+    return r
+
+
+@wp.kernel
+def eval_tape_interval_kernel(
+    code: wp.array2d(dtype=wp.int32),
+    imm: wp.array(dtype=wp.float32),
+    n_regs: int,
+    out_reg: int,
+    box_lo: wp.array(dtype=wp.vec3),
+    box_hi: wp.array(dtype=wp.vec3),
+    start: int,
+    stop: int,
+    batch: int,
+    scratch: wp.array(dtype=wp.vec2),
+    out: wp.array(dtype=wp.vec2),
+):
+    """One thread: an interval of f over each of a batch of boxes."""
+    t = wp.tid()
+    p0 = start + t * batch
+    cnt = wp.min(batch, stop - p0)
+    if cnt <= 0:
+        return
+    base = t * n_regs * batch
+    for i in range(code.shape[0]):
+        op = code[i, 0]
+        d = base + code[i, 1] * batch
+        a = base + wp.max(code[i, 2], 0) * batch
+        b = base + wp.max(code[i, 3], 0) * batch
+        c = imm[i]
+        if op == OP_X or op == OP_Y or op == OP_Z:
+            for p in range(cnt):
+                scratch[d + p] = wp.vec2(box_lo[p0 + p][op], box_hi[p0 + p][op])
+        else:
+            for p in range(cnt):
+                scratch[d + p] = apply_interval(op, scratch[a + p], scratch[b + p], c)
+    o = base + out_reg * batch
+    for p in range(cnt):
+        out[p0 + p] = scratch[o + p]

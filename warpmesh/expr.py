@@ -1,0 +1,321 @@
+"""Scalar expressions over the coordinates: the hash-consed DAG under every shape.
+
+An :class:`Expr` is an immutable node ``(op, args, imm)``. Nodes are hash-consed, so
+two structurally equal expressions are the same object and common subexpressions are
+shared for free when the tape is compiled. Arithmetic operators build new nodes and
+fold constants.
+
+Example
+-------
+>>> import warpmesh as wm
+>>> x, y, z = wm.coords()
+>>> f = (x**2 + y**2 - 4) * (x**2 + z**2 - 4) * (y**2 + z**2 - 4) - 4.0078
+>>> round(float(f.eval_numpy(0.0, 0.0, 0.0)), 4)
+-68.0078
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import weakref
+
+import numpy as np
+
+from warpmesh.kernels import opcodes as O
+
+_TABLE: "weakref.WeakValueDictionary[tuple, Expr]" = weakref.WeakValueDictionary()
+
+#: numpy semantics of every opcode (the test oracle); a, b arrays, c the immediate
+_NUMPY = {
+    O.ADD: lambda a, b, c: a + b,
+    O.SUB: lambda a, b, c: a - b,
+    O.MUL: lambda a, b, c: a * b,
+    O.DIV: lambda a, b, c: a / b,
+    O.MIN: lambda a, b, c: np.minimum(a, b),
+    O.MAX: lambda a, b, c: np.maximum(a, b),
+    O.ADDC: lambda a, b, c: a + c,
+    O.MULC: lambda a, b, c: a * c,
+    O.RSUBC: lambda a, b, c: c - a,
+    O.RDIVC: lambda a, b, c: c / a,
+    O.MINC: lambda a, b, c: np.minimum(a, c),
+    O.MAXC: lambda a, b, c: np.maximum(a, c),
+    O.NEG: lambda a, b, c: -a,
+    O.ABS: lambda a, b, c: np.abs(a),
+    O.SQUARE: lambda a, b, c: a * a,
+    O.SQRT: lambda a, b, c: np.sqrt(np.maximum(a, 0.0)),
+    O.SIN: lambda a, b, c: np.sin(a),
+    O.COS: lambda a, b, c: np.cos(a),
+    O.EXP: lambda a, b, c: np.exp(a),
+    O.LOG: lambda a, b, c: np.log(a),
+    O.POWI: lambda a, b, c: a ** int(c) if c >= 0 else 1.0 / a ** int(-c),
+    O.POWF: lambda a, b, c: np.abs(a) ** c,
+    O.RUNION: lambda a, b, c: a + b + np.sqrt(a * a + b * b),
+    O.RINTER: lambda a, b, c: a + b - np.sqrt(a * a + b * b),
+}
+_UNARY = {O.NEG, O.ABS, O.SQUARE, O.SQRT, O.SIN, O.COS, O.EXP, O.LOG, O.POWI, O.POWF,
+          O.ADDC, O.MULC, O.RSUBC, O.RDIVC, O.MINC, O.MAXC}
+_LEAVES = {O.X, O.Y, O.Z, O.CONST}
+
+
+def _node(op: int, args: tuple = (), imm: float = 0.0) -> "Expr":
+    imm = float(imm)
+    if not math.isfinite(imm):
+        raise ValueError(f"expected a finite constant, got {imm!r}")
+    if op in _NUMPY and args and all(a.op == O.CONST for a in args):
+        with np.errstate(all="ignore"):
+            value = float(_NUMPY[op](*(np.float64(a.imm) for a in args), *([None] * (2 - len(args))), imm))
+        if math.isfinite(value):
+            return _node(O.CONST, (), value)
+    key = (op, tuple(id(a) for a in args), imm + 0.0)
+    node = _TABLE.get(key)
+    if node is None:
+        node = Expr.__new__(Expr)
+        node.op, node.args, node.imm = op, args, imm
+        _TABLE[key] = node
+    return node
+
+
+def as_expr(value) -> "Expr":
+    """Convert a number or an :class:`Expr` (or a shape, through its field) to an Expr."""
+    if isinstance(value, Expr):
+        return value
+    field = getattr(value, "field", None)
+    if isinstance(field, Expr):
+        return field
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        return _node(O.CONST, (), float(value))
+    raise TypeError(f"expected a number or an expression, got {type(value).__name__}")
+
+
+class Expr:
+    """A node of the expression DAG (build with :func:`coords` and operators)."""
+
+    __slots__ = ("op", "args", "imm", "__weakref__")
+
+    def __init__(self, *a, **k):  # pragma: no cover - construction goes through _node
+        raise TypeError("build expressions with warpmesh.coords(), numbers and operators")
+
+    # -- arithmetic ---------------------------------------------------------------
+    def __add__(self, other):
+        o = as_expr(other)
+        if o.op == O.CONST:
+            return self if o.imm == 0.0 else _node(O.ADDC, (self,), o.imm)
+        if self.op == O.CONST:
+            return o + self
+        return _node(O.ADD, (self, o))
+
+    __radd__ = __add__
+
+    def __sub__(self, other):
+        o = as_expr(other)
+        if o.op == O.CONST:
+            return self + (-o.imm)
+        if self.op == O.CONST:
+            return _node(O.RSUBC, (o,), self.imm)
+        return _node(O.SUB, (self, o))
+
+    def __rsub__(self, other):
+        return as_expr(other) - self
+
+    def __mul__(self, other):
+        o = as_expr(other)
+        if o.op == O.CONST:
+            if o.imm == 1.0:
+                return self
+            return _node(O.MULC, (self,), o.imm)
+        if self.op == O.CONST:
+            return o * self
+        if o is self:
+            return _node(O.SQUARE, (self,))
+        return _node(O.MUL, (self, o))
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, other):
+        o = as_expr(other)
+        if o.op == O.CONST:
+            if o.imm == 0.0:
+                raise ZeroDivisionError("division of an expression by the constant 0")
+            return self * (1.0 / o.imm)
+        if self.op == O.CONST:
+            return _node(O.RDIVC, (o,), self.imm)
+        return _node(O.DIV, (self, o))
+
+    def __rtruediv__(self, other):
+        return as_expr(other) / self
+
+    def __neg__(self):
+        return _node(O.NEG, (self,))
+
+    def __pos__(self):
+        return self
+
+    def __abs__(self):
+        return _node(O.ABS, (self,))
+
+    def __pow__(self, exponent):
+        if isinstance(exponent, Expr):
+            if exponent.op != O.CONST:
+                raise TypeError("expected a constant exponent, got an expression of the coordinates")
+            exponent = exponent.imm
+        if not isinstance(exponent, numbers.Real) or isinstance(exponent, bool):
+            raise TypeError(f"expected a real exponent, got {type(exponent).__name__}")
+        e = float(exponent)
+        if e.is_integer():
+            if e == 1.0:
+                return self
+            if e == 2.0:
+                return _node(O.SQUARE, (self,))
+            if e == 0.0:
+                return as_expr(1.0)
+            return _node(O.POWI, (self,), e)
+        if e == 0.5:
+            return sqrt(self)
+        return _node(O.POWF, (self,), e)
+
+    # -- evaluation ---------------------------------------------------------------
+    def nodes(self) -> list["Expr"]:
+        """Every node of the DAG once, children before parents (topological order)."""
+        order, seen, stack = [], set(), [(self, False)]
+        while stack:
+            node, expanded = stack.pop()
+            if expanded:
+                order.append(node)
+                continue
+            if id(node) in seen:
+                continue
+            seen.add(id(node))
+            stack.append((node, True))
+            for a in reversed(node.args):
+                if id(a) not in seen:
+                    stack.append((a, False))
+        return order
+
+    def eval_numpy(self, x, y, z=0.0) -> np.ndarray:
+        """Evaluate in float64 with numpy (the test oracle); arguments broadcast.
+
+        Parameters
+        ----------
+        x, y, z : array_like
+            Coordinates; any broadcastable shapes (open grids stay small).
+
+        Returns
+        -------
+        numpy.ndarray
+            f at the broadcast points.
+        """
+        coords = {O.X: np.asarray(x, np.float64), O.Y: np.asarray(y, np.float64),
+                  O.Z: np.asarray(z, np.float64)}
+        values: dict[int, np.ndarray] = {}
+        with np.errstate(all="ignore"):
+            for node in self.nodes():
+                if node.op in coords:
+                    v = coords[node.op]
+                elif node.op == O.CONST:
+                    v = np.float64(node.imm)
+                else:
+                    args = [values[id(a)] for a in node.args] + [None] * (2 - len(node.args))
+                    v = _NUMPY[node.op](args[0], args[1], node.imm)
+                values[id(node)] = v
+        return np.asarray(values[id(self)])
+
+    def __call__(self, x, y, z=0.0):
+        return self.eval_numpy(x, y, z)
+
+    def substitute(self, x: "Expr", y: "Expr", z: "Expr") -> "Expr":
+        """The expression with the coordinates replaced by the expressions x, y, z."""
+        repl = {O.X: as_expr(x), O.Y: as_expr(y), O.Z: as_expr(z)}
+        new: dict[int, Expr] = {}
+        for node in self.nodes():
+            if node.op in repl:
+                r = repl[node.op]
+            elif not node.args:
+                r = node
+            else:
+                r = _node(node.op, tuple(new[id(a)] for a in node.args), node.imm)
+            new[id(node)] = r
+        return new[id(self)]
+
+    def __repr__(self):
+        return f"<Expr {O.NAMES.get(self.op, self.op)} with {len(self.nodes())} nodes>"
+
+    def __bool__(self):
+        raise TypeError("an expression has no truth value; compare values after evaluating it")
+
+
+def coords() -> tuple[Expr, Expr, Expr]:
+    """The coordinate expressions ``x, y, z``.
+
+    Example
+    -------
+    >>> import warpmesh as wm
+    >>> x, y, z = wm.coords()
+    >>> sphere = 1 - wm.sqrt(x**2 + y**2 + z**2)
+    """
+    return _node(O.X), _node(O.Y), _node(O.Z)
+
+
+def sqrt(a) -> Expr:
+    """Square root (of max(a, 0))."""
+    return _node(O.SQRT, (as_expr(a),))
+
+
+def abs(a) -> Expr:  # noqa: A001 - mirrors numpy's name on purpose
+    """Absolute value."""
+    return _node(O.ABS, (as_expr(a),))
+
+
+def _fold2(op: int, opc: int, a, b) -> Expr:
+    ea, eb = as_expr(a), as_expr(b)
+    if ea.op == O.CONST and eb.op != O.CONST:
+        ea, eb = eb, ea
+    if eb.op == O.CONST:
+        return _node(opc, (ea,), eb.imm)
+    return _node(op, (ea, eb))
+
+
+def min(a, b, *more) -> Expr:  # noqa: A001
+    """Pointwise minimum of two or more expressions."""
+    out = _fold2(O.MIN, O.MINC, a, b)
+    for m in more:
+        out = _fold2(O.MIN, O.MINC, out, m)
+    return out
+
+
+def max(a, b, *more) -> Expr:  # noqa: A001
+    """Pointwise maximum of two or more expressions."""
+    out = _fold2(O.MAX, O.MAXC, a, b)
+    for m in more:
+        out = _fold2(O.MAX, O.MAXC, out, m)
+    return out
+
+
+def sin(a) -> Expr:
+    """Sine."""
+    return _node(O.SIN, (as_expr(a),))
+
+
+def cos(a) -> Expr:
+    """Cosine."""
+    return _node(O.COS, (as_expr(a),))
+
+
+def exp(a) -> Expr:
+    """Exponential."""
+    return _node(O.EXP, (as_expr(a),))
+
+
+def log(a) -> Expr:
+    """Natural logarithm (of a positive argument)."""
+    return _node(O.LOG, (as_expr(a),))
+
+
+def runion(a, b) -> Expr:
+    """R-function union ``a + b + sqrt(a² + b²)`` (seed eq. 16.17): > 0 where a > 0 or b > 0."""
+    return _node(O.RUNION, (as_expr(a), as_expr(b)))
+
+
+def rintersection(a, b) -> Expr:
+    """R-function intersection ``a + b - sqrt(a² + b²)``: > 0 where a > 0 and b > 0."""
+    return _node(O.RINTER, (as_expr(a), as_expr(b)))
