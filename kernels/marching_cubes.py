@@ -380,6 +380,10 @@ def bisection_step_kernel(
     if (flags[v] & 2) != 0:
         return
     p0_inside = (flags[v] & 1) != 0
+    if f_mid[v] == 0.0:  # an exact root: the bracket collapses onto it
+        t_lo[v] = t[v]
+        t_hi[v] = t[v]
+        return
     if (f_mid[v] > 0.0) == p0_inside:
         t_lo[v] = t[v]
     else:
@@ -400,6 +404,10 @@ def newton_step_kernel(
         return
     p0_inside = (flags[v] & 1) != 0
     f = fg[v][0]
+    if f == 0.0:  # an exact root: the bracket collapses onto it
+        t_lo[v] = t[v]
+        t_hi[v] = t[v]
+        return
     if (f > 0.0) == p0_inside:
         t_lo[v] = t[v]
     else:

@@ -148,7 +148,8 @@ def mesh_surface(
         Vertex placement on a crossing edge: linear interpolation (eq. 16.12), bisection
         or safeguarded Newton on the exact function (§16.3.3; shapes only).
     root_iterations : int, optional
-        Iterations of bisection (default 12) or Newton (default 6).
+        Iterations of bisection (default 12) or Newton (default 10; at the kinks of CSG
+        edges Newton slows to bisection speed).
     cap : bool
         Treat the grid boundary as outside, so every surface is closed on the bounds.
     cull : bool
@@ -390,7 +391,7 @@ def _refine_roots(tape, verts, edges, root, iterations, timings) -> None:
             wp.launch(K.bisection_step_kernel, dim=nv, inputs=[flags, f_mid], outputs=[t_lo, t_hi, t], device=dev)
     else:
         fg = wp.empty(nv, dtype=wp.vec4, device=dev)
-        for _ in range(iterations or 6):
+        for _ in range(iterations or 10):
             wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1], outputs=[verts], device=dev)
             eval_gradients(tape, verts, fg, device=dev)
             wp.launch(K.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1], outputs=[t_lo, t_hi, t], device=dev)

@@ -1,0 +1,31 @@
+"""warpmesh: meshes from implicit geometry (F-Rep trees, sampled volumes) with Warp kernels.
+
+Example
+-------
+>>> import warpmesh as wm
+>>> part, bounds = wm.example("part")
+>>> mesh = wm.mesh_surface(part, bounds=bounds, resolution=48)
+>>> mesh.stats()["euler"]
+-6
+"""
+
+from warpmesh.errors import ReadError, TopologyError, WarpMeshError
+from warpmesh.expr import Expr, abs, coords, cos, exp, log, max, min, sin, sqrt  # noqa: A004
+from warpmesh.mesh import Mesh, load
+from warpmesh.shapes import (EXAMPLES, Shape, box, capsule, complement, cone, cylinder, difference,
+                             ellipsoid, example, halfspace, intersection, sphere, superquadric,
+                             supertorus, torus, union)
+from warpmesh.surface import mesh_surface
+from warpmesh.tape import Tape, compile_tape, evaluate, evaluate_interval
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Mesh", "load", "mesh_surface",
+    "Shape", "Expr", "coords", "sqrt", "abs", "min", "max", "sin", "cos", "exp", "log",
+    "sphere", "box", "cylinder", "cone", "torus", "ellipsoid", "halfspace", "capsule",
+    "superquadric", "supertorus", "union", "intersection", "difference", "complement",
+    "example", "EXAMPLES",
+    "Tape", "compile_tape", "evaluate", "evaluate_interval",
+    "WarpMeshError", "ReadError", "TopologyError",
+]
