@@ -25,6 +25,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh import _conventions as C
+from warpmesh.errors import WarpMeshError
 from warpmesh.expr import Expr
 from warpmesh.kernels import marching_cubes as K
 from warpmesh.mesh import Mesh
@@ -270,6 +271,10 @@ class _Grid:
         wp.utils.array_scan(active, offsets, inclusive=False)
         flags = active.numpy()  # sync point: the number of surviving blocks
         self.n_slots = int(flags.sum())
+        if self.n_slots * K.EDGE_SLOTS >= 2**31:
+            raise WarpMeshError(
+                f"{self.n_slots} blocks of {K.BLOCK}^3 cells hold the surface, more than one pass "
+                "can index (int32); lower 'resolution' or mesh the domain in parts")
         self.slot_block = wp.empty(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
         self.block_slot = wp.empty(self.n_blocks, dtype=wp.int32, device=self.device)
         self._launch(K.compact_blocks_kernel, self.n_blocks, [active, offsets],
