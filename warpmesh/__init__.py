@@ -9,6 +9,11 @@ Example
 -6
 """
 
+import warp as _wp
+
+if _wp.config.log_level < _wp.LOG_WARNING:  # Warp's banner and module-load lines would drown the results
+    _wp.config.log_level = _wp.LOG_WARNING
+
 from warpmesh.errors import ReadError, TopologyError, WarpMeshError
 from warpmesh.expr import Expr, abs, coords, cos, exp, log, max, min, sin, sqrt  # noqa: A004
 from warpmesh.mesh import Mesh, load

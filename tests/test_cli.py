@@ -1,0 +1,50 @@
+"""The ``warpmesh`` command line."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from warpmesh.cli import main
+
+
+def test_mesh_example_writes_a_file_and_prints_stats(tmp_path, capsys):
+    out = tmp_path / "part.ply"
+    assert main(["mesh", "--example", "part", "--resolution", "40", "-o", str(out), "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats["euler"] == -6 and stats["watertight"] is True
+    assert stats["written"] == str(out)
+    loaded = wm.load(out)
+    assert loaded.stats()["euler"] == -6
+    assert main(["info", str(out)]) == 0
+    assert "euler" in capsys.readouterr().out
+
+
+def test_mesh_volume_file(tmp_path, capsys):
+    g = np.linspace(-1, 1, 24)
+    vol = 0.7 - np.sqrt(g[:, None, None] ** 2 + g[None, :, None] ** 2 + g[None, None, :] ** 2)
+    path = tmp_path / "ball.npy"
+    np.save(path, vol)
+    assert main(["mesh", "--volume", str(path), "--spacing", str(g[1] - g[0]), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["euler"] == 2
+
+
+def test_errors_are_reported_not_raised(tmp_path, capsys):
+    bad = tmp_path / "bad.npy"
+    bad.write_text("not an array")
+    assert main(["mesh", "--volume", str(bad)]) == 2
+    assert "--volume" in capsys.readouterr().err
+    assert main(["mesh", "--example", "sphere", "--resolution", "0"]) == 2
+    assert "resolution" in capsys.readouterr().err
+    missing = tmp_path / "missing.ply"
+    assert main(["info", str(missing)]) == 2
+    with pytest.raises(SystemExit):
+        main(["mesh", "--example", "teapot"])
+
+
+def test_console_script_is_installed():
+    done = subprocess.run([sys.executable, "-m", "warpmesh.cli", "--help"], capture_output=True, text=True)
+    assert done.returncode == 0 and "mesh" in done.stdout
