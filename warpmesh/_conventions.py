@@ -26,6 +26,10 @@ REAL_DTYPE = np.float64
 #: so that an equilateral triangle scores exactly 1 (larger is worse).
 ALPHA_TRIANGLE = np.sqrt(3.0) / 6.0
 
+#: normalisation of Q_K for tetrahedra (seed eq. 16.15), ALPHA_TETRA * h_max / rho_K:
+#: the regular tetrahedron scores exactly 1.
+ALPHA_TETRA = np.sqrt(6.0) / 12.0
+
 #: root positions along a crossing edge are clamped to [EDGE_T_MIN, 1 - EDGE_T_MIN] so
 #: that a node lying exactly on the surface never yields coincident vertices or
 #: zero-area triangles ("dilating", seed §16.4.2). Fraction of the edge length.

@@ -15,27 +15,8 @@ Layout
     pyvista and trimesh objects, and as ``"gmsh:physical"`` in gmsh files. Refs that
     are all zero are read back as "no refs" (medit and gmsh always store one).
 
-Files (:meth:`Mesh.save`, :func:`load`), what each format keeps:
-
-======  =======  =============================  ====================================
-ext     format   cells                          besides points (precision) and cells
-======  =======  =============================  ====================================
-.vtu    vtu      all                            everything (float64)
-.vtk    vtk      all                            everything (legacy binary, float64)
-.msh    gmsh     all                            gmsh 2.2 binary: cell refs as
-                                                gmsh:physical (= gmsh:geometrical),
-                                                point refs and point data, cell data
-                                                only with a single block
-.mesh   medit    line tri quad tetra pyramid    point refs, cell refs (Medit ascii,
-                 wedge hexahedron               17 digits); 2D kept 2D
-.ply    ply      triangle quad                  point refs and point data (binary)
-.obj    obj      triangle quad                  nothing else (17 digits)
-.stl    stl      triangle                       nothing else (binary float32;
-                                                points are merged and renumbered)
-======  =======  =============================  ====================================
-
-Every format but Medit stores 3D points; 2D meshes get z = 0 and come back 3D unless
-``load(..., dim=2)``. Whatever a format cannot store is dropped with a ``UserWarning``.
+Conversions live in :mod:`warpmesh.convert` and files in :mod:`warpmesh.io` (with the
+table of what each format keeps); the methods below delegate to them.
 
 Examples
 --------
@@ -50,12 +31,7 @@ Mesh(np=3, dim=2, cells={triangle: 1})
 
 from __future__ import annotations
 
-import errno
-import os
-import uuid
-import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
@@ -64,93 +40,15 @@ from typing import Literal
 import meshio
 import numpy as np
 
+from . import convert as _convert
+from . import io as _io
 from . import topology as _topo
 from ._conventions import INDEX_DTYPE, REAL_DTYPE
-from .errors import ReadError
+from .convert import CELL_TYPES, REF_KEY
+from .io import FILE_FORMATS, FileFormat, load
 from .quality import quality_summary
 
 __all__ = ["Mesh", "load", "CELL_TYPES", "FILE_FORMATS", "REF_KEY"]
-
-#: meshio cell-type name -> (nodes per cell, topological dimension, VTK cell type id)
-CELL_TYPES: Mapping[str, tuple[int, int, int]] = MappingProxyType(
-    {
-        "vertex": (1, 0, 1),
-        "line": (2, 1, 3),
-        "line3": (3, 1, 21),
-        "triangle": (3, 2, 5),
-        "triangle6": (6, 2, 22),
-        "quad": (4, 2, 9),
-        "quad8": (8, 2, 23),
-        "quad9": (9, 2, 28),
-        "tetra": (4, 3, 10),
-        "tetra10": (10, 3, 24),
-        "hexahedron": (8, 3, 12),
-        "hexahedron20": (20, 3, 25),
-        "hexahedron27": (27, 3, 29),
-        "wedge": (6, 3, 13),
-        "wedge15": (15, 3, 26),
-        "pyramid": (5, 3, 14),
-        "pyramid13": (13, 3, 27),
-    }
-)
-_VTK_TO_NAME = {vtk: name for name, (_, _, vtk) in CELL_TYPES.items()}
-#: VTK pixel/voxel -> quad/hexahedron node order. Other types share VTK's order: meshio's
-#: wedge permutation (0 2 1 3 5 4, used by its vtu/vtk files) gives negative cell sizes in
-#: VTK 9.x (pyvista compute_cell_sizes), so pyvista conversions keep wedges as they are.
-_VTK_EXTRA = {8: ("quad", [0, 1, 3, 2]), 11: ("hexahedron", [0, 1, 3, 2, 4, 5, 7, 6])}
-_POLY_TYPES = ("vertex", "line", "triangle", "quad")  # what a pyvista PolyData holds
-
-#: name of the refs arrays in meshio, pyvista and trimesh objects
-REF_KEY = "medit:ref"
-_GMSH_REF, _GMSH_GEO = "gmsh:physical", "gmsh:geometrical"
-
-
-@dataclass(frozen=True)
-class _Format:
-    name: str
-    ext: str
-    meshio_name: str
-    write_kwargs: dict = field(default_factory=dict)
-    cell_types: tuple[str, ...] | None = None  # None: every type
-    keeps_2d: bool = False
-
-
-_FORMATS = (
-    _Format("vtu", ".vtu", "vtu", {"binary": True}),
-    _Format("vtk", ".vtk", "vtk", {"binary": True}),
-    _Format("gmsh", ".msh", "gmsh22", {"binary": True}),
-    _Format(
-        "medit",
-        ".mesh",
-        "medit",
-        {},
-        ("line", "triangle", "quad", "tetra", "pyramid", "wedge", "hexahedron"),
-        True,
-    ),
-    _Format("ply", ".ply", "ply", {"binary": True}, ("triangle", "quad")),
-    _Format("obj", ".obj", "obj", {}, ("triangle", "quad")),
-    _Format("stl", ".stl", "stl", {"binary": True}, ("triangle",)),
-)
-#: file extension -> format name, as chosen by :meth:`Mesh.save` and :func:`load`
-FILE_FORMATS: Mapping[str, str] = MappingProxyType({f.ext: f.name for f in _FORMATS})
-FileFormat = Literal["vtu", "vtk", "gmsh", "medit", "ply", "obj", "stl"]
-
-
-def _find_format(path: Path, file_format: str | None) -> _Format:
-    if file_format is not None:
-        for f in _FORMATS:
-            if f.name == file_format:
-                return f
-        raise ValueError(
-            f"unknown file_format {file_format!r}; expected one of {[f.name for f in _FORMATS]}"
-        )
-    for f in _FORMATS:
-        if path.suffix.lower() == f.ext:
-            return f
-    raise ValueError(
-        f"unknown mesh file extension {path.suffix!r} in {str(path)!r}; expected one of "
-        f"{list(FILE_FORMATS)} or pass file_format= one of {[f.name for f in _FORMATS]}"
-    )
 
 
 # ----------------------------------------------------------------------------- validation
@@ -158,12 +56,6 @@ def _frozen(arr: np.ndarray) -> np.ndarray:
     arr = np.array(arr, copy=True)
     arr.setflags(write=False)
     return arr
-
-
-def _native(value) -> np.ndarray:
-    """``value`` as an array in native byte order (the VTK reader returns big-endian)."""
-    arr = np.asarray(value)
-    return arr.astype(arr.dtype.newbyteorder("=")) if arr.dtype.byteorder not in "=|" else arr
 
 
 def _int_array(value, name: str) -> np.ndarray:
@@ -244,19 +136,6 @@ def _check_data(data, length: int, name: str, *, integer: bool = False) -> np.nd
     if integer and arr.ndim != 1:
         raise ValueError(f"expected {name} of shape ({length},), got shape {arr.shape}")
     return _frozen(arr.astype(INDEX_DTYPE) if integer else arr)
-
-
-def _set_dim(points: np.ndarray, dim) -> np.ndarray:
-    """Drop a zero z column (dim=2) or append one (dim=3); dim=None keeps ``points``."""
-    if dim not in (None, 2, 3):
-        raise ValueError(f"expected dim None, 2 or 3, got {dim!r}")
-    if dim == 2 and points.ndim == 2 and points.shape[1] == 3:
-        if np.any(points[:, 2] != 0):
-            raise ValueError("expected z == 0 everywhere for dim=2, got non-zero z; keep dim=None")
-        return points[:, :2]
-    if dim == 3 and points.ndim == 2 and points.shape[1] == 2:
-        return np.column_stack([points, np.zeros(len(points), dtype=points.dtype)])
-    return points
 
 
 def _check_mapping(value, name: str) -> Mapping:
@@ -499,84 +378,20 @@ class Mesh:
         """
         return {**self._info, **self._stats}
 
-    # ---------------------------------------------------------------- helpers
-    def _points3(self) -> np.ndarray:
-        if self.dim == 3:
-            return np.asarray(self._points)
-        return np.column_stack([self._points, np.zeros(self.n_points, dtype=REAL_DTYPE)])
-
-    def _block_refs(self, t: str) -> np.ndarray:
-        refs = None if self._cell_refs is None else self._cell_refs.get(t)
-        return np.zeros(len(self._cells[t]), dtype=INDEX_DTYPE) if refs is None else refs
-
-    @staticmethod
-    def _from_parts(points, blocks, point_data, cell_data, dim, info) -> Mesh:
-        """Build from blocks that may repeat a type; pull the refs out of the data arrays."""
-        points = _set_dim(np.asarray(points, dtype=REAL_DTYPE), dim)
-        names = list(dict.fromkeys(t for t, _ in blocks))
-        cells = {t: np.concatenate([np.asarray(c) for u, c in blocks if u == t]) for t in names}
-        point_data = {k: _native(v) for k, v in point_data.items()}
-        cell_data = {
-            k: {
-                t: np.concatenate(
-                    [_native(a) for (u, _), a in zip(blocks, v, strict=True) if u == t]
-                )
-                for t in names
-            }
-            for k, v in cell_data.items()
-        }
-        point_refs = point_data.pop(REF_KEY, None)
-        if point_refs is not None and point_refs.dtype.kind == "f":
-            if not np.all(point_refs == np.round(point_refs)):
-                raise ValueError(
-                    f"expected integer point refs {REF_KEY!r}, got non-integral values"
-                )
-            point_refs = point_refs.astype(INDEX_DTYPE)
-        cell_refs = next((cell_data.pop(k) for k in (REF_KEY, _GMSH_REF) if k in cell_data), None)
-        if cell_refs is not None and _GMSH_GEO in cell_data:
-            if all(np.array_equal(cell_data[_GMSH_GEO][t], cell_refs[t]) for t in names):
-                del cell_data[_GMSH_GEO]
-        if point_refs is not None and not np.any(point_refs):
-            point_refs = None
-        if cell_refs is not None and not any(np.any(r) for r in cell_refs.values()):
-            cell_refs = None
-        return Mesh(
-            points,
-            cells,
-            point_data=point_data,
-            cell_data=cell_data,
-            point_refs=point_refs,
-            cell_refs=cell_refs,
-            info=info,
-        )
-
     # ---------------------------------------------------------------- meshio
     def to_meshio(self) -> meshio.Mesh:
-        """Convert to ``meshio.Mesh``; refs go to point/cell data ``"medit:ref"``.
+        """Convert to ``meshio.Mesh``, refs as ``"medit:ref"`` (:func:`warpmesh.convert.to_meshio`).
 
         Examples
         --------
         >>> Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_meshio().cells[0].type
         'triangle'
         """
-        point_data = dict(self._point_data)
-        cell_data = {k: [v[t] for t in self._cells] for k, v in self._cell_data.items()}
-        if self._point_refs is not None:
-            point_data[REF_KEY] = self._point_refs
-        if self._cell_refs is not None:
-            cell_data[REF_KEY] = [self._block_refs(t) for t in self._cells]
-        return meshio.Mesh(
-            self._points, list(self._cells.items()), point_data=point_data, cell_data=cell_data
-        )
+        return _convert.to_meshio(self)
 
     @classmethod
     def from_meshio(cls, m: meshio.Mesh, *, dim: Literal[2, 3] | None = None, info=None) -> Mesh:
-        """Convert from ``meshio.Mesh``.
-
-        Blocks of the same type are concatenated. Refs are read from ``"medit:ref"``
-        (points and cells) or ``"gmsh:physical"`` (cells); ``"gmsh:geometrical"`` is
-        dropped when it equals the refs. ``cell_sets`` and ``field_data`` are ignored.
-        ``dim=2`` drops a zero z column, ``dim=3`` pads 2D points with z = 0.
+        """Convert from ``meshio.Mesh`` (:func:`warpmesh.convert.from_meshio`).
 
         Examples
         --------
@@ -585,53 +400,22 @@ class Mesh:
         >>> Mesh.from_meshio(m).n_cells
         1
         """
-        if not isinstance(m, meshio.Mesh):
-            raise TypeError(f"expected a meshio.Mesh for 'm', got {type(m).__name__}")
-        blocks = [(c.type, c.data) for c in m.cells]
-        point_data = {k: v for k, v in m.point_data.items() if k != "gmsh:dim_tags"}
-        return cls._from_parts(m.points, blocks, point_data, dict(m.cell_data), dim, info)
+        return _convert.from_meshio(m, dim=dim, info=info)
 
     # ---------------------------------------------------------------- trimesh
     def to_trimesh(self):
-        """Convert the triangle block to ``trimesh.Trimesh`` (``process=False``: nothing merged).
-
-        Other blocks are left out. Point data / refs become ``vertex_attributes``, the
-        triangle block's cell data / refs ``face_attributes``; 2D points get z = 0.
-
-        Raises
-        ------
-        ValueError
-            The mesh has no ``"triangle"`` block.
+        """Convert the triangle block to ``trimesh.Trimesh`` (:func:`warpmesh.convert.to_trimesh`).
 
         Examples
         --------
         >>> float(Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_trimesh().area)
         0.5
         """
-        import trimesh
-
-        if "triangle" not in self._cells:
-            raise ValueError(
-                f"expected a 'triangle' block for to_trimesh, got blocks {list(self._cells)}"
-            )
-        va = {k: np.asarray(v) for k, v in self._point_data.items()}
-        fa = {k: np.asarray(v["triangle"]) for k, v in self._cell_data.items()}
-        if self._point_refs is not None:
-            va[REF_KEY] = np.asarray(self._point_refs)
-        if self._cell_refs is not None:
-            fa[REF_KEY] = np.asarray(self._block_refs("triangle"))
-        return trimesh.Trimesh(
-            self._points3(),
-            np.asarray(self.triangles),
-            process=False,
-            validate=False,
-            vertex_attributes=va,
-            face_attributes=fa,
-        )
+        return _convert.to_trimesh(self)
 
     @classmethod
     def from_trimesh(cls, tm, *, info=None) -> Mesh:
-        """Convert from ``trimesh.Trimesh`` (vertex/face attributes become point/cell data).
+        """Convert from ``trimesh.Trimesh`` (:func:`warpmesh.convert.from_trimesh`).
 
         Examples
         --------
@@ -639,82 +423,24 @@ class Mesh:
         >>> Mesh.from_trimesh(trimesh.creation.box()).n_cells
         12
         """
-        import trimesh
-
-        if not isinstance(tm, trimesh.Trimesh):
-            raise TypeError(f"expected a trimesh.Trimesh for 'tm', got {type(tm).__name__}")
-        faces = np.asarray(tm.faces, dtype=INDEX_DTYPE)
-        cell_data = {k: [v] for k, v in tm.face_attributes.items() if len(v) == len(faces)}
-        point_data = {k: v for k, v in tm.vertex_attributes.items() if len(v) == len(tm.vertices)}
-        return cls._from_parts(
-            np.asarray(tm.vertices), [("triangle", faces)], point_data, cell_data, None, info
-        )
+        return _convert.from_trimesh(tm, info=info)
 
     # ---------------------------------------------------------------- pyvista
     def to_pyvista(self):
-        """Convert to ``pyvista.PolyData`` (vertex/line/triangle/quad cells only) or else
-        ``pyvista.UnstructuredGrid``. Refs become arrays ``"medit:ref"``; 2D points get z = 0.
+        """Convert to a pyvista PolyData or UnstructuredGrid (:func:`warpmesh.convert.to_pyvista`).
 
         Examples
         --------
         >>> type(Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_pyvista()).__name__
         'PolyData'
         """
-        import pyvista as pv
-
-        def flat(types):
-            parts = [
-                np.column_stack(
-                    [np.full(len(self._cells[t]), CELL_TYPES[t][0]), self._cells[t]]
-                ).ravel()
-                for t in types
-            ]
-            return (
-                np.concatenate(parts).astype(pv.ID_TYPE) if parts else np.zeros(0, dtype=pv.ID_TYPE)
-            )
-
-        if all(t in _POLY_TYPES for t in self._cells):
-            order = [t for t in _POLY_TYPES if t in self._cells]  # VTK's order: verts, lines, polys
-            out = pv.PolyData()
-            out.points = self._points3()
-            for attr, types in (
-                ("verts", ["vertex"]),
-                ("lines", ["line"]),
-                ("faces", ["triangle", "quad"]),
-            ):
-                if any(t in self._cells for t in types):
-                    setattr(out, attr, flat([t for t in types if t in self._cells]))
-        else:
-            order = list(self._cells)
-            kinds = np.concatenate(
-                [np.full(len(self._cells[t]), CELL_TYPES[t][2], dtype=np.uint8) for t in order]
-            )
-            out = pv.UnstructuredGrid(flat(order), kinds, self._points3())
-        for k, v in self._point_data.items():
-            out.point_data[k] = np.asarray(v)
-        for k, v in self._cell_data.items():
-            out.cell_data[k] = np.concatenate([v[t] for t in order])
-        if self._point_refs is not None:
-            out.point_data[REF_KEY] = np.asarray(self._point_refs)
-        if self._cell_refs is not None:
-            out.cell_data[REF_KEY] = np.concatenate([self._block_refs(t) for t in order])
-        return out
+        return _convert.to_pyvista(self)
 
     @classmethod
     def from_pyvista(
         cls, obj, *, triangulate: bool = False, dim: Literal[2, 3] | None = None, info=None
     ) -> Mesh:
-        """Convert from any ``pyvista.DataSet`` (PolyData, UnstructuredGrid, ImageData, ...).
-
-        Parameters
-        ----------
-        obj : pyvista.DataSet
-        triangulate : bool
-            Polygons with more than 4 vertices and triangle strips have no meshio cell
-            type: by default they raise ValueError; with ``triangulate=True`` the whole
-            dataset is first split into triangles / tetrahedra by ``obj.triangulate()``.
-        dim : {None, 2, 3}
-            ``2`` drops a zero z column.
+        """Convert from any ``pyvista.DataSet`` (:func:`warpmesh.convert.from_pyvista`).
 
         Examples
         --------
@@ -722,103 +448,13 @@ class Mesh:
         >>> Mesh.from_pyvista(pv.Cube()).cells["quad"].shape
         (6, 4)
         """
-        import pyvista as pv
-
-        if not isinstance(obj, pv.DataSet):
-            raise TypeError(f"expected a pyvista.DataSet for 'obj', got {type(obj).__name__}")
-        ug = obj if isinstance(obj, pv.UnstructuredGrid) else obj.cast_to_unstructured_grid()
-        kinds = np.asarray(ug.celltypes)
-        unsupported = sorted(set(np.unique(kinds).tolist()) - set(_VTK_TO_NAME) - set(_VTK_EXTRA))
-        if unsupported:
-            if not triangulate:
-                names = [pv.CellType(k).name for k in unsupported]
-                raise ValueError(
-                    f"expected cells of types {list(CELL_TYPES)}, got VTK cell types {names}; "
-                    "pass triangulate=True to split them into triangles/tetrahedra"
-                )
-            return cls.from_pyvista(obj.triangulate(), triangulate=False, dim=dim, info=info)
-        conn, offsets = np.asarray(ug.cell_connectivity), np.asarray(ug.cell_offsets)[:-1]
-        _, first = np.unique(kinds, return_index=True)
-        blocks, masks = [], []
-        for kind in kinds[np.sort(first)]:
-            mask = kinds == kind
-            name, order = _VTK_EXTRA.get(int(kind), (_VTK_TO_NAME.get(int(kind)), None))
-            k = CELL_TYPES[name][0]
-            cells = conn[offsets[mask][:, None] + np.arange(k)]
-            blocks.append((name, cells if order is None else cells[:, order]))
-            masks.append(mask)
-        point_data = {k: np.asarray(v) for k, v in ug.point_data.items()}
-        cell_data = {k: [np.asarray(v)[m] for m in masks] for k, v in ug.cell_data.items()}
-        return cls._from_parts(np.asarray(ug.points), blocks, point_data, cell_data, dim, info)
+        return _convert.from_pyvista(obj, triangulate=triangulate, dim=dim, info=info)
 
     # ---------------------------------------------------------------- files
-    def _meshio_for(self, fmt: _Format) -> meshio.Mesh:
-        """The meshio object written for ``fmt``; warns about what the format drops."""
-        if fmt.cell_types is not None:
-            bad = [t for t in self._cells if t not in fmt.cell_types]
-            if bad:
-                raise ValueError(
-                    f"{fmt.name} ({fmt.ext}) files store only {list(fmt.cell_types)} cells, "
-                    f"got {bad}; save a mesh without them or pick vtu/vtk/gmsh"
-                )
-        m = self.to_meshio()
-        pd, cd, dropped = dict(m.point_data), dict(m.cell_data), []
-        if fmt.name == "medit":
-            dropped += [k for k in [*pd, *cd] if k != REF_KEY]
-            pd = {REF_KEY: pd.get(REF_KEY, np.zeros(self.n_points, dtype=INDEX_DTYPE))}
-            cd = {REF_KEY: [self._block_refs(t) for t in self._cells]}
-        elif fmt.name == "gmsh":
-            if len(self._cells) > 1:
-                dropped += [k for k in cd if k != REF_KEY]  # meshio cannot read them back
-                cd = {}
-            dropped += [k for k in cd if k in (_GMSH_REF, _GMSH_GEO)]  # replaced by the refs
-            tags = [self._block_refs(t).astype(np.int32) for t in self._cells]
-            cd = {
-                **{k: v for k, v in cd.items() if k not in (REF_KEY, _GMSH_REF, _GMSH_GEO)},
-                _GMSH_REF: tags,
-                _GMSH_GEO: tags,
-            }
-        elif fmt.name == "ply":
-            dropped += [*cd, *(k for k, v in pd.items() if v.ndim != 1)]  # scalars only
-            pd = {k: v.astype(np.int32) if v.dtype.kind in "iu" else v for k, v in pd.items()}
-            pd, cd = {k: v for k, v in pd.items() if v.ndim == 1}, {}
-        elif fmt.name in ("obj", "stl"):
-            dropped += [*pd, *cd]
-            pd, cd = {}, {}
-        if dropped:
-            warnings.warn(
-                f"{fmt.name} files cannot store {sorted(set(dropped))}; not saved",
-                UserWarning,
-                stacklevel=3,
-            )
-        points = np.asarray(self._points) if fmt.keeps_2d else self._points3()
-        cells = [
-            (t, c.astype(np.int32) if fmt.name == "ply" else c) for t, c in self._cells.items()
-        ]
-        return meshio.Mesh(points, cells, point_data=pd, cell_data=cd)
-
     def save(self, path, *, file_format: FileFormat | None = None) -> Path:
-        """Write the mesh through meshio, atomically.
+        """Write the mesh through meshio, atomically, and return ``path``.
 
-        The file is written to a temporary name in the same directory and renamed over
-        ``path`` (``os.replace``), so a failure leaves neither a partial file nor a stale
-        temporary. See the module docstring for what each format keeps.
-
-        Parameters
-        ----------
-        path : str or os.PathLike
-        file_format : {'vtu', 'vtk', 'gmsh', 'medit', 'ply', 'obj', 'stl'}, optional
-            Default: from the extension (:data:`FILE_FORMATS`).
-
-        Returns
-        -------
-        pathlib.Path
-            ``path``.
-
-        Raises
-        ------
-        ValueError
-            Unknown extension or format, or cell types the format cannot store.
+        See :func:`warpmesh.io.save` for the parameters and what each format keeps.
 
         Examples
         --------
@@ -828,83 +464,11 @@ class Mesh:
         ...     load(m.save(os.path.join(d, "t.vtu")), dim=2).n_cells
         1
         """
-        path = Path(path)
-        fmt = _find_format(path, file_format)
-        data = self._meshio_for(fmt)
-        tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
-        try:
-            meshio.write(tmp, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
-            os.replace(tmp, path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
-        return path
+        return _io._save(self, path, file_format, stacklevel=2)
 
     @classmethod
     def load(
         cls, path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | None = None
     ) -> Mesh:
-        """Read a mesh file (see :func:`load`)."""
-        return load(path, file_format=file_format, dim=dim)
-
-
-def load(path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | None = None) -> Mesh:
-    """Read a mesh file written by :meth:`Mesh.save` or another program.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-    file_format : {'vtu', 'vtk', 'gmsh', 'medit', 'ply', 'obj', 'stl'}, optional
-        Default: from the extension.
-    dim : {None, 2, 3}
-        ``2`` drops a zero z column (formats other than Medit store 3D points).
-
-    Raises
-    ------
-    FileNotFoundError
-        ``path`` does not exist.
-    ValueError
-        Unknown extension or format, or ``dim=2`` with non-zero z.
-    ReadError
-        The file cannot be parsed, holds no points, or holds an invalid mesh.
-
-    Examples
-    --------
-    >>> load("no/such/file.vtu")
-    Traceback (most recent call last):
-    ...
-    FileNotFoundError: [Errno 2] no such mesh file: 'no/such/file.vtu'
-    """
-    path = Path(path)
-    fmt = _find_format(path, file_format)
-    _set_dim(np.zeros((0, 3)), dim)  # check the argument before reading
-    if not path.exists():
-        raise FileNotFoundError(errno.ENOENT, "no such mesh file", str(path))
-    reader = getattr(
-        meshio, fmt.name
-    ).read  # the format's own reader: meshio.read calls sys.exit on failure
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter(
-                "ignore", RuntimeWarning
-            )  # meshio's binary-STL probe overflows on ascii files
-            m = reader(str(path))
-    except Exception as exc:  # meshio raises ReadError, ValueError, UnicodeError, IndexError, ...
-        raise ReadError(
-            f"could not read {str(path)!r} as {fmt.name}: {type(exc).__name__}: {exc}"
-        ) from exc
-    if fmt.name == "stl":  # meshio's derived normals and "no group" ids are not data
-        m.cell_data.pop("facet_normals", None)
-    if fmt.name == "obj" and all(np.all(g == -1) for g in m.cell_data.get("obj:group_ids", [])):
-        m.cell_data.pop("obj:group_ids", None)
-    if len(m.points) == 0:
-        raise ReadError(f"could not read {str(path)!r} as {fmt.name}: the file holds no points")
-    try:
-        mesh = Mesh.from_meshio(m)
-    except (ValueError, TypeError) as exc:
-        raise ReadError(f"could not read {str(path)!r} as {fmt.name}: invalid mesh: {exc}") from exc
-    return (
-        mesh
-        if dim in (None, mesh.dim)
-        else mesh.replace(points=_set_dim(np.asarray(mesh.points), dim))
-    )
+        """Read a mesh file (:func:`warpmesh.io.load`)."""
+        return _io.load(path, file_format=file_format, dim=dim)

@@ -26,13 +26,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ._conventions import ALPHA_TRIANGLE, INDEX_DTYPE, REAL_DTYPE, REL_TOL
+from ._conventions import ALPHA_TETRA, ALPHA_TRIANGLE, INDEX_DTYPE, REAL_DTYPE, REL_TOL
 from .topology import face_areas
 
 __all__ = ["ALPHA_TETRA", "triangle_quality", "tetra_quality", "quality_summary"]
-
-#: normalisation of Q_K for tetrahedra: the regular tetrahedron scores exactly 1.
-ALPHA_TETRA = np.sqrt(6.0) / 12.0
 
 _TET_EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
 _TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
