@@ -69,6 +69,27 @@ def powi(a: float, n: int):
 
 
 @wp.func
+def hypot(a: float, b: float):
+    """sqrt(a^2 + b^2) without overflow for large a, b (scaled by the larger one)."""
+    m = wp.max(wp.abs(a), wp.abs(b))
+    if m == 0.0 or not wp.isfinite(m):
+        return m
+    u = a / m
+    v = b / m
+    return m * wp.sqrt(u * u + v * v)
+
+
+@wp.func
+def rfunction(a: float, b: float, s: float):
+    """a + b + s * sqrt(a^2 + b^2) (s = +1 union, -1 intersection of eq. 16.17), written
+    so that the cancelling case divides instead of subtracting (no float32 cancellation)."""
+    h = hypot(a, b)
+    if s * (a + b) >= 0.0:
+        return a + b + s * h
+    return 2.0 * a * (b / (a + b - s * h))  # ((a+b)^2 - h^2) / (a+b - s h); |b / (..)| <= 1
+
+
+@wp.func
 def apply_value(op: int, a: float, b: float, c: float):
     """The value of one instruction (used for the less common opcodes)."""
     r = float(0.0)
@@ -175,12 +196,12 @@ def eval_tape_kernel(
             for p in range(cnt):
                 u = scratch[a + p]
                 v = scratch[b + p]
-                scratch[d + p] = u + v + wp.sqrt(u * u + v * v)
+                scratch[d + p] = rfunction(u, v, 1.0)
         elif op == OP_RINTER:
             for p in range(cnt):
                 u = scratch[a + p]
                 v = scratch[b + p]
-                scratch[d + p] = u + v - wp.sqrt(u * u + v * v)
+                scratch[d + p] = rfunction(u, v, -1.0)
         else:
             for p in range(cnt):
                 bv = float(0.0)
@@ -277,14 +298,14 @@ def apply_dual(op: int, a: wp.vec4, b: wp.vec4, c: float):
         s = float(1.0)
         if op == OP_RINTER:
             s = -1.0
-        h = wp.sqrt(a[0] * a[0] + b[0] * b[0])
+        h = hypot(a[0], b[0])
         da = float(1.0)
         db = float(1.0)
         if h > 0.0:
             da = 1.0 + s * a[0] / h
             db = 1.0 + s * b[0] / h
         r = da * a + db * b
-        r[0] = a[0] + b[0] + s * h
+        r[0] = rfunction(a[0], b[0], s)
     return r
 
 
@@ -398,8 +419,8 @@ def iv_cos(a: wp.vec2):
 @wp.func
 def iv_runion(a: wp.vec2, b: wp.vec2, s: float):
     # a + b + s*sqrt(a^2 + b^2) is nondecreasing in a and b for s = +1 and s = -1
-    lo = a[0] + b[0] + s * wp.sqrt(a[0] * a[0] + b[0] * b[0])
-    hi = a[1] + b[1] + s * wp.sqrt(a[1] * a[1] + b[1] * b[1])
+    lo = rfunction(a[0], b[0], s)
+    hi = rfunction(a[1], b[1], s)
     return iv(lo, hi)
 
 

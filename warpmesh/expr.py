@@ -26,6 +26,11 @@ from warpmesh.kernels import opcodes as O
 
 _TABLE: "weakref.WeakValueDictionary[tuple, Expr]" = weakref.WeakValueDictionary()
 
+#: constants are stored as float32 on the device: larger magnitudes are refused
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+#: integer exponents are exact in a float32 immediate up to 2**24
+MAX_INT_EXPONENT = 2**24
+
 #: numpy semantics of every opcode (the test oracle); a, b arrays, c the immediate
 _NUMPY = {
     O.ADD: lambda a, b, c: a + b,
@@ -50,8 +55,8 @@ _NUMPY = {
     O.LOG: lambda a, b, c: np.log(a),
     O.POWI: lambda a, b, c: a ** int(c) if c >= 0 else 1.0 / a ** int(-c),
     O.POWF: lambda a, b, c: np.abs(a) ** c,
-    O.RUNION: lambda a, b, c: a + b + np.sqrt(a * a + b * b),
-    O.RINTER: lambda a, b, c: a + b - np.sqrt(a * a + b * b),
+    O.RUNION: lambda a, b, c: a + b + np.hypot(a, b),
+    O.RINTER: lambda a, b, c: a + b - np.hypot(a, b),
 }
 _UNARY = {O.NEG, O.ABS, O.SQUARE, O.SQRT, O.SIN, O.COS, O.EXP, O.LOG, O.POWI, O.POWF,
           O.ADDC, O.MULC, O.RSUBC, O.RDIVC, O.MINC, O.MAXC}
@@ -60,8 +65,8 @@ _LEAVES = {O.X, O.Y, O.Z, O.CONST}
 
 def _node(op: int, args: tuple = (), imm: float = 0.0) -> "Expr":
     imm = float(imm)
-    if not math.isfinite(imm):
-        raise ValueError(f"expected a finite constant, got {imm!r}")
+    if not math.isfinite(imm) or math.fabs(imm) > FLOAT32_MAX:
+        raise ValueError(f"expected a finite constant within float32 range, got {imm!r}")
     if op in _NUMPY and args and all(a.op == O.CONST for a in args):
         with np.errstate(all="ignore"):
             value = float(_NUMPY[op](*(np.float64(a.imm) for a in args), *([None] * (2 - len(args))), imm))
@@ -148,6 +153,10 @@ class Expr:
     def __neg__(self):
         return _node(O.NEG, (self,))
 
+    def __invert__(self):
+        """The complement of the domain {f > 0}: the expression -f."""
+        return _node(O.NEG, (self,))
+
     def __pos__(self):
         return self
 
@@ -163,6 +172,8 @@ class Expr:
             raise TypeError(f"expected a real exponent, got {type(exponent).__name__}")
         e = float(exponent)
         if e.is_integer():
+            if math.fabs(e) > MAX_INT_EXPONENT:
+                raise ValueError(f"expected an integer exponent within ±{MAX_INT_EXPONENT}, got {e:g}")
             if e == 1.0:
                 return self
             if e == 2.0:
@@ -170,8 +181,6 @@ class Expr:
             if e == 0.0:
                 return as_expr(1.0)
             return _node(O.POWI, (self,), e)
-        if e == 0.5:
-            return sqrt(self)
         return _node(O.POWF, (self,), e)
 
     # -- evaluation ---------------------------------------------------------------

@@ -160,6 +160,10 @@ class Shape:
         """
         m = np.asarray(matrix, dtype=np.float64)
         if m.shape == (4, 4):
+            if not np.allclose(m[3], (0.0, 0.0, 0.0, 1.0)):
+                raise ValueError(f"expected a 4x4 'matrix' with last row (0, 0, 0, 1), got {m[3].tolist()}")
+            if np.any(np.asarray(offset, dtype=np.float64) != 0.0):
+                raise ValueError("expected either a 4x4 'matrix' or an 'offset', got both")
             m, offset = m[:3, :3], m[:3, 3]
         if m.shape != (3, 3) or not np.all(np.isfinite(m)):
             raise ValueError(f"expected a finite 3x3 or 4x4 'matrix', got shape {m.shape}")
@@ -234,6 +238,7 @@ def intersection(*shapes, method: BooleanMethod = "rfunction", k: float = 0.1) -
 def difference(a, *others, method: BooleanMethod = "rfunction", k: float = 0.1) -> Shape:
     """``a`` minus the union of ``others``; options as :func:`union`."""
     if not others:
+        _check_method(method, k)
         return as_shape(a)
     cut = union(*others, method=method, k=k)
     return intersection(a, ~cut, method=method, k=k)
@@ -347,7 +352,9 @@ def superquadric(semi_axes=(1.0, 1.0, 1.0), e1: float = 0.5, e2: float = 0.5,
     """Barr's superellipsoid with shape exponents ``e1`` (along z) and ``e2`` (in xy).
 
     f = min(a) * (1 - F^(e1/2)), F = (|x/a|^(2/e2) + |y/b|^(2/e2))^(e2/e1) + |z/c|^(2/e1);
-    homogeneous of degree one (a bound; e1 = e2 = 1 with equal axes is a sphere).
+    homogeneous of degree one; e1 = e2 = 1 with equal axes is the exact sphere. A bound
+    (|∇f| ≤ 1) for e1, e2 ≤ 1; for larger exponents only the sign is meaningful (the
+    gradient grows towards sqrt(3) at e = 2 and is unbounded near the axes for e > 2).
     """
     a = _vec3(semi_axes, "semi_axes", positive=True)
     e1, e2 = _positive(e1, "e1"), _positive(e2, "e2")
@@ -360,7 +367,8 @@ def superquadric(semi_axes=(1.0, 1.0, 1.0), e1: float = 0.5, e2: float = 0.5,
 def supertorus(major: float = 1.0, minor: float = 0.3, e1: float = 0.5, e2: float = 0.5,
                axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
     """Supertoroid (seed Fig. 16.22): a torus whose section (``e1``) and sweep (``e2``)
-    are superellipses. e1 = e2 = 1 gives the exact torus; otherwise a bound."""
+    are superellipses. e1 = e2 = 1 gives the exact torus; a bound (|∇f| ≤ 1) for
+    e1, e2 ≤ 1; for larger exponents only the sign is meaningful."""
     big, small = _positive(major, "major"), _positive(minor, "minor")
     if small >= big:
         raise ValueError(f"expected minor < major, got minor={small}, major={big}")

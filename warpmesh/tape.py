@@ -165,6 +165,7 @@ def _eval(tape: Tape, kernel, points: wp.array, out: wp.array, lanes: int, dtype
     n = points.shape[0]
     if n == 0:
         return
+    wp.load_module(K, device=device)  # compile/load once here, not in two worker threads at once
 
     def job(lo, hi):
         span = min(hi - lo, _CHUNK_THREADS * BATCH)
