@@ -339,8 +339,11 @@ def triangles_kernel(
                             ob[a] = wp.min(g[a] / _BLOCK, nb[a] - 1)
                             lo[a] = g[a] - ob[a] * _BLOCK
                         os = block_slot[ob[0] + nb[0] * (ob[1] + nb[1] * ob[2])]
-                        tri[m] = edge_vertex_id[os * _EDGE_SLOTS + local_index(lo[0], lo[1], lo[2]) * 3
-                                                + edge_origin[e, 3]]
+                        vid = int(-1)  # stays -1 if the owner was culled: the host refuses it
+                        if os >= 0:
+                            vid = edge_vertex_id[os * _EDGE_SLOTS + local_index(lo[0], lo[1], lo[2]) * 3
+                                                 + edge_origin[e, 3]]
+                        tri[m] = vid
                     triangles[out] = tri
                     out += 1
 
@@ -397,10 +400,11 @@ def bisection_step_kernel(
 def newton_step_kernel(
     flags: wp.array(dtype=wp.int32), fg: wp.array(dtype=wp.vec4), p0: wp.array(dtype=wp.vec3),
     p1: wp.array(dtype=wp.vec3), t_lo: wp.array(dtype=wp.float32), t_hi: wp.array(dtype=wp.float32),
-    t: wp.array(dtype=wp.float32),
+    f_prev: wp.array(dtype=wp.float32), t: wp.array(dtype=wp.float32),
 ):
-    """One thread per vertex: a Newton step on g(t) = f(p0 + t (p1 - p0)) kept inside the
-    sign-change bracket (a bisection step where Newton would leave it)."""
+    """One thread per vertex: a safeguarded Newton step on g(t) = f(p0 + t (p1 - p0)):
+    bisect instead when Newton would leave the sign-change bracket, or when the last step
+    did not at least halve |g| (Newton stalls at the kinks of CSG edges)."""
     v = wp.tid()
     if (flags[v] & 2) != 0:
         return
@@ -415,9 +419,10 @@ def newton_step_kernel(
     else:
         t_hi[v] = t[v]
     slope = wp.dot(wp.vec3(fg[v][1], fg[v][2], fg[v][3]), p1[v] - p0[v])
-    tn = t_lo[v] - 1.0  # invalid unless the step below succeeds
-    if slope != 0.0:
+    tn = t_lo[v] - 1.0  # invalid unless the Newton step below is taken
+    if slope != 0.0 and 2.0 * wp.abs(f) <= f_prev[v]:
         tn = t[v] - f / slope
+    f_prev[v] = wp.abs(f)
     if tn > t_lo[v] and tn < t_hi[v]:
         t[v] = tn
     else:

@@ -140,8 +140,15 @@ def test_capping_closes_an_unbounded_shape_and_can_be_turned_off():
     # marching cubes chamfers the capped edges: at most h^2 per unit of edge length is lost
     edge_length, h = 4 * 2 + 4 * 2 + 4 * 1.1, 0.1
     assert s["euler"] == 2 and 0 < 2 * 2 * 1.1 - s["volume"] < edge_length * h * h
+    refs = closed.cell_refs["triangle"]
+    tri = closed.points[closed.cells["triangle"]]
+    near_plane = np.abs(tri[..., 2] - 0.1) < 1e-3  # vertices on the true surface z = 0.1
+    assert np.all(refs[near_plane.all(axis=1)] == 1)  # the plane is surface
+    assert np.all(refs[~near_plane.any(axis=1)] == 2)  # the rest of the box is cap
+    assert 0 < np.count_nonzero(refs == 1) < len(refs)
     shape, bounds = wm.example("degree6")
     opened = wm.mesh_surface(shape, bounds=bounds, resolution=32, cap=False)
+    assert opened.cell_refs is None
     check_mesh(opened, closed=False)
     assert not opened.stats()["watertight"]
 

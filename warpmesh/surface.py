@@ -149,8 +149,7 @@ def mesh_surface(
         Vertex placement on a crossing edge: linear interpolation (eq. 16.12), bisection
         or safeguarded Newton on the exact function (§16.3.3; shapes only).
     root_iterations : int, optional
-        Iterations of bisection (default 12) or Newton (default 10; at the kinks of CSG
-        edges Newton slows to bisection speed).
+        Iterations of bisection (default 12) or safeguarded Newton (default 10).
     cap : bool
         Treat the grid boundary as outside, so every surface is closed on the bounds.
     cull : bool
@@ -164,8 +163,10 @@ def mesh_surface(
     Returns
     -------
     Mesh
-        ``mesh.cells["triangle"]`` oriented outward (towards f < 0); ``mesh.info`` holds
-        timings per stage and counts (``mesh.stats()`` shows them).
+        ``mesh.cells["triangle"]`` oriented outward (towards f < 0); with ``cap``,
+        ``mesh.cell_refs["triangle"]`` is 1 on the surface f = 0 and 2 on the caps that
+        close it on the bounds; ``mesh.info`` holds timings per stage and counts
+        (``mesh.stats()`` shows them).
 
     Raises
     ------
@@ -235,6 +236,10 @@ def mesh_surface(
         point_data["normals"] = -g / np.where(norm > 0, norm, 1.0)
     points = verts.numpy().astype(C.REAL_DTYPE)  # sync point: results to the host
     faces = tris.numpy().astype(C.INDEX_DTYPE)
+    if len(faces) and faces.min() < 0:
+        raise WarpMeshError("a block culled as uniform holds a crossing edge: the interval bound "
+                            "of the shape is wrong; mesh with cull=False and report the shape")
+    cell_refs = {"triangle": _surface_refs(grid, edges, faces)} if cap and len(faces) else None
     info.update(grid.info)
     info["vertices"], info["triangles"] = len(points), len(faces)
     if len(faces) == 0:
@@ -243,7 +248,21 @@ def mesh_surface(
     timings["host"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     info["time"] = timings
-    return Mesh(points, {"triangle": faces}, point_data=point_data or None, info=info)
+    return Mesh(points, {"triangle": faces}, point_data=point_data or None, cell_refs=cell_refs, info=info)
+
+
+SURFACE_REF, CAP_REF = 1, 2
+
+
+def _surface_refs(grid: "_Grid", edges: dict, faces: np.ndarray) -> np.ndarray:
+    """Triangle refs: CAP_REF where all three vertices sit on edges ending at a capped
+    grid-boundary node (the closing caps on the bounds), SURFACE_REF elsewhere."""
+    ends = np.stack([edges["p0"].numpy(), edges["p1"].numpy()], axis=1).astype(np.float64)
+    lo, hi = grid.origin, grid.origin + (grid.n - 1) * grid.h
+    tol = 1e-4 * grid.h
+    on_bounds = np.any((np.abs(ends - lo) < tol) | (np.abs(ends - hi) < tol), axis=(1, 2))
+    capped = on_bounds & ((edges["flags"].numpy() & 2) != 0)
+    return np.where(capped[faces].all(axis=1), CAP_REF, SURFACE_REF).astype(C.INDEX_DTYPE)
 
 
 class _Grid:
@@ -256,6 +275,7 @@ class _Grid:
         self.origin = np.asarray(origin, dtype=np.float64)
         self.h = np.asarray(h, dtype=np.float64)
         self.device = device
+        wp.load_module(K, device=device)  # compile/load once here, not in worker threads
         self.wn = wp.vec3i(*self.n.tolist())
         self.wnb = wp.vec3i(*self.nb.tolist())
         self.worigin = wp.vec3(*self.origin.tolist())
@@ -367,7 +387,7 @@ class _Grid:
         edges = {"t": wp.empty(nv, dtype=wp.float32, device=dev), "p0": wp.empty(nv, dtype=wp.vec3, device=dev),
                  "p1": wp.empty(nv, dtype=wp.vec3, device=dev), "flags": wp.empty(nv, dtype=wp.int32, device=dev)}
         if nv:
-            eid = wp.empty(ns * K.EDGE_SLOTS, dtype=wp.int32, device=dev)
+            eid = wp.full(ns * K.EDGE_SLOTS, -1, dtype=wp.int32, device=dev)
             self._per_slot(K.vertices_kernel, [self.slot_block, self.wnb, self.wn, self.worigin, self.wh,
                                                float(C.EDGE_T_MIN), self.values, voff],
                            [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"]])
@@ -396,10 +416,12 @@ def _refine_roots(tape, verts, edges, root, iterations, timings) -> None:
             wp.launch(K.bisection_step_kernel, dim=nv, inputs=[flags, f_mid], outputs=[t_lo, t_hi, t], device=dev)
     else:
         fg = wp.empty(nv, dtype=wp.vec4, device=dev)
+        f_prev = wp.full(nv, 3.0e38, dtype=wp.float32, device=dev)  # |f| one step back
         for _ in range(iterations or 10):
             wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1], outputs=[verts], device=dev)
             eval_gradients(tape, verts, fg, device=dev)
-            wp.launch(K.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1], outputs=[t_lo, t_hi, t], device=dev)
+            wp.launch(K.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1],
+                      outputs=[t_lo, t_hi, f_prev, t], device=dev)
     wp.launch(K.clamp_t_kernel, dim=nv, inputs=[t, float(C.EDGE_T_MIN)], device=dev)
     wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1], outputs=[verts], device=dev)
     timings["root"] = time.perf_counter() - t0
