@@ -376,7 +376,8 @@ class Mesh:
         >>> s["watertight"], s["euler"], s["genus"]
         (True, 0, 1)
         """
-        return {**self._info, **self._stats}
+        computed = self._stats
+        return {**computed, **{k: v for k, v in self._info.items() if k not in computed}}
 
     # ---------------------------------------------------------------- meshio
     def to_meshio(self) -> meshio.Mesh:
