@@ -240,8 +240,9 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu") -> n
     Example
     -------
     >>> import numpy as np, warpmesh as wm
-    >>> wm.evaluate(wm.sphere(2.0), np.zeros((1, 3)), gradient=True).round(3).tolist()
-    [[2.0, 0.0, 0.0, 0.0]]
+    >>> fg = wm.evaluate(wm.sphere(2.0), np.array([[0.0, 0.0, 1.0]]), gradient=True)
+    >>> (fg + 0.0).round(3).tolist()  # f = 1, grad f = (0, 0, -1); + 0.0 folds -0.0
+    [[1.0, 0.0, 0.0, -1.0]]
     """
     tape = tape_of(shape)
     pts = _points_array(points, device)
