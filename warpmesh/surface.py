@@ -163,9 +163,9 @@ def mesh_surface(
     Returns
     -------
     Mesh
-        ``mesh.cells["triangle"]`` oriented outward (towards f < 0); with ``cap``,
-        ``mesh.cell_refs["triangle"]`` is 1 on the surface f = 0 and 2 on the caps that
-        close it on the bounds; ``mesh.info`` holds timings per stage and counts
+        ``mesh.cells["triangle"]`` oriented outward (towards f < 0); where caps close
+        the surface on the bounds, ``mesh.cell_refs["triangle"]`` is 2 on the caps and 1
+        on the surface f = 0 (no refs when nothing was capped); ``mesh.info`` holds timings per stage and counts
         (``mesh.stats()`` shows them).
 
     Raises
@@ -239,7 +239,8 @@ def mesh_surface(
     if len(faces) and faces.min() < 0:
         raise WarpMeshError("a block culled as uniform holds a crossing edge: the interval bound "
                             "of the shape is wrong; mesh with cull=False and report the shape")
-    cell_refs = {"triangle": _surface_refs(grid, edges, faces)} if cap and len(faces) else None
+    refs = _surface_refs(grid, edges, faces) if cap and len(faces) else None
+    cell_refs = {"triangle": refs} if refs is not None and np.any(refs == CAP_REF) else None
     info.update(grid.info)
     info["vertices"], info["triangles"] = len(points), len(faces)
     if len(faces) == 0:
