@@ -68,42 +68,68 @@ def block_boxes_kernel(
     box_hi[b] = hi
 
 
+CULLED = wp.constant(0)
+EVALUATE = wp.constant(1)
+INSIDE = wp.constant(2)
+
+
 @wp.kernel
 def cull_blocks_kernel(
     nb: wp.vec3i, n: wp.vec3i, cap: int, intervals: wp.array(dtype=wp.vec2),
-    active: wp.array(dtype=wp.int32),
+    state: wp.array(dtype=wp.int32),
 ):
-    """One thread: 1 if the block may hold the surface (its interval straddles 0)."""
+    """One thread per block, from an interval enclosing f over it: CULLED when no node can
+    change sign; INSIDE when every node is inside but the block touches the capped grid
+    boundary (its crossings are the cap's, whose vertices do not depend on the inside
+    values: no evaluation needed); EVALUATE otherwise."""
     b = wp.tid()
     lo = intervals[b][0]
     hi = intervals[b][1]
     margin = 1.0e-4 * wp.max(wp.abs(lo), wp.abs(hi)) + 1.0e-7  # float32 rounding slack
-    keep = int(1)
+    keep = EVALUATE
     if hi < -margin:
-        keep = 0  # every node outside
+        keep = CULLED  # every node outside
     elif lo > margin:
-        keep = 0  # every node inside ...
+        keep = CULLED  # every node inside ...
         if cap != 0:  # ... unless capping at the grid boundary turns its boundary nodes out
             c = block_coords(b, nb)
             for a in range(3):
                 if c[a] == 0 or c[a] * _BLOCK + _BLOCK >= n[a] - 1:
-                    keep = 1
-    active[b] = keep
+                    keep = INSIDE
+    state[b] = keep
 
 
 @wp.kernel
 def compact_blocks_kernel(
-    active: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32),
+    state: wp.array(dtype=wp.int32), evaluate_offsets: wp.array(dtype=wp.int32),
+    inside_offsets: wp.array(dtype=wp.int32), n_evaluate: int,
     slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
 ):
-    """One thread per block: its slot (or -1), and the slot -> block list."""
+    """One thread per block: its slot (-1 when culled); EVALUATE blocks take the first
+    slots, INSIDE blocks the ones after them."""
     b = wp.tid()
-    if active[b] != 0:
-        s = offsets[b]
+    s = int(-1)
+    if state[b] == EVALUATE:
+        s = evaluate_offsets[b]
+    elif state[b] == INSIDE:
+        s = n_evaluate + inside_offsets[b]
+    if s >= 0:
         slot_block[s] = b
-        block_slot[b] = s
-    else:
-        block_slot[b] = -1
+    block_slot[b] = s
+
+
+@wp.kernel
+def state_is_kernel(state: wp.array(dtype=wp.int32), which: int, flags: wp.array(dtype=wp.int32)):
+    """One thread per block: 1 where state == which (input of a prefix sum)."""
+    b = wp.tid()
+    flags[b] = wp.where(state[b] == which, 1, 0)
+
+
+@wp.kernel
+def fill_values_kernel(first: int, value: float, values: wp.array(dtype=wp.float32)):
+    """One thread per value from slot ``first`` on: a constant (inside blocks: +1)."""
+    i = wp.tid()
+    values[first * _NODES + i] = value
 
 
 @wp.kernel
@@ -138,20 +164,27 @@ def gather_volume_kernel(
 
 @wp.kernel
 def volume_block_range_kernel(
-    nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32), level: float, sign: float,
-    intervals: wp.array(dtype=wp.vec2),
+    first: int, nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32), level: float, sign: float,
+    intervals: wp.array(dtype=wp.vec2), bad: wp.array(dtype=wp.int32),
 ):
-    """One thread per block: exact (min, max) of sign * (volume - level) over its nodes."""
-    b = wp.tid()
+    """One thread per block: exact (min, max) of sign * (volume - level) over its nodes
+    (k innermost: contiguous reads of a C-order array); counts non-finite samples."""
+    b = wp.tid() + first
     c = block_coords(b, nb)
     lo = float(3.0e38)
     hi = float(-3.0e38)
-    for k in range(c[2] * _BLOCK, wp.min(c[2] * _BLOCK + _SIDE, volume.shape[2])):
+    n_bad = int(0)
+    for i in range(c[0] * _BLOCK, wp.min(c[0] * _BLOCK + _SIDE, volume.shape[0])):
         for j in range(c[1] * _BLOCK, wp.min(c[1] * _BLOCK + _SIDE, volume.shape[1])):
-            for i in range(c[0] * _BLOCK, wp.min(c[0] * _BLOCK + _SIDE, volume.shape[0])):
+            for k in range(c[2] * _BLOCK, wp.min(c[2] * _BLOCK + _SIDE, volume.shape[2])):
                 v = sign * (volume[i, j, k] - level)
-                lo = wp.min(lo, v)
-                hi = wp.max(hi, v)
+                if wp.isfinite(v):
+                    lo = wp.min(lo, v)
+                    hi = wp.max(hi, v)
+                else:
+                    n_bad += 1
+    if n_bad > 0:
+        wp.atomic_add(bad, 0, n_bad)
     intervals[b] = wp.vec2(lo, hi)
 
 
@@ -256,6 +289,15 @@ def edge_vertex(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k
     return p0 + t * (p1 - p0), t, p0, p1
 
 
+@wp.func
+def on_grid_boundary(g: wp.vec3i, n: wp.vec3i):
+    r = False
+    for a in range(3):
+        if g[a] == 0 or g[a] == n[a] - 1:
+            r = True
+    return r
+
+
 @wp.kernel
 def vertices_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
@@ -268,7 +310,8 @@ def vertices_kernel(
     """One thread per slot: place the vertex of every crossing edge the block owns by
     linear interpolation (eq. 16.12), t clamped to [t_min, 1 - t_min]; remember the
     edge so a root finder can refine it. Flags: bit 0 = first end inside, bit 1 = an
-    end has the value 0 exactly (on the surface, or capped: keep the clamped t)."""
+    end has the value 0 exactly (on the surface, or capped: keep the clamped t), bit 2 =
+    that end is on the grid boundary (a cap vertex when capping)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
     base = s * _NODES
@@ -299,6 +342,8 @@ def vertices_kernel(
                                 flags = 1
                             if v0 == 0.0 or v1 == 0.0:
                                 flags = flags | 2
+                                if on_grid_boundary(g, n) or on_grid_boundary(g + e, n):
+                                    flags = flags | 4  # a capped (or zero) boundary end
                             edge_flags[vid] = flags
                             edge_vertex_id[s * _EDGE_SLOTS + l * 3 + a] = vid
                             vid += 1

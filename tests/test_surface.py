@@ -110,6 +110,18 @@ def test_normals_are_unit_and_outward():
     assert np.all(np.einsum("ij,ij->i", n, radial) > 0.99)
 
 
+def test_cap_vertices_get_the_normal_of_the_bounds_face():
+    slab = wm.halfspace((0, 0, 1), (0, 0, 0.1))  # inside: z < 0.1, capped by the box
+    mesh = wm.mesh_surface(slab, bounds=((-1.0,) * 3, (1.0,) * 3), resolution=10, normals=True)
+    n, p = mesh.point_data["normals"], mesh.points
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    bottom = p[:, 2] < -1 + 1e-2  # vertices of the cap on the face z = -1
+    assert bottom.any() and np.allclose(n[bottom], (0, 0, -1))
+    top = np.abs(p[:, 2] - 0.1) < 1e-6  # the true surface: -grad f = +z
+    interior = top & (np.abs(p[:, 0]) < 0.9) & (np.abs(p[:, 1]) < 0.9)
+    assert interior.any() and np.allclose(n[interior], (0, 0, 1), atol=1e-6)
+
+
 # -- culling, zeros, capping ------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["part", "degree6"])
 def test_culling_changes_nothing_but_the_work(name):

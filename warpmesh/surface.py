@@ -99,8 +99,6 @@ def _check_volume(volume, spacing, origin) -> tuple[np.ndarray, np.ndarray, np.n
         raise ValueError(f"expected at least 2 samples per axis in 'volume', got shape {vol.shape}")
     if not (np.issubdtype(vol.dtype, np.number) or vol.dtype == np.bool_) or np.iscomplexobj(vol):
         raise TypeError(f"expected a real numeric 'volume', got dtype {vol.dtype}")
-    if vol.dtype.kind == "f" and not np.all(np.isfinite(vol)):
-        raise ValueError("expected finite values in 'volume', got NaN or infinity")
     sp = np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,)) if np.ndim(spacing) == 0 else \
         np.asarray(spacing, dtype=np.float64)
     if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
@@ -211,11 +209,6 @@ def mesh_surface(
         vol, sp, org = _check_volume(source, spacing, origin)
         if not math.isfinite(level):
             raise ValueError(f"expected a finite 'level', got {level!r}")
-        vmin, vmax = float(vol.min()), float(vol.max())
-        if vmin == vmax:
-            raise ValueError(f"expected a non-constant 'volume', got every value equal to {vmin}")
-        if not vmin <= level <= vmax:
-            raise ValueError(f"expected 'level' within the volume's range [{vmin}, {vmax}], got {level}")
         grid = _Grid(np.array(vol.shape), org, sp, device)
         grid.cull_volume(vol, float(level), 1.0 if inside == "above" else -1.0, cull, cap, timings)
         tape = None
@@ -233,13 +226,22 @@ def mesh_surface(
         fg = eval_gradients(tape, verts, device=device).numpy()
         g = fg[:, 1:].astype(np.float64)
         norm = np.linalg.norm(g, axis=1, keepdims=True)
-        point_data["normals"] = -g / np.where(norm > 0, norm, 1.0)
+        normals = -g / np.where(norm > 0, norm, 1.0)
+        if cap:  # cap vertices: the outward normal of the bounds' face they close
+            p0, p1 = edges["p0"].numpy(), edges["p1"].numpy()
+            on_cap = (edges["flags"].numpy() & 4) != 0
+            axis = np.argmax(np.abs(p1 - p0), axis=1)
+            at_low = np.isclose(p0[np.arange(len(p0)), axis], grid.origin[axis], rtol=0, atol=1e-6)
+            face_normal = np.zeros_like(normals)
+            face_normal[np.arange(len(p0)), axis] = np.where(at_low, -1.0, 1.0)
+            normals[on_cap] = face_normal[on_cap]
+        point_data["normals"] = normals
     points = verts.numpy().astype(C.REAL_DTYPE)  # sync point: results to the host
     faces = tris.numpy().astype(C.INDEX_DTYPE)
     if len(faces) and faces.min() < 0:
         raise WarpMeshError("a block culled as uniform holds a crossing edge: the interval bound "
                             "of the shape is wrong; mesh with cull=False and report the shape")
-    refs = _surface_refs(grid, edges, faces) if cap and len(faces) else None
+    refs = _surface_refs(edges, faces) if cap and len(faces) else None
     cell_refs = {"triangle": refs} if refs is not None and np.any(refs == CAP_REF) else None
     info.update(grid.info)
     info["vertices"], info["triangles"] = len(points), len(faces)
@@ -255,14 +257,10 @@ def mesh_surface(
 SURFACE_REF, CAP_REF = 1, 2
 
 
-def _surface_refs(grid: "_Grid", edges: dict, faces: np.ndarray) -> np.ndarray:
+def _surface_refs(edges: dict, faces: np.ndarray) -> np.ndarray:
     """Triangle refs: CAP_REF where all three vertices sit on edges ending at a capped
     grid-boundary node (the closing caps on the bounds), SURFACE_REF elsewhere."""
-    ends = np.stack([edges["p0"].numpy(), edges["p1"].numpy()], axis=1).astype(np.float64)
-    lo, hi = grid.origin, grid.origin + (grid.n - 1) * grid.h
-    tol = 1e-4 * grid.h
-    on_bounds = np.any((np.abs(ends - lo) < tol) | (np.abs(ends - hi) < tol), axis=(1, 2))
-    capped = on_bounds & ((edges["flags"].numpy() & 2) != 0)
+    capped = (edges["flags"].numpy() & 4) != 0
     return np.where(capped[faces].all(axis=1), CAP_REF, SURFACE_REF).astype(C.INDEX_DTYPE)
 
 
@@ -287,60 +285,86 @@ class _Grid:
     def _launch(self, kernel, dim, inputs, outputs=()):
         wp.launch(kernel, dim=dim, inputs=inputs, outputs=list(outputs), device=self.device)
 
-    def _compact(self, active: wp.array) -> None:
-        offsets = wp.empty_like(active)
-        wp.utils.array_scan(active, offsets, inclusive=False)
-        flags = active.numpy()  # sync point: the number of surviving blocks
-        self.n_slots = int(flags.sum())
+    def _compact(self, state: wp.array) -> None:
+        """Slots for the surviving blocks: EVALUATE ones first, then INSIDE ones."""
+        counts = []
+        offsets = []
+        for which in (K.EVALUATE, K.INSIDE):
+            flags = wp.empty_like(state)
+            self._launch(K.state_is_kernel, self.n_blocks, [state, int(which)], [flags])
+            off = wp.empty_like(state)
+            wp.utils.array_scan(flags, off, inclusive=False)
+            offsets.append(off)
+            counts.append(int(off.numpy()[-1] + flags.numpy()[-1]))  # sync point: slot counts
+        self.n_evaluate, n_inside = counts
+        self.n_slots = self.n_evaluate + n_inside
         if self.n_slots * K.EDGE_SLOTS >= 2**31:
             raise WarpMeshError(
                 f"{self.n_slots} blocks of {K.BLOCK}^3 cells hold the surface, more than one pass "
                 "can index (int32); lower 'resolution' or mesh the domain in parts")
         self.slot_block = wp.empty(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
         self.block_slot = wp.empty(self.n_blocks, dtype=wp.int32, device=self.device)
-        self._launch(K.compact_blocks_kernel, self.n_blocks, [active, offsets],
+        self._launch(K.compact_blocks_kernel, self.n_blocks, [state, offsets[0], offsets[1], self.n_evaluate],
                      [self.slot_block, self.block_slot])
         self.info["active_blocks"] = self.n_slots
+        self.info["inside_blocks"] = n_inside
 
     def cull_shape(self, tape, cull: bool, cap: bool, timings) -> None:
         t0 = time.perf_counter()
-        active = wp.ones(self.n_blocks, dtype=wp.int32, device=self.device)
+        state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
         self.info["interval_evaluations"] = 0
         if cull:
             lo = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
             hi = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
             self._launch(K.block_boxes_kernel, self.n_blocks, [self.wnb, self.wn, self.worigin, self.wh], [lo, hi])
             intervals = eval_intervals(tape, lo, hi, device=self.device)
-            self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [active])
+            self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [state])
             self.info["interval_evaluations"] = self.n_blocks
-        self._compact(active)
+        self._compact(state)
         timings["cull"] = time.perf_counter() - t0
 
     def sample_shape(self, tape, timings) -> None:
+        """f at the nodes of the EVALUATE slots; +1 (inside) at those of INSIDE slots."""
         t0 = time.perf_counter()
-        n_pts = self.n_slots * K.NODES
-        pts = wp.empty(max(n_pts, 1), dtype=wp.vec3, device=self.device)
-        self.values = wp.empty(max(n_pts, 1), dtype=wp.float32, device=self.device)
-        if self.n_slots:
-            self._launch(K.block_points_kernel, (self.n_slots, K.NODES),
+        n_pts = self.n_evaluate * K.NODES
+        self.values = wp.empty(max(self.n_slots * K.NODES, 1), dtype=wp.float32, device=self.device)
+        if self.n_evaluate:
+            pts = wp.empty(n_pts, dtype=wp.vec3, device=self.device)
+            self._launch(K.block_points_kernel, (self.n_evaluate, K.NODES),
                          [self.slot_block, self.wnb, self.wn, self.worigin, self.wh], [pts])
-            eval_values(tape, pts[:n_pts], self.values, device=self.device)
+            eval_values(tape, pts, self.values[:n_pts], device=self.device)
+        if self.n_slots > self.n_evaluate:
+            self._launch(K.fill_values_kernel, (self.n_slots - self.n_evaluate) * K.NODES,
+                         [self.n_evaluate, 1.0], [self.values])
         self.info["evaluations"] = n_pts
         timings["evaluate"] = time.perf_counter() - t0
 
     def cull_volume(self, vol, level, sign, cull, cap, timings) -> None:
+        """Exact value ranges per block (also the volume's validation), then the samples
+        of the surviving blocks."""
         t0 = time.perf_counter()
         wvol = wp.array(np.ascontiguousarray(vol, dtype=np.float32), dtype=wp.float32, device=self.device)
         timings["upload"] = time.perf_counter() - t0
         t0 = time.perf_counter()
+        intervals = wp.empty(self.n_blocks, dtype=wp.vec2, device=self.device)
+        bad = wp.zeros(1, dtype=wp.int32, device=self.device)
+        run_parallel([lambda a=a, b=b: self._launch(K.volume_block_range_kernel, b - a,
+                                                     [a, self.wnb, wvol, level, sign], [intervals, bad])
+                      for a, b in parallel_ranges(self.n_blocks, self.device, min_per_worker=64)])
+        n_bad = int(bad.numpy()[0])  # sync point: validation
+        if n_bad:
+            raise ValueError(f"expected finite values in 'volume', got {n_bad} NaN or infinite")
+        ranges = intervals.numpy()
+        vmin, vmax = float(ranges[:, 0].min()), float(ranges[:, 1].max())  # of sign * (volume - level)
+        if vmin == vmax:
+            raise ValueError(f"expected a non-constant 'volume', got every value equal to {sign * vmin + level}")
+        if not vmin <= 0.0 <= vmax:
+            lo_v, hi_v = sorted((sign * vmin + level, sign * vmax + level))
+            raise ValueError(f"expected 'level' within the volume's range [{lo_v}, {hi_v}], got {level}")
+        state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
         if cull:
-            intervals = wp.empty(self.n_blocks, dtype=wp.vec2, device=self.device)
-            self._launch(K.volume_block_range_kernel, self.n_blocks, [self.wnb, wvol, level, sign], [intervals])
-            active = wp.empty(self.n_blocks, dtype=wp.int32, device=self.device)
-            self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [active])
-        else:
-            active = wp.ones(self.n_blocks, dtype=wp.int32, device=self.device)
-        self._compact(active)
+            self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [state])
+        self._compact(state)
         timings["cull"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         self.values = wp.empty(max(self.n_slots * K.NODES, 1), dtype=wp.float32, device=self.device)
