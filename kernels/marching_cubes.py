@@ -28,6 +28,7 @@ EDGE_SLOTS = NODES * 3  # edge -> vertex ids stored per block
 _BLOCK = wp.constant(BLOCK)
 _SIDE = wp.constant(SIDE)
 _NODES = wp.constant(NODES)
+_CELLS = wp.constant(BLOCK * BLOCK * BLOCK)
 _EDGE_SLOTS = wp.constant(EDGE_SLOTS)
 _MAX_TRIS = wp.constant(int(T.MAX_TRIS))
 
@@ -132,20 +133,129 @@ def fill_values_kernel(first: int, value: float, values: wp.array(dtype=wp.float
     values[first * _NODES + i] = value
 
 
-@wp.kernel
-def block_points_kernel(
-    slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
-    points: wp.array(dtype=wp.vec3),
-):
-    """One thread per (slot, node): the node's coordinates (clamped into the grid)."""
-    s, l = wp.tid()
-    c = block_coords(slot_block[s], nb)
-    li = wp.vec3i(l % _SIDE, (l / _SIDE) % _SIDE, l / (_SIDE * _SIDE))
+@wp.func
+def node_point(c: wp.vec3i, li: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3):
+    """Coordinates of local node li of the block at c (clamped into the grid)."""
     p = wp.vec3(0.0)
     for a in range(3):
         g = wp.min(c[a] * _BLOCK + li[a], n[a] - 1)
         p[a] = origin[a] + float(g) * h[a]
-    points[s * _NODES + l] = p
+    return p
+
+
+@wp.func
+def local_coords(l: int):
+    return wp.vec3i(l % _SIDE, (l / _SIDE) % _SIDE, l / (_SIDE * _SIDE))
+
+
+# -- second level: sub-blocks of SUB^3 cells inside the blocks left to evaluate ------------------
+SUB = 4
+SUBS = (BLOCK // SUB) ** 3  # sub-blocks per block
+_SUB = wp.constant(SUB)
+_SUB_SIDE = wp.constant(BLOCK // SUB)
+_SUBS = wp.constant(SUBS)
+
+
+@wp.kernel
+def sub_boxes_kernel(
+    slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
+    box_lo: wp.array(dtype=wp.vec3), box_hi: wp.array(dtype=wp.vec3),
+):
+    """One thread per (slot, sub-block): the box spanned by the sub-block's nodes."""
+    s, q = wp.tid()
+    c = block_coords(slot_block[s], nb)
+    sq = wp.vec3i(q % _SUB_SIDE, (q / _SUB_SIDE) % _SUB_SIDE, q / (_SUB_SIDE * _SUB_SIDE))
+    box_lo[s * _SUBS + q] = node_point(c, sq * _SUB, n, origin, h)
+    box_hi[s * _SUBS + q] = node_point(c, sq * _SUB + wp.vec3i(_SUB, _SUB, _SUB), n, origin, h)
+
+
+@wp.func
+def sub_state(iv: wp.vec2):
+    """0: the sub-block may hold the surface; +1 / -1: every node inside / outside."""
+    margin = 1.0e-4 * wp.max(wp.abs(iv[0]), wp.abs(iv[1])) + 1.0e-7
+    r = int(0)
+    if iv[0] > margin:
+        r = 1
+    elif iv[1] < -margin:
+        r = -1
+    return r
+
+
+@wp.func
+def node_need(states: wp.array(dtype=wp.int32), base: int, li: wp.vec3i):
+    """(need, fill) of a node from the states of the up to 2 x 2 x 2 sub-blocks whose
+    closure holds it: evaluate it if any may hold the surface, else fill with the sign."""
+    need = int(0)
+    fill = float(-1.0)
+    for q in range(8):
+        sq = wp.vec3i(0, 0, 0)
+        ok = True
+        for a in range(3):
+            k = li[a] / _SUB
+            if (q >> a) & 1 == 1:
+                if li[a] % _SUB != 0 or li[a] == 0:
+                    ok = False
+                k = (li[a] - 1) / _SUB
+            sq[a] = wp.min(k, _SUB_SIDE - 1)
+        if ok:
+            st = states[base + sq[0] + _SUB_SIDE * (sq[1] + _SUB_SIDE * sq[2])]
+            if st == 0:
+                need = 1
+            elif st > 0:
+                fill = 1.0
+    return need, fill
+
+
+@wp.kernel
+def node_needs_kernel(
+    first: int, intervals: wp.array(dtype=wp.vec2), states: wp.array(dtype=wp.int32),
+    values: wp.array(dtype=wp.float32), needs: wp.array(dtype=wp.int8),
+    need_count: wp.array(dtype=wp.int32),
+):
+    """One thread per slot: which nodes must be evaluated (a sub-block holding them may
+    contain the surface); the others get the sign their sub-blocks' intervals prove
+    (cells of settled sub-blocks hold no crossing). Counts the nodes to evaluate."""
+    s = wp.tid() + first
+    for q in range(_SUBS):
+        states[s * _SUBS + q] = sub_state(intervals[s * _SUBS + q])
+    count = int(0)
+    for l in range(_NODES):
+        need, fill = node_need(states, s * _SUBS, local_coords(l))
+        needs[s * _NODES + l] = wp.int8(need)
+        if need == 0:
+            values[s * _NODES + l] = fill
+        count += need
+    need_count[s] = count
+
+
+@wp.kernel
+def needed_points_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3,
+    h: wp.vec3, needs: wp.array(dtype=wp.int8), need_offset: wp.array(dtype=wp.int32),
+    points: wp.array(dtype=wp.vec3),
+):
+    """One thread per slot: the coordinates of its nodes to evaluate, compacted."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    out = need_offset[s]
+    for l in range(_NODES):
+        if needs[s * _NODES + l] != wp.int8(0):
+            points[out] = node_point(c, local_coords(l), n, origin, h)
+            out += 1
+
+
+@wp.kernel
+def scatter_values_kernel(
+    first: int, needs: wp.array(dtype=wp.int8), need_offset: wp.array(dtype=wp.int32),
+    compact: wp.array(dtype=wp.float32), values: wp.array(dtype=wp.float32),
+):
+    """One thread per slot: the evaluated values back into the block layout."""
+    s = wp.tid() + first
+    k = need_offset[s]
+    for l in range(_NODES):
+        if needs[s * _NODES + l] != wp.int8(0):
+            values[s * _NODES + l] = compact[k]
+            k += 1
 
 
 @wp.kernel
@@ -188,29 +298,41 @@ def volume_block_range_kernel(
     intervals[b] = wp.vec2(lo, hi)
 
 
+@wp.func
+def on_grid_boundary(g: wp.vec3i, n: wp.vec3i):
+    r = False
+    for a in range(3):
+        if g[a] == 0 or g[a] == n[a] - 1:
+            r = True
+    return r
+
+
 @wp.kernel
 def finish_values_kernel(
-    slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, cap: int,
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, cap: int,
     values: wp.array(dtype=wp.float32), bad: wp.array(dtype=wp.int32),
 ):
-    """One thread per (slot, node): count non-finite values; cap the grid boundary
-    (boundary nodes become outside, so every surface closes on the bounds)."""
-    s, l = wp.tid()
+    """One thread per slot: count non-finite values; cap the grid boundary (boundary
+    nodes become outside, so every surface closes on the bounds)."""
+    s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
-    li = wp.vec3i(l % _SIDE, (l / _SIDE) % _SIDE, l / (_SIDE * _SIDE))
-    on_boundary = int(0)
+    hi = wp.vec3i(0, 0, 0)
     for a in range(3):
-        g = c[a] * _BLOCK + li[a]
-        if g > n[a] - 1:
-            return  # a padding node beyond the grid: never read
-        if g == 0 or g == n[a] - 1:
-            on_boundary = 1
-    i = s * _NODES + l
-    v = values[i]
-    if not wp.isfinite(v):
-        wp.atomic_add(bad, 0, 1)
-    elif cap != 0 and on_boundary != 0:
-        values[i] = wp.min(v, 0.0)
+        hi[a] = wp.min(_BLOCK, n[a] - 1 - c[a] * _BLOCK)  # padding nodes beyond: never read
+    n_bad = int(0)
+    for k in range(hi[2] + 1):
+        for j in range(hi[1] + 1):
+            for i in range(hi[0] + 1):
+                idx = s * _NODES + local_index(i, j, k)
+                v = values[idx]
+                if not wp.isfinite(v):
+                    n_bad += 1
+                elif cap != 0 and v > 0.0:
+                    g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
+                    if on_grid_boundary(g, n):
+                        values[idx] = 0.0
+    if n_bad > 0:
+        wp.atomic_add(bad, 0, n_bad)
 
 
 @wp.func
@@ -239,8 +361,10 @@ def count_kernel(
     values: wp.array(dtype=wp.float32), corners: wp.array2d(dtype=wp.int32),
     tri_count: wp.array(dtype=wp.int32),
     vertex_count: wp.array(dtype=wp.int32), triangle_count: wp.array(dtype=wp.int32),
+    cube_indices: wp.array(dtype=wp.uint8),
 ):
-    """One thread per slot: crossing edges the block owns, and triangles of its cells."""
+    """One thread per slot: crossing edges the block owns, and triangles of its cells
+    (their cube indices are kept for the triangle pass)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
     base = s * _NODES
@@ -268,7 +392,9 @@ def count_kernel(
     for k in range(cz):
         for j in range(cy):
             for i in range(cx):
-                nt += tri_count[cube_index(values, base, i, j, k, corners)]
+                ci = cube_index(values, base, i, j, k, corners)
+                cube_indices[s * _CELLS + i + _BLOCK * (j + _BLOCK * k)] = wp.uint8(ci)
+                nt += tri_count[ci]
     vertex_count[s] = nv
     triangle_count[s] = nt
 
@@ -287,15 +413,6 @@ def edge_vertex(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k
     p1 = p0
     p1[a] = p1[a] + h[a]
     return p0 + t * (p1 - p0), t, p0, p1
-
-
-@wp.func
-def on_grid_boundary(g: wp.vec3i, n: wp.vec3i):
-    r = False
-    for a in range(3):
-        if g[a] == 0 or g[a] == n[a] - 1:
-            r = True
-    return r
 
 
 @wp.kernel
@@ -352,8 +469,8 @@ def vertices_kernel(
 @wp.kernel
 def triangles_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
-    nb: wp.vec3i, n: wp.vec3i, values: wp.array(dtype=wp.float32),
-    corners: wp.array2d(dtype=wp.int32), edge_origin: wp.array2d(dtype=wp.int32),
+    nb: wp.vec3i, n: wp.vec3i, cube_indices: wp.array(dtype=wp.uint8),
+    edge_origin: wp.array2d(dtype=wp.int32),
     tri_count: wp.array(dtype=wp.int32), tri_table: wp.array2d(dtype=wp.int32),
     triangle_offset: wp.array(dtype=wp.int32), edge_vertex_id: wp.array(dtype=wp.int32),
     triangles: wp.array(dtype=wp.vec3i),
@@ -362,7 +479,6 @@ def triangles_kernel(
     ids looked up at the owner block of each edge."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
-    base = s * _NODES
     out = triangle_offset[s]
     cx = wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK)
     cy = wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK)
@@ -370,7 +486,7 @@ def triangles_kernel(
     for k in range(cz):
         for j in range(cy):
             for i in range(cx):
-                ci = cube_index(values, base, i, j, k, corners)
+                ci = int(cube_indices[s * _CELLS + i + _BLOCK * (j + _BLOCK * k)])
                 for q in range(tri_count[ci]):
                     tri = wp.vec3i(0, 0, 0)
                     for m in range(3):

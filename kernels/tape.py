@@ -72,7 +72,9 @@ def powi(a: float, n: int):
 def hypot(a: float, b: float):
     """sqrt(a^2 + b^2) without overflow for large a, b (scaled by the larger one)."""
     m = wp.max(wp.abs(a), wp.abs(b))
-    if m == 0.0 or not wp.isfinite(m):
+    if m < 1.0e18:  # squares stay far from float32 overflow: the plain formula
+        return wp.sqrt(a * a + b * b)
+    if not wp.isfinite(m):
         return m
     u = a / m
     v = b / m

@@ -198,7 +198,7 @@ def mesh_surface(
         timings["compile"] = time.perf_counter() - t_start
         grid = _Grid(cells + 1, lo, h, device)
         grid.cull_shape(tape, cull, cap, timings)
-        grid.sample_shape(tape, timings)
+        grid.sample_shape(tape, cull, timings)
         info["tape_length"] = len(tape)
     elif isinstance(source, np.ndarray) or hasattr(source, "__array__"):
         if root != "linear":
@@ -323,19 +323,36 @@ class _Grid:
         self._compact(state)
         timings["cull"] = time.perf_counter() - t0
 
-    def sample_shape(self, tape, timings) -> None:
-        """f at the nodes of the EVALUATE slots; +1 (inside) at those of INSIDE slots."""
+    def sample_shape(self, tape, cull: bool, timings) -> None:
+        """f at the nodes of the EVALUATE slots that a sub-block interval cannot settle
+        (the others get the sign it proves); +1 (inside) at the nodes of INSIDE slots."""
         t0 = time.perf_counter()
-        n_pts = self.n_evaluate * K.NODES
-        self.values = wp.empty(max(self.n_slots * K.NODES, 1), dtype=wp.float32, device=self.device)
-        if self.n_evaluate:
-            pts = wp.empty(n_pts, dtype=wp.vec3, device=self.device)
-            self._launch(K.block_points_kernel, (self.n_evaluate, K.NODES),
-                         [self.slot_block, self.wnb, self.wn, self.worigin, self.wh], [pts])
-            eval_values(tape, pts, self.values[:n_pts], device=self.device)
-        if self.n_slots > self.n_evaluate:
-            self._launch(K.fill_values_kernel, (self.n_slots - self.n_evaluate) * K.NODES,
-                         [self.n_evaluate, 1.0], [self.values])
+        dev, ne = self.device, self.n_evaluate
+        n_nodes = ne * K.NODES
+        self.values = wp.empty(max(self.n_slots * K.NODES, 1), dtype=wp.float32, device=dev)
+        n_pts = 0
+        if ne:
+            needs = wp.ones(n_nodes, dtype=wp.int8, device=dev)
+            need_count = wp.full(ne, K.NODES, dtype=wp.int32, device=dev)
+            if cull:
+                lo = wp.empty(ne * K.SUBS, dtype=wp.vec3, device=dev)
+                hi = wp.empty(ne * K.SUBS, dtype=wp.vec3, device=dev)
+                self._launch(K.sub_boxes_kernel, (ne, K.SUBS), [self.slot_block, self.wnb, self.wn,
+                                                                self.worigin, self.wh], [lo, hi])
+                intervals = eval_intervals(tape, lo, hi, device=dev)
+                states = wp.empty(ne * K.SUBS, dtype=wp.int32, device=dev)
+                self._per_slot(K.node_needs_kernel, [intervals], [states, self.values, needs, need_count], ne)
+                self.info["interval_evaluations"] += ne * K.SUBS
+            need_offset = wp.empty_like(need_count)
+            wp.utils.array_scan(need_count, need_offset, inclusive=False)
+            n_pts = int(need_offset[ne - 1:].numpy()[0] + need_count[ne - 1:].numpy()[0])  # sync point
+            pts = wp.empty(max(n_pts, 1), dtype=wp.vec3, device=dev)
+            self._per_slot(K.needed_points_kernel, [self.slot_block, self.wnb, self.wn, self.worigin, self.wh,
+                                                    needs, need_offset], [pts], ne)
+            compact = eval_values(tape, pts[:n_pts], device=dev)
+            self._per_slot(K.scatter_values_kernel, [needs, need_offset, compact], [self.values], ne)
+        if self.n_slots > ne:
+            self._launch(K.fill_values_kernel, (self.n_slots - ne) * K.NODES, [ne, 1.0], [self.values])
         self.info["evaluations"] = n_pts
         timings["evaluate"] = time.perf_counter() - t0
 
@@ -378,8 +395,8 @@ class _Grid:
         t0 = time.perf_counter()
         bad = wp.zeros(1, dtype=wp.int32, device=self.device)
         if self.n_slots:
-            self._launch(K.finish_values_kernel, (self.n_slots, K.NODES),
-                         [self.slot_block, self.wnb, self.wn, int(cap)], [self.values, bad])
+            self._per_slot(K.finish_values_kernel, [self.slot_block, self.wnb, self.wn, int(cap)],
+                           [self.values, bad])
         n_bad = int(bad.numpy()[0])  # sync point
         if n_bad:
             raise ValueError(f"the shape evaluates to NaN or infinity at {n_bad} grid nodes inside "
@@ -387,10 +404,11 @@ class _Grid:
                              "change the expression or the bounds")
         timings["cap"] = time.perf_counter() - t0
 
-    def _per_slot(self, kernel, inputs, outputs) -> None:
-        """Launch a one-thread-per-slot kernel, split across CPU cores."""
+    def _per_slot(self, kernel, inputs, outputs, count: int | None = None) -> None:
+        """Launch a one-thread-per-slot kernel over slots [0, count), split across CPU cores."""
+        count = self.n_slots if count is None else count
         jobs = [lambda a=a, b=b: self._launch(kernel, b - a, [a, *inputs], outputs)
-                for a, b in parallel_ranges(self.n_slots, self.device, min_per_worker=32)]
+                for a, b in parallel_ranges(count, self.device, min_per_worker=32)]
         run_parallel(jobs)
 
     def extract(self, timings):
@@ -400,9 +418,10 @@ class _Grid:
         tcount = wp.zeros(max(ns, 1), dtype=wp.int32, device=dev)
         voff = wp.zeros_like(vcount)
         toff = wp.zeros_like(tcount)
+        cube_indices = wp.empty(max(ns, 1) * K.BLOCK**3, dtype=wp.uint8, device=dev)
         if ns:
             self._per_slot(K.count_kernel, [self.slot_block, self.wnb, self.wn, self.values,
-                                            tab["corners"], tab["tri_count"]], [vcount, tcount])
+                                            tab["corners"], tab["tri_count"]], [vcount, tcount, cube_indices])
             wp.utils.array_scan(vcount, voff, inclusive=False)
             wp.utils.array_scan(tcount, toff, inclusive=False)
         nv = int(voff.numpy()[-1] + vcount.numpy()[-1]) if ns else 0  # sync point: output sizes
@@ -416,8 +435,8 @@ class _Grid:
             self._per_slot(K.vertices_kernel, [self.slot_block, self.wnb, self.wn, self.worigin, self.wh,
                                                float(C.EDGE_T_MIN), self.values, voff],
                            [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"]])
-            self._per_slot(K.triangles_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn, self.values,
-                                                tab["corners"], tab["edge_origin"], tab["tri_count"],
+            self._per_slot(K.triangles_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn, cube_indices,
+                                                tab["edge_origin"], tab["tri_count"],
                                                 tab["tri_table"], toff, eid], [tris])
         timings["extract"] = time.perf_counter() - t0
         return verts, tris, edges
