@@ -46,20 +46,9 @@ def f32(a) -> np.ndarray:
 def intermediate_scale(expr: E.Expr, pts: np.ndarray) -> np.ndarray:
     """Per point: max(1, |value of every node of the DAG|) (finite values only)."""
     scale = np.ones(len(pts))
-    coords = {O.X: pts[:, 0], O.Y: pts[:, 1], O.Z: pts[:, 2]}
-    values = {}
-    with np.errstate(all="ignore"):
-        for node in expr.nodes():  # children first: one pass, as Expr.eval_numpy does
-            if node.op in coords:
-                v = coords[node.op]
-            elif node.op == O.CONST:
-                v = np.float64(node.imm)
-            else:
-                args = [values[id(a)] for a in node.args] + [None] * (2 - len(node.args))
-                v = E._NUMPY[node.op](args[0], args[1], node.imm)
-            values[id(node)] = v
-            v = np.broadcast_to(v, scale.shape)
-            scale = np.maximum(scale, np.where(np.isfinite(v), np.abs(v), 0.0))
+    for v in expr.node_values(pts[:, 0], pts[:, 1], pts[:, 2]).values():
+        v = np.broadcast_to(v, scale.shape)
+        scale = np.maximum(scale, np.where(np.isfinite(v), np.abs(v), 0.0))
     return scale
 
 

@@ -201,19 +201,8 @@ class Expr:
                     stack.append((a, False))
         return order
 
-    def eval_numpy(self, x, y, z=0.0) -> np.ndarray:
-        """Evaluate in float64 with numpy (the test oracle); arguments broadcast.
-
-        Parameters
-        ----------
-        x, y, z : array_like
-            Coordinates; any broadcastable shapes (open grids stay small).
-
-        Returns
-        -------
-        numpy.ndarray
-            f at the broadcast points.
-        """
+    def node_values(self, x, y, z=0.0) -> dict[int, np.ndarray]:
+        """The float64 value of every node of the DAG, keyed by ``id(node)``."""
         coords = {O.X: np.asarray(x, np.float64), O.Y: np.asarray(y, np.float64),
                   O.Z: np.asarray(z, np.float64)}
         values: dict[int, np.ndarray] = {}
@@ -227,7 +216,22 @@ class Expr:
                     args = [values[id(a)] for a in node.args] + [None] * (2 - len(node.args))
                     v = _NUMPY[node.op](args[0], args[1], node.imm)
                 values[id(node)] = v
-        return np.asarray(values[id(self)])
+        return values
+
+    def eval_numpy(self, x, y, z=0.0) -> np.ndarray:
+        """Evaluate in float64 with numpy (the test oracle); arguments broadcast.
+
+        Parameters
+        ----------
+        x, y, z : array_like
+            Coordinates; any broadcastable shapes (open grids stay small).
+
+        Returns
+        -------
+        numpy.ndarray
+            f at the broadcast points.
+        """
+        return np.asarray(self.node_values(x, y, z)[id(self)])
 
     def __call__(self, x, y, z=0.0):
         return self.eval_numpy(x, y, z)
