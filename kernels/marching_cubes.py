@@ -564,8 +564,8 @@ def newton_step_kernel(
     f_prev: wp.array(dtype=wp.float32), t: wp.array(dtype=wp.float32),
 ):
     """One thread per vertex: a safeguarded Newton step on g(t) = f(p0 + t (p1 - p0)):
-    bisect instead when Newton would leave the sign-change bracket, or when the last step
-    did not at least halve |g| (Newton stalls at the kinks of CSG edges)."""
+    bisect instead when Newton would leave the sign-change bracket, or when a step that
+    has not converged did not at least halve |g| (Newton stalls at the kinks of CSG edges)."""
     v = wp.tid()
     if (flags[v] & 2) != 0:
         return
@@ -581,8 +581,12 @@ def newton_step_kernel(
         t_hi[v] = t[v]
     slope = wp.dot(wp.vec3(fg[v][1], fg[v][2], fg[v][3]), p1[v] - p0[v])
     tn = t_lo[v] - 1.0  # invalid unless the Newton step below is taken
-    if slope != 0.0 and 2.0 * wp.abs(f) <= f_prev[v]:
+    if slope != 0.0:
         tn = t[v] - f / slope
+        # converged steps are always taken (a bisection from a one-sided bracket would
+        # throw the root away); others only while |f| at least halves
+        if wp.abs(tn - t[v]) > 1.0e-5 and 2.0 * wp.abs(f) > f_prev[v]:
+            tn = t_lo[v] - 1.0
     f_prev[v] = wp.abs(f)
     if tn > t_lo[v] and tn < t_hi[v]:
         t[v] = tn
