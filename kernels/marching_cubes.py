@@ -260,16 +260,20 @@ def scatter_values_kernel(
 
 @wp.kernel
 def gather_volume_kernel(
-    slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32),
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32),
     level: float, sign: float, values: wp.array(dtype=wp.float32),
 ):
-    """One thread per (slot, node): sign * (volume - level) at the node (clamped)."""
-    s, l = wp.tid()
+    """One thread per slot: sign * (volume - level) at the block's nodes (clamped into
+    the volume), in the block layout."""
+    s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
-    i = wp.min(c[0] * _BLOCK + l % _SIDE, volume.shape[0] - 1)
-    j = wp.min(c[1] * _BLOCK + (l / _SIDE) % _SIDE, volume.shape[1] - 1)
-    k = wp.min(c[2] * _BLOCK + l / (_SIDE * _SIDE), volume.shape[2] - 1)
-    values[s * _NODES + l] = sign * (volume[i, j, k] - level)
+    for k in range(_SIDE):
+        kk = wp.min(c[2] * _BLOCK + k, volume.shape[2] - 1)
+        for j in range(_SIDE):
+            jj = wp.min(c[1] * _BLOCK + j, volume.shape[1] - 1)
+            for i in range(_SIDE):
+                ii = wp.min(c[0] * _BLOCK + i, volume.shape[0] - 1)
+                values[s * _NODES + local_index(i, j, k)] = sign * (volume[ii, jj, kk] - level)
 
 
 @wp.kernel
@@ -281,21 +285,24 @@ def volume_block_range_kernel(
     (k innermost: contiguous reads of a C-order array); counts non-finite samples."""
     b = wp.tid() + first
     c = block_coords(b, nb)
-    lo = float(3.0e38)
-    hi = float(-3.0e38)
+    lo = float(3.4e38)
+    hi = float(-3.4e38)
     n_bad = int(0)
+    k0 = c[2] * _BLOCK
+    k1 = wp.min(k0 + _SIDE, volume.shape[2])
     for i in range(c[0] * _BLOCK, wp.min(c[0] * _BLOCK + _SIDE, volume.shape[0])):
         for j in range(c[1] * _BLOCK, wp.min(c[1] * _BLOCK + _SIDE, volume.shape[1])):
-            for k in range(c[2] * _BLOCK, wp.min(c[2] * _BLOCK + _SIDE, volume.shape[2])):
-                v = sign * (volume[i, j, k] - level)
-                if wp.isfinite(v):
-                    lo = wp.min(lo, v)
-                    hi = wp.max(hi, v)
-                else:
+            for k in range(k0, k1):
+                v = volume[i, j, k]
+                lo = wp.min(lo, v)
+                hi = wp.max(hi, v)
+                if v - v != 0.0:  # NaN or infinite
                     n_bad += 1
     if n_bad > 0:
         wp.atomic_add(bad, 0, n_bad)
-    intervals[b] = wp.vec2(lo, hi)
+    a = sign * (lo - level)
+    z = sign * (hi - level)
+    intervals[b] = wp.vec2(wp.min(a, z), wp.max(a, z))
 
 
 @wp.func

@@ -386,8 +386,7 @@ class _Grid:
         t0 = time.perf_counter()
         self.values = wp.empty(max(self.n_slots * K.NODES, 1), dtype=wp.float32, device=self.device)
         if self.n_slots:
-            self._launch(K.gather_volume_kernel, (self.n_slots, K.NODES),
-                         [self.slot_block, self.wnb, wvol, level, sign], [self.values])
+            self._per_slot(K.gather_volume_kernel, [self.slot_block, self.wnb, wvol, level, sign], [self.values])
         self.info["evaluations"] = 0
         timings["evaluate"] = time.perf_counter() - t0
 
