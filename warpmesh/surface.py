@@ -360,7 +360,10 @@ class _Grid:
         """Exact value ranges per block (also the volume's validation), then the samples
         of the surviving blocks."""
         t0 = time.perf_counter()
-        wvol = wp.array(np.ascontiguousarray(vol, dtype=np.float32), dtype=wp.float32, device=self.device)
+        host = np.ascontiguousarray(vol, dtype=np.float32)  # no copy for a C-order float32 volume
+        # on the CPU Warp reads the numpy buffer in place; elsewhere it is uploaded once
+        wvol = wp.array(host, dtype=wp.float32, device=self.device, copy=not self.device.is_cpu)
+        self._volume_refs = (host, wvol)  # keep the borrowed buffer alive while kernels read it
         timings["upload"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         intervals = wp.empty(self.n_blocks, dtype=wp.vec2, device=self.device)
