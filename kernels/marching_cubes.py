@@ -520,11 +520,11 @@ def triangles_kernel(
 @wp.kernel
 def edge_points_kernel(
     t: wp.array(dtype=wp.float32), p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
-    points: wp.array(dtype=wp.vec3),
+    origin: wp.vec3, points: wp.array(dtype=wp.vec3),
 ):
-    """One thread per vertex: p0 + t (p1 - p0)."""
+    """One thread per vertex: origin + p0 + t (p1 - p0) (edge ends are grid-local)."""
     v = wp.tid()
-    points[v] = p0[v] + t[v] * (p1[v] - p0[v])
+    points[v] = origin + p0[v] + t[v] * (p1[v] - p0[v])
 
 
 @wp.kernel
@@ -602,6 +602,7 @@ def newton_step_kernel(
 
 
 @wp.kernel
-def clamp_t_kernel(t: wp.array(dtype=wp.float32), t_min: float):
+def clamp_t_kernel(t_min: float, t: wp.array(dtype=wp.float32)):
+    """One thread per vertex: t into [t_min, 1 - t_min] (no vertex on a grid node)."""
     v = wp.tid()
     t[v] = wp.clamp(t[v], t_min, 1.0 - t_min)

@@ -135,6 +135,25 @@ def test_cap_vertices_get_the_normal_of_the_bounds_face():
     assert interior.any() and np.allclose(n[interior], (0, 0, 1), atol=1e-6)
 
 
+def test_far_from_the_origin_positions_keep_their_precision():
+    """Vertices are computed relative to the grid origin; the origin is added in float64."""
+    g = np.arange(-12, 13, 1.0)
+    vol = 10 - np.sqrt(g[:, None, None] ** 2 + g[None, :, None] ** 2 + g[None, None, :] ** 2)
+    near = wm.mesh_surface(vol, spacing=1.0, origin=(-12, -12, -12))
+    shift = np.array([4e6, 5e5, 0.0])
+    far = wm.mesh_surface(vol, spacing=1.0, origin=shift - 12)
+    check_mesh(far)
+    assert np.allclose(far.points - shift, near.points, atol=1e-6)
+
+
+def test_cap_normals_with_bounds_not_representable_in_float32():
+    lo = np.array([1000.1, -0.7, -0.7])
+    mesh = wm.mesh_surface(wm.sphere(1.0, center=(1000.1 + 0.6, 0, 0)), bounds=(lo, lo + 1.4),
+                           resolution=14, normals=True)
+    low_face = mesh.points[:, 0] < lo[0] + 1e-3  # cap vertices on the face x = x0
+    assert low_face.any() and np.allclose(mesh.point_data["normals"][low_face], (-1, 0, 0))
+
+
 # -- culling, zeros, capping ------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["part", "degree6"])
 def test_culling_changes_nothing_but_the_work(name):

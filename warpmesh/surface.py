@@ -218,12 +218,15 @@ def mesh_surface(
     grid.finish_values(cap, timings)
     verts, tris, edges = grid.extract(timings)
     if tape is not None and root != "linear" and len(verts):
-        _refine_roots(tape, verts, edges, root, root_iterations, timings)
+        _refine_roots(tape, verts, edges, grid.worigin, root, root_iterations, timings)
 
     t0 = time.perf_counter()
     point_data = {}
     if normals and tape is not None and len(verts):
-        fg = eval_gradients(tape, verts, device=device).numpy()
+        world = wp.empty_like(verts)
+        wp.launch(K.edge_points_kernel, dim=len(verts), inputs=[edges["t"], edges["p0"], edges["p1"], grid.worigin],
+                  outputs=[world], device=device)
+        fg = eval_gradients(tape, world, device=device).numpy()
         g = fg[:, 1:].astype(np.float64)
         norm = np.linalg.norm(g, axis=1, keepdims=True)
         normals = -g / np.where(norm > 0, norm, 1.0)
@@ -231,12 +234,12 @@ def mesh_surface(
             p0, p1 = edges["p0"].numpy(), edges["p1"].numpy()
             on_cap = (edges["flags"].numpy() & 4) != 0
             axis = np.argmax(np.abs(p1 - p0), axis=1)
-            at_low = np.isclose(p0[np.arange(len(p0)), axis], grid.origin[axis], rtol=0, atol=1e-6)
+            at_low = p0[np.arange(len(p0)), axis] < 0.5 * grid.h[axis]  # grid-local: the low face is 0
             face_normal = np.zeros_like(normals)
             face_normal[np.arange(len(p0)), axis] = np.where(at_low, -1.0, 1.0)
             normals[on_cap] = face_normal[on_cap]
         point_data["normals"] = normals
-    points = verts.numpy().astype(C.REAL_DTYPE)  # sync point: results to the host
+    points = verts.numpy().astype(C.REAL_DTYPE) + grid.origin  # sync point: results to the host
     faces = tris.numpy().astype(C.INDEX_DTYPE)
     if len(faces) and faces.min() < 0:
         raise WarpMeshError("a block culled as uniform holds a crossing edge: the interval bound "
@@ -434,7 +437,9 @@ class _Grid:
                  "p1": wp.empty(nv, dtype=wp.vec3, device=dev), "flags": wp.empty(nv, dtype=wp.int32, device=dev)}
         if nv:
             eid = wp.full(ns * K.EDGE_SLOTS, -1, dtype=wp.int32, device=dev)
-            self._per_slot(K.vertices_kernel, [self.slot_block, self.wnb, self.wn, self.worigin, self.wh,
+            # positions relative to the grid origin: float32 keeps its precision far from 0;
+            # the host adds the origin in float64
+            self._per_slot(K.vertices_kernel, [self.slot_block, self.wnb, self.wn, wp.vec3(0.0), self.wh,
                                                float(C.EDGE_T_MIN), self.values, voff],
                            [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"]])
             self._per_slot(K.triangles_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn, cube_indices,
@@ -444,11 +449,13 @@ class _Grid:
         return verts, tris, edges
 
 
-def _refine_roots(tape, verts, edges, root, iterations, timings) -> None:
-    """Move each vertex to the root of f on its edge (bisection or safeguarded Newton)."""
+def _refine_roots(tape, verts, edges, origin, root, iterations, timings) -> None:
+    """Move each vertex to the root of f on its edge (bisection or safeguarded Newton);
+    f is evaluated at origin + the grid-local positions."""
     t0 = time.perf_counter()
     dev = verts.device
     nv = verts.shape[0]
+    world = wp.empty(nv, dtype=wp.vec3, device=dev)
     t, flags, p0, p1 = edges["t"], edges["flags"], edges["p0"], edges["p1"]
     t_lo = wp.empty(nv, dtype=wp.float32, device=dev)
     t_hi = wp.empty(nv, dtype=wp.float32, device=dev)
@@ -457,17 +464,17 @@ def _refine_roots(tape, verts, edges, root, iterations, timings) -> None:
     if bisect:
         f_mid = wp.empty(nv, dtype=wp.float32, device=dev)
         for _ in range(iterations or 12):
-            wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1], outputs=[verts], device=dev)
-            eval_values(tape, verts, f_mid, device=dev)
+            wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
+            eval_values(tape, world, f_mid, device=dev)
             wp.launch(K.bisection_step_kernel, dim=nv, inputs=[flags, f_mid], outputs=[t_lo, t_hi, t], device=dev)
     else:
         fg = wp.empty(nv, dtype=wp.vec4, device=dev)
         f_prev = wp.full(nv, 3.0e38, dtype=wp.float32, device=dev)  # |f| one step back
         for _ in range(iterations or 10):
-            wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1], outputs=[verts], device=dev)
-            eval_gradients(tape, verts, fg, device=dev)
+            wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
+            eval_gradients(tape, world, fg, device=dev)
             wp.launch(K.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1],
                       outputs=[t_lo, t_hi, f_prev, t], device=dev)
-    wp.launch(K.clamp_t_kernel, dim=nv, inputs=[t, float(C.EDGE_T_MIN)], device=dev)
-    wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1], outputs=[verts], device=dev)
+    wp.launch(K.clamp_t_kernel, dim=nv, inputs=[float(C.EDGE_T_MIN)], outputs=[t], device=dev)
+    wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1, wp.vec3(0.0)], outputs=[verts], device=dev)
     timings["root"] = time.perf_counter() - t0
