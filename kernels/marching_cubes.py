@@ -74,6 +74,12 @@ EVALUATE = wp.constant(1)
 INSIDE = wp.constant(2)
 
 
+@wp.func
+def rounding_slack(bound: float):
+    """How far a float32 point evaluation may stray past an interval bound near it."""
+    return 1.0e-4 * wp.abs(bound) + 1.0e-7
+
+
 @wp.kernel
 def cull_blocks_kernel(
     nb: wp.vec3i, n: wp.vec3i, cap: int, intervals: wp.array(dtype=wp.vec2),
@@ -86,11 +92,10 @@ def cull_blocks_kernel(
     b = wp.tid()
     lo = intervals[b][0]
     hi = intervals[b][1]
-    margin = 1.0e-4 * wp.max(wp.abs(lo), wp.abs(hi)) + 1.0e-7  # float32 rounding slack
     keep = EVALUATE
-    if hi < -margin:
+    if hi < -rounding_slack(hi):
         keep = CULLED  # every node outside
-    elif lo > margin:
+    elif lo > rounding_slack(lo):
         keep = CULLED  # every node inside ...
         if cap != 0:  # ... unless capping at the grid boundary turns its boundary nodes out
             c = block_coords(b, nb)
@@ -172,11 +177,10 @@ def sub_boxes_kernel(
 @wp.func
 def sub_state(iv: wp.vec2):
     """0: the sub-block may hold the surface; +1 / -1: every node inside / outside."""
-    margin = 1.0e-4 * wp.max(wp.abs(iv[0]), wp.abs(iv[1])) + 1.0e-7
     r = int(0)
-    if iv[0] > margin:
+    if iv[0] > rounding_slack(iv[0]):
         r = 1
-    elif iv[1] < -margin:
+    elif iv[1] < -rounding_slack(iv[1]):
         r = -1
     return r
 
@@ -282,7 +286,7 @@ def volume_block_range_kernel(
     intervals: wp.array(dtype=wp.vec2), bad: wp.array(dtype=wp.int32),
 ):
     """One thread per block: exact (min, max) of sign * (volume - level) over its nodes
-    (k innermost: contiguous reads of a C-order array); counts non-finite samples."""
+    (k innermost: contiguous reads of a C-order array); non-finite samples into bad[block]."""
     b = wp.tid() + first
     c = block_coords(b, nb)
     lo = float(3.4e38)
@@ -298,8 +302,7 @@ def volume_block_range_kernel(
                 hi = wp.max(hi, v)
                 if v - v != 0.0:  # NaN or infinite
                     n_bad += 1
-    if n_bad > 0:
-        wp.atomic_add(bad, 0, n_bad)
+    bad[b] = n_bad
     a = sign * (lo - level)
     z = sign * (hi - level)
     intervals[b] = wp.vec2(wp.min(a, z), wp.max(a, z))
@@ -319,7 +322,7 @@ def finish_values_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, cap: int,
     values: wp.array(dtype=wp.float32), bad: wp.array(dtype=wp.int32),
 ):
-    """One thread per slot: count non-finite values; cap the grid boundary (boundary
+    """One thread per slot: count non-finite values (into bad[slot]); cap the grid boundary (boundary
     nodes become outside, so every surface closes on the bounds)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
@@ -338,8 +341,7 @@ def finish_values_kernel(
                     g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
                     if on_grid_boundary(g, n):
                         values[idx] = 0.0
-    if n_bad > 0:
-        wp.atomic_add(bad, 0, n_bad)
+    bad[s] = n_bad
 
 
 @wp.func
@@ -480,13 +482,16 @@ def triangles_kernel(
     edge_origin: wp.array2d(dtype=wp.int32),
     tri_count: wp.array(dtype=wp.int32), tri_table: wp.array2d(dtype=wp.int32),
     triangle_offset: wp.array(dtype=wp.int32), edge_vertex_id: wp.array(dtype=wp.int32),
-    triangles: wp.array(dtype=wp.vec3i),
+    points: wp.array(dtype=wp.vec3),
+    triangles: wp.array(dtype=wp.vec3i), slot_volume: wp.array(dtype=wp.float64),
 ):
     """One thread per slot: the table's triangles of every cell of the block, with vertex
-    ids looked up at the owner block of each edge."""
+    ids looked up at the owner block of each edge; and the block's share of the signed
+    volume they enclose (six times p0 . (p1 x p2), summed: the host checks the winding)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
     out = triangle_offset[s]
+    vol = wp.float64(0.0)
     cx = wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK)
     cy = wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK)
     cz = wp.min(_BLOCK, n[2] - 1 - c[2] * _BLOCK)
@@ -514,6 +519,9 @@ def triangles_kernel(
                         tri[m] = vid
                     triangles[out] = tri
                     out += 1
+                    if tri[0] >= 0 and tri[1] >= 0 and tri[2] >= 0:
+                        vol += wp.float64(wp.dot(points[tri[0]], wp.cross(points[tri[1]], points[tri[2]])))
+    slot_volume[s] = vol
 
 
 # -- root refinement along crossing edges (seed §16.3.3) ------------------------------------

@@ -43,6 +43,12 @@ def test_errors_are_reported_not_raised(tmp_path, capsys):
     assert main(["info", str(missing)]) == 2
     with pytest.raises(SystemExit):
         main(["mesh", "--example", "teapot"])
+    assert main(["mesh", "--example", "sphere", "-o", str(tmp_path / "s.xyz")]) == 2
+    assert "extension" in capsys.readouterr().err
+    assert not list(tmp_path.glob("s.*"))
+    np.save(tmp_path / "v.npy", np.arange(64.0).reshape(4, 4, 4))
+    assert main(["mesh", "--volume", str(tmp_path / "v.npy"), "--level", "3", "--root", "newton"]) == 2
+    assert "root" in capsys.readouterr().err
 
 
 def test_console_script_is_installed():

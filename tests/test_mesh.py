@@ -520,3 +520,11 @@ def test_load_invalid_mesh_in_a_file(tmp_path):
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
     with pytest.raises(ReadError, match="invalid mesh"):
         load(path)
+
+
+def test_saving_an_empty_mesh_is_refused(tmp_path):
+    empty = Mesh(np.zeros((0, 3)), {"triangle": np.zeros((0, 3), dtype=int)})
+    for ext in (".ply", ".vtk", ".mesh"):
+        with pytest.raises(ValueError, match="empty"):
+            empty.save(tmp_path / f"e{ext}")
+    assert not list(tmp_path.iterdir())

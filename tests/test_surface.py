@@ -80,6 +80,23 @@ def test_oracle_agrees_with_mesher_on_random_blobs():
 
 
 # -- orientation and accuracy ---------------------------------------------------------------------
+@pytest.mark.parametrize("name, root", [("sphere", "linear"), ("torus", "newton"), ("part", "newton"),
+                                        ("degree6", "newton")])
+def test_every_triangle_faces_outward(name, root):
+    """Consistent winding (check_mesh) and a positive volume in every closed component (none
+    of these solids has a cavity) mean that every triangle faces out, towards f < 0."""
+    shape, bounds = wm.example(name)
+    for solid in ((shape, ~shape) if name == "degree6" else (shape,)):
+        mesh = wm.mesh_surface(solid, bounds=bounds, resolution=40, root=root)
+        check_mesh(mesh)
+        faces = mesh.cells["triangle"]
+        _, labels = T.connected_components(faces, len(mesh.points))
+        p = mesh.points[faces]
+        six_v = np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2]))
+        assert np.all(np.bincount(labels, weights=six_v) > 0)
+        assert mesh.info["signed_volume"] > 0 and mesh.info["orientation"].startswith("outward")
+
+
 def test_every_triangle_faces_outward_on_a_smooth_shape():
     shape = wm.ellipsoid((1.0, 0.7, 0.5))
     mesh = wm.mesh_surface(shape, bounds=((-1.1,) * 3, (1.1,) * 3), resolution=40)
@@ -286,6 +303,38 @@ def test_bad_arguments_for_a_shape(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         wm.mesh_surface(wm.sphere(0.5), **args)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(level=0.5), "'level' do not apply to a shape"),
+    (dict(inside="below", spacing=0.1), "'inside', 'spacing'"),
+    (dict(origin=(0, 0, 0)), "origin"),
+    (dict(root_iterations=5), "root_iterations"),
+    (dict(resolution=1), "at least 2 cells"),
+    (dict(bounds=((0, 0, 0), (1, 1, 0.01)), resolution=20), "at least 2 cells"),
+])
+def test_options_that_do_not_apply_are_refused(kwargs, match):
+    args = dict(bounds=BOUNDS, resolution=8)
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        wm.mesh_surface(wm.sphere(0.5), **args)
+
+
+def test_volume_refuses_grid_options_and_tiny_capped_volumes():
+    vol = np.arange(64.0).reshape(4, 4, 4)
+    with pytest.raises(ValueError, match="'resolution' do not apply to a volume"):
+        wm.mesh_surface(vol, level=3.0, resolution=16)
+    with pytest.raises(ValueError, match="'bounds'"):
+        wm.mesh_surface(vol, level=3.0, bounds=BOUNDS)
+    with pytest.raises(ValueError, match="at least 3 samples"):
+        wm.mesh_surface(np.arange(18.0).reshape(2, 3, 3), level=3.0)
+    assert len(wm.mesh_surface(np.arange(18.0).reshape(2, 3, 3), level=3.0, cap=False).points)
+
+
+@pytest.mark.parametrize("flag", ["cap", "cull", "normals"])
+def test_flags_must_be_booleans(flag):
+    with pytest.raises(TypeError, match=flag):
+        wm.mesh_surface(wm.sphere(0.5), bounds=BOUNDS, resolution=8, **{flag: "no"})
 
 
 def test_bad_types():

@@ -28,15 +28,16 @@ def _parser() -> argparse.ArgumentParser:
     src = m.add_mutually_exclusive_group(required=True)
     src.add_argument("--example", choices=list(EXAMPLES), help="a bundled example shape")
     src.add_argument("--volume", metavar="FILE.npy", help="a 3D array saved with numpy.save")
-    m.add_argument("--resolution", type=int, default=128, help="cells along the longest side (shapes)")
-    m.add_argument("--level", type=float, default=0.0, help="iso-level (volumes)")
-    m.add_argument("--inside", choices=["above", "below"], default="above", help="inside side of the level")
-    m.add_argument("--spacing", type=float, nargs="+", default=[1.0], help="sample spacing (1 or 3 values)")
-    m.add_argument("--origin", type=float, nargs=3, default=[0.0, 0.0, 0.0], help="position of sample [0,0,0]")
+    m.add_argument("--resolution", type=int, help="cells along the longest side (shapes; default 128)")
+    m.add_argument("--level", type=float, help="iso-level (volumes; default 0)")
+    m.add_argument("--inside", choices=["above", "below"], help="inside side of the level (volumes)")
+    m.add_argument("--spacing", type=float, nargs="+", help="sample spacing, 1 or 3 values (volumes)")
+    m.add_argument("--origin", type=float, nargs=3, help="position of sample [0, 0, 0] (volumes)")
     m.add_argument("--root", choices=["linear", "bisection", "newton"], default="linear")
     m.add_argument("--no-cap", action="store_true", help="leave the surface open at the bounds")
     m.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
     m.add_argument("-o", "--output", help="mesh file to write (.ply .obj .stl .vtk .vtu .msh .mesh)")
+    m.add_argument("--root-iterations", type=int, help="iterations of bisection / Newton")
     m.add_argument("--json", action="store_true", help="print statistics as JSON")
     i = sub.add_parser("info", help="print statistics of a mesh file")
     i.add_argument("path")
@@ -59,23 +60,29 @@ def _print_stats(stats: dict, as_json: bool) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     import warpmesh as wm
+    from warpmesh.io import check_path
 
     try:
         if args.command == "info":
             _print_stats(wm.load(args.path).stats(), args.json)
             return 0
+        if args.output:
+            check_path(args.output)  # before meshing: a bad extension fails at once
+        common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
+                      device=args.device)
         if args.example:
             shape, bounds = wm.example(args.example)
-            mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, root=args.root,
-                                   cap=not args.no_cap, device=args.device)
+            mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
+                                   inside=args.inside, origin=args.origin,
+                                   spacing=None if args.spacing is None else args.spacing[0], **common)
         else:
             try:
                 volume = np.load(args.volume, allow_pickle=False)
             except (OSError, ValueError) as exc:
                 raise ValueError(f"cannot read --volume {args.volume!r}: {exc}") from None
-            spacing = args.spacing[0] if len(args.spacing) == 1 else args.spacing
-            mesh = wm.mesh_surface(volume, level=args.level, inside=args.inside, spacing=spacing,
-                                   origin=args.origin, cap=not args.no_cap, device=args.device)
+            spacing = args.spacing if args.spacing is None or len(args.spacing) > 1 else args.spacing[0]
+            mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,
+                                   spacing=spacing, origin=args.origin, **common)
         if args.output:
             mesh.save(args.output)
         stats = mesh.stats()

@@ -112,6 +112,11 @@ def _register_format(name: str, ext: str, meshio_name: str, **options) -> None:
     _EXTENSIONS[ext] = name
 
 
+def check_path(path, file_format: str | None = None) -> None:
+    """Raise ValueError now if ``path`` (or ``file_format``) names no known format."""
+    _find_format(Path(path), file_format)
+
+
 def _find_format(path: Path, file_format: str | None) -> _Format:
     if file_format is not None:
         if file_format in _FORMATS:
@@ -230,6 +235,9 @@ def _save(mesh: Mesh, path, file_format: str | None, stacklevel: int) -> Path:
     """:func:`save`, for :func:`save` and :meth:`Mesh.save` (see :func:`_meshio_for`)."""
     path = Path(path)
     fmt = _find_format(path, file_format)
+    if mesh.n_points == 0 or mesh.n_cells == 0:
+        raise ValueError(f"expected a mesh with points and cells to save to {str(path)!r}, got an empty "
+                         f"mesh ({mesh.n_points} points, {mesh.n_cells} cells): mesh files cannot hold it")
     data = _meshio_for(mesh, fmt, stacklevel + 1)
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
     try:

@@ -35,7 +35,7 @@ from warpmesh.tape import (eval_gradients, eval_intervals, eval_values, parallel
 
 RootMethod = Literal["linear", "bisection", "newton"]
 _ROOTS = ("linear", "bisection", "newton")
-MAX_RESOLUTION = 4096
+MAX_RESOLUTION = 2048  # 2048^3 cells: 16.8 M blocks of 8^3, about 1 GB of block bookkeeping
 
 _TABLE_CACHE: dict[str, dict] = {}
 
@@ -66,8 +66,17 @@ def _check_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
     return b[0], b[1]
 
 
-def _check_resolution(resolution, extent: np.ndarray) -> np.ndarray:
+def _check_resolution(resolution, extent: np.ndarray, cap: bool) -> np.ndarray:
     """Cells per axis: an int is the count along the longest side (cells near-cubic)."""
+    cells = _cells(resolution, extent)
+    if cap and np.any(cells < 2):
+        raise ValueError(f"expected at least 2 cells per axis with cap=True (the boundary nodes are "
+                         f"outside), got {cells.tolist()} from resolution={resolution!r}: raise "
+                         "'resolution' or widen the thin side of 'bounds'")
+    return cells
+
+
+def _cells(resolution, extent: np.ndarray) -> np.ndarray:
     if isinstance(resolution, (bool, np.bool_)):
         raise TypeError(f"expected an integer 'resolution', got {resolution!r}")
     if np.ndim(resolution) == 0:
@@ -84,6 +93,13 @@ def _check_resolution(resolution, extent: np.ndarray) -> np.ndarray:
     if np.any(cells < 1) or np.any(cells > MAX_RESOLUTION):
         raise ValueError(f"expected 1 <= 'resolution' <= {MAX_RESOLUTION} per axis, got {cells.tolist()}")
     return cells.astype(np.int64)
+
+
+def _refuse(*named, source: str, hint: str) -> None:
+    """Options that do not apply to the source raise instead of being ignored."""
+    given = [name for name, value in named if value is not None]
+    if given:
+        raise ValueError(f"{', '.join(repr(g) for g in given)} do not apply to {source} ({hint})")
 
 
 def _check_choice(value, name: str, choices) -> None:
@@ -114,11 +130,11 @@ def mesh_surface(
     source,
     *,
     bounds=None,
-    resolution=128,
-    level: float = 0.0,
-    inside: Literal["above", "below"] = "above",
-    spacing=1.0,
-    origin=(0.0, 0.0, 0.0),
+    resolution: int | tuple[int, int, int] | None = None,
+    level: float | None = None,
+    inside: Literal["above", "below"] | None = None,
+    spacing=None,
+    origin=None,
     root: RootMethod = "linear",
     root_iterations: int | None = None,
     cap: bool = True,
@@ -135,14 +151,15 @@ def mesh_surface(
         ``origin + (i, j, k) * spacing`` (trilinear in between).
     bounds : ((x0, y0, z0), (x1, y1, z1)), required for a shape
         The box sampled; the surface is closed (capped) on it when ``cap``.
-    resolution : int or (3,) ints
-        Cells along the longest side of ``bounds`` (near-cubic cells), or per axis.
-    level : float
-        Volume only: the iso-level.
-    inside : {'above', 'below'}
-        Volume only: whether values above or below ``level`` are inside.
-    spacing, origin : float or (3,) floats
-        Volume only: the sample spacing and the position of ``volume[0, 0, 0]``.
+    resolution : int or (3,) ints, shapes only
+        Cells along the longest side of ``bounds`` (near-cubic cells), or per axis;
+        default 128.
+    level : float, volumes only
+        The iso-level (default 0).
+    inside : {'above', 'below'}, volumes only
+        Whether values above (default) or below ``level`` are inside.
+    spacing, origin : float or (3,) floats, volumes only
+        The sample spacing (default 1) and the position of ``volume[0, 0, 0]`` (default 0).
     root : {'linear', 'bisection', 'newton'}
         Vertex placement on a crossing edge: linear interpolation (eq. 16.12), bisection
         or safeguarded Newton on the exact function (§16.3.3; shapes only).
@@ -182,17 +199,24 @@ def mesh_surface(
     """
     t_start = time.perf_counter()
     _check_choice(root, "root", _ROOTS)
-    _check_choice(inside, "inside", ("above", "below"))
-    if root_iterations is not None and (not isinstance(root_iterations, (int, np.integer))
-                                        or not 1 <= root_iterations <= 64):
-        raise ValueError(f"expected 1 <= 'root_iterations' <= 64, got {root_iterations!r}")
+    for name, flag in (("cap", cap), ("cull", cull), ("normals", normals)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise TypeError(f"expected True or False for '{name}', got {flag!r}")
+    if root_iterations is not None:
+        if root == "linear":
+            raise ValueError("'root_iterations' applies to root='bisection' or 'newton', not 'linear'")
+        if isinstance(root_iterations, bool) or not isinstance(root_iterations, (int, np.integer)) \
+                or not 1 <= root_iterations <= 64:
+            raise ValueError(f"expected 1 <= 'root_iterations' <= 64, got {root_iterations!r}")
     device = wp.get_device(device)
     timings: dict[str, float] = {}
     info: dict = {"method": "mc", "root": root, "device": str(device)}
 
     if isinstance(source, (Shape, Expr)):
+        _refuse(("level", level), ("inside", inside), ("spacing", spacing), ("origin", origin),
+                source="a shape", hint="they describe sampled volumes")
         lo, hi = _check_bounds(bounds)
-        cells = _check_resolution(resolution, hi - lo)
+        cells = _check_resolution(128 if resolution is None else resolution, hi - lo, cap)
         h = (hi - lo) / cells
         tape = tape_of(source)
         timings["compile"] = time.perf_counter() - t_start
@@ -201,14 +225,23 @@ def mesh_surface(
         grid.sample_shape(tape, cull, timings)
         info["tape_length"] = len(tape)
     elif isinstance(source, np.ndarray) or hasattr(source, "__array__"):
+        _refuse(("bounds", bounds), ("resolution", resolution), source="a volume",
+                hint="a volume's grid is its samples: use 'spacing' and 'origin'")
         if root != "linear":
             raise ValueError(f"root={root!r} needs the exact function of a shape; a volume's "
                              "trilinear field is linear along grid edges: use root='linear'")
         if normals:
             raise ValueError("normals=True needs a shape; compute them on the mesh for a volume")
-        vol, sp, org = _check_volume(source, spacing, origin)
-        if not math.isfinite(level):
-            raise ValueError(f"expected a finite 'level', got {level!r}")
+        level = 0.0 if level is None else level
+        inside = "above" if inside is None else inside
+        _check_choice(inside, "inside", ("above", "below"))
+        vol, sp, org = _check_volume(source, 1.0 if spacing is None else spacing,
+                                     (0.0, 0.0, 0.0) if origin is None else origin)
+        if not isinstance(level, (int, float, np.integer, np.floating)) or not math.isfinite(level):
+            raise ValueError(f"expected a finite number for 'level', got {level!r}")
+        if cap and min(vol.shape) < 3:
+            raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
+                             f"boundary samples are outside), got shape {vol.shape}")
         grid = _Grid(np.array(vol.shape), org, sp, device)
         grid.cull_volume(vol, float(level), 1.0 if inside == "above" else -1.0, cull, cap, timings)
         tape = None
@@ -244,6 +277,11 @@ def mesh_surface(
     if len(faces) and faces.min() < 0:
         raise WarpMeshError("a block culled as uniform holds a crossing edge: the interval bound "
                             "of the shape is wrong; mesh with cull=False and report the shape")
+    if cap and len(faces):  # closed by construction: outward winding encloses a positive volume
+        if not grid.info["signed_volume"] > 0.0:
+            raise WarpMeshError(f"the capped surface encloses a signed volume of {grid.info['signed_volume']:g}: "
+                                "its triangles do not face outward (an internal error: please report it)")
+        info["orientation"] = "outward (closed, positive enclosed volume)"
     refs = _surface_refs(edges, faces) if cap and len(faces) else None
     cell_refs = {"triangle": refs} if refs is not None and np.any(refs == CAP_REF) else None
     info.update(grid.info)
@@ -303,8 +341,8 @@ class _Grid:
         self.n_slots = self.n_evaluate + n_inside
         if self.n_slots * K.EDGE_SLOTS >= 2**31:
             raise WarpMeshError(
-                f"{self.n_slots} blocks of {K.BLOCK}^3 cells hold the surface, more than one pass "
-                "can index (int32); lower 'resolution' or mesh the domain in parts")
+                f"{self.n_slots} blocks of {K.BLOCK}^3 cells would be sampled, more than one pass can "
+                "index (int32): keep cull=True, or lower 'resolution'")
         self.slot_block = wp.empty(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
         self.block_slot = wp.empty(self.n_blocks, dtype=wp.int32, device=self.device)
         self._launch(K.compact_blocks_kernel, self.n_blocks, [state, offsets[0], offsets[1], self.n_evaluate],
@@ -370,13 +408,14 @@ class _Grid:
         timings["upload"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         intervals = wp.empty(self.n_blocks, dtype=wp.vec2, device=self.device)
-        bad = wp.zeros(1, dtype=wp.int32, device=self.device)
+        bad = wp.zeros(self.n_blocks, dtype=wp.int32, device=self.device)
         run_parallel([lambda a=a, b=b: self._launch(K.volume_block_range_kernel, b - a,
                                                      [a, self.wnb, wvol, level, sign], [intervals, bad])
                       for a, b in parallel_ranges(self.n_blocks, self.device, min_per_worker=64)])
-        n_bad = int(bad.numpy()[0])  # sync point: validation
+        n_bad = int(bad.numpy().sum())  # sync point: validation (samples on block faces count twice)
         if n_bad:
-            raise ValueError(f"expected finite values in 'volume', got {n_bad} NaN or infinite")
+            raise ValueError("expected finite values in 'volume', got NaN or infinity (or values beyond "
+                             "float32's range, where the volume is converted to float32)")
         ranges = intervals.numpy()
         vmin, vmax = float(ranges[:, 0].min()), float(ranges[:, 1].max())  # of sign * (volume - level)
         if vmin == vmax:
@@ -398,15 +437,14 @@ class _Grid:
 
     def finish_values(self, cap: bool, timings) -> None:
         t0 = time.perf_counter()
-        bad = wp.zeros(1, dtype=wp.int32, device=self.device)
+        bad = wp.zeros(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
         if self.n_slots:
             self._per_slot(K.finish_values_kernel, [self.slot_block, self.wnb, self.wn, int(cap)],
                            [self.values, bad])
-        n_bad = int(bad.numpy()[0])  # sync point
-        if n_bad:
-            raise ValueError(f"the shape evaluates to NaN or infinity at {n_bad} grid nodes inside "
-                             "'bounds' (e.g. sqrt/log of a negative or a division by zero); "
-                             "change the expression or the bounds")
+        if int(bad.numpy().sum()):  # sync point
+            raise ValueError("the shape evaluates to NaN or infinity at grid nodes inside 'bounds' "
+                             "(e.g. sqrt/log of a negative or a division by zero); change the "
+                             "expression or the bounds")
         timings["cap"] = time.perf_counter() - t0
 
     def _per_slot(self, kernel, inputs, outputs, count: int | None = None) -> None:
@@ -435,6 +473,7 @@ class _Grid:
         tris = wp.empty(nt, dtype=wp.vec3i, device=dev)
         edges = {"t": wp.empty(nv, dtype=wp.float32, device=dev), "p0": wp.empty(nv, dtype=wp.vec3, device=dev),
                  "p1": wp.empty(nv, dtype=wp.vec3, device=dev), "flags": wp.empty(nv, dtype=wp.int32, device=dev)}
+        slot_volume = wp.zeros(max(ns, 1), dtype=wp.float64, device=dev)
         if nv:
             eid = wp.full(ns * K.EDGE_SLOTS, -1, dtype=wp.int32, device=dev)
             # positions relative to the grid origin: float32 keeps its precision far from 0;
@@ -444,7 +483,8 @@ class _Grid:
                            [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"]])
             self._per_slot(K.triangles_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn, cube_indices,
                                                 tab["edge_origin"], tab["tri_count"],
-                                                tab["tri_table"], toff, eid], [tris])
+                                                tab["tri_table"], toff, eid, verts], [tris, slot_volume])
+        self.info["signed_volume"] = float(slot_volume.numpy().sum()) / 6.0  # linear placement
         timings["extract"] = time.perf_counter() - t0
         return verts, tris, edges
 

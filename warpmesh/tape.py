@@ -27,7 +27,7 @@ from warpmesh.kernels import opcodes as O
 from warpmesh.kernels import tape as K
 
 BATCH = 256  # points per interpreter thread (column-wise evaluation)
-_CHUNK_THREADS = 1024  # interpreter threads per launch (bounds the scratch size)
+_CHUNK_POINTS = {True: 1 << 18, False: 1 << 20}  # points per launch, CPU / GPU (bounds the scratch)
 
 
 @dataclass
@@ -160,31 +160,39 @@ def run_parallel(jobs) -> None:
         raise errors[0]
 
 
-def _eval(tape: Tape, kernel, points: wp.array, out: wp.array, lanes: int, dtype, device) -> None:
+def _eval(tape: Tape, kernel, inputs: list, n: int, out: wp.array, dtype, device) -> None:
+    """Launch an interpreter kernel over n items in chunks (bounded scratch), split
+    across CPU cores; ``inputs`` are the kernel's per-item arrays."""
     code, imm = tape.arrays(device)
-    n = points.shape[0]
     if n == 0:
         return
     wp.load_module(K, device=device)  # compile/load once here, not in two worker threads at once
+    batch = batch_size(device)
 
     def job(lo, hi):
-        span = min(hi - lo, _CHUNK_THREADS * BATCH)
-        n_threads = (span + BATCH - 1) // BATCH
-        scratch = wp.empty(n_threads * tape.n_registers * BATCH, dtype=dtype, device=device)
+        span = min(hi - lo, _CHUNK_POINTS[wp.get_device(device).is_cpu])
+        n_threads = (span + batch - 1) // batch
+        scratch = wp.empty(n_threads * tape.n_registers * batch, dtype=dtype, device=device)
         for start in range(lo, hi, span):
             stop = min(start + span, hi)
-            wp.launch(kernel, dim=(stop - start + BATCH - 1) // BATCH,
-                      inputs=[code, imm, tape.n_registers, tape.output, points, start, stop, BATCH],
+            wp.launch(kernel, dim=(stop - start + batch - 1) // batch,
+                      inputs=[code, imm, tape.n_registers, tape.output, *inputs, start, stop, batch],
                       outputs=[scratch, out], device=device)
 
     run_parallel([lambda lo=lo, hi=hi: job(lo, hi) for lo, hi in parallel_ranges(n, device)])
+
+
+def batch_size(device) -> int:
+    """Points per interpreter thread: a batch on the CPU (the dispatch is paid once per
+    instruction and batch), one point per thread on a GPU (coalesced, many threads)."""
+    return BATCH if wp.get_device(device).is_cpu else 1
 
 
 def eval_values(tape: Tape, points: wp.array, out: wp.array | None = None, device="cpu") -> wp.array:
     """f at ``points`` (wp.array of vec3) into ``out`` (wp.array of float32)."""
     if out is None:
         out = wp.empty(points.shape[0], dtype=wp.float32, device=device)
-    _eval(tape, K.eval_tape_kernel, points, out, 1, wp.float32, device)
+    _eval(tape, K.eval_tape_kernel, [points], points.shape[0], out, wp.float32, device)
     return out
 
 
@@ -192,7 +200,7 @@ def eval_gradients(tape: Tape, points: wp.array, out: wp.array | None = None, de
     """(f, df/dx, df/dy, df/dz) at ``points`` (forward-mode, exact) as wp.array of vec4."""
     if out is None:
         out = wp.empty(points.shape[0], dtype=wp.vec4, device=device)
-    _eval(tape, K.eval_tape_dual_kernel, points, out, 4, wp.vec4, device)
+    _eval(tape, K.eval_tape_dual_kernel, [points], points.shape[0], out, wp.vec4, device)
     return out
 
 
@@ -202,13 +210,7 @@ def eval_intervals(tape: Tape, boxes_lo: wp.array, boxes_hi: wp.array, out: wp.a
     n = boxes_lo.shape[0]
     if out is None:
         out = wp.empty(n, dtype=wp.vec2, device=device)
-    code, imm = tape.arrays(device)
-    if n:
-        n_threads = (n + BATCH - 1) // BATCH
-        scratch = wp.empty(n_threads * tape.n_registers * BATCH, dtype=wp.vec2, device=device)
-        wp.launch(K.eval_tape_interval_kernel, dim=n_threads,
-                  inputs=[code, imm, tape.n_registers, tape.output, boxes_lo, boxes_hi, 0, n, BATCH],
-                  outputs=[scratch, out], device=device)
+    _eval(tape, K.eval_tape_interval_kernel, [boxes_lo, boxes_hi], n, out, wp.vec2, device)
     return out
 
 
