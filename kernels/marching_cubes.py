@@ -125,7 +125,7 @@ def compact_blocks_kernel(
 
 
 @wp.kernel
-def state_is_kernel(state: wp.array(dtype=wp.int32), which: int, flags: wp.array(dtype=wp.int32)):
+def flag_state_kernel(state: wp.array(dtype=wp.int32), which: int, flags: wp.array(dtype=wp.int32)):
     """One thread per block: 1 where state == which (input of a prefix sum)."""
     b = wp.tid()
     flags[b] = wp.where(state[b] == which, 1, 0)
@@ -318,7 +318,7 @@ def on_grid_boundary(g: wp.vec3i, n: wp.vec3i):
 
 
 @wp.kernel
-def finish_values_kernel(
+def check_cap_values_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, cap: int,
     values: wp.array(dtype=wp.float32), bad: wp.array(dtype=wp.int32),
 ):
@@ -365,7 +365,7 @@ def cube_index(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k:
 
 
 @wp.kernel
-def count_kernel(
+def count_crossings_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
     values: wp.array(dtype=wp.float32), corners: wp.array2d(dtype=wp.int32),
     tri_count: wp.array(dtype=wp.int32),
@@ -425,7 +425,7 @@ def edge_vertex(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k
 
 
 @wp.kernel
-def vertices_kernel(
+def emit_vertices_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
     origin: wp.vec3, h: wp.vec3, t_min: float,
     values: wp.array(dtype=wp.float32), vertex_offset: wp.array(dtype=wp.int32),
@@ -476,7 +476,7 @@ def vertices_kernel(
 
 
 @wp.kernel
-def triangles_kernel(
+def emit_triangles_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
     nb: wp.vec3i, n: wp.vec3i, cube_indices: wp.array(dtype=wp.uint8),
     edge_origin: wp.array2d(dtype=wp.int32),
@@ -610,7 +610,7 @@ def newton_step_kernel(
 
 
 @wp.kernel
-def clamp_t_kernel(t_min: float, t: wp.array(dtype=wp.float32)):
+def clamp_edge_t_kernel(t_min: float, t: wp.array(dtype=wp.float32)):
     """One thread per vertex: t into [t_min, 1 - t_min] (no vertex on a grid node)."""
     v = wp.tid()
     t[v] = wp.clamp(t[v], t_min, 1.0 - t_min)

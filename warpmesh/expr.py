@@ -164,6 +164,9 @@ class Expr:
         return _node(O.ABS, (self,))
 
     def __pow__(self, exponent):
+        """``a ** c`` for a constant c: an integer c is an exact power (|c| <= 2**24, negative
+        allowed); any other c means ``|a| ** c`` (the sign of a is dropped, as real powers of
+        negatives are undefined): use it on non-negative quantities."""
         if isinstance(exponent, Expr):
             if exponent.op != O.CONST:
                 raise TypeError("expected a constant exponent, got an expression of the coordinates")

@@ -123,6 +123,9 @@ class Shape:
 
     def rotate(self, angle: float, axis=(0.0, 0.0, 1.0), about=(0.0, 0.0, 0.0)) -> "Shape":
         """Rotate by ``angle`` radians about the line through ``about`` along ``axis``."""
+        angle = float(angle)
+        if not math.isfinite(angle):
+            raise ValueError(f"expected a finite 'angle' (radians), got {angle!r}")
         a = _vec3(axis, "axis") if not isinstance(axis, str) else np.eye(3)[_axis_index(axis)]
         n = np.linalg.norm(a)
         if n == 0:

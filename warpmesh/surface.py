@@ -332,7 +332,7 @@ class _Grid:
         offsets = []
         for which in (K.EVALUATE, K.INSIDE):
             flags = wp.empty_like(state)
-            self._launch(K.state_is_kernel, self.n_blocks, [state, int(which)], [flags])
+            self._launch(K.flag_state_kernel, self.n_blocks, [state, int(which)], [flags])
             off = wp.empty_like(state)
             wp.utils.array_scan(flags, off, inclusive=False)
             offsets.append(off)
@@ -439,7 +439,7 @@ class _Grid:
         t0 = time.perf_counter()
         bad = wp.zeros(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
         if self.n_slots:
-            self._per_slot(K.finish_values_kernel, [self.slot_block, self.wnb, self.wn, int(cap)],
+            self._per_slot(K.check_cap_values_kernel, [self.slot_block, self.wnb, self.wn, int(cap)],
                            [self.values, bad])
         if int(bad.numpy().sum()):  # sync point
             raise ValueError("the shape evaluates to NaN or infinity at grid nodes inside 'bounds' "
@@ -463,7 +463,7 @@ class _Grid:
         toff = wp.zeros_like(tcount)
         cube_indices = wp.empty(max(ns, 1) * K.BLOCK**3, dtype=wp.uint8, device=dev)
         if ns:
-            self._per_slot(K.count_kernel, [self.slot_block, self.wnb, self.wn, self.values,
+            self._per_slot(K.count_crossings_kernel, [self.slot_block, self.wnb, self.wn, self.values,
                                             tab["corners"], tab["tri_count"]], [vcount, tcount, cube_indices])
             wp.utils.array_scan(vcount, voff, inclusive=False)
             wp.utils.array_scan(tcount, toff, inclusive=False)
@@ -478,10 +478,10 @@ class _Grid:
             eid = wp.full(ns * K.EDGE_SLOTS, -1, dtype=wp.int32, device=dev)
             # positions relative to the grid origin: float32 keeps its precision far from 0;
             # the host adds the origin in float64
-            self._per_slot(K.vertices_kernel, [self.slot_block, self.wnb, self.wn, wp.vec3(0.0), self.wh,
+            self._per_slot(K.emit_vertices_kernel, [self.slot_block, self.wnb, self.wn, wp.vec3(0.0), self.wh,
                                                float(C.EDGE_T_MIN), self.values, voff],
                            [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"]])
-            self._per_slot(K.triangles_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn, cube_indices,
+            self._per_slot(K.emit_triangles_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn, cube_indices,
                                                 tab["edge_origin"], tab["tri_count"],
                                                 tab["tri_table"], toff, eid, verts], [tris, slot_volume])
         self.info["signed_volume"] = float(slot_volume.numpy().sum()) / 6.0  # linear placement
@@ -515,6 +515,6 @@ def _refine_roots(tape, verts, edges, origin, root, iterations, timings) -> None
             eval_gradients(tape, world, fg, device=dev)
             wp.launch(K.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1],
                       outputs=[t_lo, t_hi, f_prev, t], device=dev)
-    wp.launch(K.clamp_t_kernel, dim=nv, inputs=[float(C.EDGE_T_MIN)], outputs=[t], device=dev)
+    wp.launch(K.clamp_edge_t_kernel, dim=nv, inputs=[float(C.EDGE_T_MIN)], outputs=[t], device=dev)
     wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1, wp.vec3(0.0)], outputs=[verts], device=dev)
     timings["root"] = time.perf_counter() - t0
