@@ -4,7 +4,6 @@ Expected Euler characteristics come from ``topology_oracle`` (a cubical-complex 
 a sampled grid, independent of the mesher) and from the reasoning recorded there.
 """
 
-import warnings
 
 import numpy as np
 import pytest

@@ -619,13 +619,11 @@ def test_register_reuse_on_a_long_union_chain():
 
 def test_tape_register_discipline():
     """Simulate the tape on the host: each read sees the value of the node it stands for."""
-    rng = np.random.default_rng(9)
     for seed in range(6):
         shape = random_shape(np.random.default_rng(seed), 4)
         tape = wm.compile_tape(shape)
         nodes = shape.field.nodes()
         assert len(nodes) == len(tape)
-        p = f32(rng.uniform(-1, 1, 3))
         regs = {}
         for node, (op, d, a, b), c in zip(nodes, tape.code.tolist(), tape.imm.tolist()):
             assert op == node.op
