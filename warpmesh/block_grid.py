@@ -15,6 +15,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh import _conventions as C
+from warpmesh import codegen
 from warpmesh.errors import WarpMeshError
 from warpmesh.kernels import marching_cubes as K
 from warpmesh.tape import eval_gradients, eval_intervals, eval_values, parallel_ranges, run_parallel
@@ -92,7 +93,7 @@ class BlockGrid:
         self._compact(state)
         timings["cull"] = time.perf_counter() - t0
 
-    def sample_shape(self, tape, cull: bool, timings) -> None:
+    def sample_shape(self, tape, cull: bool, evaluator, timings) -> None:
         """f at the nodes of the EVALUATE slots that a sub-block interval cannot settle
         (the others get the sign it proves); +1 (inside) at the nodes of INSIDE slots."""
         t0 = time.perf_counter()
@@ -118,7 +119,9 @@ class BlockGrid:
             pts = wp.empty(max(n_pts, 1), dtype=wp.vec3, device=dev)
             self._per_slot(K.needed_points_kernel, [self.slot_block, self.wnb, self.wn, self.worigin, self.wh,
                                                     needs, need_offset], [pts], ne)
-            compact = eval_values(tape, pts[:n_pts], device=dev)
+            compiled = evaluator == "compiled" or (evaluator == "auto" and codegen.is_loaded(tape, dev))
+            self.info["evaluator"] = "compiled" if compiled else "interpreter"
+            compact = eval_values(tape, pts[:n_pts], device=dev, evaluator=evaluator)
             self._per_slot(K.scatter_values_kernel, [needs, need_offset, compact], [self.values], ne)
         if self.n_slots > ne:
             self._launch(K.fill_values_kernel, (self.n_slots - ne) * K.NODES, [ne, 1.0], [self.values])
@@ -217,7 +220,7 @@ class BlockGrid:
         return verts, tris, edges
 
 
-def refine_roots(tape, verts, edges, origin, root, iterations, timings) -> None:
+def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluator="auto") -> None:
     """Move each vertex to the root of f on its edge (bisection or safeguarded Newton);
     f is evaluated at origin + the grid-local positions."""
     t0 = time.perf_counter()
@@ -233,7 +236,7 @@ def refine_roots(tape, verts, edges, origin, root, iterations, timings) -> None:
         f_mid = wp.empty(nv, dtype=wp.float32, device=dev)
         for _ in range(iterations or 12):
             wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
-            eval_values(tape, world, f_mid, device=dev)
+            eval_values(tape, world, f_mid, device=dev, evaluator=evaluator)
             wp.launch(K.bisection_step_kernel, dim=nv, inputs=[flags, f_mid], outputs=[t_lo, t_hi, t], device=dev)
     else:
         fg = wp.empty(nv, dtype=wp.vec4, device=dev)

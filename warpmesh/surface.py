@@ -26,6 +26,7 @@ import warp as wp
 
 from warpmesh import _conventions as C
 from warpmesh.block_grid import BlockGrid, refine_roots
+from warpmesh.codegen import EVALUATORS, Evaluator
 from warpmesh.errors import WarpMeshError
 from warpmesh.expr import Expr
 from warpmesh.kernels import marching_cubes as K
@@ -127,6 +128,7 @@ def mesh_surface(
     cap: bool = True,
     cull: bool = True,
     normals: bool = False,
+    evaluator: Evaluator = "auto",
     device: str = C.DEFAULT_DEVICE,
 ) -> Mesh:
     """Triangulate the surface f = 0 of a shape, or an iso-surface of a sampled volume.
@@ -159,6 +161,11 @@ def mesh_surface(
         shapes, exact block ranges for volumes). The mesh is the same either way.
     normals : bool
         Shapes only: store outward unit normals (-∇f / |∇f|) as ``point_data["normals"]``.
+    evaluator : {'auto', 'interpreter', 'compiled'}
+        Shapes only: evaluate with the tape interpreter, or with a kernel generated for
+        the shape's structure (2x faster; about 1.5 s to compile once per structure,
+        cached on disk; constants can change freely). "auto" (default) never waits: it
+        interprets until a background compile, started by a large run, is ready.
     device : str
         Warp device ("cpu" or "cuda").
 
@@ -186,6 +193,7 @@ def mesh_surface(
     """
     t_start = time.perf_counter()
     _check_choice(root, "root", _ROOTS)
+    _check_choice(evaluator, "evaluator", EVALUATORS)
     for name, flag in (("cap", cap), ("cull", cull), ("normals", normals)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"expected True or False for '{name}', got {flag!r}")
@@ -209,7 +217,7 @@ def mesh_surface(
         timings["compile"] = time.perf_counter() - t_start
         grid = BlockGrid(cells + 1, lo, h, device)
         grid.cull_shape(tape, cull, cap, timings)
-        grid.sample_shape(tape, cull, timings)
+        grid.sample_shape(tape, cull, evaluator, timings)
         info["tape_length"] = len(tape)
     elif isinstance(source, np.ndarray) or hasattr(source, "__array__"):
         _refuse(("bounds", bounds), ("resolution", resolution), source="a volume",
@@ -238,7 +246,7 @@ def mesh_surface(
     grid.finish_values(cap, timings)
     verts, tris, edges = grid.extract(timings)
     if tape is not None and root != "linear" and len(verts):
-        refine_roots(tape, verts, edges, grid.worigin, root, root_iterations, timings)
+        refine_roots(tape, verts, edges, grid.worigin, root, root_iterations, timings, evaluator)
 
     t0 = time.perf_counter()
     point_data = {}

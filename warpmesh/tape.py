@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from warpmesh.codegen import EVALUATORS, Evaluator, generated_kernel
 from warpmesh.expr import Expr
 from warpmesh.kernels import opcodes as O
 from warpmesh.kernels import tape as K
@@ -188,11 +189,28 @@ def batch_size(device) -> int:
     return BATCH if wp.get_device(device).is_cpu else 1
 
 
-def eval_values(tape: Tape, points: wp.array, out: wp.array | None = None, device="cpu") -> wp.array:
-    """f at ``points`` (wp.array of vec3) into ``out`` (wp.array of float32)."""
+def eval_values(tape: Tape, points: wp.array, out: wp.array | None = None, device="cpu",
+                evaluator: Evaluator = "auto") -> wp.array:
+    """f at ``points`` (wp.array of vec3) into ``out`` (wp.array of float32).
+
+    ``evaluator`` picks the interpreter or the kernel generated for the tape's structure
+    (:mod:`warpmesh.codegen`); both give the same values.
+    """
+    if evaluator not in EVALUATORS:
+        raise ValueError(f"Unknown evaluator {evaluator!r}. Pick one of {list(EVALUATORS)}")
+    n = points.shape[0]
     if out is None:
-        out = wp.empty(points.shape[0], dtype=wp.float32, device=device)
-    _eval(tape, K.eval_tape_kernel, [points], points.shape[0], out, wp.float32, device)
+        out = wp.empty(n, dtype=wp.float32, device=device)
+    kernel = generated_kernel(tape, device, evaluator, n) if n else None
+    if kernel is None:
+        _eval(tape, K.eval_tape_kernel, [points], n, out, wp.float32, device)
+        return out
+    _, imm = tape.arrays(device)
+    batch = batch_size(device)
+    run_parallel([lambda lo=lo, hi=hi: wp.launch(kernel, dim=(hi - lo + batch - 1) // batch,
+                                                 inputs=[imm, points, lo, hi, batch], outputs=[out],
+                                                 device=device)
+                  for lo, hi in parallel_ranges(n, device)])
     return out
 
 
@@ -223,7 +241,8 @@ def _points_array(points, device) -> wp.array:
     return wp.array(np.ascontiguousarray(pts, dtype=np.float32), dtype=wp.vec3, device=device)
 
 
-def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu") -> np.ndarray:
+def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu",
+             evaluator: Evaluator = "auto") -> np.ndarray:
     """Evaluate a shape at points with the Warp tape interpreter.
 
     Parameters
@@ -234,6 +253,9 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu") -> n
         Also return the exact gradient (forward mode).
     device : str
         Warp device, "cpu" (default) or "cuda".
+    evaluator : {'auto', 'interpreter', 'compiled'}
+        Values only: the tape interpreter, or a kernel generated for the shape's structure
+        (:mod:`warpmesh.codegen`; "auto" uses it once compiled, never waiting for it).
 
     Returns
     -------
@@ -250,7 +272,7 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu") -> n
     pts = _points_array(points, device)
     if gradient:
         return eval_gradients(tape, pts, device=device).numpy()
-    return eval_values(tape, pts, device=device).numpy()
+    return eval_values(tape, pts, device=device, evaluator=evaluator).numpy()
 
 
 def evaluate_interval(shape, lo, hi, *, device: str = "cpu") -> np.ndarray:
