@@ -52,6 +52,10 @@ def test_auto_answers_first_with_the_interpreter_then_switches():
     bounds = ((-1.0,) * 3, (1.0,) * 3)
     first = wm.mesh_surface(shape, bounds=bounds, resolution=256)
     assert first.info["evaluator"] == "interpreter"  # no wait for a compile
+    key = (codegen.structure_key(wm.compile_tape(shape)), "cpu")
+    assert key not in codegen._pending  # a one-shot run starts no compile ...
+    again = wm.mesh_surface(shape, bounds=bounds, resolution=256)
+    assert again.info["evaluator"] == "interpreter"  # ... a second one does, in the background
     codegen.wait()
     second = wm.mesh_surface(shape, bounds=bounds, resolution=256)
     assert second.info["evaluator"] == "compiled"

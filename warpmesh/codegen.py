@@ -13,12 +13,15 @@ Warp compiles kernels from files, so the source is written (atomically) to
 
 Policy (``evaluator=``): ``"interpreter"`` never compiles; ``"compiled"`` compiles now if
 needed (blocking) and runs the kernel; ``"auto"`` runs the compiled kernel when it is
-already loaded and otherwise answers with the interpreter, starting a background compile
-for large runs so that the next evaluation of the same structure is fast.
+already loaded and otherwise answers with the interpreter; when the same structure comes
+back for a second large run (an edit loop, a preview, a parameter sweep) it starts a
+background compile, so that later runs are fast. A one-shot script never compiles; a
+process waits for a compile in flight at exit rather than leave it half done.
 """
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import importlib.util
 import os
@@ -52,6 +55,7 @@ _TEMPLATES = {
 _lock = threading.Lock()
 _loaded: dict[tuple[str, str], object] = {}  # (structure key, device) -> kernel
 _pending: dict[tuple[str, str], threading.Thread] = {}
+_large_runs: dict[tuple[str, str], int] = {}  # large interpreted runs seen per structure
 
 
 def structure_key(tape) -> str:
@@ -146,7 +150,11 @@ def generated_kernel(tape, device, evaluator: Evaluator, n_points: int):
         if (key, device) not in _loaded:
             _load(tape, key, device)  # raises the compile error, if any
         return _loaded[(key, device)]
-    if pending is None and n_points >= AUTO_COMPILE_POINTS:
+    if pending is not None or n_points < AUTO_COMPILE_POINTS:
+        return None
+    with _lock:
+        _large_runs[(key, device)] = seen = _large_runs.get((key, device), 0) + 1
+    if seen >= 2:  # the structure came back: worth compiling
         thread = threading.Thread(target=_load_quietly, args=(tape, key, device), daemon=True,
                                   name=f"warpmesh-compile-{key}")
         with _lock:
@@ -163,6 +171,7 @@ def _load_quietly(tape, key: str, device: str) -> None:
             _pending.pop((key, device), None)
 
 
+@atexit.register
 def wait() -> None:
     """Block until background compiles started by ``evaluator="auto"`` have finished."""
     with _lock:
