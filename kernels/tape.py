@@ -14,7 +14,8 @@ import warp as wp
 
 from warpmesh.kernels import opcodes as O
 
-wp.set_module_options({"enable_backward": False})  # forward evaluation only: halves the compile
+wp.set_module_options({"enable_backward": False,  # forward evaluation only: halves the compile
+                        "fuse_fp": False})  # no FMA contraction: the same rounding as generated kernels
 
 OP_X = wp.constant(O.X)
 OP_Y = wp.constant(O.Y)
@@ -377,6 +378,36 @@ def iv_mul(a: wp.vec2, b: wp.vec2):
 
 
 @wp.func
+def iv_div(a: wp.vec2, b: wp.vec2):
+    """a / b from the four quotients, each the same float division a point evaluation
+    does (so the interval holds every float value, not only the real ones)."""
+    if b[0] <= 0.0 and b[1] >= 0.0:
+        return wp.vec2(-BIG, BIG)
+    p = a[0] / b[0]
+    q = a[0] / b[1]
+    r = a[1] / b[0]
+    s = a[1] / b[1]
+    return iv(wp.min(wp.min(p, q), wp.min(r, s)), wp.max(wp.max(p, q), wp.max(r, s)))
+
+
+@wp.func
+def iv_sin(a: wp.vec2):
+    """Range of sin over [lo, hi]: wp.sin at the ends (as points evaluate it), widened
+    where a maximum (pi/2 + 2k pi) or a minimum (-pi/2 + 2k pi) lies inside."""
+    if a[1] - a[0] >= TWO_PI:
+        return wp.vec2(-1.0, 1.0)
+    lo = wp.min(wp.sin(a[0]), wp.sin(a[1]))
+    hi = wp.max(wp.sin(a[0]), wp.sin(a[1]))
+    k = wp.ceil((a[0] - HALF_PI) / TWO_PI)
+    if k * TWO_PI + HALF_PI <= a[1]:
+        hi = 1.0
+    k = wp.ceil((a[0] + HALF_PI) / TWO_PI)
+    if k * TWO_PI - HALF_PI <= a[1]:
+        lo = -1.0
+    return wp.vec2(lo, hi)
+
+
+@wp.func
 def iv_recip(b: wp.vec2):
     if b[0] <= 0.0 and b[1] >= 0.0:
         return wp.vec2(-BIG, BIG)
@@ -439,7 +470,7 @@ def apply_interval(op: int, a: wp.vec2, b: wp.vec2, c: float):
     elif op == OP_MUL:
         r = iv_mul(a, b)
     elif op == OP_DIV:
-        r = iv_mul(a, iv_recip(b))
+        r = iv_div(a, b)
     elif op == OP_MIN:
         r = wp.vec2(wp.min(a[0], b[0]), wp.min(a[1], b[1]))
     elif op == OP_MAX:
@@ -451,7 +482,7 @@ def apply_interval(op: int, a: wp.vec2, b: wp.vec2, c: float):
     elif op == OP_RSUBC:
         r = iv(c - a[1], c - a[0])
     elif op == OP_RDIVC:
-        r = iv_mul(wp.vec2(c, c), iv_recip(a))
+        r = iv_div(wp.vec2(c, c), a)
     elif op == OP_MINC:
         r = wp.vec2(wp.min(a[0], c), wp.min(a[1], c))
     elif op == OP_MAXC:
@@ -465,7 +496,7 @@ def apply_interval(op: int, a: wp.vec2, b: wp.vec2, c: float):
     elif op == OP_SQRT:
         r = wp.vec2(wp.sqrt(wp.max(a[0], 0.0)), wp.sqrt(wp.max(a[1], 0.0)))
     elif op == OP_SIN:
-        r = iv_cos(wp.vec2(a[0] - HALF_PI, a[1] - HALF_PI))
+        r = iv_sin(a)
     elif op == OP_COS:
         r = iv_cos(a)
     elif op == OP_EXP:

@@ -79,3 +79,28 @@ def test_unknown_evaluator_is_refused():
         wm.evaluate(wm.sphere(1.0), np.zeros((2, 3)), evaluator="jit")
     with pytest.raises(ValueError, match="evaluator"):
         wm.mesh_surface(wm.sphere(1.0), bounds=((-1,) * 3, (1,) * 3), resolution=8, evaluator="jit")
+
+
+def test_an_unwritable_cache_fails_clearly_and_auto_keeps_interpreting(tmp_path, monkeypatch):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("WARPMESH_CACHE_DIR", str(blocker / "cache"))
+    x, y, z = wm.coords()
+    shape = wm.Shape(0.6 - wm.sqrt(3 * x * x + y * y + z * z) + 0.01 * wm.cos(9 * y))  # a fresh structure
+    pts = np.random.default_rng(2).uniform(-1, 1, (10, 3))
+    with pytest.raises(wm.WarpMeshError, match="WARPMESH_CACHE_DIR"):
+        wm.evaluate(shape, pts, evaluator="compiled")
+    bounds = ((-1.0,) * 3, (1.0,) * 3)
+    with pytest.warns(RuntimeWarning, match="compiling"):
+        for _ in range(3):
+            m = wm.mesh_surface(shape, bounds=bounds, resolution=256)
+            codegen.wait()
+    assert m.info["evaluator"] == "interpreter"
+    check_mesh(m)
+
+
+def test_evaluator_applies_to_shape_values_only():
+    with pytest.raises(ValueError, match="evaluator"):
+        wm.mesh_surface(np.arange(64.0).reshape(4, 4, 4), level=3.0, evaluator="compiled")
+    with pytest.raises(ValueError, match="evaluator"):
+        wm.evaluate(wm.sphere(1.0), np.zeros((2, 3)), gradient=True, evaluator="compiled")

@@ -305,7 +305,7 @@ def test_bad_arguments_for_a_shape(kwargs, match):
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(level=0.5), "'level' do not apply to a shape"),
+    (dict(level=0.5), "'level' does not apply to a shape"),
     (dict(inside="below", spacing=0.1), "'inside', 'spacing'"),
     (dict(origin=(0, 0, 0)), "origin"),
     (dict(root_iterations=5), "root_iterations"),
@@ -321,7 +321,7 @@ def test_options_that_do_not_apply_are_refused(kwargs, match):
 
 def test_volume_refuses_grid_options_and_tiny_capped_volumes():
     vol = np.arange(64.0).reshape(4, 4, 4)
-    with pytest.raises(ValueError, match="'resolution' do not apply to a volume"):
+    with pytest.raises(ValueError, match="'resolution' does not apply to a volume"):
         wm.mesh_surface(vol, level=3.0, resolution=16)
     with pytest.raises(ValueError, match="'bounds'"):
         wm.mesh_surface(vol, level=3.0, bounds=BOUNDS)

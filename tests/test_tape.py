@@ -787,3 +787,38 @@ def test_constant_folding():
     assert ex.op == O.LOG
     assert np.isnan(wm.evaluate(ex, np.zeros((1, 3)))[0])
     assert x + 0 is x and x * 1 is x and x - 0 is x
+
+
+@pytest.mark.parametrize("make", [
+    lambda x, y: x / (y + 2.5), lambda x, y: 3.0 / (x + 2.5), lambda x, y: wm.sin(x * 7.0 + 37.1),
+    lambda x, y: wm.cos(x * 5.0), lambda x, y: x * y, lambda x, y: wm.expr.runion(x, y),
+    lambda x, y: wm.sqrt(x + 1.0), lambda x, y: (x + 0.3) ** -3, lambda x, y: abs(x) ** 0.7,
+], ids=["div", "rdivc", "sin", "cos", "mul", "runion", "sqrt", "powi-neg", "powf"])
+def test_intervals_hold_the_float_values_points_evaluate(make):
+    """Culling compares intervals with float32 point values: every endpoint is computed
+    with the same float operation as a point evaluation, so no slack is needed here."""
+    x, y, _ = wm.coords()
+    ex = make(x, y)
+    rng = np.random.default_rng(11)
+    c = rng.uniform(-1, 1, (400, 3)).astype(np.float32)
+    w = rng.uniform(0.0, 0.4, (400, 3)).astype(np.float32)
+    lo, hi = c - w, c + w
+    iv = wm.evaluate_interval(ex, lo, hi)
+    for corner in range(8):
+        pick = [(corner >> a) & 1 for a in range(3)]
+        p = np.where(pick, hi, lo)
+        v = wm.evaluate(ex, p, evaluator="interpreter")
+        ok = np.isnan(v) | ((iv[:, 0] <= v) & (v <= iv[:, 1]))
+        assert ok.all(), (corner, np.flatnonzero(~ok)[:5])
+
+
+def test_culling_agrees_with_the_dense_grid_on_division_and_sine():
+    x, y, z = wm.coords()
+    bounds = ((-1,) * 3, (1,) * 3)
+    k = float(wm.evaluate(wm.sin(x + 37.1), np.zeros((1, 3)))[0])
+    for field in (wm.min(5 / (x + 1.5) - 5 / 1.5, 0.8 - wm.sqrt(x * x + y * y + z * z)),
+                  wm.min(wm.sin(x + 37.1) - k, 0.8 - wm.sqrt(x * x + y * y + z * z))):
+        for res in (16, 32):
+            a = wm.mesh_surface(field, bounds=bounds, resolution=res, cull=True)
+            b = wm.mesh_surface(field, bounds=bounds, resolution=res, cull=False)
+            assert len(a.cells["triangle"]) == len(b.cells["triangle"])

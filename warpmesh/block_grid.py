@@ -119,9 +119,10 @@ class BlockGrid:
             pts = wp.empty(max(n_pts, 1), dtype=wp.vec3, device=dev)
             self._per_slot(K.needed_points_kernel, [self.slot_block, self.wnb, self.wn, self.worigin, self.wh,
                                                     needs, need_offset], [pts], ne)
-            compiled = evaluator == "compiled" or (evaluator == "auto" and codegen.is_loaded(tape, dev))
-            self.info["evaluator"] = "compiled" if compiled else "interpreter"
-            compact = eval_values(tape, pts[:n_pts], device=dev, evaluator=evaluator)
+            # choose once (and count this as one large run of the structure under "auto")
+            used = "compiled" if codegen.generated_kernel(tape, dev, evaluator, n_pts) else "interpreter"
+            self.info["evaluator"] = used
+            compact = eval_values(tape, pts[:n_pts], device=dev, evaluator=used)
             self._per_slot(K.scatter_values_kernel, [needs, need_offset, compact], [self.values], ne)
         if self.n_slots > ne:
             self._launch(K.fill_values_kernel, (self.n_slots - ne) * K.NODES, [ne, 1.0], [self.values])
@@ -227,6 +228,8 @@ def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluato
     dev = verts.device
     nv = verts.shape[0]
     world = wp.empty(nv, dtype=wp.vec3, device=dev)
+    if evaluator == "auto":  # the bisection steps use what is ready; they start no compile
+        evaluator = "compiled" if codegen.is_loaded(tape, dev) else "interpreter"
     t, flags, p0, p1 = edges["t"], edges["flags"], edges["p0"], edges["p1"]
     t_lo = wp.empty(nv, dtype=wp.float32, device=dev)
     t_hi = wp.empty(nv, dtype=wp.float32, device=dev)

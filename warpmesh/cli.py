@@ -38,9 +38,9 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
     m.add_argument("-o", "--output", help="mesh file to write (.ply .obj .stl .vtk .vtu .msh .mesh)")
     m.add_argument("--root-iterations", type=int, help="iterations of bisection / Newton")
-    m.add_argument("--evaluator", choices=["interpreter", "compiled"], default="interpreter",
-                   help="tape interpreter (default, no compile) or a kernel generated for the shape "
-                        "(about 1.5 s to compile once per structure, cached)")
+    m.add_argument("--evaluator", choices=["interpreter", "compiled"],
+                   help="shapes: the tape interpreter (default, no compile) or a kernel generated for "
+                        "the shape (about 1.5 s to compile once per structure, cached)")
     m.add_argument("--json", action="store_true", help="print statistics as JSON")
     i = sub.add_parser("info", help="print statistics of a mesh file")
     i.add_argument("path")
@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.example:
             shape, bounds = wm.example(args.example)
             mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
-                                   evaluator=args.evaluator,
+                                   evaluator=args.evaluator or "interpreter",
                                    inside=args.inside, origin=args.origin,
                                    spacing=None if args.spacing is None else args.spacing[0], **common)
         else:
@@ -86,6 +86,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise ValueError(f"cannot read --volume {args.volume!r}: {exc}") from None
             spacing = args.spacing if args.spacing is None or len(args.spacing) > 1 else args.spacing[0]
             mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,
+                                   evaluator=args.evaluator,
                                    spacing=spacing, origin=args.origin, **common)
         if args.output:
             mesh.save(args.output)
@@ -94,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
             stats["written"] = args.output
         _print_stats(stats, args.json)
         return 0
-    except (ValueError, TypeError, FileNotFoundError, wm.WarpMeshError) as exc:
+    except (ValueError, TypeError, OSError, wm.WarpMeshError) as exc:
         print(f"warpmesh: error: {exc}", file=sys.stderr)
         return 2
 

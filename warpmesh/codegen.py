@@ -16,29 +16,30 @@ needed (blocking) and runs the kernel; ``"auto"`` runs the compiled kernel when 
 already loaded and otherwise answers with the interpreter; when the same structure comes
 back for a second large run (an edit loop, a preview, a parameter sweep) it starts a
 background compile, so that later runs are fast. A one-shot script never compiles; a
-process waits for a compile in flight at exit rather than leave it half done.
+compile in flight is finished before the process exits (it runs in a non-daemon thread).
+A structure whose compile failed is not tried again under ``"auto"`` (a warning says why).
 """
 
 from __future__ import annotations
 
-import atexit
 import hashlib
 import importlib.util
 import os
 import sys
 import threading
+import warnings
 from pathlib import Path
 from typing import Literal
 
 import warp as wp
 
+from warpmesh.errors import WarpMeshError
 from warpmesh.kernels import opcodes as O
 
 Evaluator = Literal["auto", "interpreter", "compiled"]
 EVALUATORS = ("auto", "interpreter", "compiled")
 #: runs with at least this many points start a background compile under "auto"
 AUTO_COMPILE_POINTS = 1 << 18
-_VERSION = "1"  # bump when the generated source changes
 
 _TEMPLATES = {
     O.X: "p[0]", O.Y: "p[1]", O.Z: "p[2]", O.CONST: "imm[{i}]",
@@ -52,16 +53,19 @@ _TEMPLATES = {
     O.RUNION: "rfunction(r{a}, r{b}, 1.0)", O.RINTER: "rfunction(r{a}, r{b}, -1.0)",
 }
 
-_lock = threading.Lock()
+_lock = threading.Lock()  # guards the tables below
+_structure_locks: dict[str, threading.Lock] = {}  # one compile of a structure at a time
 _loaded: dict[tuple[str, str], object] = {}  # (structure key, device) -> kernel
 _pending: dict[tuple[str, str], threading.Thread] = {}
+_failed: dict[tuple[str, str], str] = {}  # compiles that failed: not retried under "auto"
 _large_runs: dict[tuple[str, str], int] = {}  # large interpreted runs seen per structure
+_modules: dict[str, object] = {}
 
 
 def structure_key(tape) -> str:
-    """A name for the tape's structure (opcodes and registers; not its constants)."""
-    digest = hashlib.sha1(_VERSION.encode() + tape.code.tobytes() + str(tape.output).encode())
-    return digest.hexdigest()[:16]
+    """A name for the tape's structure: a hash of the generated source (opcodes and
+    registers; not the constants), so a changed generator never reuses a stale file."""
+    return hashlib.sha1(source(tape).encode()).hexdigest()[:16]
 
 
 def source(tape) -> str:
@@ -74,7 +78,7 @@ import warp as wp
 
 from warpmesh.kernels.tape import powi, rfunction  # noqa: F401
 
-wp.set_module_options({{"enable_backward": False}})
+wp.set_module_options({{"enable_backward": False, "fuse_fp": False}})
 
 
 @wp.kernel
@@ -102,29 +106,40 @@ def cache_dir() -> Path:
 
 
 def _module(tape, key: str):
+    """Write (atomically) and import the generated module of a structure."""
     name = f"warpmesh_tape_{key}"
-    if name in sys.modules:
-        return sys.modules[name]
+    if name in _modules:
+        return _modules[name]
     folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{name}.py"
-    text = source(tape)
-    if not path.exists() or path.read_text() != text:
-        tmp = folder / f".{name}.{os.getpid()}.{threading.get_ident()}.tmp"
-        tmp.write_text(text)
-        os.replace(tmp, path)  # atomic: a reader never sees half a file
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{name}.py"
+        text = source(tape)
+        if not path.exists() or path.read_text() != text:
+            tmp = folder / f".{name}.{os.getpid()}.{threading.get_ident()}.tmp"
+            tmp.write_text(text)
+            os.replace(tmp, path)  # atomic: a reader never sees half a file
+    except OSError as exc:
+        raise WarpMeshError(f"cannot write the generated kernel to {folder} ({exc}); set "
+                            "WARPMESH_CACHE_DIR to a writable folder or use evaluator='interpreter'") from exc
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
     spec.loader.exec_module(module)
+    sys.modules[name] = module  # registered once complete (Warp looks modules up by name)
+    _modules[name] = module
     return module
 
 
 def _load(tape, key: str, device: str) -> None:
-    module = _module(tape, key)
-    wp.load_module(module, device=device)
     with _lock:
-        _loaded[(key, device)] = module.eval_generated_kernel
+        structure_lock = _structure_locks.setdefault(key, threading.Lock())
+    with structure_lock:  # two threads never build the same module at once
+        if (key, device) in _loaded:
+            return
+        module = _module(tape, key)
+        wp.load_module(module, device=device)
+        with _lock:
+            _loaded[(key, device)] = module.eval_generated_kernel
 
 
 def is_loaded(tape, device) -> bool:
@@ -139,39 +154,44 @@ def generated_kernel(tape, device, evaluator: Evaluator, n_points: int):
         return None
     device = str(wp.get_device(device))
     key = structure_key(tape)
-    with _lock:
-        kernel = _loaded.get((key, device))
-        pending = _pending.get((key, device))
-    if kernel is not None:
-        return kernel
     if evaluator == "compiled":
+        with _lock:
+            pending = _pending.get((key, device))
         if pending is not None:
             pending.join()
-        if (key, device) not in _loaded:
-            _load(tape, key, device)  # raises the compile error, if any
+        _load(tape, key, device)  # at once if loaded; raises the compile error, if any
         return _loaded[(key, device)]
-    if pending is not None or n_points < AUTO_COMPILE_POINTS:
-        return None
     with _lock:
+        kernel = _loaded.get((key, device))
+        if kernel is not None or n_points < AUTO_COMPILE_POINTS:
+            return kernel
+        if (key, device) in _pending or (key, device) in _failed:
+            return None
         _large_runs[(key, device)] = seen = _large_runs.get((key, device), 0) + 1
-    if seen >= 2:  # the structure came back: worth compiling
-        thread = threading.Thread(target=_load_quietly, args=(tape, key, device), daemon=True,
+        if seen < 2:
+            return None
+        # the structure came back for a second large run: compile it in the background
+        # (non-daemon: a compile in flight is finished before the interpreter exits)
+        thread = threading.Thread(target=_load_quietly, args=(tape, key, device),
                                   name=f"warpmesh-compile-{key}")
-        with _lock:
-            _pending[(key, device)] = thread
-        thread.start()
+        _pending[(key, device)] = thread
+    thread.start()
     return None
 
 
 def _load_quietly(tape, key: str, device: str) -> None:
     try:
         _load(tape, key, device)
-    except Exception:  # the interpreter keeps answering; "compiled" would raise the error
+    except Exception as exc:  # the interpreter keeps answering; "compiled" raises the error
+        with _lock:
+            _failed[(key, device)] = str(exc)
+        warnings.warn(f"warpmesh: compiling the kernel of a tape structure failed ({exc}); "
+                      "the interpreter keeps evaluating it", RuntimeWarning, stacklevel=1)
+    finally:
         with _lock:
             _pending.pop((key, device), None)
 
 
-@atexit.register
 def wait() -> None:
     """Block until background compiles started by ``evaluator="auto"`` have finished."""
     with _lock:

@@ -87,7 +87,8 @@ def _refuse(*named, source: str, hint: str) -> None:
     """Options that do not apply to the source raise instead of being ignored."""
     given = [name for name, value in named if value is not None]
     if given:
-        raise ValueError(f"{', '.join(repr(g) for g in given)} do not apply to {source} ({hint})")
+        verb = "does" if len(given) == 1 else "do"
+        raise ValueError(f"{', '.join(repr(g) for g in given)} {verb} not apply to {source} ({hint})")
 
 
 def _check_choice(value, name: str, choices) -> None:
@@ -128,7 +129,7 @@ def mesh_surface(
     cap: bool = True,
     cull: bool = True,
     normals: bool = False,
-    evaluator: Evaluator = "auto",
+    evaluator: Evaluator | None = None,
     device: str = C.DEFAULT_DEVICE,
 ) -> Mesh:
     """Triangulate the surface f = 0 of a shape, or an iso-surface of a sampled volume.
@@ -161,11 +162,12 @@ def mesh_surface(
         shapes, exact block ranges for volumes). The mesh is the same either way.
     normals : bool
         Shapes only: store outward unit normals (-∇f / |∇f|) as ``point_data["normals"]``.
-    evaluator : {'auto', 'interpreter', 'compiled'}
-        Shapes only: evaluate with the tape interpreter, or with a kernel generated for
-        the shape's structure (2x faster; about 1.5 s to compile once per structure,
-        cached on disk; constants can change freely). "auto" (default) never waits: it
-        interprets until a background compile, started by a large run, is ready.
+    evaluator : {'auto', 'interpreter', 'compiled'}, shapes only
+        Evaluate with the tape interpreter, or with a kernel generated for the shape's
+        structure (2x faster; about 1.5 s to compile once per structure, cached on disk;
+        constants can change freely). "auto" (default) never waits for a compile: it
+        interprets until a background compile, started when a structure comes back for
+        a second large run, is ready. ``mesh.info["evaluator"]`` says which ran.
     device : str
         Warp device ("cpu" or "cuda").
 
@@ -193,7 +195,8 @@ def mesh_surface(
     """
     t_start = time.perf_counter()
     _check_choice(root, "root", _ROOTS)
-    _check_choice(evaluator, "evaluator", EVALUATORS)
+    if evaluator is not None:
+        _check_choice(evaluator, "evaluator", EVALUATORS)
     for name, flag in (("cap", cap), ("cull", cull), ("normals", normals)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"expected True or False for '{name}', got {flag!r}")
@@ -210,6 +213,7 @@ def mesh_surface(
     if isinstance(source, (Shape, Expr)):
         _refuse(("level", level), ("inside", inside), ("spacing", spacing), ("origin", origin),
                 source="a shape", hint="they describe sampled volumes")
+        evaluator = evaluator or "auto"
         lo, hi = _check_bounds(bounds)
         cells = _check_resolution(128 if resolution is None else resolution, hi - lo, cap)
         h = (hi - lo) / cells
@@ -220,8 +224,8 @@ def mesh_surface(
         grid.sample_shape(tape, cull, evaluator, timings)
         info["tape_length"] = len(tape)
     elif isinstance(source, np.ndarray) or hasattr(source, "__array__"):
-        _refuse(("bounds", bounds), ("resolution", resolution), source="a volume",
-                hint="a volume's grid is its samples: use 'spacing' and 'origin'")
+        _refuse(("bounds", bounds), ("resolution", resolution), ("evaluator", evaluator), source="a volume",
+                hint="a volume's grid is its samples, and there is no function to evaluate")
         if root != "linear":
             raise ValueError(f"root={root!r} needs the exact function of a shape; a volume's "
                              "trilinear field is linear along grid edges: use root='linear'")

@@ -271,6 +271,8 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu",
     tape = tape_of(shape)
     pts = _points_array(points, device)
     if gradient:
+        if evaluator != "auto":
+            raise ValueError("'evaluator' applies to values; gradients always use the interpreter")
         return eval_gradients(tape, pts, device=device).numpy()
     return eval_values(tape, pts, device=device, evaluator=evaluator).numpy()
 
