@@ -30,7 +30,7 @@ def test_regular_install_imports_the_kernels(tmp_path):
     assert done.returncode == 0, done.stderr
     assert (target / "warpmesh" / "kernels" / "tape.py").exists()
     assert not (target / "kernels").exists()  # no top-level module named "kernels"
-    code = ("import warpmesh, warpmesh.kernels.marching_cubes as k; "
+    code = ("import warpmesh, warpmesh.kernels.emit as k; "
             "print(warpmesh.__file__); print(k.__file__)")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=tmp_path, env={"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin"})

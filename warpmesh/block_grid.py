@@ -17,18 +17,51 @@ import warp as wp
 from warpmesh import _conventions as C
 from warpmesh import codegen
 from warpmesh.errors import WarpMeshError
-from warpmesh.kernels import marching_cubes as K
+from warpmesh.kernels import block_grid as K
+from warpmesh.kernels import emit as KE
 from warpmesh.tape import eval_gradients, eval_intervals, eval_values, parallel_ranges, run_parallel
 
-_TABLE_CACHE: dict[str, dict] = {}
+_TABLE_CACHE: dict[tuple[str, str], KE.Tables] = {}
+METHODS = ("mc33", "mt", "mc")
+#: method -> (kernel method id, vertex types per node: the grid-edge directions it uses)
+_METHOD_IDS = {"mc": (KE.METHOD_MC, 3), "mc33": (KE.METHOD_MC33, 3), "mt": (KE.METHOD_MT, 7)}
 
 
-def _tables(device) -> dict:
-    """The marching-cubes tables as Warp arrays, uploaded once per device."""
-    key = str(device)
+def _host_tables(method: str) -> dict[str, np.ndarray]:
+    """A method's tables as int32 numpy arrays, in the layout of ``kernels.emit.Tables``."""
+    from warpmesh.kernels import mc_tables as MC
+
+    one = np.zeros(1, np.int32)
+    tabs = {"corners": MC.CORNERS, "type_delta": KE.TYPE_DELTA, "case_offset": one, "interior_test": one,
+            "test_corners": np.zeros((1, 1), np.int32),
+            "face_corners": np.array(MC.FACES, dtype=np.int32)}
+    if method == "mc":
+        tabs.update(origin=MC.EDGE_ORIGIN, tri_count=MC.TRI_COUNT, tris=MC.TRI_TABLE.reshape(256, -1),
+                    quad_count=np.zeros(256, np.int32), quads=np.zeros((256, 4), np.int32),
+                    center=np.zeros(256, np.int32))
+    elif method == "mt":
+        from warpmesh.kernels import mt_tables as MT
+
+        assert np.array_equal(MT.EDGE_TYPE_DELTA, KE.TYPE_DELTA[:7]), "vertex types disagree with kernels.emit"
+        tabs.update(origin=MT.MT_EDGE_ORIGIN, tri_count=MT.MT_TRI_COUNT, tris=MT.MT_TRIS.reshape(256, -1),
+                    quad_count=MT.MT_QUAD_COUNT, quads=MT.MT_QUADS.reshape(256, -1),
+                    center=np.zeros(256, np.int32))
+    else:
+        from warpmesh.kernels import mc33_tables as M33
+
+        tabs.update(M33.kernel_tables())
+    return {k: np.ascontiguousarray(v, dtype=np.int32) for k, v in tabs.items()}
+
+
+def method_tables(method: str, device) -> KE.Tables:
+    """The tables of an extraction method as a ``kernels.emit.Tables`` struct, uploaded
+    once per device."""
+    key = (method, str(device))
     if key not in _TABLE_CACHE:
-        _TABLE_CACHE[key] = {k: wp.array(v, dtype=wp.int32, device=device)
-                             for k, v in K.TABLE_ARRAYS.items()}
+        tab = KE.Tables()
+        for name, arr in _host_tables(method).items():
+            setattr(tab, name, wp.array(arr, dtype=wp.int32, device=device))
+        _TABLE_CACHE[key] = tab
     return _TABLE_CACHE[key]
 
 
@@ -37,14 +70,19 @@ class BlockGrid:
     """The block-sparse grid of one extraction: its device arrays and the kernel launches
     (allocation, prefix sums, per-core splits), so that :func:`mesh_surface` reads as a pipeline."""
 
-    def __init__(self, n_nodes, origin, h, device):
+    def __init__(self, n_nodes, origin, h, device, node_offset=(0, 0, 0), global_nodes=None):
         self.n = np.asarray(n_nodes, dtype=np.int64)
+        # a slab of a larger grid: where its first node sits, and the whole grid's size
+        # (vertex keys are node ids of the whole grid, so slabs weld exactly)
+        self.wgoff = wp.vec3i(*[int(v) for v in node_offset])
+        self.wgn = wp.vec3i(*[int(v) for v in (self.n if global_nodes is None else global_nodes)])
         self.nb = np.maximum(1, -(-(self.n - 1) // K.BLOCK))
         self.n_blocks = int(np.prod(self.nb))
         self.origin = np.asarray(origin, dtype=np.float64)
         self.h = np.asarray(h, dtype=np.float64)
         self.device = device
         wp.load_module(K, device=device)  # compile/load once here, not in worker threads
+        wp.load_module(KE, device=device)
         self.wn = wp.vec3i(*self.n.tolist())
         self.wnb = wp.vec3i(*self.nb.tolist())
         self.worigin = wp.vec3(*self.origin.tolist())
@@ -68,7 +106,7 @@ class BlockGrid:
             counts.append(int(off.numpy()[-1] + flags.numpy()[-1]))  # sync point: slot counts
         self.n_evaluate, n_inside = counts
         self.n_slots = self.n_evaluate + n_inside
-        if self.n_slots * K.EDGE_SLOTS >= 2**31:
+        if self.n_slots * K.NODES * 7 >= 2**31:
             raise WarpMeshError(
                 f"{self.n_slots} blocks of {K.BLOCK}^3 cells would be sampled, more than one pass can "
                 "index (int32): keep cull=True, or lower 'resolution'")
@@ -79,7 +117,7 @@ class BlockGrid:
         self.info["active_blocks"] = self.n_slots
         self.info["inside_blocks"] = n_inside
 
-    def cull_shape(self, tape, cull: bool, cap: bool, timings) -> None:
+    def cull_shape(self, tape, cull: bool, cap: int, timings) -> None:
         t0 = time.perf_counter()
         state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
         self.info["interval_evaluations"] = 0
@@ -129,15 +167,16 @@ class BlockGrid:
         self.info["evaluations"] = n_pts
         timings["evaluate"] = time.perf_counter() - t0
 
-    def cull_volume(self, vol, level, sign, cull, cap, timings) -> None:
-        """Exact value ranges per block (also the volume's validation), then the samples
-        of the surviving blocks."""
+    def cull_volume(self, vol, level, sign, cull, cap, timings) -> tuple[float, float]:
+        """Exact value ranges per block (also the volume's validation: NaN / infinity
+        raise), then the samples of the surviving blocks. Returns the range of
+        sign * (vol - level) over the grid, which the caller checks against 0."""
         t0 = time.perf_counter()
         host = np.ascontiguousarray(vol, dtype=np.float32)  # no copy for a C-order float32 volume
         # on the CPU Warp reads the numpy buffer in place; elsewhere it is uploaded once
         wvol = wp.array(host, dtype=wp.float32, device=self.device, copy=not self.device.is_cpu)
         self._volume_refs = (host, wvol)  # keep the borrowed buffer alive while kernels read it
-        timings["upload"] = time.perf_counter() - t0
+        timings["upload"] = timings.get("upload", 0.0) + time.perf_counter() - t0
         t0 = time.perf_counter()
         intervals = wp.empty(self.n_blocks, dtype=wp.vec2, device=self.device)
         bad = wp.zeros(self.n_blocks, dtype=wp.int32, device=self.device)
@@ -150,24 +189,20 @@ class BlockGrid:
                              "float32's range, where the volume is converted to float32)")
         ranges = intervals.numpy()
         vmin, vmax = float(ranges[:, 0].min()), float(ranges[:, 1].max())  # of sign * (volume - level)
-        if vmin == vmax:
-            raise ValueError(f"expected a non-constant 'volume', got every value equal to {sign * vmin + level}")
-        if not vmin <= 0.0 <= vmax:
-            lo_v, hi_v = sorted((sign * vmin + level, sign * vmax + level))
-            raise ValueError(f"expected 'level' within the volume's range [{lo_v}, {hi_v}], got {level}")
         state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
         if cull:
             self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [state])
         self._compact(state)
-        timings["cull"] = time.perf_counter() - t0
+        timings["cull"] = timings.get("cull", 0.0) + time.perf_counter() - t0
         t0 = time.perf_counter()
         self.values = wp.empty(max(self.n_slots * K.NODES, 1), dtype=wp.float32, device=self.device)
         if self.n_slots:
             self._per_slot(K.gather_volume_kernel, [self.slot_block, self.wnb, wvol, level, sign], [self.values])
         self.info["evaluations"] = 0
-        timings["evaluate"] = time.perf_counter() - t0
+        timings["evaluate"] = timings.get("evaluate", 0.0) + time.perf_counter() - t0
+        return vmin, vmax
 
-    def finish_values(self, cap: bool, timings) -> None:
+    def finish_values(self, cap: int, timings) -> None:
         t0 = time.perf_counter()
         bad = wp.zeros(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
         if self.n_slots:
@@ -177,7 +212,7 @@ class BlockGrid:
             raise ValueError("the shape evaluates to NaN or infinity at grid nodes inside 'bounds' "
                              "(e.g. sqrt/log of a negative or a division by zero); change the "
                              "expression or the bounds")
-        timings["cap"] = time.perf_counter() - t0
+        timings["cap"] = timings.get("cap", 0.0) + time.perf_counter() - t0
 
     def _per_slot(self, kernel, inputs, outputs, count: int | None = None) -> None:
         """Launch a one-thread-per-slot kernel over slots [0, count), split across CPU cores."""
@@ -186,44 +221,80 @@ class BlockGrid:
                 for a, b in parallel_ranges(count, self.device, min_per_worker=32)]
         run_parallel(jobs)
 
-    def extract(self, timings):
+    def extract(self, method: str, cap: int, timings, cell_mask: wp.array | None = None):
+        """Emit the surface with ``method`` ("mc", "mc33" or "mt"); ``cell_mask`` (uint8 per
+        slot cell, optional) restricts the triangles to the cells it marks (continuation).
+        Returns (vertices, triangles, edges): grid-local float32 positions, vec3i
+        triangles, and per vertex its edge (t, p0, p1, flags, key) for root refinement."""
         t0 = time.perf_counter()
-        dev, tab, ns = self.device, _tables(self.device), self.n_slots
-        vcount = wp.zeros(max(ns, 1), dtype=wp.int32, device=dev)
-        tcount = wp.zeros(max(ns, 1), dtype=wp.int32, device=dev)
-        voff = wp.zeros_like(vcount)
-        toff = wp.zeros_like(tcount)
-        cube_indices = wp.empty(max(ns, 1) * K.BLOCK**3, dtype=wp.uint8, device=dev)
+        dev, ns = self.device, self.n_slots
+        tab = method_tables(method, dev)
+        mid, n_types = _METHOD_IDS[method]
+        mask = cell_mask if cell_mask is not None else wp.zeros(1, dtype=wp.uint8, device=dev)
+        vcount, tcount, ccount = (wp.zeros(max(ns, 1), dtype=wp.int32, device=dev) for _ in range(3))
+        voff, toff, coff = (wp.zeros(max(ns, 1), dtype=wp.int32, device=dev) for _ in range(3))
+        cases = wp.empty(max(ns, 1) * K.CELLS, dtype=wp.int32, device=dev)
         if ns:
-            self._per_slot(K.count_crossings_kernel, [self.slot_block, self.wnb, self.wn, self.values,
-                                            tab["corners"], tab["tri_count"]], [vcount, tcount, cube_indices])
-            wp.utils.array_scan(vcount, voff, inclusive=False)
-            wp.utils.array_scan(tcount, toff, inclusive=False)
-        nv = int(voff.numpy()[-1] + vcount.numpy()[-1]) if ns else 0  # sync point: output sizes
-        nt = int(toff.numpy()[-1] + tcount.numpy()[-1]) if ns else 0
+            self._per_slot(KE.count_crossings_kernel, [self.slot_block, self.wnb, self.wn, mid, n_types,
+                                                       self.values, tab, mask], [vcount, tcount, ccount, cases])
+            for count, off in ((vcount, voff), (tcount, toff), (ccount, coff)):
+                wp.utils.array_scan(count, off, inclusive=False)
+        # sync point: output sizes
+        nv_edges, nt, nc = ((int(off.numpy()[-1] + count.numpy()[-1]) if ns else 0)
+                            for count, off in ((vcount, voff), (tcount, toff), (ccount, coff)))
+        nv = nv_edges + nc
         verts = wp.empty(nv, dtype=wp.vec3, device=dev)
         tris = wp.empty(nt, dtype=wp.vec3i, device=dev)
         edges = {"t": wp.empty(nv, dtype=wp.float32, device=dev), "p0": wp.empty(nv, dtype=wp.vec3, device=dev),
-                 "p1": wp.empty(nv, dtype=wp.vec3, device=dev), "flags": wp.empty(nv, dtype=wp.int32, device=dev)}
+                 "p1": wp.empty(nv, dtype=wp.vec3, device=dev), "flags": wp.empty(nv, dtype=wp.int32, device=dev),
+                 "key": wp.empty(nv, dtype=wp.int64, device=dev)}
         slot_volume = wp.zeros(max(ns, 1), dtype=wp.float64, device=dev)
         if nv:
-            eid = wp.full(ns * K.EDGE_SLOTS, -1, dtype=wp.int32, device=dev)
+            eid = wp.full(ns * K.NODES * n_types, -1, dtype=wp.int32, device=dev)
             # positions relative to the grid origin: float32 keeps its precision far from 0;
             # the host adds the origin in float64
-            self._per_slot(K.emit_vertices_kernel, [self.slot_block, self.wnb, self.wn, wp.vec3(0.0), self.wh,
-                                               float(C.EDGE_T_MIN), self.values, voff],
-                           [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"]])
-            self._per_slot(K.emit_triangles_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn, cube_indices,
-                                                tab["edge_origin"], tab["tri_count"],
-                                                tab["tri_table"], toff, eid, verts], [tris, slot_volume])
+            local, t_min = wp.vec3(0.0), float(C.EDGE_T_MIN)
+            self._per_slot(KE.emit_vertices_kernel, [self.slot_block, self.wnb, self.wn, n_types, int(cap), local,
+                                                     self.wh, t_min, self.wgoff, self.wgn, tab, self.values, voff],
+                           [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"]])
+            if nc:  # interior vertices after the edge vertices
+                wp.launch(KE.add_offset_kernel, dim=ns, inputs=[nv_edges], outputs=[coff], device=dev)
+            self._per_slot(KE.emit_triangles_kernel,
+                           [self.slot_block, self.block_slot, self.wnb, self.wn, n_types, local, self.wh, t_min,
+                            self.wgoff, self.wgn, tab, self.values, cases, toff, coff, eid],
+                           [verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"], tris,
+                            slot_volume])
         self.info["signed_volume"] = float(slot_volume.numpy().sum()) / 6.0  # linear placement
-        timings["extract"] = time.perf_counter() - t0
+        self.info["interior_vertices"] = nc
+        timings["extract"] = timings.get("extract", 0.0) + time.perf_counter() - t0
         return verts, tris, edges
 
 
-def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluator="auto") -> None:
-    """Move each vertex to the root of f on its edge (bisection or safeguarded Newton);
-    f is evaluated at origin + the grid-local positions."""
+GRADIENTS = ("exact", "central", "forward")
+FD_STEP = 1.0e-2  # finite-difference step, as a fraction of the cell size (seed: "a fraction of the cell size")
+
+
+def gradients(tape, points: wp.array, out: wp.array, scheme: str, h, evaluator="interpreter") -> wp.array:
+    """(f, grad f) at points: exact forward mode, or finite differences of f alone (seed
+    eq. 16.13 forward, 16.14 centred) with steps ``FD_STEP * h`` per axis."""
+    if scheme == "exact":
+        return eval_gradients(tape, points, out, device=points.device)
+    dev, n = points.device, points.shape[0]
+    central = int(scheme == "central")
+    per = 4 + 3 * central
+    step = wp.vec3(*(FD_STEP * np.asarray(h, dtype=np.float64)).tolist())
+    shifted = wp.empty(n * per, dtype=wp.vec3, device=dev)
+    wp.launch(KE.fd_points_kernel, dim=n, inputs=[points, step, central], outputs=[shifted], device=dev)
+    values = eval_values(tape, shifted, device=dev, evaluator=evaluator)
+    wp.launch(KE.fd_gradient_kernel, dim=n, inputs=[values, step, central], outputs=[out], device=dev)
+    return out
+
+
+def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluator="auto",
+                 gradient: str = "exact", h=(1.0, 1.0, 1.0)) -> None:
+    """Move each vertex to the root of f on its edge (bisection or safeguarded Newton, with
+    the exact or a finite-difference gradient); f is evaluated at origin + the grid-local
+    positions. Interior vertices ("mc33", flagged as zero ends) stay where they are."""
     t0 = time.perf_counter()
     dev = verts.device
     nv = verts.shape[0]
@@ -234,21 +305,21 @@ def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluato
     t_lo = wp.empty(nv, dtype=wp.float32, device=dev)
     t_hi = wp.empty(nv, dtype=wp.float32, device=dev)
     bisect = root == "bisection"
-    wp.launch(K.bracket_init_kernel, dim=nv, inputs=[flags, int(bisect)], outputs=[t_lo, t_hi, t], device=dev)
+    wp.launch(KE.bracket_init_kernel, dim=nv, inputs=[flags, int(bisect)], outputs=[t_lo, t_hi, t], device=dev)
     if bisect:
         f_mid = wp.empty(nv, dtype=wp.float32, device=dev)
         for _ in range(iterations or 12):
-            wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
+            wp.launch(KE.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
             eval_values(tape, world, f_mid, device=dev, evaluator=evaluator)
-            wp.launch(K.bisection_step_kernel, dim=nv, inputs=[flags, f_mid], outputs=[t_lo, t_hi, t], device=dev)
+            wp.launch(KE.bisection_step_kernel, dim=nv, inputs=[flags, f_mid], outputs=[t_lo, t_hi, t], device=dev)
     else:
         fg = wp.empty(nv, dtype=wp.vec4, device=dev)
         f_prev = wp.full(nv, 3.0e38, dtype=wp.float32, device=dev)  # |f| one step back
         for _ in range(iterations or 10):
-            wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
-            eval_gradients(tape, world, fg, device=dev)
-            wp.launch(K.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1],
+            wp.launch(KE.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
+            gradients(tape, world, fg, gradient, h, evaluator)
+            wp.launch(KE.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1],
                       outputs=[t_lo, t_hi, f_prev, t], device=dev)
-    wp.launch(K.clamp_edge_t_kernel, dim=nv, inputs=[float(C.EDGE_T_MIN)], outputs=[t], device=dev)
-    wp.launch(K.edge_points_kernel, dim=nv, inputs=[t, p0, p1, wp.vec3(0.0)], outputs=[verts], device=dev)
+    wp.launch(KE.clamp_edge_t_kernel, dim=nv, inputs=[float(C.EDGE_T_MIN)], outputs=[t], device=dev)
+    wp.launch(KE.edge_points_kernel, dim=nv, inputs=[t, p0, p1, wp.vec3(0.0)], outputs=[verts], device=dev)
     timings["root"] = time.perf_counter() - t0

@@ -25,15 +25,18 @@ import numpy as np
 import warp as wp
 
 from warpmesh import _conventions as C
-from warpmesh.block_grid import BlockGrid, refine_roots
+from warpmesh.block_grid import GRADIENTS, METHODS, BlockGrid, gradients, refine_roots
 from warpmesh.codegen import EVALUATORS, Evaluator
 from warpmesh.errors import WarpMeshError
 from warpmesh.expr import Expr
-from warpmesh.kernels import marching_cubes as K
+from warpmesh.kernels import block_grid as KB
+from warpmesh.kernels import emit as KE
 from warpmesh.mesh import Mesh
 from warpmesh.shapes import Shape
-from warpmesh.tape import eval_gradients, tape_of
+from warpmesh.tape import tape_of
+from warpmesh.volume import SLAB_VOXELS, check_closed_outward, check_labels, extract_volume
 
+Method = Literal["mc33", "mt", "mc"]
 RootMethod = Literal["linear", "bisection", "newton"]
 _ROOTS = ("linear", "bisection", "newton")
 MAX_RESOLUTION = 2048  # 2048^3 cells: 16.8 M blocks of 8^3, about 1 GB of block bookkeeping
@@ -118,16 +121,20 @@ def _check_volume(volume, spacing, origin) -> tuple[np.ndarray, np.ndarray, np.n
 def mesh_surface(
     source,
     *,
+    method: Method = "mc",
     bounds=None,
     resolution: int | tuple[int, int, int] | None = None,
     level: float | None = None,
     inside: Literal["above", "below"] | None = None,
+    labels=None,
     spacing=None,
     origin=None,
     root: RootMethod = "linear",
     root_iterations: int | None = None,
+    gradient: Literal["exact", "central", "forward"] | None = None,
     cap: bool = True,
     cull: bool = True,
+    slab_voxels: int | None = None,
     normals: bool = False,
     evaluator: Evaluator | None = None,
     device: str = C.DEFAULT_DEVICE,
@@ -148,6 +155,11 @@ def mesh_surface(
         The iso-level (default 0).
     inside : {'above', 'below'}, volumes only
         Whether values above (default) or below ``level`` are inside.
+    labels : "all" or sequence of ints, integer volumes only
+        Mesh the boundary of each label's region (the samples equal to it) instead of an
+        iso-surface: "all" takes every value but 0. Each label's surface is closed on its
+        own (interfaces between two labels appear once per label, with opposite
+        windings); ``mesh.cell_refs["triangle"]`` holds the label of each triangle.
     spacing, origin : float or (3,) floats, volumes only
         The sample spacing (default 1) and the position of ``volume[0, 0, 0]`` (default 0).
     root : {'linear', 'bisection', 'newton'}
@@ -155,11 +167,20 @@ def mesh_surface(
         or safeguarded Newton on the exact function (§16.3.3; shapes only).
     root_iterations : int, optional
         Iterations of bisection (default 12) or safeguarded Newton (default 10).
+    gradient : {'exact', 'central', 'forward'}, optional
+        How Newton (``root='newton'``) and ``normals`` get grad f: exact forward-mode
+        differentiation of the tape (default), or finite differences of f alone with a
+        step of 1/100 of the cell size, centred (eq. 16.14, error O(h^2), 6 extra
+        evaluations per point) or forward (eq. 16.13, O(h), 3 extra).
     cap : bool
         Treat the grid boundary as outside, so every surface is closed on the bounds.
     cull : bool
         Skip blocks of 8³ cells that cannot hold the surface (interval arithmetic for
         shapes, exact block ranges for volumes). The mesh is the same either way.
+    slab_voxels : int, volumes only
+        Samples per slab: a volume is processed in slabs of about this many samples
+        along its first axis (default 16 M), whose seams are welded exactly; peak memory
+        grows with the slab, not with the volume.
     normals : bool
         Shapes only: store outward unit normals (-∇f / |∇f|) as ``point_data["normals"]``.
     evaluator : {'auto', 'interpreter', 'compiled'}, shapes only
@@ -194,12 +215,19 @@ def mesh_surface(
     2
     """
     t_start = time.perf_counter()
+    _check_choice(method, "method", METHODS)
     _check_choice(root, "root", _ROOTS)
     if evaluator is not None:
         _check_choice(evaluator, "evaluator", EVALUATORS)
     for name, flag in (("cap", cap), ("cull", cull), ("normals", normals)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"expected True or False for '{name}', got {flag!r}")
+    if gradient is not None:
+        _check_choice(gradient, "gradient", GRADIENTS)
+        if root != "newton" and not normals:
+            raise ValueError(f"'gradient' applies to root='newton' or normals=True, got root={root!r} "
+                             "and normals=False")
+    gradient = gradient or "exact"
     if root_iterations is not None:
         if root == "linear":
             raise ValueError("'root_iterations' applies to root='bisection' or 'newton', not 'linear'")
@@ -207,12 +235,14 @@ def mesh_surface(
                 or not 1 <= root_iterations <= 64:
             raise ValueError(f"expected 1 <= 'root_iterations' <= 64, got {root_iterations!r}")
     device = wp.get_device(device)
+    cap_mask = KB.ALL_FACES if cap else 0
     timings: dict[str, float] = {}
-    info: dict = {"method": "mc", "root": root, "device": str(device)}
+    info: dict = {"method": method, "root": root, "device": str(device)}
 
     if isinstance(source, (Shape, Expr)):
         _refuse(("level", level), ("inside", inside), ("spacing", spacing), ("origin", origin),
-                source="a shape", hint="they describe sampled volumes")
+                ("labels", labels), ("slab_voxels", slab_voxels), source="a shape",
+                hint="they describe sampled volumes")
         evaluator = evaluator or "auto"
         lo, hi = _check_bounds(bounds)
         cells = _check_resolution(128 if resolution is None else resolution, hi - lo, cap)
@@ -220,7 +250,7 @@ def mesh_surface(
         tape = tape_of(source)
         timings["compile"] = time.perf_counter() - t_start
         grid = BlockGrid(cells + 1, lo, h, device)
-        grid.cull_shape(tape, cull, cap, timings)
+        grid.cull_shape(tape, cull, cap_mask, timings)
         grid.sample_shape(tape, cull, evaluator, timings)
         info["tape_length"] = len(tape)
     elif isinstance(source, np.ndarray) or hasattr(source, "__array__"):
@@ -231,6 +261,14 @@ def mesh_surface(
                              "trilinear field is linear along grid edges: use root='linear'")
         if normals:
             raise ValueError("normals=True needs a shape; compute them on the mesh for a volume")
+        if labels is not None:
+            _refuse(("level", level), ("inside", inside), source="labels",
+                    hint="each label's surface bounds the samples equal to it")
+            level, inside = 0.5, "above"
+        if slab_voxels is not None and (isinstance(slab_voxels, bool) or not isinstance(
+                slab_voxels, (int, np.integer)) or slab_voxels < 1):
+            raise ValueError(f"expected a positive integer for 'slab_voxels', got {slab_voxels!r}")
+        slab_voxels = SLAB_VOXELS if slab_voxels is None else int(slab_voxels)
         level = 0.0 if level is None else level
         inside = "above" if inside is None else inside
         _check_choice(inside, "inside", ("above", "below"))
@@ -241,21 +279,21 @@ def mesh_surface(
         if cap and min(vol.shape) < 3:
             raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
                              f"boundary samples are outside), got shape {vol.shape}")
-        grid = BlockGrid(np.array(vol.shape), org, sp, device)
-        grid.cull_volume(vol, float(level), 1.0 if inside == "above" else -1.0, cull, cap, timings)
-        tape = None
+        return _mesh_volume(vol, org, sp, float(level), 1.0 if inside == "above" else -1.0, labels, method, cap,
+                            cull, device, slab_voxels, timings, info, t_start)
     else:
         raise TypeError(f"expected a Shape, an expression or a 3D array for 'source', got {type(source).__name__}")
 
-    grid.finish_values(cap, timings)
-    verts, tris, edges = grid.extract(timings)
+    grid.finish_values(cap_mask, timings)
+    verts, tris, edges = grid.extract(method, cap_mask, timings)
     if tape is not None and root != "linear" and len(verts):
-        refine_roots(tape, verts, edges, grid.worigin, root, root_iterations, timings, evaluator)
+        refine_roots(tape, verts, edges, grid.worigin, root, root_iterations, timings, evaluator,
+                     gradient, grid.h)
 
     t0 = time.perf_counter()
     point_data = {}
     if normals and tape is not None and len(verts):
-        point_data["normals"] = _vertex_normals(tape, grid, verts, edges, cap)
+        point_data["normals"] = _vertex_normals(tape, grid, verts, edges, cap, gradient)
     points = verts.numpy().astype(C.REAL_DTYPE) + grid.origin  # sync point: results to the host
     faces = tris.numpy().astype(C.INDEX_DTYPE)
     if len(faces) and faces.min() < 0:
@@ -289,22 +327,64 @@ def _surface_refs(edges: dict, faces: np.ndarray) -> np.ndarray:
     return np.where(capped[faces].all(axis=1), CAP_REF, SURFACE_REF).astype(C.INDEX_DTYPE)
 
 
-def _vertex_normals(tape, grid: BlockGrid, verts, edges: dict, cap: bool) -> np.ndarray:
-    """Outward unit normals: -grad f / |grad f| (forward mode) on the surface; on the caps,
-    the outward normal of the bounds' face they close."""
+def _vertex_normals(tape, grid: BlockGrid, verts, edges: dict, cap: bool, gradient: str) -> np.ndarray:
+    """Outward unit normals: -grad f / |grad f| on the surface; on the caps, the outward
+    normal of the face of the bounds they close (the nearest one)."""
     world = wp.empty_like(verts)
-    wp.launch(K.edge_points_kernel, dim=len(verts), inputs=[edges["t"], edges["p0"], edges["p1"], grid.worigin],
+    wp.launch(KE.edge_points_kernel, dim=len(verts), inputs=[edges["t"], edges["p0"], edges["p1"], grid.worigin],
               outputs=[world], device=grid.device)
-    g = eval_gradients(tape, world, device=grid.device).numpy()[:, 1:].astype(np.float64)
+    fg = wp.empty(len(verts), dtype=wp.vec4, device=grid.device)
+    g = gradients(tape, world, fg, gradient, grid.h).numpy()[:, 1:].astype(np.float64)
     norm = np.linalg.norm(g, axis=1, keepdims=True)
     normals = -g / np.where(norm > 0, norm, 1.0)
     if cap:
-        p0, p1 = edges["p0"].numpy(), edges["p1"].numpy()
         on_cap = (edges["flags"].numpy() & 4) != 0
-        rows = np.arange(len(p0))
-        axis = np.argmax(np.abs(p1 - p0), axis=1)
-        at_low = p0[rows, axis] < 0.5 * grid.h[axis]  # grid-local coordinates: the low face is 0
-        face_normal = np.zeros_like(normals)
-        face_normal[rows, axis] = np.where(at_low, -1.0, 1.0)
-        normals[on_cap] = face_normal[on_cap]
+        local = verts.numpy()[on_cap].astype(np.float64)  # grid-local: the box is [0, extent]
+        extent = (grid.n - 1) * grid.h
+        gap = np.minimum(local, extent - local) / grid.h
+        axis = np.argmin(gap, axis=1)
+        rows = np.arange(len(local))
+        face_normal = np.zeros_like(local)
+        face_normal[rows, axis] = np.where(local[rows, axis] < 0.5 * extent[axis], -1.0, 1.0)
+        normals[on_cap] = face_normal
     return normals
+
+
+def _mesh_volume(vol, org, sp, level, sign, labels, method, cap, cull, device, slab_voxels, timings, info,
+                 t_start) -> Mesh:
+    """The volume pipeline: one extraction per label (or one at ``level``), slab by slab."""
+    fields = [None] if labels is None else list(check_labels(labels, vol))
+    parts, n_verts = [], 0
+    for label in fields:
+        points, faces, flags, (vmin, vmax) = extract_volume(
+            vol, org, sp, level=level, sign=sign, method=method, cap=cap, cull=cull, device=device,
+            slab_voxels=slab_voxels, label=label, timings=timings, info=info)
+        if label is None and vmin == vmax:
+            raise ValueError(f"expected a non-constant 'volume', got every value equal to {sign * vmin + level}")
+        if label is None and not vmin <= 0.0 <= vmax:
+            lo_v, hi_v = sorted((sign * vmin + level, sign * vmax + level))
+            raise ValueError(f"expected 'level' within the volume's range [{lo_v}, {hi_v}], got {level}")
+        if label is not None and vmax <= 0.0:
+            raise ValueError(f"expected label {label} in 'volume', got no sample equal to it")
+        if cap and len(faces):
+            info["enclosed_volume"] = info.get("enclosed_volume", 0.0) + check_closed_outward(points, faces)
+            info["orientation"] = "outward (closed, positive enclosed volume)"
+        capped = (flags & 4) != 0
+        refs = np.where(capped[faces].all(axis=1), CAP_REF, SURFACE_REF) if label is None else \
+            np.full(len(faces), label)
+        parts.append((points, faces + n_verts, refs.astype(C.INDEX_DTYPE)))
+        n_verts += len(points)
+    points = np.concatenate([p[0] for p in parts])
+    faces = np.concatenate([p[1] for p in parts])
+    refs = np.concatenate([p[2] for p in parts])
+    keep_refs = labels is not None or (cap and np.any(refs == CAP_REF))
+    info["evaluations"] = 0
+    info["vertices"], info["triangles"] = len(points), len(faces)
+    if labels is not None:
+        info["labels"] = [int(v) for v in fields]
+    if len(faces) == 0:
+        warnings.warn("the surface does not cross the sampled grid: the mesh is empty "
+                      "(check 'level' and 'inside')", stacklevel=3)
+    timings["total"] = time.perf_counter() - t_start
+    info["time"] = timings
+    return Mesh(points, {"triangle": faces}, cell_refs={"triangle": refs} if keep_refs else None, info=info)

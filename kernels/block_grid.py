@@ -1,0 +1,334 @@
+"""The block-sparse regular grid of an extraction (seed §16.4.1 exhaustive enumeration):
+block layout, interval culling, sampling, volume gathering and capping.
+
+The grid of ``n = (nx, ny, nz)`` nodes is cut into blocks of ``BLOCK`` cells a side; a
+block stores the values of its ``SIDE = BLOCK + 1`` nodes a side (faces shared with the
+neighbours are stored twice). Blocks that cannot hold the surface are culled before any
+point is evaluated; the others are compacted into *slots*.
+
+Capping is per face of the grid: ``cap`` is a bit mask, bit ``2 a`` for the low face
+of axis ``a`` and bit ``2 a + 1`` for its high face (a slab of a large volume caps only
+the faces that are faces of the whole volume). Variable-size output is count -> prefix
+sum -> allocate -> write. A thread works on one slot (a whole block); launches take
+``first`` so the host can split them across cores. The surface itself is emitted by
+:mod:`warpmesh.kernels.emit`.
+"""
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})  # forward evaluation only: halves the compile
+
+BLOCK = 8
+SIDE = BLOCK + 1
+NODES = SIDE * SIDE * SIDE  # values stored per block
+CELLS = BLOCK * BLOCK * BLOCK
+ALL_FACES = 0b111111  # cap mask: every face of the grid
+
+_BLOCK = wp.constant(BLOCK)
+_SIDE = wp.constant(SIDE)
+_NODES = wp.constant(NODES)
+
+
+@wp.func
+def local_index(i: int, j: int, k: int):
+    return i + _SIDE * (j + _SIDE * k)
+
+
+@wp.func
+def block_coords(b: int, nb: wp.vec3i):
+    return wp.vec3i(b % nb[0], (b / nb[0]) % nb[1], b / (nb[0] * nb[1]))
+
+
+@wp.kernel
+def block_boxes_kernel(
+    nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
+    box_lo: wp.array(dtype=wp.vec3), box_hi: wp.array(dtype=wp.vec3),
+):
+    """One thread: the axis-aligned box spanned by the nodes of one block."""
+    b = wp.tid()
+    c = block_coords(b, nb)
+    lo = wp.vec3(0.0)
+    hi = wp.vec3(0.0)
+    for a in range(3):
+        g0 = c[a] * _BLOCK
+        g1 = wp.min(g0 + _BLOCK, n[a] - 1)
+        lo[a] = origin[a] + float(g0) * h[a]
+        hi[a] = origin[a] + float(g1) * h[a]
+    box_lo[b] = lo
+    box_hi[b] = hi
+
+
+CULLED = wp.constant(0)
+EVALUATE = wp.constant(1)
+INSIDE = wp.constant(2)
+
+
+@wp.func
+def rounding_slack(bound: float):
+    """How far a float32 point evaluation may stray past an interval bound near it."""
+    return 1.0e-4 * wp.abs(bound) + 1.0e-7
+
+
+@wp.kernel
+def cull_blocks_kernel(
+    nb: wp.vec3i, n: wp.vec3i, cap: int, intervals: wp.array(dtype=wp.vec2),
+    state: wp.array(dtype=wp.int32),
+):
+    """One thread per block, from an interval enclosing f over it: CULLED when no node can
+    change sign; INSIDE when every node is inside but the block touches the capped grid
+    boundary (its crossings are the cap's, whose vertices do not depend on the inside
+    values: no evaluation needed); EVALUATE otherwise."""
+    b = wp.tid()
+    lo = intervals[b][0]
+    hi = intervals[b][1]
+    keep = EVALUATE
+    if hi < -rounding_slack(hi):
+        keep = CULLED  # every node outside
+    elif lo > rounding_slack(lo):
+        keep = CULLED  # every node inside ...
+        c = block_coords(b, nb)  # ... unless capping turns its nodes on a capped face out
+        for a in range(3):
+            if (c[a] == 0 and (cap >> (2 * a)) & 1 == 1) or \
+                    (c[a] * _BLOCK + _BLOCK >= n[a] - 1 and (cap >> (2 * a + 1)) & 1 == 1):
+                keep = INSIDE
+    state[b] = keep
+
+
+@wp.kernel
+def compact_blocks_kernel(
+    state: wp.array(dtype=wp.int32), evaluate_offsets: wp.array(dtype=wp.int32),
+    inside_offsets: wp.array(dtype=wp.int32), n_evaluate: int,
+    slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
+):
+    """One thread per block: its slot (-1 when culled); EVALUATE blocks take the first
+    slots, INSIDE blocks the ones after them."""
+    b = wp.tid()
+    s = int(-1)
+    if state[b] == EVALUATE:
+        s = evaluate_offsets[b]
+    elif state[b] == INSIDE:
+        s = n_evaluate + inside_offsets[b]
+    if s >= 0:
+        slot_block[s] = b
+    block_slot[b] = s
+
+
+@wp.kernel
+def flag_state_kernel(state: wp.array(dtype=wp.int32), which: int, flags: wp.array(dtype=wp.int32)):
+    """One thread per block: 1 where state == which (input of a prefix sum)."""
+    b = wp.tid()
+    flags[b] = wp.where(state[b] == which, 1, 0)
+
+
+@wp.kernel
+def fill_values_kernel(first: int, value: float, values: wp.array(dtype=wp.float32)):
+    """One thread per value from slot ``first`` on: a constant (inside blocks: +1)."""
+    i = wp.tid()
+    values[first * _NODES + i] = value
+
+
+@wp.func
+def node_point(c: wp.vec3i, li: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3):
+    """Coordinates of local node li of the block at c (clamped into the grid)."""
+    p = wp.vec3(0.0)
+    for a in range(3):
+        g = wp.min(c[a] * _BLOCK + li[a], n[a] - 1)
+        p[a] = origin[a] + float(g) * h[a]
+    return p
+
+
+@wp.func
+def local_coords(l: int):
+    return wp.vec3i(l % _SIDE, (l / _SIDE) % _SIDE, l / (_SIDE * _SIDE))
+
+
+# -- second level: sub-blocks of SUB^3 cells inside the blocks left to evaluate ------------------
+SUB = 4
+SUBS = (BLOCK // SUB) ** 3  # sub-blocks per block
+_SUB = wp.constant(SUB)
+_SUB_SIDE = wp.constant(BLOCK // SUB)
+_SUBS = wp.constant(SUBS)
+
+
+@wp.kernel
+def sub_boxes_kernel(
+    slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
+    box_lo: wp.array(dtype=wp.vec3), box_hi: wp.array(dtype=wp.vec3),
+):
+    """One thread per (slot, sub-block): the box spanned by the sub-block's nodes."""
+    s, q = wp.tid()
+    c = block_coords(slot_block[s], nb)
+    sq = wp.vec3i(q % _SUB_SIDE, (q / _SUB_SIDE) % _SUB_SIDE, q / (_SUB_SIDE * _SUB_SIDE))
+    box_lo[s * _SUBS + q] = node_point(c, sq * _SUB, n, origin, h)
+    box_hi[s * _SUBS + q] = node_point(c, sq * _SUB + wp.vec3i(_SUB, _SUB, _SUB), n, origin, h)
+
+
+@wp.func
+def sub_state(iv: wp.vec2):
+    """0: the sub-block may hold the surface; +1 / -1: every node inside / outside."""
+    r = int(0)
+    if iv[0] > rounding_slack(iv[0]):
+        r = 1
+    elif iv[1] < -rounding_slack(iv[1]):
+        r = -1
+    return r
+
+
+@wp.func
+def node_need(states: wp.array(dtype=wp.int32), base: int, li: wp.vec3i):
+    """(need, fill) of a node from the states of the up to 2 x 2 x 2 sub-blocks whose
+    closure holds it: evaluate it if any may hold the surface, else fill with the sign."""
+    need = int(0)
+    fill = float(-1.0)
+    for q in range(8):
+        sq = wp.vec3i(0, 0, 0)
+        ok = True
+        for a in range(3):
+            k = li[a] / _SUB
+            if (q >> a) & 1 == 1:
+                if li[a] % _SUB != 0 or li[a] == 0:
+                    ok = False
+                k = (li[a] - 1) / _SUB
+            sq[a] = wp.min(k, _SUB_SIDE - 1)
+        if ok:
+            st = states[base + sq[0] + _SUB_SIDE * (sq[1] + _SUB_SIDE * sq[2])]
+            if st == 0:
+                need = 1
+            elif st > 0:
+                fill = 1.0
+    return need, fill
+
+
+@wp.kernel
+def node_needs_kernel(
+    first: int, intervals: wp.array(dtype=wp.vec2), states: wp.array(dtype=wp.int32),
+    values: wp.array(dtype=wp.float32), needs: wp.array(dtype=wp.int8),
+    need_count: wp.array(dtype=wp.int32),
+):
+    """One thread per slot: which nodes must be evaluated (a sub-block holding them may
+    contain the surface); the others get the sign their sub-blocks' intervals prove
+    (cells of settled sub-blocks hold no crossing). Counts the nodes to evaluate."""
+    s = wp.tid() + first
+    for q in range(_SUBS):
+        states[s * _SUBS + q] = sub_state(intervals[s * _SUBS + q])
+    count = int(0)
+    for l in range(_NODES):
+        need, fill = node_need(states, s * _SUBS, local_coords(l))
+        needs[s * _NODES + l] = wp.int8(need)
+        if need == 0:
+            values[s * _NODES + l] = fill
+        count += need
+    need_count[s] = count
+
+
+@wp.kernel
+def needed_points_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3,
+    h: wp.vec3, needs: wp.array(dtype=wp.int8), need_offset: wp.array(dtype=wp.int32),
+    points: wp.array(dtype=wp.vec3),
+):
+    """One thread per slot: the coordinates of its nodes to evaluate, compacted."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    out = need_offset[s]
+    for l in range(_NODES):
+        if needs[s * _NODES + l] != wp.int8(0):
+            points[out] = node_point(c, local_coords(l), n, origin, h)
+            out += 1
+
+
+@wp.kernel
+def scatter_values_kernel(
+    first: int, needs: wp.array(dtype=wp.int8), need_offset: wp.array(dtype=wp.int32),
+    compact: wp.array(dtype=wp.float32), values: wp.array(dtype=wp.float32),
+):
+    """One thread per slot: the evaluated values back into the block layout."""
+    s = wp.tid() + first
+    k = need_offset[s]
+    for l in range(_NODES):
+        if needs[s * _NODES + l] != wp.int8(0):
+            values[s * _NODES + l] = compact[k]
+            k += 1
+
+
+@wp.kernel
+def gather_volume_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32),
+    level: float, sign: float, values: wp.array(dtype=wp.float32),
+):
+    """One thread per slot: sign * (volume - level) at the block's nodes (clamped into
+    the volume), in the block layout."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    for k in range(_SIDE):
+        kk = wp.min(c[2] * _BLOCK + k, volume.shape[2] - 1)
+        for j in range(_SIDE):
+            jj = wp.min(c[1] * _BLOCK + j, volume.shape[1] - 1)
+            for i in range(_SIDE):
+                ii = wp.min(c[0] * _BLOCK + i, volume.shape[0] - 1)
+                values[s * _NODES + local_index(i, j, k)] = sign * (volume[ii, jj, kk] - level)
+
+
+@wp.kernel
+def volume_block_range_kernel(
+    first: int, nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32), level: float, sign: float,
+    intervals: wp.array(dtype=wp.vec2), bad: wp.array(dtype=wp.int32),
+):
+    """One thread per block: exact (min, max) of sign * (volume - level) over its nodes
+    (k innermost: contiguous reads of a C-order array); non-finite samples into bad[block]."""
+    b = wp.tid() + first
+    c = block_coords(b, nb)
+    lo = float(3.4e38)
+    hi = float(-3.4e38)
+    n_bad = int(0)
+    k0 = c[2] * _BLOCK
+    k1 = wp.min(k0 + _SIDE, volume.shape[2])
+    for i in range(c[0] * _BLOCK, wp.min(c[0] * _BLOCK + _SIDE, volume.shape[0])):
+        for j in range(c[1] * _BLOCK, wp.min(c[1] * _BLOCK + _SIDE, volume.shape[1])):
+            for k in range(k0, k1):
+                v = volume[i, j, k]
+                lo = wp.min(lo, v)
+                hi = wp.max(hi, v)
+                if v - v != 0.0:  # NaN or infinite
+                    n_bad += 1
+    bad[b] = n_bad
+    a = sign * (lo - level)
+    z = sign * (hi - level)
+    intervals[b] = wp.vec2(wp.min(a, z), wp.max(a, z))
+
+
+@wp.func
+def on_capped_face(g: wp.vec3i, n: wp.vec3i, cap: int):
+    """Whether node g lies on a face of the grid that the mask ``cap`` caps."""
+    r = False
+    for a in range(3):
+        if (g[a] == 0 and (cap >> (2 * a)) & 1 == 1) or (g[a] == n[a] - 1 and (cap >> (2 * a + 1)) & 1 == 1):
+            r = True
+    return r
+
+
+@wp.kernel
+def check_cap_values_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, cap: int,
+    values: wp.array(dtype=wp.float32), bad: wp.array(dtype=wp.int32),
+):
+    """One thread per slot: count non-finite values (into bad[slot]); cap the grid faces in the
+    mask ``cap`` (their inside nodes become 0, i.e. outside, so every surface closes there)."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    hi = wp.vec3i(0, 0, 0)
+    for a in range(3):
+        hi[a] = wp.min(_BLOCK, n[a] - 1 - c[a] * _BLOCK)  # padding nodes beyond: never read
+    n_bad = int(0)
+    for k in range(hi[2] + 1):
+        for j in range(hi[1] + 1):
+            for i in range(hi[0] + 1):
+                idx = s * _NODES + local_index(i, j, k)
+                v = values[idx]
+                if not wp.isfinite(v):
+                    n_bad += 1
+                elif cap != 0 and v > 0.0:
+                    g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
+                    if on_capped_face(g, n, cap):
+                        values[idx] = 0.0
+    bad[s] = n_bad

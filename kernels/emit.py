@@ -1,0 +1,486 @@
+"""Surface emission over the block-sparse grid (seed §16.4.2): marching cubes ("mc", the
+plain table), marching cubes 33 ("mc33", the topology of the trilinear interpolant) and
+marching tetrahedra on the Kuhn split of each cube ("mt"); then root refinement along the
+crossing edges (§16.3.3).
+
+Vertices live on grid edges of a few direction *types* (``TYPE_DELTA``: the 3 axes, for
+"mt" also the 3 face diagonals and the body diagonal of the Kuhn split), plus, for "mc33",
+an optional vertex inside a cell (type ``CENTER``). Every grid edge ``(node, type)`` has
+exactly one owner block, the block of its lower node (``owner = min(g // BLOCK, nb - 1)``
+per axis), and that block creates the single vertex of the edge when it crosses the
+surface, so the output is welded by construction. A cell's polygons come from the
+method's tables (``Tables``) as local vertex ids whose ``(dx, dy, dz, type)`` rows say
+which grid edge each one is. Variable-size output is count -> prefix sum -> allocate ->
+write; a thread works on one slot (a block of ``BLOCK^3`` cells), launches take ``first``
+so the host can split them across cores.
+"""
+
+import numpy as np
+import warp as wp
+
+from warpmesh.kernels.block_grid import BLOCK, NODES, SIDE, block_coords, local_index, on_capped_face
+
+wp.set_module_options({"enable_backward": False})
+
+METHOD_MC = 0
+METHOD_MC33 = 1
+METHOD_MT = 2
+CENTER = 7  # vertex type of a cell's interior vertex ("mc33")
+#: (8, 3) direction of each vertex type: +x, +y, +z, +x+y, +x+z, +y+z, +x+y+z; CENTER
+TYPE_DELTA = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, 0, 1], [0, 1, 1], [1, 1, 1],
+                       [0, 0, 0]], dtype=np.int32)
+
+_BLOCK = wp.constant(BLOCK)
+_SIDE = wp.constant(SIDE)
+_NODES = wp.constant(NODES)
+_CELLS = wp.constant(BLOCK * BLOCK * BLOCK)
+_METHOD_MC33 = wp.constant(METHOD_MC33)
+_CENTER = wp.constant(CENTER)
+
+
+@wp.struct
+class Tables:
+    """A method's tables on one device (see ``warpmesh.block_grid.method_tables``)."""
+
+    corners: wp.array2d(dtype=wp.int32)  # (8, 3) corner offsets
+    type_delta: wp.array2d(dtype=wp.int32)  # (8, 3) TYPE_DELTA
+    origin: wp.array2d(dtype=wp.int32)  # (V, 4) local vertex -> (dx, dy, dz, type)
+    tri_count: wp.array(dtype=wp.int32)  # per case
+    tris: wp.array2d(dtype=wp.int32)  # per case: 3 local vertex ids per triangle
+    quad_count: wp.array(dtype=wp.int32)  # per case ("mt": quads split at run time)
+    quads: wp.array2d(dtype=wp.int32)  # per case: 4 local vertex ids per quad
+    center: wp.array(dtype=wp.int32)  # per case: 1 when it uses the cell's interior vertex
+    case_offset: wp.array(dtype=wp.int32)  # "mc33": config * 64 + face bits -> first row
+    interior_test: wp.array(dtype=wp.int32)  # "mc33": config * 64 + face bits -> test id or -1
+    test_corners: wp.array2d(dtype=wp.int32)  # "mc33": parameters of each interior test
+    face_corners: wp.array2d(dtype=wp.int32)  # (6, 4) corners of each cube face, cyclic
+
+
+@wp.func
+def config_of(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int, tab: Tables):
+    ci = int(0)
+    for q in range(8):
+        if values[base + local_index(i + tab.corners[q, 0], j + tab.corners[q, 1], k + tab.corners[q, 2])] > 0.0:
+            ci = ci | (1 << q)
+    return ci
+
+
+@wp.func
+def mc33_case(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int, tab: Tables, ci: int):
+    """Row of the "mc33" tables for a cell of configuration ci (filled in with the tables)."""
+    return ci
+
+
+@wp.func
+def cell_case(method: int, values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int,
+              tab: Tables):
+    ci = config_of(values, base, i, j, k, tab)
+    if method == _METHOD_MC33:
+        return mc33_case(values, base, i, j, k, tab, ci)
+    return ci
+
+
+@wp.func
+def owned_hi(c: int, nb: int, n: int):
+    """Highest local node index (inclusive) of the nodes a block owns along one axis."""
+    hi = _BLOCK - 1
+    if c == nb - 1:
+        hi = _BLOCK
+    return wp.min(hi, n - 1 - c * _BLOCK)
+
+
+@wp.func
+def edge_in_grid(g: wp.vec3i, n: wp.vec3i, d: wp.vec3i):
+    """Whether the edge from node g in direction d ends inside the grid."""
+    ok = True
+    for a in range(3):
+        if d[a] == 1 and g[a] >= n[a] - 1:
+            ok = False
+    return ok
+
+
+@wp.func
+def type_dir(tab: Tables, t: int):
+    return wp.vec3i(tab.type_delta[t, 0], tab.type_delta[t, 1], tab.type_delta[t, 2])
+
+
+@wp.kernel
+def count_crossings_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, method: int, n_types: int,
+    values: wp.array(dtype=wp.float32), tab: Tables, cell_mask: wp.array(dtype=wp.uint8),
+    vertex_count: wp.array(dtype=wp.int32), triangle_count: wp.array(dtype=wp.int32),
+    center_count: wp.array(dtype=wp.int32), cell_cases: wp.array(dtype=wp.int32),
+):
+    """One thread per slot: crossing edges the block owns (of the method's n_types
+    directions), and the triangles and interior vertices of its cells (their cases are
+    kept for the emission pass; -1 for a cell outside ``cell_mask`` when it is given)."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    base = s * _NODES
+    nv = int(0)
+    hx = owned_hi(c[0], nb[0], n[0])
+    hy = owned_hi(c[1], nb[1], n[1])
+    hz = owned_hi(c[2], nb[2], n[2])
+    for k in range(hz + 1):
+        for j in range(hy + 1):
+            for i in range(hx + 1):
+                inside = values[base + local_index(i, j, k)] > 0.0
+                g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
+                for t in range(n_types):
+                    d = type_dir(tab, t)
+                    if edge_in_grid(g, n, d):
+                        if (values[base + local_index(i + d[0], j + d[1], k + d[2])] > 0.0) != inside:
+                            nv += 1
+    nt = int(0)
+    nc = int(0)
+    cx = wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK)
+    cy = wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK)
+    cz = wp.min(_BLOCK, n[2] - 1 - c[2] * _BLOCK)
+    for k in range(cz):
+        for j in range(cy):
+            for i in range(cx):
+                cell = s * _CELLS + i + _BLOCK * (j + _BLOCK * k)
+                case = int(-1)
+                if cell_mask.shape[0] == 1 or cell_mask[cell] != wp.uint8(0):
+                    case = cell_case(method, values, base, i, j, k, tab)
+                    nt += tab.tri_count[case] + 2 * tab.quad_count[case]
+                    nc += tab.center[case]
+                cell_cases[cell] = case
+    vertex_count[s] = nv
+    triangle_count[s] = nt
+    center_count[s] = nc
+
+
+@wp.func
+def crossing(values: wp.array(dtype=wp.float32), base: int, li: wp.vec3i, d: wp.vec3i, g: wp.vec3i,
+             origin: wp.vec3, h: wp.vec3, t_min: float):
+    """(position, t, inside end, outside end) of the crossing on the edge from local node
+    li (global g) in direction d, by linear interpolation (eq. 16.12), t clamped."""
+    v0 = values[base + local_index(li[0], li[1], li[2])]
+    v1 = values[base + local_index(li[0] + d[0], li[1] + d[1], li[2] + d[2])]
+    t = wp.clamp(v0 / (v0 - v1), t_min, 1.0 - t_min)
+    p0 = wp.vec3(origin[0] + float(g[0]) * h[0], origin[1] + float(g[1]) * h[1],
+                 origin[2] + float(g[2]) * h[2])
+    p1 = wp.vec3(p0[0] + float(d[0]) * h[0], p0[1] + float(d[1]) * h[1], p0[2] + float(d[2]) * h[2])
+    return p0 + t * (p1 - p0), t, p0, p1
+
+
+@wp.func
+def node_key(g: wp.vec3i, goff: wp.vec3i, gn: wp.vec3i):
+    """Linear index of node g in the whole grid (a slab's grid starts at goff)."""
+    return wp.int64(g[0] + goff[0]) + wp.int64(gn[0]) * (wp.int64(g[1] + goff[1])
+                                                         + wp.int64(gn[1]) * wp.int64(g[2] + goff[2]))
+
+
+@wp.kernel
+def emit_vertices_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, n_types: int, cap: int,
+    origin: wp.vec3, h: wp.vec3, t_min: float, goff: wp.vec3i, gn: wp.vec3i, tab: Tables,
+    values: wp.array(dtype=wp.float32), vertex_offset: wp.array(dtype=wp.int32),
+    edge_vertex_id: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3),
+    edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
+    edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32),
+    edge_key: wp.array(dtype=wp.int64),
+):
+    """One thread per slot: place the vertex of every crossing edge the block owns by
+    linear interpolation (eq. 16.12), t clamped to [t_min, 1 - t_min]; remember the edge
+    so a root finder can refine it, and its key ``node * 8 + type`` in the whole grid.
+    Flags: bit 0 = first end inside, bit 1 = an end has the value 0 exactly (on the
+    surface, or capped: keep the clamped t), bit 2 = that end is on a capped face."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    base = s * _NODES
+    vid = vertex_offset[s]
+    hx = owned_hi(c[0], nb[0], n[0])
+    hy = owned_hi(c[1], nb[1], n[1])
+    hz = owned_hi(c[2], nb[2], n[2])
+    for k in range(hz + 1):
+        for j in range(hy + 1):
+            for i in range(hx + 1):
+                l = local_index(i, j, k)
+                v0 = values[base + l]
+                inside = v0 > 0.0
+                g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
+                for t in range(n_types):
+                    d = type_dir(tab, t)
+                    if edge_in_grid(g, n, d):
+                        v1 = values[base + local_index(i + d[0], j + d[1], k + d[2])]
+                        if (v1 > 0.0) != inside:
+                            p, te, p0, p1 = crossing(values, base, wp.vec3i(i, j, k), d, g, origin, h, t_min)
+                            points[vid] = p
+                            edge_t[vid] = te
+                            edge_p0[vid] = p0
+                            edge_p1[vid] = p1
+                            flags = int(0)
+                            if inside:
+                                flags = 1
+                            if v0 == 0.0 or v1 == 0.0:
+                                flags = flags | 2
+                                if on_capped_face(g, n, cap) or on_capped_face(g + d, n, cap):
+                                    flags = flags | 4  # a capped (or zero) end on a capped face
+                            edge_flags[vid] = flags
+                            edge_key[vid] = node_key(g, goff, gn) * wp.int64(8) + wp.int64(t)
+                            edge_vertex_id[(s * _NODES + l) * n_types + t] = vid
+                            vid += 1
+
+
+@wp.func
+def vertex_id(tab: Tables, v: int, g: wp.vec3i, nb: wp.vec3i, block_slot: wp.array(dtype=wp.int32),
+              edge_vertex_id: wp.array(dtype=wp.int32), n_types: int, center_id: int):
+    """Global vertex id of local vertex v of the cell at node g (-1 if its owner block was
+    culled, which the host refuses)."""
+    if tab.origin[v, 3] == _CENTER:
+        return center_id
+    e = wp.vec3i(g[0] + tab.origin[v, 0], g[1] + tab.origin[v, 1], g[2] + tab.origin[v, 2])
+    ob = wp.vec3i(0, 0, 0)
+    lo = wp.vec3i(0, 0, 0)
+    for a in range(3):
+        ob[a] = wp.min(e[a] / _BLOCK, nb[a] - 1)
+        lo[a] = e[a] - ob[a] * _BLOCK
+    os = block_slot[ob[0] + nb[0] * (ob[1] + nb[1] * ob[2])]
+    vid = int(-1)
+    if os >= 0:
+        vid = edge_vertex_id[(os * _NODES + local_index(lo[0], lo[1], lo[2])) * n_types + tab.origin[v, 3]]
+    return vid
+
+
+@wp.func
+def triangle_badness(a: wp.vec3, b: wp.vec3, c: wp.vec3):
+    """h_max * perimeter / area (proportional to Q_K = alpha h_max / rho, eq. 16.15;
+    larger is worse; a flat triangle scores infinity)."""
+    la = wp.length(b - c)
+    lb = wp.length(c - a)
+    lc = wp.length(a - b)
+    area = 0.5 * wp.length(wp.cross(b - a, c - a))
+    r = float(3.0e38)
+    if area > 0.0:
+        r = wp.max(la, wp.max(lb, lc)) * (la + lb + lc) / area
+    return r
+
+
+@wp.func
+def signed_volume6(points: wp.array(dtype=wp.vec3), tri: wp.vec3i):
+    r = wp.float64(0.0)
+    if tri[0] >= 0 and tri[1] >= 0 and tri[2] >= 0:
+        r = wp.float64(wp.dot(points[tri[0]], wp.cross(points[tri[1]], points[tri[2]])))
+    return r
+
+
+@wp.kernel
+def emit_triangles_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
+    nb: wp.vec3i, n: wp.vec3i, n_types: int, origin: wp.vec3, h: wp.vec3, t_min: float,
+    goff: wp.vec3i, gn: wp.vec3i, tab: Tables, values: wp.array(dtype=wp.float32),
+    cell_cases: wp.array(dtype=wp.int32), triangle_offset: wp.array(dtype=wp.int32),
+    center_offset: wp.array(dtype=wp.int32), edge_vertex_id: wp.array(dtype=wp.int32),
+    points: wp.array(dtype=wp.vec3), edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
+    edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32), edge_key: wp.array(dtype=wp.int64),
+    triangles: wp.array(dtype=wp.vec3i), slot_volume: wp.array(dtype=wp.float64),
+):
+    """One thread per slot: the tables' triangles of every cell of the block, with vertex ids
+    looked up at the owner block of each edge; interior vertices of "mc33" cells (at the
+    mean of the cell's edge vertices); "mt" quadrilaterals split along the diagonal that
+    gives the better worst triangle; and the block's share of the signed volume (six
+    times p0 . (p1 x p2), summed: the host checks the winding)."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    out = triangle_offset[s]
+    cid = center_offset[s]
+    base = s * _NODES
+    vol = wp.float64(0.0)
+    cx = wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK)
+    cy = wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK)
+    cz = wp.min(_BLOCK, n[2] - 1 - c[2] * _BLOCK)
+    for k in range(cz):
+        for j in range(cy):
+            for i in range(cx):
+                case = cell_cases[s * _CELLS + i + _BLOCK * (j + _BLOCK * k)]
+                if case < 0:
+                    continue
+                g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
+                center = int(-1)
+                if tab.center[case] != 0:
+                    center = cid
+                    cid += 1
+                    acc = wp.vec3(0.0)
+                    m = float(0.0)
+                    for t in range(3):  # the cell's 12 axis edges
+                        d = type_dir(tab, t)
+                        for q in range(8):
+                            li = wp.vec3i(i + tab.corners[q, 0], j + tab.corners[q, 1], k + tab.corners[q, 2])
+                            if tab.corners[q, t] == 0:
+                                v0 = values[base + local_index(li[0], li[1], li[2])]
+                                v1 = values[base + local_index(li[0] + d[0], li[1] + d[1], li[2] + d[2])]
+                                if (v0 > 0.0) != (v1 > 0.0):
+                                    p, te, p0, p1 = crossing(values, base, li, d, li + c * _BLOCK, origin, h,
+                                                             t_min)
+                                    acc = acc + p
+                                    m += 1.0
+                    pc = acc / wp.max(m, 1.0)
+                    points[center] = pc
+                    edge_t[center] = 0.0
+                    edge_p0[center] = pc
+                    edge_p1[center] = pc
+                    edge_flags[center] = 2  # not on an edge: root refinement keeps it
+                    edge_key[center] = node_key(g, goff, gn) * wp.int64(8) + wp.int64(_CENTER)
+                for q in range(tab.tri_count[case]):
+                    tri = wp.vec3i(0, 0, 0)
+                    for m3 in range(3):
+                        tri[m3] = vertex_id(tab, tab.tris[case, q * 3 + m3], g, nb, block_slot, edge_vertex_id,
+                                            n_types, center)
+                    triangles[out] = tri
+                    out += 1
+                    vol += signed_volume6(points, tri)
+                for q in range(tab.quad_count[case]):
+                    a = vertex_id(tab, tab.quads[case, q * 4 + 0], g, nb, block_slot, edge_vertex_id, n_types, center)
+                    b = vertex_id(tab, tab.quads[case, q * 4 + 1], g, nb, block_slot, edge_vertex_id, n_types, center)
+                    e = vertex_id(tab, tab.quads[case, q * 4 + 2], g, nb, block_slot, edge_vertex_id, n_types, center)
+                    f = vertex_id(tab, tab.quads[case, q * 4 + 3], g, nb, block_slot, edge_vertex_id, n_types, center)
+                    t1 = wp.vec3i(a, b, e)
+                    t2 = wp.vec3i(a, e, f)
+                    if a >= 0 and b >= 0 and e >= 0 and f >= 0:
+                        w02 = wp.max(triangle_badness(points[a], points[b], points[e]),
+                                     triangle_badness(points[a], points[e], points[f]))
+                        w13 = wp.max(triangle_badness(points[a], points[b], points[f]),
+                                     triangle_badness(points[b], points[e], points[f]))
+                        if w13 < w02:
+                            t1 = wp.vec3i(a, b, f)
+                            t2 = wp.vec3i(b, e, f)
+                    triangles[out] = t1
+                    triangles[out + 1] = t2
+                    out += 2
+                    vol += signed_volume6(points, t1) + signed_volume6(points, t2)
+    slot_volume[s] = vol
+# -- root refinement along crossing edges (seed §16.3.3) ------------------------------------
+@wp.kernel
+def edge_points_kernel(
+    t: wp.array(dtype=wp.float32), p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
+    origin: wp.vec3, points: wp.array(dtype=wp.vec3),
+):
+    """One thread per vertex: origin + p0 + t (p1 - p0) (edge ends are grid-local)."""
+    v = wp.tid()
+    points[v] = origin + p0[v] + t[v] * (p1[v] - p0[v])
+
+
+@wp.kernel
+def bracket_init_kernel(
+    flags: wp.array(dtype=wp.int32), midpoint: int, t_lo: wp.array(dtype=wp.float32),
+    t_hi: wp.array(dtype=wp.float32), t: wp.array(dtype=wp.float32),
+):
+    """One thread per vertex: the bracket [0, 1] of the edge parameter; start at its
+    midpoint (bisection) or keep the linear estimate (Newton)."""
+    v = wp.tid()
+    t_lo[v] = 0.0
+    t_hi[v] = 1.0
+    if midpoint != 0 and (flags[v] & 2) == 0:
+        t[v] = 0.5
+
+
+@wp.kernel
+def bisection_step_kernel(
+    flags: wp.array(dtype=wp.int32), f_mid: wp.array(dtype=wp.float32),
+    t_lo: wp.array(dtype=wp.float32), t_hi: wp.array(dtype=wp.float32), t: wp.array(dtype=wp.float32),
+):
+    """One thread per vertex: keep the half of the bracket where f changes sign. The end
+    at t_lo is the p0 end; 'inside' is f > 0, as in the classification, so a sub-segment
+    where f vanishes is kept on the side of the outside end (seed Fig. 16.9)."""
+    v = wp.tid()
+    if (flags[v] & 2) != 0:
+        return
+    p0_inside = (flags[v] & 1) != 0
+    if f_mid[v] == 0.0:  # an exact root: the bracket collapses onto it
+        t_lo[v] = t[v]
+        t_hi[v] = t[v]
+        return
+    if (f_mid[v] > 0.0) == p0_inside:
+        t_lo[v] = t[v]
+    else:
+        t_hi[v] = t[v]
+    t[v] = 0.5 * (t_lo[v] + t_hi[v])
+
+
+@wp.kernel
+def newton_step_kernel(
+    flags: wp.array(dtype=wp.int32), fg: wp.array(dtype=wp.vec4), p0: wp.array(dtype=wp.vec3),
+    p1: wp.array(dtype=wp.vec3), t_lo: wp.array(dtype=wp.float32), t_hi: wp.array(dtype=wp.float32),
+    f_prev: wp.array(dtype=wp.float32), t: wp.array(dtype=wp.float32),
+):
+    """One thread per vertex: a safeguarded Newton step on g(t) = f(p0 + t (p1 - p0)):
+    bisect instead when Newton would leave the sign-change bracket, or when a step that
+    has not converged did not at least halve |g| (Newton stalls at the kinks of CSG edges)."""
+    v = wp.tid()
+    if (flags[v] & 2) != 0:
+        return
+    p0_inside = (flags[v] & 1) != 0
+    f = fg[v][0]
+    if f == 0.0:  # an exact root: the bracket collapses onto it
+        t_lo[v] = t[v]
+        t_hi[v] = t[v]
+        return
+    if (f > 0.0) == p0_inside:
+        t_lo[v] = t[v]
+    else:
+        t_hi[v] = t[v]
+    slope = wp.dot(wp.vec3(fg[v][1], fg[v][2], fg[v][3]), p1[v] - p0[v])
+    tn = t_lo[v] - 1.0  # invalid unless the Newton step below is taken
+    if slope != 0.0:
+        tn = t[v] - f / slope
+        # converged steps are always taken (a bisection from a one-sided bracket would
+        # throw the root away); others only while |f| at least halves
+        if wp.abs(tn - t[v]) > 1.0e-5 and 2.0 * wp.abs(f) > f_prev[v]:
+            tn = t_lo[v] - 1.0
+    f_prev[v] = wp.abs(f)
+    if tn > t_lo[v] and tn < t_hi[v]:
+        t[v] = tn
+    else:
+        t[v] = 0.5 * (t_lo[v] + t_hi[v])
+
+
+@wp.kernel
+def clamp_edge_t_kernel(t_min: float, t: wp.array(dtype=wp.float32)):
+    """One thread per vertex: t into [t_min, 1 - t_min] (no vertex on a grid node)."""
+    v = wp.tid()
+    t[v] = wp.clamp(t[v], t_min, 1.0 - t_min)
+
+
+@wp.kernel
+def add_offset_kernel(offset: int, values: wp.array(dtype=wp.int32)):
+    """One thread per entry: values += offset."""
+    i = wp.tid()
+    values[i] = values[i] + offset
+
+
+# -- finite-difference gradients (seed eq. 16.13, 16.14) --------------------------------------
+@wp.kernel
+def fd_points_kernel(points: wp.array(dtype=wp.vec3), step: wp.vec3, central: int,
+                     shifted: wp.array(dtype=wp.vec3)):
+    """One thread per point P: the points where f is sampled, P then P + step_a e_a for
+    each axis a, and for the centred scheme also P - step_a e_a (7 or 4 per point)."""
+    v = wp.tid()
+    per = 4 + 3 * central
+    p = points[v]
+    shifted[v * per] = p
+    for a in range(3):
+        d = wp.vec3(0.0)
+        d[a] = step[a]
+        shifted[v * per + 1 + a] = p + d
+        if central != 0:
+            shifted[v * per + 4 + a] = p - d
+
+
+@wp.kernel
+def fd_gradient_kernel(values: wp.array(dtype=wp.float32), step: wp.vec3, central: int,
+                       fg: wp.array(dtype=wp.vec4)):
+    """One thread per point: (f, df/dx, df/dy, df/dz) by forward differences,
+    (f(P + h e_a) - f(P)) / h (eq. 16.13), or centred ones,
+    (f(P + h e_a) - f(P - h e_a)) / 2h (eq. 16.14)."""
+    v = wp.tid()
+    per = 4 + 3 * central
+    f = values[v * per]
+    r = wp.vec4(f, 0.0, 0.0, 0.0)
+    for a in range(3):
+        if central != 0:
+            r[1 + a] = (values[v * per + 1 + a] - values[v * per + 4 + a]) / (2.0 * step[a])
+        else:
+            r[1 + a] = (values[v * per + 1 + a] - f) / step[a]
+    fg[v] = r

@@ -1,0 +1,121 @@
+"""Iso-surfaces and label surfaces of sampled volumes, in bounded memory.
+
+The volume is processed in *slabs* along its first axis (contiguous in a C-order array):
+each slab of ``s + 1`` node planes is converted to float32 on its own (a label volume
+becomes the indicator field of one label), culled, sampled and emitted by the block grid
+pipeline, and its output kept on the host. Consecutive slabs share one node plane; the
+vertices on it are emitted by both with identical values, and every vertex carries the
+key ``node * 8 + type`` of its grid edge in the *whole* grid, so welding the seams is an
+exact join on keys (no position tolerance). Only the grid faces that are faces of the
+whole volume are capped. Peak memory is one slab's float32 copy and block arrays plus the
+output, instead of a float copy of the whole volume.
+
+Example
+-------
+>>> import numpy as np, warpmesh as wm
+>>> labels = np.zeros((40, 30, 30), dtype=np.uint8)
+>>> labels[5:15, 5:25, 5:25] = 1
+>>> labels[20:35, 5:25, 5:25] = 2
+>>> m = wm.mesh_surface(labels, labels="all", slab_voxels=20_000)
+>>> sorted(set(m.cell_refs["triangle"].tolist())), m.stats()["components"]
+([1, 2], 2)
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from warpmesh import _conventions as C
+from warpmesh.block_grid import BlockGrid
+from warpmesh.errors import WarpMeshError
+from warpmesh.kernels import block_grid as KB
+from warpmesh.topology import signed_volume
+
+#: default slab size: 16 M samples (64 MB as float32) per pass
+SLAB_VOXELS = 1 << 24
+
+
+def slab_ranges(n0: int, plane: int, slab_voxels: int) -> list[tuple[int, int]]:
+    """Node ranges [a, b] (inclusive) along axis 0, consecutive slabs sharing node b.
+
+    Each slab holds a multiple of the block size of cells (at least one block), about
+    ``slab_voxels`` samples in all (``plane`` samples per node plane).
+
+    >>> slab_ranges(20, 100, 1000)
+    [(0, 8), (8, 16), (16, 19)]
+    """
+    step = max(KB.BLOCK, (slab_voxels // max(plane, 1)) // KB.BLOCK * KB.BLOCK)
+    return [(a, min(a + step, n0 - 1)) for a in range(0, n0 - 1, step)]
+
+
+def check_labels(labels, vol: np.ndarray) -> np.ndarray:
+    """The label values to mesh: "all" (every value but 0) or a sequence of values."""
+    if not (np.issubdtype(vol.dtype, np.integer) or vol.dtype == np.bool_):
+        raise TypeError(f"expected an integer (label) 'volume' with 'labels', got dtype {vol.dtype}")
+    if isinstance(labels, str):
+        if labels != "all":
+            raise ValueError(f"expected 'labels' as \"all\" or a sequence of label values, got {labels!r}")
+        values = np.unique(vol)  # one pass; sorted
+        values = values[values != 0]
+        if len(values) == 0:
+            raise ValueError("expected some non-zero labels in 'volume' with labels=\"all\", got only 0")
+        return values
+    values = np.asarray(labels)
+    if values.ndim != 1 or len(values) == 0 or not np.issubdtype(values.dtype, np.integer):
+        raise ValueError(f"expected 'labels' as \"all\" or a non-empty sequence of integers, got {labels!r}")
+    if len(np.unique(values)) != len(values):
+        raise ValueError(f"expected distinct values in 'labels', got {values.tolist()}")
+    return values
+
+
+def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool,
+                   cull: bool, device, slab_voxels: int, label=None, timings: dict, info: dict):
+    """Points (float64), triangles, per-vertex edge flags and the value range of one
+    field of the volume (the indicator of ``label`` when given), slab by slab."""
+    n = np.array(vol.shape, dtype=np.int64)
+    origin = np.asarray(origin, dtype=np.float64)
+    slabs = slab_ranges(int(n[0]), int(n[1] * n[2]), slab_voxels)
+    full = KB.ALL_FACES if cap else 0
+    pts, tris, keys, flags = [], [], [], []
+    vmin, vmax, n_verts = np.inf, -np.inf, 0
+    for idx, (a, b) in enumerate(slabs):
+        mask = full & ~(0b01 if idx > 0 else 0) & ~(0b10 if idx < len(slabs) - 1 else 0)
+        part = vol[a:b + 1]
+        if label is not None:
+            part = part == label
+        grid = BlockGrid(np.array([b - a + 1, n[1], n[2]]), origin + np.array([a, 0, 0]) * spacing, spacing,
+                         device, node_offset=(a, 0, 0), global_nodes=n)
+        lo, hi = grid.cull_volume(part, level, sign, cull, mask, timings)
+        vmin, vmax = min(vmin, lo), max(vmax, hi)
+        grid.finish_values(mask, timings)
+        verts, faces, edges = grid.extract(method, mask, timings)
+        t0 = time.perf_counter()
+        pts.append(verts.numpy().astype(C.REAL_DTYPE) + grid.origin)  # sync point: results to the host
+        tris.append(faces.numpy().astype(C.INDEX_DTYPE) + n_verts)
+        keys.append(edges["key"].numpy())
+        flags.append(edges["flags"].numpy())
+        n_verts += len(pts[-1])
+        for k in ("active_blocks", "blocks", "interior_vertices"):
+            info[k] = info.get(k, 0) + grid.info[k]
+        timings["host"] = timings.get("host", 0.0) + time.perf_counter() - t0
+        del grid, part  # one slab's device arrays at a time
+    t0 = time.perf_counter()
+    points, faces = np.concatenate(pts), np.concatenate(tris)
+    key, flag = np.concatenate(keys), np.concatenate(flags)
+    if len(slabs) > 1 and len(points):  # weld the seams: equal keys are the same grid edge
+        key, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        points, flag, faces = points[first], flag[first], inverse.astype(C.INDEX_DTYPE)[faces]
+    info["slabs"] = info.get("slabs", 0) + len(slabs)
+    timings["weld"] = timings.get("weld", 0.0) + time.perf_counter() - t0
+    return points, faces, flag, (vmin, vmax)
+
+
+def check_closed_outward(points: np.ndarray, faces: np.ndarray) -> float:
+    """The enclosed volume of a capped surface, which must be positive (outward winding)."""
+    vol = signed_volume(points, faces)
+    if not vol > 0.0:
+        raise WarpMeshError(f"the capped surface encloses a signed volume of {vol:g}: its triangles do "
+                            "not face outward (an internal error: please report it)")
+    return vol
