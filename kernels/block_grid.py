@@ -16,7 +16,8 @@ sum -> allocate -> write. A thread works on one slot (a whole block); launches t
 
 import warp as wp
 
-wp.set_module_options({"enable_backward": False})  # forward evaluation only: halves the compile
+wp.set_module_options({"enable_backward": False, "fuse_fp": False})  # forward only; node coordinates
+# without FMA contraction, so every path computes them bit for bit alike
 
 BLOCK = 8
 SIDE = BLOCK + 1
@@ -135,6 +136,18 @@ def node_point(c: wp.vec3i, li: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.ve
         g = wp.min(c[a] * _BLOCK + li[a], n[a] - 1)
         p[a] = origin[a] + float(g) * h[a]
     return p
+
+
+@wp.kernel
+def node_points_kernel(ids: wp.array(dtype=wp.int64), n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
+                       points: wp.array(dtype=wp.vec3)):
+    """One thread per node id (i + nx (j + ny k)): its coordinates, as node_point computes them."""
+    v = wp.tid()
+    q = ids[v]
+    nx = wp.int64(n[0])
+    ny = wp.int64(n[1])
+    g = wp.vec3i(int(q % nx), int((q / nx) % ny), int(q / (nx * ny)))
+    points[v] = node_point(wp.vec3i(0, 0, 0), g, n, origin, h)
 
 
 @wp.func

@@ -202,6 +202,56 @@ class BlockGrid:
         timings["evaluate"] = timings.get("evaluate", 0.0) + time.perf_counter() - t0
         return vmin, vmax
 
+    def node_values(self, tape, ids: np.ndarray, evaluator) -> np.ndarray:
+        """f at grid nodes given by linear id (i + nx (j + ny k)), with the coordinates
+        computed exactly as the sampling kernels do (continuation matches the grid)."""
+        wids = wp.array(np.ascontiguousarray(ids, dtype=np.int64), dtype=wp.int64, device=self.device)
+        pts = wp.empty(len(ids), dtype=wp.vec3, device=self.device)
+        self._launch(K.node_points_kernel, len(ids), [wids, self.wn, self.worigin, self.wh], [pts])
+        used = "compiled" if codegen.generated_kernel(tape, self.device, evaluator, len(ids)) else "interpreter"
+        self.info["evaluator"] = used
+        return eval_values(tape, pts, device=self.device, evaluator=used).numpy()  # sync point
+
+    def load_cells(self, cells: np.ndarray, node_ids: np.ndarray, node_values: np.ndarray) -> wp.array:
+        """Slots for a given set of cells (continuation): every block owning a vertex of one
+        of them, filled with the known node values (-1, outside, elsewhere: the vertices
+        that creates are on no marked cell and are dropped). Returns the cell mask."""
+        n = self.n
+        cdim = n - 1
+        ci = np.stack([cells % cdim[0], cells // cdim[0] % cdim[1], cells // (cdim[0] * cdim[1])], axis=1)
+        owners = []
+        for corner in range(8):  # the blocks owning the corners' edges
+            g = ci + np.array([corner & 1, (corner >> 1) & 1, (corner >> 2) & 1])
+            ob = np.minimum(g // K.BLOCK, self.nb - 1)
+            owners.append(ob[:, 0] + self.nb[0] * (ob[:, 1] + self.nb[1] * ob[:, 2]))
+        blocks = np.unique(np.concatenate(owners))
+        self.n_slots = self.n_evaluate = len(blocks)
+        block_slot = np.full(self.n_blocks, -1, dtype=np.int32)
+        block_slot[blocks] = np.arange(len(blocks), dtype=np.int32)
+        bc = np.stack([blocks % self.nb[0], blocks // self.nb[0] % self.nb[1], blocks // (self.nb[0] * self.nb[1])],
+                      axis=1)
+        side = np.arange(K.SIDE)
+        lk, lj, li = np.meshgrid(side, side, side, indexing="ij")  # local_index: i fastest
+        local = np.stack([li.ravel(), lj.ravel(), lk.ravel()], axis=1)  # (NODES, 3)
+        g = np.minimum(bc[:, None, :] * K.BLOCK + local[None], n - 1)  # clamped, as node_point
+        gid = (g[..., 0] + n[0] * (g[..., 1] + n[1] * g[..., 2])).ravel()
+        pos = np.clip(np.searchsorted(node_ids, gid), 0, max(len(node_ids) - 1, 0))
+        known = node_ids[pos] == gid if len(node_ids) else np.zeros(len(gid), bool)
+        values = np.where(known, node_values[pos] if len(node_ids) else 0.0, -1.0).astype(np.float32)
+        cb = ci // K.BLOCK
+        slot = block_slot[cb[:, 0] + self.nb[0] * (cb[:, 1] + self.nb[1] * cb[:, 2])]
+        lc = ci - cb * K.BLOCK
+        mask = np.zeros(max(len(blocks), 1) * K.CELLS, dtype=np.uint8)
+        mask[slot * K.CELLS + lc[:, 0] + K.BLOCK * (lc[:, 1] + K.BLOCK * lc[:, 2])] = 1
+        dev = self.device
+        self.values = wp.array(values if len(values) else np.zeros(1, np.float32), dtype=wp.float32, device=dev)
+        self.slot_block = wp.array(np.maximum(blocks, 0).astype(np.int32) if len(blocks) else np.zeros(1, np.int32),
+                                   dtype=wp.int32, device=dev)
+        self.block_slot = wp.array(block_slot, dtype=wp.int32, device=dev)
+        self.info["active_blocks"] = self.n_slots
+        self.info["inside_blocks"] = 0
+        return wp.array(mask, dtype=wp.uint8, device=dev)
+
     def finish_values(self, cap: int, timings) -> None:
         t0 = time.perf_counter()
         bad = wp.zeros(max(self.n_slots, 1), dtype=wp.int32, device=self.device)

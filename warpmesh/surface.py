@@ -34,11 +34,13 @@ from warpmesh.kernels import emit as KE
 from warpmesh.mesh import Mesh
 from warpmesh.shapes import Shape
 from warpmesh.tape import tape_of
+from warpmesh.continuation import grow_cells
 from warpmesh.volume import SLAB_VOXELS, check_closed_outward, check_labels, extract_volume
 
 Method = Literal["mc33", "mt", "mc"]
 RootMethod = Literal["linear", "bisection", "newton"]
 _ROOTS = ("linear", "bisection", "newton")
+RAY_STRIDE = 8  # continuation's automatic seeds: rays along every 8th grid line
 MAX_RESOLUTION = 2048  # 2048^3 cells: 16.8 M blocks of 8^3, about 1 GB of block bookkeeping
 
 def _check_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
@@ -122,6 +124,8 @@ def mesh_surface(
     source,
     *,
     method: Method = "mc",
+    covering: Literal["grid", "continuation"] = "grid",
+    seeds=None,
     bounds=None,
     resolution: int | tuple[int, int, int] | None = None,
     level: float | None = None,
@@ -146,6 +150,24 @@ def mesh_surface(
     source : Shape, Expr or (nx, ny, nz) array
         A shape (f > 0 inside) or sampled values ``volume[i, j, k]`` at
         ``origin + (i, j, k) * spacing`` (trilinear in between).
+    method : {'mc33', 'mt', 'mc'}
+        How each cell is triangulated (seed §16.4.2): "mc33" follows the topology of
+        the trilinear interpolant of the corner values (asymptotic decider on faces,
+        interior test for tunnels); "mt" splits every cube into 6 Kuhn tetrahedra
+        (16 configurations, triangles and quadrilaterals split on shape: about 3x the
+        triangles, the topology of the piecewise-linear interpolant); "mc" is the plain
+        table (closed and manifold, but it separates the inside corners of every
+        ambiguous face whatever the values say). All three give closed, 2-manifold,
+        outward-oriented surfaces.
+    covering : {'grid', 'continuation'}, shapes only
+        "grid" samples every block that interval arithmetic cannot cull; "continuation"
+        grows from seed cells across the cell faces the surface crosses and evaluates
+        only the corners of crossed cells (plus rays to find seeds): the same triangles
+        for every component it reaches, far fewer evaluations (``mesh.info``).
+    seeds : (m, 3) points, continuation only
+        Points in cells crossed by the surface to grow from. Default: found by casting
+        rays along every 8th grid line of each axis, which finds every component that
+        one of those lines crosses; give a seed for smaller components.
     bounds : ((x0, y0, z0), (x1, y1, z1)), required for a shape
         The box sampled; the surface is closed (capped) on it when ``cap``.
     resolution : int or (3,) ints, shapes only
@@ -216,6 +238,9 @@ def mesh_surface(
     """
     t_start = time.perf_counter()
     _check_choice(method, "method", METHODS)
+    _check_choice(covering, "covering", COVERINGS)
+    if seeds is not None and covering != "continuation":
+        raise ValueError("'seeds' applies to covering='continuation'")
     _check_choice(root, "root", _ROOTS)
     if evaluator is not None:
         _check_choice(evaluator, "evaluator", EVALUATORS)
@@ -236,6 +261,7 @@ def mesh_surface(
             raise ValueError(f"expected 1 <= 'root_iterations' <= 64, got {root_iterations!r}")
     device = wp.get_device(device)
     cap_mask = KB.ALL_FACES if cap else 0
+    cell_mask = None
     timings: dict[str, float] = {}
     info: dict = {"method": method, "root": root, "device": str(device)}
 
@@ -250,12 +276,18 @@ def mesh_surface(
         tape = tape_of(source)
         timings["compile"] = time.perf_counter() - t_start
         grid = BlockGrid(cells + 1, lo, h, device)
-        grid.cull_shape(tape, cull, cap_mask, timings)
-        grid.sample_shape(tape, cull, evaluator, timings)
+        if covering == "continuation":
+            cell_mask = _grow(grid, tape, seeds, cap, evaluator, timings, info)
+        else:
+            grid.cull_shape(tape, cull, cap_mask, timings)
+            grid.sample_shape(tape, cull, evaluator, timings)
         info["tape_length"] = len(tape)
     elif isinstance(source, np.ndarray) or hasattr(source, "__array__"):
         _refuse(("bounds", bounds), ("resolution", resolution), ("evaluator", evaluator), source="a volume",
                 hint="a volume's grid is its samples, and there is no function to evaluate")
+        if covering != "grid":
+            raise ValueError("covering='continuation' saves evaluations of a shape's function; a volume's "
+                             "samples are all given: use covering='grid'")
         if root != "linear":
             raise ValueError(f"root={root!r} needs the exact function of a shape; a volume's "
                              "trilinear field is linear along grid edges: use root='linear'")
@@ -285,7 +317,7 @@ def mesh_surface(
         raise TypeError(f"expected a Shape, an expression or a 3D array for 'source', got {type(source).__name__}")
 
     grid.finish_values(cap_mask, timings)
-    verts, tris, edges = grid.extract(method, cap_mask, timings)
+    verts, tris, edges = grid.extract(method, cap_mask, timings, cell_mask)
     if tape is not None and root != "linear" and len(verts):
         refine_roots(tape, verts, edges, grid.worigin, root, root_iterations, timings, evaluator,
                      gradient, grid.h)
@@ -299,6 +331,9 @@ def mesh_surface(
     if len(faces) and faces.min() < 0:
         raise WarpMeshError("a block culled as uniform holds a crossing edge: the interval bound "
                             "of the shape is wrong; mesh with cull=False and report the shape")
+    if cell_mask is not None:  # continuation: drop the vertices of edges on no grown cell
+        points, faces, point_data, kept = _drop_unused(points, faces, point_data)
+        edges = {"flags": wp.array(edges["flags"].numpy()[kept], dtype=wp.int32)}
     if cap and len(faces):  # closed by construction: outward winding encloses a positive volume
         if not grid.info["signed_volume"] > 0.0:
             raise WarpMeshError(f"the capped surface encloses a signed volume of {grid.info['signed_volume']:g}: "
@@ -388,3 +423,40 @@ def _mesh_volume(vol, org, sp, level, sign, labels, method, cap, cull, device, s
     timings["total"] = time.perf_counter() - t_start
     info["time"] = timings
     return Mesh(points, {"triangle": faces}, cell_refs={"triangle": refs} if keep_refs else None, info=info)
+
+
+COVERINGS = ("grid", "continuation")
+
+
+def _grow(grid: BlockGrid, tape, seeds, cap: bool, evaluator, timings, info):
+    """Continuation covering-up: grow the crossed cells from seeds (warpmesh.continuation),
+    then load them into the block grid. Returns the mask of the grown cells."""
+    t0 = time.perf_counter()
+    seed_cells = None
+    if seeds is not None:
+        pts = np.asarray(seeds, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.all(np.isfinite(pts)):
+            raise ValueError(f"expected 'seeds' as finite (m, 3) points, got {np.shape(seeds)}")
+        cells = grid.n - 1
+        ijk = np.floor((pts - grid.origin) / grid.h).astype(np.int64)
+        if np.any((ijk < 0) | (ijk > cells)):
+            raise ValueError(f"expected 'seeds' inside 'bounds', got {pts[np.any((ijk < 0) | (ijk > cells), 1)][0]}")
+        ijk = np.minimum(ijk, cells - 1)
+        seed_cells = ijk[:, 0] + cells[0] * (ijk[:, 1] + cells[1] * ijk[:, 2])
+    growth = grow_cells(lambda ids: grid.node_values(tape, ids, evaluator), tuple(int(v) for v in grid.n),
+                        seeds=seed_cells, ray_stride=None if seeds is not None else RAY_STRIDE, cap=cap)
+    timings["evaluate"] = time.perf_counter() - t0
+    mask = grid.load_cells(growth.cells, growth.node_ids, growth.node_values)
+    info.update(evaluations=growth.evaluations, ray_evaluations=growth.ray_evaluations, waves=growth.waves,
+                seed_cells=growth.seeds, grown_cells=len(growth.cells), components_grown=growth.components,
+                interval_evaluations=0)
+    timings["load"] = time.perf_counter() - t0 - timings["evaluate"]
+    return mask
+
+
+def _drop_unused(points, faces, point_data):
+    """Keep the vertices the triangles use, renumbered in order."""
+    kept = np.unique(faces)
+    remap = np.full(len(points), -1, dtype=C.INDEX_DTYPE)
+    remap[kept] = np.arange(len(kept), dtype=C.INDEX_DTYPE)
+    return points[kept], remap[faces], {k: v[kept] for k, v in point_data.items()}, kept
