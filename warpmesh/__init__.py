@@ -17,6 +17,7 @@ if _wp.config.log_level < _wp.LOG_WARNING:  # Warp's banner and module-load line
 from warpmesh.errors import ReadError, TopologyError, WarpMeshError
 from warpmesh.expr import Expr, abs, coords, cos, exp, log, max, min, sin, sqrt  # noqa: A004
 from warpmesh.mesh import Mesh, load
+from warpmesh.orientation import orient, orient_faces
 from warpmesh.quality import quality_summary, tetra_quality, triangle_quality
 from warpmesh.shapes import (EXAMPLES, Shape, box, capsule, complement, cone, cylinder, difference,
                              ellipsoid, example, halfspace, intersection, sphere, superquadric,
@@ -27,7 +28,8 @@ from warpmesh.tape import Tape, compile_tape, evaluate, evaluate_interval
 __version__ = "0.1.0"
 
 __all__ = [
-    "Mesh", "load", "mesh_surface", "triangle_quality", "tetra_quality", "quality_summary",
+    "Mesh", "load", "mesh_surface", "orient", "orient_faces",
+    "triangle_quality", "tetra_quality", "quality_summary",
     "Shape", "Expr", "coords", "sqrt", "abs", "min", "max", "sin", "cos", "exp", "log",
     "sphere", "box", "cylinder", "cone", "torus", "ellipsoid", "halfspace", "capsule",
     "superquadric", "supertorus", "union", "intersection", "difference", "complement",
