@@ -40,7 +40,7 @@ from warpmesh.volume import SLAB_VOXELS, check_closed_outward, check_labels, ext
 Method = Literal["mc33", "mt", "mc"]
 RootMethod = Literal["linear", "bisection", "newton"]
 _ROOTS = ("linear", "bisection", "newton")
-RAY_STRIDE = 8  # continuation's automatic seeds: rays along every 8th grid line
+RAY_LINES = 32  # continuation's automatic seeds: rays along 32 grid lines per axis (every 8th at least)
 MAX_RESOLUTION = 2048  # 2048^3 cells: 16.8 M blocks of 8^3, about 1 GB of block bookkeeping
 
 def _check_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
@@ -166,8 +166,9 @@ def mesh_surface(
         for every component it reaches, far fewer evaluations (``mesh.info``).
     seeds : (m, 3) points, continuation only
         Points in cells crossed by the surface to grow from. Default: found by casting
-        rays along every 8th grid line of each axis, which finds every component that
-        one of those lines crosses; give a seed for smaller components.
+        rays along 32 grid lines per axis direction and transverse axis (every 8th line
+        on grids up to 256 cells), which finds every component that one of those lines
+        crosses; give a seed for smaller components.
     bounds : ((x0, y0, z0), (x1, y1, z1)), required for a shape
         The box sampled; the surface is closed (capped) on it when ``cap``.
     resolution : int or (3,) ints, shapes only
@@ -444,7 +445,7 @@ def _grow(grid: BlockGrid, tape, seeds, cap: bool, evaluator, timings, info):
         ijk = np.minimum(ijk, cells - 1)
         seed_cells = ijk[:, 0] + cells[0] * (ijk[:, 1] + cells[1] * ijk[:, 2])
     growth = grow_cells(lambda ids: grid.node_values(tape, ids, evaluator), tuple(int(v) for v in grid.n),
-                        seeds=seed_cells, ray_stride=None if seeds is not None else RAY_STRIDE, cap=cap)
+                        seeds=seed_cells, ray_stride=None if seeds is not None else _ray_stride(grid.n), cap=cap)
     timings["evaluate"] = time.perf_counter() - t0
     mask = grid.load_cells(growth.cells, growth.node_ids, growth.node_values)
     info.update(evaluations=growth.evaluations, ray_evaluations=growth.ray_evaluations, waves=growth.waves,
@@ -452,6 +453,12 @@ def _grow(grid: BlockGrid, tape, seeds, cap: bool, evaluator, timings, info):
                 interval_evaluations=0)
     timings["load"] = time.perf_counter() - t0 - timings["evaluate"]
     return mask
+
+
+def _ray_stride(n_nodes) -> int:
+    """Grid lines between seed rays: the rays cost O(n) evaluations per line family, below
+    the O(n^2) of the surface itself."""
+    return int(max(8, int(np.max(n_nodes)) // RAY_LINES))
 
 
 def _drop_unused(points, faces, point_data):
