@@ -54,3 +54,23 @@ def test_errors_are_reported_not_raised(tmp_path, capsys):
 def test_console_script_is_installed():
     done = subprocess.run([sys.executable, "-m", "warpmesh.cli", "--help"], capture_output=True, text=True)
     assert done.returncode == 0 and "mesh" in done.stdout
+
+
+def test_labels_methods_and_continuation(tmp_path, capsys):
+    labels = np.zeros((20, 16, 16), dtype=np.uint8)
+    labels[3:9, 3:12, 3:12] = 1
+    labels[11:17, 3:12, 3:12] = 4
+    path = tmp_path / "seg.npy"
+    np.save(path, labels)
+    out = tmp_path / "seg.vtu"
+    assert main(["mesh", "--volume", str(path), "--labels", "all", "--method", "mt", "--slab-voxels", "2000",
+                 "-o", str(out), "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats["components"] == 2 and stats["watertight"] is True
+    assert set(wm.load(out).cell_refs["triangle"].tolist()) == {1, 4}
+    assert main(["mesh", "--volume", str(path), "--labels", "one"]) == 2
+    assert "--labels" in capsys.readouterr().err
+    assert main(["mesh", "--example", "torus", "--resolution", "32", "--covering", "continuation",
+                 "--root", "newton", "--gradient", "central", "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats["euler"] == 0

@@ -6,6 +6,8 @@ Examples
     meshes the bundled CSG part and prints its statistics.
 ``warpmesh mesh --volume ct.npy --level 300 --spacing 0.5 -o bone.stl``
     extracts an iso-surface of a volume saved with ``numpy.save``.
+``warpmesh mesh --volume seg.npy --labels all --method mt -o organs.vtu``
+    meshes every label of a segmentation (triangle refs = labels).
 ``warpmesh info part.ply``
     prints the statistics of a mesh file.
 """
@@ -33,7 +35,16 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--inside", choices=["above", "below"], help="inside side of the level (volumes)")
     m.add_argument("--spacing", type=float, nargs="+", help="sample spacing, 1 or 3 values (volumes)")
     m.add_argument("--origin", type=float, nargs=3, help="position of sample [0, 0, 0] (volumes)")
+    m.add_argument("--method", choices=["mc33", "mt", "mc"], default=None,
+                   help="cell triangulation: marching cubes 33 (default), marching tetrahedra, plain mc")
+    m.add_argument("--covering", choices=["grid", "continuation"], default=None,
+                   help="shapes: culled grid (default) or continuation from seed cells")
+    m.add_argument("--labels", nargs="+", metavar="LABEL",
+                   help="integer volumes: mesh each label's region ('all' or label values)")
+    m.add_argument("--slab-voxels", type=int, help="volumes: samples per slab (default 16M)")
     m.add_argument("--root", choices=["linear", "bisection", "newton"], default="linear")
+    m.add_argument("--gradient", choices=["exact", "central", "forward"],
+                   help="gradient for Newton roots: exact (default) or finite differences")
     m.add_argument("--no-cap", action="store_true", help="leave the surface open at the bounds")
     m.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
     m.add_argument("-o", "--output", help="mesh file to write (.ply .obj .stl .vtk .vtu .msh .mesh)")
@@ -60,6 +71,17 @@ def _print_stats(stats: dict, as_json: bool) -> None:
         print(f"{key:>22}: {value}")
 
 
+def _labels(values):
+    if values is None:
+        return None
+    if values == ["all"]:
+        return "all"
+    try:
+        return [int(v) for v in values]
+    except ValueError:
+        raise ValueError(f"expected --labels all or integer labels, got {' '.join(values)}") from None
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     import warpmesh as wm
@@ -72,7 +94,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.output:
             check_path(args.output)  # before meshing: a bad extension fails at once
         common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
-                      device=args.device)
+                      device=args.device, gradient=args.gradient, labels=_labels(args.labels),
+                      slab_voxels=args.slab_voxels)
+        if args.method:
+            common["method"] = args.method
+        if args.covering:
+            common["covering"] = args.covering
         if args.example:
             shape, bounds = wm.example(args.example)
             mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
