@@ -20,7 +20,7 @@ import warp as wp
 
 from warpmesh.kernels.block_grid import BLOCK, NODES, SIDE, block_coords, local_index, on_capped_face
 
-wp.set_module_options({"enable_backward": False})
+wp.set_module_options({"enable_backward": False, "fuse_fp": False})  # decisions as the numpy reference
 
 METHOD_MC = 0
 METHOD_MC33 = 1
@@ -36,6 +36,7 @@ _NODES = wp.constant(NODES)
 _CELLS = wp.constant(BLOCK * BLOCK * BLOCK)
 _METHOD_MC33 = wp.constant(METHOD_MC33)
 _CENTER = wp.constant(CENTER)
+vec8d = wp.types.vector(length=8, dtype=wp.float64)
 
 
 @wp.struct
@@ -66,9 +67,70 @@ def config_of(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: 
 
 
 @wp.func
+def interior_value(v: vec8d, tab: Tables, test: int):
+    """Interior test of "mc33" (kernels/mc33_tables.py, ``interior_value``): 1 when the
+    diagonal edges A, C of the slices along the test's axis join through the inside of
+    a slice, 2 through the outside, else 0."""
+    a0 = v[tab.test_corners[test, 0]]
+    a1 = v[tab.test_corners[test, 1]]
+    c0 = v[tab.test_corners[test, 2]]
+    c1 = v[tab.test_corners[test, 3]]
+    b0 = v[tab.test_corners[test, 4]]
+    b1 = v[tab.test_corners[test, 5]]
+    d0 = v[tab.test_corners[test, 6]]
+    d1 = v[tab.test_corners[test, 7]]
+    da = a1 - a0
+    dc = c1 - c0
+    db = b1 - b0
+    dd = d1 - d0
+    alpha = da * dc - db * dd
+    beta = a0 * dc + c0 * da - b0 * dd - d0 * db
+    gamma = a0 * c0 - b0 * d0
+    two = wp.float64(2.0)
+    zero = wp.float64(0.0)
+    r = int(0)
+    if alpha < zero and beta > zero and beta < -two * alpha and beta * beta - wp.float64(4.0) * alpha * gamma > zero:
+        sa = -two * alpha * a0 + da * beta
+        sc = -two * alpha * c0 + dc * beta
+        if sa > zero and sc > zero:
+            r = 1
+        elif sa < zero and sc < zero:
+            r = 2
+    return r
+
+
+@wp.func
 def mc33_case(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int, tab: Tables, ci: int):
-    """Row of the "mc33" tables for a cell of configuration ci (filled in with the tables)."""
-    return ci
+    """Row of the "mc33" tables for a cell of configuration ci: the asymptotic decider
+    on each ambiguous face (products of float32 values, exact in float64, so the two
+    cells of a face agree), then the interior test the entry asks for."""
+    v = vec8d()
+    for q in range(8):
+        v[q] = wp.float64(values[base + local_index(i + tab.corners[q, 0], j + tab.corners[q, 1],
+                                                    k + tab.corners[q, 2])])
+    zero = wp.float64(0.0)
+    bits = int(0)
+    for q in range(6):
+        va = v[tab.face_corners[q, 0]]
+        vb = v[tab.face_corners[q, 1]]
+        vc = v[tab.face_corners[q, 2]]
+        vd = v[tab.face_corners[q, 3]]
+        ia = va > zero
+        ib = vb > zero
+        if ia == (vc > zero) and ib == (vd > zero) and ia != ib:
+            pac = va * vc
+            pbd = vb * vd
+            joined = pbd > pac
+            if ia:
+                joined = pac > pbd
+            if joined:
+                bits = bits | (1 << q)
+    entry = ci * 64 + bits
+    row = tab.case_offset[entry]
+    test = tab.interior_test[entry]
+    if test >= 0:
+        row += interior_value(v, tab, test)
+    return row
 
 
 @wp.func

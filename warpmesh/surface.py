@@ -123,7 +123,7 @@ def _check_volume(volume, spacing, origin) -> tuple[np.ndarray, np.ndarray, np.n
 def mesh_surface(
     source,
     *,
-    method: Method = "mc",
+    method: Method = "mc33",
     covering: Literal["grid", "continuation"] = "grid",
     seeds=None,
     bounds=None,
