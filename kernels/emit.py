@@ -321,6 +321,16 @@ def triangle_badness(a: wp.vec3, b: wp.vec3, c: wp.vec3):
 
 
 @wp.func
+def cell_point(tab: Tables, v: int, t: float, h: wp.vec3):
+    """Position of local vertex v (at parameter t on its edge) relative to the cell origin:
+    the same in every slab and block, so quad splits never depend on where the grid starts."""
+    d = type_dir(tab, tab.origin[v, 3])
+    return wp.vec3((float(tab.origin[v, 0]) + t * float(d[0])) * h[0],
+                   (float(tab.origin[v, 1]) + t * float(d[1])) * h[1],
+                   (float(tab.origin[v, 2]) + t * float(d[2])) * h[2])
+
+
+@wp.func
 def signed_volume6(points: wp.array(dtype=wp.vec3), tri: wp.vec3i):
     r = wp.float64(0.0)
     if tri[0] >= 0 and tri[1] >= 0 and tri[2] >= 0:
@@ -401,10 +411,12 @@ def emit_triangles_kernel(
                     t1 = wp.vec3i(a, b, e)
                     t2 = wp.vec3i(a, e, f)
                     if a >= 0 and b >= 0 and e >= 0 and f >= 0:
-                        w02 = wp.max(triangle_badness(points[a], points[b], points[e]),
-                                     triangle_badness(points[a], points[e], points[f]))
-                        w13 = wp.max(triangle_badness(points[a], points[b], points[f]),
-                                     triangle_badness(points[b], points[e], points[f]))
+                        pa = cell_point(tab, tab.quads[case, q * 4 + 0], edge_t[a], h)
+                        pb = cell_point(tab, tab.quads[case, q * 4 + 1], edge_t[b], h)
+                        pe = cell_point(tab, tab.quads[case, q * 4 + 2], edge_t[e], h)
+                        pf = cell_point(tab, tab.quads[case, q * 4 + 3], edge_t[f], h)
+                        w02 = wp.max(triangle_badness(pa, pb, pe), triangle_badness(pa, pe, pf))
+                        w13 = wp.max(triangle_badness(pa, pb, pf), triangle_badness(pb, pe, pf))
                         if w13 < w02:
                             t1 = wp.vec3i(a, b, f)
                             t2 = wp.vec3i(b, e, f)

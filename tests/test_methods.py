@@ -218,3 +218,27 @@ def test_mc33_has_the_trilinear_topology_where_plain_mc_does_not():
     assert decided >= 80  # of about 110
     assert mc33_wrong == 0
     assert mc_wrong >= 3
+
+
+def test_continuation_seed_points_on_cell_boundaries_and_bad_shapes():
+    ball = wm.sphere(0.5)
+    bounds = ((-1,) * 3, (1,) * 3)
+    on_node = wm.mesh_surface(ball, bounds=bounds, resolution=32, covering="continuation", seeds=[(0.5, 0, 0)])
+    check_mesh(on_node)
+    with pytest.raises(ValueError, match="inside 'bounds'"):
+        wm.mesh_surface(ball, bounds=bounds, resolution=32, covering="continuation", seeds=[(1.05, 1.05, 1.05)])
+    with pytest.raises(ValueError, match="'seeds'"):
+        wm.mesh_surface(ball, bounds=bounds, resolution=32, covering="continuation", seeds=[("a", "b", "c")])
+    x = wm.coords()[0]
+    with pytest.raises(ValueError, match="NaN or infinity"):
+        wm.mesh_surface(wm.Shape(wm.log(x + 0.5)), bounds=bounds, resolution=16, covering="continuation")
+
+
+def test_continuation_refines_only_the_kept_vertices():
+    shape = wm.torus(1.0, 0.35)
+    bounds = ((-1.5, -1.5, -0.5), (1.5, 1.5, 0.5))
+    grid = wm.mesh_surface(shape, bounds=bounds, resolution=48, root="newton", normals=True)
+    cont = wm.mesh_surface(shape, bounds=bounds, resolution=48, root="newton", normals=True,
+                           covering="continuation")
+    assert len(cont.points) == len(grid.points) == len(cont.point_data["normals"])
+    assert np.max(np.abs(wm.evaluate(shape, cont.points))) < 1e-4

@@ -134,3 +134,30 @@ def test_gradient_refused_where_unused():
         wm.mesh_surface(shape, bounds=bounds, resolution=16, gradient="central")
     with pytest.raises(ValueError, match="Unknown gradient"):
         wm.mesh_surface(shape, bounds=bounds, resolution=16, root="newton", gradient="sobel")
+
+
+@pytest.mark.parametrize("method", ["mc33", "mt", "mc"])
+def test_slabs_random_fields_identical(method):
+    """Noise (ambiguous cells, mt quads everywhere): one pass and thin slabs agree exactly."""
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        vol = rng.uniform(-1, 1, tuple(rng.integers(4, 12, 3))).astype(np.float32)
+        if (vol[1:-1, 1:-1, 1:-1] > 0).any():
+            _same_mesh(wm.mesh_surface(vol, method=method), wm.mesh_surface(vol, method=method, slab_voxels=1))
+
+
+def test_bool_volume_surface_halfway():
+    g = np.indices((40, 40, 40)) - 19.5
+    ball = np.sqrt((g**2).sum(axis=0)) < 12
+    m = wm.mesh_surface(ball)
+    assert m.info["enclosed_volume"] == pytest.approx(4 / 3 * np.pi * 12**3, rel=0.05)
+    assert m.stats()["worst_q"] < 5  # vertices at edge midpoints, not on the False samples
+    with pytest.raises(ValueError, match="'level'"):
+        wm.mesh_surface(ball, level=True)
+
+
+def test_huge_labels_refused():
+    labels = np.zeros((6, 6, 6), dtype=np.uint64)
+    labels[2:4, 2:4, 2:4] = np.uint64(2**63 + 5)
+    with pytest.raises(ValueError, match="int64"):
+        wm.mesh_surface(labels, labels="all")

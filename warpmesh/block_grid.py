@@ -1,10 +1,10 @@
 """Typed launch wrappers of the block-sparse grid (seed §16.4.1-16.4.2, §16.3.3).
 
 :class:`BlockGrid` owns the device arrays of one extraction and launches the kernels of
-:mod:`warpmesh.kernels.marching_cubes`: block culling and compaction (count -> prefix sum ->
-allocate -> write), sampling (a shape's tape or a volume's samples), capping, and the
-two-pass emission of vertices and triangles; :func:`refine_roots` moves vertices onto the
-exact surface. Launches over slots are split across CPU cores from Python threads.
+:mod:`warpmesh.kernels.block_grid` (block culling and compaction: count -> prefix sum ->
+allocate -> write; sampling a shape's tape or a volume's samples; capping) and of
+:mod:`warpmesh.kernels.emit` (the two-pass emission of vertices and triangles by
+"mc33", "mt" or "mc"); :func:`refine_roots` moves vertices onto the exact surface. Launches over slots are split across CPU cores from Python threads.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def method_tables(method: str, device) -> KE.Tables:
     return _TABLE_CACHE[key]
 
 
-# -- validation -----------------------------------------------------------------------------
+# -- the grid ----------------------------------------------------------------------------------
 class BlockGrid:
     """The block-sparse grid of one extraction: its device arrays and the kernel launches
     (allocation, prefix sums, per-core splits), so that :func:`mesh_surface` reads as a pipeline."""
@@ -106,16 +106,19 @@ class BlockGrid:
             counts.append(int(off.numpy()[-1] + flags.numpy()[-1]))  # sync point: slot counts
         self.n_evaluate, n_inside = counts
         self.n_slots = self.n_evaluate + n_inside
-        if self.n_slots * K.NODES * 7 >= 2**31:
-            raise WarpMeshError(
-                f"{self.n_slots} blocks of {K.BLOCK}^3 cells would be sampled, more than one pass can "
-                "index (int32): keep cull=True, or lower 'resolution'")
+        self._check_slots()
         self.slot_block = wp.empty(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
         self.block_slot = wp.empty(self.n_blocks, dtype=wp.int32, device=self.device)
         self._launch(K.compact_blocks_kernel, self.n_blocks, [state, offsets[0], offsets[1], self.n_evaluate],
                      [self.slot_block, self.block_slot])
         self.info["active_blocks"] = self.n_slots
         self.info["inside_blocks"] = n_inside
+
+    def _check_slots(self) -> None:
+        if self.n_slots * K.NODES * 7 >= 2**31:
+            raise WarpMeshError(
+                f"{self.n_slots} blocks of {K.BLOCK}^3 cells would be sampled, more than one pass can "
+                "index (int32): keep cull=True, or lower 'resolution'")
 
     def cull_shape(self, tape, cull: bool, cap: int, timings) -> None:
         t0 = time.perf_counter()
@@ -225,19 +228,25 @@ class BlockGrid:
             ob = np.minimum(g // K.BLOCK, self.nb - 1)
             owners.append(ob[:, 0] + self.nb[0] * (ob[:, 1] + self.nb[1] * ob[:, 2]))
         blocks = np.unique(np.concatenate(owners))
+        del owners
         self.n_slots = self.n_evaluate = len(blocks)
+        self._check_slots()
         block_slot = np.full(self.n_blocks, -1, dtype=np.int32)
         block_slot[blocks] = np.arange(len(blocks), dtype=np.int32)
-        bc = np.stack([blocks % self.nb[0], blocks // self.nb[0] % self.nb[1], blocks // (self.nb[0] * self.nb[1])],
-                      axis=1)
         side = np.arange(K.SIDE)
         lk, lj, li = np.meshgrid(side, side, side, indexing="ij")  # local_index: i fastest
         local = np.stack([li.ravel(), lj.ravel(), lk.ravel()], axis=1)  # (NODES, 3)
-        g = np.minimum(bc[:, None, :] * K.BLOCK + local[None], n - 1)  # clamped, as node_point
-        gid = (g[..., 0] + n[0] * (g[..., 1] + n[1] * g[..., 2])).ravel()
-        pos = np.clip(np.searchsorted(node_ids, gid), 0, max(len(node_ids) - 1, 0))
-        known = node_ids[pos] == gid if len(node_ids) else np.zeros(len(gid), bool)
-        values = np.where(known, node_values[pos] if len(node_ids) else 0.0, -1.0).astype(np.float32)
+        values = np.empty(len(blocks) * K.NODES, dtype=np.float32)
+        for first in range(0, len(blocks), 1024):  # bounded temporaries: 1024 blocks at a time
+            part = blocks[first:first + 1024]
+            bc = np.stack([part % self.nb[0], part // self.nb[0] % self.nb[1], part // (self.nb[0] * self.nb[1])],
+                          axis=1)
+            g = np.minimum(bc[:, None, :] * K.BLOCK + local[None], n - 1)  # clamped, as node_point
+            gid = (g[..., 0] + n[0] * (g[..., 1] + n[1] * g[..., 2])).ravel()
+            pos = np.clip(np.searchsorted(node_ids, gid), 0, max(len(node_ids) - 1, 0))
+            known = node_ids[pos] == gid if len(node_ids) else np.zeros(len(gid), bool)
+            values[first * K.NODES:(first + len(part)) * K.NODES] = \
+                np.where(known, node_values[pos] if len(node_ids) else 0.0, -1.0)
         cb = ci // K.BLOCK
         slot = block_slot[cb[:, 0] + self.nb[0] * (cb[:, 1] + self.nb[1] * cb[:, 2])]
         lc = ci - cb * K.BLOCK

@@ -175,13 +175,13 @@ def mesh_surface(
         Cells along the longest side of ``bounds`` (near-cubic cells), or per axis;
         default 128.
     level : float, volumes only
-        The iso-level (default 0).
+        The iso-level (default 0; 0.5 for a bool volume).
     inside : {'above', 'below'}, volumes only
         Whether values above (default) or below ``level`` are inside.
     labels : "all" or sequence of ints, integer volumes only
         Mesh the boundary of each label's region (the samples equal to it) instead of an
         iso-surface: "all" takes every value but 0. Each label's surface is closed on its
-        own (interfaces between two labels appear once per label, with opposite
+        own (with ``cap=True``) (interfaces between two labels appear once per label, with opposite
         windings); ``mesh.cell_refs["triangle"]`` holds the label of each triangle.
     spacing, origin : float or (3,) floats, volumes only
         The sample spacing (default 1) and the position of ``volume[0, 0, 0]`` (default 0).
@@ -241,7 +241,7 @@ def mesh_surface(
     _check_choice(method, "method", METHODS)
     _check_choice(covering, "covering", COVERINGS)
     if seeds is not None and covering != "continuation":
-        raise ValueError("'seeds' applies to covering='continuation'")
+        raise ValueError(f"'seeds' applies to covering='continuation', got covering={covering!r}")
     _check_choice(root, "root", _ROOTS)
     if evaluator is not None:
         _check_choice(evaluator, "evaluator", EVALUATORS)
@@ -302,12 +302,14 @@ def mesh_surface(
                 slab_voxels, (int, np.integer)) or slab_voxels < 1):
             raise ValueError(f"expected a positive integer for 'slab_voxels', got {slab_voxels!r}")
         slab_voxels = SLAB_VOXELS if slab_voxels is None else int(slab_voxels)
-        level = 0.0 if level is None else level
+        if level is None:  # a bool volume's surface sits halfway between False and True samples
+            level = 0.5 if np.asarray(source).dtype == np.bool_ else 0.0
         inside = "above" if inside is None else inside
         _check_choice(inside, "inside", ("above", "below"))
         vol, sp, org = _check_volume(source, 1.0 if spacing is None else spacing,
                                      (0.0, 0.0, 0.0) if origin is None else origin)
-        if not isinstance(level, (int, float, np.integer, np.floating)) or not math.isfinite(level):
+        if isinstance(level, (bool, np.bool_)) or not isinstance(level, (int, float, np.integer, np.floating)) \
+                or not math.isfinite(level):
             raise ValueError(f"expected a finite number for 'level', got {level!r}")
         if cap and min(vol.shape) < 3:
             raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
@@ -319,6 +321,8 @@ def mesh_surface(
 
     grid.finish_values(cap_mask, timings)
     verts, tris, edges = grid.extract(method, cap_mask, timings, cell_mask)
+    if cell_mask is not None:  # continuation: drop the vertices of edges on no grown cell first
+        verts, tris, edges = _drop_unused(verts, tris, edges)
     if tape is not None and root != "linear" and len(verts):
         refine_roots(tape, verts, edges, grid.worigin, root, root_iterations, timings, evaluator,
                      gradient, grid.h)
@@ -332,9 +336,6 @@ def mesh_surface(
     if len(faces) and faces.min() < 0:
         raise WarpMeshError("a block culled as uniform holds a crossing edge: the interval bound "
                             "of the shape is wrong; mesh with cull=False and report the shape")
-    if cell_mask is not None:  # continuation: drop the vertices of edges on no grown cell
-        points, faces, point_data, kept = _drop_unused(points, faces, point_data)
-        edges = {"flags": wp.array(edges["flags"].numpy()[kept], dtype=wp.int32)}
     if cap and len(faces):  # closed by construction: outward winding encloses a positive volume
         if not grid.info["signed_volume"] > 0.0:
             raise WarpMeshError(f"the capped surface encloses a signed volume of {grid.info['signed_volume']:g}: "
@@ -435,17 +436,14 @@ def _grow(grid: BlockGrid, tape, seeds, cap: bool, evaluator, timings, info):
     t0 = time.perf_counter()
     seed_cells = None
     if seeds is not None:
-        pts = np.asarray(seeds, dtype=np.float64)
-        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.all(np.isfinite(pts)):
-            raise ValueError(f"expected 'seeds' as finite (m, 3) points, got {np.shape(seeds)}")
-        cells = grid.n - 1
-        ijk = np.floor((pts - grid.origin) / grid.h).astype(np.int64)
-        if np.any((ijk < 0) | (ijk > cells)):
-            raise ValueError(f"expected 'seeds' inside 'bounds', got {pts[np.any((ijk < 0) | (ijk > cells), 1)][0]}")
-        ijk = np.minimum(ijk, cells - 1)
-        seed_cells = ijk[:, 0] + cells[0] * (ijk[:, 1] + cells[1] * ijk[:, 2])
-    growth = grow_cells(lambda ids: grid.node_values(tape, ids, evaluator), tuple(int(v) for v in grid.n),
-                        seeds=seed_cells, ray_stride=None if seeds is not None else _ray_stride(grid.n), cap=cap)
+        seed_cells = _seed_cells(grid, tape, seeds, cap, evaluator)
+    try:
+        growth = grow_cells(lambda ids: grid.node_values(tape, ids, evaluator), tuple(int(v) for v in grid.n),
+                            seeds=seed_cells, ray_stride=None if seeds is not None else _ray_stride(grid.n), cap=cap)
+    except ValueError as exc:
+        if "'evaluate'" in str(exc):  # the callback is ours: say what the user can change
+            raise ValueError(NAN_MESSAGE) from None
+        raise
     timings["evaluate"] = time.perf_counter() - t0
     mask = grid.load_cells(growth.cells, growth.node_ids, growth.node_values)
     info.update(evaluations=growth.evaluations, ray_evaluations=growth.ray_evaluations, waves=growth.waves,
@@ -455,15 +453,69 @@ def _grow(grid: BlockGrid, tape, seeds, cap: bool, evaluator, timings, info):
     return mask
 
 
+NAN_MESSAGE = ("the shape evaluates to NaN or infinity at grid nodes inside 'bounds' (e.g. sqrt/log of a "
+               "negative or a division by zero); change the expression or the bounds")
+
+
+def _seed_cells(grid: BlockGrid, tape, seeds, cap: bool, evaluator) -> np.ndarray:
+    """The cells to grow from: per seed point, the crossed cells among those whose closure
+    holds it (up to 8 when it lies on a cell face, edge or node)."""
+    try:
+        pts = np.asarray(seeds, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"expected 'seeds' as (m, 3) points, got {seeds!r}") from None
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.all(np.isfinite(pts)):
+        raise ValueError(f"expected 'seeds' as finite (m, 3) points, got shape {pts.shape}")
+    lo, hi = grid.origin, grid.origin + (grid.n - 1) * grid.h
+    outside = np.any((pts < lo) | (pts > hi), axis=1)
+    if outside.any():
+        raise ValueError(f"expected 'seeds' inside 'bounds', got {pts[outside][0].tolist()}")
+    cells = grid.n - 1
+    x = (pts - lo) / grid.h
+    base = np.floor(x).astype(np.int64)
+    on = x == base  # on a cell boundary along that axis: the cell below holds it too
+    candidates = []
+    for corner in range(8):
+        d = np.array([(corner >> a) & 1 for a in range(3)])
+        ijk = base - d
+        ok = np.all((d == 0) | on, axis=1) & np.all((ijk >= 0) & (ijk < cells), axis=1)
+        candidates.append(np.where(ok, ijk[:, 0] + cells[0] * (ijk[:, 1] + cells[1] * ijk[:, 2]), -1))
+    cand = np.stack(candidates, axis=1)  # (m, 8), -1 where no cell
+    flat = np.unique(cand[cand >= 0])
+    ci = np.stack([flat % cells[0], flat // cells[0] % cells[1], flat // (cells[0] * cells[1])], axis=1)
+    corner_ids = [(ci[:, 0] + (c & 1)) + grid.n[0] * ((ci[:, 1] + ((c >> 1) & 1)) + grid.n[1] *
+                                                      (ci[:, 2] + ((c >> 2) & 1))) for c in range(8)]
+    nodes = np.unique(np.concatenate(corner_ids))
+    inside_node = grid.node_values(tape, nodes, evaluator) > 0
+    if cap:  # capped: boundary nodes are outside
+        g = np.stack([nodes % grid.n[0], nodes // grid.n[0] % grid.n[1], nodes // (grid.n[0] * grid.n[1])], axis=1)
+        inside_node &= ~np.any((g == 0) | (g == grid.n - 1), axis=1)
+    inside = np.stack([inside_node[np.searchsorted(nodes, ids)] for ids in corner_ids], axis=1)
+    crossed = flat[inside.any(axis=1) & ~inside.all(axis=1)]
+    hit = (cand >= 0) & np.isin(cand, crossed)
+    if not hit.any(axis=1).all():
+        bad = pts[~hit.any(axis=1)][0].tolist()
+        raise ValueError(f"expected 'seeds' in cells crossed by the surface, got {bad}: no cell holding it "
+                         "has corners on both sides; give a point on or next to the surface")
+    return np.unique(cand[hit])
+
+
 def _ray_stride(n_nodes) -> int:
     """Grid lines between seed rays: the rays cost O(n) evaluations per line family, below
     the O(n^2) of the surface itself."""
     return int(max(8, int(np.max(n_nodes)) // RAY_LINES))
 
 
-def _drop_unused(points, faces, point_data):
-    """Keep the vertices the triangles use, renumbered in order."""
+def _drop_unused(verts, tris, edges):
+    """Keep the vertices the triangles use (renumbered in order), before any root
+    refinement or normal evaluation spends work on the others."""
+    faces = tris.numpy()  # sync point
     kept = np.unique(faces)
-    remap = np.full(len(points), -1, dtype=C.INDEX_DTYPE)
-    remap[kept] = np.arange(len(kept), dtype=C.INDEX_DTYPE)
-    return points[kept], remap[faces], {k: v[kept] for k, v in point_data.items()}, kept
+    remap = np.full(verts.shape[0], -1, dtype=np.int32)
+    remap[kept] = np.arange(len(kept), dtype=np.int32)
+    dev = verts.device
+
+    def sub(arr):
+        return wp.array(arr.numpy()[kept], dtype=arr.dtype, device=dev)
+
+    return sub(verts), wp.array(remap[faces], dtype=wp.vec3i, device=dev), {k: sub(v) for k, v in edges.items()}

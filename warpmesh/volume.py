@@ -57,17 +57,26 @@ def check_labels(labels, vol: np.ndarray) -> np.ndarray:
     if isinstance(labels, str):
         if labels != "all":
             raise ValueError(f"expected 'labels' as \"all\" or a sequence of label values, got {labels!r}")
-        values = np.unique(vol)  # one pass; sorted
-        values = values[values != 0]
+        values = np.unique(np.concatenate([np.unique(vol[a:a + 64]) for a in range(0, len(vol), 64)]))
+        values = values[values != 0]  # (slab by slab: no sorted copy of the whole volume)
         if len(values) == 0:
             raise ValueError("expected some non-zero labels in 'volume' with labels=\"all\", got only 0")
+        check_label_range(values)
         return values
     values = np.asarray(labels)
     if values.ndim != 1 or len(values) == 0 or not np.issubdtype(values.dtype, np.integer):
         raise ValueError(f"expected 'labels' as \"all\" or a non-empty sequence of integers, got {labels!r}")
     if len(np.unique(values)) != len(values):
         raise ValueError(f"expected distinct values in 'labels', got {values.tolist()}")
+    check_label_range(values)
     return values
+
+
+def check_label_range(values: np.ndarray) -> None:
+    """Labels become int64 triangle refs."""
+    if values.dtype == np.uint64 and np.any(values > np.iinfo(np.int64).max):
+        big = values[values > np.iinfo(np.int64).max][0]
+        raise ValueError(f"expected labels that fit int64 triangle refs, got {big}")
 
 
 def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool,
@@ -79,7 +88,7 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
     slabs = slab_ranges(int(n[0]), int(n[1] * n[2]), slab_voxels)
     full = KB.ALL_FACES if cap else 0
     pts, tris, keys, flags = [], [], [], []
-    vmin, vmax, n_verts = np.inf, -np.inf, 0
+    vmin, vmax, n_verts, n_blocks = np.inf, -np.inf, 0, 0
     for idx, (a, b) in enumerate(slabs):
         mask = full & ~(0b01 if idx > 0 else 0) & ~(0b10 if idx < len(slabs) - 1 else 0)
         part = vol[a:b + 1]
@@ -97,8 +106,9 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
         keys.append(edges["key"].numpy())
         flags.append(edges["flags"].numpy())
         n_verts += len(pts[-1])
-        for k in ("active_blocks", "blocks", "interior_vertices"):
+        for k in ("active_blocks", "interior_vertices"):  # summed over slabs and labels
             info[k] = info.get(k, 0) + grid.info[k]
+        n_blocks += grid.info["blocks"]
         timings["host"] = timings.get("host", 0.0) + time.perf_counter() - t0
         del grid, part  # one slab's device arrays at a time
     t0 = time.perf_counter()
@@ -107,7 +117,7 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
     if len(slabs) > 1 and len(points):  # weld the seams: equal keys are the same grid edge
         key, first, inverse = np.unique(key, return_index=True, return_inverse=True)
         points, flag, faces = points[first], flag[first], inverse.astype(C.INDEX_DTYPE)[faces]
-    info["slabs"] = info.get("slabs", 0) + len(slabs)
+    info["slabs"], info["blocks"] = len(slabs), n_blocks  # of the grid (the same for every label)
     timings["weld"] = timings.get("weld", 0.0) + time.perf_counter() - t0
     return points, faces, flag, (vmin, vmax)
 
