@@ -31,7 +31,6 @@ from warpmesh import _conventions as C
 from warpmesh.block_grid import BlockGrid
 from warpmesh.errors import WarpMeshError
 from warpmesh.kernels import block_grid as KB
-from warpmesh.topology import signed_volume
 
 #: default slab size: 16 M samples (64 MB as float32) per pass
 SLAB_VOXELS = 1 << 24
@@ -114,17 +113,34 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
     t0 = time.perf_counter()
     points, faces = np.concatenate(pts), np.concatenate(tris)
     key, flag = np.concatenate(keys), np.concatenate(flags)
-    if len(slabs) > 1 and len(points):  # weld the seams: equal keys are the same grid edge
-        key, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-        points, flag, faces = points[first], flag[first], inverse.astype(C.INDEX_DTYPE)[faces]
+    if len(slabs) > 1 and len(points):
+        points, faces, flag = _weld_seams(points, faces, flag, key, [b for _, b in slabs[:-1]], int(n[0]))
     info["slabs"], info["blocks"] = len(slabs), n_blocks  # of the grid (the same for every label)
     timings["weld"] = timings.get("weld", 0.0) + time.perf_counter() - t0
     return points, faces, flag, (vmin, vmax)
 
 
-def check_closed_outward(points: np.ndarray, faces: np.ndarray) -> float:
-    """The enclosed volume of a capped surface, which must be positive (outward winding)."""
-    vol = signed_volume(points, faces)
+def _weld_seams(points, faces, flags, keys, seams: list[int], nx: int):
+    """Merge the vertices that two slabs emitted for one grid edge of a seam plane (equal
+    keys); only vertices on the seams are looked at."""
+    on_seam = np.flatnonzero(np.isin((keys >> 3) % nx, seams))
+    _, first, inverse = np.unique(keys[on_seam], return_index=True, return_inverse=True)
+    remap = np.arange(len(points), dtype=C.INDEX_DTYPE)
+    remap[on_seam] = on_seam[first][inverse]
+    keep = remap == np.arange(len(points))
+    new_index = np.cumsum(keep, dtype=C.INDEX_DTYPE) - 1
+    return points[keep], new_index[remap[faces]], flags[keep]
+
+
+def check_closed_outward(points: np.ndarray, faces: np.ndarray, chunk: int = 1 << 18) -> float:
+    """The enclosed volume of a capped surface, which must be positive (outward winding);
+    summed in chunks of triangles (about a common centre) so the check adds little to the
+    peak memory."""
+    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    vol = 0.0
+    for a in range(0, len(faces), chunk):
+        p0, p1, p2 = (points[faces[a:a + chunk, j]] - centre for j in range(3))
+        vol += float(np.einsum("ij,ij->", p0, np.cross(p1, p2))) / 6.0
     if not vol > 0.0:
         raise WarpMeshError(f"the capped surface encloses a signed volume of {vol:g}: its triangles do "
                             "not face outward (an internal error: please report it)")
