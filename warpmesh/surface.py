@@ -409,11 +409,13 @@ def _mesh_volume(vol, org, sp, level, sign, labels, method, cap, cull, device, s
         capped = (flags & 4) != 0
         refs = np.where(capped[faces].all(axis=1), CAP_REF, SURFACE_REF) if label is None else \
             np.full(len(faces), label)
-        parts.append((points, faces + n_verts, refs.astype(C.INDEX_DTYPE)))
+        faces += n_verts
+        parts.append((points, faces, refs.astype(C.INDEX_DTYPE)))
         n_verts += len(points)
-    points = np.concatenate([p[0] for p in parts])
-    faces = np.concatenate([p[1] for p in parts])
-    refs = np.concatenate([p[2] for p in parts])
+    if len(parts) == 1:  # no copy of the whole output
+        points, faces, refs = parts.pop()
+    else:
+        points, faces, refs = (np.concatenate([p[k] for p in parts]) for k in range(3))
     keep_refs = labels is not None or (cap and np.any(refs == CAP_REF))
     info["evaluations"] = 0
     info["vertices"], info["triangles"] = len(points), len(faces)

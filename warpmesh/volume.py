@@ -34,6 +34,7 @@ from warpmesh.kernels import block_grid as KB
 
 #: default slab size: 16 M samples (64 MB as float32) per pass
 SLAB_VOXELS = 1 << 24
+CHUNK = 1 << 18  # rows per step of the host-side passes over the whole output
 
 
 def slab_ranges(n0: int, plane: int, slab_voxels: int) -> list[tuple[int, int]]:
@@ -100,19 +101,22 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
         grid.finish_values(mask, timings)
         verts, faces, edges = grid.extract(method, mask, timings)
         t0 = time.perf_counter()
-        pts.append(verts.numpy().astype(C.REAL_DTYPE) + grid.origin)  # sync point: results to the host
-        tris.append(faces.numpy().astype(C.INDEX_DTYPE) + n_verts)
-        keys.append(edges["key"].numpy())
-        flags.append(edges["flags"].numpy())
-        n_verts += len(pts[-1])
+        # sync point: copies (a CPU array's .numpy() is a view of memory freed with the slab);
+        # float32 grid-local points and int32 slab-local ids: half the memory of the result's
+        pts.append((verts.numpy().copy(), grid.origin))
+        tris.append((faces.numpy().copy(), n_verts))
+        keys.append(edges["key"].numpy().copy())
+        flags.append(edges["flags"].numpy().copy())
+        n_verts += len(pts[-1][0])
         for k in ("active_blocks", "interior_vertices"):  # summed over slabs and labels
             info[k] = info.get(k, 0) + grid.info[k]
         n_blocks += grid.info["blocks"]
         timings["host"] = timings.get("host", 0.0) + time.perf_counter() - t0
         del grid, part  # one slab's device arrays at a time
     t0 = time.perf_counter()
-    points, faces = np.concatenate(pts), np.concatenate(tris)
-    key, flag = np.concatenate(keys), np.concatenate(flags)
+    points = _concatenate(pts, C.REAL_DTYPE)  # float64 = local + slab origin; the lists are emptied
+    faces = _concatenate(tris, C.INDEX_DTYPE)  # int64 = slab-local id + the slab's first vertex
+    key, flag = _concatenate(keys), _concatenate(flags)
     if len(slabs) > 1 and len(points):
         points, faces, flag = _weld_seams(points, faces, flag, key, [b for _, b in slabs[:-1]], int(n[0]))
     info["slabs"], info["blocks"] = len(slabs), n_blocks  # of the grid (the same for every label)
@@ -129,7 +133,25 @@ def _weld_seams(points, faces, flags, keys, seams: list[int], nx: int):
     remap[on_seam] = on_seam[first][inverse]
     keep = remap == np.arange(len(points))
     new_index = np.cumsum(keep, dtype=C.INDEX_DTYPE) - 1
-    return points[keep], new_index[remap[faces]], flags[keep]
+    for a in range(0, len(faces), CHUNK):  # in place, a chunk at a time: no second copy of the faces
+        faces[a:a + CHUNK] = new_index[remap[faces[a:a + CHUNK]]]
+    return points[keep], faces, flags[keep]
+
+
+def _concatenate(pieces: list, dtype=None) -> np.ndarray:
+    """np.concatenate that frees each piece once copied (peak: the result plus one piece).
+    Pieces may be (array, offset) pairs, added on the way in ``dtype``."""
+    pairs = [p if isinstance(p, tuple) else (p, 0) for p in pieces]
+    pieces.clear()
+    first = pairs[0][0]
+    out = np.empty((sum(len(a) for a, _ in pairs),) + first.shape[1:], dtype=dtype or first.dtype)
+    start = 0
+    while pairs:
+        piece, offset = pairs.pop(0)
+        out[start:start + len(piece)] = piece
+        out[start:start + len(piece)] += offset
+        start += len(piece)
+    return out
 
 
 def check_closed_outward(points: np.ndarray, faces: np.ndarray, chunk: int = 1 << 18) -> float:
