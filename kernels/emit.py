@@ -143,12 +143,22 @@ def cell_case(method: int, values: wp.array(dtype=wp.float32), base: int, i: int
 
 
 @wp.func
-def owned_hi(c: int, nb: int, n: int):
-    """Highest local node index (inclusive) of the nodes a block owns along one axis."""
-    hi = _BLOCK - 1
-    if c == nb - 1:
-        hi = _BLOCK
-    return wp.min(hi, n - 1 - c * _BLOCK)
+def owned_count(c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i):
+    """Nodes per axis that the block at c owns (the last block also owns its far face)."""
+    r = wp.vec3i(0, 0, 0)
+    for a in range(3):
+        hi = _BLOCK - 1
+        if c[a] == nb[a] - 1:
+            hi = _BLOCK
+        r[a] = wp.min(hi, n[a] - 1 - c[a] * _BLOCK) + 1
+    return r
+
+
+@wp.func
+def cell_count(c: wp.vec3i, n: wp.vec3i):
+    """Cells per axis of the block at c (fewer in the last block of a short axis)."""
+    return wp.vec3i(wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK), wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK),
+                    wp.min(_BLOCK, n[2] - 1 - c[2] * _BLOCK))
 
 
 @wp.func
@@ -180,12 +190,10 @@ def count_crossings_kernel(
     c = block_coords(slot_block[s], nb)
     base = s * _NODES
     nv = int(0)
-    hx = owned_hi(c[0], nb[0], n[0])
-    hy = owned_hi(c[1], nb[1], n[1])
-    hz = owned_hi(c[2], nb[2], n[2])
-    for k in range(hz + 1):
-        for j in range(hy + 1):
-            for i in range(hx + 1):
+    own = owned_count(c, nb, n)
+    for k in range(own[2]):
+        for j in range(own[1]):
+            for i in range(own[0]):
                 inside = values[base + local_index(i, j, k)] > 0.0
                 g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
                 for t in range(n_types):
@@ -195,12 +203,10 @@ def count_crossings_kernel(
                             nv += 1
     nt = int(0)
     nc = int(0)
-    cx = wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK)
-    cy = wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK)
-    cz = wp.min(_BLOCK, n[2] - 1 - c[2] * _BLOCK)
-    for k in range(cz):
-        for j in range(cy):
-            for i in range(cx):
+    cells = cell_count(c, n)
+    for k in range(cells[2]):
+        for j in range(cells[1]):
+            for i in range(cells[0]):
                 cell = s * _CELLS + i + _BLOCK * (j + _BLOCK * k)
                 case = int(-1)
                 if cell_mask.shape[0] == 1 or cell_mask[cell] != wp.uint8(0):
@@ -253,12 +259,10 @@ def emit_vertices_kernel(
     c = block_coords(slot_block[s], nb)
     base = s * _NODES
     vid = vertex_offset[s]
-    hx = owned_hi(c[0], nb[0], n[0])
-    hy = owned_hi(c[1], nb[1], n[1])
-    hz = owned_hi(c[2], nb[2], n[2])
-    for k in range(hz + 1):
-        for j in range(hy + 1):
-            for i in range(hx + 1):
+    own = owned_count(c, nb, n)
+    for k in range(own[2]):
+        for j in range(own[1]):
+            for i in range(own[0]):
                 l = local_index(i, j, k)
                 v0 = values[base + l]
                 inside = v0 > 0.0
@@ -360,12 +364,10 @@ def emit_triangles_kernel(
     cid = center_offset[s]
     base = s * _NODES
     vol = wp.float64(0.0)
-    cx = wp.min(_BLOCK, n[0] - 1 - c[0] * _BLOCK)
-    cy = wp.min(_BLOCK, n[1] - 1 - c[1] * _BLOCK)
-    cz = wp.min(_BLOCK, n[2] - 1 - c[2] * _BLOCK)
-    for k in range(cz):
-        for j in range(cy):
-            for i in range(cx):
+    cells = cell_count(c, n)
+    for k in range(cells[2]):
+        for j in range(cells[1]):
+            for i in range(cells[0]):
                 case = cell_cases[s * _CELLS + i + _BLOCK * (j + _BLOCK * k)]
                 if case < 0:
                     continue

@@ -140,6 +140,7 @@ from warpmesh.kernels.mc_tables import (
     SYM_EDGES,
     apply_symmetry_to_config,
     canonical_loops,
+    chain_loops,
     face_segments,
     on_one_face,
 )
@@ -225,18 +226,7 @@ def trace_loops(config: int, bits: int) -> list[list[int]]:
         for a, b in face_segments33(config, q, (bits >> q) & 1):
             assert a not in nxt, "crossing edge is the start of two segments"
             nxt[a] = b
-    loops, seen = [], set()
-    for start in sorted(nxt):
-        if start in seen:
-            continue
-        loop, e = [], start
-        while e not in seen:
-            seen.add(e)
-            loop.append(e)
-            e = nxt[e]
-        assert e == start, "segments do not chain into a loop"
-        loops.append(loop)
-    return loops
+    return chain_loops(nxt)
 
 
 def patch_labels(config: int, bits: int) -> tuple[int, ...]:

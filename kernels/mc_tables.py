@@ -154,17 +154,9 @@ def face_segments(config: int, face) -> list[tuple[int, int]]:
     return [(crossings[i][0], crossings[(i + 1) % n][0]) for i in range(n) if crossings[i][1] == 0]
 
 
-def trace_polygons(config: int) -> list[list[int]]:
-    """Oriented polygon loops (edge indices) of a configuration, by tracing the faces.
-
-    Loops start at their smallest edge and are sorted; vertices run counter-clockwise
-    seen from outside (the loop's right-hand normal points towards f <= 0).
-    """
-    nxt = {}
-    for face in FACES:
-        for a, b in face_segments(config, face):
-            assert a not in nxt, "crossing edge is the start of two segments"
-            nxt[a] = b
+def chain_loops(nxt: dict) -> list[list[int]]:
+    """The cycles of a successor map (each key's next item), each starting at its
+    smallest item, sorted by it."""
     loops, seen = [], set()
     for start in sorted(nxt):
         if start in seen:
@@ -177,6 +169,20 @@ def trace_polygons(config: int) -> list[list[int]]:
         assert e == start, "segments do not chain into a loop"
         loops.append(loop)
     return loops
+
+
+def trace_polygons(config: int) -> list[list[int]]:
+    """Oriented polygon loops (edge indices) of a configuration, by tracing the faces.
+
+    Loops start at their smallest edge and are sorted; vertices run counter-clockwise
+    seen from outside (the loop's right-hand normal points towards f <= 0).
+    """
+    nxt = {}
+    for face in FACES:
+        for a, b in face_segments(config, face):
+            assert a not in nxt, "crossing edge is the start of two segments"
+            nxt[a] = b
+    return chain_loops(nxt)
 
 
 def _min_angle(p0, p1, p2) -> float:

@@ -72,18 +72,7 @@ def boundary_loops(tris) -> list[list[int]]:
         if (b, a) not in directed:
             assert a not in nxt, "boundary vertex with two outgoing edges"
             nxt[a] = b
-    loops, seen = [], set()
-    for start in sorted(nxt):
-        if start in seen:
-            continue
-        loop, e = [], start
-        while e not in seen:
-            seen.add(e)
-            loop.append(e)
-            e = nxt[e]
-        assert e == start
-        loops.append(loop)
-    return loops
+    return mc.chain_loops(nxt)
 
 
 def components(tris) -> list[list[tuple[int, int, int]]]:
