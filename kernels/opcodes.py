@@ -2,7 +2,7 @@
 
 An instruction is ``(op, dst, a, b)`` plus one float immediate ``imm``; ``a``/``b`` are
 register numbers (``-1`` when unused). Plain ints here; kernel modules wrap them with
-``wp.constant``.
+``wp.constant``. ``NAMES`` maps every opcode (``0 .. N_OPS - 1``) to its name.
 """
 
 X = 0  # dst = x
@@ -33,7 +33,11 @@ POWI = 24  # dst = a ** imm, imm an integer
 POWF = 25  # dst = |a| ** imm (non-integer exponent: the sign of a is dropped)
 RUNION = 26  # dst = a + b + sqrt(a^2 + b^2)   (R-function union, seed eq. 16.17)
 RINTER = 27  # dst = a + b - sqrt(a^2 + b^2)   (R-function intersection)
+COPY = 28  # dst = a  (made only by tape pruning, warpmesh.prune: a min/max decided over a cell)
 
-N_OPS = 28
+N_OPS = 29
+
+#: opcodes that no expression compiles to: they appear only in pruned tapes
+PRUNE_ONLY = frozenset({COPY})
 
 NAMES = {v: k for k, v in dict(globals()).items() if isinstance(v, int) and k.isupper() and k != "N_OPS"}

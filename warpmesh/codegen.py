@@ -51,6 +51,7 @@ _TEMPLATES = {
     O.SIN: "wp.sin(r{a})", O.COS: "wp.cos(r{a})", O.EXP: "wp.exp(r{a})", O.LOG: "wp.log(r{a})",
     O.POWI: "powi(r{a}, int(imm[{i}]))", O.POWF: "wp.pow(wp.abs(r{a}), imm[{i}])",
     O.RUNION: "rfunction(r{a}, r{b}, 1.0)", O.RINTER: "rfunction(r{a}, r{b}, -1.0)",
+    O.COPY: "r{a}",  # pruned tapes only (warpmesh.prune)
 }
 
 _lock = threading.Lock()  # guards the tables below

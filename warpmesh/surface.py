@@ -123,7 +123,7 @@ def _check_volume(volume, spacing, origin) -> tuple[np.ndarray, np.ndarray, np.n
 def mesh_surface(
     source,
     *,
-    method: Method = "mc33",
+    method: Method | None = None,
     covering: Literal["grid", "continuation"] = "grid",
     seeds=None,
     bounds=None,
@@ -133,7 +133,7 @@ def mesh_surface(
     labels=None,
     spacing=None,
     origin=None,
-    root: RootMethod = "linear",
+    root: RootMethod | None = None,
     root_iterations: int | None = None,
     gradient: Literal["exact", "central", "forward"] | None = None,
     cap: bool = True,
@@ -141,6 +141,16 @@ def mesh_surface(
     slab_voxels: int | None = None,
     normals: bool = False,
     evaluator: Evaluator | None = None,
+    adaptive: bool = False,
+    max_level: int | None = None,
+    min_level: int | None = None,
+    tolerance: float | None = None,
+    angles: tuple[float, float] | None = None,
+    chord: float | None = None,
+    bound: Literal["interval", "lipschitz"] | None = None,
+    lipschitz: float | None = None,
+    prune: bool | None = None,
+    features: bool | None = None,
     device: str = C.DEFAULT_DEVICE,
 ) -> Mesh:
     """Triangulate the surface f = 0 of a shape, or an iso-surface of a sampled volume.
@@ -150,8 +160,8 @@ def mesh_surface(
     source : Shape, Expr or (nx, ny, nz) array
         A shape (f > 0 inside) or sampled values ``volume[i, j, k]`` at
         ``origin + (i, j, k) * spacing`` (trilinear in between).
-    method : {'mc33', 'mt', 'mc'}
-        How each cell is triangulated (seed §16.4.2): "mc33" follows the topology of
+    method : {'mc33', 'mt', 'mc'}, optional
+        How each cell is triangulated (default "mc33"; not with ``adaptive``) (seed §16.4.2): "mc33" follows the topology of
         the trilinear interpolant of the corner values (asymptotic decider on faces,
         interior test for tunnels); "mt" splits every cube into 6 Kuhn tetrahedra
         (16 configurations, triangles and quadrilaterals split on shape: about 3x the
@@ -185,9 +195,10 @@ def mesh_surface(
         windings); ``mesh.cell_refs["triangle"]`` holds the label of each triangle.
     spacing, origin : float or (3,) floats, volumes only
         The sample spacing (default 1) and the position of ``volume[0, 0, 0]`` (default 0).
-    root : {'linear', 'bisection', 'newton'}
+    root : {'linear', 'bisection', 'newton'}, optional
         Vertex placement on a crossing edge: linear interpolation (eq. 16.12), bisection
-        or safeguarded Newton on the exact function (§16.3.3; shapes only).
+        or safeguarded Newton on the exact function (§16.3.3; shapes only). Default
+        "linear", and "newton" with ``adaptive`` (large leaves make linear roots poor).
     root_iterations : int, optional
         Iterations of bisection (default 12) or safeguarded Newton (default 10).
     gradient : {'exact', 'central', 'forward'}, optional
@@ -212,6 +223,42 @@ def mesh_surface(
         constants can change freely). "auto" (default) never waits for a compile: it
         interprets until a background compile, started when a structure comes back for
         a second large run, is ready. ``mesh.info["evaluator"]`` says which ran.
+    adaptive : bool, shapes only
+        Mesh on an adaptive octree (seed §16.4.1, :mod:`warpmesh.octree`): cells are
+        culled by interval arithmetic on pruned per-cell tapes and refined where the
+        surface is curved, so evaluations follow the surface and triangle sizes follow
+        its curvature; the surface is crack-free across leaves of different sizes by
+        construction, with sharp edges and corners placed by a quadratic error function
+        (:mod:`warpmesh.octree_contour`). ``mesh.info`` holds cells per level, tape
+        lengths, ``evaluations`` and the dense grid's count, culled fraction, timings.
+    max_level : int, adaptive only
+        Finest level: 2**max_level cells along the longest side (the resolution
+        equivalent; ``resolution=512`` means max_level=9). Default from ``resolution``
+        (128).
+    min_level : int, adaptive only
+        Cells are refined at least to this level (default min(5, max_level)).
+    tolerance : float, adaptive only
+        The relative chord tolerance epsilon of §16.2.2 (delta <= epsilon h), default
+        0.02: the planarity and divergence angles of the refinement are 4 epsilon.
+    angles : (eps1, eps2), adaptive only
+        The planarity and divergence angles in radians, instead of ``tolerance``.
+    chord : float, adaptive only
+        An absolute chord tolerance (in the units of ``bounds``) instead of the relative
+        one: cells are refined while their chords may deviate more than this from the
+        surface (element sizes then grow as the square root of the curvature radius:
+        the fewest triangles for a given maximum distance). With ``tolerance`` too,
+        both hold.
+    bound : {'interval', 'lipschitz'}, adaptive only
+        How a cell is proven free of the surface: interval arithmetic on the tape
+        (default), or |f(centre)| > L * half-diagonal with ``lipschitz=L`` (for a field
+        whose intervals are too loose; no tape pruning then).
+    lipschitz : float, with bound='lipschitz'
+        A Lipschitz constant of f over the bounds (|f(P) - f(Q)| <= L |P - Q|).
+    prune : bool, adaptive only
+        Evaluate each cell's pruned tape (default True); False evaluates the whole tape.
+    features : bool, adaptive only
+        Sharp edges and corners (default True); False places every loop vertex at its
+        mass point projected onto the surface (smooth, chamfered edges).
     device : str
         Warp device ("cpu" or "cuda").
 
@@ -238,6 +285,15 @@ def mesh_surface(
     2
     """
     t_start = time.perf_counter()
+    if not isinstance(adaptive, (bool, np.bool_)):
+        raise TypeError(f"expected True or False for 'adaptive', got {adaptive!r}")
+    if adaptive:
+        return _mesh_adaptive(source, locals(), t_start)
+    _refuse(("max_level", max_level), ("min_level", min_level), ("tolerance", tolerance), ("angles", angles),
+            ("chord", chord), ("bound", bound), ("lipschitz", lipschitz), ("prune", prune), ("features", features),
+            source="a grid", hint="they configure adaptive=True")
+    method = "mc33" if method is None else method
+    root = "linear" if root is None else root
     _check_choice(method, "method", METHODS)
     _check_choice(covering, "covering", COVERINGS)
     if seeds is not None and covering != "continuation":
@@ -521,3 +577,95 @@ def _drop_unused(verts, tris, edges):
         return wp.array(arr.numpy()[kept], dtype=arr.dtype, device=dev)
 
     return sub(verts), wp.array(remap[faces], dtype=wp.vec3i, device=dev), {k: sub(v) for k, v in edges.items()}
+
+def _positive_number(value, name: str) -> float:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"expected a positive finite number for '{name}', got {value!r}")
+    return float(value)
+
+
+def _level(value, name: str, low: int, high: int) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+        raise ValueError(f"expected an integer {low} <= '{name}' <= {high}, got {value!r}")
+    return int(value)
+
+
+def _mesh_adaptive(source, a: dict, t_start: float) -> Mesh:
+    """mesh_surface(adaptive=True): validate the options, run :func:`warpmesh.adaptive.mesh_adaptive`."""
+    from warpmesh.adaptive import mesh_adaptive
+
+    if not isinstance(source, (Shape, Expr)):
+        raise TypeError(f"adaptive=True meshes a Shape or an expression (it evaluates the function where "
+                        f"it needs it), got {type(source).__name__} for 'source'")
+    _refuse(("method", a["method"]), ("seeds", a["seeds"]), ("level", a["level"]), ("inside", a["inside"]),
+            ("labels", a["labels"]), ("spacing", a["spacing"]), ("origin", a["origin"]),
+            ("slab_voxels", a["slab_voxels"]), ("evaluator", a["evaluator"]), source="adaptive=True",
+            hint="the octree extracts its own faces and evaluates with pruned tapes")
+    if a["covering"] != "grid":
+        raise ValueError(f"adaptive=True is its own covering-up; got covering={a['covering']!r}")
+    if a["normals"]:
+        raise ValueError("normals=True is not available with adaptive=True (use mesh.to_trimesh().vertex_normals)")
+    if not a["cull"]:
+        raise ValueError("cull=False does not apply to adaptive=True (culling is what the octree does)")
+    for name in ("cap", "prune", "features"):
+        if a[name] is not None and not isinstance(a[name], (bool, np.bool_)):
+            raise TypeError(f"expected True or False for '{name}', got {a[name]!r}")
+    root = "newton" if a["root"] is None else a["root"]
+    _check_choice(root, "root", _ROOTS)
+    gradient = a["gradient"] or "exact"
+    _check_choice(gradient, "gradient", GRADIENTS)
+    iterations = a["root_iterations"]
+    if iterations is not None and (root == "linear" or isinstance(iterations, bool)
+                                   or not isinstance(iterations, (int, np.integer)) or not 1 <= iterations <= 64):
+        raise ValueError(f"expected 1 <= 'root_iterations' <= 64 with root='bisection' or 'newton', "
+                         f"got {iterations!r} with root={root!r}")
+    lo, hi = _check_bounds(a["bounds"])
+    if a["max_level"] is not None and a["resolution"] is not None:
+        raise ValueError("give 'max_level' or 'resolution' (its equivalent, 2**max_level), not both")
+    if a["max_level"] is None:
+        res = 128 if a["resolution"] is None else a["resolution"]
+        if np.ndim(res) != 0:
+            raise ValueError(f"expected one integer 'resolution' with adaptive=True, got {res!r}")
+        max_level = int(math.ceil(math.log2(int(_cells(res, hi - lo).max()))))
+    else:
+        max_level = a["max_level"]
+    max_level = _level(max_level, "max_level", 1, 18)
+    min_level = None if a["min_level"] is None else _level(a["min_level"], "min_level", 0, max_level)
+    chord = None if a["chord"] is None else _positive_number(a["chord"], "chord")
+    tolerance = (0.02 if chord is None and a["angles"] is None else None) if a["tolerance"] is None \
+        else _positive_number(a["tolerance"], "tolerance")
+    angles = a["angles"]
+    if angles is not None:
+        if a["tolerance"] is not None:
+            raise ValueError("give 'tolerance' or 'angles', not both")
+        if np.shape(angles) != (2,):
+            raise ValueError(f"expected 'angles' as (eps1, eps2) in radians, got {angles!r}")
+        angles = tuple(_positive_number(v, "angles") for v in angles)
+    bound = "interval" if a["bound"] is None else a["bound"]
+    _check_choice(bound, "bound", ("interval", "lipschitz"))
+    lipschitz = a["lipschitz"]
+    if bound == "lipschitz":
+        lipschitz = _positive_number(lipschitz, "lipschitz")
+    elif lipschitz is not None:
+        raise ValueError("'lipschitz' applies to bound='lipschitz'")
+    device = wp.get_device(a["device"])
+    timings: dict[str, float] = {}
+    info: dict = {"covering": "octree", "root": root, "device": str(device), "tolerance": tolerance, "chord": chord,
+                  "bound": bound}
+    tape = tape_of(source)
+    info["tape_length"] = len(tape)
+    points, faces, refs = mesh_adaptive(
+        tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance, angles=angles, chord=chord,
+        bound=bound, lipschitz=lipschitz, cap=bool(a["cap"]), prune=a["prune"] is not False,
+        features=a["features"] is not False, root=root, root_iterations=iterations, gradient=gradient,
+        device=device, timings=timings, info=info)
+    if len(faces) == 0:
+        warnings.warn("the surface does not cross the bounds: the mesh is empty "
+                      "(check 'bounds' and the sign convention f > 0 inside)", stacklevel=3)
+    info["vertices"], info["triangles"] = len(points), len(faces)
+    timings["total"] = time.perf_counter() - t_start
+    info["time"] = timings
+    cell_refs = {"triangle": refs} if refs is not None else None
+    return Mesh(points.astype(C.REAL_DTYPE), {"triangle": faces.astype(C.INDEX_DTYPE)}, cell_refs=cell_refs,
+                info=info)

@@ -1,0 +1,114 @@
+"""Adaptive surface meshes of shapes: the pipeline behind ``mesh_surface(adaptive=True)``.
+
+octree covering-up (:mod:`warpmesh.octree`: interval or Lipschitz culling, pruned tapes,
+curvature criteria) -> face units, crossings and loops (:mod:`warpmesh.octree_contour`)
+-> roots on the exact function -> loop vertices (QEF, projection) -> fans -> feature
+flips -> closed, oriented triangle mesh with statistics.
+
+Example
+-------
+>>> import warpmesh as wm
+>>> m = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), adaptive=True, max_level=5)
+>>> s = m.stats()
+>>> s["watertight"], s["euler"]
+(True, 2)
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import warp as wp
+
+from warpmesh import octree_contour as OC
+from warpmesh.block_grid import refine_roots
+from warpmesh.octree import build_octree
+
+CAP_REF, SURFACE_REF = 2, 1
+NEWTON_STEPS = 6  # safeguarded Newton from the linear estimate: converged to float32 in 3-5 here
+
+
+def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chord, bound, lipschitz, cap, prune,
+                  features, root, root_iterations, gradient, device, timings, info):
+    """(points, faces, triangle refs or None) of the adaptive surface; fills timings and info."""
+    t0 = time.perf_counter()
+    tree = build_octree(tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance,
+                        angles=angles, chord=chord, bound=bound, lipschitz=lipschitz, cap=cap, prune=prune, device=device)
+    timings["octree"] = time.perf_counter() - t0
+    fld = tree.field
+
+    t0 = time.perf_counter()
+    axis, origin, size, minus, plus = OC.face_units(tree)
+    keys, ptr = OC.boundary_cycles(tree, axis, origin, size)
+    node_keys, values, capped, vnodes, segments = OC.unit_segments(tree, axis, origin, size, keys, ptr)
+    timings["faces"] = time.perf_counter() - t0
+    info.update(leaves=len(tree.leaf_level), face_units=len(axis), crossings=len(vnodes))
+    if not len(segments):
+        _finish_info(tree, info, 0, 0, 0)
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), None
+
+    t0 = time.perf_counter()
+    p0, p1, t = OC.edge_points(tree, vnodes, node_keys, values)
+    cap_vertex = capped[vnodes].any(axis=1)
+    points = p0 + t[:, None] * (p1 - p0)
+    if root != "linear":
+        steps = root_iterations or (12 if root == "bisection" else NEWTON_STEPS)
+        points = _refine(tape, tree, p0, p1, t, values[vnodes[:, 0]] > 0, cap_vertex, root, steps, gradient,
+                         device, timings)
+        fld.counts["evaluations"] += len(points) * steps
+    timings["root"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    half, loop_of, n_loops, loop_size = OC.leaf_loops(segments, minus, plus, len(points))
+    normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped)
+    centres, feature = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, cap_vertex, features)
+    unit_of_half = np.concatenate([segments[:, 0], segments[:, 0]])
+    tris, tri_half = OC.fan_triangles(half, loop_of, loop_size, len(points), unit_of_half, feature, points,
+                                      normals)
+    all_points = np.concatenate([points, centres])
+    flips = 0
+    if features:
+        tris, flips = OC.flip_feature_edges(tree, tris, tri_half, half, loop_of, loop_size, feature, all_points)
+    OC.check_closed(tris)
+    refs = None
+    if cap and cap_vertex.any():  # a triangle with every vertex on a cap (or a cap loop's vertex)
+        on_cap = np.concatenate([cap_vertex, np.bincount(loop_of, ~cap_vertex[half[:, 1]], n_loops) == 0])
+        refs = np.where(on_cap[tris].all(axis=1), CAP_REF, SURFACE_REF)
+    used = np.zeros(len(all_points), bool)
+    used[tris.ravel()] = True
+    renumber = np.cumsum(used) - 1
+    all_points, tris = all_points[used], renumber[tris]
+    timings["fans"] = time.perf_counter() - t0
+    info.update(loops=int(n_loops), feature_vertices=int(feature.sum()), feature_flips=int(flips))
+    _finish_info(tree, info, len(all_points), len(tris), n_loops)
+    return all_points, tris, refs
+
+
+def _refine(tape, tree, p0, p1, t, p0_inside, keep, root, iterations, gradient, device, timings):
+    """Roots on the crossing edges by bisection or safeguarded Newton (cap vertices stay)."""
+    org = tree.origin
+    to_wp = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float32), dtype=wp.vec3, device=device)  # noqa: E731
+    edges = {"t": wp.array(t.astype(np.float32), dtype=wp.float32, device=device),
+             "flags": wp.array((p0_inside.astype(np.int32) | (keep.astype(np.int32) << 1)), dtype=wp.int32,
+                               device=device),
+             "p0": to_wp(p0 - org), "p1": to_wp(p1 - org)}
+    verts = wp.empty(len(t), dtype=wp.vec3, device=device)
+    refine_roots(tape, verts, edges, wp.vec3(*org.tolist()), root, iterations, timings, "interpreter",
+                 gradient, tree.h)
+    return verts.numpy().astype(np.float64) + org
+
+
+def _finish_info(tree, info, n_points, n_tris, n_loops):
+    counts = tree.field.counts
+    n_finest = int(np.prod(tree.n_finest + 1))
+    info.update(counts)
+    info["dense_evaluations"] = n_finest
+    info["evaluation_ratio"] = round(n_finest / max(counts["evaluations"], 1), 1)
+    info["levels"] = tree.levels
+    culled = sum(lv["culled_inside"] + lv["culled_outside"] << 3 * (tree.max_level - lv["level"])
+                 for lv in tree.levels)
+    info["culled_fraction"] = round(culled / float(np.prod(tree.n_finest)), 4)
+    info["finest_cell"] = tuple(float(v) for v in tree.h)
+    info["max_level"] = tree.max_level
+    info["leaf_levels"] = {int(lv): int(n) for lv, n in zip(*np.unique(tree.leaf_level, return_counts=True))}

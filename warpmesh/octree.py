@@ -1,0 +1,408 @@
+"""The adaptive covering-up (seed §16.4.1, Fig. 16.7): an octree built breadth-first.
+
+Each level's cells are classified in one batch: an interval of f over the cell (or a
+Lipschitz bound around its centre, §16.1.2 "Practical aspects") that excludes 0 culls
+the cell as wholly inside or outside; the other cells are refined while a criterion of
+the seed fails (after [Schmidt-1993]):
+
+- signs: the corner signs must form one connected inside set and one connected outside
+  set (one sheet through the cell); a cell whose interval holds 0 but whose corners
+  all agree is refined (it may hide a small component), unless the interval reaches
+  past 0 by less than ``GRAZE`` of its width (the surface only grazes the cell, as a
+  plane lying on grid nodes does: zero counts as outside);
+- planarity: the chords P_i P_j between the intersection points of the surface with the
+  cell's edges stay within ``eps1`` of the tangent planes, ``|<v_ij, nu(P_i)>| < sin(eps1)``;
+- divergence: every normal nu(P_i) within ``eps2`` of the normal nu(M) at the centre;
+- singular points: no |grad f| at the P_i or at M below ``SINGULAR`` times the largest
+  |grad f| at the P_i.
+
+A chord of length h with both ends on a surface of curvature radius r deviates from it
+by delta = h^2 / (8 r), and makes the angle h / (2 r) = 4 delta / h with the tangent
+planes at its ends: the tolerance ``epsilon`` of §16.2.2 (delta <= epsilon h) is the
+planarity angle ``eps1 = 4 epsilon`` (and ``eps2`` likewise, the centre being half a
+cell from the P_i).
+
+With an absolute ``chord`` tolerance instead, a cell is refined while the estimated
+deviation max |<P_j - P_i, nu(P_i)>| / 4 of its chords exceeds it (sizes then follow
+sqrt(r)); the divergence test applies only with an explicit ``tolerance``.
+
+With interval bounds each cell's tape is pruned (:mod:`warpmesh.prune`): a min/max that
+the cell's interval decides becomes a copy in the tape its children evaluate. Where the
+pruned tapes of a level still average more than ``PRUNE_WORTH`` of the whole tape (R-function
+booleans are smooth and never prune), deeper levels evaluate the whole tape instead.
+
+Cells are addressed by (level, i, j, k): a level-``l`` cell spans ``2**(max_level - l)``
+finest cells per side. Nodes sit on the lattice of half finest cells (so centres of
+finest cells and of their faces are lattice points), packed into int64 keys.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from warpmesh import prune as P  # noqa: E402
+from warpmesh.errors import WarpMeshError
+from warpmesh.tape import eval_gradients, eval_intervals, eval_values
+
+KEY_BITS = 21  # lattice coordinates per axis: up to 2^21 (1 M finest cells)
+SINGULAR = 0.1  # |grad f| below this fraction of the cell's largest counts as near-singular
+GRAZE = 1e-4  # an interval past 0 by less than this fraction of its width: the cell only grazes f = 0
+INTERVAL_SLACK = 1e-6
+PRUNE_WORTH = 0.75  # stop pruning below a level whose tapes average more than this of the whole tape  # intervals are rounded to nearest: cull only with this relative margin
+CULLED, LEAF, INTERNAL = 0, 1, 2
+CORNERS = np.array([(k & 1, (k >> 1) & 1, (k >> 2) & 1) for k in range(8)], dtype=np.int64)
+CUBE_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
+                       if bin(a ^ b).count("1") == 1], dtype=np.int64)  # 12 edges, corner pairs
+
+
+def pack(lat: np.ndarray) -> np.ndarray:
+    """(n, 3) lattice coordinates -> (n,) int64 keys (sorted keys sort by x, then y, then z)."""
+    lat = np.asarray(lat, dtype=np.int64)
+    return (lat[..., 0] << (2 * KEY_BITS)) | (lat[..., 1] << KEY_BITS) | lat[..., 2]
+
+
+def unpack(keys: np.ndarray) -> np.ndarray:
+    mask = (1 << KEY_BITS) - 1
+    keys = np.asarray(keys, dtype=np.int64)
+    return np.stack([keys >> (2 * KEY_BITS), (keys >> KEY_BITS) & mask, keys & mask], axis=-1)
+
+
+def _one_sheet_table() -> np.ndarray:
+    """SIMPLE[config]: the inside corners (bit k set) and the outside corners are each
+    connected along cube edges (or one set is empty)."""
+    out = np.zeros(256, dtype=bool)
+    nbrs = [[b for a2, b in CUBE_EDGES if a2 == a] + [a2 for a2, b in CUBE_EDGES if b == a] for a in range(8)]
+    for config in range(256):
+        ok = True
+        for want in (1, 0):
+            members = [k for k in range(8) if (config >> k) & 1 == want]
+            if not members:
+                continue
+            seen, stack = {members[0]}, [members[0]]
+            while stack:
+                a = stack.pop()
+                for b in nbrs[a]:
+                    if (config >> b) & 1 == want and b not in seen:
+                        seen.add(b)
+                        stack.append(b)
+            ok &= len(seen) == len(members)
+        out[config] = ok
+    return out
+
+
+ONE_SHEET = _one_sheet_table()
+
+
+class NodeStore:
+    """Values of f at lattice nodes, each node evaluated once (shared nodes agree)."""
+
+    def __init__(self):
+        self.keys = np.zeros(0, np.int64)
+        self.values = np.zeros(0, np.float32)
+
+    def find(self, keys: np.ndarray) -> np.ndarray:
+        """Index of each key in the store, -1 where absent."""
+        pos = np.searchsorted(self.keys, keys)
+        pos = np.minimum(pos, max(len(self.keys) - 1, 0))
+        hit = (self.keys[pos] == keys) if len(self.keys) else np.zeros(len(keys), bool)
+        return np.where(hit, pos, -1)
+
+    def add(self, keys: np.ndarray, values: np.ndarray) -> None:
+        keys = np.concatenate([self.keys, keys])
+        values = np.concatenate([self.values, values.astype(np.float32)])
+        order = np.argsort(keys, kind="stable")
+        self.keys, self.values = keys[order], values[order]
+
+    def get(self, keys: np.ndarray) -> np.ndarray:
+        idx = self.find(keys)
+        if np.any(idx < 0):
+            raise WarpMeshError(f"{int(np.sum(idx < 0))} node values were never evaluated (an internal error)")
+        return self.values[idx]
+
+
+class Field:
+    """f, its gradient and its interval over boxes, through pruned tapes or the whole tape,
+    counting evaluations."""
+
+    def __init__(self, tape, device, prune: bool):
+        self.tape, self.device, self.prune = tape, device, prune
+        self.n_sel = P.n_selections(tape) if prune else 0
+        self.counts = {"evaluations": 0, "gradient_evaluations": 0, "interval_evaluations": 0}
+
+    def _wp(self, pts: np.ndarray) -> wp.array:
+        return wp.array(np.ascontiguousarray(pts, dtype=np.float32), dtype=wp.vec3, device=self.device)
+
+    def intervals(self, lo, hi, pool, tape_id, choices) -> np.ndarray:
+        self.counts["interval_evaluations"] += len(lo)
+        if not len(lo):
+            return np.zeros((0, 2), np.float32)
+        if self.prune:
+            return P.eval_intervals_pruned(self.tape, pool, tape_id, lo, hi, choices, device=self.device)
+        return eval_intervals(self.tape, self._wp(lo), self._wp(hi), device=self.device).numpy()
+
+    def values(self, pts, pool=None, tape_id=None) -> np.ndarray:
+        self.counts["evaluations"] += len(pts)
+        if not len(pts):
+            return np.zeros(0, np.float32)
+        if self.prune and pool is not None:
+            return P.eval_values_pruned(self.tape, pool, tape_id, pts, device=self.device)
+        return eval_values(self.tape, self._wp(pts), device=self.device, evaluator="interpreter").numpy()
+
+    def gradients(self, pts) -> np.ndarray:
+        """(n, 4): f and grad f (exact, forward mode)."""
+        self.counts["evaluations"] += len(pts)
+        self.counts["gradient_evaluations"] += len(pts)
+        if not len(pts):
+            return np.zeros((0, 4), np.float32)
+        return eval_gradients(self.tape, self._wp(pts), device=self.device).numpy()
+
+    def patterns(self, choices: np.ndarray):
+        """(pool, tape id per row) for the rows' branch decisions."""
+        if not self.prune:
+            return None, np.zeros(len(choices), np.int64)
+        pats, inverse = P.unique_patterns(choices)
+        return P.build_pool(self.tape, pats), inverse
+
+
+@dataclass
+class Octree:
+    """The leaves of an adaptive covering-up and what was learnt building it."""
+
+    origin: np.ndarray  # (3,) world position of lattice node 0
+    h: np.ndarray  # (3,) finest cell size per axis
+    n_finest: np.ndarray  # (3,) finest cells per axis
+    max_level: int
+    base_level: int
+    cap: bool
+    leaf_level: np.ndarray  # (m,) int64
+    leaf_ijk: np.ndarray  # (m, 3) int64, at the leaf's own level
+    leaf_tape: np.ndarray  # (m,) int64: index into pools[level]
+    pools: dict  # level -> TapePool (or None without pruning)
+    status: dict  # level -> (sorted cell keys, status CULLED / LEAF / INTERNAL, leaf index or -1)
+    nodes: NodeStore
+    field: Field
+    levels: list = field(default_factory=list)  # per-level statistics
+
+    def span(self, level) -> np.ndarray:
+        """Lattice units per side of a level's cells."""
+        return 2 * (1 << (self.max_level - np.asarray(level, dtype=np.int64)))
+
+    def lattice_max(self) -> np.ndarray:
+        return 2 * self.n_finest
+
+    def world(self, lat: np.ndarray) -> np.ndarray:
+        return self.origin + np.asarray(lat, dtype=np.float64) * (self.h / 2)
+
+    def lookup(self, level: int, ijk: np.ndarray):
+        """(status, leaf index) of the cells ijk at ``level``; status -1 where the cell was
+        never built (a coarser leaf or culled cell covers it) or lies outside the domain."""
+        st = np.full(len(ijk), -1, np.int64)
+        leaf = np.full(len(ijk), -1, np.int64)
+        if level not in self.status or not len(ijk):
+            return st, leaf
+        keys, status, leaf_of = self.status[level]
+        n = self.cells_per_axis(level)
+        inside = np.all((ijk >= 0) & (ijk < n), axis=1)
+        k = pack(np.where(inside[:, None], ijk, 0))
+        pos = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
+        hit = inside & (keys[pos] == k)
+        st[hit], leaf[hit] = status[pos[hit]], leaf_of[pos[hit]]
+        return st, leaf
+
+    def cells_per_axis(self, level: int) -> np.ndarray:
+        return self.n_finest >> (self.max_level - level)
+
+    def covering_leaf(self, level: int, ijk: np.ndarray):
+        """For cells at ``level``: (status, leaf, level found) of the cell itself if it was
+        built, else of the coarser cell that covers it (-1, -1, -1 outside the domain)."""
+        st, leaf = self.lookup(level, ijk)
+        found_at = np.where(st >= 0, level, -1)
+        todo = np.flatnonzero(st < 0)
+        inside = np.all((ijk >= 0) & (ijk < self.cells_per_axis(level)), axis=1)
+        todo = todo[inside[todo]]
+        lvl, anc = level, ijk[todo]
+        while len(todo) and lvl > self.base_level:
+            lvl -= 1
+            anc = anc >> 1
+            s2, l2 = self.lookup(lvl, anc)
+            found = s2 >= 0
+            st[todo[found]], leaf[todo[found]], found_at[todo[found]] = s2[found], l2[found], lvl
+            todo, anc = todo[~found], anc[~found]
+        return st, leaf, found_at
+
+
+def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, tolerance: float | None,
+                 angles=None, chord: float | None = None, bound: str = "interval", lipschitz: float | None = None,
+                 cap: bool = True, prune: bool = True, device="cpu") -> Octree:
+    """Build the covering-up of the box [lo, hi] down to ``max_level`` (2**max_level finest
+    cells along the longest side), refining where the criteria above fail."""
+    extent = hi - lo
+    base = min(3, max_level)
+    n0 = np.maximum(1, np.round(extent / extent.max() * (1 << base))).astype(np.int64)
+    n_finest = n0 << (max_level - base)
+    h = extent / n_finest
+    min_level = min(max_level, 5) if min_level is None else min_level
+    eps1, eps2 = (4.0 * (tolerance or 0.0), 4.0 * (tolerance or 0.0)) if angles is None else angles
+    sin1 = np.sin(min(eps1, np.pi / 2)) if chord is None else -chord  # negative: an absolute chord test
+    cos2 = np.cos(min(eps2, np.pi)) if (tolerance is not None or angles is not None) else -2.0
+    fld = Field(tape, device, prune and bound == "interval")
+    tree = Octree(lo.astype(np.float64), h, n_finest, max_level, base, cap, None, None, None, {}, {},
+                  NodeStore(), fld)
+    lat_max = tree.lattice_max()
+
+    ijk = np.stack(np.meshgrid(*[np.arange(n) for n in n0], indexing="ij"), axis=-1).reshape(-1, 3)
+    choices = np.zeros((len(ijk), fld.n_sel), np.uint8)
+    pool, tape_id = fld.patterns(choices[:1]) if fld.prune else (None, None)
+    tape_id = np.zeros(len(ijk), np.int64)
+    leaves_level, leaves_ijk, leaves_tape = [], [], []
+    n_leaves = 0
+    for level in range(base, max_level + 1):
+        t0 = time.perf_counter()
+        span = int(tree.span(level))
+        lat_lo = ijk * span
+        box_lo = tree.world(lat_lo)
+        box_hi = tree.world(lat_lo + span)
+        mean_tape = float(pool.length[tape_id].mean()) if (fld.prune and len(ijk)) else float(len(tape))
+        if bound == "interval":
+            iv = fld.intervals(box_lo, box_hi, pool, tape_id, choices)
+            slack = INTERVAL_SLACK * np.maximum(np.abs(iv[:, 0]), np.abs(iv[:, 1]))
+            inside, outside = iv[:, 0] > slack, iv[:, 1] < -slack
+        else:  # Lipschitz: |f(M)| > L * half-diagonal excludes a zero from the cell
+            fc = fld.values(0.5 * (box_lo + box_hi))
+            radius = lipschitz * 0.5 * np.linalg.norm(box_hi - box_lo, axis=1) * (1 + 1e-6)
+            inside, outside = fc > radius, fc < -radius
+        touches = np.any((lat_lo == 0) | (lat_lo + span >= lat_max), axis=1) if cap else np.zeros(len(ijk), bool)
+        cap_leaf = inside & touches  # the cap on the bounds crosses it: a leaf, its cap is flat
+        active = ~(inside | outside)
+        refine = active.copy()
+        checked = np.zeros(len(ijk), bool)
+        if level >= max_level:
+            refine[:] = False
+        elif level >= min_level:
+            checked = active
+            graze = np.zeros(len(ijk), np.int8)  # +1: may only touch f = 0 from inside, -1: from outside
+            if bound == "interval":
+                width = GRAZE * (iv[:, 1] - iv[:, 0])
+                graze[iv[:, 1] < width] = -1
+                graze[iv[:, 0] > -width] = 1
+            refine[active] = _criteria_fail(tree, level, ijk[active], pool, tape_id[active], sin1, cos2,
+                                            graze[active])
+        leaf = cap_leaf | (active & ~refine)
+        # corners of every leaf are known before extraction
+        _store_corners(tree, level, ijk[leaf], pool, tape_id[leaf])
+        status = np.where(refine, INTERNAL, np.where(leaf, LEAF, CULLED)).astype(np.int8)
+        leaf_of = np.full(len(ijk), -1, np.int64)
+        leaf_of[leaf] = n_leaves + np.arange(int(leaf.sum()))
+        n_leaves += int(leaf.sum())
+        keys = pack(ijk)
+        order = np.argsort(keys)
+        tree.status[level] = (keys[order], status[order], leaf_of[order])
+        tree.pools[level] = pool
+        leaves_level.append(np.full(int(leaf.sum()), level, np.int64))
+        leaves_ijk.append(ijk[leaf])
+        leaves_tape.append(tape_id[leaf])
+        tree.levels.append({
+            "level": level, "cells": len(ijk), "culled_inside": int((inside & ~touches).sum()),
+            "culled_outside": int(outside.sum()), "cap_leaves": int(cap_leaf.sum()),
+            "checked": int(checked.sum()), "refined": int(refine.sum()),
+            "leaves": int(leaf.sum()), "mean_tape_length": round(mean_tape, 2),
+            "time": time.perf_counter() - t0})
+        if not refine.any():
+            break
+        # children inherit the branch decisions: their tape is their parent's, pruned
+        parents = np.flatnonzero(refine)
+        if fld.prune:
+            pool, tid = fld.patterns(choices[parents])
+            choices = np.repeat(choices[parents], 8, axis=0)
+            tape_id = np.repeat(tid, 8)
+            if pool.length[tid].mean() > PRUNE_WORTH * len(tape):  # smooth fields (R-functions) barely
+                fld.prune, pool = False, None  # prune: stop paying for the bookkeeping
+                tape_id = np.zeros(8 * len(parents), np.int64)
+        else:
+            tape_id = np.zeros(8 * len(parents), np.int64)
+        ijk = (ijk[parents][:, None, :] * 2 + CORNERS[None]).reshape(-1, 3)
+    tree.leaf_level = np.concatenate(leaves_level)
+    tree.leaf_ijk = np.concatenate(leaves_ijk)
+    tree.leaf_tape = np.concatenate(leaves_tape)
+    return tree
+
+
+def _corner_keys(tree: Octree, level: int, ijk: np.ndarray) -> np.ndarray:
+    span = int(tree.span(level))
+    return pack((ijk[:, None, :] + CORNERS[None]) * span)  # (n, 8)
+
+
+def _store_corners(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id) -> None:
+    """Evaluate the corners of cells that the store does not hold yet (each node once)."""
+    if not len(ijk):
+        return
+    keys = _corner_keys(tree, level, ijk).ravel()
+    keys, first = np.unique(keys, return_index=True)
+    new = tree.nodes.find(keys) < 0
+    keys, first = keys[new], first[new]
+    if not len(keys):
+        return
+    tid = None if tape_id is None else np.asarray(tape_id)[first // 8]
+    vals = tree.field.values(tree.world(unpack(keys)), pool, tid)
+    if not np.all(np.isfinite(vals)):
+        bad = tree.world(unpack(keys[~np.isfinite(vals)][:1]))[0]
+        raise ValueError(f"the shape evaluates to NaN or infinity at {bad.tolist()}: check the shape "
+                         "(e.g. sqrt or log of a negative value, division by zero)")
+    tree.nodes.add(keys, vals)
+
+
+def _criteria_fail(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id, sin1: float,
+                   cos2: float, graze: np.ndarray) -> np.ndarray:
+    """Which of these active cells must be refined (signs, planarity, divergence, singularity).
+    ``sin1 < 0`` means an absolute chord tolerance of -sin1; ``cos2 < -1`` no divergence test."""
+    fail = np.ones(len(ijk), bool)
+    if not len(ijk):
+        return fail
+    _store_corners(tree, level, ijk, pool, tape_id)
+    keys = _corner_keys(tree, level, ijk)
+    vals = tree.nodes.get(keys.ravel()).reshape(-1, 8)
+    config = ((vals > 0) << np.arange(8)).sum(axis=1)
+    fail[((config == 0) & (graze < 0)) | ((config == 255) & (graze > 0))] = False
+    sheet = (config != 0) & (config != 255) & ONE_SHEET[config]
+    cells = np.flatnonzero(sheet)
+    if not len(cells):
+        return fail
+    span = int(tree.span(level))
+    v = vals[cells]
+    a, b = CUBE_EDGES[:, 0], CUBE_EDGES[:, 1]
+    cross = (v[:, a] > 0) != (v[:, b] > 0)  # (n, 12)
+    t = np.where(cross, v[:, a] / np.where(cross, v[:, a] - v[:, b], 1.0), 0.0)
+    lat0 = ijk[cells][:, None, :] * span
+    p = tree.world(lat0 + CORNERS[a][None] * span) * (1 - t[..., None]) + \
+        tree.world(lat0 + CORNERS[b][None] * span) * t[..., None]  # (n, 12, 3)
+    # compact the crossings of each cell to the first K slots
+    k_max = int(cross.sum(axis=1).max())
+    order = np.argsort(~cross, axis=1, kind="stable")[:, :k_max]
+    valid = np.take_along_axis(cross, order, axis=1)
+    pts = np.take_along_axis(p, order[..., None], axis=1)
+    centre = tree.world(ijk[cells] * span + span // 2)
+    g = tree.field.gradients(np.concatenate([pts[valid], centre]))
+    grad = np.zeros(pts.shape, np.float64)
+    grad[valid] = g[:len(g) - len(cells), 1:]
+    gm = g[len(g) - len(cells):, 1:].astype(np.float64)
+    mag = np.linalg.norm(grad, axis=2)
+    big = mag.max(axis=1)
+    singular = (np.where(valid, mag, np.inf).min(axis=1) < SINGULAR * big) | \
+        (np.linalg.norm(gm, axis=1) < SINGULAR * big) | (big <= 0)
+    nu = grad / np.maximum(mag, 1e-30)[..., None]
+    num = gm / np.maximum(np.linalg.norm(gm, axis=1), 1e-30)[:, None]
+    diverge = np.any(valid & (np.einsum("nkc,nc->nk", nu, num) < cos2), axis=1)
+    d = pts[:, None, :, :] - pts[:, :, None, :]  # d[n, i, j] = P_j - P_i
+    length = np.linalg.norm(d, axis=3)
+    pair = valid[:, :, None] & valid[:, None, :] & (length > 1e-3 * span * tree.h.min() / 2)
+    off = np.abs(np.einsum("nijc,nic->nij", d, nu))  # |<P_j - P_i, nu_i>| = L sin(angle)
+    if sin1 >= 0:
+        planar_fail = np.any(pair & (off > sin1 * length), axis=(1, 2))
+    else:  # absolute: the sagitta of a chord of length L at angle a is about L a / 4
+        planar_fail = np.any(pair & (off > -4.0 * sin1), axis=(1, 2))
+    fail[cells] = singular | diverge | planar_fail
+    return fail
