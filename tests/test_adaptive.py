@@ -146,14 +146,23 @@ def test_tolerance_controls_chord_error():
     assert out[1][1] < 0.01, out  # delta <= epsilon h (99th percentile; slivers aside)
 
 
+def _minmax_part():
+    holes = [wm.cylinder(0.2).translate((sx * 0.6, sy * 0.6, 0)) for sx in (-1, 1) for sy in (-1, 1)]
+    plate = wm.difference(wm.box((2, 2, 0.6)), wm.union(*holes, method="minmax"), method="minmax")
+    return wm.union(plate, wm.sphere(0.5), method="minmax")
+
+
 def test_pruned_tapes_give_the_same_mesh():
-    shape, bounds = wm.example("part")
+    shape, bounds = _minmax_part(), wm.example("part")[1]
     a = wm.mesh_surface(shape, bounds=bounds, adaptive=True, max_level=7, prune=True)
     b = wm.mesh_surface(shape, bounds=bounds, adaptive=True, max_level=7, prune=False)
     assert a.cells["triangle"].shape == b.cells["triangle"].shape
     assert np.abs(a.points - b.points).max() < 1e-4
     lengths = [lv["mean_tape_length"] for lv in a.info["levels"]]
-    assert lengths[-1] < lengths[0], lengths  # deeper cells evaluate shorter tapes
+    assert max(lengths[2:]) < 0.6 * lengths[0], lengths  # deeper cells evaluate shorter tapes
+    # R-function booleans are smooth: nothing to prune, so the octree stops trying
+    r = wm.mesh_surface(wm.example("part")[0], bounds=bounds, adaptive=True, max_level=7)
+    assert [lv["mean_tape_length"] for lv in r.info["levels"]][2:] == [r.info["tape_length"]] * 3
 
 
 def test_lipschitz_bound(check_mesh):
