@@ -23,6 +23,15 @@ def test_mesh_example_writes_a_file_and_prints_stats(tmp_path, capsys):
     assert "euler" in capsys.readouterr().out
 
 
+def test_mesh_example_adaptive(tmp_path, capsys):
+    out = tmp_path / "part.ply"
+    assert main(["mesh", "--example", "part", "--adaptive", "--resolution", "64", "--tolerance", "0.05",
+                 "-o", str(out), "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats["watertight"] and stats["euler"] == -6 and stats["covering"] == "octree"
+    assert main(["mesh", "--example", "part", "--tolerance", "0.05"]) == 2  # needs --adaptive
+
+
 def test_mesh_volume_file(tmp_path, capsys):
     g = np.linspace(-1, 1, 24)
     vol = 0.7 - np.sqrt(g[:, None, None] ** 2 + g[None, :, None] ** 2 + g[None, None, :] ** 2)

@@ -42,7 +42,11 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--labels", nargs="+", metavar="LABEL",
                    help="integer volumes: mesh each label's region ('all' or label values)")
     m.add_argument("--slab-voxels", type=int, help="volumes: samples per slab (default 16M)")
-    m.add_argument("--root", choices=["linear", "bisection", "newton"], default="linear")
+    m.add_argument("--root", choices=["linear", "bisection", "newton"], default=None,
+                   help="vertex placement (default linear; newton with --adaptive)")
+    m.add_argument("--adaptive", action="store_true",
+                   help="shapes: adaptive octree (curvature-driven, sharp edges); --resolution is its finest level")
+    m.add_argument("--tolerance", type=float, help="--adaptive: relative chord tolerance (default 0.02)")
     m.add_argument("--gradient", choices=["exact", "central", "forward"],
                    help="gradient for Newton roots: exact (default) or finite differences")
     m.add_argument("--no-cap", action="store_true", help="leave the surface open at the bounds")
@@ -100,10 +104,12 @@ def main(argv: list[str] | None = None) -> int:
             common["method"] = args.method
         if args.covering:
             common["covering"] = args.covering
+        if args.adaptive or args.tolerance is not None:
+            common.update(adaptive=args.adaptive, tolerance=args.tolerance)
         if args.example:
             shape, bounds = wm.example(args.example)
             mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
-                                   evaluator=args.evaluator or "interpreter",
+                                   evaluator=args.evaluator or (None if args.adaptive else "interpreter"),
                                    inside=args.inside, origin=args.origin,
                                    spacing=None if args.spacing is None else args.spacing[0], **common)
         else:
