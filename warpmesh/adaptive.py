@@ -39,9 +39,9 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     fld = tree.field
 
     t0 = time.perf_counter()
-    axis, origin, size, minus, plus = OC.face_units(tree)
-    keys, ptr = OC.boundary_cycles(tree, axis, origin, size)
-    node_keys, values, capped, vnodes, segments = OC.unit_segments(tree, axis, origin, size, keys, ptr)
+    axis, origin, size, minus, plus, owner, side = OC.face_units(tree)
+    node_of, ptr, node_keys = OC.boundary_cycles(tree, axis, owner, side)
+    values, capped, vnodes, segments = OC.unit_segments(tree, axis, origin, size, node_of, ptr, node_keys)
     timings["faces"] = time.perf_counter() - t0
     info.update(leaves=len(tree.leaf_level), face_units=len(axis), crossings=len(vnodes))
     if not len(segments):

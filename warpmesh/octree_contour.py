@@ -47,7 +47,7 @@ from scipy.sparse.csgraph import connected_components
 
 from warpmesh import _conventions as C
 from warpmesh.errors import WarpMeshError
-from warpmesh.octree import LEAF, CORNERS, KEY_BITS, Octree, pack, unpack
+from warpmesh.octree import LEAF, CORNERS, Octree, pack, unpack
 from warpmesh.qef import mass_points, qef_points
 
 PROJECT_STEPS = 3  # Newton steps projecting a smooth loop's vertex onto f = 0
@@ -55,8 +55,9 @@ PROJECT_STEPS = 3  # Newton steps projecting a smooth loop's vertex onto f = 0
 
 # -- 1. face units -----------------------------------------------------------------------
 def face_units(tree: Octree):
-    """Units as (axis, lattice origin (u, 3), size (u,), minus leaf, plus leaf)."""
-    axes, origins, sizes, minus, plus = [], [], [], [], []
+    """Units as (axis, lattice origin (u, 3), size (u,), minus leaf, plus leaf, owner, side):
+    the owner is the leaf whose whole face the unit is, on its ``side`` (+1 or -1) of axis."""
+    axes, origins, sizes, minus, plus, owners, sides = [], [], [], [], [], [], []
     for level in np.unique(tree.leaf_level):
         ids = np.flatnonzero(tree.leaf_level == level)
         ijk = tree.leaf_ijk[ids]
@@ -79,97 +80,79 @@ def face_units(tree: Octree):
                 sizes.append(np.full(len(me), span, np.int64))
                 minus.append(me if side == 1 else you)
                 plus.append(you if side == 1 else me)
+                owners.append(me)
+                sides.append(np.full(len(me), side, np.int64))
     if not axes:
         z = np.zeros(0, np.int64)
-        return z, np.zeros((0, 3), np.int64), z, z, z
-    return (np.concatenate(axes), np.concatenate(origins), np.concatenate(sizes),
-            np.concatenate(minus), np.concatenate(plus))
+        return z, np.zeros((0, 3), np.int64), z, z, z, z, z
+    return tuple(np.concatenate(x) for x in (axes, origins, sizes, minus, plus, owners, sides))
 
 
 # -- 2. hanging nodes and boundary cycles ------------------------------------------------------
-class LineIndex:
-    """Leaf corners sorted along each axis direction, for 'which nodes lie on this edge'."""
+def boundary_cycles(tree: Octree, axis, owner, side):
+    """Each unit's boundary node cycle, counter-clockwise seen from +axis.
 
-    def __init__(self, node_keys: np.ndarray):
-        lat = unpack(node_keys)
-        self.keys = []
-        self.nodes = []
-        for d in range(3):
-            lk = self.line_key(lat, d)
-            order = np.argsort(lk)
-            self.keys.append(lk[order])
-            self.nodes.append(node_keys[order])
-
-    @staticmethod
-    def line_key(lat: np.ndarray, d: int) -> np.ndarray:
-        return pack(np.stack([lat[:, (d + 1) % 3], lat[:, (d + 2) % 3], lat[:, d]], axis=1))
-
-    def between(self, start: np.ndarray, d: np.ndarray, length: np.ndarray):
-        """For edges from ``start`` along +axis ``d`` of ``length``: the range [lo, hi) of
-        nodes strictly inside, in ``self.nodes[d]`` order (increasing coordinate)."""
-        lo = np.zeros(len(start), np.int64)
-        hi = np.zeros(len(start), np.int64)
-        for axis in range(3):
-            sel = np.flatnonzero(d == axis)
-            if not len(sel):
-                continue
-            s = start[sel]
-            e = s.copy()
-            e[:, axis] += length[sel]
-            lo[sel] = np.searchsorted(self.keys[axis], self.line_key(s, axis), side="right")
-            hi[sel] = np.searchsorted(self.keys[axis], self.line_key(e, axis), side="left")
-        return lo, hi
-
-
-def boundary_cycles(tree: Octree, axis, origin, size):
-    """Each unit's boundary node cycle, counter-clockwise seen from +axis: flat node keys
-    and the offset of each unit's cycle (units u's nodes are keys[ptr[u]:ptr[u+1]])."""
+    Nodes are the leaves' corners (``node_keys``, sorted). Along each axis direction the
+    corners are ranked line by line, so the nodes strictly inside a unit edge from node s
+    to node e are those ranked between them: no search per edge. Returns (flat node
+    indices, ``ptr`` with unit u's cycle at ``[ptr[u], ptr[u+1])``, node_keys)."""
     n_units = len(axis)
+    span = tree.span(tree.leaf_level)
+    node_keys, corner_node = np.unique(pack((tree.leaf_ijk[:, None, :] + CORNERS[None]) * span[:, None, None]),
+                                       return_inverse=True)
+    corner_node = corner_node.reshape(-1, 8)
+    lat = unpack(node_keys)
+    order, rank = [], []
+    for d in range(3):  # node order along lines of direction d, and each node's rank in it
+        o = np.argsort(pack(np.stack([lat[:, (d + 1) % 3], lat[:, (d + 2) % 3], lat[:, d]], axis=1)))
+        r = np.empty_like(o)
+        r[o] = np.arange(len(o))
+        order.append(o)
+        rank.append(r)
     b, c = (axis + 1) % 3, (axis + 2) % 3
-    eb = np.eye(3, dtype=np.int64)[b] * size[:, None]
-    ec = np.eye(3, dtype=np.int64)[c] * size[:, None]
-    corners = np.stack([origin, origin + eb, origin + eb + ec, origin + ec], axis=1)  # (u, 4, 3)
-    corner_keys = pack(corners)
-    leaf_corners = np.unique(pack((tree.leaf_ijk[:, None, :] + CORNERS[None]) *
-                                  tree.span(tree.leaf_level)[:, None, None]).ravel())
-    index = LineIndex(leaf_corners)
-    # edges k = 0..3: from corner k to corner k+1; 0 and 1 run along +b and +c, 2 and 3
-    # along -b and -c (queried from their other end, then reversed)
-    start = np.stack([corners[:, 0], corners[:, 1], corners[:, 3], corners[:, 0]], axis=1)
+    face = np.where(side > 0, 1, 0) << axis
+    bits = np.stack([face, face | (1 << b), face | (1 << b) | (1 << c), face | (1 << c)], axis=1)
+    corners = corner_node[owner[:, None], bits]  # (u, 4) counter-clockwise seen from +axis
+    # edges k = 0..3 from corner k to k+1: +b, +c, -b, -c; queried from their lower end
+    lower = corners[:, [0, 1, 3, 0]]
+    upper = corners[:, [1, 2, 2, 3]]
     direction = np.stack([b, c, b, c], axis=1)
-    lo, hi = index.between(start.reshape(-1, 3), direction.ravel(), np.repeat(size, 4))
-    lo, hi = lo.reshape(-1, 4), hi.reshape(-1, 4)
-    n_hang = hi - lo
+    n_hang = np.empty((n_units, 4), np.int64)
+    low_rank = np.empty((n_units, 4), np.int64)
+    for d in range(3):
+        sel = direction == d
+        low_rank[sel] = rank[d][lower[sel]]
+        n_hang[sel] = rank[d][upper[sel]] - low_rank[sel] - 1
     counts = 4 + n_hang.sum(axis=1)
     ptr = np.zeros(n_units + 1, np.int64)
     np.cumsum(counts, out=ptr[1:])
-    keys = np.empty(ptr[-1], np.int64)
+    nodes = np.empty(ptr[-1], np.int64)
     before = np.concatenate([np.zeros((n_units, 1), np.int64), np.cumsum(n_hang, axis=1)[:, :3]], axis=1)
     corner_pos = ptr[:-1, None] + np.arange(4)[None] + before  # (u, 4)
-    keys[corner_pos.ravel()] = corner_keys.ravel()
+    nodes[corner_pos.ravel()] = corners.ravel()
     m = n_hang.ravel()
     if m.sum():
         edge = np.repeat(np.arange(4 * n_units), m)
         j = np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)  # rank within the edge
         k = edge % 4
+        r = np.where(k < 2, low_rank.ravel()[edge] + 1 + j, low_rank.ravel()[edge] + m[edge] - j)
         dirs = direction.ravel()[edge]
-        src = np.where(k < 2, lo.ravel()[edge] + j, hi.ravel()[edge] - 1 - j)
         node = np.empty(len(edge), np.int64)
         for d in range(3):
             sel = dirs == d
-            node[sel] = index.nodes[d][src[sel]]
-        keys[corner_pos.ravel()[edge] + 1 + j] = node
-    return keys, ptr
+            node[sel] = order[d][r[sel]]
+        nodes[corner_pos.ravel()[edge] + 1 + j] = node
+    return nodes, ptr, node_keys
 
 
 # -- 3. crossings and segments ----------------------------------------------------------------
-def unit_segments(tree: Octree, axis, origin, size, keys, ptr):
-    """Crossing vertices and oriented segments of every unit.
+def unit_segments(tree: Octree, axis, origin, size, node_of, ptr, node_keys):
+    """Crossing vertices and oriented segments of every unit (``node_of``, ``ptr``: the
+    boundary cycles of :func:`boundary_cycles`).
 
-    Returns (node_keys, node_values, capped, vertex_nodes (nv, 2) indices into node_keys,
+    Returns (node_values, capped, vertex_nodes (nv, 2) indices into node_keys,
     segments (ns, 3): unit, start vertex, end vertex)."""
     n_units = len(axis)
-    node_keys, node_of = np.unique(keys, return_inverse=True)
     values = tree.nodes.get(node_keys).astype(np.float64)
     capped = np.zeros(len(node_keys), bool)
     if tree.cap:
@@ -179,14 +162,14 @@ def unit_segments(tree: Octree, axis, origin, size, keys, ptr):
         values[capped] = 0.0  # the bounds are outside: every surface closes on them
     inside = values > 0
     unit_of = np.repeat(np.arange(n_units), np.diff(ptr))
-    nxt = np.arange(len(keys)) + 1
+    nxt = np.arange(len(node_of)) + 1
     last = ptr[1:] - 1
     nxt[last] = ptr[:-1]
     n0, n1 = node_of, node_of[nxt]
     crossing = np.flatnonzero(inside[n0] != inside[n1])
     if not len(crossing):
         empty = np.zeros((0, 2), np.int64)
-        return node_keys, values, capped, empty, np.zeros((0, 3), np.int64)
+        return values, capped, empty, np.zeros((0, 3), np.int64)
     lo_n, hi_n = np.minimum(n0[crossing], n1[crossing]), np.maximum(n0[crossing], n1[crossing])
     vkey = lo_n * len(node_keys) + hi_n
     uniq, vert = np.unique(vkey, return_inverse=True)
@@ -212,7 +195,7 @@ def unit_segments(tree: Octree, axis, origin, size, keys, ptr):
     partner = first[cu] + (rank + step) % k
     starts = np.flatnonzero(leaving)
     segments = np.stack([cu[starts], vert[starts], vert[partner[starts]]], axis=1)
-    return node_keys, values, capped, vertex_nodes, segments
+    return values, capped, vertex_nodes, segments
 
 
 # -- 4. loops ----------------------------------------------------------------------------------
@@ -443,4 +426,4 @@ def edge_points(tree: Octree, vertex_nodes, node_keys, values):
 
 
 __all__ = ["face_units", "boundary_cycles", "unit_segments", "leaf_loops", "vertex_normals",
-           "loop_vertices", "fan_triangles", "flip_feature_edges", "check_closed", "edge_points", "KEY_BITS"]
+           "loop_vertices", "fan_triangles", "flip_feature_edges", "check_closed", "edge_points"]
