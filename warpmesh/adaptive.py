@@ -26,7 +26,7 @@ from warpmesh.block_grid import refine_roots
 from warpmesh.octree import build_octree
 
 CAP_REF, SURFACE_REF = 2, 1
-NEWTON_STEPS = 6  # safeguarded Newton from the linear estimate: converged to float32 in 3-5 here
+NEWTON_STEPS = 4  # safeguarded Newton from the linear estimate (quadratic convergence)
 
 
 def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chord, bound, lipschitz, cap, prune,

@@ -50,7 +50,8 @@ from warpmesh.errors import WarpMeshError
 from warpmesh.octree import LEAF, CORNERS, Octree, pack, unpack
 from warpmesh.qef import mass_points, qef_points
 
-PROJECT_STEPS = 3  # Newton steps projecting a smooth loop's vertex onto f = 0
+PROJECT_STEPS = 2  # Newton steps projecting a loop's vertex onto f = 0 (quadratic: it starts within ~h^2/r)
+SPREAD_COS = 0.97  # a loop whose normals all lie within 14 degrees of their mean is smooth: no QEF
 
 
 # -- 1. face units -----------------------------------------------------------------------
@@ -257,13 +258,19 @@ def loop_vertices(tree: Octree, half, loop_of, n_loops, points, normals, cap_ver
     hi = tree.world((tree.leaf_ijk[leaf] + 1) * tree.span(tree.leaf_level[leaf])[:, None])
     mass = mass_points(loop_of, points[frm], n_loops)
     has_cap = np.bincount(loop_of, cap_vertex[frm], n_loops) > 0
-    if features:
-        x, rank = qef_points(loop_of, points[frm], normals[frm], n_loops)
-        margin = 0.25 * (hi - lo)
-        bad = np.any((x < lo - margin) | (x > hi + margin), axis=1)
-        x[bad], rank[bad] = mass[bad], 1
-    else:
-        x, rank = mass.copy(), np.ones(n_loops, np.int64)
+    x, rank = mass.copy(), np.ones(n_loops, np.int64)
+    if features:  # the QEF only where the normals spread (elsewhere it is the mass point, projected below)
+        mean = np.stack([np.bincount(loop_of, normals[frm, k], n_loops) for k in range(3)], axis=1)
+        mean /= np.maximum(np.linalg.norm(mean, axis=1), 1e-30)[:, None]
+        spread = np.bincount(loop_of, np.einsum("nk,nk->n", normals[frm], mean[loop_of]) < SPREAD_COS, n_loops) > 0
+        sel = np.flatnonzero(spread)
+        if len(sel):
+            member = np.flatnonzero(spread[loop_of])
+            group = np.searchsorted(sel, loop_of[member])
+            xs, rs = qef_points(group, points[frm[member]], normals[frm[member]], len(sel))
+            margin = 0.25 * (hi[sel] - lo[sel])
+            bad = np.any((xs < lo[sel] - margin) | (xs > hi[sel] + margin), axis=1)
+            x[sel[~bad]], rank[sel[~bad]] = xs[~bad], rs[~bad]
     smooth = ~has_cap  # a feature vertex from tangent planes of a curved face sits just off it
     limit = np.linalg.norm(hi - lo, axis=1)
     if smooth.any():
