@@ -46,6 +46,7 @@ import warp as wp
 
 from warpmesh import prune as P  # noqa: E402
 from warpmesh.errors import WarpMeshError
+from warpmesh.kernels import octree as KO
 from warpmesh.tape import eval_gradients, eval_intervals, eval_values
 
 KEY_BITS = 21  # lattice coordinates per axis: up to 2^21 (1 M finest cells)
@@ -379,30 +380,17 @@ def _criteria_fail(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id, sin
     lat0 = ijk[cells][:, None, :] * span
     p = tree.world(lat0 + CORNERS[a][None] * span) * (1 - t[..., None]) + \
         tree.world(lat0 + CORNERS[b][None] * span) * t[..., None]  # (n, 12, 3)
-    # compact the crossings of each cell to the first K slots
-    k_max = int(cross.sum(axis=1).max())
-    order = np.argsort(~cross, axis=1, kind="stable")[:, :k_max]
-    valid = np.take_along_axis(cross, order, axis=1)
-    pts = np.take_along_axis(p, order[..., None], axis=1)
     centre = tree.world(ijk[cells] * span + span // 2)
-    g = tree.field.gradients(np.concatenate([pts[valid], centre]))
-    grad = np.zeros(pts.shape, np.float64)
-    grad[valid] = g[:len(g) - len(cells), 1:]
-    gm = g[len(g) - len(cells):, 1:].astype(np.float64)
-    mag = np.linalg.norm(grad, axis=2)
-    big = mag.max(axis=1)
-    singular = (np.where(valid, mag, np.inf).min(axis=1) < SINGULAR * big) | \
-        (np.linalg.norm(gm, axis=1) < SINGULAR * big) | (big <= 0)
-    nu = grad / np.maximum(mag, 1e-30)[..., None]
-    num = gm / np.maximum(np.linalg.norm(gm, axis=1), 1e-30)[:, None]
-    diverge = np.any(valid & (np.einsum("nkc,nc->nk", nu, num) < cos2), axis=1)
-    d = pts[:, None, :, :] - pts[:, :, None, :]  # d[n, i, j] = P_j - P_i
-    length = np.linalg.norm(d, axis=3)
-    pair = valid[:, :, None] & valid[:, None, :] & (length > 1e-3 * span * tree.h.min() / 2)
-    off = np.abs(np.einsum("nijc,nic->nij", d, nu))  # |<P_j - P_i, nu_i>| = L sin(angle)
-    if sin1 >= 0:
-        planar_fail = np.any(pair & (off > sin1 * length), axis=(1, 2))
-    else:  # absolute: the sagitta of a chord of length L at angle a is about L a / 4
-        planar_fail = np.any(pair & (off > -4.0 * sin1), axis=(1, 2))
-    fail[cells] = singular | diverge | planar_fail
+    g = tree.field.gradients(np.concatenate([p[cross], centre]))
+    grad = np.zeros(p.shape, np.float32)
+    grad[cross] = g[:len(g) - len(cells), 1:]
+    dev = tree.field.device
+    out = wp.empty(len(cells), dtype=wp.int32, device=dev)
+    as_vec = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float32), dtype=wp.vec3, device=dev)  # noqa: E731
+    wp.launch(KO.criteria_kernel, dim=len(cells),
+              inputs=[as_vec(p), as_vec(grad), wp.array(cross.astype(np.int32), dtype=wp.int32, device=dev),
+                      as_vec(g[len(g) - len(cells):, 1:]), float(max(sin1, -1.0)), float(max(-sin1, 0.0)),
+                      float(cos2), SINGULAR, float(1e-3 * span * tree.h.min() / 2)],
+              outputs=[out], device=dev)
+    fail[cells] = out.numpy() != 0
     return fail
