@@ -130,8 +130,9 @@ class Field:
     counting evaluations."""
 
     def __init__(self, tape, device, prune: bool):
-        self.tape, self.device, self.prune = tape, device, prune
+        self.tape, self.device = tape, device
         self.n_sel = P.n_selections(tape) if prune else 0
+        self.prune = prune and self.n_sel > 0  # no min/max: nothing to prune
         self.counts = {"evaluations": 0, "gradient_evaluations": 0, "interval_evaluations": 0}
 
     def _wp(self, pts: np.ndarray) -> wp.array:

@@ -408,19 +408,21 @@ def flip_feature_edges(tree: Octree, tris, tri_half, half, loop_of, loop_size, f
 
 
 def check_closed(tris: np.ndarray) -> None:
-    """Every directed edge once and its reverse once (closed, oriented, edge-manifold)."""
+    """Every edge in exactly two triangles, once in each direction (closed, oriented,
+    edge-manifold): one sort of the directed edges keyed by (undirected edge, direction)."""
     if not len(tris):
         return
-    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    a = tris.ravel()
+    b = tris[:, [1, 2, 0]].ravel()
     n = int(tris.max()) + 1
-    fwd = e[:, 0] * n + e[:, 1]
-    rev = e[:, 1] * n + e[:, 0]
-    fs = np.sort(fwd)
-    if len(fs) > 1 and np.any(fs[1:] == fs[:-1]):
-        raise WarpMeshError("an oriented edge appears twice in the adaptive surface (an internal error)")
-    pos = np.minimum(np.searchsorted(fs, rev), len(fs) - 1)
-    if not np.all(fs[pos] == rev):
-        raise WarpMeshError("the adaptive surface has an unmatched edge (an internal error)")
+    key = np.sort((np.minimum(a, b) * n + np.maximum(a, b)) * 2 + (a > b))
+    edge, up = key >> 1, key & 1
+    ok = len(key) % 2 == 0 and np.array_equal(edge[0::2], edge[1::2]) and not up[0::2].any() and up[1::2].all()
+    if ok and len(key) > 2:
+        ok = not np.any(edge[2::2] == edge[1:-1:2])
+    if not ok:
+        raise WarpMeshError("the adaptive surface has an unmatched, repeated or misoriented edge "
+                            "(an internal error)")
 
 
 def edge_points(tree: Octree, vertex_nodes, node_keys, values):
