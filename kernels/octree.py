@@ -52,3 +52,34 @@ def criteria_kernel(
                             elif off > 4.0 * chord:
                                 f = 1
     fail[c] = f
+
+
+@wp.kernel
+def crossings_kernel(
+    values: wp.array2d(dtype=wp.float32), ijk: wp.array(dtype=wp.vec3i), span: int, origin: wp.vec3,
+    half_h: wp.vec3, edges: wp.array2d(dtype=wp.int32), points: wp.array2d(dtype=wp.vec3),
+    cross: wp.array2d(dtype=wp.int32), centre: wp.array(dtype=wp.vec3),
+):
+    """One thread per cell: where f changes sign along each of its 12 edges (``edges``:
+    corner pairs, corner k at offset (k & 1, k >> 1 & 1, k >> 2 & 1)), by linear
+    interpolation of the corner values (inside is f > 0), and the cell's centre.
+    Lattice coordinates are in half finest cells: world = origin + lattice * half_h."""
+    c = wp.tid()
+    base = wp.vec3(float(ijk[c][0] * span), float(ijk[c][1] * span), float(ijk[c][2] * span))
+    s = float(span)
+    for e in range(12):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        va = values[c, a]
+        vb = values[c, b]
+        if (va > 0.0) != (vb > 0.0):
+            t = va / (va - vb)
+            pa = base + s * wp.vec3(float(a & 1), float((a >> 1) & 1), float((a >> 2) & 1))
+            pb = base + s * wp.vec3(float(b & 1), float((b >> 1) & 1), float((b >> 2) & 1))
+            p = pa + t * (pb - pa)
+            points[c, e] = origin + wp.cw_mul(p, half_h)
+            cross[c, e] = 1
+        else:
+            points[c, e] = wp.vec3(0.0)
+            cross[c, e] = 0
+    centre[c] = origin + wp.cw_mul(base + wp.vec3(0.5 * s, 0.5 * s, 0.5 * s), half_h)

@@ -357,6 +357,16 @@ def _store_corners(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id) -> 
     tree.nodes.add(keys, vals)
 
 
+_EDGE_ARRAYS: dict = {}
+
+
+def _edges_array(device) -> wp.array:
+    key = str(device)
+    if key not in _EDGE_ARRAYS:
+        _EDGE_ARRAYS[key] = wp.array(CUBE_EDGES.astype(np.int32), dtype=wp.int32, device=device)
+    return _EDGE_ARRAYS[key]
+
+
 def _criteria_fail(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id, sin1: float,
                    cos2: float, graze: np.ndarray) -> np.ndarray:
     """Which of these active cells must be refined (signs, planarity, divergence, singularity).
@@ -374,24 +384,25 @@ def _criteria_fail(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id, sin
     if not len(cells):
         return fail
     span = int(tree.span(level))
-    v = vals[cells]
-    a, b = CUBE_EDGES[:, 0], CUBE_EDGES[:, 1]
-    cross = (v[:, a] > 0) != (v[:, b] > 0)  # (n, 12)
-    t = np.where(cross, v[:, a] / np.where(cross, v[:, a] - v[:, b], 1.0), 0.0)
-    lat0 = ijk[cells][:, None, :] * span
-    p = tree.world(lat0 + CORNERS[a][None] * span) * (1 - t[..., None]) + \
-        tree.world(lat0 + CORNERS[b][None] * span) * t[..., None]  # (n, 12, 3)
-    centre = tree.world(ijk[cells] * span + span // 2)
-    g = tree.field.gradients(np.concatenate([p[cross], centre]))
-    grad = np.zeros(p.shape, np.float32)
-    grad[cross] = g[:len(g) - len(cells), 1:]
     dev = tree.field.device
-    out = wp.empty(len(cells), dtype=wp.int32, device=dev)
+    n = len(cells)
+    points = wp.empty((n, 12), dtype=wp.vec3, device=dev)
+    cross_w = wp.empty((n, 12), dtype=wp.int32, device=dev)
+    centre = wp.empty(n, dtype=wp.vec3, device=dev)
+    wp.launch(KO.crossings_kernel, dim=n,
+              inputs=[wp.array(vals[cells], dtype=wp.float32, device=dev),
+                      wp.array(ijk[cells].astype(np.int32), dtype=wp.vec3i, device=dev), span,
+                      wp.vec3(*tree.origin.tolist()), wp.vec3(*(tree.h / 2).tolist()), _edges_array(dev)],
+              outputs=[points, cross_w, centre], device=dev)
+    p, cross = points.numpy(), cross_w.numpy() != 0
+    g = tree.field.gradients(np.concatenate([p[cross], centre.numpy()]))
+    grad = np.zeros(p.shape, np.float32)
+    grad[cross] = g[:len(g) - n, 1:]
+    out = wp.empty(n, dtype=wp.int32, device=dev)
     as_vec = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float32), dtype=wp.vec3, device=dev)  # noqa: E731
-    wp.launch(KO.criteria_kernel, dim=len(cells),
-              inputs=[as_vec(p), as_vec(grad), wp.array(cross.astype(np.int32), dtype=wp.int32, device=dev),
-                      as_vec(g[len(g) - len(cells):, 1:]), float(max(sin1, -1.0)), float(max(-sin1, 0.0)),
-                      float(cos2), SINGULAR, float(1e-3 * span * tree.h.min() / 2)],
+    wp.launch(KO.criteria_kernel, dim=n,
+              inputs=[points, as_vec(grad), cross_w, as_vec(g[len(g) - n:, 1:]), float(max(sin1, -1.0)),
+                      float(max(-sin1, 0.0)), float(cos2), SINGULAR, float(1e-3 * span * tree.h.min() / 2)],
               outputs=[out], device=dev)
     fail[cells] = out.numpy() != 0
     return fail
