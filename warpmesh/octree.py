@@ -184,7 +184,7 @@ class Octree:
     leaf_ijk: np.ndarray  # (m, 3) int64, at the leaf's own level
     leaf_tape: np.ndarray  # (m,) int64: index into pools[level]
     pools: dict  # level -> TapePool (or None without pruning)
-    status: dict  # level -> (sorted cell keys, status CULLED / LEAF / INTERNAL, leaf index or -1)
+    status: tuple  # (sorted cell keys of every level, status CULLED / LEAF / INTERNAL, leaf index or -1)
     nodes: NodeStore
     field: Field
     levels: list = field(default_factory=list)  # per-level statistics
@@ -199,17 +199,19 @@ class Octree:
     def world(self, lat: np.ndarray) -> np.ndarray:
         return self.origin + np.asarray(lat, dtype=np.float64) * (self.h / 2)
 
-    def lookup(self, level: int, ijk: np.ndarray):
-        """(status, leaf index) of the cells ijk at ``level``; status -1 where the cell was
-        never built (a coarser leaf or culled cell covers it) or lies outside the domain."""
+    def lookup(self, level: np.ndarray, ijk: np.ndarray):
+        """(status, leaf index) of the cells ijk at levels ``level`` (an int or one per
+        cell); status -1 where the cell was never built (a coarser leaf or culled cell
+        covers it) or lies outside the domain."""
+        level = np.broadcast_to(np.asarray(level, dtype=np.int64), (len(ijk),))
         st = np.full(len(ijk), -1, np.int64)
         leaf = np.full(len(ijk), -1, np.int64)
-        if level not in self.status or not len(ijk):
+        keys, status, leaf_of = self.status
+        if not len(ijk) or not len(keys):
             return st, leaf
-        keys, status, leaf_of = self.status[level]
-        n = self.cells_per_axis(level)
+        n = self.n_finest[None] >> (self.max_level - level)[:, None]
         inside = np.all((ijk >= 0) & (ijk < n), axis=1)
-        k = pack(np.where(inside[:, None], ijk, 0))
+        k = cell_keys(level, np.where(inside[:, None], ijk, 0))
         pos = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
         hit = inside & (keys[pos] == k)
         st[hit], leaf[hit] = status[pos[hit]], leaf_of[pos[hit]]
@@ -218,23 +220,34 @@ class Octree:
     def cells_per_axis(self, level: int) -> np.ndarray:
         return self.n_finest >> (self.max_level - level)
 
-    def covering_leaf(self, level: int, ijk: np.ndarray):
-        """For cells at ``level``: (status, leaf, level found) of the cell itself if it was
-        built, else of the coarser cell that covers it (-1, -1, -1 outside the domain)."""
+    def covering_leaf(self, level: np.ndarray, ijk: np.ndarray):
+        """For cells at ``level`` (one per cell): (status, leaf, level found) of the cell
+        itself if it was built, else of the coarser cell that covers it (-1, -1, -1 outside
+        the domain)."""
+        level = np.broadcast_to(np.asarray(level, dtype=np.int64), (len(ijk),))
         st, leaf = self.lookup(level, ijk)
         found_at = np.where(st >= 0, level, -1)
-        todo = np.flatnonzero(st < 0)
-        inside = np.all((ijk >= 0) & (ijk < self.cells_per_axis(level)), axis=1)
-        todo = todo[inside[todo]]
-        lvl, anc = level, ijk[todo]
-        while len(todo) and lvl > self.base_level:
-            lvl -= 1
-            anc = anc >> 1
+        n = self.n_finest[None] >> (self.max_level - level)[:, None]
+        todo = np.flatnonzero((st < 0) & np.all((ijk >= 0) & (ijk < n), axis=1))
+        lvl, anc = level[todo], ijk[todo]
+        while len(todo):
+            up = lvl > self.base_level
+            todo, lvl, anc = todo[up], lvl[up] - 1, anc[up] >> 1
             s2, l2 = self.lookup(lvl, anc)
             found = s2 >= 0
-            st[todo[found]], leaf[todo[found]], found_at[todo[found]] = s2[found], l2[found], lvl
-            todo, anc = todo[~found], anc[~found]
+            st[todo[found]], leaf[todo[found]], found_at[todo[found]] = s2[found], l2[found], lvl[found]
+            todo, lvl, anc = todo[~found], lvl[~found], anc[~found]
         return st, leaf, found_at
+
+
+CELL_BITS = 19  # cell coordinates per axis at any level (max_level <= 18 with <= 8 base cells)
+
+
+def cell_keys(level: np.ndarray, ijk: np.ndarray) -> np.ndarray:
+    """int64 keys of cells (level, i, j, k), unique over all levels."""
+    ijk = np.asarray(ijk, dtype=np.int64)
+    return (np.asarray(level, dtype=np.int64) << (3 * CELL_BITS)) | (ijk[:, 0] << (2 * CELL_BITS)) | \
+        (ijk[:, 1] << CELL_BITS) | ijk[:, 2]
 
 
 def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, tolerance: float | None,
@@ -261,6 +274,7 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     pool, tape_id = fld.patterns(choices[:1]) if fld.prune else (None, None)
     tape_id = np.zeros(len(ijk), np.int64)
     leaves_level, leaves_ijk, leaves_tape = [], [], []
+    all_keys, all_status, all_leaf = [], [], []
     n_leaves = 0
     for level in range(base, max_level + 1):
         t0 = time.perf_counter()
@@ -300,9 +314,9 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
         leaf_of = np.full(len(ijk), -1, np.int64)
         leaf_of[leaf] = n_leaves + np.arange(int(leaf.sum()))
         n_leaves += int(leaf.sum())
-        keys = pack(ijk)
-        order = np.argsort(keys)
-        tree.status[level] = (keys[order], status[order], leaf_of[order])
+        all_keys.append(cell_keys(np.full(len(ijk), level), ijk))
+        all_status.append(status)
+        all_leaf.append(leaf_of)
         tree.pools[level] = pool
         leaves_level.append(np.full(int(leaf.sum()), level, np.int64))
         leaves_ijk.append(ijk[leaf])
@@ -330,6 +344,9 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     tree.leaf_level = np.concatenate(leaves_level)
     tree.leaf_ijk = np.concatenate(leaves_ijk)
     tree.leaf_tape = np.concatenate(leaves_tape)
+    keys = np.concatenate(all_keys)
+    order = np.argsort(keys)
+    tree.status = (keys[order], np.concatenate(all_status)[order], np.concatenate(all_leaf)[order])
     return tree
 
 

@@ -58,35 +58,22 @@ SPREAD_COS = 0.97  # a loop whose normals all lie within 14 degrees of their mea
 def face_units(tree: Octree):
     """Units as (axis, lattice origin (u, 3), size (u,), minus leaf, plus leaf, owner, side):
     the owner is the leaf whose whole face the unit is, on its ``side`` (+1 or -1) of axis."""
-    axes, origins, sizes, minus, plus, owners, sides = [], [], [], [], [], [], []
-    for level in np.unique(tree.leaf_level):
-        ids = np.flatnonzero(tree.leaf_level == level)
-        ijk = tree.leaf_ijk[ids]
-        span = int(tree.span(level))
-        for a in range(3):
-            for side in (-1, 1):
-                across = ijk.copy()
-                across[:, a] += side
-                st, other, lvl = tree.covering_leaf(int(level), across)
-                same = lvl == level
-                take = (st == LEAF) & ((side == 1) | ~same)
-                if not take.any():
-                    continue
-                me, you = ids[take], other[take]
-                o = ijk[take] * span
-                if side == 1:
-                    o[:, a] += span
-                axes.append(np.full(len(me), a, np.int64))
-                origins.append(o)
-                sizes.append(np.full(len(me), span, np.int64))
-                minus.append(me if side == 1 else you)
-                plus.append(you if side == 1 else me)
-                owners.append(me)
-                sides.append(np.full(len(me), side, np.int64))
-    if not axes:
-        z = np.zeros(0, np.int64)
-        return z, np.zeros((0, 3), np.int64), z, z, z, z, z
-    return tuple(np.concatenate(x) for x in (axes, origins, sizes, minus, plus, owners, sides))
+    span = tree.span(tree.leaf_level)
+    out = []
+    for a in range(3):
+        for side in (-1, 1):
+            across = tree.leaf_ijk.copy()
+            across[:, a] += side
+            st, other, lvl = tree.covering_leaf(tree.leaf_level, across)
+            # a same-size neighbour's face is taken once, from its minus side
+            take = np.flatnonzero((st == LEAF) & ((side == 1) | (lvl != tree.leaf_level)))
+            me, you = take, other[take]
+            o = tree.leaf_ijk[take] * span[take, None]
+            if side == 1:
+                o[:, a] += span[take]
+            out.append((np.full(len(me), a, np.int64), o, span[take], me if side == 1 else you,
+                        you if side == 1 else me, me, np.full(len(me), side, np.int64)))
+    return tuple(np.concatenate([o[k] for o in out]) for k in range(7))
 
 
 # -- 2. hanging nodes and boundary cycles ------------------------------------------------------
