@@ -60,6 +60,17 @@ CUBE_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
                        if bin(a ^ b).count("1") == 1], dtype=np.int64)  # 12 edges, corner pairs
 
 
+def search(keys: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """np.searchsorted(keys, queries), with the queries sorted first: binary searches in
+    key order hit the cache (4x faster for 10^5 random queries here, sort included)."""
+    if len(queries) < 4096:
+        return np.searchsorted(keys, queries)
+    order = np.argsort(queries)
+    pos = np.empty(len(queries), np.int64)
+    pos[order] = np.searchsorted(keys, queries[order])
+    return pos
+
+
 def pack(lat: np.ndarray) -> np.ndarray:
     """(n, 3) lattice coordinates -> (n,) int64 keys (sorted keys sort by x, then y, then z)."""
     lat = np.asarray(lat, dtype=np.int64)
@@ -107,7 +118,7 @@ class NodeStore:
 
     def find(self, keys: np.ndarray) -> np.ndarray:
         """Index of each key in the store, -1 where absent."""
-        pos = np.searchsorted(self.keys, keys)
+        pos = search(self.keys, keys)
         pos = np.minimum(pos, max(len(self.keys) - 1, 0))
         hit = (self.keys[pos] == keys) if len(self.keys) else np.zeros(len(keys), bool)
         return np.where(hit, pos, -1)
@@ -212,7 +223,7 @@ class Octree:
         n = self.n_finest[None] >> (self.max_level - level)[:, None]
         inside = np.all((ijk >= 0) & (ijk < n), axis=1)
         k = cell_keys(level, np.where(inside[:, None], ijk, 0))
-        pos = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
+        pos = np.minimum(search(keys, k), len(keys) - 1)
         hit = inside & (keys[pos] == k)
         st[hit], leaf[hit] = status[pos[hit]], leaf_of[pos[hit]]
         return st, leaf

@@ -47,7 +47,7 @@ from scipy.sparse.csgraph import connected_components
 
 from warpmesh import _conventions as C
 from warpmesh.errors import WarpMeshError
-from warpmesh.octree import LEAF, CORNERS, Octree, pack, unpack
+from warpmesh.octree import LEAF, CORNERS, Octree, pack, search, unpack
 from warpmesh.qef import mass_points, qef_points
 
 PROJECT_STEPS = 2  # Newton steps projecting a loop's vertex onto f = 0 (quadratic: it starts within ~h^2/r)
@@ -92,7 +92,9 @@ def boundary_cycles(tree: Octree, axis, owner, side):
     lat = unpack(node_keys)
     order, rank = [], []
     for d in range(3):  # node order along lines of direction d, and each node's rank in it
-        o = np.argsort(pack(np.stack([lat[:, (d + 1) % 3], lat[:, (d + 2) % 3], lat[:, d]], axis=1)))
+        # (keys sort by x, y, z: lines along z are already in order)
+        o = np.arange(len(node_keys)) if d == 2 else \
+            np.argsort(pack(np.stack([lat[:, (d + 1) % 3], lat[:, (d + 2) % 3], lat[:, d]], axis=1)))
         r = np.empty_like(o)
         r[o] = np.arange(len(o))
         order.append(o)
@@ -199,7 +201,7 @@ def leaf_loops(segments, minus, plus, n_vertices: int):
     sorted_from = key_from[order]
     if len(sorted_from) > 1 and np.any(sorted_from[1:] == sorted_from[:-1]):
         raise WarpMeshError("two segments of one leaf start at one vertex (an internal error)")
-    pos = np.minimum(np.searchsorted(sorted_from, key_to), len(order) - 1)
+    pos = np.minimum(search(sorted_from, key_to), len(order) - 1)
     if not np.all(sorted_from[pos] == key_to):
         raise WarpMeshError("a leaf's segments do not close into loops (an internal error)")
     nxt = order[pos]
@@ -348,7 +350,7 @@ def _cycle_order(half, loop_of, order, first, loop_size):
     frm = key + half[:, 1]
     to = key + half[:, 2]
     srt = np.argsort(frm)
-    nxt = srt[np.searchsorted(frm[srt], to)]
+    nxt = srt[search(frm[srt], to)]
     out = np.empty(n, np.int64)
     cur = order[first]  # any half-segment of each loop starts it
     for i in range(int(loop_size.max()) if len(loop_size) else 0):
