@@ -52,16 +52,17 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     p0, p1, t = OC.edge_points(tree, vnodes, node_keys, values)
     cap_vertex = capped[vnodes].any(axis=1)
     points = p0 + t[:, None] * (p1 - p0)
+    fg = None  # (f, grad f) at the vertices, when the root finding leaves them behind
     if root != "linear":
         steps = root_iterations or (12 if root == "bisection" else NEWTON_STEPS)
-        points = _refine(tape, tree, p0, p1, t, values[vnodes[:, 0]] > 0, cap_vertex, root, steps, gradient,
-                         device, timings)
+        points, fg = _refine(tape, tree, p0, p1, t, values[vnodes[:, 0]] > 0, cap_vertex, root, steps,
+                             gradient, device, timings)
         fld.counts["evaluations"] += len(points) * steps
     timings["root"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     half, loop_of, n_loops, loop_size = OC.leaf_loops(segments, minus, plus, len(points))
-    normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped)
+    normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
     centres, feature = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, cap_vertex, features)
     unit_of_half = np.concatenate([segments[:, 0], segments[:, 0]])
     tris, tri_half = OC.fan_triangles(half, loop_of, loop_size, len(points), unit_of_half, feature, points,
@@ -94,15 +95,17 @@ def _refine(tape, tree, p0, p1, t, p0_inside, keep, root, iterations, gradient, 
                                device=device),
              "p0": to_wp(p0 - org), "p1": to_wp(p1 - org)}
     verts = wp.empty(len(t), dtype=wp.vec3, device=device)
+    fg = wp.empty(len(t), dtype=wp.vec4, device=device) if root == "newton" and gradient == "exact" else None
     refine_roots(tape, verts, edges, wp.vec3(*org.tolist()), root, iterations, timings, "interpreter",
-                 gradient, tree.h)
-    return verts.numpy().astype(np.float64) + org
+                 gradient, tree.h, fg_out=fg)
+    return verts.numpy().astype(np.float64) + org, None if fg is None else fg.numpy()
 
 
 def _finish_info(tree, info, n_points, n_tris, n_loops):
     counts = tree.field.counts
     n_finest = int(np.prod(tree.n_finest + 1))
     info.update(counts)
+    info["evaluation_seconds"] = {k: round(v, 4) for k, v in tree.field.seconds.items()}
     info["dense_evaluations"] = n_finest
     info["evaluation_ratio"] = round(n_finest / max(counts["evaluations"], 1), 1)
     info["levels"] = tree.levels

@@ -350,10 +350,11 @@ def gradients(tape, points: wp.array, out: wp.array, scheme: str, h, evaluator="
 
 
 def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluator="auto",
-                 gradient: str = "exact", h=(1.0, 1.0, 1.0)) -> None:
+                 gradient: str = "exact", h=(1.0, 1.0, 1.0), fg_out=None) -> None:
     """Move each vertex to the root of f on its edge (bisection or safeguarded Newton, with
     the exact or a finite-difference gradient); f is evaluated at origin + the grid-local
-    positions. Interior vertices ("mc33", flagged as zero ends) stay where they are."""
+    positions. Interior vertices ("mc33", flagged as zero ends) stay where they are.
+    With Newton, ``fg_out`` (vec4 per vertex) receives (f, grad f) of the last step."""
     t0 = time.perf_counter()
     dev = verts.device
     nv = verts.shape[0]
@@ -379,6 +380,8 @@ def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluato
             gradients(tape, world, fg, gradient, h, evaluator)
             wp.launch(KE.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1],
                       outputs=[t_lo, t_hi, f_prev, t], device=dev)
+        if fg_out is not None:
+            wp.copy(fg_out, fg)
     wp.launch(KE.clamp_edge_t_kernel, dim=nv, inputs=[float(C.EDGE_T_MIN)], outputs=[t], device=dev)
     wp.launch(KE.edge_points_kernel, dim=nv, inputs=[t, p0, p1, wp.vec3(0.0)], outputs=[verts], device=dev)
     timings["root"] = time.perf_counter() - t0

@@ -145,6 +145,7 @@ class Field:
         self.n_sel = P.n_selections(tape) if prune else 0
         self.prune = prune and self.n_sel > 0  # no min/max: nothing to prune
         self.counts = {"evaluations": 0, "gradient_evaluations": 0, "interval_evaluations": 0}
+        self.seconds = {"values": 0.0, "gradients": 0.0, "intervals": 0.0}  # time spent evaluating
 
     def _wp(self, pts: np.ndarray) -> wp.array:
         return wp.array(np.ascontiguousarray(pts, dtype=np.float32), dtype=wp.vec3, device=self.device)
@@ -153,17 +154,25 @@ class Field:
         self.counts["interval_evaluations"] += len(lo)
         if not len(lo):
             return np.zeros((0, 2), np.float32)
+        t0 = time.perf_counter()
         if self.prune:
-            return P.eval_intervals_pruned(self.tape, pool, tape_id, lo, hi, choices, device=self.device)
-        return eval_intervals(self.tape, self._wp(lo), self._wp(hi), device=self.device).numpy()
+            out = P.eval_intervals_pruned(self.tape, pool, tape_id, lo, hi, choices, device=self.device)
+        else:
+            out = eval_intervals(self.tape, self._wp(lo), self._wp(hi), device=self.device).numpy()
+        self.seconds["intervals"] += time.perf_counter() - t0
+        return out
 
     def values(self, pts, pool=None, tape_id=None) -> np.ndarray:
         self.counts["evaluations"] += len(pts)
         if not len(pts):
             return np.zeros(0, np.float32)
+        t0 = time.perf_counter()
         if self.prune and pool is not None:
-            return P.eval_values_pruned(self.tape, pool, tape_id, pts, device=self.device)
-        return eval_values(self.tape, self._wp(pts), device=self.device, evaluator="interpreter").numpy()
+            out = P.eval_values_pruned(self.tape, pool, tape_id, pts, device=self.device)
+        else:
+            out = eval_values(self.tape, self._wp(pts), device=self.device, evaluator="interpreter").numpy()
+        self.seconds["values"] += time.perf_counter() - t0
+        return out
 
     def gradients(self, pts) -> np.ndarray:
         """(n, 4): f and grad f (exact, forward mode)."""
@@ -171,7 +180,10 @@ class Field:
         self.counts["gradient_evaluations"] += len(pts)
         if not len(pts):
             return np.zeros((0, 4), np.float32)
-        return eval_gradients(self.tape, self._wp(pts), device=self.device).numpy()
+        t0 = time.perf_counter()
+        out = eval_gradients(self.tape, self._wp(pts), device=self.device).numpy()
+        self.seconds["gradients"] += time.perf_counter() - t0
+        return out
 
     def patterns(self, choices: np.ndarray):
         """(pool, tape id per row) for the rows' branch decisions."""

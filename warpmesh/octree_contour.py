@@ -212,9 +212,10 @@ def leaf_loops(segments, minus, plus, n_vertices: int):
 
 
 # -- 5. placement ------------------------------------------------------------------------------
-def vertex_normals(tree: Octree, points, vertex_nodes, node_keys, capped):
-    """Outward unit normals: -grad f / |grad f|, or the bounds' outward normal at a cap."""
-    g = tree.field.gradients(points)[:, 1:].astype(np.float64)
+def vertex_normals(tree: Octree, points, vertex_nodes, node_keys, capped, fg=None):
+    """Outward unit normals: -grad f / |grad f| (from ``fg`` when the root finding left
+    (f, grad f) at the vertices), or the bounds' outward normal at a cap."""
+    g = (tree.field.gradients(points) if fg is None else fg)[:, 1:].astype(np.float64)
     normals = -g / np.maximum(np.linalg.norm(g, axis=1), 1e-30)[:, None]
     cap_end = capped[vertex_nodes].any(axis=1)
     if cap_end.any():
