@@ -224,3 +224,24 @@ def test_empty_surface_warns():
         m = wm.mesh_surface(wm.sphere(0.1, center=(5, 5, 5)), bounds=((-1,) * 3, (1,) * 3), adaptive=True,
                             max_level=4)
     assert m.n_cells == 0
+
+
+def test_closure_check_catches_holes_repeats_and_flips():
+    from warpmesh.errors import WarpMeshError
+    from warpmesh.octree_contour import check_closed
+
+    faces = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=12).cells["triangle"]
+    check_closed(faces)
+    for bad in (faces[1:], np.concatenate([faces, faces[:1]]), np.concatenate([faces[:1, ::-1], faces[1:]])):
+        with pytest.raises(WarpMeshError):
+            check_closed(bad)
+
+
+def test_sorted_search_matches_searchsorted():
+    from warpmesh.octree import search
+
+    rng = np.random.default_rng(1)
+    keys = np.sort(rng.integers(0, 1 << 40, 20000))
+    for n in (10, 50000):
+        q = np.concatenate([rng.choice(keys, n // 2), rng.integers(0, 1 << 40, n - n // 2)])
+        assert np.array_equal(search(keys, q), np.searchsorted(keys, q))
