@@ -61,11 +61,11 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     timings["root"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    half, loop_of, n_loops, loop_size = OC.leaf_loops(segments, minus, plus, len(points))
+    half, loop_of, n_loops, loop_size, nxt = OC.leaf_loops(segments, minus, plus, len(points))
     normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
     centres, feature = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, cap_vertex, features)
     unit_of_half = np.concatenate([segments[:, 0], segments[:, 0]])
-    tris, tri_half = OC.fan_triangles(half, loop_of, loop_size, len(points), unit_of_half, feature, points,
+    tris, tri_half = OC.fan_triangles(half, loop_of, loop_size, nxt, len(points), unit_of_half, feature, points,
                                       normals)
     all_points = np.concatenate([points, centres])
     flips = 0

@@ -192,7 +192,8 @@ def unit_segments(tree: Octree, axis, origin, size, node_of, ptr, node_keys):
 def leaf_loops(segments, minus, plus, n_vertices: int):
     """Half-segments (leaf, from, to) of both sides and the loop of each.
 
-    Returns (half (h, 3), loop_of (h,), n_loops, loop_size (n_loops,))."""
+    Returns (half (h, 3), loop_of (h,), n_loops, loop_size (n_loops,), next (h,): the
+    half-segment that follows each in its loop)."""
     unit, s, e = segments.T
     half = np.concatenate([np.stack([minus[unit], s, e], axis=1), np.stack([plus[unit], e, s], axis=1)])
     key_from = half[:, 0] * n_vertices + half[:, 1]
@@ -208,7 +209,7 @@ def leaf_loops(segments, minus, plus, n_vertices: int):
     n = len(half)
     graph = coo_matrix((np.ones(n, np.int8), (np.arange(n), nxt)), shape=(n, n))
     n_loops, loop_of = connected_components(graph, directed=True, connection="weak")
-    return half, loop_of, n_loops, np.bincount(loop_of, minlength=n_loops)
+    return half, loop_of, n_loops, np.bincount(loop_of, minlength=n_loops), nxt
 
 
 # -- 5. placement ------------------------------------------------------------------------------
@@ -284,7 +285,7 @@ def _folds(half, loop_of, n_loops, centre, points, normals):
 
 
 # -- 6. triangles --------------------------------------------------------------------------------
-def fan_triangles(half, loop_of, loop_size, n_vertices: int, unit_of_half, feature, points, normals):
+def fan_triangles(half, loop_of, loop_size, nxt, n_vertices: int, unit_of_half, feature, points, normals):
     """Outward triangles of every loop with 3+ segments, and the half-segment of each fan
     triangle (-1 for the others).
 
@@ -293,22 +294,27 @@ def fan_triangles(half, loop_of, loop_size, n_vertices: int, unit_of_half, featu
     is safe when its ends share no face unit of the leaf, since only then can no other
     leaf join the same two vertices. Other loops are fans to their loop vertex
     (``n_vertices + loop``), triangles (loop vertex, to, from)."""
-    n_loops = len(loop_size)
-    order = np.argsort(loop_of, kind="stable")  # half-segments grouped by loop ...
-    first = np.concatenate([[0], np.cumsum(loop_size)[:-1]])
-    # ... and put in cycle order within each loop: follow 'to' -> 'from' links
-    cyc = _cycle_order(half, loop_of, order, first, loop_size)
+    start = np.empty(len(loop_size), np.int64)
+    start[loop_of] = np.arange(len(loop_of))  # some half-segment of each loop
+
+    def in_order(loops, k):  # (len(loops), k): the loops' half-segments, following 'next'
+        h = np.empty((len(loops), k), np.int64)
+        h[:, 0] = start[loops]
+        for i in range(1, k):
+            h[:, i] = nxt[h[:, i - 1]]
+        return h
+
     direct = ~feature & ((loop_size == 3) | (loop_size == 4))
     tris, tri_half = [], []
     three = np.flatnonzero(direct & (loop_size == 3))
     if len(three):
-        h = cyc[first[three][:, None] + np.arange(3)]  # the 3 half-segments in order
+        h = in_order(three, 3)
         tris.append(np.stack([half[h[:, 2], 1], half[h[:, 1], 1], half[h[:, 0], 1]], axis=1))
         tri_half.append(np.full(len(three), -1, np.int64))
     four = np.flatnonzero(direct & (loop_size == 4))
     fan_loops = np.flatnonzero(~direct & (loop_size >= 3))
     if len(four):
-        h = cyc[first[four][:, None] + np.arange(4)]
+        h = in_order(four, 4)
         v = half[h, 1]  # v[:, i] starts half-segment i; half-segment i is on unit u[:, i]
         u = unit_of_half[h]
         # vertex i lies on units u[i-1] and u[i]; diagonal (0, 2) is safe when {u3, u0} and {u1, u2} differ
@@ -342,23 +348,6 @@ def _disjoint(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _folded(tris, points, normals):
     n_tri = np.cross(points[tris[:, 1]] - points[tris[:, 0]], points[tris[:, 2]] - points[tris[:, 0]])
     return np.einsum("nk,nk->n", n_tri, normals[tris].sum(axis=1)) <= 0
-
-
-def _cycle_order(half, loop_of, order, first, loop_size):
-    """Half-segment indices laid out loop by loop, each loop in cycle order."""
-    n = len(half)
-    key = half[:, 0] * (int(half[:, 1:].max()) + 1)
-    frm = key + half[:, 1]
-    to = key + half[:, 2]
-    srt = np.argsort(frm)
-    nxt = srt[search(frm[srt], to)]
-    out = np.empty(n, np.int64)
-    cur = order[first]  # any half-segment of each loop starts it
-    for i in range(int(loop_size.max()) if len(loop_size) else 0):
-        live = loop_size > i
-        out[first[live] + i] = cur[live]
-        cur = nxt[cur]
-    return out
 
 
 def flip_feature_edges(tree: Octree, tris, tri_half, half, loop_of, loop_size, feature, all_points):
