@@ -49,6 +49,7 @@ from warpmesh import _conventions as C
 from warpmesh.errors import WarpMeshError
 from warpmesh.octree import LEAF, CORNERS, Octree, pack, search, unpack
 from warpmesh.qef import mass_points, qef_points
+from warpmesh.tape import run_parallel
 
 PROJECT_STEPS = 2  # Newton steps projecting a loop's vertex onto f = 0 (quadratic: it starts within ~h^2/r)
 SPREAD_COS = 0.97  # a loop whose normals all lie within 14 degrees of their mean is smooth: no QEF
@@ -59,20 +60,24 @@ def face_units(tree: Octree):
     """Units as (axis, lattice origin (u, 3), size (u,), minus leaf, plus leaf, owner, side):
     the owner is the leaf whose whole face the unit is, on its ``side`` (+1 or -1) of axis."""
     span = tree.span(tree.leaf_level)
-    out = []
-    for a in range(3):
-        for side in (-1, 1):
-            across = tree.leaf_ijk.copy()
-            across[:, a] += side
-            st, other, lvl = tree.covering_leaf(tree.leaf_level, across)
-            # a same-size neighbour's face is taken once, from its minus side
-            take = np.flatnonzero((st == LEAF) & ((side == 1) | (lvl != tree.leaf_level)))
-            me, you = take, other[take]
-            o = tree.leaf_ijk[take] * span[take, None]
-            if side == 1:
-                o[:, a] += span[take]
-            out.append((np.full(len(me), a, np.int64), o, span[take], me if side == 1 else you,
-                        you if side == 1 else me, me, np.full(len(me), side, np.int64)))
+    out = [None] * 6
+
+    def direction(k: int) -> None:
+        a, side = k // 2, 2 * (k % 2) - 1
+        across = tree.leaf_ijk.copy()
+        across[:, a] += side
+        st, other, lvl = tree.covering_leaf(tree.leaf_level, across)
+        # a same-size neighbour's face is taken once, from its minus side
+        take = np.flatnonzero((st == LEAF) & ((side == 1) | (lvl != tree.leaf_level)))
+        me, you = take, other[take]
+        o = tree.leaf_ijk[take] * span[take, None]
+        if side == 1:
+            o[:, a] += span[take]
+        out[k] = (np.full(len(me), a, np.int64), o, span[take], me if side == 1 else you,
+                  you if side == 1 else me, me, np.full(len(me), side, np.int64))
+
+    # numpy's searches and sorts release the GIL: two threads take the six directions
+    run_parallel([lambda ks=ks: [direction(k) for k in ks] for ks in ((0, 1, 2), (3, 4, 5))])
     return tuple(np.concatenate([o[k] for o in out]) for k in range(7))
 
 
