@@ -114,10 +114,12 @@ def boundary_cycles(tree: Octree, axis, owner, side):
     direction = np.stack([b, c, b, c], axis=1)
     n_hang = np.empty((n_units, 4), np.int64)
     low_rank = np.empty((n_units, 4), np.int64)
-    for d in range(3):
-        sel = direction == d
-        low_rank[sel] = rank[d][lower[sel]]
-        n_hang[sel] = rank[d][upper[sel]] - low_rank[sel] - 1
+    for a in range(3):  # units of one axis: edges 0, 2 run along b, edges 1, 3 along c
+        sel = np.flatnonzero(axis == a)
+        for cols, d in (([0, 2], (a + 1) % 3), ([1, 3], (a + 2) % 3)):
+            lr = rank[d][lower[sel][:, cols]]
+            low_rank[sel[:, None], cols] = lr
+            n_hang[sel[:, None], cols] = rank[d][upper[sel][:, cols]] - lr - 1
     counts = 4 + n_hang.sum(axis=1)
     ptr = np.zeros(n_units + 1, np.int64)
     np.cumsum(counts, out=ptr[1:])
