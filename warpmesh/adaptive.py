@@ -63,10 +63,15 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     t0 = time.perf_counter()
     half, loop_of, n_loops, loop_size, nxt = OC.leaf_loops(segments, minus, plus, len(points))
     normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
-    centres, feature = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, cap_vertex, features)
+    centres, rank = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, features)
     unit_of_half = np.concatenate([segments[:, 0], segments[:, 0]])
-    tris, tri_half = OC.fan_triangles(half, loop_of, loop_size, nxt, len(points), unit_of_half, feature, points,
-                                      normals)
+    tris, tri_half = OC.fan_triangles(half, loop_of, loop_size, nxt, len(points), unit_of_half, rank >= 2,
+                                      points, normals)
+    fanned = np.zeros(n_loops, bool)
+    fanned[loop_of[tri_half[tri_half >= 0]]] = True
+    centres, rank = OC.settle_vertices(tree, half, loop_of, n_loops, centres, rank, points, normals, cap_vertex,
+                                       fanned)
+    feature = (rank >= 2) & features
     all_points = np.concatenate([points, centres])
     flips = 0
     if features:

@@ -247,40 +247,63 @@ def project(tree: Octree, x: np.ndarray, limit: np.ndarray) -> np.ndarray:
     return x
 
 
-def loop_vertices(tree: Octree, half, loop_of, n_loops, points, normals, cap_vertex, features: bool):
-    """One vertex per loop and whether it marks a sharp feature (QEF rank >= 2)."""
-    frm = half[:, 1]
-    leaf = np.zeros(n_loops, np.int64)
+def _leaf_boxes(tree: Octree, half, loop_of, loops):
+    leaf = np.zeros(len(loop_of) and int(loop_of.max()) + 1, np.int64)
     leaf[loop_of] = half[:, 0]
-    lo = tree.world(tree.leaf_ijk[leaf] * tree.span(tree.leaf_level[leaf])[:, None])
-    hi = tree.world((tree.leaf_ijk[leaf] + 1) * tree.span(tree.leaf_level[leaf])[:, None])
-    mass = mass_points(loop_of, points[frm], n_loops)
-    has_cap = np.bincount(loop_of, cap_vertex[frm], n_loops) > 0
-    x, rank = mass.copy(), np.ones(n_loops, np.int64)
-    if features:  # the QEF only where the normals spread (elsewhere it is the mass point, projected below)
-        mean = np.stack([np.bincount(loop_of, normals[frm, k], n_loops) for k in range(3)], axis=1)
-        mean /= np.maximum(np.linalg.norm(mean, axis=1), 1e-30)[:, None]
-        spread = np.bincount(loop_of, np.einsum("nk,nk->n", normals[frm], mean[loop_of]) < SPREAD_COS, n_loops) > 0
-        sel = np.flatnonzero(spread)
-        if len(sel):
-            member = np.flatnonzero(spread[loop_of])
-            group = np.searchsorted(sel, loop_of[member])
-            xs, rs = qef_points(group, points[frm[member]], normals[frm[member]], len(sel))
-            margin = 0.25 * (hi[sel] - lo[sel])
-            bad = np.any((xs < lo[sel] - margin) | (xs > hi[sel] + margin), axis=1)
-            x[sel[~bad]], rank[sel[~bad]] = xs[~bad], rs[~bad]
-    smooth = ~has_cap  # a feature vertex from tangent planes of a curved face sits just off it
+    leaf = leaf[loops]
+    span = tree.span(tree.leaf_level[leaf])[:, None]
+    return tree.world(tree.leaf_ijk[leaf] * span), tree.world((tree.leaf_ijk[leaf] + 1) * span)
+
+
+def loop_vertices(tree: Octree, half, loop_of, n_loops, points, normals, features: bool):
+    """A first vertex per loop and its QEF rank: the QEF minimiser where the loop's normals
+    spread (a sharp feature may cross it), else the mass point (rank 1)."""
+    frm = half[:, 1]
+    x = mass_points(loop_of, points[frm], n_loops)
+    rank = np.ones(n_loops, np.int64)
+    if not features:
+        return x, rank
+    mean = np.stack([np.bincount(loop_of, normals[frm, k], n_loops) for k in range(3)], axis=1)
+    mean /= np.maximum(np.linalg.norm(mean, axis=1), 1e-30)[:, None]
+    spread = np.bincount(loop_of, np.einsum("nk,nk->n", normals[frm], mean[loop_of]) < SPREAD_COS, n_loops) > 0
+    sel = np.flatnonzero(spread)
+    if len(sel):
+        member = np.flatnonzero(spread[loop_of])
+        group = np.searchsorted(sel, loop_of[member])
+        xs, rs = qef_points(group, points[frm[member]], normals[frm[member]], len(sel))
+        lo, hi = _leaf_boxes(tree, half, loop_of, sel)
+        margin = 0.25 * (hi - lo)
+        bad = np.any((xs < lo - margin) | (xs > hi + margin), axis=1)  # not in its leaf: keep the mass point
+        x[sel[~bad]], rank[sel[~bad]] = xs[~bad], rs[~bad]
+    return x, rank
+
+
+def settle_vertices(tree: Octree, half, loop_of, n_loops, x, rank, points, normals, cap_vertex, need):
+    """Move the vertices of the loops ``need`` (those closed by fans) onto f = 0 (Newton
+    steps, except on caps); a fan that would fold against the normals falls back to the
+    loop's mass point. Returns (x, rank) updated."""
+    loops = np.flatnonzero(need)
+    if not len(loops):
+        return x, rank
+    x, rank = x.copy(), rank.copy()
+    members = np.flatnonzero(need[loop_of])
+    sub_loop = np.searchsorted(loops, loop_of[members])  # members' loops renumbered 0..len(loops)
+    sub_half = half[members]
+    lo, hi = _leaf_boxes(tree, half, loop_of, loops)
     limit = np.linalg.norm(hi - lo, axis=1)
-    if smooth.any():
-        x[smooth] = project(tree, x[smooth], limit[smooth])
-    # a fan that folds against the normals falls back to the mass point
-    folded = _folds(half, loop_of, n_loops, x, points, normals)
+    smooth = np.bincount(sub_loop, cap_vertex[sub_half[:, 1]], len(loops)) == 0  # no cap vertex
+    xs = x[loops]
+    if smooth.any():  # (a feature vertex made from tangent planes of a curved face sits just off it)
+        xs[smooth] = project(tree, xs[smooth], limit[smooth])
+    folded = _folds(sub_half, sub_loop, len(loops), xs, points, normals)
     if folded.any():
-        x[folded], rank[folded] = mass[folded], 1
+        xs[folded] = mass_points(sub_loop, points[sub_half[:, 1]], len(loops))[folded]
+        rank[loops[folded]] = 1
         again = folded & smooth
         if again.any():
-            x[again] = project(tree, x[again], limit[again])
-    return x, (rank >= 2) & features
+            xs[again] = project(tree, xs[again], limit[again])
+    x[loops] = xs
+    return x, rank
 
 
 def _folds(half, loop_of, n_loops, centre, points, normals):
