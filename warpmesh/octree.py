@@ -124,10 +124,15 @@ class NodeStore:
         return np.where(hit, pos, -1)
 
     def add(self, keys: np.ndarray, values: np.ndarray) -> None:
+        """Add sorted unique keys; a key already held keeps its value (the first one
+        evaluated, on the coarsest level), so every node has one value."""
         keys = np.concatenate([self.keys, keys])
         values = np.concatenate([self.values, values.astype(np.float32)])
-        order = np.argsort(keys, kind="stable")
-        self.keys, self.values = keys[order], values[order]
+        order = np.argsort(keys, kind="stable")  # two sorted runs: a linear merge
+        keys, values = keys[order], values[order]
+        first = np.ones(len(keys), bool)
+        first[1:] = keys[1:] != keys[:-1]
+        self.keys, self.values = keys[first], values[first]
 
     def get(self, keys: np.ndarray) -> np.ndarray:
         idx = self.find(keys)
@@ -318,21 +323,21 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
         cap_leaf = inside & touches  # the cap on the bounds crosses it: a leaf, its cap is flat
         active = ~(inside | outside)
         refine = active.copy()
-        checked = np.zeros(len(ijk), bool)
+        checked = active if min_level <= level < max_level else np.zeros(len(ijk), bool)
+        # the corners of every cell checked or kept as a leaf (the extraction reads them)
+        need = cap_leaf | (active & (level >= min_level))
+        vals = _level_corners(tree, level, ijk[need], pool, tape_id[need])
         if level >= max_level:
             refine[:] = False
         elif level >= min_level:
-            checked = active
             graze = np.zeros(len(ijk), np.int8)  # +1: may only touch f = 0 from inside, -1: from outside
             if bound == "interval":
                 width = GRAZE * (iv[:, 1] - iv[:, 0])
                 graze[iv[:, 1] < width] = -1
                 graze[iv[:, 0] > -width] = 1
-            refine[active] = _criteria_fail(tree, level, ijk[active], pool, tape_id[active], sin1, cos2,
+            refine[active] = _criteria_fail(tree, level, ijk[active], vals[active[need]], sin1, cos2,
                                             graze[active])
         leaf = cap_leaf | (active & ~refine)
-        # corners of every leaf are known before extraction
-        _store_corners(tree, level, ijk[leaf], pool, tape_id[leaf])
         status = np.where(refine, INTERNAL, np.where(leaf, LEAF, CULLED)).astype(np.int8)
         leaf_of = np.full(len(ijk), -1, np.int64)
         leaf_of[leaf] = n_leaves + np.arange(int(leaf.sum()))
@@ -378,16 +383,14 @@ def _corner_keys(tree: Octree, level: int, ijk: np.ndarray) -> np.ndarray:
     return pack((ijk[:, None, :] + CORNERS[None]) * span)  # (n, 8)
 
 
-def _store_corners(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id) -> None:
-    """Evaluate the corners of cells that the store does not hold yet (each node once)."""
+def _level_corners(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id) -> np.ndarray:
+    """f at the corners of cells of one level, (n, 8): each distinct corner evaluated once
+    and stored (a corner known from a coarser level keeps its stored value; re-evaluating
+    the eighth of corners shared with the level above is cheaper than looking them up)."""
     if not len(ijk):
-        return
-    keys = _corner_keys(tree, level, ijk).ravel()
-    keys, first = np.unique(keys, return_index=True)
-    new = tree.nodes.find(keys) < 0
-    keys, first = keys[new], first[new]
-    if not len(keys):
-        return
+        return np.zeros((0, 8), np.float32)
+    keys, first, inverse = np.unique(_corner_keys(tree, level, ijk).ravel(), return_index=True,
+                                     return_inverse=True)
     tid = None if tape_id is None else np.asarray(tape_id)[first // 8]
     vals = tree.field.values(tree.world(unpack(keys)), pool, tid)
     if not np.all(np.isfinite(vals)):
@@ -395,6 +398,7 @@ def _store_corners(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id) -> 
         raise ValueError(f"the shape evaluates to NaN or infinity at {bad.tolist()}: check the shape "
                          "(e.g. sqrt or log of a negative value, division by zero)")
     tree.nodes.add(keys, vals)
+    return vals[inverse].reshape(-1, 8)
 
 
 _EDGE_ARRAYS: dict = {}
@@ -407,16 +411,13 @@ def _edges_array(device) -> wp.array:
     return _EDGE_ARRAYS[key]
 
 
-def _criteria_fail(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id, sin1: float,
+def _criteria_fail(tree: Octree, level: int, ijk: np.ndarray, vals: np.ndarray, sin1: float,
                    cos2: float, graze: np.ndarray) -> np.ndarray:
     """Which of these active cells must be refined (signs, planarity, divergence, singularity).
     ``sin1 < 0`` means an absolute chord tolerance of -sin1; ``cos2 < -1`` no divergence test."""
     fail = np.ones(len(ijk), bool)
     if not len(ijk):
         return fail
-    _store_corners(tree, level, ijk, pool, tape_id)
-    keys = _corner_keys(tree, level, ijk)
-    vals = tree.nodes.get(keys.ravel()).reshape(-1, 8)
     config = ((vals > 0) << np.arange(8)).sum(axis=1)
     fail[((config == 0) & (graze < 0)) | ((config == 255) & (graze > 0))] = False
     sheet = (config != 0) & (config != 255) & ONE_SHEET[config]
