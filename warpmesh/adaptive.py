@@ -16,6 +16,7 @@ Example
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
@@ -49,6 +50,17 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64), None
 
     t0 = time.perf_counter()
+    # the loops need only the segments: chain them on a second thread while the roots are found
+    loops: list = []
+
+    def chain_loops():
+        try:
+            loops.append(OC.leaf_loops(segments, minus, plus, len(vnodes)))
+        except BaseException as exc:  # re-raised on the calling thread below
+            loops.append(exc)
+
+    chain = threading.Thread(target=chain_loops)
+    chain.start()
     p0, p1, t = OC.edge_points(tree, vnodes, node_keys, values)
     cap_vertex = capped[vnodes].any(axis=1)
     points = p0 + t[:, None] * (p1 - p0)
@@ -61,7 +73,10 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     timings["root"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    half, loop_of, n_loops, loop_size, nxt = OC.leaf_loops(segments, minus, plus, len(points))
+    chain.join()
+    if isinstance(loops[0], BaseException):
+        raise loops[0]
+    half, loop_of, n_loops, loop_size, nxt = loops[0]
     normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
     centres, rank = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, features)
     unit_of_half = np.concatenate([segments[:, 0], segments[:, 0]])
