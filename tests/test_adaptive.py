@@ -245,3 +245,28 @@ def test_sorted_search_matches_searchsorted():
     for n in (10, 50000):
         q = np.concatenate([rng.choice(keys, n // 2), rng.integers(0, 1 << 40, n - n // 2)])
         assert np.array_equal(search(keys, q), np.searchsorted(keys, q))
+
+
+def test_refined_to_the_finest_level_at_a_singular_point(check_mesh):
+    """The double cone z^2 = x^2 + y^2 has grad f = 0 at its apex: the leaves there are the
+    finest, while the flanks stay coarse; f = 0 counts as outside, so the two nappes are two
+    closed components."""
+    x, y, z = E.coords()
+    m = wm.mesh_surface(wm.Shape(z * z - x * x - y * y), bounds=((-1,) * 3, (1,) * 3), adaptive=True,
+                        max_level=7)
+    check_mesh(m)
+    assert (m.stats()["euler"], m.stats()["components"]) == (4, 2)
+    p, t = m.points, m.cells["triangle"]
+    centre = p[t].mean(axis=1)
+    length = np.linalg.norm(p[t] - p[np.roll(t, 1, axis=1)], axis=2).mean(axis=1) / m.info["finest_cell"][0]
+    assert length[np.linalg.norm(centre, axis=1) < 0.05].mean() < 1.2
+    assert length[np.abs(np.abs(centre[:, 2]) - 0.7) < 0.05].mean() > 2.5
+
+
+def test_caps_carry_their_ref():
+    shape, bounds = wm.example("degree6")  # meets the box: closed by caps on it
+    m = wm.mesh_surface(shape, bounds=bounds, adaptive=True, max_level=6)
+    refs = m.cell_refs["triangle"]
+    assert set(np.unique(refs)) == {1, 2}
+    c = m.points[m.cells["triangle"][refs == 2]].mean(axis=1)
+    assert np.all(np.abs(np.abs(c).max(axis=1) - 3.0) < 0.1)  # cap triangles lie on the box

@@ -353,34 +353,38 @@ def fan_triangles(half, loop_of, loop_size, nxt, n_vertices: int, unit_of_half, 
         u = unit_of_half[h]  # ... so vertex i lies on units u[:, i - 1] and u[:, i]
         best_q = np.full(len(loops), -np.inf)
         best = np.zeros((len(loops), n - 2, 3), np.int64)
-        for k in range(n if n > 3 else 1):
+        for k in range({3: 1, 4: 2}.get(n, n)):  # (a 4-loop has two diagonals, a 3-loop none)
             vk, uk = np.roll(v, -k, axis=1), np.roll(u, -k, axis=1)
             ok = np.ones(len(loops), bool)
             for i in range(2, n - 1):  # the diagonal v_k v_{k+i}
                 ok &= _disjoint(uk[:, [n - 1, 0]], uk[:, [i - 1, i]])
             # the loop runs v_0 -> v_1 -> ...; outward triangles are reversed: (v_{i+1}, v_i, v_0)
             t = np.stack([np.stack([vk[:, i + 1], vk[:, i], vk[:, 0]], axis=1) for i in range(1, n - 1)], axis=1)
-            flat = t.reshape(-1, 3)
-            ok &= ~_folded(flat, points, normals).reshape(len(loops), n - 2).any(axis=1)
-            q = _shape(flat, points).reshape(len(loops), n - 2).min(axis=1)
+            folded, shape = _fold_and_shape(t.reshape(-1, 3), points, normals)
+            ok &= ~folded.reshape(len(loops), n - 2).any(axis=1)
+            q = shape.reshape(len(loops), n - 2).min(axis=1)
             take = ok & (q > best_q)
             best_q[take], best[take] = q[take], t[take]
         good = np.isfinite(best_q)
         tris.append(best[good].reshape(-1, 3))
         tri_half.append(np.full((n - 2) * int(good.sum()), -1, np.int64))
         fan_loops.append(loops[~good])
-    keep = np.flatnonzero(np.isin(loop_of, np.concatenate(fan_loops)))
+    is_fan = np.zeros(len(loop_size), bool)
+    is_fan[np.concatenate(fan_loops)] = True
+    keep = np.flatnonzero(is_fan[loop_of])
     tris.append(np.stack([n_vertices + loop_of[keep], half[keep, 2], half[keep, 1]], axis=1))
     tri_half.append(keep)
     return np.concatenate(tris), np.concatenate(tri_half)
 
 
-def _shape(tris, points):
-    """4 sqrt(3) area / (sum of squared edges): 1 for the equilateral triangle, 0 when flat."""
+def _fold_and_shape(tris, points, normals):
+    """Per triangle: whether it folds against its vertices' normals, and its shape
+    4 sqrt(3) area / (sum of squared edges) (1 equilateral, 0 flat)."""
     p = points[tris]
-    area2 = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
-    edges = ((p - np.roll(p, 1, axis=1)) ** 2).sum(axis=(1, 2))
-    return 2 * np.sqrt(3) * area2 / np.maximum(edges, 1e-300)
+    n_tri = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    folded = np.einsum("nk,nk->n", n_tri, normals[tris].sum(axis=1)) <= 0
+    edges = ((p - p[:, [2, 0, 1]]) ** 2).sum(axis=(1, 2))
+    return folded, 2 * np.sqrt(3) * np.linalg.norm(n_tri, axis=1) / np.maximum(edges, 1e-300)
 
 
 def _disjoint(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -389,14 +393,10 @@ def _disjoint(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         (a[:, 1:] != b[:, :1]).all(axis=1) & (a[:, 1:] != b[:, 1:]).all(axis=1)
 
 
-def _folded(tris, points, normals):
-    n_tri = np.cross(points[tris[:, 1]] - points[tris[:, 0]], points[tris[:, 2]] - points[tris[:, 0]])
-    return np.einsum("nk,nk->n", n_tri, normals[tris].sum(axis=1)) <= 0
-
-
 def flip_feature_edges(tree: Octree, tris, tri_half, half, loop_of, loop_size, feature, all_points):
     """Flip the two fan triangles on a segment between two feature vertices when the
-    new edge (joining them) lies closer to the surface than the segment."""
+    new edge (joining them) lies closer to the surface than the segment (with caps, to
+    the surface or the bounds, whichever is nearer)."""
     n_half = len(half)
     n_seg = n_half // 2
     tri_of_half = np.full(n_half, -1, np.int64)
@@ -404,8 +404,7 @@ def flip_feature_edges(tree: Octree, tris, tri_half, half, loop_of, loop_size, f
     tri_of_half[tri_half[fan]] = fan
     t1, t2 = tri_of_half[:n_seg], tri_of_half[n_seg:]  # the minus and plus sides of each segment
     l1, l2 = loop_of[:n_seg], loop_of[n_seg:]
-    cand = np.flatnonzero((t1 >= 0) & (t2 >= 0) & feature[l1] & feature[l2] &
-                          (loop_size[l1] >= 4) & (loop_size[l2] >= 4))
+    cand = np.flatnonzero((t1 >= 0) & (t2 >= 0) & feature[l1] & feature[l2])
     if not len(cand):
         return tris, 0
     c1 = tris[t1[cand], 0]
@@ -414,6 +413,9 @@ def flip_feature_edges(tree: Octree, tris, tri_half, half, loop_of, loop_size, f
     mids = np.concatenate([0.5 * (all_points[c1] + all_points[c2]), 0.5 * (all_points[a] + all_points[b])])
     fg = tree.field.gradients(mids).astype(np.float64)
     dist = np.abs(fg[:, 0]) / np.maximum(np.linalg.norm(fg[:, 1:], axis=1), 1e-30)
+    if tree.cap:  # the capped solid's boundary is also the bounds: its edges and corners are sharp too
+        lo, hi = tree.origin, tree.world(tree.lattice_max())
+        dist = np.minimum(dist, np.minimum(mids - lo, hi - mids).min(axis=1))
     better = dist[:len(cand)] < 0.5 * dist[len(cand):]
     cand, c1, c2, a, b, new_d = cand[better], c1[better], c2[better], a[better], b[better], dist[:len(cand)][better]
     # one flip per pair of loops (two would join them twice)
