@@ -210,8 +210,6 @@ class Octree:
     cap: bool
     leaf_level: np.ndarray  # (m,) int64
     leaf_ijk: np.ndarray  # (m, 3) int64, at the leaf's own level
-    leaf_tape: np.ndarray  # (m,) int64: index into pools[level]
-    pools: dict  # level -> TapePool (or None without pruning)
     status: tuple  # (sorted cell keys of every level, status CULLED / LEAF / INTERNAL, leaf index or -1)
     nodes: NodeStore
     field: Field
@@ -244,9 +242,6 @@ class Octree:
         hit = inside & (keys[pos] == k)
         st[hit], leaf[hit] = status[pos[hit]], leaf_of[pos[hit]]
         return st, leaf
-
-    def cells_per_axis(self, level: int) -> np.ndarray:
-        return self.n_finest >> (self.max_level - level)
 
     def covering_leaf(self, level: np.ndarray, ijk: np.ndarray):
         """For cells at ``level`` (one per cell): (status, leaf, level found) of the cell
@@ -293,15 +288,15 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     sin1 = np.sin(min(eps1, np.pi / 2)) if chord is None else -chord  # negative: an absolute chord test
     cos2 = np.cos(min(eps2, np.pi)) if (tolerance is not None or angles is not None) else -2.0
     fld = Field(tape, device, prune and bound == "interval")
-    tree = Octree(lo.astype(np.float64), h, n_finest, max_level, base, cap, None, None, None, {}, {},
+    tree = Octree(lo.astype(np.float64), h, n_finest, max_level, base, cap, None, None, (),
                   NodeStore(), fld)
     lat_max = tree.lattice_max()
 
     ijk = np.stack(np.meshgrid(*[np.arange(n) for n in n0], indexing="ij"), axis=-1).reshape(-1, 3)
     choices = np.zeros((len(ijk), fld.n_sel), np.uint8)
-    pool, tape_id = fld.patterns(choices[:1]) if fld.prune else (None, None)
+    pool = P.pool_for_root(tape) if fld.prune else None  # one tape, the whole one
     tape_id = np.zeros(len(ijk), np.int64)
-    leaves_level, leaves_ijk, leaves_tape = [], [], []
+    leaves_level, leaves_ijk = [], []
     all_keys, all_status, all_leaf = [], [], []
     n_leaves = 0
     for level in range(base, max_level + 1):
@@ -345,10 +340,8 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
         all_keys.append(cell_keys(np.full(len(ijk), level), ijk))
         all_status.append(status)
         all_leaf.append(leaf_of)
-        tree.pools[level] = pool
         leaves_level.append(np.full(int(leaf.sum()), level, np.int64))
         leaves_ijk.append(ijk[leaf])
-        leaves_tape.append(tape_id[leaf])
         tree.levels.append({
             "level": level, "cells": len(ijk), "culled_inside": int((inside & ~touches).sum()),
             "culled_outside": int(outside.sum()), "cap_leaves": int(cap_leaf.sum()),
@@ -371,7 +364,6 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
         ijk = (ijk[parents][:, None, :] * 2 + CORNERS[None]).reshape(-1, 3)
     tree.leaf_level = np.concatenate(leaves_level)
     tree.leaf_ijk = np.concatenate(leaves_ijk)
-    tree.leaf_tape = np.concatenate(leaves_tape)
     keys = np.concatenate(all_keys)
     order = np.argsort(keys)
     tree.status = (keys[order], np.concatenate(all_status)[order], np.concatenate(all_leaf)[order])
