@@ -93,9 +93,8 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
         tris, flips = OC.flip_feature_edges(tree, tris, tri_half, half, loop_of, loop_size, feature, all_points)
     OC.check_closed(tris)
     refs = None
-    if cap and cap_vertex.any():  # a triangle with every vertex on a cap (or a cap loop's vertex)
-        on_cap = np.concatenate([cap_vertex, np.bincount(loop_of, ~cap_vertex[half[:, 1]], n_loops) == 0])
-        refs = np.where(on_cap[tris].all(axis=1), CAP_REF, SURFACE_REF)
+    if cap and cap_vertex.any():  # a cap triangle has its three vertices on one face of the bounds
+        refs = np.where(_on_one_face(tree, all_points[tris]), CAP_REF, SURFACE_REF)
     used = np.zeros(len(all_points), bool)
     used[tris.ravel()] = True
     renumber = np.cumsum(used) - 1
@@ -104,6 +103,15 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     info.update(loops=int(n_loops), feature_vertices=int(feature.sum()), feature_flips=int(flips))
     _finish_info(tree, info, len(all_points), len(tris), n_loops)
     return all_points, tris, refs
+
+
+def _on_one_face(tree, corners: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) triangle corners -> whether all three lie on one face of the bounds (within
+    a thousandth of the coarsest cell, as cap vertices sit EDGE_T_MIN along their edge)."""
+    lo, hi = tree.origin, tree.world(tree.lattice_max())
+    tol = 1e-3 * float(np.max(tree.h)) * (1 << (tree.max_level - tree.base_level)) * 1.01
+    on = np.concatenate([np.abs(corners - lo) <= tol, np.abs(corners - hi) <= tol], axis=2)  # (m, 3, 6)
+    return on.all(axis=1).any(axis=1)
 
 
 def _refine(tape, tree, p0, p1, t, p0_inside, keep, root, iterations, gradient, device, timings):
