@@ -94,7 +94,7 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     OC.check_closed(tris)
     refs = None
     if cap and cap_vertex.any():  # a cap triangle has its three vertices on one face of the bounds
-        refs = np.where(_on_one_face(tree, all_points[tris]), CAP_REF, SURFACE_REF)
+        refs = np.where(_on_one_face(tree, all_points, tris), CAP_REF, SURFACE_REF)
     used = np.zeros(len(all_points), bool)
     used[tris.ravel()] = True
     renumber = np.cumsum(used) - 1
@@ -105,13 +105,14 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     return all_points, tris, refs
 
 
-def _on_one_face(tree, corners: np.ndarray) -> np.ndarray:
-    """(m, 3, 3) triangle corners -> whether all three lie on one face of the bounds (within
-    a thousandth of the coarsest cell, as cap vertices sit EDGE_T_MIN along their edge)."""
+def _on_one_face(tree, points: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Whether each triangle's three vertices lie on one face of the bounds (within a
+    thousandth of the coarsest cell: cap vertices sit EDGE_T_MIN along their edge)."""
     lo, hi = tree.origin, tree.world(tree.lattice_max())
     tol = 1e-3 * float(np.max(tree.h)) * (1 << (tree.max_level - tree.base_level)) * 1.01
-    on = np.concatenate([np.abs(corners - lo) <= tol, np.abs(corners - hi) <= tol], axis=2)  # (m, 3, 6)
-    return on.all(axis=1).any(axis=1)
+    faces = ((np.abs(points - lo) <= tol) << np.arange(3)).sum(axis=1) | \
+        ((np.abs(points - hi) <= tol) << np.arange(3, 6)).sum(axis=1)  # a bit per face of the bounds
+    return (faces[tris[:, 0]] & faces[tris[:, 1]] & faces[tris[:, 2]]) != 0
 
 
 def _refine(tape, tree, p0, p1, t, p0_inside, keep, root, iterations, gradient, device, timings):
