@@ -380,11 +380,14 @@ def fan_triangles(half, loop_of, loop_size, nxt, n_vertices: int, unit_of_half, 
 def _fold_and_shape(tris, points, normals):
     """Per triangle: whether it folds against its vertices' normals, and its shape
     4 sqrt(3) area / (sum of squared edges) (1 equilateral, 0 flat)."""
-    p = points[tris]
-    n_tri = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    folded = np.einsum("nk,nk->n", n_tri, normals[tris].sum(axis=1)) <= 0
-    edges = ((p - p[:, [2, 0, 1]]) ** 2).sum(axis=(1, 2))
-    return folded, 2 * np.sqrt(3) * np.linalg.norm(n_tri, axis=1) / np.maximum(edges, 1e-300)
+    a, b, c = points[tris[:, 0]], points[tris[:, 1]], points[tris[:, 2]]
+    ab, bc, ca = b - a, c - b, a - c
+    n_tri = np.cross(ab, -ca)
+    nsum = normals[tris[:, 0]] + normals[tris[:, 1]] + normals[tris[:, 2]]
+    folded = np.einsum("nk,nk->n", n_tri, nsum) <= 0
+    edges = np.einsum("nk,nk->n", ab, ab) + np.einsum("nk,nk->n", bc, bc) + np.einsum("nk,nk->n", ca, ca)
+    area2 = np.sqrt(np.einsum("nk,nk->n", n_tri, n_tri))
+    return folded, 2 * np.sqrt(3) * area2 / np.maximum(edges, 1e-300)
 
 
 def _disjoint(a: np.ndarray, b: np.ndarray) -> np.ndarray:
