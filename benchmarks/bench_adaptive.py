@@ -7,8 +7,8 @@ of the bounds, a power of two; default 256 512), on the same bounds and the same
 resolution:
 
 - ``warpmesh adaptive``: ``wm.mesh_surface(shape, bounds=bounds, adaptive=True,
-  max_level=log2(N), tolerance=...)`` (the reference of the ratio columns). Skipped with
-  "warpmesh adaptive: not available" while ``mesh_surface`` does not take ``adaptive``.
+  max_level=log2(N), tolerance=...)`` (the reference of the ratio columns); if it fails,
+  its row says why and the peers still run.
 - ``warpmesh grid``: ``wm.mesh_surface(shape, bounds=bounds, resolution=N)``, the default
   method and covering (culled block grid), for reference.
 - ``numpy + scikit-image``: f evaluated with numpy on the (N+1)^3 nodes (the expression
@@ -239,54 +239,32 @@ def warpmesh_grid(shape, lo, hi, n_cells):
 
 
 class Adaptive:
-    """warpmesh's adaptive mesher, probed once: mesh_surface(..., adaptive=True, max_level=,
-    tolerance=), with evaluator='compiled' when it accepts it (warm runs: the generated
-    kernel), else without."""
+    """warpmesh's adaptive mesher: mesh_surface(..., adaptive=True, max_level=, tolerance=),
+    probed once per shape (the probe doubles as its warm-up); a failure is reported in its
+    row and the peers still run."""
 
     def __init__(self, tolerance):
         self.tolerance = tolerance
-        self.status = None  # None: not probed or failed on the last shape; "ok"; "not available (...)"
         self.failure = None  # why the last probe failed, when it did
-        self.extra = None
 
     def missing(self) -> str:
         """The table line when the adaptive mesher did not run."""
-        if (self.status or "").startswith("not available (mesh_surface"):
-            return "warpmesh adaptive: not available"  # mesh_surface does not take adaptive= yet
-        if (self.status or "").startswith("not available"):
-            return f"warpmesh adaptive: {self.status}"
         return f"warpmesh adaptive: {self.failure}"
 
-    def call(self, shape, lo, hi, max_level, extra=None):
-        kw = self.extra if extra is None else extra
+    def call(self, shape, lo, hi, max_level):
         m = wm.mesh_surface(shape, bounds=(tuple(lo), tuple(hi)), adaptive=True, max_level=max_level,
-                            tolerance=self.tolerance, device=DEVICE, **kw)
+                            tolerance=self.tolerance, device=DEVICE)
         return _mesh_out(m)
 
     def probe(self, shape, lo, hi, max_level):
-        """True when the adaptive mesher runs on this shape (the probe doubles as a warm-up)."""
-        if (self.status or "").startswith("not available"):
+        """True when the adaptive mesher runs on this shape."""
+        try:
+            self.call(shape, lo, hi, max_level)
+        except Exception as exc:  # noqa: BLE001 -- reported in the table, the peers still run
+            self.failure = f"failed ({type(exc).__name__}: {str(exc)[:200]})"
             return False
-        last = None
-        for extra in ({"evaluator": "compiled"}, {}):
-            try:
-                self.call(shape, lo, hi, max_level, extra)
-            except TypeError as exc:
-                if any(w in str(exc) for w in ("'adaptive'", "'max_level'", "'tolerance'")):
-                    self.status = f"not available (mesh_surface: {exc})"
-                    return False
-                last = exc
-                continue
-            except ImportError as exc:  # ModuleNotFoundError included: a module of it not in this build yet
-                self.status = f"not available ({type(exc).__name__}: {str(exc)[:160]})"
-                return False
-            except Exception as exc:  # noqa: BLE001 -- under development: report it, try without evaluator
-                last = exc
-                continue
-            self.status, self.extra = "ok", extra
-            return True
-        self.status, self.failure = None, f"failed ({type(last).__name__}: {str(last)[:200]})"
-        return False
+        self.failure = None
+        return True
 
 
 # =============================================================================================
@@ -367,7 +345,7 @@ def run_case(args, name, n_cells, adaptive: Adaptive, consts) -> dict:
     rows_meta = {}  # name -> dict(kind=..., label=...)
     entries = {}
 
-    # warpmesh adaptive (reference of the ratios), if mesh_surface takes adaptive=
+    # warpmesh adaptive (reference of the ratios)
     ad_name = "warpmesh adaptive"
     ad_missing = None
     if adaptive.probe(shape, lo, hi, level):
@@ -673,7 +651,7 @@ def main(argv=None):
             sys.stdout.flush()
             results.append(c)
     summary(results)
-    if adaptive.status != "ok":
+    if adaptive.failure:
         print(adaptive.missing())
     elapsed = time.perf_counter() - t_start
     load1 = os.getloadavg()[0]
