@@ -30,6 +30,11 @@ def test_mesh_example_adaptive(tmp_path, capsys):
     stats = json.loads(capsys.readouterr().out)
     assert stats["watertight"] and stats["euler"] == -6 and stats["covering"] == "octree"
     assert main(["mesh", "--example", "part", "--tolerance", "0.05"]) == 2  # needs --adaptive
+    capsys.readouterr()
+    assert main(["mesh", "--example", "sphere", "--adaptive", "--resolution", "32"]) == 0
+    text = capsys.readouterr().out
+    header = next(line for line in text.splitlines() if "mean_tape_length" in line)  # the levels as a table
+    assert header.split()[:2] == ["level", "cells"]
 
 
 def test_mesh_volume_file(tmp_path, capsys):

@@ -68,6 +68,14 @@ def _print_stats(stats: dict, as_json: bool) -> None:
         print(json.dumps(stats, indent=2, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
         return
     for key, value in stats.items():
+        if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):  # a table
+            cols = list(value[0])
+            print(f"{key:>22}:")
+            print(" " * 24 + " ".join(f"{c:>15}" for c in cols))
+            for row in value:
+                print(" " * 24 + " ".join(f"{row.get(c, ''):>15.4g}" if isinstance(row.get(c), float)
+                                          else f"{row.get(c, ''):>15}" for c in cols))
+            continue
         if isinstance(value, dict):
             value = ", ".join(f"{k} {v:.3f}s" if isinstance(v, float) else f"{k} {v}" for k, v in value.items())
         elif isinstance(value, float):
