@@ -524,9 +524,9 @@ def legend(args):
     for line in (
         "columns: time s = best of the timed runs (wall); eval s / extract s = its split where the tool has one; "
         "evaluations = point evaluations of f; closed = every edge in two triangles (else the number of other "
-        "edges); area f=0 = area of the surface f = 0 (warpmesh's caps on the box, cell ref 2, left out; where a "
-        "capped surface meets the box it bends onto the cap within the last cell, so on degree6 this runs a little "
-        "above the open peers' area); speed-up = tool time / warpmesh adaptive time (> 1: the adaptive mesher is "
+        "edges); area f=0 = area of the surface f = 0 (warpmesh's caps on the box, cell ref 2, left out; where the "
+        "grid's capped surface meets the box it bends onto the cap within the last cell, so on degree6 its area runs "
+        "a little above the open peers'; the adaptive mesh's rim is sharp); speed-up = tool time / warpmesh adaptive time (> 1: the adaptive mesher is "
         "faster); evals x = tool evaluations / the adaptive mesher's.",
         "warpmesh adaptive: mesh_surface(shape, bounds=..., adaptive=True, max_level=log2(N), tolerance=...) "
         "(its default root, covering and evaluator); its first call on each shape probes it and is its warm-up.",
