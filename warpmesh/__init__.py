@@ -23,12 +23,14 @@ from warpmesh.shapes import (EXAMPLES, Shape, box, capsule, complement, cone, cy
                              ellipsoid, example, halfspace, intersection, sphere, superquadric,
                              supertorus, torus, union)
 from warpmesh.surface import mesh_surface
+from warpmesh.remesh import optimize, simplify
+from warpmesh.projection import VolumeField, surface_error
 from warpmesh.tape import Tape, compile_tape, evaluate, evaluate_interval
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Mesh", "load", "mesh_surface", "orient", "orient_faces",
+    "Mesh", "load", "mesh_surface", "optimize", "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
     "triangle_quality", "tetra_quality", "quality_summary",
     "Shape", "Expr", "coords", "sqrt", "abs", "min", "max", "sin", "cos", "exp", "log",
     "sphere", "box", "cylinder", "cone", "torus", "ellipsoid", "halfspace", "capsule",

@@ -57,6 +57,14 @@ def _parser() -> argparse.ArgumentParser:
                    help="shapes: the tape interpreter (default, no compile) or a kernel generated for "
                         "the shape (about 1.5 s to compile once per structure, cached)")
     m.add_argument("--json", action="store_true", help="print statistics as JSON")
+    m.add_argument("--optimize", action="store_true",
+                   help="optimise the mesh for finite elements on the exact surface (seed 16.4.3) and "
+                        "print the before/after quality table")
+    m.add_argument("--simplify", type=float, metavar="FRACTION",
+                   help="decimate to about this fraction of the triangles within --max-error")
+    m.add_argument("--size", type=float, help="--optimize: target edge length (default: the input's mean)")
+    m.add_argument("--max-error", type=float,
+                   help="--optimize/--simplify: largest distance to the surface accepted (absolute)")
     i = sub.add_parser("info", help="print statistics of a mesh file")
     i.add_argument("path")
     i.add_argument("--json", action="store_true", help="print statistics as JSON")
@@ -94,6 +102,38 @@ def _labels(values):
         raise ValueError(f"expected --labels all or integer labels, got {' '.join(values)}") from None
 
 
+def _volume_target(wm, args, volume, spacing):
+    labels = _labels(args.labels)
+    if labels is not None:
+        if labels == "all" or len(labels) != 1:
+            raise ValueError("expected one label with --labels when optimising (one surface per run)")
+        return wm.VolumeField(np.asarray(volume) == labels[0], spacing=spacing or 1.0,
+                              origin=args.origin or 0.0, level=0.5)
+    return wm.VolumeField(volume, spacing=spacing or 1.0, origin=args.origin or 0.0,
+                          level=args.level or 0.0, inside=args.inside or "above")
+
+
+def _improve(wm, args, mesh, bounds, target):
+    from warpmesh.quality import format_table
+
+    if args.optimize and args.simplify is not None:
+        raise ValueError("expected one of --optimize and --simplify, got both")
+    capped = bounds is not None and not args.no_cap
+    if args.optimize:
+        out = wm.optimize(mesh, target, bounds=bounds if capped else None, size=args.size,
+                          tolerance=args.max_error, progress=True)
+    else:
+        out = wm.simplify(mesh, target, bounds=bounds if capped else None, fraction=args.simplify,
+                          tolerance=args.max_error, progress=True)
+    info = out.info["optimize"]
+    rows = {"before": dict(info["before"]), "after": dict(info["after"])}
+    rows["after"]["distance_max"] = wm.surface_error(out, target, bounds=bounds if capped else None)["max"]
+    print(format_table(rows))
+    print(f"{info['seconds']:.2f} s; splits {info['splits']}, collapses {info['collapses']}, "
+          f"flips {info['flips']}, moves {info['moves']}, crease points {info['creases']}")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     import warpmesh as wm
@@ -126,9 +166,13 @@ def main(argv: list[str] | None = None) -> int:
             except (OSError, ValueError) as exc:
                 raise ValueError(f"cannot read --volume {args.volume!r}: {exc}") from None
             spacing = args.spacing if args.spacing is None or len(args.spacing) > 1 else args.spacing[0]
+            bounds = None
             mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,
                                    evaluator=args.evaluator,
                                    spacing=spacing, origin=args.origin, **common)
+        if args.optimize or args.simplify is not None:
+            mesh = _improve(wm, args, mesh, bounds if args.example else None,
+                            shape if args.example else _volume_target(wm, args, volume, spacing))
         if args.output:
             mesh.save(args.output)
         stats = mesh.stats()

@@ -46,7 +46,7 @@ from . import topology as _topo
 from ._conventions import INDEX_DTYPE, REAL_DTYPE
 from .convert import CELL_TYPES, REF_KEY
 from .io import FILE_FORMATS, FileFormat, load
-from .quality import quality_summary
+from .quality import quality_summary, tetra_quality, triangle_quality
 
 __all__ = ["Mesh", "load", "CELL_TYPES", "FILE_FORMATS", "REF_KEY"]
 
@@ -346,6 +346,7 @@ class Mesh:
             else {}
         )
         s["mean_q"], s["worst_q"] = q.get("mean_q"), q.get("worst_q")
+        s["q_mean"], s["q_worst"] = s["mean_q"], s["worst_q"]  # the names of issue 6 / Table 16.1
         s["bounds"] = (
             _frozen(np.stack([self._points.min(axis=0), self._points.max(axis=0)]))
             if self.n_points
@@ -378,6 +379,33 @@ class Mesh:
         """
         computed = self._stats
         return {**computed, **{k: v for k, v in self._info.items() if k not in computed}}
+
+    # ---------------------------------------------------------------- quality and optimisation
+    def quality(self) -> np.ndarray:
+        """Q_K (seed eq. 16.15) of each element: the tetrahedra if any, else the triangles.
+
+        Examples
+        --------
+        >>> Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).quality().round(4).tolist()
+        [1.3938]
+        """
+        if "tetra" in self._cells:
+            return tetra_quality(self._points, self._cells["tetra"])
+        if "triangle" not in self._cells:
+            raise ValueError(f"expected a 'triangle' or 'tetra' block, got {list(self._cells)}")
+        return triangle_quality(self._points, self._cells["triangle"])
+
+    def optimize(self, shape=None, **options) -> Mesh:
+        """A new mesh optimised on the exact surface: :func:`warpmesh.remesh.optimize`."""
+        from .remesh import optimize
+
+        return optimize(self, shape, **options)
+
+    def simplify(self, shape=None, **options) -> Mesh:
+        """A new, decimated mesh within a tolerance: :func:`warpmesh.remesh.simplify`."""
+        from .remesh import simplify
+
+        return simplify(self, shape, **options)
 
     # ---------------------------------------------------------------- meshio
     def to_meshio(self) -> meshio.Mesh:

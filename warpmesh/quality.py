@@ -29,7 +29,8 @@ import numpy as np
 from ._conventions import ALPHA_TETRA, ALPHA_TRIANGLE, INDEX_DTYPE, REAL_DTYPE, REL_TOL
 from .topology import face_areas
 
-__all__ = ["ALPHA_TETRA", "triangle_quality", "tetra_quality", "quality_summary"]
+__all__ = ["ALPHA_TETRA", "triangle_quality", "tetra_quality", "quality_summary", "triangle_angles",
+           "edge_length_ratio", "quality_table", "quality_histogram", "format_table"]
 
 _TET_EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
 _TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
@@ -164,3 +165,98 @@ def quality_summary(points, cells) -> dict:
         "best_q": float("nan") if empty else float(q.min()),
         "n_degenerate": int(len(q) - len(finite)),
     }
+
+
+def triangle_angles(points, triangles) -> np.ndarray:
+    """(m, 3) interior angles in degrees, at each corner of each triangle.
+
+    Examples
+    --------
+    >>> triangle_angles([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]]).round(6).tolist()
+    [[90.0, 45.0, 45.0]]
+    """
+    pts, tri = _validate(points, triangles, 3, (2, 3), "triangles")
+    p = pts[tri]
+    out = np.empty((len(tri), 3))
+    for j in range(3):
+        u = p[:, (j + 1) % 3] - p[:, j]
+        v = p[:, (j + 2) % 3] - p[:, j]
+        cos = np.einsum("ij,ij->i", u, v) / np.maximum(
+            np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1), np.finfo(REAL_DTYPE).tiny)
+        out[:, j] = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return out
+
+
+def edge_length_ratio(points, triangles) -> np.ndarray:
+    """(m,) longest over shortest edge of each triangle (1 for an equilateral one, inf if an edge is 0)."""
+    pts, tri = _validate(points, triangles, 3, (2, 3), "triangles")
+    p = pts[tri]
+    lens = np.stack([np.linalg.norm(p[:, (j + 1) % 3] - p[:, j], axis=1) for j in range(3)], axis=1)
+    with np.errstate(divide="ignore"):
+        return np.where(lens.min(1) > 0, lens.max(1) / np.where(lens.min(1) > 0, lens.min(1), 1.0), np.inf)
+
+
+#: the bins of :func:`quality_histogram` (Q_K), open at the top
+Q_BINS = (1.0, 1.1, 1.25, 1.5, 2.0, 3.0, 5.0, 10.0, 100.0, np.inf)
+
+
+def quality_histogram(points, triangles, bins=Q_BINS) -> dict:
+    """Counts of triangles per Q_K bin: ``{"1-1.1": k, ...}`` (degenerate ones in the last bin)."""
+    q = triangle_quality(points, triangles)
+    counts, _ = np.histogram(np.minimum(q, np.finfo(REAL_DTYPE).max), bins=np.asarray(bins, float))
+    label = lambda lo, hi: f"{lo:g}-{hi:g}" if np.isfinite(hi) else f">{lo:g}"  # noqa: E731
+    return {label(lo, hi): int(c) for lo, hi, c in zip(bins[:-1], bins[1:], counts)}
+
+
+def quality_table(points, triangles) -> dict:
+    """One row of a Table 16.1-style statistics table of a triangle mesh.
+
+    Returns
+    -------
+    dict
+        ``np`` (vertices used), ``ne``, ``q_mean``, ``q_worst``, ``angle_min``,
+        ``angle_max`` (degrees), ``edge_ratio_max``, ``histogram``.
+
+    Examples
+    --------
+    >>> row = quality_table([[0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0]], [[0, 1, 2]])
+    >>> row["np"], row["ne"], round(row["q_worst"], 9), round(row["angle_min"], 6)
+    (3, 1, 1.0, 60.0)
+    """
+    pts, tri = _validate(points, triangles, 3, (2, 3), "triangles")
+    if len(tri) == 0:
+        raise ValueError("expected at least one triangle in 'triangles'")
+    q = triangle_quality(pts, tri)
+    ang = triangle_angles(pts, tri)
+    finite = q[np.isfinite(q)]
+    return {
+        "np": int(len(np.unique(tri))),
+        "ne": int(len(tri)),
+        "q_mean": float(finite.mean()) if len(finite) else float("inf"),
+        "q_worst": float(q.max()),
+        "angle_min": float(ang.min()),
+        "angle_max": float(ang.max()),
+        "edge_ratio_max": float(edge_length_ratio(pts, tri).max()),
+        "histogram": quality_histogram(pts, tri),
+    }
+
+
+def format_table(rows: Mapping[str, Mapping]) -> str:
+    """Text table of :func:`quality_table` rows keyed by a label (e.g. "before", "after").
+
+    Examples
+    --------
+    >>> row = quality_table([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    >>> print(format_table({"mesh": row}).splitlines()[0])
+    |        |  np |  ne | Q mean | Q worst | angle min | angle max | distance max |
+    """
+    head = ["", "np", "ne", "Q mean", "Q worst", "angle min", "angle max", "distance max"]
+    body = []
+    for name, r in rows.items():
+        dist = r.get("distance_max")
+        body.append([name, f"{r['np']:,}", f"{r['ne']:,}", f"{r['q_mean']:.3f}", f"{r['q_worst']:.2f}",
+                     f"{r['angle_min']:.1f}", f"{r['angle_max']:.1f}",
+                     "" if dist is None else f"{dist:.2e}"])
+    width = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(head)]
+    line = lambda cells: "| " + " | ".join(c.rjust(w) for c, w in zip(cells, width)) + " |"  # noqa: E731
+    return "\n".join([line(head), "|" + "|".join("-" * (w + 2) for w in width) + "|", *map(line, body)])
