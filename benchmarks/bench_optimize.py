@@ -21,7 +21,8 @@ segmentation (``pyvista/examples/frog_tissues.vti``, read from the package direc
 no download; ``--label``, default 10):
 
 - ``warpmesh simplify``: ``wm.simplify(mesh, shape, tolerance=--simplify-tolerance x cell)``
-  (the volume: ``wm.VolumeField`` of the label's 0/1 indicator at level 0.5);
+  (``bounds=`` where capped; the volume: ``wm.VolumeField`` of the label's 0/1 indicator at
+  level 0.5; ``--wm-fraction`` also passes ``fraction=``);
 - ``fast-simplification``: ``fast_simplification.simplify(points, faces, target_reduction=0.9)``;
 - ``pymeshlab quadric``: ``meshing_decimation_quadric_edge_collapse(targetfacenum=10 %)``
   (other parameters at their defaults).
@@ -338,12 +339,16 @@ def fast_simplify_count(points, tris, count):
 
 
 def wm_optimize(mesh, shape, bounds, h, tol, iterations):
-    m = wm.optimize(mesh, shape, bounds=bounds, size=h, tolerance=tol, features=True, iterations=iterations)
+    kw = {} if iterations is None else {"iterations": iterations}
+    m = wm.optimize(mesh, shape, bounds=bounds, size=h, tolerance=tol, features=True, **kw)
     return m.points, m.triangles, m
 
 
-def wm_simplify(mesh, shape, tol):
-    m = wm.simplify(mesh, shape, tolerance=tol)
+def wm_simplify(mesh, shape, tol, bounds=None, fraction=None):
+    kw = {} if bounds is None else {"bounds": bounds}
+    if fraction is not None:
+        kw["fraction"] = fraction
+    m = wm.simplify(mesh, shape, tolerance=tol, **kw)
     return m.points, m.triangles, m
 
 
@@ -509,7 +514,7 @@ def simplify_case(args, name, frog=None) -> dict:
 
     tools = {}
     if HAVE_SIMPLIFY:
-        tools["warpmesh simplify"] = lambda: wm_simplify(mc, target_shape, tol)
+        tools["warpmesh simplify"] = lambda: wm_simplify(mc, target_shape, tol, box, args.wm_fraction)
     tools[f"fast-simplification, target_reduction {args.reduction:g}"] = lambda: fast_simplify(p0, t0_, args.reduction)
     tools[f"pymeshlab quadric, targetfacenum {target:,}"] = lambda: pymeshlab_decimate(p0, t0_, target)
     res = run_round_robin(tools, args.repeat, args.warmup, args.budget)
@@ -523,11 +528,14 @@ def simplify_case(args, name, frog=None) -> dict:
                     lambda: pymeshlab_decimate(p0, t0_, n_wm)}
             res.update(run_round_robin(more, args.repeat, args.warmup, args.budget))
 
-    se = None
-    if HAVE_SURFACE_ERROR and frog is None:
-        def se(p, t, mesh):
+    def cross(p, t, mesh):
+        if frog is None:
             e = wm.surface_error(_wm_mesh(p, t, mesh), target_shape, bounds=box)
-            return {"max": float(e["max"]), "mean": float(e["mean"])}
+        else:
+            e = wm.surface_error(_wm_mesh(p, t, mesh), reference=(mc.points, mc.triangles))
+        return {"max": float(e["max"]), "mean": float(e["mean"])}
+
+    se = cross if HAVE_SURFACE_ERROR else None
     rows = [{"tool": "input: " + ("MC of the label" if frog else f"MC {args.simplify_resolution}^3"),
              **mesh_measures(p0, t0_), **{"dist_" + k: v for k, v in dist(p0, t0_).items()},
              "time_s": t_mc, "input": True}]
@@ -593,7 +601,7 @@ def summary(cases):
         for r in c["rows"]:
             if r.get("input"):
                 continue
-            s = f"{r['tool'].split(',')[0]} {r['time_s']:.3f} s"
+            s = f"{r['tool']} {r['time_s']:.3f} s"
             if r["ratio"] is not None and not r["tool"].startswith("warpmesh"):
                 s += f" ({r['ratio']:.3g}x)"
             s += f", {r['ne']:,} tri, max d {r['dist_max']:.2e}, worst Q {_g(r['worst_q'], '{:.2f}')}"
@@ -632,7 +640,7 @@ def parse_args(argv=None):
     p.add_argument("--iterations", type=int, default=10,
                    help="remeshing iterations, pymeshlab and warpmesh (default 10, pymeshlab's default)")
     p.add_argument("--wm-default-iterations", action="store_true",
-                   help="give warpmesh iterations=None (its own default) instead of --iterations")
+                   help="pass no iterations= to wm.optimize (its own default) instead of --iterations")
     p.add_argument("--featuredeg", default=None,
                    help="pymeshlab feature angles (degrees), one row each (default 30,60; 30 with --quick)")
     p.add_argument("--simplify-resolution", type=int, default=None,
@@ -640,6 +648,8 @@ def parse_args(argv=None):
     p.add_argument("--reduction", type=float, default=0.9, help="peers' target reduction (default 0.9: keep 10 %%)")
     p.add_argument("--simplify-tolerance", type=float, default=0.5,
                    help="warpmesh simplify tolerance in MC cells (the frog: in its smallest spacing) (default 0.5)")
+    p.add_argument("--wm-fraction", type=float, default=None,
+                   help="also pass fraction= to wm.simplify (default: not passed, tolerance only)")
     p.add_argument("--label", type=int, default=10, help="frog_tissues label to simplify (default 10)")
     p.add_argument("--no-frog", action="store_true", help="skip the frog volume")
     p.add_argument("--sections", default="optimize,simplify", help="comma-separated subset of optimize,simplify")

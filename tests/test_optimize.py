@@ -228,7 +228,7 @@ def test_optimize_capped_degree6_recomputes_cap_refs():
     refs = opt.cell_refs["triangle"]
     assert set(np.unique(refs)) == {1, 2}
     cen = opt.points[opt.triangles[refs == 2]].mean(1)
-    assert np.all(np.abs(np.abs(cen).max(1) - 3.0) < 1e-6)  # caps on the box faces
+    assert np.all(np.abs(np.abs(cen).max(1) - 3.0) < 1e-4)  # caps on the box faces
     assert s["q_worst"] < 2.5 and s["q_mean"] < 1.15
 
 

@@ -179,6 +179,66 @@ def insert_creases(s: Surface, target, angle: float = DEFAULT_ANGLE, passes: int
     return crease
 
 
+#: smallest over largest eigenvalue of the normals' tensor over a vertex ring for a corner
+CORNER_SPREAD = 0.15
+
+
+def snap_corners(s: Surface, target, crease: np.ndarray) -> np.ndarray:
+    """Move a vertex onto each corner where three or more faces of the exact surface meet.
+
+    Around every vertex, the exact normals at its ring (the vertex and its neighbours)
+    are checked for spread in all three directions (the normals' tensor has rank 3); the
+    dual-contouring point of the ring's tangent planes (:func:`warpmesh.qef.qef_points`)
+    is then the corner. One vertex per corner moves (the strongest spread among vertices
+    two rings apart). Returns the crease flags with the snapped vertices set.
+    """
+    from .edge_ops import gather, vertex_neighbours
+    from .qef import qef_points
+
+    topo = s.topology()
+    n = len(s.points)
+    ptr, nb = vertex_neighbours(topo.edges, n)
+    owner, ring = gather(ptr, nb, np.arange(n))
+    group = np.concatenate([np.arange(n), owner])
+    pts = s.points[np.concatenate([np.arange(n), ring])]
+    nrm = target.normals(pts)
+    tensor = np.zeros((n, 3, 3))
+    for i in range(3):
+        for j in range(3):
+            tensor[:, i, j] = np.bincount(group, nrm[:, i] * nrm[:, j], n)
+    lam = np.linalg.eigvalsh(tensor)
+    spread = lam[:, 0] / np.maximum(lam[:, 2], 1e-300)
+    cand = np.flatnonzero(spread > CORNER_SPREAD)
+    if s.vclass is not None and (s.vclass == CORNER).any():  # corners found before stay the only ones
+        near_corner = np.zeros(n, bool)
+        near_corner[owner[s.vclass[ring] == CORNER]] = True
+        near_corner |= s.vclass == CORNER
+        grown = near_corner.copy()
+        grown[owner[near_corner[ring]]] = True
+        cand = cand[~grown[cand]]
+    if len(cand) == 0:
+        return crease
+    sub = np.isin(group, cand)
+    remap = np.full(n, -1)
+    remap[cand] = np.arange(len(cand))
+    x, rank = qef_points(remap[group[sub]], pts[sub], nrm[sub], len(cand))
+    reach = np.zeros(n)
+    np.maximum.at(reach, owner, np.linalg.norm(s.points[ring] - s.points[owner], axis=1))
+    ok = (rank == 3) & (np.linalg.norm(x - s.points[cand], axis=1) < reach[cand])
+    cand, x = cand[ok], x[ok]
+    if len(cand) == 0:
+        return crease
+    # one vertex per corner: candidates conflict within two rings
+    own1, r1 = gather(ptr, nb, cand)
+    own2, r2 = gather(ptr, nb, r1)
+    idx = np.arange(len(cand))
+    win = select_independent(len(cand), -spread[cand], np.concatenate([r1, r2[:], cand]),
+                             np.concatenate([own1, own1[own2], idx]))
+    crease = crease.copy()
+    _snap(s, cand[win], x[win], crease, force=True)
+    return crease
+
+
 def _planes_meet(na, pa, nb, pb, c):
     """The point of the line where two planes meet that is nearest ``c`` (NaN if parallel)."""
     d = _unit(np.cross(na, nb))
@@ -211,10 +271,10 @@ def _refine_crease(target, c, pa, pb, length, cos_a, steps: int = 3):
     return c
 
 
-def _snap(s: Surface, verts: np.ndarray, where: np.ndarray, crease: np.ndarray) -> int:
+def _snap(s: Surface, verts: np.ndarray, where: np.ndarray, crease: np.ndarray, force: bool = False) -> int:
     """Move vertices onto nearby crease points (one move per vertex), unless a face would turn over."""
     verts, first = np.unique(verts, return_index=True)
-    keep = ~crease[verts]
+    keep = np.ones(len(verts), bool) if force else ~crease[verts]
     verts, where = verts[keep], where[first][keep]
     if len(verts) == 0:
         return 0
@@ -226,7 +286,7 @@ def _snap(s: Surface, verts: np.ndarray, where: np.ndarray, crease: np.ndarray) 
     newp[verts] = where
     old_n = np.cross(*(s.points[t[faces, k]] - s.points[t[faces, 0]] for k in (1, 2)))
     new_n = np.cross(*(newp[t[faces, k]] - newp[t[faces, 0]] for k in (1, 2)))
-    bad = np.einsum("ij,ij->i", old_n, new_n) <= 0
+    bad = np.einsum("ij,ij->i", old_n, new_n) <= 0.1 * np.linalg.norm(old_n, axis=1) * np.linalg.norm(new_n, axis=1)
     undo = np.unique(t[faces[bad]])
     newp[undo] = s.points[undo]
     done = verts[np.all(newp[verts] == where, axis=1)]

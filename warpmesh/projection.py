@@ -55,6 +55,10 @@ class _FunctionTarget:
         f, g = self.value_gradient(points)
         if self.bounds is None:
             return f, g
+        # compare in length units: f / |grad f| against the distance to the box faces,
+        # else a steep f (the degree-six polynomial) loses to the box far from the cap
+        gn = np.maximum(np.linalg.norm(g, axis=1), _TINY)
+        f, g = f / gn, g / gn[:, None]
         lo, hi = self.bounds
         d = np.concatenate([points - lo, hi - points], axis=1)  # distance to the 6 faces, > 0 inside
         j = d.argmin(axis=1)

@@ -41,7 +41,7 @@ import numpy as np
 
 from .edge_ops import CORNER, FREE, LINE, Surface, gather, quality_of, select_independent, vertex_faces, \
     vertex_neighbours
-from .features import DEFAULT_ANGLE, FeatureLines, detect_features, insert_creases
+from .features import DEFAULT_ANGLE, FeatureLines, detect_features, insert_creases, snap_corners
 from .mesh import Mesh
 from .projection import MeshTarget, _FunctionTarget, as_target
 from .quality import quality_table
@@ -211,9 +211,10 @@ class _Run:
         elen = np.linalg.norm(new - np.roll(new, 1, axis=1), axis=2).max(1)
         bad |= elen > SPLIT_ABOVE * np.maximum(hk, self.h[newtri].max(1))
         # geometric error of the new faces (their centroids)
-        cent = new.mean(axis=1)
-        dist = self.target.distance(cent)
-        bad |= dist > self.tolerance
+        dist = self.target.distance(new.mean(axis=1))
+        far = np.flatnonzero(dist > self.tolerance)  # unless the face was that far already
+        far = far[dist[far] > self.target.distance(old[far].mean(axis=1)) + 1e-12]
+        bad[far] = True
         nbad = np.bincount(own[bad], minlength=len(cand))
         ok &= nbad == 0
         cand, rem, kp, pos = cand[ok], rem[ok], kp[ok], pos[ok]
@@ -251,10 +252,11 @@ class _Run:
                 return ((deg[va] + da - ideal[va]) ** 2 + (deg[vb] + db - ideal[vb]) ** 2
                         + (deg[vc] + dc - ideal[vc]) ** 2 + (deg[vd] + dd - ideal[vd]) ** 2)
             gain = cost(a, b, o0, o1, 0, 0, 0, 0) - cost(a, b, o0, o1, -1, -1, 1, 1)
+            q_old, q_new = np.minimum(q_old, 1e300), np.minimum(q_new, 1e300)  # degenerate: finite, worst
             ok = (gain > 0) & (q_new <= np.maximum(q_old, POLISH_Q))
             prio = -gain.astype(float) + 1e-3 * (q_new - q_old)
         else:
-            gain = q_old - q_new
+            gain = np.minimum(q_old, 1e300) - np.minimum(q_new, 1e300)
             ok = gain > 1e-3
             prio = -gain
         cand, prio = cand[ok], prio[ok]
@@ -366,8 +368,9 @@ class _Run:
         area = 0.5 * np.linalg.norm(np.cross(pts[:, 1] - pts[:, 0], pts[:, 2] - pts[:, 0]), axis=1)
         cen = pts.mean(axis=1)
         wsum = np.bincount(own, weights=area, minlength=nv)[:, None]
-        centroid = np.stack([np.bincount(own, weights=area * cen[:, k], minlength=nv) for k in range(3)], 1) / wsum
         cur = p[verts]
+        centroid = np.stack([np.bincount(own, weights=area * cen[:, k], minlength=nv) for k in range(3)], 1)
+        centroid = np.where(wsum > 0, centroid / np.maximum(wsum, 1e-300), cur)  # all faces flat: stay
         options = [cur]
         for base in (ideal, centroid):
             for w in (1.0, 0.5):
@@ -479,7 +482,7 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         s.points = target.project(s.points)
     crease = None
     if exact and features:
-        crease = insert_creases(s, target, angle)
+        crease = snap_corners(s, target, insert_creases(s, target, angle))
         counts["creases"] = int(crease.sum())
     if features:
         detect_features(s, angle, target if exact else None, crease)
@@ -490,7 +493,7 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     for it in range(iterations):
         if exact and features and 0 < it <= FEATURE_REFRESH:
             # the mesh is cleaner now: close gaps in the crease chains, then re-detect
-            crease = insert_creases(s, target, angle, crease=s.vclass > FREE)
+            crease = snap_corners(s, target, insert_creases(s, target, angle, crease=s.vclass > FREE))
             counts["creases"] += int(crease.sum() - (s.vclass > FREE).sum())
             detect_features(s, angle, target, crease)
             run.lines = FeatureLines(s)
