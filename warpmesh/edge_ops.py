@@ -121,16 +121,16 @@ def gather(indptr: np.ndarray, values: np.ndarray, rows: np.ndarray) -> tuple[np
 
 def triangle_frames(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(normal vectors (unnormalised, 2 x area), longest edge, 2 x inradius-related) of (k, 3, 3)."""
-    e0, e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 1], p[:, 0] - p[:, 2]
-    nrm = np.cross(e0, -e2)
-    lens = np.stack([np.linalg.norm(e0, axis=1), np.linalg.norm(e1, axis=1), np.linalg.norm(e2, axis=1)], 1)
+    e = p[:, [1, 2, 0]] - p
+    nrm = np.cross(e[:, 0], -e[:, 2])
+    lens = np.sqrt(np.einsum("ijk,ijk->ij", e, e))
     return nrm, lens.max(axis=1), lens.sum(axis=1)
 
 
 def quality_of(p: np.ndarray) -> np.ndarray:
     """Q_K of (k, 3, 3) triangles (seed eq. 16.15), inf when degenerate."""
     nrm, hmax, perim = triangle_frames(p)
-    area2 = np.linalg.norm(nrm, axis=1)  # 2 * area; rho = 2 area / perimeter = area2 / perim
+    area2 = np.sqrt(np.einsum("ij,ij->i", nrm, nrm))  # 2 * area; rho = 2 area / perimeter = area2 / perim
     with np.errstate(divide="ignore", invalid="ignore"):
         q = (np.sqrt(3.0) / 6.0) * hmax * perim / area2
     return np.where(area2 > 1e-14 * hmax**2, q, np.inf)

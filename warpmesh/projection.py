@@ -102,6 +102,11 @@ class _FunctionTarget:
         p = np.asarray(points, dtype=REAL_DTYPE)
         return np.linalg.norm(self.project(p) - p, axis=1)
 
+    def estimate(self, points) -> np.ndarray:
+        """First-order distance |f| / |grad f| (seed eq. 16.6): one evaluation, for checks."""
+        f, g = self._clipped(np.asarray(points, dtype=REAL_DTYPE))
+        return np.abs(f) / np.maximum(np.linalg.norm(g, axis=1), _TINY)
+
     def normals(self, points) -> np.ndarray:
         """Outward unit normals -grad f / |grad f| (the box face normal where clipped)."""
         _, g = self._clipped(np.asarray(points, dtype=REAL_DTYPE))
@@ -288,6 +293,8 @@ class MeshTarget:
     def distance(self, points) -> np.ndarray:
         p = np.asarray(points, REAL_DTYPE)
         return np.linalg.norm(self.project(p) - p, axis=1)
+
+    estimate = distance
 
     def normals(self, points) -> np.ndarray:
         return self._face_normals[self._closest(points)[0]]

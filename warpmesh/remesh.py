@@ -35,7 +35,7 @@ Examples
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -72,6 +72,7 @@ class _Run:
     lines: FeatureLines | None
     h: np.ndarray | None = None
     gradation: float = GRADATION
+    rejected: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # edge keys
     counts: dict | None = None
 
     # --------------------------------------------------------------- helpers
@@ -115,6 +116,24 @@ class _Run:
         cap = srt[:, 2] ** 2 > srt[:, 0] ** 2 + srt[:, 1] ** 2 - srt[:, 0] * srt[:, 1]  # largest angle > 120
         edges = np.unique(topo.face_edges[bad[cap], lens[cap].argmax(1)])
         return self._split_edges(topo, edges)
+
+    def error_pass(self) -> int:
+        """Split edges whose midpoint, or the centroid of a face beside them, is farther from
+        the surface than the tolerance (the new vertex goes onto the surface)."""
+        s = self.s
+        topo = s.topology()
+        p, t = s.points, s.triangles
+        mid = 0.5 * (p[topo.edges[:, 0]] + p[topo.edges[:, 1]])
+        cen = p[t].mean(axis=1)
+        pts = np.concatenate([mid, cen])
+        near = np.flatnonzero(self.target.estimate(pts) > 0.5 * self.tolerance)  # first order: a filter
+        far = near[self.target.distance(pts[near]) > self.tolerance]
+        edges = far[far < len(mid)]
+        faces = far[far >= len(mid)] - len(mid)
+        if len(faces):
+            lens = np.stack([np.linalg.norm(p[t[faces, (j + 1) % 3]] - p[t[faces, j]], axis=1) for j in range(3)], 1)
+            edges = np.concatenate([edges, topo.face_edges[faces, lens.argmax(1)]])
+        return self._split_edges(topo, np.unique(edges))
 
     def _split_edges(self, topo, cand) -> int:
         s = self.s
@@ -177,6 +196,18 @@ class _Run:
         # a vertex of valence 3 next to the edge would fold; the removed end keeps no feature
         deg = np.diff(nb_ptr)
         ok &= (deg[rem] + deg[kp] - 4 >= 3)
+        ok &= ~np.isin(topo.keys[cand], self.rejected)  # failed the geometric checks this round
+        cand, rem, kp, both_free, length_c = cand[ok], rem[ok], kp[ok], both_free[ok], length_c[ok]
+        if len(cand) == 0:
+            return 0
+        # independence first (the balls of the two ends must not touch another winner's),
+        # so the geometric checks below run on the winners only
+        own_r, nr = gather(nb_ptr, nb, rem)
+        own_k, nk = gather(nb_ptr, nb, kp)
+        idx = np.arange(len(cand))
+        win = select_independent(len(cand), length[cand], np.concatenate([nr, nk, rem, kp]),
+                                 np.concatenate([own_r, own_k, idx, idx]))
+        cand, rem, kp, both_free, length_c = cand[win], rem[win], kp[win], both_free[win], length_c[win]
         pos = p[kp].copy()
         if both_free.any():
             mid = 0.5 * (p[rem[both_free]] + p[kp[both_free]])
@@ -190,8 +221,7 @@ class _Run:
         tri = s.triangles[fac]
         has_r = (tri == rem[own][:, None]).any(1)
         has_k = (tri == kp[own][:, None]).any(1)
-        stay = ~(has_r & has_k)
-        # faces around both ends appear twice only if they hold both (those are dropped)
+        stay = ~(has_r & has_k)  # the two faces of the edge go
         own, fac, tri = own[stay], fac[stay], tri[stay]
         old = p[tri]
         newtri = np.where(tri == rem[own][:, None], kp[own][:, None], tri)
@@ -202,31 +232,27 @@ class _Run:
         n_old = np.cross(old[:, 1] - old[:, 0], old[:, 2] - old[:, 0])
         n_new = np.cross(new[:, 1] - new[:, 0], new[:, 2] - new[:, 0])
         cosang = np.einsum("ij,ij->i", n_old, n_new) / np.maximum(
-            np.linalg.norm(n_old, axis=1) * np.linalg.norm(n_new, axis=1), 1e-300)
+            np.sqrt(np.einsum("ij,ij->i", n_old, n_old) * np.einsum("ij,ij->i", n_new, n_new)), 1e-300)
         worst_old = np.full(len(cand), 0.0)
         np.maximum.at(worst_old, own, q_old)
         bad = (cosang < np.cos(np.radians(MAX_TURN))) | (q_new > np.maximum(limit_q, worst_old[own]))
         # no new edge longer than the split threshold
         hk = self.h[kp][own]
-        elen = np.linalg.norm(new - np.roll(new, 1, axis=1), axis=2).max(1)
+        elen = np.sqrt(np.einsum("ijk,ijk->ij", new - np.roll(new, 1, axis=1), new - np.roll(new, 1, axis=1))).max(1)
         bad |= elen > SPLIT_ABOVE * np.maximum(hk, self.h[newtri].max(1))
-        # geometric error of the new faces (their centroids)
-        dist = self.target.distance(new.mean(axis=1))
-        far = np.flatnonzero(dist > self.tolerance)  # unless the face was that far already
-        far = far[dist[far] > self.target.distance(old[far].mean(axis=1)) + 1e-12]
+        # geometric error of the new faces (their centroids), unless the face was that far already
+        check = np.flatnonzero(~bad)
+        dist = self.target.estimate(new[check].mean(axis=1))
+        far = check[dist > self.tolerance]
+        if len(far):
+            far = far[self.target.distance(new[far].mean(axis=1)) > np.maximum(
+                self.tolerance, self.target.distance(old[far].mean(axis=1)) + 1e-12)]
         bad[far] = True
-        nbad = np.bincount(own[bad], minlength=len(cand))
-        ok &= nbad == 0
-        cand, rem, kp, pos = cand[ok], rem[ok], kp[ok], pos[ok]
-        if len(cand) == 0:
+        failed = np.bincount(own[bad], minlength=len(cand)) > 0
+        self.rejected = np.concatenate([self.rejected, topo.keys[cand[failed]]])
+        win = np.flatnonzero(~failed)
+        if len(win) == 0:
             return 0
-        # independence: balls of the two ends must not touch another winner's
-        own_r, nr = gather(nb_ptr, nb, rem)
-        own_k, nk = gather(nb_ptr, nb, kp)
-        idx = np.arange(len(cand))
-        owner = np.concatenate([own_r, own_k, idx, idx])
-        touched = np.concatenate([nr, nk, rem, kp])
-        win = select_independent(len(cand), length[cand], touched, owner)
         gone = np.concatenate([topo.face0[cand[win]], topo.face1[cand[win]]])
         return s.collapse(kp[win], rem[win], pos[win], gone[gone >= 0])
 
@@ -503,7 +529,8 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
             counts["splits"] += k
             if k == 0:
                 break
-        for _ in range(20 if simplifying else 6):  # decimation removes most vertices: more passes
+        run.rejected = run.rejected[:0]
+        for _ in range(40 if simplifying else 12):  # decimation removes most vertices: more passes
             k = run.collapse_pass()
             counts["collapses"] += k
             if k <= 2e-3 * len(s.points):
@@ -516,14 +543,17 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         for _ in range(2):
             counts["moves"] += run.smooth_pass(0.8)
         bar.update(1)
-    for _ in range(POLISH_PASSES):
+    for k in range(POLISH_PASSES):
         run.sizes()
         for _ in range(2):
             counts["flips"] += run.flip_pass("quality")
+        run.rejected = run.rejected[:0]
         counts["collapses"] += run.needle_pass(2.0 * POLISH_Q)
         s.compact()
         run.sizes()
         counts["splits"] += run.cap_pass(2.0 * POLISH_Q)
+        if k < POLISH_PASSES - 2:  # the last passes smooth what the error splits leave
+            counts["splits"] += run.error_pass()
         run.sizes()
         counts["moves"] += run.smooth_pass(0.5)
         for _ in range(2):
