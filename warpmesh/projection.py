@@ -201,8 +201,9 @@ class VolumeField(_FunctionTarget):
     >>> g = np.linspace(-1, 1, 21)
     >>> vol = 1 - np.sqrt(sum(c**2 for c in np.meshgrid(g, g, g, indexing="ij")))
     >>> t = VolumeField(vol, spacing=0.1, origin=-1.0, level=0.5)
-    >>> float(np.linalg.norm(t.project(np.array([[0.0, 0.0, 0.8]]))).round(3))
-    0.5
+    >>> r = float(np.linalg.norm(t.project(np.array([[0.0, 0.0, 0.8]]))))
+    >>> abs(r - 0.5) < 0.01      # trilinear interpolation of a 0.1 grid
+    True
     """
 
     def __init__(self, values, spacing=1.0, origin=0.0, level: float = 0.0, inside: str = "above", bounds=None):
@@ -351,7 +352,7 @@ def surface_error(mesh, shape=None, *, bounds=None, reference=None) -> dict:
     >>> import warpmesh as wm
     >>> m = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=24)
     >>> e = wm.surface_error(m, wm.sphere(1.0))
-    >>> e["vertex_max"] < 1e-3 < e["max"] < 0.05
+    >>> e["vertex_max"] < e["max"] < 0.01    # vertices lie on the sphere, chords cut inside
     True
     """
     target = as_target(shape, bounds=bounds, reference=reference)
