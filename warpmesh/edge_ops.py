@@ -44,26 +44,81 @@ def edge_key(a, b) -> np.ndarray:
 
 
 def select_independent(n_candidates: int, priority: np.ndarray, element: np.ndarray,
-                       candidate: np.ndarray) -> np.ndarray:
+                       candidate: np.ndarray, rounds: int = 1, blocked: np.ndarray | None = None,
+                       active: np.ndarray | None = None) -> np.ndarray:
     """Candidates that win every element they touch (lower priority wins, ties by a hash of the index).
 
     ``(element[k], candidate[k])`` lists which elements (faces, vertices) each candidate
-    touches. Two winners never share an element.
+    touches. Two winners never share an element. One round keeps the local minima;
+    each further round adds the local minima among the candidates that touch no winner
+    yet (``rounds`` large: a maximal independent set). Candidates touching an element
+    flagged in ``blocked`` never win, nor do those with ``active`` False.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> # a path of 4 candidate edges over vertices 0-1-2-3-4; candidate i touches i and i+1
+    >>> el = np.array([0, 1, 1, 2, 2, 3, 3, 4]); cand = np.array([0, 0, 1, 1, 2, 2, 3, 3])
+    >>> select_independent(4, np.array([1.0, 0.0, 2.0, 3.0]), el, cand).tolist()
+    [1]
+    >>> select_independent(4, np.array([1.0, 0.0, 2.0, 3.0]), el, cand, rounds=5).tolist()
+    [1, 3]
     """
-    if n_candidates == 0:
-        return np.zeros(0, np.int64)
+    if n_candidates == 0 or len(element) == 0:
+        return np.arange(n_candidates) if len(element) == 0 else np.zeros(0, np.int64)
     # ties go by a scrambled index: by the plain index a chain of equal priorities (the
     # edges along a straight crease) would yield one winner per pass instead of a third
     tie = (np.arange(n_candidates, dtype=np.uint64) * np.uint64(0x9E3779B1)) & np.uint64(0xFFFFFFFF)
-    order = np.lexsort((tie[candidate], priority[candidate], element))
-    el = element[order]
-    first = np.ones(len(el), bool)
-    first[1:] = el[1:] != el[:-1]
-    winner = np.full(int(element.max()) + 1, -1, np.int64)
-    winner[el[first]] = candidate[order][first]
-    lost = winner[element] != candidate
-    bad = np.bincount(candidate[lost], minlength=n_candidates)
-    return np.flatnonzero(bad == 0)
+    # one rank per candidate, then the lowest rank on each element: no sort of the pairs
+    rank = np.empty(n_candidates, np.int64)
+    rank[np.lexsort((tie, priority))] = np.arange(n_candidates)
+    n_el = int(element.max()) + 1
+    taken = np.zeros(n_el, bool)
+    if blocked is not None:
+        m = min(len(blocked), n_el)
+        taken[:m] = blocked[:m]
+    alive = np.ones(n_candidates, bool) if active is None else np.asarray(active, bool).copy()
+    won = np.zeros(n_candidates, bool)
+    best = np.empty(n_el, np.int64)
+    for _ in range(rounds):
+        alive &= np.bincount(candidate[taken[element]], minlength=n_candidates) == 0
+        sel = alive[candidate]
+        if not sel.any():
+            break
+        el, c = element[sel], candidate[sel]
+        r = rank[c]
+        best.fill(n_candidates)
+        np.minimum.at(best, el, r)
+        new = alive & (np.bincount(c[best[el] != r], minlength=n_candidates) == 0)
+        won |= new
+        alive &= ~new
+        taken[element[new[candidate]]] = True
+    return np.flatnonzero(won)
+
+
+def splits_keep_faces(s: Surface, topo, cand: np.ndarray, c: np.ndarray, turn: bool = True):
+    """The splits of edges ``cand`` at ``c`` whose four new triangles are neither
+    degenerate nor (with ``turn``) turned against the faces they replace."""
+    p = s.points
+    ok = np.ones(len(cand), bool)
+    for face in (topo.face0[cand], topo.face1[cand]):
+        has = face >= 0
+        f = face[has]
+        tri = p[s.triangles[f]]
+        n_old = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        a, b = topo.edges[cand[has], 0], topo.edges[cand[has], 1]
+        for end in (a, b):
+            # the child keeping corner `end`: the other end of the edge moves to c
+            other = np.where(end == a, b, a)
+            new = tri.copy()
+            at = s.triangles[f] == other[:, None]
+            new[at] = c[has]
+            n_new = np.cross(new[:, 1] - new[:, 0], new[:, 2] - new[:, 0])
+            good = np.isfinite(quality_of(new))
+            if turn:
+                good &= np.einsum("ij,ij->i", n_old, n_new) > 0
+            ok[np.flatnonzero(has)[~good]] = False
+    return cand[ok], c[ok]
 
 
 @dataclass

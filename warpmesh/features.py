@@ -31,7 +31,7 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-from .edge_ops import CORNER, FREE, LINE, Surface, edge_key, select_independent
+from .edge_ops import CORNER, FREE, LINE, Surface, edge_key, select_independent, splits_keep_faces
 
 __all__ = ["detect_features", "insert_creases", "FeatureLines", "DEFAULT_ANGLE", "CORNER_TURN"]
 
@@ -163,6 +163,8 @@ def insert_creases(s: Surface, target, angle: float = DEFAULT_ANGLE, passes: int
         total += _snap(s, np.where(da <= db, a, b)[near], c[near], crease)
         ok &= ~near
         cand, c = cand[ok], c[ok]
+        # a crease point lies off the edge: its children may turn (a fold), never vanish
+        cand, c = splits_keep_faces(s, topo, cand, c, turn=False)
         if len(cand) == 0:
             continue
         face_cand = np.concatenate([np.arange(len(cand))] * 2)

@@ -47,6 +47,8 @@ class _FunctionTarget:
 
     bounds: np.ndarray | None = None
     fd_step: float = 1.0e-4
+    #: longest Newton step (None: unbounded)
+    newton_cap: float | None = None
 
     def value_gradient(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
@@ -80,6 +82,8 @@ class _FunctionTarget:
         if len(x) == 0:
             return x
         cap = None if max_step is None else np.broadcast_to(np.asarray(max_step, REAL_DTYPE), (len(x),))
+        if self.newton_cap is not None:  # sampled fields: never more than a sample spacing per step
+            cap = np.full(len(x), self.newton_cap) if cap is None else np.minimum(cap, self.newton_cap)
         active = np.arange(len(x))
         for _ in range(steps):
             f, g = self._clipped(x[active])
@@ -225,6 +229,7 @@ class VolumeField(_FunctionTarget):
         self.origin = np.broadcast_to(np.asarray(origin, REAL_DTYPE), (3,)).copy()
         self.bounds = _check_bounds(bounds)
         self.fd_step = 0.5 * float(sp.min())
+        self.newton_cap = float(sp.min())
 
     def value_gradient(self, points):
         p = (np.asarray(points, REAL_DTYPE) - self.origin) / self.spacing

@@ -39,11 +39,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .edge_ops import CORNER, FREE, LINE, Surface, gather, quality_of, select_independent, vertex_faces, \
-    vertex_neighbours
+from .edge_ops import CORNER, FREE, LINE, Surface, edge_key, gather, quality_of, select_independent, \
+    splits_keep_faces, vertex_faces, vertex_neighbours
 from .features import DEFAULT_ANGLE, FeatureLines, detect_features, insert_creases, snap_corners
 from .mesh import Mesh
-from .projection import MeshTarget, _FunctionTarget, as_target
+from .projection import ImplicitTarget, MeshTarget, _FunctionTarget, as_target
 from .quality import quality_table
 from .surface import CAP_REF, SURFACE_REF
 from .sizing import GRADATION, graded, size_field
@@ -54,8 +54,13 @@ SPLIT_ABOVE = 4.0 / 3.0
 COLLAPSE_BELOW = 4.0 / 5.0
 #: a collapse may not make a triangle worse than this (unless the ball was already worse)
 COLLAPSE_Q = 3.0
+#: above this a relocation may not make a face worse at all
+SMOOTH_Q_CAP = 6.0
 #: largest normal turn (degrees) accepted for a triangle moved by any operator
 MAX_TURN = 45.0
+#: selection-and-check rounds per collapse pass, Luby rounds per selection
+COLLAPSE_ROUNDS = 4
+LUBY_ROUNDS = 6
 POLISH_PASSES = 6
 POLISH_Q = 1.6
 #: iterations after the first that look for crease gaps again
@@ -72,7 +77,9 @@ class _Run:
     lines: FeatureLines | None
     h: np.ndarray | None = None
     gradation: float = GRADATION
-    rejected: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # edge keys
+    rejected: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # removed * n + kept
+    #: collapse into the kept end (simplification) instead of the midpoint of free edges
+    half_edge: bool = False
     counts: dict | None = None
 
     # --------------------------------------------------------------- helpers
@@ -151,6 +158,8 @@ class _Run:
         feat = s.is_feature(topo)[win]
         lid = np.maximum(s.line_id[a], s.line_id[b])
         new = self.place(mid, feat, lid, 0.5 * length)
+        ok = np.isin(win, splits_keep_faces(s, topo, win, new)[0])
+        win, new, a, b = win[ok], new[ok], a[ok], b[ok]
         self.h = np.concatenate([self.h, 0.5 * (self.h[a] + self.h[b])])
         return s.split(topo, win, new)
 
@@ -182,32 +191,68 @@ class _Run:
         kp = np.where(remove_b, a, b)
         both_free = (ca == FREE) & (cb == FREE)
         cand, rem, kp, both_free, length_c = cand[ok], rem[ok], kp[ok], both_free[ok], length[cand][ok]
+        if self.half_edge and both_free.any():
+            # half-edge collapses (the kept end stays put, so only the ring of the removed
+            # end is claimed): both directions of a free edge are candidates
+            bf = np.flatnonzero(both_free)
+            cand = np.concatenate([cand, cand[bf]])
+            rem, kp = np.concatenate([rem, kp[bf]]), np.concatenate([kp, rem[bf]])
+            length_c = np.concatenate([length_c, length_c[bf]])
+            both_free = np.zeros(len(cand), bool)
         if len(cand) == 0:
             return 0
-        # link condition: the ends share exactly the neighbours opposite the edge
         nb_ptr, nb = vertex_neighbours(topo.edges, n)
-        own_r, nr = gather(nb_ptr, nb, rem)
-        own_k, nk = gather(nb_ptr, nb, kp)
-        pair = np.concatenate([own_r * n + nr, own_k * n + nk])
-        u, c = np.unique(pair, return_counts=True)
-        common = np.bincount(u[c == 2] // n, minlength=len(cand))
-        expect = np.where(topo.n_faces[cand] == 2, 2, 1)
-        ok = common == expect
-        # a vertex of valence 3 next to the edge would fold; the removed end keeps no feature
-        deg = np.diff(nb_ptr)
-        ok &= (deg[rem] + deg[kp] - 4 >= 3)
-        ok &= ~np.isin(topo.keys[cand], self.rejected)  # failed the geometric checks this round
+        ok = np.ones(len(cand), bool)
+        ok &= ~np.isin(rem * n + kp, self.rejected)  # failed the geometric checks this round
         cand, rem, kp, both_free, length_c = cand[ok], rem[ok], kp[ok], both_free[ok], length_c[ok]
         if len(cand) == 0:
             return 0
-        # independence first (the balls of the two ends must not touch another winner's),
-        # so the geometric checks below run on the winners only
-        own_r, nr = gather(nb_ptr, nb, rem)
-        own_k, nk = gather(nb_ptr, nb, kp)
-        idx = np.arange(len(cand))
-        win = select_independent(len(cand), length[cand], np.concatenate([nr, nk, rem, kp]),
-                                 np.concatenate([own_r, own_k, idx, idx]))
-        cand, rem, kp, both_free, length_c = cand[win], rem[win], kp[win], both_free[win], length_c[win]
+        # independence first, so the geometric checks run on the winners only. A collapse
+        # rewrites the faces around the removed end (and around the kept end when that one
+        # moves): two winners whose closed rings are disjoint change disjoint faces and
+        # cannot break each other's link condition. Losers of the checks free their rings
+        # for another round of selection among the candidates left.
+        # Each round takes the shortest live candidate of every removable vertex (its
+        # claim is the same whichever edge it uses).
+        taken = np.zeros(n, bool)
+        accepted = []
+        alive = np.ones(len(cand), bool)
+        for _ in range(COLLAPSE_ROUNDS):
+            live = np.flatnonzero(alive & ~taken[rem] & ~taken[kp])
+            if len(live) == 0:
+                break
+            live = live[np.lexsort((length_c[live], rem[live]))]
+            live = live[np.r_[True, rem[live][1:] != rem[live][:-1]]]
+            own_r, nr = gather(nb_ptr, nb, rem[live])
+            moving = np.flatnonzero(both_free[live])
+            own_k, nk = gather(nb_ptr, nb, kp[live[moving]])
+            idx = np.arange(len(live))
+            element = np.concatenate([nr, nk, rem[live], kp[live]])
+            owner = np.concatenate([own_r, moving[own_k], idx, idx])
+            pick = select_independent(len(live), length_c[live], element, owner, rounds=LUBY_ROUNDS, blocked=taken)
+            if len(pick) == 0:
+                break
+            win = live[pick]
+            alive[win] = False
+            failed, pos = self._collapse_checks(topo, cand[win], rem[win], kp[win], both_free[win], length_c[win],
+                                                limit_q)
+            failed |= ~_link_ok(rem[win], kp[win], topo.n_faces[cand[win]], nb_ptr, nb, n)
+            self.rejected = np.concatenate([self.rejected, rem[win[failed]] * n + kp[win[failed]]])
+            taken[element[np.isin(owner, pick[~failed])]] = True
+            accepted.append((win[~failed], pos[~failed]))
+            if failed.sum() < 0.1 * len(win):
+                break
+        good = np.concatenate([g for g, _ in accepted]) if accepted else np.zeros(0, np.int64)
+        if len(good) == 0:
+            return 0
+        pos = np.concatenate([q for _, q in accepted])
+        gone = np.concatenate([topo.face0[cand[good]], topo.face1[cand[good]]])
+        return s.collapse(kp[good], rem[good], pos, gone[gone >= 0])
+
+    def _collapse_checks(self, topo, cand, rem, kp, both_free, length_c, limit_q):
+        """(failed flags, new positions of the kept ends) of independent collapses."""
+        s = self.s
+        p, n = s.points, len(s.points)
         pos = p[kp].copy()
         if both_free.any():
             mid = 0.5 * (p[rem[both_free]] + p[kp[both_free]])
@@ -234,8 +279,10 @@ class _Run:
         cosang = np.einsum("ij,ij->i", n_old, n_new) / np.maximum(
             np.sqrt(np.einsum("ij,ij->i", n_old, n_old) * np.einsum("ij,ij->i", n_new, n_new)), 1e-300)
         worst_old = np.full(len(cand), 0.0)
-        np.maximum.at(worst_old, own, q_old)
-        bad = (cosang < np.cos(np.radians(MAX_TURN))) | (q_new > np.maximum(limit_q, worst_old[own]))
+        np.maximum.at(worst_old, own, np.where(np.isfinite(q_old), q_old, 0.0))
+        # a degenerate new face is never accepted, even where the ball had one already
+        bad = ~np.isfinite(q_new) | (cosang < np.cos(np.radians(MAX_TURN))) | (
+            q_new > np.maximum(limit_q, worst_old[own]))
         # no new edge longer than the split threshold
         hk = self.h[kp][own]
         elen = np.sqrt(np.einsum("ijk,ijk->ij", new - np.roll(new, 1, axis=1), new - np.roll(new, 1, axis=1))).max(1)
@@ -248,13 +295,7 @@ class _Run:
             far = far[self.target.distance(new[far].mean(axis=1)) > np.maximum(
                 self.tolerance, self.target.distance(old[far].mean(axis=1)) + 1e-12)]
         bad[far] = True
-        failed = np.bincount(own[bad], minlength=len(cand)) > 0
-        self.rejected = np.concatenate([self.rejected, topo.keys[cand[failed]]])
-        win = np.flatnonzero(~failed)
-        if len(win) == 0:
-            return 0
-        gone = np.concatenate([topo.face0[cand[win]], topo.face1[cand[win]]])
-        return s.collapse(kp[win], rem[win], pos[win], gone[gone >= 0])
+        return np.bincount(own[bad], minlength=len(cand)) > 0, pos
 
     # --------------------------------------------------------------- flips
     def flip_pass(self, mode: str) -> int:
@@ -288,9 +329,12 @@ class _Run:
         cand, prio = cand[ok], prio[ok]
         if len(cand) == 0:
             return 0
-        owner = np.concatenate([np.arange(len(cand))] * 2)
-        faces = np.concatenate([topo.face0[cand], topo.face1[cand]])
-        win = select_independent(len(cand), prio, faces, owner)
+        # two flips may not share a face, nor create the same new edge (two quads with the
+        # same opposite pair would give an edge in four triangles)
+        _, new_edge = np.unique(edge_key(topo.opp0[cand], topo.opp1[cand]), return_inverse=True)
+        idx = np.arange(len(cand))
+        element = np.concatenate([topo.face0[cand], topo.face1[cand], len(s.triangles) + new_edge])
+        win = select_independent(len(cand), prio, element, np.concatenate([idx, idx, idx]))
         return s.flip(cand[win], topo)
 
     # --------------------------------------------------------------- relocation
@@ -340,14 +384,16 @@ class _Run:
         faces = np.flatnonzero(mask[t].any(1))
         q_old = quality_of(p[t[faces]])
         cos_turn = np.cos(np.radians(MAX_TURN))
-        for _ in range(4):
+        while True:  # each round undoes at least one vertex: ends at worst with none moved
             old, new = p[t[faces]], newp[t[faces]]
             n_old = np.cross(old[:, 1] - old[:, 0], old[:, 2] - old[:, 0])
             n_new = np.cross(new[:, 1] - new[:, 0], new[:, 2] - new[:, 0])
             cosang = np.einsum("ij,ij->i", n_old, n_new) / np.maximum(
                 np.linalg.norm(n_old, axis=1) * np.linalg.norm(n_new, axis=1), 1e-300)
             q_new = quality_of(new)
-            bad = (cosang < cos_turn) | ((q_new > 2 * q_old) & (q_new > COLLAPSE_Q))
+            # no face turns over or gets much worse; none gets worse above SMOOTH_Q_CAP
+            bad = (cosang < cos_turn) | ((q_new > 2 * q_old) & (q_new > COLLAPSE_Q)) | (
+                q_new > np.maximum(q_old, SMOOTH_Q_CAP))
             if not bad.any():
                 break
             undo = np.unique(t[faces[bad]])
@@ -451,8 +497,8 @@ def _run_setup(mesh: Mesh, shape, bounds, size, tolerance, features, angle, frac
     tri = mesh.triangles
     if len(tri) == 0 or mesh.dim != 3:
         raise ValueError("expected a 3D mesh with a 'triangle' block for 'mesh'")
-    if not isinstance(features, bool):
-        raise TypeError(f"expected True or False for 'features', got {features!r}")
+    if features is not None and not isinstance(features, bool):
+        raise TypeError(f"expected True, False or None for 'features', got {features!r}")
     if not (0.0 < angle < 180.0):
         raise ValueError(f"expected 0 < 'angle' < 180 degrees, got {angle!r}")
     from .topology import is_edge_manifold
@@ -480,9 +526,7 @@ def _run_setup(mesh: Mesh, shape, bounds, size, tolerance, features, angle, frac
             area = mesh.stats()["area"]
             # a unit mesh has about 4 area / (sqrt(3) h^2) triangles
             expected = 4.0 * area / (np.sqrt(3.0) * np.mean(hv) ** 2)
-            scale = np.sqrt(max(expected / (fraction * len(tri)), 1e-6))
-            base = hfield
-            hfield = lambda x: base(x) * scale  # noqa: E731
+            hfield = _Scaled(hfield, np.sqrt(max(expected / (fraction * len(tri)), 1e-6)))
     else:
         # default: the edge length of a unit mesh with as many triangles as the input
         area = float(np.linalg.norm(np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]]),
@@ -507,31 +551,37 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     if exact:
         s.points = target.project(s.points)
     crease = None
-    if exact and features:
+    if features is None:
+        # a sampled volume or a mesh has no exact sharp edges: a voxel staircase would read
+        # as creases, so by default only an implicit shape's creases are recovered
+        features = isinstance(target, ImplicitTarget)
+    sharp = features and isinstance(target, ImplicitTarget)
+    if sharp:
         crease = snap_corners(s, target, insert_creases(s, target, angle))
         counts["creases"] = int(crease.sum())
-    if features:
-        detect_features(s, angle, target if exact else None, crease)
+        detect_features(s, angle, target, crease)
+    elif features:
+        detect_features(s, angle)  # the mesh's own dihedral angles
     else:
         detect_features(s, 180.0 - 1e-9)  # boundaries and ref interfaces only
-    run = _Run(s, target, hfield, tol, angle, FeatureLines(s), counts=counts)
+    run = _Run(s, target, hfield, tol, angle, FeatureLines(s), counts=counts, half_edge=simplifying)
     bar = _progress(iterations + POLISH_PASSES, progress)
     for it in range(iterations):
-        if exact and features and 0 < it <= FEATURE_REFRESH:
+        if sharp and 0 < it <= FEATURE_REFRESH:
             # the mesh is cleaner now: close gaps in the crease chains, then re-detect
             crease = snap_corners(s, target, insert_creases(s, target, angle, crease=s.vclass > FREE))
             counts["creases"] += int(crease.sum() - (s.vclass > FREE).sum())
             detect_features(s, angle, target, crease)
             run.lines = FeatureLines(s)
         run.sizes()
-        for _ in range(8):
+        for _ in range(0 if simplifying else 8):  # decimation only coarsens
             k = run.split_pass()
             counts["splits"] += k
             if k == 0:
                 break
         run.rejected = run.rejected[:0]
         for _ in range(40 if simplifying else 12):  # decimation removes most vertices: more passes
-            k = run.collapse_pass()
+            k = run.collapse_pass(limit_q=6.0 if simplifying else COLLAPSE_Q)
             counts["collapses"] += k
             if k <= 2e-3 * len(s.points):
                 break
@@ -542,6 +592,9 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
             counts["flips"] += run.flip_pass("valence")
         for _ in range(2):
             counts["moves"] += run.smooth_pass(0.8)
+        if isinstance(hfield, _Scaled):
+            # a unit mesh of the field has about the expected count; correct what is left
+            hfield.scale *= float(np.clip(np.sqrt(len(s.triangles) / (fraction * len(mesh.triangles))), 1.0, 1.25))
         bar.update(1)
     for k in range(POLISH_PASSES):
         run.sizes()
@@ -587,6 +640,29 @@ def _cap_refs(points, triangles, bounds, tol):
     return np.where(on, CAP_REF, SURFACE_REF).astype(np.int64)
 
 
+class _Scaled:
+    """A size field times a scale the driver adjusts towards a triangle count."""
+
+    def __init__(self, base, scale: float):
+        self.base, self.scale = base, float(scale)
+
+    def __call__(self, x):
+        return self.base(x) * self.scale
+
+
+def _link_ok(rem, kp, n_faces, nb_ptr, nb, n) -> np.ndarray:
+    """Link condition of the collapses rem -> kp: the ends share exactly the vertices
+    opposite the edge (two inside, one on a boundary), so the mesh stays manifold; and
+    the kept end is left with valence 3 or more."""
+    own_r, nr = gather(nb_ptr, nb, rem)
+    own_k, nk = gather(nb_ptr, nb, kp)
+    pair = np.concatenate([own_r * n + nr, own_k * n + nk])
+    u, c = np.unique(pair, return_counts=True)
+    common = np.bincount(u[c == 2] // n, minlength=len(rem))
+    deg = np.diff(nb_ptr)
+    return (common == np.where(n_faces == 2, 2, 1)) & (deg[rem] + deg[kp] - 4 >= 3)
+
+
 class _NoBar:
     def update(self, k):
         pass
@@ -604,7 +680,7 @@ def _progress(total: int, progress: bool):
 
 
 def optimize(mesh: Mesh, shape=None, *, bounds=None, size=None, tolerance: float | None = None,
-             features: bool = True, angle: float = DEFAULT_ANGLE, iterations: int = 8,
+             features: bool | None = None, angle: float = DEFAULT_ANGLE, iterations: int = 8,
              progress: bool = False) -> Mesh:
     """Optimise a surface mesh for finite elements, every vertex on the exact surface.
 
@@ -626,8 +702,12 @@ def optimize(mesh: Mesh, shape=None, *, bounds=None, size=None, tolerance: float
     tolerance : float, optional
         Largest distance from the surface accepted for a collapse (default 0.1 x the
         mean input edge length).
-    features : bool
-        Recover and keep sharp edges (dihedral above ``angle`` degrees).
+    features : bool or None
+        Keep sharp edges (dihedral above ``angle`` degrees): on an implicit shape they are
+        recovered on the exact surface; on a :class:`VolumeField` or a reference mesh they
+        are the mesh's own sharp edges. None (default): True for an implicit shape, False
+        otherwise (a voxel staircase would read as creases). Open boundaries and region
+        interfaces are always kept.
     iterations : int
         Remeshing iterations before the polishing passes.
     progress : bool
@@ -655,7 +735,7 @@ def optimize(mesh: Mesh, shape=None, *, bounds=None, size=None, tolerance: float
 
 
 def simplify(mesh: Mesh, shape=None, *, tolerance: float | None = None, fraction: float | None = None,
-             bounds=None, features: bool = True, angle: float = DEFAULT_ANGLE, iterations: int = 8,
+             bounds=None, features: bool | None = None, angle: float = DEFAULT_ANGLE, iterations: int = 8,
              progress: bool = False) -> Mesh:
     """Decimate a surface mesh, keeping it within ``tolerance`` of the surface.
 
