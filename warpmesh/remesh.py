@@ -102,6 +102,21 @@ class _Run:
             out[feature] = self.lines.project(pts[feature], line_id[feature])
         return out
 
+    def too_far(self, old: np.ndarray, new: np.ndarray) -> np.ndarray:
+        """Which new (k, 3, 3) triangles leave the tolerance (centroid or an edge midpoint
+        farther than it from the surface) and are farther than the old ones they replace."""
+        bad = np.zeros(len(new), bool)
+        if len(new) == 0:
+            return bad
+        # the first-order estimate only filters (it may underestimate): half the tolerance
+        est = self.target.estimate(_face_samples(new).reshape(-1, 3)).reshape(-1, 4).max(1)
+        far = np.flatnonzero(est > 0.5 * self.tolerance)
+        if len(far):
+            d_new = self.target.distance(_face_samples(new[far]).reshape(-1, 3)).reshape(-1, 4).max(1)
+            d_old = self.target.distance(_face_samples(old[far]).reshape(-1, 3)).reshape(-1, 4).max(1)
+            bad[far] = d_new > np.maximum(self.tolerance, d_old + 1e-12)
+        return bad
+
     # --------------------------------------------------------------- split
     def split_pass(self) -> int:
         topo = self.s.topology()
@@ -164,7 +179,8 @@ class _Run:
         return s.split(topo, win, new)
 
     # --------------------------------------------------------------- collapse
-    def collapse_pass(self, cand_mask=None, below: float = COLLAPSE_BELOW, limit_q: float = COLLAPSE_Q) -> int:
+    def collapse_pass(self, cand_mask=None, below: float = COLLAPSE_BELOW, limit_q: float = COLLAPSE_Q,
+                      max_collapses: int | None = None) -> int:
         s = self.s
         topo = s.topology()
         p, n = s.points, len(s.points)
@@ -246,6 +262,11 @@ class _Run:
         if len(good) == 0:
             return 0
         pos = np.concatenate([q for _, q in accepted])
+        if max_collapses is not None and len(good) > max_collapses:  # the shortest edges go first
+            first = np.argsort(length_c[good], kind="stable")[:max(int(max_collapses), 0)]
+            good, pos = good[first], pos[first]
+            if len(good) == 0:
+                return 0
         gone = np.concatenate([topo.face0[cand[good]], topo.face1[cand[good]]])
         return s.collapse(kp[good], rem[good], pos, gone[gone >= 0])
 
@@ -287,14 +308,9 @@ class _Run:
         hk = self.h[kp][own]
         elen = np.sqrt(np.einsum("ijk,ijk->ij", new - np.roll(new, 1, axis=1), new - np.roll(new, 1, axis=1))).max(1)
         bad |= elen > SPLIT_ABOVE * np.maximum(hk, self.h[newtri].max(1))
-        # geometric error of the new faces (their centroids), unless the face was that far already
+        # geometric error of the new faces, unless the face was that far already
         check = np.flatnonzero(~bad)
-        dist = self.target.estimate(new[check].mean(axis=1))
-        far = check[dist > self.tolerance]
-        if len(far):
-            far = far[self.target.distance(new[far].mean(axis=1)) > np.maximum(
-                self.tolerance, self.target.distance(old[far].mean(axis=1)) + 1e-12)]
-        bad[far] = True
+        bad[check] = self.too_far(old[check], new[check])
         return np.bincount(own[bad], minlength=len(cand)) > 0, pos
 
     # --------------------------------------------------------------- flips
@@ -334,8 +350,12 @@ class _Run:
         _, new_edge = np.unique(edge_key(topo.opp0[cand], topo.opp1[cand]), return_inverse=True)
         idx = np.arange(len(cand))
         element = np.concatenate([topo.face0[cand], topo.face1[cand], len(s.triangles) + new_edge])
-        win = select_independent(len(cand), prio, element, np.concatenate([idx, idx, idx]))
-        return s.flip(cand[win], topo)
+        win = cand[select_independent(len(cand), prio, element, np.concatenate([idx, idx, idx]))]
+        a, b, o0, o1 = topo.edges[win, 0], topo.edges[win, 1], topo.opp0[win], topo.opp1[win]
+        old = np.concatenate([p[np.stack([a, b, o0], 1)], p[np.stack([b, a, o1], 1)]])
+        new = np.concatenate([p[np.stack([a, o1, o0], 1)], p[np.stack([o1, b, o0], 1)]])
+        far = self.too_far(old, new)
+        return s.flip(win[~(far[:len(win)] | far[len(win):])], topo)
 
     # --------------------------------------------------------------- relocation
     def smooth_pass(self, weight: float = 1.0, only=None) -> int:
@@ -394,6 +414,9 @@ class _Run:
             # no face turns over or gets much worse; none gets worse above SMOOTH_Q_CAP
             bad = (cosang < cos_turn) | ((q_new > 2 * q_old) & (q_new > COLLAPSE_Q)) | (
                 q_new > np.maximum(q_old, SMOOTH_Q_CAP))
+            # nor leaves the tolerance (faces whose corners all went back are not looked at)
+            live = np.flatnonzero(~bad & np.any(new != old, axis=(1, 2)))
+            bad[live] = self.too_far(old[live], new[live])
             if not bad.any():
                 break
             undo = np.unique(t[faces[bad]])
@@ -581,7 +604,9 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
                 break
         run.rejected = run.rejected[:0]
         for _ in range(40 if simplifying else 12):  # decimation removes most vertices: more passes
-            k = run.collapse_pass(limit_q=6.0 if simplifying else COLLAPSE_Q)
+            # a collapse removes two triangles (one on a boundary): stop at the requested count
+            room = None if fraction is None else (len(s.triangles) - fraction * len(mesh.triangles)) / 2
+            k = run.collapse_pass(limit_q=6.0 if simplifying else COLLAPSE_Q, max_collapses=room)
             counts["collapses"] += k
             if k <= 2e-3 * len(s.points):
                 break
@@ -638,6 +663,12 @@ def _cap_refs(points, triangles, bounds, tol):
         for plane in (lo[k], hi[k]):
             on |= np.all(np.abs(p[:, :, k] - plane) <= 1e-3 * tol, axis=1)
     return np.where(on, CAP_REF, SURFACE_REF).astype(np.int64)
+
+
+def _face_samples(tri: np.ndarray) -> np.ndarray:
+    """(k, 4, 3) centroid and edge midpoints of (k, 3, 3) triangles."""
+    return np.stack([tri.mean(axis=1), 0.5 * (tri[:, 0] + tri[:, 1]), 0.5 * (tri[:, 1] + tri[:, 2]),
+                     0.5 * (tri[:, 2] + tri[:, 0])], axis=1)
 
 
 class _Scaled:
