@@ -20,9 +20,10 @@ at ``--simplify-resolution`` (default 128) and of one label of pyvista's bundled
 segmentation (``pyvista/examples/frog_tissues.vti``, read from the package directory,
 no download; ``--label``, default 10):
 
-- ``warpmesh simplify``: ``wm.simplify(mesh, shape, tolerance=--simplify-tolerance x cell)``
-  (``bounds=`` where capped; the volume: ``wm.VolumeField`` of the label's 0/1 indicator at
-  level 0.5; ``--wm-fraction`` also passes ``fraction=``);
+- ``warpmesh simplify``: ``wm.simplify(mesh, shape, tolerance=--simplify-tolerance x cell,
+  fraction=1 - --reduction)`` (``bounds=`` where capped; the volume: ``wm.VolumeField`` of
+  the label's 0/1 indicator at level 0.5 and tolerance ``--frog-tolerance`` x its smallest
+  spacing; ``--tolerance-only`` passes no ``fraction=``);
 - ``fast-simplification``: ``fast_simplification.simplify(points, faces, target_reduction=0.9)``;
 - ``pymeshlab quadric``: ``meshing_decimation_quadric_edge_collapse(targetfacenum=10 %)``
   (other parameters at their defaults).
@@ -37,13 +38,12 @@ the vertices, the edge midpoints (per triangle) and the centroids, projected ont
 exact surface by Newton steps on f (``wm.evaluate(shape, x, gradient=True)``); on a mesh
 capped on the box on g = min(f, distance to the box faces) (``exact_surface_distance``).
 For the frog label the reference is the original MC mesh (pyvista ``find_closest_cell``).
-Where ``wm.surface_error`` exists its figures are printed next to these as a cross-check.
+``wm.surface_error``'s figures are printed next to these as a cross-check.
 
 Times are the best of ``--repeat`` runs (tools round-robin after ``--warmup`` untimed
 rounds; a tool stops once its timed runs pass ``--budget`` s, and a warm-up call longer
 than that is its only, cold, run); ratio = tool time / warpmesh time (> 1: warpmesh
-faster). ``--peers-only`` skips warpmesh's optimize / simplify. Until ``wm.optimize`` /
-``wm.simplify`` exist the warpmesh rows print "warpmesh: n/a" and the peers still run.
+faster). ``--peers-only`` skips warpmesh's optimize / simplify (its rows print "n/a").
 
 Run:  python benchmarks/bench_optimize.py [--quick] [--repeat 3] [--shapes sphere,degree6,part]
                                           [--size 1.0] [--tolerance 0.25] [--iterations 10]
@@ -85,9 +85,8 @@ FROG_FILE = os.path.join(os.path.dirname(pv.__file__), "examples", "frog_tissues
 ABSOLUTE = getattr(pymeshlab, "PureValue", None) or getattr(pymeshlab, "AbsoluteValue")
 
 # Guards while the optimizer / simplifier are being written (remove once they land).
-HAVE_OPTIMIZE = hasattr(wm, "optimize")
-HAVE_SIMPLIFY = hasattr(wm, "simplify") and hasattr(wm, "VolumeField")
-HAVE_SURFACE_ERROR = hasattr(wm, "surface_error")
+# warpmesh rows run unless --peers-only
+HAVE_OPTIMIZE = HAVE_SIMPLIFY = HAVE_SURFACE_ERROR = True
 
 
 # =============================================================================================
@@ -447,7 +446,7 @@ def optimize_case(args, name) -> dict:
              f"h = {h:.4g} ({args.size:g} cell), tolerance {tol:.4g} ({args.tolerance:g} h), "
              f"{args.iterations} iterations" + (", capped on the box (distance to min(f, box))" if capped else ""))
     return {"section": "optimize", "case": name, "title": title, "rows": rows, "h": h, "tolerance": tol,
-            "capped": capped, "missing": None if HAVE_OPTIMIZE else "warpmesh: n/a (no wm.optimize, or --peers-only)"}
+            "capped": capped, "missing": None if HAVE_OPTIMIZE else "warpmesh: n/a (--peers-only)"}
 
 
 # =============================================================================================
@@ -512,7 +511,7 @@ def simplify_case(args, name, frog=None) -> dict:
     p0, t0_ = mc.points, mc.triangles
     n_in = len(t0_)
     target = int(round(n_in * (1.0 - args.reduction)))
-    tol = args.simplify_tolerance * cell
+    tol = (args.frog_tolerance if frog is not None else args.simplify_tolerance) * cell
 
     tools = {}
     if HAVE_SIMPLIFY:
@@ -546,9 +545,10 @@ def simplify_case(args, name, frog=None) -> dict:
     for r in rows:
         r["ratio"] = r["time_s"] / ref["best"] if ref and not r.get("input") else None
     title = (f"(2) simplify: {what}; {n_in:,} -> ~{target:,} triangles"
-             + (f", warpmesh tolerance {tol:.4g} ({args.simplify_tolerance:g} cell)" if HAVE_SIMPLIFY else ""))
+             + (f", warpmesh tolerance {tol:.4g} ({tol / cell:g} cell)" if HAVE_SIMPLIFY else "")
+             + (f", fraction {args.wm_fraction:g}" if HAVE_SIMPLIFY and args.wm_fraction else ""))
     return {"section": "simplify", "case": "frog" if frog else name, "title": title, "rows": rows,
-            "missing": None if HAVE_SIMPLIFY else "warpmesh: n/a (no wm.simplify / wm.VolumeField, or --peers-only)"}
+            "missing": None if HAVE_SIMPLIFY else "warpmesh: n/a (--peers-only)"}
 
 
 # =============================================================================================
@@ -653,7 +653,11 @@ def parse_args(argv=None):
     p.add_argument("--simplify-tolerance", type=float, default=0.5,
                    help="warpmesh simplify tolerance in MC cells (the frog: in its smallest spacing) (default 0.5)")
     p.add_argument("--wm-fraction", type=float, default=None,
-                   help="also pass fraction= to wm.simplify (default: not passed, tolerance only)")
+                   help="fraction= passed to wm.simplify (default: 1 - --reduction, the peers' target)")
+    p.add_argument("--tolerance-only", action="store_true",
+                   help="pass no fraction= to wm.simplify: decimate as far as the tolerance allows")
+    p.add_argument("--frog-tolerance", type=float, default=1.0,
+                   help="warpmesh simplify tolerance for the frog, in its smallest spacing (default 1.0)")
     p.add_argument("--label", type=int, default=10, help="frog_tissues label to simplify (default 10)")
     p.add_argument("--no-frog", action="store_true", help="skip the frog volume")
     p.add_argument("--sections", default="optimize,simplify", help="comma-separated subset of optimize,simplify")
@@ -674,6 +678,10 @@ def parse_args(argv=None):
         args.simplify_resolution = 64 if args.quick else 128
     if not 0.0 < args.reduction < 1.0:
         p.error("--reduction must be in (0, 1)")
+    if args.wm_fraction is None and not args.tolerance_only:
+        args.wm_fraction = 1.0 - args.reduction
+    if args.tolerance_only:
+        args.wm_fraction = None
     args.shape_list = [s.strip() for s in args.shapes.split(",") if s.strip()]
     bad = [s for s in args.shape_list if s not in SHAPES]
     if bad:
@@ -702,9 +710,9 @@ def main(argv=None):
           "(deg); max/mean dist = over samples at vertices, edge midpoints, centroids; closed = every edge in two "
           "triangles (else how many are not); euler = V - E + F; ratio = time / warpmesh time (> 1: warpmesh faster)")
     if not HAVE_OPTIMIZE:
-        print("warpmesh: n/a (wm.optimize not in this build, or --peers-only; peers only)")
+        print("warpmesh: n/a (--peers-only; peers only)")
     if not HAVE_SIMPLIFY:
-        print("warpmesh: n/a (wm.simplify / wm.VolumeField not in this build, or --peers-only; peers only)")
+        print("warpmesh: n/a (--peers-only; peers only)")
     sys.stdout.flush()
 
     cases = []

@@ -290,8 +290,37 @@ def test_simplify_to_a_fraction():
     shape, bounds = wm.example("sphere")
     mc = wm.mesh_surface(shape, bounds=bounds, resolution=64, method="mc")
     small = mc.simplify(shape, fraction=0.1, tolerance=0.01)
-    assert 0.05 * mc.n_cells < small.n_cells < 0.2 * mc.n_cells
+    assert 0.09 * mc.n_cells < small.n_cells < 0.11 * mc.n_cells
     assert _closed_oriented(small) and small.stats()["q_worst"] < 2.0
+    assert wm.surface_error(small, shape)["max"] <= 0.01 * (1 + 1e-6)
+
+
+def _labels_two_bodies(n=40):
+    """A 0/1/2 label volume: a torus-like ring (label 1, genus 1) and an ellipsoid (label 2)."""
+    g = np.linspace(-1, 1, n)
+    x, y, z = np.meshgrid(g, g, g, indexing="ij")
+    lab = np.zeros((n, n, n), np.uint8)
+    lab[(np.hypot(np.hypot(x + 0.35, y) - 0.35, z) < 0.2)] = 1
+    lab[((x - 0.55) / 0.3) ** 2 + (y / 0.5) ** 2 + (z / 0.4) ** 2 < 1] = 2
+    return lab, 2.0 / (n - 1)
+
+
+def test_simplify_labelled_volume_stays_manifold_and_within_tolerance():
+    # a segmentation's staircase: MC of the 0/1 indicator, decimated against its trilinear field
+    lab, h = _labels_two_bodies()
+    mc = wm.mesh_surface(lab, labels=[1], spacing=(h,) * 3, origin=(-1.0,) * 3, method="mc")
+    field = wm.VolumeField((lab == 1).astype(np.float32), spacing=h, origin=-1.0, level=0.5)
+    small = wm.simplify(mc, field, tolerance=h, fraction=0.1)
+    s = small.stats()
+    assert 0.08 * mc.n_cells < small.n_cells < 0.12 * mc.n_cells
+    assert _closed_oriented(small) and s["euler"] == mc.stats()["euler"] == 0
+    assert np.isfinite(small.quality()).all() and s["q_worst"] < 10
+    err = wm.surface_error(small, field)
+    assert err["vertex_max"] < 0.05 * h and err["max"] <= h * (1 + 1e-6)
+    # with no function: the input mesh is the reference
+    ref = wm.simplify(mc, None, tolerance=h, fraction=0.2)
+    assert _closed_oriented(ref) and ref.stats()["euler"] == 0 and ref.n_cells < 0.25 * mc.n_cells
+    assert wm.surface_error(ref, reference=(mc.points, mc.triangles))["vertex_max"] < 1e-6
 
 
 # ----------------------------------------------------------------------------- bad input

@@ -96,9 +96,14 @@ def select_independent(n_candidates: int, priority: np.ndarray, element: np.ndar
     return np.flatnonzero(won)
 
 
+#: a split child worse than this (and than ten times its parent) is refused
+SPLIT_CHILD_Q = 1.0e3
+
+
 def splits_keep_faces(s: Surface, topo, cand: np.ndarray, c: np.ndarray, turn: bool = True):
     """The splits of edges ``cand`` at ``c`` whose four new triangles are neither
-    degenerate nor (with ``turn``) turned against the faces they replace."""
+    degenerate (Q above SPLIT_CHILD_Q and ten times their parent's) nor (with ``turn``)
+    turned against the faces they replace."""
     p = s.points
     ok = np.ones(len(cand), bool)
     for face in (topo.face0[cand], topo.face1[cand]):
@@ -114,7 +119,8 @@ def splits_keep_faces(s: Surface, topo, cand: np.ndarray, c: np.ndarray, turn: b
             at = s.triangles[f] == other[:, None]
             new[at] = c[has]
             n_new = np.cross(new[:, 1] - new[:, 0], new[:, 2] - new[:, 0])
-            good = np.isfinite(quality_of(new))
+            q_new = quality_of(new)
+            good = np.isfinite(q_new) & ((q_new <= SPLIT_CHILD_Q) | (q_new <= 10 * quality_of(tri)))
             if turn:
                 good &= np.einsum("ij,ij->i", n_old, n_new) > 0
             ok[np.flatnonzero(has)[~good]] = False

@@ -31,7 +31,8 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-from .edge_ops import CORNER, FREE, LINE, Surface, edge_key, select_independent, splits_keep_faces
+from .edge_ops import CORNER, FREE, LINE, SPLIT_CHILD_Q, Surface, edge_key, quality_of, select_independent, \
+    splits_keep_faces
 
 __all__ = ["detect_features", "insert_creases", "FeatureLines", "DEFAULT_ANGLE", "CORNER_TURN"]
 
@@ -217,7 +218,8 @@ def snap_corners(s: Surface, target, crease: np.ndarray) -> np.ndarray:
         near_corner |= s.vclass == CORNER
         grown = near_corner.copy()
         grown[owner[near_corner[ring]]] = True
-        cand = cand[~grown[cand]]
+        # ... but may themselves still move onto the exact corner
+        cand = cand[~grown[cand] | (s.vclass[cand] == CORNER)]
     if len(cand) == 0:
         return crease
     sub = np.isin(group, cand)
@@ -289,6 +291,8 @@ def _snap(s: Surface, verts: np.ndarray, where: np.ndarray, crease: np.ndarray, 
     old_n = np.cross(*(s.points[t[faces, k]] - s.points[t[faces, 0]] for k in (1, 2)))
     new_n = np.cross(*(newp[t[faces, k]] - newp[t[faces, 0]] for k in (1, 2)))
     bad = np.einsum("ij,ij->i", old_n, new_n) <= 0.1 * np.linalg.norm(old_n, axis=1) * np.linalg.norm(new_n, axis=1)
+    q_old, q_new = quality_of(s.points[t[faces]]), quality_of(newp[t[faces]])
+    bad |= ~np.isfinite(q_new) | ((q_new > SPLIT_CHILD_Q) & (q_new > 10 * q_old))  # no sliver either
     undo = np.unique(t[faces[bad]])
     newp[undo] = s.points[undo]
     done = verts[np.all(newp[verts] == where, axis=1)]

@@ -87,6 +87,16 @@ class _Run:
         s = self.s
         h = self.size(s.points)
         topo = s.topology()
+        feat = s.vclass != FREE
+        if feat.any() and getattr(getattr(self.size, "base", self.size), "from_curvature", False):
+            # on a crease the Hessian sees the fold, not the surface on either side: take the
+            # largest h of the free neighbours (none: keep it)
+            e = topo.edges
+            hf = np.zeros(len(h))
+            for u, v in ((e[:, 0], e[:, 1]), (e[:, 1], e[:, 0])):
+                m = feat[u] & ~feat[v]
+                np.maximum.at(hf, u[m], h[v[m]])
+            h = np.where(feat & (hf > 0), hf, h)
         self.h = graded(h, s.points, topo.edges, self.gradation)
         return topo
 
@@ -534,8 +544,17 @@ def _run_setup(mesh: Mesh, shape, bounds, size, tolerance, features, angle, frac
     e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
     mean_edge = float(np.linalg.norm(pts[e[:, 0]] - pts[e[:, 1]], axis=1).mean())
     target = as_target(shape, bounds=bounds, reference=(pts, tri))
+    area = float(np.linalg.norm(np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]]),
+                                axis=1).sum() / 2)
+    unit = np.sqrt(4.0 * area / (np.sqrt(3.0) * len(tri)))  # edge of a unit mesh with as many triangles
     if tolerance is None:
-        tolerance = 0.1 * mean_edge if not simplifying else 0.05 * mean_edge
+        if simplifying:
+            tolerance = 0.05 * mean_edge
+        elif size is None or (isinstance(size, (int, float, np.floating, np.integer)) and not isinstance(size, bool)
+                              and np.isfinite(size) and size > 0):
+            tolerance = 0.25 * (unit if size is None else float(size))
+        else:
+            tolerance = 0.1 * mean_edge
     if not np.isfinite(tolerance) or tolerance <= 0:
         raise ValueError(f"expected a positive 'tolerance', got {tolerance!r}")
     extent = float(np.linalg.norm(pts[used].max(0) - pts[used].min(0)))
@@ -546,15 +565,11 @@ def _run_setup(mesh: Mesh, shape, bounds, size, tolerance, features, angle, frac
             if not (0.0 < fraction <= 1.0):
                 raise ValueError(f"expected 0 < 'fraction' <= 1, got {fraction!r}")
             hv = hfield(pts[used])
-            area = mesh.stats()["area"]
             # a unit mesh has about 4 area / (sqrt(3) h^2) triangles
             expected = 4.0 * area / (np.sqrt(3.0) * np.mean(hv) ** 2)
             hfield = _Scaled(hfield, np.sqrt(max(expected / (fraction * len(tri)), 1e-6)))
     else:
         # default: the edge length of a unit mesh with as many triangles as the input
-        area = float(np.linalg.norm(np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]]),
-                                    axis=1).sum() / 2)
-        unit = np.sqrt(4.0 * area / (np.sqrt(3.0) * len(tri)))
         hfield = size_field(unit if size is None else size, target, tolerance=tolerance,
                             limits=(1e-3 * mean_edge, extent))
     refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
@@ -731,8 +746,9 @@ def optimize(mesh: Mesh, shape=None, *, bounds=None, size=None, tolerance: float
         the curvature so that the chord deviation stays below ``tolerance``, or
         ``h(points) -> (n,)``.
     tolerance : float, optional
-        Largest distance from the surface accepted for a collapse (default 0.1 x the
-        mean input edge length).
+        Largest distance from the surface (at face centroids and edge midpoints) that a
+        collapse, flip or move may leave (default 0.25 x the target edge length; 0.1 x the
+        mean input edge length with a curvature or callable ``size``).
     features : bool or None
         Keep sharp edges (dihedral above ``angle`` degrees): on an implicit shape they are
         recovered on the exact surface; on a :class:`VolumeField` or a reference mesh they

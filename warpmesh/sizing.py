@@ -53,6 +53,7 @@ def size_field(size, target=None, *, tolerance: float | None = None, limits=(0.0
             kappa = np.maximum(target.curvature(points), 1e-12)
             h = 8.0 * tolerance / kappa if relative else np.sqrt(8.0 * tolerance / kappa)
             return np.clip(h, lo, hi)
+        curvature.from_curvature = True  # read by the optimiser (crease vertices)
         return curvature
     if isinstance(size, bool) or not isinstance(size, (int, float, np.floating, np.integer)):
         raise TypeError(f"expected 'size' to be a number, 'curvature' or a callable, got {type(size).__name__}")
