@@ -242,6 +242,7 @@ class VolumeField(_FunctionTarget):
         if not np.all(np.isfinite(sp)) or np.any(sp <= 0):
             raise ValueError(f"expected positive 'spacing', got {spacing!r}")
         self.values = (1.0 if inside == "above" else -1.0) * (v - float(level))
+        self._flat = np.ascontiguousarray(self.values).ravel()
         self.spacing = sp
         self.origin = np.broadcast_to(np.asarray(origin, REAL_DTYPE), (3,)).copy()
         self.bounds = _check_bounds(bounds)
@@ -253,12 +254,10 @@ class VolumeField(_FunctionTarget):
         shape = np.array(self.values.shape)
         i0 = np.clip(np.floor(p).astype(np.int64), 0, shape - 2)
         t = np.clip(p - i0, 0.0, 1.0)
-        v = self.values
-        c = np.empty((len(p), 2, 2, 2))
-        for a in (0, 1):
-            for b in (0, 1):
-                for d in (0, 1):
-                    c[:, a, b, d] = v[i0[:, 0] + a, i0[:, 1] + b, i0[:, 2] + d]
+        # one flat gather of the 8 corners (C order: strides ny*nz, nz, 1)
+        strides = np.array([shape[1] * shape[2], shape[2], 1], np.int64)
+        corner = (np.array([[a, b, d] for a in (0, 1) for b in (0, 1) for d in (0, 1)]) @ strides)
+        c = self._flat[(i0 @ strides)[:, None] + corner[None, :]].reshape(len(p), 2, 2, 2)
         tx, ty, tz = t[:, 0, None, None], t[:, 1, None], t[:, 2]
         cx = c[:, 0] * (1 - tx) + c[:, 1] * tx  # (n, 2, 2) over (y, z)
         cxy = cx[:, 0] * (1 - ty) + cx[:, 1] * ty  # (n, 2) over z
