@@ -46,6 +46,30 @@ def test_mesh_volume_file(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["euler"] == 2
 
 
+def test_optimize_and_simplify_from_the_command_line(tmp_path, capsys):
+    out = tmp_path / "part.ply"
+    assert main(["mesh", "--example", "part", "--method", "mc", "--resolution", "40", "--optimize",
+                 "--size", "0.08", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "before" in text and "after" in text and "distance max" in text
+    m = wm.load(out)
+    assert m.stats()["watertight"] and m.stats()["euler"] == -6 and m.stats()["q_worst"] < 3
+    # one label of a segmentation, decimated to about a third within a voxel
+    g = np.linspace(-1, 1, 28)
+    x, y, z = np.meshgrid(g, g, g, indexing="ij")
+    lab = np.where(x**2 + (y / 0.7) ** 2 + (z / 0.5) ** 2 < 0.8, 3, 0).astype(np.uint8)
+    path = tmp_path / "seg.npy"
+    np.save(path, lab)
+    full = tmp_path / "full.ply"
+    small = tmp_path / "small.ply"
+    assert main(["mesh", "--volume", str(path), "--labels", "3", "-o", str(full)]) == 0
+    assert main(["mesh", "--volume", str(path), "--labels", "3", "--simplify", "0.3", "-o", str(small)]) == 0
+    a, b = wm.load(full), wm.load(small)
+    assert b.stats()["watertight"] and b.stats()["euler"] == 2
+    assert 0.25 * a.n_cells < b.n_cells < 0.35 * a.n_cells
+    assert main(["mesh", "--example", "sphere", "--optimize", "--simplify", "0.5"]) == 2
+
+
 def test_errors_are_reported_not_raised(tmp_path, capsys):
     bad = tmp_path / "bad.npy"
     bad.write_text("not an array")

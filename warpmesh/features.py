@@ -340,7 +340,3 @@ def feature_edges_of(s: Surface) -> np.ndarray:
     """(k, 2) vertex pairs of the feature edges."""
     keys = s.feature_keys
     return np.stack([keys // np.int64(1 << 31), keys % np.int64(1 << 31)], axis=1)
-
-
-def feature_key_set(edges: np.ndarray) -> np.ndarray:
-    return np.sort(edge_key(edges[:, 0], edges[:, 1]))

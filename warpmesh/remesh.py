@@ -41,9 +41,9 @@ import numpy as np
 
 from .edge_ops import CORNER, FREE, LINE, Surface, edge_key, gather, quality_of, select_independent, \
     splits_keep_faces, vertex_faces, vertex_neighbours
-from .features import DEFAULT_ANGLE, FeatureLines, detect_features, insert_creases, snap_corners
+from .features import DEFAULT_ANGLE, FeatureLines, detect_features, feature_edges_of, insert_creases, snap_corners
 from .mesh import Mesh
-from .projection import ImplicitTarget, MeshTarget, _FunctionTarget, as_target
+from .projection import ImplicitTarget, MeshTarget, VolumeField, _FunctionTarget, as_target
 from .quality import quality_table
 from .surface import CAP_REF, SURFACE_REF
 from .sizing import GRADATION, graded, size_field
@@ -396,7 +396,7 @@ class _Run:
             newp[free] = self.project_free(p[free] + weight * d, 0.5 * self.h[free])
         line = np.flatnonzero(s.vclass == LINE) if only is None else np.flatnonzero((s.vclass == LINE) & only)
         if len(line) and self.lines is not None:
-            fe = np.stack([s.feature_keys // np.int64(1 << 31), s.feature_keys % np.int64(1 << 31)], 1)
+            fe = feature_edges_of(s)
             fe = fe[(s.vclass[fe[:, 0]] >= LINE) & (s.vclass[fe[:, 1]] >= LINE)]
             acc = np.zeros((n, 3))
             cnt = np.bincount(fe.ravel(), minlength=n).astype(float)
@@ -554,7 +554,9 @@ def _run_setup(mesh: Mesh, shape, bounds, size, tolerance, features, angle, frac
                                 axis=1).sum() / 2)
     unit = np.sqrt(4.0 * area / (np.sqrt(3.0) * len(tri)))  # edge of a unit mesh with as many triangles
     if tolerance is None:
-        if simplifying:
+        if simplifying and isinstance(target, VolumeField):
+            tolerance = float(target.spacing.min())  # a sampled surface is known to about a sample
+        elif simplifying:
             tolerance = 0.05 * mean_edge
         elif size is None or (isinstance(size, (int, float, np.floating, np.integer)) and not isinstance(size, bool)
                               and np.isfinite(size) and size > 0):
@@ -793,10 +795,15 @@ def simplify(mesh: Mesh, shape=None, *, tolerance: float | None = None, fraction
     """Decimate a surface mesh, keeping it within ``tolerance`` of the surface.
 
     The size field follows the curvature, h = sqrt(8 tolerance / κ) (never below the
-    input's mean edge length), so flat regions coarsen most (seed Fig. 16.20); every
-    collapse is checked against the tolerance. ``fraction`` (e.g. 0.1) scales the field
-    for about that fraction of the input triangles. With ``shape=None`` the error is
-    measured to the input mesh.
+    input's mean edge length), so flat regions coarsen most (seed Fig. 16.20). Edges
+    shorter than 4/5 h collapse into one of their ends (half-edge collapses, a maximal
+    independent set per pass), each checked for the link condition, quality and the
+    tolerance (centroid and edge midpoints of the new faces); flips and tangential
+    relocation then even the triangles out under the same checks. ``fraction`` (e.g.
+    0.1) scales the field for that fraction of the input triangles and stops there (the
+    tolerance may stop it earlier). With ``shape=None`` the error is measured to the
+    input mesh. Default tolerance: 0.05 x the mean input edge, one sample spacing for a
+    :class:`VolumeField`.
 
     Examples
     --------
