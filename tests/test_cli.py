@@ -47,7 +47,7 @@ def test_mesh_volume_file(tmp_path, capsys):
 
 
 def test_optimize_and_simplify_from_the_command_line(tmp_path, capsys):
-    out = tmp_path / "part.ply"
+    out = tmp_path / "part.vtu"
     assert main(["mesh", "--example", "part", "--method", "mc", "--resolution", "40", "--optimize",
                  "--size", "0.08", "-o", str(out)]) == 0
     text = capsys.readouterr().out
@@ -60,8 +60,8 @@ def test_optimize_and_simplify_from_the_command_line(tmp_path, capsys):
     lab = np.where(x**2 + (y / 0.7) ** 2 + (z / 0.5) ** 2 < 0.8, 3, 0).astype(np.uint8)
     path = tmp_path / "seg.npy"
     np.save(path, lab)
-    full = tmp_path / "full.ply"
-    small = tmp_path / "small.ply"
+    full = tmp_path / "full.vtu"
+    small = tmp_path / "small.vtu"
     assert main(["mesh", "--volume", str(path), "--labels", "3", "-o", str(full)]) == 0
     assert main(["mesh", "--volume", str(path), "--labels", "3", "--simplify", "0.3", "-o", str(small)]) == 0
     a, b = wm.load(full), wm.load(small)
