@@ -345,3 +345,47 @@ def check_cap_values_kernel(
                     if on_capped_face(g, n, cap):
                         values[idx] = 0.0
     bad[s] = n_bad
+
+
+@wp.kernel
+def trilinear_value_gradient_kernel(
+    values: wp.array3d(dtype=wp.float64), origin: wp.vec3d, spacing: wp.vec3d,
+    points: wp.array(dtype=wp.vec3d), f: wp.array(dtype=wp.float64), grad: wp.array(dtype=wp.vec3d),
+):
+    """Trilinear interpolant of node values (``values[i, j, k]`` at ``origin + (i, j, k) *
+    spacing``) and its gradient at each point; points outside use the nearest cell's
+    polynomial with the local coordinates clamped to it (the field is constant beyond)."""
+    tid = wp.tid()
+    q = points[tid] - origin
+    n = wp.vec3i(values.shape[0], values.shape[1], values.shape[2])
+    ix = wp.clamp(int(wp.floor(q[0] / spacing[0])), 0, n[0] - 2)
+    iy = wp.clamp(int(wp.floor(q[1] / spacing[1])), 0, n[1] - 2)
+    iz = wp.clamp(int(wp.floor(q[2] / spacing[2])), 0, n[2] - 2)
+    tx = wp.clamp(q[0] / spacing[0] - wp.float64(ix), wp.float64(0.0), wp.float64(1.0))
+    ty = wp.clamp(q[1] / spacing[1] - wp.float64(iy), wp.float64(0.0), wp.float64(1.0))
+    tz = wp.clamp(q[2] / spacing[2] - wp.float64(iz), wp.float64(0.0), wp.float64(1.0))
+    one = wp.float64(1.0)
+    c000 = values[ix, iy, iz]
+    c001 = values[ix, iy, iz + 1]
+    c010 = values[ix, iy + 1, iz]
+    c011 = values[ix, iy + 1, iz + 1]
+    c100 = values[ix + 1, iy, iz]
+    c101 = values[ix + 1, iy, iz + 1]
+    c110 = values[ix + 1, iy + 1, iz]
+    c111 = values[ix + 1, iy + 1, iz + 1]
+    # along x, then y, then z
+    c00 = c000 * (one - tx) + c100 * tx
+    c01 = c001 * (one - tx) + c101 * tx
+    c10 = c010 * (one - tx) + c110 * tx
+    c11 = c011 * (one - tx) + c111 * tx
+    c0 = c00 * (one - ty) + c10 * ty
+    c1 = c01 * (one - ty) + c11 * ty
+    f[tid] = c0 * (one - tz) + c1 * tz
+    d00 = c100 - c000
+    d01 = c101 - c001
+    d10 = c110 - c010
+    d11 = c111 - c011
+    gx = (d00 * (one - ty) + d10 * ty) * (one - tz) + (d01 * (one - ty) + d11 * ty) * tz
+    gy = (c10 - c00) * (one - tz) + (c11 - c01) * tz
+    gz = c1 - c0
+    grad[tid] = wp.vec3d(gx / spacing[0], gy / spacing[1], gz / spacing[2])

@@ -242,7 +242,8 @@ class VolumeField(_FunctionTarget):
         if not np.all(np.isfinite(sp)) or np.any(sp <= 0):
             raise ValueError(f"expected positive 'spacing', got {spacing!r}")
         self.values = (1.0 if inside == "above" else -1.0) * (v - float(level))
-        self._flat = np.ascontiguousarray(self.values).ravel()
+        self.values = np.ascontiguousarray(self.values)
+        self._wp_values = None  # the warp copy, made on first use
         self.spacing = sp
         self.origin = np.broadcast_to(np.asarray(origin, REAL_DTYPE), (3,)).copy()
         self.bounds = _check_bounds(bounds)
@@ -250,25 +251,21 @@ class VolumeField(_FunctionTarget):
         self.newton_cap = float(sp.min())
 
     def value_gradient(self, points):
-        p = (np.asarray(points, REAL_DTYPE) - self.origin) / self.spacing
-        shape = np.array(self.values.shape)
-        i0 = np.clip(np.floor(p).astype(np.int64), 0, shape - 2)
-        t = np.clip(p - i0, 0.0, 1.0)
-        # one flat gather of the 8 corners (C order: strides ny*nz, nz, 1)
-        strides = np.array([shape[1] * shape[2], shape[2], 1], np.int64)
-        corner = (np.array([[a, b, d] for a in (0, 1) for b in (0, 1) for d in (0, 1)]) @ strides)
-        c = self._flat[(i0 @ strides)[:, None] + corner[None, :]].reshape(len(p), 2, 2, 2)
-        tx, ty, tz = t[:, 0, None, None], t[:, 1, None], t[:, 2]
-        cx = c[:, 0] * (1 - tx) + c[:, 1] * tx  # (n, 2, 2) over (y, z)
-        cxy = cx[:, 0] * (1 - ty) + cx[:, 1] * ty  # (n, 2) over z
-        f = cxy[:, 0] * (1 - tz) + cxy[:, 1] * tz
-        dx = c[:, 1] - c[:, 0]
-        dxy = dx[:, 0] * (1 - ty) + dx[:, 1] * ty
-        gx = dxy[:, 0] * (1 - tz) + dxy[:, 1] * tz
-        dy = cx[:, 1] - cx[:, 0]
-        gy = dy[:, 0] * (1 - tz) + dy[:, 1] * tz
-        gz = cxy[:, 1] - cxy[:, 0]
-        return f, np.stack([gx, gy, gz], axis=1) / self.spacing
+        import warp as wp
+
+        from warpmesh.kernels.block_grid import trilinear_value_gradient_kernel
+
+        p = np.ascontiguousarray(points, dtype=REAL_DTYPE).reshape(-1, 3)
+        if len(p) == 0:
+            return np.zeros(0), np.zeros((0, 3))
+        if self._wp_values is None:  # on the host: the optimiser's data live there
+            self._wp_values = wp.array(self.values, dtype=wp.float64, device="cpu")
+        f = wp.empty(len(p), dtype=wp.float64, device="cpu")
+        g = wp.empty(len(p), dtype=wp.vec3d, device="cpu")
+        wp.launch(trilinear_value_gradient_kernel, dim=len(p),
+                  inputs=[self._wp_values, wp.vec3d(*self.origin), wp.vec3d(*self.spacing),
+                          wp.array(p, dtype=wp.vec3d, device="cpu"), f, g], device="cpu")
+        return f.numpy(), g.numpy()
 
 
 class MeshTarget:
