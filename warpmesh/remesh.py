@@ -34,6 +34,7 @@ Examples
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field
 
@@ -62,6 +63,9 @@ MAX_TURN = 45.0
 COLLAPSE_ROUNDS = 4
 LUBY_ROUNDS = 6
 POLISH_PASSES = 6
+#: extra local passes while the worst triangle is above RESCUE_Q
+RESCUE_PASSES = 4
+RESCUE_Q = 2.0
 POLISH_Q = 1.6
 #: iterations after the first that look for crease gaps again
 FEATURE_REFRESH = 2
@@ -660,6 +664,30 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         for _ in range(2):
             counts["moves"] += run.best_position_pass(POLISH_Q)
         bar.update(1)
+    # rescue: local quality operators only (no error splits, no smoothing) while a few
+    # triangles stay above 2 (a crease or corner nearby often pins them)
+    best, best_q = None, quality_of(s.points[s.triangles]).max()
+    for _ in range(RESCUE_PASSES if best_q > RESCUE_Q else 0):
+        if best is None:
+            best = copy.deepcopy(s)  # the passes may go through worse states: keep the best
+        run.sizes()
+        counts["flips"] += run.flip_pass("quality")
+        run.rejected = run.rejected[:0]
+        counts["collapses"] += run.needle_pass(RESCUE_Q)
+        s.compact()
+        run.sizes()
+        counts["splits"] += run.cap_pass(RESCUE_Q)
+        run.sizes()
+        for _ in range(2):
+            counts["moves"] += run.best_position_pass(POLISH_Q)
+        s.compact()
+        q = quality_of(s.points[s.triangles]).max()
+        if q < best_q:
+            best, best_q = copy.deepcopy(s), q
+        if q <= RESCUE_Q:
+            break
+    if best is not None:
+        s = best
     bar.close()
     s.compact()
     before = quality_table(mesh.points, mesh.triangles)
