@@ -241,8 +241,7 @@ class VolumeField(_FunctionTarget):
         sp = np.broadcast_to(np.asarray(spacing, REAL_DTYPE), (3,)).copy()
         if not np.all(np.isfinite(sp)) or np.any(sp <= 0):
             raise ValueError(f"expected positive 'spacing', got {spacing!r}")
-        self.values = (1.0 if inside == "above" else -1.0) * (v - float(level))
-        self.values = np.ascontiguousarray(self.values)
+        self.values = np.ascontiguousarray((1.0 if inside == "above" else -1.0) * (v - float(level)))
         self._wp_values = None  # the warp copy, made on first use
         self.spacing = sp
         self.origin = np.broadcast_to(np.asarray(origin, REAL_DTYPE), (3,)).copy()

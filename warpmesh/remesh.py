@@ -55,6 +55,8 @@ SPLIT_ABOVE = 4.0 / 3.0
 COLLAPSE_BELOW = 4.0 / 5.0
 #: a collapse may not make a triangle worse than this (unless the ball was already worse)
 COLLAPSE_Q = 3.0
+#: the same while decimating (flips and relocation even the triangles out afterwards)
+SIMPLIFY_COLLAPSE_Q = 6.0
 #: above this a relocation may not make a face worse at all
 SMOOTH_Q_CAP = 6.0
 #: largest normal turn (degrees) accepted for a triangle moved by any operator
@@ -92,7 +94,7 @@ class _Run:
         h = self.size(s.points)
         topo = s.topology()
         feat = s.vclass != FREE
-        if feat.any() and getattr(getattr(self.size, "base", self.size), "from_curvature", False):
+        if feat.any() and getattr(self.size, "from_curvature", False):
             # on a crease the Hessian sees the fold, not the surface on either side: take the
             # largest h of the free neighbours (none: keep it)
             e = topo.edges
@@ -238,8 +240,7 @@ class _Run:
         if len(cand) == 0:
             return 0
         nb_ptr, nb = vertex_neighbours(topo.edges, n)
-        ok = np.ones(len(cand), bool)
-        ok &= ~np.isin(rem * n + kp, self.rejected)  # failed the geometric checks this round
+        ok = ~np.isin(rem * n + kp, self.rejected)  # failed the geometric checks this round
         cand, rem, kp, both_free, length_c = cand[ok], rem[ok], kp[ok], both_free[ok], length_c[ok]
         if len(cand) == 0:
             return 0
@@ -633,7 +634,7 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         for _ in range(40 if simplifying else 12):  # decimation removes most vertices: more passes
             # a collapse removes two triangles (one on a boundary): stop at the requested count
             room = None if fraction is None else (len(s.triangles) - fraction * len(mesh.triangles)) / 2
-            k = run.collapse_pass(limit_q=6.0 if simplifying else COLLAPSE_Q, max_collapses=room)
+            k = run.collapse_pass(limit_q=SIMPLIFY_COLLAPSE_Q if simplifying else COLLAPSE_Q, max_collapses=room)
             counts["collapses"] += k
             if k <= 2e-3 * len(s.points):
                 break
@@ -727,6 +728,7 @@ class _Scaled:
 
     def __init__(self, base, scale: float):
         self.base, self.scale = base, float(scale)
+        self.from_curvature = getattr(base, "from_curvature", False)
 
     def __call__(self, x):
         return self.base(x) * self.scale
