@@ -112,6 +112,22 @@ def test_independent_selection_never_shares_an_element():
     assert len(win)
     won = np.isin(cand, win)
     assert len(np.unique(elem[won])) == len(np.unique(np.stack([elem[won], cand[won]], 1), axis=0))
+    # many rounds, some elements blocked, some candidates barred: still disjoint, and maximal
+    blocked = rng.random(500) < 0.1
+    active = rng.random(300) < 0.8
+    win2 = select_independent(300, prio, elem, cand, rounds=50, blocked=blocked, active=active)
+    assert len(win2) > len(win) and active[win2].all()
+    won = np.isin(cand, win2)
+    pairs = np.unique(np.stack([elem[won], cand[won]], 1), axis=0)
+    assert len(np.unique(pairs[:, 0])) == len(pairs)  # no element with two winners
+    assert not blocked[elem[won]].any()
+    taken = blocked.copy()
+    taken[elem[won]] = True
+    touches = np.bincount(cand[taken[elem]], minlength=300) > 0
+    others = np.setdiff1d(np.flatnonzero(active), win2)
+    assert touches[others].all()  # every allowed loser touches a winner or a blocked element
+    empty = np.zeros(0, np.int64)
+    assert select_independent(3, np.zeros(3), empty, empty, active=np.array([True, False, True])).tolist() == [0, 2]
 
 
 @pytest.mark.parametrize("op", ["split", "flip", "collapse"])
@@ -344,6 +360,20 @@ def test_bad_input_is_named(sphere_mc):
         wm.optimize(mc, "sphere")
     with pytest.raises(ValueError, match="'fraction'"):
         wm.simplify(mc, shape, fraction=0.0)
+    with pytest.raises(ValueError, match="'fraction'"):
+        wm.simplify(mc, shape, fraction=float("nan"))
+    with pytest.raises(TypeError, match="'fraction'"):
+        wm.simplify(mc, shape, fraction="0.1")
+    with pytest.raises(ValueError, match="'iterations'"):
+        wm.simplify(mc, shape, iterations=2.5)
+    with pytest.raises(ValueError, match="'tolerance'"):
+        wm.simplify(mc, shape, tolerance=float("inf"))
+    with pytest.raises(TypeError, match="'features'"):
+        wm.simplify(mc, shape, features=1)
+    with pytest.raises(ValueError, match="'values'"):
+        wm.VolumeField(np.full((4, 4, 4), np.nan))
+    with pytest.raises(ValueError, match="'values'"):
+        wm.VolumeField(np.zeros((4, 4)))
     with pytest.raises(ValueError, match="'bounds'"):
         wm.optimize(mc, shape, bounds=((1, 1, 1), (0, 0, 0)))
     fan = wm.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, -1, 0]],

@@ -64,8 +64,10 @@ def select_independent(n_candidates: int, priority: np.ndarray, element: np.ndar
     >>> select_independent(4, np.array([1.0, 0.0, 2.0, 3.0]), el, cand, rounds=5).tolist()
     [1, 3]
     """
-    if n_candidates == 0 or len(element) == 0:
-        return np.arange(n_candidates) if len(element) == 0 else np.zeros(0, np.int64)
+    if n_candidates == 0:
+        return np.zeros(0, np.int64)
+    if len(element) == 0:  # nothing shared: every allowed candidate wins
+        return np.arange(n_candidates) if active is None else np.flatnonzero(active)
     # ties go by a scrambled index: by the plain index a chain of equal priorities (the
     # edges along a straight crease) would yield one winner per pass instead of a third
     tie = (np.arange(n_candidates, dtype=np.uint64) * np.uint64(0x9E3779B1)) & np.uint64(0xFFFFFFFF)

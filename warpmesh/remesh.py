@@ -747,6 +747,11 @@ def _link_ok(rem, kp, n_faces, nb_ptr, nb, n) -> np.ndarray:
     return (common == np.where(n_faces == 2, 2, 1)) & (deg[rem] + deg[kp] - 4 >= 3)
 
 
+def _check_iterations(iterations):
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
+        raise ValueError(f"expected a non-negative integer 'iterations', got {iterations!r}")
+
+
 class _NoBar:
     def update(self, k):
         pass
@@ -813,8 +818,7 @@ def optimize(mesh: Mesh, shape=None, *, bounds=None, size=None, tolerance: float
     >>> opt.stats()["euler"], opt.stats()["q_worst"] < mc.stats()["q_worst"]
     (-6, True)
     """
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
-        raise ValueError(f"expected a non-negative integer 'iterations', got {iterations!r}")
+    _check_iterations(iterations)
     return _drive(mesh, shape, bounds=bounds, size=size, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=None, simplifying=False)
 
@@ -844,5 +848,8 @@ def simplify(mesh: Mesh, shape=None, *, tolerance: float | None = None, fraction
     >>> small.n_cells < 0.5 * mc.n_cells, wm.surface_error(small, shape)["max"] < 2e-3
     (True, True)
     """
+    _check_iterations(iterations)
+    if fraction is not None and (isinstance(fraction, bool) or not isinstance(fraction, (int, float, np.number))):
+        raise TypeError(f"expected a number or None for 'fraction', got {type(fraction).__name__}")
     return _drive(mesh, shape, bounds=bounds, size=None, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=fraction, simplifying=True)
