@@ -17,6 +17,8 @@ if _wp.config.log_level < _wp.LOG_WARNING:  # Warp's banner and module-load line
 from warpmesh.errors import ReadError, TopologyError, WarpMeshError
 from warpmesh.expr import Expr, abs, coords, cos, exp, log, max, min, sin, sqrt  # noqa: A004
 from warpmesh.mesh import Mesh, load
+from warpmesh.numbering import renumber
+from warpmesh.nodes import to_order
 from warpmesh.orientation import orient, orient_faces
 from warpmesh.quality import quality_summary, tetra_quality, triangle_quality
 from warpmesh.shapes import (EXAMPLES, Shape, box, capsule, complement, cone, cylinder, difference,
@@ -30,7 +32,7 @@ from warpmesh.tape import Tape, compile_tape, evaluate, evaluate_interval
 __version__ = "0.1.0"
 
 __all__ = [
-    "Mesh", "load", "mesh_surface", "optimize", "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
+    "Mesh", "load", "to_order", "renumber", "mesh_surface", "optimize", "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
     "triangle_quality", "tetra_quality", "quality_summary",
     "Shape", "Expr", "coords", "sqrt", "abs", "min", "max", "sin", "cos", "exp", "log",
     "sphere", "box", "cylinder", "cone", "torus", "ellipsoid", "halfspace", "capsule",

@@ -41,19 +41,30 @@ __all__ = [
     "from_pyvista",
 ]
 
-#: meshio cell-type name -> (nodes per cell, topological dimension, VTK cell type id)
+#: meshio cell-type name -> (nodes per cell, topological dimension, VTK cell type id).
+#: line4/5, triangle10/15 and tetra20/35 have no VTK type of their own (meshio's vtu/vtk
+#: writers refuse them; gmsh files keep them, in gmsh's node order): their id is VTK's
+#: Lagrange cell (68 curve, 69 triangle, 71 tetrahedron), whose node order is gmsh's for
+#: the curves and triangles but not for the tetrahedra (other edge and face order), so
+#: :func:`to_pyvista` refuses tetra20/35 (:data:`_VTK_ORDER_DIFFERS`).
 CELL_TYPES: Mapping[str, tuple[int, int, int]] = MappingProxyType(
     {
         "vertex": (1, 0, 1),
         "line": (2, 1, 3),
         "line3": (3, 1, 21),
+        "line4": (4, 1, 68),
+        "line5": (5, 1, 68),
         "triangle": (3, 2, 5),
         "triangle6": (6, 2, 22),
+        "triangle10": (10, 2, 69),
+        "triangle15": (15, 2, 69),
         "quad": (4, 2, 9),
         "quad8": (8, 2, 23),
         "quad9": (9, 2, 28),
         "tetra": (4, 3, 10),
         "tetra10": (10, 3, 24),
+        "tetra20": (20, 3, 71),
+        "tetra35": (35, 3, 71),
         "hexahedron": (8, 3, 12),
         "hexahedron20": (20, 3, 25),
         "hexahedron27": (27, 3, 29),
@@ -63,7 +74,16 @@ CELL_TYPES: Mapping[str, tuple[int, int, int]] = MappingProxyType(
         "pyramid13": (13, 3, 27),
     }
 )
-_VTK_TO_NAME = {vtk: name for name, (_, _, vtk) in CELL_TYPES.items()}
+#: VTK Lagrange cell id -> {nodes per cell: meshio name}, for the sizes whose VTK node
+#: order is meshio's (checked against VTK's parametric coordinates in tests/test_nodes.py)
+_VTK_LAGRANGE = {
+    68: {3: "line3", 4: "line4", 5: "line5"},
+    69: {6: "triangle6", 10: "triangle10", 15: "triangle15"},
+    71: {10: "tetra10"},
+}
+#: types whose VTK id numbers the nodes differently from meshio: no pyvista conversion
+_VTK_ORDER_DIFFERS = ("tetra20", "tetra35")
+_VTK_TO_NAME = {vtk: name for name, (_, _, vtk) in CELL_TYPES.items() if vtk not in _VTK_LAGRANGE}
 #: VTK pixel/voxel -> quad/hexahedron node order. Other types share VTK's order: meshio's
 #: wedge permutation (0 2 1 3 5 4, used by its vtu/vtk files) gives negative cell sizes in
 #: VTK 9.x (pyvista compute_cell_sizes), so pyvista conversions keep wedges as they are.
@@ -319,7 +339,13 @@ def to_pyvista(mesh: Mesh):
     -------
     pyvista.PolyData or pyvista.UnstructuredGrid
         PolyData cells come in VTK's order (vertices, lines, then triangles and quads);
-        UnstructuredGrid cells in the mesh's block order.
+        UnstructuredGrid cells in the mesh's block order; line4/5 and triangle10/15
+        become VTK Lagrange cells.
+
+    Raises
+    ------
+    ValueError
+        tetra20 or tetra35 cells: VTK's Lagrange tetrahedron orders their nodes otherwise.
 
     Examples
     --------
@@ -331,6 +357,13 @@ def to_pyvista(mesh: Mesh):
 
     _check_mesh(mesh)
     cells = mesh.cells
+    differ = [t for t in cells if t in _VTK_ORDER_DIFFERS]
+    if differ:
+        raise ValueError(
+            f"expected cell types that VTK can hold, got {differ}: VTK's Lagrange tetrahedron "
+            "numbers its edge and face nodes differently from gmsh/meshio; save such a mesh "
+            "as .msh (gmsh) instead"
+        )
 
     def flat(types):
         parts = [
@@ -389,7 +422,8 @@ def from_pyvista(
     TypeError
         ``obj`` is not a ``pyvista.DataSet``.
     ValueError
-        Cells without a meshio type and ``triangulate=False``.
+        Cells without a meshio type and ``triangulate=False`` (VTK Lagrange cells have
+        one for 3 to 5 curve nodes, 6, 10 or 15 triangle nodes, 10 tetrahedron nodes).
 
     Examples
     --------
@@ -402,22 +436,33 @@ def from_pyvista(
     if not isinstance(obj, pv.DataSet):
         raise TypeError(f"expected a pyvista.DataSet for 'obj', got {type(obj).__name__}")
     ug = obj if isinstance(obj, pv.UnstructuredGrid) else obj.cast_to_unstructured_grid()
-    kinds = np.asarray(ug.celltypes)
-    unsupported = sorted(set(np.unique(kinds).tolist()) - set(_VTK_TO_NAME) - set(_VTK_EXTRA))
+    kinds = np.asarray(ug.celltypes).astype(np.int64)
+    conn, offsets = np.asarray(ug.cell_connectivity), np.asarray(ug.cell_offsets)
+    sizes, offsets = np.diff(offsets), offsets[:-1]
+    keys = kinds << 32 | sizes  # a Lagrange cell's meshio type depends on its node count
+    _, first = np.unique(keys, return_index=True)
+    pairs = [(int(kinds[i]), int(sizes[i])) for i in np.sort(first)]
+
+    def name_of(kind: int, size: int) -> tuple[str | None, list | None]:
+        if kind in _VTK_EXTRA:
+            return _VTK_EXTRA[kind]
+        name = _VTK_LAGRANGE[kind].get(size) if kind in _VTK_LAGRANGE else _VTK_TO_NAME.get(kind)
+        return name, None
+
+    unsupported = [(k, n) for k, n in pairs if name_of(k, n)[0] is None]
     if unsupported:
         if not triangulate:
-            names = [pv.CellType(k).name for k in unsupported]
+            names = sorted({pv.CellType(k).name + (f" of {n} nodes" if k in _VTK_LAGRANGE else "")
+                            for k, n in unsupported})
             raise ValueError(
                 f"expected cells of types {list(CELL_TYPES)}, got VTK cell types {names}; "
                 "pass triangulate=True to split them into triangles/tetrahedra"
             )
         return from_pyvista(obj.triangulate(), triangulate=False, dim=dim, info=info)
-    conn, offsets = np.asarray(ug.cell_connectivity), np.asarray(ug.cell_offsets)[:-1]
-    _, first = np.unique(kinds, return_index=True)
     blocks, masks = [], []
-    for kind in kinds[np.sort(first)]:
-        mask = kinds == kind
-        name, order = _VTK_EXTRA.get(int(kind), (_VTK_TO_NAME.get(int(kind)), None))
+    for kind, size in pairs:
+        mask = (kinds == kind) & (sizes == size)
+        name, order = name_of(kind, size)
         k = CELL_TYPES[name][0]
         cells = conn[offsets[mask][:, None] + np.arange(k)]
         blocks.append((name, cells if order is None else cells[:, order]))

@@ -6,8 +6,8 @@ format cannot store is dropped with a ``UserWarning``. What each format keeps:
 ======  =======  =============================  ====================================
 ext     format   cells                          besides points (precision) and cells
 ======  =======  =============================  ====================================
-.vtu    vtu      all                            everything (float64)
-.vtk    vtk      all                            everything (legacy binary, float64)
+.vtu    vtu      all but the gmsh-only types    everything (float64)
+.vtk    vtk      all but the gmsh-only types    everything (legacy binary, float64)
 .msh    gmsh     all                            gmsh 2.2 binary: cell refs as
                                                 gmsh:physical (= gmsh:geometrical),
                                                 point refs and point data, cell data
@@ -20,10 +20,11 @@ ext     format   cells                          besides points (precision) and c
                                                 points are merged and renumbered)
 ======  =======  =============================  ====================================
 
-Every format but Medit stores 3D points; 2D meshes get z = 0 and come back 3D unless
-``load(..., dim=2)``. Refs are written as ``"medit:ref"`` (Medit, vtu, vtk, ply) or as
-``"gmsh:physical"`` (gmsh); refs that are all zero are read back as "no refs" (Medit
-and gmsh always store one).
+The gmsh-only types are line4, line5, triangle10, triangle15, tetra20 and tetra35: meshio's
+vtu/vtk writers have no VTK type for them. Every format but Medit stores 3D points; 2D
+meshes get z = 0 and come back 3D unless ``load(..., dim=2)``. Refs are written as
+``"medit:ref"`` (Medit, vtu, vtk, ply) or as ``"gmsh:physical"`` (gmsh); refs that are
+all zero are read back as "no refs" (Medit and gmsh always store one).
 
 Examples
 --------
@@ -55,6 +56,7 @@ from ._conventions import INDEX_DTYPE
 from .convert import (
     _GMSH_GEO,
     _GMSH_REF,
+    CELL_TYPES,
     REF_KEY,
     _block_refs,
     _points3,
@@ -172,8 +174,10 @@ def _tidy_obj(m: meshio.Mesh) -> None:
 
 
 _SURFACE = ("triangle", "quad")
-_register_format("vtu", ".vtu", "vtu", write_kwargs={"binary": True})
-_register_format("vtk", ".vtk", "vtk", write_kwargs={"binary": True})
+_GMSH_ONLY = ("line4", "line5", "triangle10", "triangle15", "tetra20", "tetra35")
+_VTK_CELLS = tuple(t for t in CELL_TYPES if t not in _GMSH_ONLY)
+_register_format("vtu", ".vtu", "vtu", write_kwargs={"binary": True}, cell_types=_VTK_CELLS)
+_register_format("vtk", ".vtk", "vtk", write_kwargs={"binary": True}, cell_types=_VTK_CELLS)
 _register_format("gmsh", ".msh", "gmsh22", write_kwargs={"binary": True}, keep_data=_gmsh_data)
 _register_format(
     "medit",
@@ -214,9 +218,11 @@ def _meshio_for(mesh: Mesh, fmt: _Format, stacklevel: int) -> meshio.Mesh:
     if fmt.cell_types is not None:
         bad = [t for t in mesh.cells if t not in fmt.cell_types]
         if bad:
+            able = [f.name for f in _FORMATS.values()
+                    if f.cell_types is None or all(t in f.cell_types for t in mesh.cells)]
             raise ValueError(
                 f"{fmt.name} ({fmt.ext}) files store only {list(fmt.cell_types)} cells, "
-                f"got {bad}; save a mesh without them or pick vtu/vtk/gmsh"
+                f"got {bad}; save a mesh without them or pick one of {able}"
             )
     m = to_meshio(mesh)
     pd, cd, dropped = fmt.keep_data(mesh, dict(m.point_data), dict(m.cell_data))

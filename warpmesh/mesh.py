@@ -407,6 +407,48 @@ class Mesh:
 
         return simplify(self, shape, **options)
 
+    def to_order(self, order: int, shape=None, **options) -> Mesh:
+        """The order-k Lagrange mesh of this P1 mesh (seed §17.3): :func:`warpmesh.nodes.to_order`.
+
+        Examples
+        --------
+        >>> Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_order(3).cells["triangle10"].shape
+        (1, 10)
+        """
+        from .nodes import _to_order
+
+        return _to_order(self, order, shape, stacklevel=3, **options)  # warnings name the caller
+
+    # ---------------------------------------------------------------- numbering
+    def renumber(self, method: str = "gibbs", **options) -> Mesh:
+        """A copy with nodes and elements renumbered (seed §17.4):
+        :func:`warpmesh.numbering.renumber`; ``stats()`` then include ``bandwidth`` and
+        ``profile`` (and their ``_before`` values).
+
+        Examples
+        --------
+        >>> m = Mesh([[0, 0], [9, 9], [1, 0], [0, 1]], {"triangle": [[0, 2, 3], [2, 1, 3]]})
+        >>> m.renumber("rcm").stats()["bandwidth"]
+        2
+        """
+        from .numbering import renumber
+
+        return renumber(self, method, **options)
+
+    def color_elements(self, **options) -> Mesh:
+        """A copy with elements in packets of one colour each (seed §17.4.4):
+        :func:`warpmesh.coloring.color_mesh`; ``cell_data["color"]``, ``stats()["n_colors"]``.
+
+        Examples
+        --------
+        >>> m = Mesh([[0, 0], [1, 0], [0, 1], [1, 1]], {"triangle": [[0, 1, 3], [0, 3, 2]]})
+        >>> m.color_elements().cell_data["color"]["triangle"].tolist()
+        [0, 1]
+        """
+        from .coloring import color_mesh
+
+        return color_mesh(self, **options)
+
     # ---------------------------------------------------------------- meshio
     def to_meshio(self) -> meshio.Mesh:
         """Convert to ``meshio.Mesh``, refs as ``"medit:ref"`` (:func:`warpmesh.convert.to_meshio`).
