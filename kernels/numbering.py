@@ -6,7 +6,9 @@ one before — so each kernel is launched with ``dim=1`` and one thread walks th
 graph: compiled code instead of one Python round of array operations per level (a 2D
 mesh has about a thousand levels). The same code runs on CUDA, on one thread.
 
-Graphs are CSR arrays (``indptr``, ``indices``: sorted rows, no diagonal), int32.
+Graphs are CSR arrays (``indptr``, ``indices``: sorted rows, no diagonal), int32. The
+per-node kernels (relabelling, profile) take ``first`` so the host can split a launch
+across CPU cores.
 """
 
 import warp as wp
@@ -25,8 +27,9 @@ def number_levels_kernel(
 ):
     """One thread numbers a component level by level (Gibbs Step 3, Cuthill–McKee).
 
-    ``lev`` is each node's level (-1 outside the component); ``members[bounds[k]:
-    bounds[k + 1]]`` are level k's nodes by increasing (key, index). In level k
+    ``lev`` is each node's level (-1 outside the component), overwritten with -1 as
+    nodes get their number (one load tells "in level k and not yet numbered");
+    ``members[bounds[k]: bounds[k + 1]]`` are level k's nodes by increasing (key, index). In level k
     (phase 0) the numbered nodes, in number order, number their unnumbered neighbours
     of level k; when none is left to reach, the unnumbered member of smallest key
     starts again. Then (phase 1) the level's nodes, in number order, number their
@@ -36,6 +39,7 @@ def number_levels_kernel(
     nxt = first_number
     num[start] = nxt
     out[nxt] = start
+    lev[start] = -1
     nxt += 1
     level_first = first_number
     for k in range(depth):
@@ -58,11 +62,12 @@ def number_levels_kernel(
                     u = out[head]
                     head += 1
                 else:  # no numbered node reaches the rest: smallest key starts again
-                    while num[members[scan]] >= 0:
+                    while lev[members[scan]] < 0:
                         scan += 1
                     v = members[scan]
                     num[v] = nxt
                     out[nxt] = v
+                    lev[v] = -1
                     nxt += 1
             else:
                 if head < stop:
@@ -76,20 +81,20 @@ def number_levels_kernel(
                 m = int(0)
                 for e in range(indptr[u], indptr[u + 1]):
                     v = indices[e]
-                    if lev[v] == target:
-                        if num[v] < 0:
-                            t = m  # insertion sort by key, stable: equal keys keep index order
-                            while t > 0:
-                                w = buf[t - 1]
-                                if key[w] <= key[v]:
-                                    break
-                                buf[t] = w
-                                t -= 1
-                            buf[t] = v
-                            m += 1
+                    if lev[v] == target:  # in the target level and not yet numbered
+                        t = m  # insertion sort by key, stable: equal keys keep index order
+                        while t > 0:
+                            w = buf[t - 1]
+                            if key[w] <= key[v]:
+                                break
+                            buf[t] = w
+                            t -= 1
+                        buf[t] = v
+                        m += 1
                 for t in range(m):
                     num[buf[t]] = nxt
                     out[nxt] = buf[t]
+                    lev[buf[t]] = -1
                     nxt += 1
     next_number[0] = nxt
 
@@ -122,3 +127,95 @@ def label_components_kernel(
                         tail += 1
             c += 1
     count[0] = c
+
+
+@wp.kernel
+def relabel_rows_kernel(
+    first: int, indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32),
+    old_of_new: wp.array(dtype=wp.int32), new_of_old: wp.array(dtype=wp.int32),
+    new_indptr: wp.array(dtype=wp.int32), new_indices: wp.array(dtype=wp.int32),
+):
+    """A thread writes row r = first + tid of the relabelled graph: the neighbours of
+    node ``old_of_new[r]`` under their new labels, sorted (insertion sort: rows are
+    short)."""
+    r = first + wp.tid()
+    u = old_of_new[r]
+    base = new_indptr[r]
+    m = int(0)
+    for e in range(indptr[u], indptr[u + 1]):
+        v = new_of_old[indices[e]]
+        t = m
+        while t > 0:
+            w = new_indices[base + t - 1]
+            if w <= v:
+                break
+            new_indices[base + t] = w
+            t -= 1
+        new_indices[base + t] = v
+        m += 1
+
+
+@wp.kernel
+def profile_kernel(
+    first: int, indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32), num: wp.array(dtype=wp.int32),
+    delta: wp.array(dtype=wp.int32), delta_reversed: wp.array(dtype=wp.int32),
+):
+    """A thread finds, for one node, its distance to the first column of its matrix row
+    (seed Table 17.1: i - j_i) under ``num`` and under the reversed numbering; node
+    i = first + tid."""
+    i = first + wp.tid()
+    own = num[i]
+    lo = own
+    hi = own
+    for e in range(indptr[i], indptr[i + 1]):
+        x = num[indices[e]]
+        lo = wp.min(lo, x)
+        hi = wp.max(hi, x)
+    delta[i] = own - lo
+    delta_reversed[i] = hi - own
+
+
+@wp.kernel
+def search_relabel_kernel(
+    indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32), start: int,
+    new_of_old: wp.array(dtype=wp.int32), old_of_new: wp.array(dtype=wp.int32),
+    level: wp.array(dtype=wp.int32), new_indptr: wp.array(dtype=wp.int32),
+    new_indices: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32),
+):
+    """One thread searches breadth-first from ``start`` and relabels as it goes: a node's
+    label is its place in the search, ``level`` (by label) its level, and row r of the
+    relabelled graph (``new_indptr``, ``new_indices``, sorted) is written when node r is
+    taken off the queue — by then every neighbour has its label. One pass over the
+    (randomly numbered) input instead of a search and then a relabelling.
+    ``new_of_old`` starts at -1; ``count`` gets the number of nodes reached."""
+    new_of_old[start] = 0
+    old_of_new[0] = start
+    level[0] = 0
+    new_indptr[0] = 0
+    tail = int(1)
+    pos = int(0)
+    for head in range(indptr.shape[0] - 1):
+        if head < tail:
+            u = old_of_new[head]
+            m = int(0)
+            for e in range(indptr[u], indptr[u + 1]):
+                v = indices[e]
+                x = new_of_old[v]
+                if x < 0:
+                    x = tail
+                    new_of_old[v] = x
+                    old_of_new[x] = v
+                    level[x] = level[head] + 1
+                    tail += 1
+                t = m  # insertion sort of the row's labels
+                while t > 0:
+                    w = new_indices[pos + t - 1]
+                    if w <= x:
+                        break
+                    new_indices[pos + t] = w
+                    t -= 1
+                new_indices[pos + t] = x
+                m += 1
+            pos += m
+            new_indptr[head + 1] = pos
+    count[0] = tail

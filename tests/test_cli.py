@@ -112,3 +112,32 @@ def test_labels_methods_and_continuation(tmp_path, capsys):
                  "--root", "newton", "--gradient", "central", "--json"]) == 0
     stats = json.loads(capsys.readouterr().out)
     assert stats["euler"] == 0
+
+
+def test_renumber_writes_the_mesh_and_prints_table_17_1(tmp_path, capsys):
+    import trimesh
+
+    m = wm.Mesh.from_trimesh(trimesh.creation.icosphere(3))
+    perm = np.random.default_rng(0).permutation(m.n_points)
+    new = np.argsort(perm)
+    src, out = tmp_path / "in.msh", tmp_path / "out.vtu"
+    m.replace(points=m.points[perm], cells={"triangle": new[m.triangles]}).save(src)
+    assert main(["renumber", str(src), str(out), "--method", "gibbs", "--color", "node"]) == 0
+    text = capsys.readouterr().out
+    assert "beta (final)" in text and "pr ratio" in text and "colours" in text
+    r = wm.load(out)
+    assert r.n_points == m.n_points and len(r.triangles) == len(m.triangles)
+    assert main(["renumber", str(src), str(out), "--method", "rcm", "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats["bandwidth"] < stats["bandwidth_before"] and stats["method"] == "rcm"
+
+
+def test_renumber_bad_input_leaves_nothing(tmp_path, capsys):
+    src = tmp_path / "in.msh"
+    wm.Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).save(src)
+    assert main(["renumber", str(src), str(tmp_path / "out.xyz")]) == 2
+    assert "error" in capsys.readouterr().err
+    assert main(["renumber", str(tmp_path / "missing.msh"), str(tmp_path / "out.msh")]) == 2
+    assert not (tmp_path / "out.msh").exists() and not (tmp_path / "out.xyz").exists()
+    with pytest.raises(SystemExit):
+        main(["renumber", str(src), str(tmp_path / "o.msh"), "--method", "nested"])

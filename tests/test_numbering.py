@@ -147,7 +147,7 @@ def new_numbers(order):
 @pytest.fixture(scope="module")
 def small_graphs():
     """Graphs of randomly numbered small meshes: a plate (2D), the sphere surface, the ball."""
-    meshes = [shuffled(plate(0.25), 1), shuffled(sphere_surface(8), 2), shuffled(ball(6), 3)]
+    meshes = [shuffled(plate(0.25), 1), shuffled(sphere_surface(8), 2), shuffled(ball(3), 3)]
     return [_as_csgraph(node_graph(m.cells, m.n_points)) for m in meshes]
 
 
@@ -225,7 +225,7 @@ def test_element_order_is_the_seed_loop():
 MESHES = {
     "plate": lambda: plate(0.04),
     "sphere-surface": lambda: sphere_surface(40),
-    "ball-tetra": lambda: ball(16),
+    "ball-tetra": lambda: ball(4),
 }
 
 

@@ -6,10 +6,9 @@ grids need only two colours, "red–black") or any node (``adjacency="node"``: t
 packets a vector or multi-threaded assembly can process without write conflicts).
 
 The colouring is the greedy one in largest-first order (elements of more neighbours
-first, ties in a fixed pseudo-random order), computed in parallel rounds
-(Jones–Plassmann: an element takes its colour once its higher-priority neighbours have
-theirs, the smallest colour none of them has — the same colouring as the sequential
-greedy loop), then improved by iterated greedy passes that recolour one colour class
+first, ties by index), computed in rounds (Jones–Plassmann: an element takes its colour
+once the neighbours before it have theirs, the smallest colour none of them has — the
+same colouring as the sequential greedy loop), then improved by iterated greedy passes that recolour one colour class
 at a time (Culberson: never more colours), and replaced by the two colours of the
 breadth-first levels when the element graph is bipartite.
 
@@ -38,6 +37,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .convert import CELL_TYPES
 from .graph import corner_count, levels
+from .numbering import _order_by
 
 __all__ = ["element_graph", "element_colors", "is_valid_coloring", "color_mesh"]
 
@@ -153,22 +153,31 @@ def _smallest_free(graph, rows, color) -> np.ndarray:
     return result
 
 
-def _largest_first(graph, seed: int) -> np.ndarray:
-    """Greedy colouring in largest-first order, by Jones–Plassmann rounds."""
+def _largest_first(graph) -> np.ndarray:
+    """The greedy colouring in largest-first order (ties: smaller index first, as
+    networkx's ``greedy_color(strategy="largest_first")``), computed in rounds.
+
+    An element is coloured once every neighbour that comes before it in that order has
+    its colour, with the smallest colour none of them has — exactly what the one-by-one
+    loop gives. Each element counts the neighbours it waits for; a round colours the
+    elements whose count reached zero and counts down their followers, so the work is
+    O(edges) plus one round per step of the longest chain of waiting elements.
+    """
     ne = graph.shape[0]
     deg = np.diff(graph.indptr).astype(np.int64)
-    tie = np.random.default_rng(seed).permutation(ne)
-    prio = deg * ne + tie  # unique
+    rank = np.empty(ne, np.int64)
+    rank[_order_by(-deg + deg.max(initial=0), np.arange(ne))] = np.arange(ne)  # 0 goes first
+    rows = np.repeat(np.arange(ne), np.diff(graph.indptr))
+    before = rank[graph.indices] < rank[rows]  # edge (row, col): col comes first
+    waiting = np.bincount(rows[before], minlength=ne)
     color = np.full(ne, -1, np.int64)
-    todo = np.arange(ne)
-    while len(todo):
-        nb, src = _expand(graph, todo)
-        waiting = (color[nb] < 0) & (prio[nb] > prio[todo][src])
-        blocked = np.zeros(len(todo), bool)
-        blocked[src[waiting]] = True
-        ready = todo[~blocked]
+    ready = np.flatnonzero(waiting == 0)
+    while len(ready):
         color[ready] = _smallest_free(graph, ready, color)
-        todo = todo[blocked]
+        nb, src = _expand(graph, ready)
+        follower = nb[rank[nb] > rank[ready][src]]
+        waiting -= np.bincount(follower, minlength=ne)
+        ready = np.unique(follower[waiting[follower] == 0])
     return color
 
 
@@ -201,7 +210,7 @@ def _two_coloring(graph) -> np.ndarray | None:
     return None if (color[rows] == color[graph.indices]).any() else color
 
 
-def element_colors(mesh, *, adjacency: Adjacency = "face", seed: int = 0) -> dict[str, np.ndarray]:
+def element_colors(mesh, *, adjacency: Adjacency = "face") -> dict[str, np.ndarray]:
     """A colour for every element of the mesh's top-dimensional blocks.
 
     Parameters
@@ -209,8 +218,6 @@ def element_colors(mesh, *, adjacency: Adjacency = "face", seed: int = 0) -> dic
     mesh : Mesh
     adjacency : {"face", "node"}
         Neighbours share a facet, or any node (see the module docstring).
-    seed : int
-        Seed of the tie-breaking order among elements of equal degree.
 
     Returns
     -------
@@ -223,7 +230,7 @@ def element_colors(mesh, *, adjacency: Adjacency = "face", seed: int = 0) -> dic
         Unknown adjacency, a mesh without elements.
     """
     graph, types = element_graph(mesh, adjacency)
-    color = _largest_first(graph, seed)
+    color = _largest_first(graph)
     best = color.max(initial=-1) + 1
     for p in range(GREEDY_PASSES):
         color = _iterated_greedy(graph, color, "largest" if p % 2 else "reverse")
@@ -250,7 +257,7 @@ def is_valid_coloring(mesh, colors: dict, *, adjacency: Adjacency = "face") -> b
     return not (color[rows] == color[graph.indices]).any()
 
 
-def color_mesh(mesh, *, adjacency: Adjacency = "face", seed: int = 0):
+def color_mesh(mesh, *, adjacency: Adjacency = "face"):
     """A copy of ``mesh`` whose elements are renumbered into packets, one per colour.
 
     Each top-dimensional block is sorted by colour (stable: the old order within a
@@ -269,7 +276,7 @@ def color_mesh(mesh, *, adjacency: Adjacency = "face", seed: int = 0):
 
     if not isinstance(mesh, Mesh):
         raise TypeError(f"expected a warpmesh Mesh for 'mesh', got {type(mesh).__name__}")
-    colors = element_colors(mesh, adjacency=adjacency, seed=seed)
+    colors = element_colors(mesh, adjacency=adjacency)
     cells, refs, data = {}, {}, {k: {} for k in mesh.cell_data}
     data["color"] = {}
     for t, block in mesh.cells.items():
