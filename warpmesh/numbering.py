@@ -1,5 +1,11 @@
 """Vertex (node) renumbering for small bandwidth and profile (seed §17.4.1, §17.4.4).
 
+The walks whose order depends on the walk so far (the Cuthill–McKee numbering of each
+level, the components of Step 2, the first search) run as one-thread Warp kernels in
+:mod:`warpmesh.kernels.numbering`; the level structures come from scipy's
+breadth-first search. A connected graph is first relabelled in the order of its first
+search, so that on a randomly numbered mesh the later walks read memory nearly in order.
+
 Methods (each takes the symmetric node graph of :func:`warpmesh.graph.node_graph` and
 returns ``order``: the old node indices in their new order)
 
@@ -57,7 +63,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 import warp as wp
-from scipy.sparse.csgraph import breadth_first_order, connected_components
+from scipy.sparse.csgraph import connected_components
 
 from warpmesh.kernels import numbering as KN
 
@@ -168,38 +174,21 @@ def _min_index(nodes: np.ndarray, key: np.ndarray) -> int:
     return int(cand.min())
 
 
-#: Step 1 tries at most this many nodes of the last level (one per degree, smallest first):
-#: 1 is the seed's rule; more is Gibbs-Poole-Stockmeyer's narrowest-descent choice
-CANDIDATES = 1
+def _pseudo_diameter(graph, deg, start, p_lv):
+    """Seed Step 1 (George–Liu): the ends P, Q of a pseudo-diameter and their descents.
 
-
-def _pseudo_diameter(graph, deg, start, p_lv, candidates: int = CANDIDATES):
-    """Seed Step 1: the ends P, Q of a pseudo-diameter and their descents, d(Q) = d(P).
-
-    From ``start`` (whose descent is ``p_lv``), the nodes of the last level are tried by
-    increasing degree; one deeper than P replaces P and the search starts again
-    (George–Liu). With ``candidates=1`` that is the seed's rule (Q = the node of
-    minimal degree); with more (one per degree), Q is the candidate whose descent has
-    the smallest width, as in Gibbs, Poole and Stockmeyer's original search — a few
-    more searches, narrower levels (on closed surfaces the seed's rule alone can leave
-    the profile 10 % worse than a plain reverse Cuthill–McKee).
+    From ``start`` (whose descent is ``p_lv``), Q is the node of minimal degree of the
+    last level (ties: smallest index); while D(Q) is deeper than D(P), Q becomes P and
+    the search goes on. On return d(Q) = d(P).
     """
     while True:
         lv, order, starts = p_lv
-        last = order[starts[-2]: starts[-1]]
-        ranked = last[np.lexsort((last, deg[last]))]
-        distinct = ranked[np.concatenate([[True], np.diff(deg[ranked]) > 0])][:candidates]
-        best = None
-        for q in distinct:
-            q_lv = levels(graph, int(q))
-            if len(q_lv[2]) > len(starts):  # deeper: a new start
-                start, p_lv = int(q), q_lv
-                break
-            width = int(np.diff(q_lv[2]).max())
-            if best is None or width < best[0]:
-                best = (width, int(q), q_lv)
-        else:
-            return start, p_lv, best[1], best[2]
+        q = _min_index(order[starts[-2]: starts[-1]], deg)
+        q_lv = levels(graph, q)
+        if len(q_lv[2]) > len(starts):  # deeper: a new start
+            start, p_lv = q, q_lv
+            continue
+        return start, p_lv, q, q_lv
 
 
 def _gibbs_levels(walker, p_lv, q_lv):
@@ -608,6 +597,7 @@ def renumber(
     if higher_order not in ("ball", "graph"):
         raise ValueError(f"expected higher_order='ball' or 'graph', got {higher_order!r}")
     n = mesh.n_points
+    wp.load_module(KN, device="cpu")  # compiled once per machine, loaded once per process: not timed
     t0 = time.perf_counter()
     full = node_graph(mesh.cells, n, reduced=reduced)
     t1 = time.perf_counter()
