@@ -21,82 +21,109 @@ def number_levels_kernel(
     indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32),
     lev: wp.array(dtype=wp.int32), key: wp.array(dtype=wp.int32),
     members: wp.array(dtype=wp.int32), bounds: wp.array(dtype=wp.int32),
-    depth: int, start: int, first_number: int,
+    comp_start: wp.array(dtype=wp.int32), comp_levels: wp.array(dtype=wp.int32),
+    comp_first: wp.array(dtype=wp.int32),
     num: wp.array(dtype=wp.int32), out: wp.array(dtype=wp.int32), buf: wp.array(dtype=wp.int32),
-    next_number: wp.array(dtype=wp.int32),
 ):
-    """One thread numbers a component level by level (Gibbs Step 3, Cuthill–McKee).
+    """One thread numbers every component level by level (Gibbs Step 3, Cuthill–McKee).
 
-    ``lev`` is each node's level (-1 outside the component), overwritten with -1 as
-    nodes get their number (one load tells "in level k and not yet numbered");
-    ``members[bounds[k]: bounds[k + 1]]`` are level k's nodes by increasing (key, index). In level k
-    (phase 0) the numbered nodes, in number order, number their unnumbered neighbours
-    of level k; when none is left to reach, the unnumbered member of smallest key
-    starts again. Then (phase 1) the level's nodes, in number order, number their
-    neighbours of level k + 1. A node numbers its neighbours by increasing key (ties:
-    index, the row order).
+    Component c starts at node ``comp_start[c]`` with number ``comp_first[c]``; its
+    levels are the global level indices ``comp_levels[c]`` .. ``comp_levels[c + 1] - 1``.
+    ``lev`` is each node's global level index, overwritten with -1 as nodes get their
+    number (one load tells "in level k and not yet numbered"); ``members[bounds[k]:
+    bounds[k + 1]]`` are level k's nodes by increasing (key, index). In level k (phase
+    0) the numbered nodes, in number order, number their unnumbered neighbours of
+    level k; when none is left to reach, the unnumbered member of smallest key starts
+    again. Then (phase 1) the level's nodes, in number order, number their neighbours
+    of level k + 1. A node numbers its neighbours by increasing key (ties: index, the
+    row order).
     """
-    nxt = first_number
-    num[start] = nxt
-    out[nxt] = start
-    lev[start] = -1
-    nxt += 1
-    level_first = first_number
-    for k in range(depth):
-        size = bounds[k + 1] - bounds[k]
-        scan = bounds[k]
-        head = level_first
-        stop = int(0)
-        phase = int(0)
-        while phase < 2:
-            u = int(-1)
-            target = k
-            if phase == 0:
-                if nxt - level_first >= size:  # level complete: on to its next level
-                    phase = 1
-                    head = level_first
-                    stop = nxt
-                    if k + 1 >= depth:
-                        phase = 2
-                elif head < nxt:
-                    u = out[head]
-                    head += 1
-                else:  # no numbered node reaches the rest: smallest key starts again
-                    while lev[members[scan]] < 0:
-                        scan += 1
-                    v = members[scan]
-                    num[v] = nxt
-                    out[nxt] = v
-                    lev[v] = -1
-                    nxt += 1
-            else:
-                if head < stop:
-                    u = out[head]
-                    head += 1
-                    target = k + 1
+    for c in range(comp_start.shape[0]):
+        nxt = comp_first[c]
+        start = comp_start[c]
+        num[start] = nxt
+        out[nxt] = start
+        lev[start] = -1
+        nxt += 1
+        level_first = comp_first[c]
+        for k in range(comp_levels[c], comp_levels[c + 1]):
+            size = bounds[k + 1] - bounds[k]
+            scan = bounds[k]
+            head = level_first
+            stop = int(0)
+            phase = int(0)
+            while phase < 2:
+                u = int(-1)
+                target = k
+                if phase == 0:
+                    if nxt - level_first >= size:  # level complete: on to its next level
+                        phase = 1
+                        head = level_first
+                        stop = nxt
+                        if k + 1 >= comp_levels[c + 1]:
+                            phase = 2
+                    elif head < nxt:
+                        u = out[head]
+                        head += 1
+                    else:  # no numbered node reaches the rest: smallest key starts again
+                        while lev[members[scan]] < 0:
+                            scan += 1
+                        v = members[scan]
+                        num[v] = nxt
+                        out[nxt] = v
+                        lev[v] = -1
+                        nxt += 1
                 else:
-                    level_first = stop
-                    phase = 2
-            if u >= 0:
-                m = int(0)
-                for e in range(indptr[u], indptr[u + 1]):
-                    v = indices[e]
-                    if lev[v] == target:  # in the target level and not yet numbered
-                        t = m  # insertion sort by key, stable: equal keys keep index order
-                        while t > 0:
-                            w = buf[t - 1]
-                            if key[w] <= key[v]:
-                                break
-                            buf[t] = w
-                            t -= 1
-                        buf[t] = v
-                        m += 1
-                for t in range(m):
-                    num[buf[t]] = nxt
-                    out[nxt] = buf[t]
-                    lev[buf[t]] = -1
-                    nxt += 1
-    next_number[0] = nxt
+                    if head < stop:
+                        u = out[head]
+                        head += 1
+                        target = k + 1
+                    else:
+                        level_first = stop
+                        phase = 2
+                if u >= 0:
+                    m = int(0)
+                    for e in range(indptr[u], indptr[u + 1]):
+                        v = indices[e]
+                        if lev[v] == target:  # in the target level and not yet numbered
+                            t = m  # insertion sort by key, stable: equal keys keep index order
+                            while t > 0:
+                                w = buf[t - 1]
+                                if key[w] <= key[v]:
+                                    break
+                                buf[t] = w
+                                t -= 1
+                            buf[t] = v
+                            m += 1
+                    for t in range(m):
+                        num[buf[t]] = nxt
+                        out[nxt] = buf[t]
+                        lev[buf[t]] = -1
+                        nxt += 1
+
+
+@wp.kernel
+def descent_kernel(
+    indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32),
+    sources: wp.array(dtype=wp.int32), level: wp.array(dtype=wp.int32), queue: wp.array(dtype=wp.int32),
+):
+    """One thread searches breadth-first from all ``sources`` at once (one per component):
+    ``level`` (starting at -1) gets each node's distance to the source of its component."""
+    tail = int(0)
+    for s in range(sources.shape[0]):
+        level[sources[s]] = 0
+        queue[tail] = sources[s]
+        tail += 1
+    head = int(0)
+    while head < tail:
+        u = queue[head]
+        head += 1
+        for e in range(indptr[u], indptr[u + 1]):
+            v = indices[e]
+            if level[v] < 0:
+                level[v] = level[u] + 1
+                queue[tail] = v
+                tail += 1
 
 
 @wp.kernel
@@ -106,16 +133,18 @@ def label_components_kernel(
     label: wp.array(dtype=wp.int32), queue: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32),
 ):
     """One thread labels the connected components of the subgraph induced by ``nodes``
-    (``inside[v] == 1``), numbered in the order of their smallest node; ``label`` starts
-    at -1."""
+    (``inside[v] == 1``), numbered in the order of their smallest node (``nodes`` comes
+    ascending); ``label`` starts at -1. ``queue`` ends with every component's nodes,
+    one after the other, each in breadth-first order from its smallest node."""
     c = int(0)
+    tail = int(0)
     for t in range(nodes.shape[0]):
         s = nodes[t]
         if label[s] < 0:
             label[s] = c
-            queue[0] = s
-            head = int(0)
-            tail = int(1)
+            queue[tail] = s
+            head = tail
+            tail += 1
             while head < tail:
                 u = queue[head]
                 head += 1

@@ -13,9 +13,9 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 import warpmesh as wm
 from warpmesh.graph import levels, node_graph
-from warpmesh.numbering import (METHODS, _as_csgraph, _gibbs_levels, _pseudo_diameter, _Walker,
-                                element_order, format_table, matrix_stats, profile_stats,
-                                renumber_graph)
+from warpmesh.numbering import (METHODS, _as_csgraph, _gibbs_levels, _Graph, _layout,
+                                _number_components, _pseudo_diameters, _relabel, element_order,
+                                format_table, matrix_stats, profile_stats, renumber_graph)
 
 
 # ----------------------------------------------------------------------------- oracles
@@ -139,46 +139,49 @@ def new_numbers(order):
 # ----------------------------------------------------------------------------- steps
 @pytest.fixture(scope="module")
 def small_graphs():
-    """Graphs of randomly numbered small meshes: a plate (2D), the sphere surface, the ball."""
+    """Connected graphs of randomly numbered small meshes (a 2D plate, the sphere surface,
+    a tetrahedral ball), laid out as renumber_graph lays them out."""
     meshes = [shuffled(plate(0.25), 1), shuffled(sphere_surface(8), 2), shuffled(ball(3), 3)]
-    return [_as_csgraph(node_graph(m.cells, m.n_points)) for m in meshes]
+    out = []
+    for m in meshes:
+        g = _as_csgraph(node_graph(m.cells, m.n_points))
+        seq, sizes, _, connected = _layout(g, np.diff(g.indptr))
+        out.append(_Graph(connected[0], [0, sizes[0]]))
+    return out
 
 
 def test_pseudo_diameter_is_george_liu(small_graphs):
     for g in small_graphs:
-        adj, deg = adjacency(g), np.diff(g.indptr)
-        start = int(np.flatnonzero(deg == deg.min())[0])
-        p, p_lv, q, q_lv = _pseudo_diameter(g, deg, start, levels(g, start))
-        rp, rlp, rq, rlq = george_liu(adj, deg, start)
-        assert (p, q) == (rp, rq)
-        assert len(p_lv[2]) == len(q_lv[2]) == max(rlp.values()) + 2  # depths equal
-        assert p_lv[0][q] == max(rlp.values())  # Q in the last level of D(P)
+        adj, deg = adjacency(g.graph), g.deg
+        start = g.first_per_component(np.arange(g.n), deg)
+        assert start[0] == np.flatnonzero(deg == deg.min())[0]
+        p, p_lv, q, q_lv = _pseudo_diameters(g, start, g.descent(start))
+        rp, rlp, rq, rlq = george_liu(adj, deg, int(start[0]))
+        assert (p[0], q[0]) == (rp, rq)
+        assert p_lv.max() == q_lv.max() == max(rlp.values())  # depths equal
+        assert p_lv[q[0]] == max(rlp.values())  # Q in the last level of D(P)
+        assert p_lv.tolist() == [rlp[v] for v in range(g.n)]
 
 
 def test_gibbs_levels_and_numbering_match_the_seed(small_graphs):
     for g in small_graphs:
-        adj, deg = adjacency(g), np.diff(g.indptr)
-        start = int(np.flatnonzero(deg == deg.min())[0])
-        p, p_lv, q, q_lv = _pseudo_diameter(g, deg, start, levels(g, start))
-        walker = _Walker(g)
-        nodes, level, depth = _gibbs_levels(walker, p_lv, q_lv)
-        ref, ref_depth = gibbs_levels_reference(adj, bfs_levels(adj, p), bfs_levels(adj, q))
-        assert depth == ref_depth
-        assert dict(zip(nodes.tolist(), level.tolist())) == ref
-        rows = np.repeat(np.arange(g.shape[0]), np.diff(g.indptr))
-        lev = np.full(g.shape[0], -1)
-        lev[nodes] = level
-        assert np.abs(lev[rows] - lev[g.indices]).max() <= 1  # a level structure
-        walker.number(nodes, level, depth, p, deg)
-        assert walker.out.tolist() == number_reference(adj, ref, depth, p, deg)
+        adj, deg = adjacency(g.graph), g.deg
+        start = g.first_per_component(np.arange(g.n), deg)
+        p, p_lv, q, q_lv = _pseudo_diameters(g, start, g.descent(start))
+        level = _gibbs_levels(g, p_lv, q_lv)
+        ref, ref_depth = gibbs_levels_reference(adj, bfs_levels(adj, int(p[0])), bfs_levels(adj, int(q[0])))
+        assert level.max() + 1 == ref_depth
+        assert dict(enumerate(level.tolist())) == ref
+        rows = np.repeat(np.arange(g.n), np.diff(g.graph.indptr))
+        assert np.abs(level[rows] - level[g.graph.indices]).max() <= 1  # a level structure
+        out = g.number(level, p, deg)
+        assert out.tolist() == number_reference(adj, ref, ref_depth, int(p[0]), deg)
 
 
 def test_rooted_numbering_is_cuthill_mckee(small_graphs):
     g = small_graphs[0]
-    adj, deg = adjacency(g), np.diff(g.indptr)
-    lv, order, starts = levels(g, 5)
-    walker = _Walker(g)
-    walker.number(order, lv[order], len(starts) - 1, 5, deg)
+    adj, deg = adjacency(g.graph), g.deg
+    out = g.number(g.descent(np.array([5])), np.array([5]), deg)
     # Cuthill-McKee: a queue, each node appending its unvisited neighbours by degree
     seen, queue, cm = {5}, deque([5]), []
     while queue:
@@ -187,7 +190,18 @@ def test_rooted_numbering_is_cuthill_mckee(small_graphs):
         for v in sorted((v for v in adj[u] if v not in seen), key=lambda v: (deg[v], v)):
             seen.add(v)
             queue.append(v)
-    assert walker.out.tolist() == cm
+    assert out.tolist() == cm
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_components_at_once_equal_one_by_one(small_graphs, method):
+    """Every step runs on all components together: the same as one component at a time."""
+    blocks = [g.graph for g in small_graphs]
+    sizes = [b.shape[0] for b in blocks]
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    together = _number_components(_Graph(_as_csgraph(sp.block_diag(blocks, format="csr")), offsets), method)
+    alone = np.concatenate([o + _number_components(g, method) for g, o in zip(small_graphs, offsets)])
+    assert np.array_equal(together, alone)
 
 
 def test_matrix_stats_brute_force():

@@ -67,7 +67,7 @@ from scipy.sparse.csgraph import connected_components
 
 from warpmesh.kernels import numbering as KN
 
-from .graph import corner_count, degrees, levels, node_graph
+from .graph import corner_count, degrees, node_graph
 from .tape import parallel_ranges, run_parallel
 
 __all__ = ["METHODS", "renumber", "renumber_graph", "matrix_stats", "profile_stats", "element_order"]
@@ -79,6 +79,9 @@ SMALL_COMPONENT = 2
 
 
 # ----------------------------------------------------------------------------- kernels
+_as_wp = functools.partial(wp.array, dtype=wp.int32, device="cpu")  # int32 CPU arrays (views of numpy ones)
+
+
 def _per_node(kernel, n: int, inputs: list, outputs: list) -> None:
     """Launch a one-thread-per-node kernel (first argument ``first``) over [0, n),
     split across the CPU cores; returns when done."""
@@ -118,11 +121,10 @@ def matrix_stats(graph: sp.csr_matrix, new: np.ndarray | None = None) -> dict:
     if new.shape != (n,):
         raise ValueError(f"expected 'new' of shape ({n},), got {new.shape}")
     g = sp.csr_matrix(graph)
-    as_wp = functools.partial(wp.array, dtype=wp.int32, device="cpu")
     delta = wp.empty(n, dtype=wp.int32, device="cpu")
     delta_rev = wp.empty(n, dtype=wp.int32, device="cpu")
-    inputs = [as_wp(g.indptr.astype(np.int32, copy=False)), as_wp(g.indices.astype(np.int32, copy=False)),
-              as_wp(new.astype(np.int32, copy=False))]
+    inputs = [_as_wp(g.indptr.astype(np.int32, copy=False)), _as_wp(g.indices.astype(np.int32, copy=False)),
+              _as_wp(new.astype(np.int32, copy=False))]
     _per_node(KN.profile_kernel, n, inputs, [delta, delta_rev])
     out = {}
     for suffix, d in (("", delta.numpy()), ("_reversed", delta_rev.numpy())):  # sync points
@@ -174,51 +176,6 @@ def _min_index(nodes: np.ndarray, key: np.ndarray) -> int:
     return int(cand.min())
 
 
-def _pseudo_diameter(graph, deg, start, p_lv):
-    """Seed Step 1 (George–Liu): the ends P, Q of a pseudo-diameter and their descents.
-
-    From ``start`` (whose descent is ``p_lv``), Q is the node of minimal degree of the
-    last level (ties: smallest index); while D(Q) is deeper than D(P), Q becomes P and
-    the search goes on. On return d(Q) = d(P).
-    """
-    while True:
-        lv, order, starts = p_lv
-        q = _min_index(order[starts[-2]: starts[-1]], deg)
-        q_lv = levels(graph, q)
-        if len(q_lv[2]) > len(starts):  # deeper: a new start
-            start, p_lv = q, q_lv
-            continue
-        return start, p_lv, q, q_lv
-
-
-def _gibbs_levels(walker, p_lv, q_lv):
-    """Step 2: the combined level of each node of the component (aligned with its order)."""
-    nodes = p_lv[1]
-    depth = len(p_lv[2]) - 1
-    i = p_lv[0][nodes].astype(np.int64)
-    j = depth - 1 - q_lv[0][nodes].astype(np.int64)
-    level = np.where(i == j, i, -1)
-    counts = np.bincount(i[i == j], minlength=depth)
-    rest = np.flatnonzero(i != j)
-    if not len(rest):
-        return nodes, level, depth
-    label = walker.components(nodes[rest])
-    sizes = np.bincount(label)
-    group = np.argsort(label, kind="stable")
-    bounds = np.concatenate([[0], np.cumsum(sizes)])
-    width_p = np.bincount(i, minlength=depth).max()
-    width_q = np.bincount(q_lv[0][nodes], minlength=depth).max()
-    for c in np.argsort(-sizes, kind="stable"):  # largest component first
-        members = rest[group[bounds[c]: bounds[c + 1]]]
-        ic, jc = i[members], j[members]
-        hc, lc = np.bincount(ic, minlength=depth), np.bincount(jc, minlength=depth)
-        h0, l0 = (counts + hc)[hc > 0].max(), (counts + lc)[lc > 0].max()
-        use = ic if (h0 < l0 or (h0 == l0 and width_p <= width_q)) else jc
-        level[members] = use
-        counts += np.bincount(use, minlength=depth)
-    return nodes, level, depth
-
-
 def _order_by(*columns) -> np.ndarray:
     """Indices sorting by the first column, then the second, ... (non-negative ints):
     one argsort of a combined int64 key when it fits (np.lexsort is several times
@@ -232,59 +189,180 @@ def _order_by(*columns) -> np.ndarray:
     return np.lexsort(columns[::-1])
 
 
-class _Walker:
-    """Warp views of one graph and the scratch arrays of its walks (kernels/numbering.py).
+class _Graph:
+    """A relabelled graph whose connected components are the contiguous label ranges
+    ``bounds[c]:bounds[c + 1]``, with the Warp views and scratch arrays of its walks
+    (kernels/numbering.py); every method works on all components at once."""
 
-    ``num`` (node -> number, -1 = not yet) and ``out`` (number -> node) are numpy
-    arrays the kernels write into (CPU arrays share their memory)."""
+    def __init__(self, graph: sp.csr_matrix, bounds):
+        self.graph = graph
+        self.n = n = graph.shape[0]
+        self.bounds = np.asarray(bounds, np.int64)
+        self.n_comp = len(self.bounds) - 1
+        self.comp = np.repeat(np.arange(self.n_comp), np.diff(self.bounds))
+        self.deg = degrees(graph)
+        self.indptr = _as_wp(graph.indptr.astype(np.int32, copy=False))
+        self.indices = _as_wp(graph.indices.astype(np.int32, copy=False))
+        self.queue = wp.empty(max(n, 1), dtype=wp.int32, device="cpu")
+        self.level = np.full(n, -1, np.int32)  # scratch of the searches
+        self.level_wp = _as_wp(self.level, copy=False)
 
-    def __init__(self, graph: sp.csr_matrix):
-        n = graph.shape[0]
-        self.n = n
-        as_wp = functools.partial(wp.array, dtype=wp.int32, device="cpu")
-        self.indptr = as_wp(graph.indptr.astype(np.int32, copy=False))
-        self.indices = as_wp(graph.indices.astype(np.int32, copy=False))
-        self.num = np.full(n, -1, np.int32)
-        self.out = np.full(n, -1, np.int32)
-        self.lev = np.full(n, -1, np.int32)
-        self.key = np.zeros(n, np.int32)
-        self.wp = {name: as_wp(getattr(self, name), copy=False) for name in ("num", "out", "lev", "key")}
-        deg = np.diff(graph.indptr)
-        self.buf = as_wp(np.zeros(max(int(deg.max(initial=0)), 1), np.int32))
-        self.next_number = 0
+    def nodes_of(self, comps: np.ndarray) -> np.ndarray:
+        """The nodes of components ``comps`` (ascending), in order."""
+        lo, size = self.bounds[comps], np.diff(self.bounds)[comps]
+        first = np.cumsum(size) - size
+        return np.repeat(lo - first, size) + np.arange(int(size.sum()))
 
-    def number(self, nodes, level, depth, start, key) -> None:
-        """Number one component (``nodes``, their ``level`` 0..depth-1) from ``start``."""
-        self.lev[nodes] = level
-        self.key[nodes] = key[nodes]
-        rank = _order_by(level, key[nodes], nodes)
-        bounds = np.searchsorted(level[rank], np.arange(depth + 1)).astype(np.int32)
-        count = wp.zeros(1, dtype=wp.int32, device="cpu")
-        wp.launch(
-            KN.number_levels_kernel, dim=1,
-            inputs=[self.indptr, self.indices, self.wp["lev"], self.wp["key"],
-                    wp.array(nodes[rank].astype(np.int32), dtype=wp.int32, device="cpu"),
-                    wp.array(bounds, dtype=wp.int32, device="cpu"), depth, int(start),
-                    self.next_number],
-            outputs=[self.wp["num"], self.wp["out"], self.buf, count], device="cpu",
-        )
-        self.next_number = int(count.numpy()[0])  # sync point
+    def first_per_component(self, nodes: np.ndarray, *keys, comps=None) -> np.ndarray:
+        """For each component (of ``comps``, ascending; default all), the one of
+        ``nodes`` (some in each) smallest by ``keys`` (arrays over all nodes), ties by
+        index."""
+        comps = np.arange(self.n_comp) if comps is None else comps
+        nodes = nodes[_order_by(self.comp[nodes], *(k[nodes] for k in keys), nodes)]
+        return nodes[np.searchsorted(self.comp[nodes], comps)]
+
+    def descent(self, sources: np.ndarray, nodes: np.ndarray | None = None) -> np.ndarray:
+        """Each node's level in the descent of its component's source: (n,) int64, or
+        the values at ``nodes`` (the nodes of the sources' components) when given."""
+        if nodes is None:
+            self.level[:] = -1
+        else:
+            self.level[nodes] = -1  # the search touches these only
+        wp.launch(KN.descent_kernel, dim=1, inputs=[self.indptr, self.indices, _as_wp(sources.astype(np.int32))],
+                  outputs=[self.level_wp, self.queue], device="cpu")
+        wp.synchronize_device("cpu")
+        return (self.level if nodes is None else self.level[nodes]).astype(np.int64)
+
+    def depths(self, level: np.ndarray, comps: np.ndarray | None = None) -> np.ndarray:
+        """Number of levels of each component's descent: ``level`` over all nodes, or
+        over the nodes of ``comps`` (ascending) in order."""
+        if comps is None:
+            return np.maximum.reduceat(level, self.bounds[:-1]) + 1
+        size = np.diff(self.bounds)[comps]
+        return np.maximum.reduceat(level, np.cumsum(size) - size) + 1
 
     def components(self, nodes: np.ndarray) -> np.ndarray:
-        """Component label of each of ``nodes`` in the subgraph they induce."""
+        """Component label of each of ``nodes`` in the subgraph they induce, labelled in
+        the order of each one's smallest node."""
         inside = np.zeros(self.n, np.int32)
         inside[nodes] = 1
         label = np.full(self.n, -1, np.int32)
         count = wp.zeros(1, dtype=wp.int32, device="cpu")
-        ordered = np.sort(nodes).astype(np.int32)
-        wp.launch(
-            KN.label_components_kernel, dim=1,
-            inputs=[self.indptr, self.indices, wp.array(inside, dtype=wp.int32, device="cpu"),
-                    wp.array(ordered, dtype=wp.int32, device="cpu")],
-            outputs=[wp.array(label, dtype=wp.int32, device="cpu", copy=False),
-                     wp.zeros(len(nodes), dtype=wp.int32, device="cpu"), count], device="cpu",
-        )
+        wp.launch(KN.label_components_kernel, dim=1,
+                  inputs=[self.indptr, self.indices, _as_wp(inside), _as_wp(np.sort(nodes).astype(np.int32))],
+                  outputs=[_as_wp(label, copy=False), self.queue, count], device="cpu")
+        wp.synchronize_device("cpu")
         return label[nodes].astype(np.int64)
+
+    def number(self, level: np.ndarray, start: np.ndarray, key: np.ndarray) -> np.ndarray:
+        """Step 3 on every component: ``level`` (n,) per node, numbering from ``start``
+        (one per component) with neighbours by increasing ``key``. Component c gets the
+        numbers ``bounds[c]:bounds[c + 1]``. Returns ``out`` (number -> node)."""
+        depth = self.depths(level)
+        first_level = np.concatenate([[0], np.cumsum(depth)])
+        flat = first_level[self.comp] + level  # a global index for every (component, level)
+        members = _order_by(flat, key, np.arange(self.n))
+        bounds = np.searchsorted(flat[members], np.arange(first_level[-1] + 1))
+        num, out = np.full(self.n, -1, np.int32), np.full(self.n, -1, np.int32)
+        buf = wp.empty(max(int(self.deg.max(initial=0)), 1), dtype=wp.int32, device="cpu")
+        wp.launch(KN.number_levels_kernel, dim=1,
+                  inputs=[self.indptr, self.indices, _as_wp(flat.astype(np.int32)),
+                          _as_wp(key.astype(np.int32)), _as_wp(members.astype(np.int32)),
+                          _as_wp(bounds.astype(np.int32)), _as_wp(start.astype(np.int32)),
+                          _as_wp(first_level.astype(np.int32)), _as_wp(self.bounds[:-1].astype(np.int32))],
+                  outputs=[_as_wp(num, copy=False), _as_wp(out, copy=False), buf], device="cpu")
+        wp.synchronize_device("cpu")
+        return out.astype(np.int64)
+
+
+def _pseudo_diameters(g: _Graph, start: np.ndarray, start_level: np.ndarray):
+    """Seed Step 1 (George–Liu) in every component: from ``start`` (whose descents are
+    ``start_level``), Q is the node of minimal degree of the last level (ties: smallest
+    index); while D(Q) is deeper than D(P), Q becomes P and the search goes on. Each
+    round works on the components still going only.
+
+    Returns P, D(P), Q, D(Q) (per component / per node), d(Q) = d(P) everywhere.
+    """
+    p, p_lv = start.copy(), start_level.copy()
+    q, q_lv = np.zeros_like(p), np.full(g.n, -1, np.int64)
+    depth = g.depths(p_lv)
+    active = np.arange(g.n_comp)
+    while len(active):
+        nodes = g.nodes_of(active)
+        last = nodes[p_lv[nodes] == depth[g.comp[nodes]] - 1]
+        cand = g.first_per_component(last, g.deg, comps=active)
+        lv = g.descent(cand, nodes)
+        new_depth = g.depths(lv, active)
+        deeper = new_depth > depth[active]
+        per_node = np.repeat(deeper, np.diff(g.bounds)[active])
+        q[active[~deeper]] = cand[~deeper]
+        q_lv[nodes[~per_node]] = lv[~per_node]
+        go = active[deeper]
+        p[go], depth[go] = cand[deeper], new_depth[deeper]
+        p_lv[nodes[per_node]] = lv[per_node]
+        active = go
+    return p, p_lv, q, q_lv
+
+
+def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
+    """Step 2 in every component: pairs (i, j), nodes with i = j fixed, the other
+    nodes' connected components placed, largest first, on the side that keeps the widest
+    level smaller (ties: the rooted structure of smaller width). Returns the levels."""
+    depth = g.depths(p_lv)
+    first_level = np.concatenate([[0], np.cumsum(depth)])
+    base = first_level[g.comp]
+    i, j = p_lv, depth[g.comp] - 1 - q_lv
+    level = np.where(i == j, i, -1)
+    counts = np.bincount((base + i)[i == j], minlength=first_level[-1])
+    rest = np.flatnonzero(i != j)
+    if not len(rest):
+        return level
+    width_p = np.maximum.reduceat(np.bincount(base + p_lv, minlength=first_level[-1]), first_level[:-1])
+    width_q = np.maximum.reduceat(np.bincount(base + q_lv, minlength=first_level[-1]), first_level[:-1])
+    label = g.components(rest)
+    sizes = np.bincount(label)
+    owner = np.empty(len(sizes), np.int64)
+    owner[label] = g.comp[rest]
+    # the k-th largest piece of every component is placed in round k, all at once: pieces
+    # of different components never share a level count
+    order = _order_by(owner, sizes.max() - sizes, np.arange(len(sizes)))
+    round_of = np.empty(len(sizes), np.int64)
+    round_of[order] = np.arange(len(sizes)) - np.searchsorted(owner[order], owner[order])
+    by_round = rest[_order_by(round_of[label], label, rest)]
+    lab = label[np.searchsorted(rest, by_round)]
+    ends = np.searchsorted(round_of[lab], np.arange(round_of.max() + 2))
+    for k in range(len(ends) - 1):
+        nodes, piece = by_round[ends[k]: ends[k + 1]], lab[ends[k]: ends[k + 1]]
+        first = np.flatnonzero(np.r_[True, piece[1:] != piece[:-1]])  # pieces are contiguous
+        fi, fj = base[nodes] + i[nodes], base[nodes] + j[nodes]
+        size = first_level[-1]
+        h0 = np.maximum.reduceat(counts[fi] + np.bincount(fi, minlength=size)[fi], first)
+        l0 = np.maximum.reduceat(counts[fj] + np.bincount(fj, minlength=size)[fj], first)
+        own = g.comp[nodes[first]]
+        side_i = (h0 < l0) | ((h0 == l0) & (width_p[own] <= width_q[own]))
+        chosen = np.where(np.repeat(side_i, np.diff(np.r_[first, len(nodes)])), i[nodes], j[nodes])
+        level[nodes] = chosen
+        counts += np.bincount(base[nodes] + chosen, minlength=size)
+    return level
+
+
+def _number_components(g: _Graph, method: str, start_level=None) -> np.ndarray:
+    """The order (new -> old label) of the graph by ``method``, component by component;
+    ``start_level`` is the descent of each component's node of minimal degree, if known."""
+    start = g.first_per_component(np.arange(g.n), g.deg)
+    lv = g.descent(start) if start_level is None else start_level
+    if method == "frontal":
+        return g.number(lv, start, _forward_degree(g.graph, lv))
+    p, p_lv, q, q_lv = _pseudo_diameters(g, start, lv)
+    from_q = g.deg[q] < g.deg[p]  # start from the end of lower degree
+    if method == "gibbs":
+        level = _gibbs_levels(g, p_lv, q_lv)
+        depth = g.depths(p_lv)
+        level = np.where(from_q[g.comp], depth[g.comp] - 1 - level, level)
+        return g.number(level, np.where(from_q, q, p), g.deg)
+    lv = np.where(from_q[g.comp], q_lv, p_lv)
+    key = g.deg if method == "rcm" else _forward_degree(g.graph, lv)
+    return g.number(lv, np.where(from_q, q, p), key)
 
 
 def _forward_degree(graph, level_of):
@@ -293,33 +371,6 @@ def _forward_degree(graph, level_of):
     rows = np.repeat(np.arange(n), np.diff(graph.indptr))
     ahead = level_of[graph.indices] == level_of[rows] + 1
     return np.bincount(rows[ahead], minlength=n)
-
-
-def _number_connected(graph: sp.csr_matrix, method: str, descent=None) -> np.ndarray:
-    """The new order (new -> old) of a connected graph, by ``method``.
-
-    ``graph`` is in csgraph format (:func:`_as_csgraph`); ``descent`` is the descent of
-    its node of minimal degree and smallest index, when known already.
-    """
-    deg = degrees(graph)
-    start = _min_index(np.arange(graph.shape[0]), deg)
-    lv, order, starts = descent or levels(graph, start)
-    walker = _Walker(graph)
-    if method == "frontal":
-        walker.number(order, lv[order], len(starts) - 1, start, _forward_degree(graph, lv))
-        return walker.out.astype(np.int64)
-    p, p_lv, q, q_lv = _pseudo_diameter(graph, deg, start, (lv, order, starts))
-    if method == "gibbs":
-        nodes, level, depth = _gibbs_levels(walker, p_lv, q_lv)
-        start = p
-        if deg[q] < deg[p]:  # start from the end of lower degree: reverse the levels
-            start, level = q, depth - 1 - level
-        walker.number(nodes, level, depth, start, deg)
-        return walker.out.astype(np.int64)
-    start, (lv, order, starts) = (q, q_lv) if deg[q] < deg[p] else (p, p_lv)
-    key = deg if method == "rcm" else _forward_degree(graph, lv)
-    walker.number(order, lv[order], len(starts) - 1, start, key)
-    return walker.out.astype(np.int64)
 
 
 def _relabel(graph: sp.csr_matrix, seq: np.ndarray, size: int) -> sp.csr_matrix:
@@ -332,10 +383,9 @@ def _relabel(graph: sp.csr_matrix, seq: np.ndarray, size: int) -> sp.csr_matrix:
     indptr = np.zeros(size + 1, np.int32)
     np.cumsum(np.diff(graph.indptr)[seq[:size]], out=indptr[1:])
     indices = np.empty(int(indptr[-1]), np.int32)
-    as_wp = functools.partial(wp.array, dtype=wp.int32, device="cpu")
     _per_node(KN.relabel_rows_kernel, size,
-              [as_wp(graph.indptr), as_wp(graph.indices), as_wp(seq[:size].astype(np.int32)),
-               as_wp(new_of_old), as_wp(indptr)], [as_wp(indices, copy=False)])
+              [_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(seq[:size].astype(np.int32)),
+               _as_wp(new_of_old), _as_wp(indptr)], [_as_wp(indices, copy=False)])
     g = sp.csr_matrix((np.ones(len(indices)), indices, indptr), shape=(size, size))
     g.has_sorted_indices = True
     return g
@@ -347,14 +397,13 @@ def _search_relabel(graph: sp.csr_matrix, start: int):
     Returns the nodes reached in search order, the subgraph they span relabelled by
     that order (csgraph format) and the level of each label."""
     n = graph.shape[0]
-    as_wp = functools.partial(wp.array, dtype=wp.int32, device="cpu")
     new_of_old = np.full(n, -1, np.int32)
     old_of_new, level = np.empty(n, np.int32), np.empty(n, np.int32)
     indptr, indices = np.zeros(n + 1, np.int32), np.empty(graph.nnz, np.int32)
     count = wp.zeros(1, dtype=wp.int32, device="cpu")
     wp.launch(KN.search_relabel_kernel, dim=1,
-              inputs=[as_wp(graph.indptr), as_wp(graph.indices), int(start)],
-              outputs=[as_wp(a, copy=False) for a in (new_of_old, old_of_new, level, indptr, indices)]
+              inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), int(start)],
+              outputs=[_as_wp(a, copy=False) for a in (new_of_old, old_of_new, level, indptr, indices)]
               + [count], device="cpu")
     c = int(count.numpy()[0])  # sync point
     local = sp.csr_matrix((np.ones(int(indptr[c])), indices[: indptr[c]], indptr[: c + 1]), shape=(c, c))
@@ -367,11 +416,12 @@ def _layout(graph, deg):
 
     Returns ``seq`` (new label -> node: the components with more than SMALL_COMPONENT
     nodes, then the smaller ones, then isolated nodes), the sizes of the large
-    components, the number of nodes in small components and, when the graph is
-    connected, (its relabelled graph, the descent of label 0). A connected graph (the
-    usual mesh) is laid out in the breadth-first order of its first search, so that
-    the walks that follow read memory nearly in order: on a randomly numbered mesh that
-    alone makes them ~3x faster.
+    components, the number of nodes in small components and (the large components'
+    relabelled graph, each label's level in the descent of its component's node of
+    minimal degree, when the graph is connected, else None). Each large component is
+    laid out in the breadth-first order of a search, so that the walks that follow
+    read memory nearly in order: on a randomly numbered mesh that alone makes them ~3x
+    faster.
     """
     n = graph.shape[0]
     used = np.flatnonzero(deg)
@@ -383,18 +433,22 @@ def _layout(graph, deg):
         seq = np.concatenate([reached, isolated])
         if len(used) <= SMALL_COMPONENT:
             return seq, [], len(used), None
-        starts = np.concatenate([[0], np.cumsum(np.bincount(level))])
-        return seq, [len(used)], 0, (local, (level, np.arange(len(used)), starts))
-    ncomp, label = connected_components(graph, directed=True, connection="strong")
-    sizes = np.bincount(label, minlength=ncomp)
-    root = np.full(ncomp, n)
-    np.minimum.at(root, label, np.arange(n))
+        return seq, [len(used)], 0, (local, level)
+    # several components: one search labels them all, each laid out contiguously in the
+    # order of its search (from its smallest node; components by smallest node)
+    label, queue = np.full(n, -1, np.int32), np.empty(n, np.int32)
+    count = wp.zeros(1, dtype=wp.int32, device="cpu")
+    wp.launch(KN.label_components_kernel, dim=1,
+              inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(np.ones(n, np.int32)),
+                      _as_wp(np.arange(n, dtype=np.int32))],
+              outputs=[_as_wp(label, copy=False), _as_wp(queue, copy=False), count], device="cpu")
+    wp.synchronize_device("cpu")
+    sizes = np.bincount(label)
     kind = np.where(sizes > SMALL_COMPONENT, 0, np.where(sizes > 1, 1, 2))
-    seq = _order_by(kind[label], root[label], np.arange(n))
-    big = np.unique(root[sizes > SMALL_COMPONENT])  # their smallest nodes, ascending
-    comp_of = np.empty(n, np.int64)
-    comp_of[root] = np.arange(ncomp)
-    return seq, sizes[comp_of[big]].tolist(), int(sizes[kind == 1].sum()), None
+    seq = queue.astype(np.int64)[_order_by(kind[label[queue]], np.arange(n))]
+    total = int(sizes[kind == 0].sum())
+    local = (_relabel(graph, seq, total), None) if total else None
+    return seq, sizes[kind == 0].tolist(), int(sizes[kind == 1].sum()), local
 
 
 def _as_csgraph(graph) -> sp.csr_matrix:
@@ -455,12 +509,11 @@ def renumber_graph(
     deg = degrees(graph)
     seq, sizes, n_small, connected = _layout(graph, deg)
     new_of_local = np.empty(n, np.int64)
-    offset = 0
-    for size in sizes:  # each large component, in the order of its smallest node
-        part, descent = connected or (_relabel(graph, seq[offset:], size), None)
-        order = _number_connected(part, method, descent)
-        new_of_local[offset + order] = np.arange(offset, offset + size)
-        offset += size
+    offset = sum(sizes)  # the large components come first, each a contiguous range
+    if offset:
+        local, start_level = connected
+        order = _number_components(_Graph(local, np.concatenate([[0], np.cumsum(sizes)])), method, start_level)
+        new_of_local[order] = np.arange(offset)
     new_of_local[offset:] = np.arange(offset, n)  # small components, then isolated nodes
     used = offset + n_small  # nodes in some element
     if reverse == "auto" and method != "rcm":
