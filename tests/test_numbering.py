@@ -12,10 +12,21 @@ from numbering_meshes import ball, hexbeam, plate, shuffled, sphere_surface
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 import warpmesh as wm
-from warpmesh.graph import levels, node_graph
-from warpmesh.numbering import (METHODS, _as_csgraph, _gibbs_levels, _Graph, _layout,
-                                _number_components, _pseudo_diameters, _relabel, element_order,
-                                format_table, matrix_stats, profile_stats, renumber_graph)
+from warpmesh.graph import node_graph
+from warpmesh.numbering import (
+    METHODS,
+    _as_csgraph,
+    _gibbs_levels,
+    _Graph,
+    _layout,
+    _number_components,
+    _pseudo_diameters,
+    element_order,
+    format_table,
+    matrix_stats,
+    profile_stats,
+    renumber_graph,
+)
 
 
 # ----------------------------------------------------------------------------- oracles

@@ -63,7 +63,6 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 import warp as wp
-from scipy.sparse.csgraph import connected_components
 
 from warpmesh.kernels import numbering as KN
 
