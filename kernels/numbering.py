@@ -1,10 +1,12 @@
-"""Sequential graph walks of node renumbering (seed §17.4.1): Cuthill–McKee numbering
-over a level structure, and connected components of a node subset.
+"""Sequential graph walks of node renumbering and element colouring (seed §17.4):
+breadth-first searches, Cuthill–McKee numbering over a level structure, connected
+components of a node subset, greedy colouring.
 
-Both walks are sequential by nature — the order of a level depends on the order of the
-one before — so each kernel is launched with ``dim=1`` and one thread walks the whole
-graph: compiled code instead of one Python round of array operations per level (a 2D
-mesh has about a thousand levels). The same code runs on CUDA, on one thread.
+These walks are sequential by nature — the order of a level depends on the order of the
+one before, a node's colour on the colours before it — so each such kernel is launched
+with ``dim=1`` and one thread walks the whole graph: compiled code instead of one Python
+round of array operations per level (a 2D mesh has about a thousand levels). The same
+code runs on CUDA, on one thread.
 
 Graphs are CSR arrays (``indptr``, ``indices``: sorted rows, no diagonal), int32. The
 per-node kernels (relabelling, profile) take ``first`` so the host can split a launch
@@ -248,3 +250,23 @@ def search_relabel_kernel(
             pos += m
             new_indptr[head + 1] = pos
     count[0] = tail
+
+
+@wp.kernel
+def greedy_color_kernel(
+    indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+    color: wp.array(dtype=wp.int32), stamp: wp.array(dtype=wp.int32),
+):
+    """One thread colours the nodes of a graph in ``order``: each takes the smallest
+    colour no neighbour coloured before it has (``color`` starts at -1; ``stamp``, of
+    length max degree + 2 and starting at -1, marks the colours seen around node t)."""
+    for t in range(order.shape[0]):
+        u = order[t]
+        for e in range(indptr[u], indptr[u + 1]):
+            c = color[indices[e]]
+            if c >= 0:
+                stamp[c] = t
+        c = int(0)
+        while stamp[c] == t:
+            c += 1
+        color[u] = c

@@ -67,6 +67,14 @@ def test_red_black_where_two_colours_suffice():
     assert max(int(c.max()) for c in element_colors(quad_grid(), adjacency="node").values()) == 3
 
 
+def test_non_manifold_edges_make_every_owner_a_neighbour():
+    pts = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]]
+    m = wm.Mesh(pts, {"triangle": [[0, 1, 2], [0, 1, 3], [0, 1, 4]]})  # three on edge 0-1
+    graph, _ = element_graph(m)
+    assert graph.nnz == 6
+    assert sorted(element_colors(m)["triangle"].tolist()) == [0, 1, 2]
+
+
 def test_element_graph_neighbours():
     m = wm.Mesh.from_trimesh(trimesh.creation.icosphere(1))
     face, _ = element_graph(m, "face")

@@ -68,6 +68,11 @@ def test_expand_lists_neighbours_in_row_order():
     assert np.array_equal(nb, ref) and np.array_equal(rows[src], np.repeat(rows, np.diff(g.indptr)[rows]))
 
 
+def test_a_node_listed_twice_is_no_self_edge():
+    g = node_graph({"triangle": np.array([[0, 0, 1]])}, 2)
+    assert not g.diagonal().any() and g.nnz == 2
+
+
 def test_bad_input():
     with pytest.raises(ValueError, match="nodes"):
         node_graph({"triangle": np.array([[0, 1, 2]])}, 3, nodes="vertices")

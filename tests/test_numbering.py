@@ -16,6 +16,7 @@ from warpmesh.graph import node_graph
 from warpmesh.numbering import (
     METHODS,
     _as_csgraph,
+    _ball_order,
     _gibbs_levels,
     _Graph,
     _layout,
@@ -320,7 +321,10 @@ def test_renumber_mesh_keeps_cells_refs_and_data():
     assert np.array_equal(r.point_data["x"], r.points[:, 0])
     old = r.cell_data["id"]["triangle"]
     assert np.array_equal(r.cell_refs["triangle"], old % 5)
-    assert np.array_equal(m.point_refs[np.argsort(np.arange(m.n_points))] % 3, m.point_refs)
+    # cell i of the result is old cell old[i] under the new node numbers
+    new = np.array([np.flatnonzero((r.points == p).all(axis=1))[0] for p in m.points])
+    assert np.array_equal(r.cells["triangle"], new[m.cells["triangle"][old]])
+    assert np.array_equal(r.point_refs[new], m.point_refs)
     firsts = r.triangles.min(axis=1)
     assert np.all(np.diff(firsts) >= 0)  # elements follow their first vertex (seed 17.4.2)
     s = r.stats()
@@ -341,18 +345,32 @@ def test_point_refs_follow_their_points():
 
 def test_p2_ball_rule_is_the_seed_loop():
     m = shuffled(plate(0.3), 9).to_order(2)
+    corner_order = np.random.default_rng(2).permutation(m.n_points)
+    order, walk = _ball_order(m, corner_order)
+    # the seed's loop: vertices in their new order; the elements of each one's ball, by
+    # index; their nodes in local order, each numbered when first met
+    cells = m.cells["triangle6"]
+    seen, met = [], []
+    for v in corner_order:
+        for e in np.flatnonzero((cells[:, :3] == v).any(axis=1)):
+            if e not in met:
+                met.append(e)
+            for x in cells[e]:
+                if x not in seen:
+                    seen.append(x)
+    assert order[: len(seen)].tolist() == seen
+    assert walk["triangle6"].tolist() == met
+
+
+def test_p2_renumbering_direction_and_full_graph():
+    m = shuffled(plate(0.2), 9).to_order(2)
     r = m.renumber("gibbs")
-    # the seed's rule from the vertex numbering: walk vertices in order, number the
-    # nodes of the elements of each ball
-    # the walk numbers nodes as the elements, in their new order, first meet them
-    seen = []
-    for x in r.cells["triangle6"].ravel():
-        if x not in seen:
-            seen.append(x)
-    assert seen == list(range(r.n_points))
-    full = m.renumber("gibbs", higher_order="graph")
-    assert full.stats()["profile"] <= 1.1 * r.stats()["profile"]
-    assert r.stats()["profile"] < r.stats()["profile_before"] / 3
+    s = r.stats()
+    assert s["profile"] == profile_stats(r)["profile"] < s["profile_before"] / 3
+    both = [m.renumber("gibbs", reverse=flip).stats()["profile"] for flip in (False, True)]
+    assert s["profile"] == min(both) and both[0] != both[1]  # "auto" kept the better direction
+    full = m.renumber("gibbs", higher_order="graph")  # Remark 17.13: the whole node graph
+    assert full.stats()["profile"] == profile_stats(full)["profile"] < s["profile_before"] / 3
 
 
 def test_real_mesh_hexbeam():
@@ -362,7 +380,9 @@ def test_real_mesh_hexbeam():
         assert r.stats()["bandwidth"] < r.stats()["bandwidth_before"]
         assert np.isclose(r.to_pyvista().volume, m.to_pyvista().volume)
     reduced = m.renumber("gibbs", reduced=True)
-    assert reduced.stats()["profile"] < m.renumber("gibbs").stats()["profile"]
+    # numbered on the edges only; measured, as always, on every pair of an element's nodes
+    assert reduced.stats()["profile"] == profile_stats(reduced)["profile"]
+    assert node_graph(m.cells, m.n_points, reduced=True).nnz < node_graph(m.cells, m.n_points).nnz
 
 
 def test_format_table():
@@ -389,6 +409,21 @@ def test_bad_input(call, match):
     g = node_graph(m.cells, m.n_points)
     with pytest.raises((ValueError, TypeError), match=match):
         call(g, m)
+
+
+def test_graph_input_is_canonicalised_or_refused():
+    m = shuffled(plate(0.3), 2)
+    g = node_graph(m.cells, m.n_points).astype(float)
+    rows = np.repeat(np.arange(g.shape[0]), np.diff(g.indptr))
+    twice = np.argsort(np.r_[rows, rows], kind="stable")  # every entry twice, row by row
+    doubled = sp.csr_matrix((np.r_[g.data, g.data][twice], np.r_[g.indices, g.indices][twice],
+                             np.r_[0, np.cumsum(2 * np.diff(g.indptr))]), shape=g.shape)
+    noisy = doubled + sp.identity(g.shape[0])  # duplicates and a diagonal: the same graph
+    for method in METHODS:
+        assert np.array_equal(renumber_graph(noisy, method), renumber_graph(g, method))
+    with pytest.raises(ValueError, match="symmetric"):
+        renumber_graph(sp.triu(g), "gibbs")
+    assert np.array_equal(renumber_graph(g, "gibbs", reverse=np.True_), renumber_graph(g, "gibbs", reverse=True))
 
 
 def test_empty_and_tiny_graphs():

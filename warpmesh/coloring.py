@@ -6,9 +6,7 @@ grids need only two colours, "red–black") or any node (``adjacency="node"``: t
 packets a vector or multi-threaded assembly can process without write conflicts).
 
 The colouring is the greedy one in largest-first order (elements of more neighbours
-first, ties by index), computed in rounds (Jones–Plassmann: an element takes its colour
-once the neighbours before it have theirs, the smallest colour none of them has — the
-same colouring as the sequential greedy loop), then improved by iterated greedy passes that recolour one colour class
+first, ties by index; a one-thread kernel), then improved by iterated greedy passes that recolour one colour class
 at a time (Culberson: never more colours), and replaced by the two colours of the
 breadth-first levels when the element graph is bipartite.
 
@@ -33,11 +31,14 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
+import warp as wp
 from scipy.sparse.csgraph import connected_components
+
+from warpmesh.kernels import numbering as KN
 
 from .convert import CELL_TYPES
 from .graph import corner_count, levels
-from .numbering import _order_by
+from .numbering import _as_wp, _order_by
 
 __all__ = ["element_graph", "element_colors", "is_valid_coloring", "color_mesh"]
 
@@ -116,11 +117,17 @@ def element_graph(mesh, adjacency: Adjacency = "face") -> tuple[sp.csr_matrix, l
         else:
             _, facet, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
         facet = facet.ravel()
-        inner = count[facet] == 2
-        order = np.argsort(facet[inner], kind="stable")
-        pairs = owners[inner][order].reshape(-1, 2)
-        graph = sp.csr_matrix((np.ones(2 * len(pairs), bool),
-                               (pairs.ravel(), pairs[:, ::-1].ravel())), shape=(ne, ne))
+        order = np.argsort(facet, kind="stable")
+        facet, owners = facet[order], owners[order]
+        # every two owners of a facet are neighbours (more than two on a non-manifold edge)
+        rows, cols = [], []
+        for k in range(1, int(count.max(initial=1))):
+            same = facet[k:] == facet[:-k]
+            rows += [owners[:-k][same], owners[k:][same]]
+            cols += [owners[k:][same], owners[:-k][same]]
+        rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+        cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
+        graph = sp.csr_matrix((np.ones(len(rows), bool), (rows, cols)), shape=(ne, ne))
     graph = graph.astype(bool).tocsr()
     graph.sort_indices()
     return graph, types
@@ -155,30 +162,21 @@ def _smallest_free(graph, rows, color) -> np.ndarray:
 
 def _largest_first(graph) -> np.ndarray:
     """The greedy colouring in largest-first order (ties: smaller index first, as
-    networkx's ``greedy_color(strategy="largest_first")``), computed in rounds.
-
-    An element is coloured once every neighbour that comes before it in that order has
-    its colour, with the smallest colour none of them has — exactly what the one-by-one
-    loop gives. Each element counts the neighbours it waits for; a round colours the
-    elements whose count reached zero and counts down their followers, so the work is
-    O(edges) plus one round per step of the longest chain of waiting elements.
-    """
+    networkx's ``greedy_color(strategy="largest_first")``): one element at a time, the
+    smallest colour none of its neighbours already has (a one-thread kernel, O(edges))."""
     ne = graph.shape[0]
+    if not ne:
+        return np.zeros(0, np.int64)
     deg = np.diff(graph.indptr).astype(np.int64)
-    rank = np.empty(ne, np.int64)
-    rank[_order_by(-deg + deg.max(initial=0), np.arange(ne))] = np.arange(ne)  # 0 goes first
-    rows = np.repeat(np.arange(ne), np.diff(graph.indptr))
-    before = rank[graph.indices] < rank[rows]  # edge (row, col): col comes first
-    waiting = np.bincount(rows[before], minlength=ne)
-    color = np.full(ne, -1, np.int64)
-    ready = np.flatnonzero(waiting == 0)
-    while len(ready):
-        color[ready] = _smallest_free(graph, ready, color)
-        nb, src = _expand(graph, ready)
-        follower = nb[rank[nb] > rank[ready][src]]
-        waiting -= np.bincount(follower, minlength=ne)
-        ready = np.unique(follower[waiting[follower] == 0])
-    return color
+    order = _order_by(deg.max() - deg, np.arange(ne))
+    color = np.full(ne, -1, np.int32)
+    wp.launch(KN.greedy_color_kernel, dim=1,
+              inputs=[_as_wp(graph.indptr.astype(np.int32)), _as_wp(graph.indices.astype(np.int32)),
+                      _as_wp(order.astype(np.int32))],
+              outputs=[_as_wp(color, copy=False), _as_wp(np.full(int(deg.max()) + 2, -1, np.int32))],
+              device="cpu")
+    wp.synchronize_device("cpu")
+    return color.astype(np.int64)
 
 
 def _iterated_greedy(graph, color, order: str) -> np.ndarray:

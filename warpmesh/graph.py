@@ -123,11 +123,15 @@ def node_graph(
         his.append(hi)
     lo = np.concatenate(los) if los else np.zeros(0, np.int32)
     hi = np.concatenate(his) if his else np.zeros(0, np.int32)
+    keep = lo != hi  # a cell that lists a node twice is no edge of it
+    lo, hi = lo[keep], hi[keep]
     upper = sp.csr_matrix((np.ones(len(lo), bool), (lo, hi)), shape=(n, n))  # sums duplicates
     g = (upper + upper.T).tocsr()
+    if g.nnz >= np.iinfo(np.int32).max:
+        raise ValueError(f"expected fewer than 2**31 - 1 node pairs, got {g.nnz}: split the mesh")
     g.sort_indices()
     g.indices = g.indices.astype(np.int32, copy=False)
-    g.indptr = g.indptr.astype(np.int32 if g.nnz < np.iinfo(np.int32).max else np.int64, copy=False)
+    g.indptr = g.indptr.astype(np.int32, copy=False)
     g.has_sorted_indices = True  # still sorted: only the index dtype changed
     return g
 

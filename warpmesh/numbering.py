@@ -1,10 +1,10 @@
 """Vertex (node) renumbering for small bandwidth and profile (seed §17.4.1, §17.4.4).
 
-The walks whose order depends on the walk so far (the Cuthill–McKee numbering of each
-level, the components of Step 2, the first search) run as one-thread Warp kernels in
-:mod:`warpmesh.kernels.numbering`; the level structures come from scipy's
-breadth-first search. A connected graph is first relabelled in the order of its first
-search, so that on a randomly numbered mesh the later walks read memory nearly in order.
+The walks whose order depends on the walk so far (breadth-first searches, the
+Cuthill–McKee numbering of each level, the components of Step 2) run as one-thread Warp
+kernels in :mod:`warpmesh.kernels.numbering`, on all connected components at once. Each
+component is first relabelled in the order of a search, so that on a randomly numbered
+mesh the later walks read memory nearly in order.
 
 Methods (each takes the symmetric node graph of :func:`warpmesh.graph.node_graph` and
 returns ``order``: the old node indices in their new order)
@@ -136,8 +136,8 @@ def matrix_stats(graph: sp.csr_matrix, new: np.ndarray | None = None) -> dict:
 def element_order(cells: np.ndarray, new: np.ndarray) -> np.ndarray:
     """Element renumbering of seed §17.4.2 in linear time.
 
-    Elements are numbered by their vertex of smallest new number, then by their old
-    index — the order the seed's double loop ("for each vertex, the elements containing
+    Elements are numbered by their node of smallest new number (a vertex, for P1
+    elements), then by their old index — the order the seed's double loop ("for each vertex, the elements containing
     it not yet numbered") gives, found by one counting sort instead of O(n²) work.
 
     Parameters
@@ -451,15 +451,25 @@ def _layout(graph, deg):
 
 
 def _as_csgraph(graph) -> sp.csr_matrix:
-    """CSR with float64 data, int32 indices and sorted rows: scipy.sparse.csgraph's own
-    format, so that its searches do not convert the graph at every call."""
-    g = sp.csr_matrix(graph, dtype=np.float64)
-    if not g.has_sorted_indices:
-        g = g.sorted_indices()
-    if g.indices.dtype != np.int32:
-        g.indices = g.indices.astype(np.int32)
-        g.indptr = g.indptr.astype(np.int32)
-        g.has_sorted_indices = True
+    """The structure of ``graph`` as CSR with float64 data, int32 indices, sorted rows,
+    no duplicates and no diagonal.
+
+    Raises ValueError for a graph that cannot be symmetric (a node with more entries in
+    its row than in its column) or too large for int32 indices."""
+    g = sp.csr_matrix(graph, dtype=np.float64, copy=True)
+    g.sum_duplicates()  # also sorts the rows
+    if g.nnz >= np.iinfo(np.int32).max:
+        raise ValueError(f"expected fewer than 2**31 - 1 entries in 'graph', got {g.nnz}")
+    g.data[:] = 1.0  # explicit zeros are entries too
+    if g.nnz and g.diagonal().any():
+        g.setdiag(0)
+        g.eliminate_zeros()
+    if not np.array_equal(np.diff(g.indptr), np.bincount(g.indices, minlength=g.shape[0])):
+        raise ValueError("expected a symmetric 'graph' (every entry (i, j) with its (j, i)); "
+                         "use g + g.T, or warpmesh.graph.node_graph")
+    g.indices = g.indices.astype(np.int32)
+    g.indptr = g.indptr.astype(np.int32)
+    g.has_sorted_indices = True
     return g
 
 
@@ -521,7 +531,7 @@ def renumber_graph(
         s = matrix_stats(graph, new_of_old)
         flip = (s["profile_reversed"], s["bandwidth_reversed"]) < (s["profile"], s["bandwidth"])
     else:
-        flip = reverse is True or (method == "rcm" and reverse != False)  # noqa: E712
+        flip = bool(reverse) if method != "rcm" else reverse != False  # noqa: E712
     if flip:  # isolated nodes stay last
         head = new_of_local < used
         new_of_local[head] = used - 1 - new_of_local[head]
@@ -555,6 +565,17 @@ def profile_stats(mesh, *, reduced: bool = False) -> dict:
     """
     s = matrix_stats(node_graph(mesh.cells, mesh.n_points, reduced=reduced))
     return {k: s[k] for k in ("bandwidth", "profile", "profile_mean")}
+
+
+#: facts of ``Mesh.info`` that an element renumbering makes stale (colour packets)
+_ELEMENT_ORDER_FACTS = ("n_colors", "packet_sizes", "color_adjacency")
+
+
+def _inverse(order: np.ndarray) -> np.ndarray:
+    """``new[old]`` from ``order[new] = old``."""
+    new = np.empty(len(order), np.int64)
+    new[order] = np.arange(len(order))
+    return new
 
 
 def _ball_order(mesh, corner_order: np.ndarray):
@@ -603,13 +624,15 @@ def renumber(
     method : {"gibbs", "rcm", "frontal", "frontal-diameter"}
         See the module docstring.
     reverse : bool or "auto"
-        See :func:`renumber_graph`.
+        See :func:`renumber_graph`; with the ball rule it applies to the whole numbering
+        (the walk run backwards), "auto" measuring it on every node.
     higher_order : {"ball", "graph"}
         For meshes with nodes other than vertices (P2, ...): number the vertices
         first and the other nodes by the seed's ball rule (default), or run the method
         on the full node graph (Remark 17.13: better, more work).
     reduced : bool
-        Quads/hexahedra connect along edges only (Fig. 17.11 iii).
+        Number on the reduced graph: quads/hexahedra connect along their edges only (Fig.
+        17.11 iii). The statistics always count every pair of an element's nodes.
     elements : bool
         Also renumber the elements of each block after their new vertices (§17.4.2).
 
@@ -651,21 +674,32 @@ def renumber(
     n = mesh.n_points
     wp.load_module(KN, device="cpu")  # compiled once per machine, loaded once per process: not timed
     t0 = time.perf_counter()
-    full = node_graph(mesh.cells, n, reduced=reduced)
+    graph = node_graph(mesh.cells, n, reduced=reduced)
     t1 = time.perf_counter()
     walk = None
     if _is_higher_order(mesh) and higher_order == "ball":
         corners = node_graph(mesh.cells, n, nodes="corners", reduced=reduced)
         t1b = time.perf_counter()
-        order, walk = _ball_order(mesh, renumber_graph(corners, method, reverse=reverse))
+        order, walk = _ball_order(mesh, renumber_graph(corners, method, reverse=False))
+        if reverse == "auto" or method == "rcm" and reverse != False:  # noqa: E712
+            s = matrix_stats(graph, _inverse(order))  # direction of the whole numbering
+            flip = method == "rcm" if reverse != "auto" else (
+                (s["profile_reversed"], s["bandwidth_reversed"]) < (s["profile"], s["bandwidth"]))
+        else:
+            flip = bool(reverse)
+        if flip:  # the walk run backwards: nodes and elements
+            used = np.isin(np.arange(n), np.concatenate([c.ravel() for c in mesh.cells.values()]))
+            k = int(used.sum())
+            order = np.concatenate([order[:k][::-1], order[k:]])
+            walk = {t: w[::-1] for t, w in walk.items()}
         graph_time = (t1 - t0) + (t1b - t1)
         t1 = t1b
     else:
-        order = renumber_graph(full, method, reverse=reverse)
+        order = renumber_graph(graph, method, reverse=reverse)
         graph_time = t1 - t0
     elapsed = time.perf_counter() - t1
-    new = np.empty(n, np.int64)
-    new[order] = np.arange(n)
+    new = _inverse(order)
+    full = graph if not reduced else node_graph(mesh.cells, n)  # statistics: every coefficient
     before, after = matrix_stats(full), matrix_stats(full, new)
     cells, cell_refs, cell_data = {}, {}, {k: {} for k in mesh.cell_data}
     for t, block in mesh.cells.items():
@@ -679,7 +713,7 @@ def renumber(
             cell_refs[t] = mesh.cell_refs[t][keep]
         for k in mesh.cell_data:
             cell_data[k][t] = mesh.cell_data[k][t][keep]
-    info = dict(mesh.info)
+    info = {k: v for k, v in mesh.info.items() if k not in _ELEMENT_ORDER_FACTS}
     for k in ("bandwidth", "profile", "profile_mean"):
         info[k], info[k + "_before"] = after[k], before[k]
     info.update(
