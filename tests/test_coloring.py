@@ -10,7 +10,12 @@ import trimesh
 from numbering_meshes import ball, hexbeam, plate, sphere_surface
 
 import warpmesh as wm
-from warpmesh.coloring import _largest_first, element_colors, element_graph, is_valid_coloring
+from warpmesh.coloring import (
+    _largest_first,
+    element_colors,
+    element_graph,
+    is_valid_coloring,
+)
 
 
 def quad_grid(nx_: int = 6, ny: int = 4) -> wm.Mesh:
