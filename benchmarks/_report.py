@@ -1,11 +1,25 @@
-"""Shared start and end of a benchmark run: the load-average banner, the wall time and
-the atomically written ``--json`` document."""
+"""Shared start and end of a benchmark run: the allocator setting, the load-average
+banner, the wall time and the atomically written ``--json`` document."""
 
 from __future__ import annotations
 
 import json
 import os
+import sys
 import time
+
+#: glibc keeps freed memory in the heap (the same for every tool; README.md)
+MALLOC_ENV = {"MALLOC_MMAP_THRESHOLD_": str(16 << 30), "MALLOC_TRIM_THRESHOLD_": str(16 << 30)}
+
+
+def keep_freed_memory() -> None:
+    """Re-run this script with :data:`MALLOC_ENV` unless it is set, ``--default-malloc``
+    or ``--help`` is given, or the platform is not Linux. Call before importing numpy."""
+    flags = sys.argv[1:]
+    if ("--default-malloc" in flags or "-h" in flags or "--help" in flags
+            or all(k in os.environ for k in MALLOC_ENV) or not sys.platform.startswith("linux")):
+        return
+    os.execve(sys.executable, [sys.executable, *sys.argv], {**os.environ, **MALLOC_ENV})
 
 
 def load_banner(what: str) -> float:

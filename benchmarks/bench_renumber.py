@@ -63,13 +63,11 @@ import time
 import warnings
 from importlib import metadata
 
-# Memory: as the other benchmarks (README.md), re-run with glibc keeping freed memory in the
-# heap (the same for every tool); --default-malloc keeps the stock allocator.
-_MALLOC_ENV = {"MALLOC_MMAP_THRESHOLD_": str(16 << 30), "MALLOC_TRIM_THRESHOLD_": str(16 << 30)}
-if __name__ == "__main__" and "--default-malloc" not in sys.argv[1:] and "-h" not in sys.argv[1:] \
-        and "--help" not in sys.argv[1:] and any(k not in os.environ for k in _MALLOC_ENV) \
-        and sys.platform.startswith("linux"):
-    os.execve(sys.executable, [sys.executable, *sys.argv], {**os.environ, **_MALLOC_ENV})
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import _report  # noqa: E402
+
+if __name__ == "__main__":  # memory as the other benchmarks (README.md): freed memory stays in the heap
+    _report.keep_freed_memory()
 
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
@@ -82,9 +80,7 @@ import warpmesh as wm  # noqa: E402
 from warpmesh.graph import node_graph  # noqa: E402
 from warpmesh.numbering import METHODS, format_table, matrix_stats, renumber_graph  # noqa: E402
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _meshes  # noqa: E402
-import _report  # noqa: E402
 
 SCIPY = "scipy rcm"
 BALL_MAXVOLUME = 6.5e-6
@@ -347,7 +343,7 @@ def environment():
     return {"warpmesh commit": commit, "python": platform.python_version(), "cores": os.cpu_count(), "numpy": np.__version__,
             "scipy": scipy.__version__, "warp": wp.config.version, "tetgen": ver("tetgen"),
             "pyvista": ver("pyvista"),
-            "malloc": "heap kept" if all(os.environ.get(k) == v for k, v in _MALLOC_ENV.items()) else "glibc default"}
+            "malloc": "heap kept" if all(os.environ.get(k) == v for k, v in _report.MALLOC_ENV.items()) else "glibc default"}
 
 
 # =============================================================================================
