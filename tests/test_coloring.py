@@ -124,3 +124,13 @@ def test_bad_input(call, match):
 
     with pytest.raises((ValueError, TypeError), match=match):
         call(plate(0.5))
+
+
+def test_degenerate_and_empty_blocks():
+    pts = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float)
+    m = wm.Mesh(pts, {"triangle": [[0, 1, 2], [1, 3, 2], [3, 3, 1]]})  # the last is degenerate
+    for adjacency in ("face", "node"):
+        colors = element_colors(m, adjacency=adjacency)
+        assert is_valid_coloring(m, colors, adjacency=adjacency)
+    empty = wm.Mesh(pts, {"triangle": np.zeros((0, 3), int)})
+    assert element_colors(empty)["triangle"].shape == (0,)

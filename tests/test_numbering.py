@@ -431,3 +431,20 @@ def test_empty_and_tiny_graphs():
     g = node_graph({"line": np.array([[2, 0]])}, 4)
     order = renumber_graph(g, "gibbs")
     assert sorted(order.tolist()) == [0, 1, 2, 3] and set(order[2:].tolist()) == {1, 3}
+
+
+def test_degenerate_elements_empty_meshes_and_unknown_options():
+    pts = np.array([[0, 0], [1, 0], [0, 1], [1, 1], [2, 2]], float)
+    m = wm.Mesh(pts, {"triangle": [[0, 1, 2], [1, 3, 2], [3, 3, 1]]})  # the last is degenerate
+    for method in METHODS:
+        r = m.renumber(method)
+        assert sorted(map(tuple, np.sort(r.points[r.triangles], axis=1).reshape(3, -1).tolist())) == \
+            sorted(map(tuple, np.sort(m.points[m.triangles], axis=1).reshape(3, -1).tolist()))
+        assert r.stats()["profile"] == profile_stats(r)["profile"]
+    empty = wm.Mesh(pts, {"triangle": np.zeros((0, 3), int)})
+    assert empty.renumber("gibbs").stats()["profile"] == 0
+    with pytest.raises(TypeError, match="order"):
+        m.renumber("gibbs", order="fast")
+    g = node_graph(m.cells, m.n_points).astype(float)
+    g.data[:] = np.nan  # a value is no weight: every stored entry is an edge
+    assert np.array_equal(renumber_graph(g, "gibbs"), renumber_graph(node_graph(m.cells, m.n_points), "gibbs"))

@@ -127,6 +127,7 @@ def element_graph(mesh, adjacency: Adjacency = "face") -> tuple[sp.csr_matrix, l
             cols += [owners[k:][same], owners[:-k][same]]
         rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
         cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
+        rows, cols = rows[rows != cols], cols[rows != cols]  # a degenerate cell lists a facet twice
         graph = sp.csr_matrix((np.ones(len(rows), bool), (rows, cols)), shape=(ne, ne))
     graph = graph.astype(bool).tocsr()
     graph.sort_indices()
