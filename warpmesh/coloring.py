@@ -37,7 +37,7 @@ from scipy.sparse.csgraph import connected_components
 from warpmesh.kernels import numbering as KN
 
 from .convert import CELL_TYPES
-from .graph import corner_count, levels
+from .graph import corner_count, expand, levels
 from .numbering import _as_wp, _order_by
 
 __all__ = ["element_graph", "element_colors", "is_valid_coloring", "color_mesh"]
@@ -134,17 +134,9 @@ def element_graph(mesh, adjacency: Adjacency = "face") -> tuple[sp.csr_matrix, l
     return graph, types
 
 
-def _expand(graph, rows):
-    start = graph.indptr[rows].astype(np.int64)
-    count = graph.indptr[rows + 1] - start
-    first = np.cumsum(count) - count
-    offsets = np.repeat(start - first, count) + np.arange(int(count.sum()))
-    return graph.indices[offsets], np.repeat(np.arange(len(rows)), count)
-
-
 def _smallest_free(graph, rows, color) -> np.ndarray:
     """For each of ``rows``, the smallest colour no coloured neighbour has."""
-    nb, src = _expand(graph, rows)
+    nb, src = expand(graph, rows)
     c = color[nb]
     src, c = src[c >= 0], c[c >= 0]
     result = np.full(len(rows), -1, np.int64)
