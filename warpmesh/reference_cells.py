@@ -234,9 +234,10 @@ def _quadrature(cell_type: str):
     raise ValueError(cell_type)
 
 
-def _gradients(cell_type: str, xi: np.ndarray, eps: float = 1e-6) -> np.ndarray:
-    """(q, nv, tdim) gradients of the P1 shape functions (central differences are exact for
-    these multilinear functions up to rounding)."""
+def _gradients(cell_type: str, xi: np.ndarray, eps: float = 0.25) -> np.ndarray:
+    """(q, nv, tdim) gradients of the multilinear P1 shape functions (quad, hexahedron,
+    wedge): a central difference of any step is exact for a function of degree one in
+    each variable, and a large step keeps rounding at 1e-16."""
     out = []
     for j in range(xi.shape[1]):
         h = np.zeros(xi.shape[1])
