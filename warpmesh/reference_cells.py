@@ -268,7 +268,7 @@ def cell_measures(points, cells, cell_type: str) -> np.ndarray:
     >>> import numpy as np
     >>> cube = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
     ...                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
-    >>> cell_measures(cube, np.arange(8)[None], "hexahedron").tolist()
+    >>> cell_measures(cube, np.arange(8)[None], "hexahedron").round(12).tolist()
     [1.0]
     """
     pts, c = np.asarray(points, REAL_DTYPE), np.asarray(cells)
