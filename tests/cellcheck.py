@@ -54,10 +54,11 @@ def check_cells(mesh) -> dict:
     keys = np.concatenate([_keys(f) for f in facets])
     uniq, inv, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
     assert counts.max() <= 2, f"a facet in {counts.max()} cells: {uniq[counts.argmax()]}"
-    rows = np.concatenate(facets)
-    boundary = rows[counts[inv.ravel()] == 1]
+    once = counts[inv.ravel()] == 1
+    n_boundary = int(once.sum())
     # the boundary's own facets: vertices (2D) or edges (3D), each used an even number of times
     if dim == 2:
+        boundary = np.concatenate(facets)[once]
         ends = np.bincount(boundary.ravel(), minlength=mesh.n_points)
         assert (ends % 2 == 0).all(), f"open boundary (hanging node?) at vertex {int(np.flatnonzero(ends % 2)[0])}"
         bmeasure = float(np.linalg.norm(mesh.points[boundary[:, 1]] - mesh.points[boundary[:, 0]], axis=1).sum())
@@ -75,5 +76,5 @@ def check_cells(mesh) -> dict:
         _, ec = np.unique(np.concatenate(b_edges), axis=0, return_counts=True)
         assert (ec % 2 == 0).all(), (f"open boundary surface (hanging node?): {int((ec % 2).sum())} "
                                      "edges used an odd number of times")
-    return {"measure": total, "n_boundary": len(boundary), "boundary_measure": bmeasure,
+    return {"measure": total, "n_boundary": n_boundary, "boundary_measure": bmeasure,
             "types": list(blocks)}
