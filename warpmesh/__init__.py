@@ -18,7 +18,7 @@ from warpmesh.errors import ReadError, TopologyError, WarpMeshError
 from warpmesh.expr import Expr, abs, coords, cos, exp, log, max, min, sin, sqrt  # noqa: A004
 from warpmesh.mesh import Mesh, load
 from warpmesh.numbering import renumber
-from warpmesh import coloring, graph, nodes, numbering  # noqa: E402,F401  (wm.coloring, wm.nodes, ...)
+from warpmesh import coloring, graph, nodes, numbering, transforms  # noqa: E402,F401  (wm.coloring, wm.nodes, ...)
 from warpmesh.nodes import to_order
 from warpmesh.orientation import orient, orient_faces
 from warpmesh.quality import quality_summary, tetra_quality, triangle_quality
