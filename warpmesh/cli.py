@@ -8,6 +8,8 @@ Examples
     extracts an iso-surface of a volume saved with ``numpy.save``.
 ``warpmesh mesh --volume seg.npy --labels all --method mt -o organs.vtu``
     meshes every label of a segmentation (triangle refs = labels).
+``warpmesh transform | refine | convert | merge | crack | periodic ...``
+    modify a mesh file (seed ch. 17): see :mod:`warpmesh.cli_modify`.
 ``warpmesh info part.ply``
     prints the statistics of a mesh file.
 ``warpmesh renumber in.msh out.msh --method gibbs``
@@ -81,6 +83,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--color", choices=["face", "node"],
                    help="also sort the elements into colour packets (neighbours by face or by node)")
     r.add_argument("--json", action="store_true", help="print the statistics as JSON")
+    from warpmesh import cli_modify
+
+    cli_modify.add_parsers(sub)
     i = sub.add_parser("info", help="print statistics of a mesh file")
     i.add_argument("path")
     i.add_argument("--json", action="store_true", help="print statistics as JSON")
@@ -180,6 +185,7 @@ def _renumber(wm, args) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     import warpmesh as wm
+    from warpmesh import cli_modify
     from warpmesh.io import check_path
 
     try:
@@ -188,6 +194,8 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.command == "renumber":
             return _renumber(wm, args)
+        if args.command in cli_modify.COMMANDS:
+            return cli_modify.run(wm, args)
         if args.output:
             check_path(args.output)  # before meshing: a bad extension fails at once
         common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,

@@ -449,6 +449,106 @@ class Mesh:
 
         return color_mesh(self, **options)
 
+    # ---------------------------------------------------------------- modifications (seed ch. 17)
+    def transform(self, matrix, **options) -> Mesh:
+        """The mesh mapped by a homogeneous matrix (seed §17.1.1):
+        :func:`warpmesh.transforms.transform`; build matrices with ``wm.transforms``.
+
+        Examples
+        --------
+        >>> import warpmesh as wm
+        >>> m = Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]})
+        >>> m.transform(wm.transforms.symmetry((1, 0, 0))).cells["triangle"].tolist()
+        [[0, 2, 1]]
+        """
+        from .transforms import transform
+
+        return transform(self, matrix, **options)
+
+    def refine(self, n: int | None = None, shape=None, *, where=None, max_length=None,
+               **options) -> Mesh:
+        """A refined mesh (seed §17.1.2): every element split into n^d
+        (:func:`warpmesh.refine.refine_uniform`), or, with ``where`` (vertices or an element
+        mask) or ``max_length`` (a size or a size function), longest-edge bisection of the
+        elements concerned, kept conforming (:func:`warpmesh.bisection.refine_local`).
+        With ``shape``, new boundary nodes are projected onto f = 0 (Remark 17.3).
+
+        Examples
+        --------
+        >>> m = Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]})
+        >>> m.refine(3).n_cells, m.refine(max_length=0.8).n_cells > 1
+        (9, True)
+        """
+        if where is not None or max_length is not None:
+            if n is not None:
+                raise ValueError("expected either n (uniform refinement) or where/max_length (local "
+                                 f"refinement), got n={n!r} and a local criterion")
+            from .bisection import refine_local
+
+            return refine_local(self, where=where, max_length=max_length, shape=shape, **options)
+        from .refine import refine_uniform
+
+        return refine_uniform(self, 2 if n is None else n, shape, **options)
+
+    def convert(self, target: str, **options) -> Mesh:
+        """The mesh with its elements split into another type (seed §17.1.3):
+        :func:`warpmesh.type_conversion.convert_cells`.
+
+        Examples
+        --------
+        >>> m = Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"quad": [[0, 1, 2, 3]]})
+        >>> m.convert("triangle").cells["triangle"].shape
+        (2, 3)
+        """
+        from .type_conversion import convert_cells
+
+        return convert_cells(self, target, **options)
+
+    def merge(self, other: Mesh, tolerance: float | None = None, **options) -> Mesh:
+        """This mesh and ``other`` merged along their common vertices, edges and faces
+        (seed §17.2): :func:`warpmesh.merge.merge`.
+
+        Examples
+        --------
+        >>> a = Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]})
+        >>> b = Mesh([[1, 0], [1, 1], [0, 1]], {"triangle": [[0, 1, 2]]})
+        >>> a.merge(b).n_points
+        4
+        """
+        from .merge import merge
+
+        return merge(self, other, tolerance, **options)
+
+    def crack(self, facets=None, **options) -> Mesh:
+        """The mesh cut open along interior facets (seed §17.5): :func:`warpmesh.crack.crack`
+        (``facets`` (k, 2|3|4) vertex indices, or ``ref=R`` for the facet cells with that ref;
+        ``side_refs=(r1, r2)`` tags the two lips; ``info["crack_pairs"]`` lists the copies).
+
+        Examples
+        --------
+        >>> m = Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"triangle": [[0, 1, 2], [0, 2, 3]]})
+        >>> m.crack([[0, 2]]).n_points  # the crack crosses the square: both ends split
+        6
+        """
+        from .crack import crack
+
+        return crack(self, facets, **options)
+
+    def periodic(self, matrix, copies: int, **options) -> Mesh:
+        """A periodic mesh: this pattern and ``copies - 1`` images by ``matrix``, merged
+        (seed §17.5): :func:`warpmesh.periodic.periodic`.
+
+        Examples
+        --------
+        >>> import warpmesh as wm
+        >>> m = Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"quad": [[0, 1, 2, 3]]})
+        >>> m.periodic(wm.transforms.translation((1, 0)), 3).n_points
+        8
+        """
+        from .periodic import periodic
+
+        return periodic(self, matrix, copies, **options)
+
     # ---------------------------------------------------------------- meshio
     def to_meshio(self) -> meshio.Mesh:
         """Convert to ``meshio.Mesh``, refs as ``"medit:ref"`` (:func:`warpmesh.convert.to_meshio`).
