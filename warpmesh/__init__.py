@@ -17,6 +17,7 @@ if _wp.config.log_level < _wp.LOG_WARNING:  # Warp's banner and module-load line
 from warpmesh.errors import ReadError, TopologyError, WarpMeshError
 from warpmesh.expr import Expr, abs, coords, cos, exp, log, max, min, sin, sqrt  # noqa: A004
 from warpmesh.mesh import Mesh, load
+from warpmesh.merge import MergeError
 from warpmesh.numbering import renumber
 from warpmesh import coloring, graph, nodes, numbering, transforms  # noqa: E402,F401  (wm.coloring, wm.nodes, ...)
 from warpmesh.nodes import to_order
@@ -40,5 +41,5 @@ __all__ = [
     "superquadric", "supertorus", "union", "intersection", "difference", "complement",
     "example", "EXAMPLES",
     "Tape", "compile_tape", "evaluate", "evaluate_interval",
-    "WarpMeshError", "ReadError", "TopologyError",
+    "WarpMeshError", "ReadError", "TopologyError", "MergeError",
 ]

@@ -152,7 +152,7 @@ def run(wm, args) -> int:
         where = None if args.vertices is None else _array(args.vertices, "--vertices", np.int64).ravel()
         shape = wm.example(args.example)[0] if args.example else None
         if where is None and args.max_length is None:
-            out = mesh.refine(args.n or 2, shape)
+            out = mesh.refine(2 if args.n is None else args.n, shape)
         else:
             if args.n is not None:
                 raise ValueError("expected -n or --max-length/--vertices, got both")

@@ -336,10 +336,11 @@ class Mesh:
             s["area"] = float(_topo.face_areas(self._points, tri).sum())
             if s["watertight"] and self.dim == 3:
                 s["volume"] = _topo.signed_volume(self._points, tri)
-        if "tetra" in self._cells:
-            p = self._points[self._cells["tetra"]]
-            e1, e2, e3 = (p[:, j] - p[:, 0] for j in (1, 2, 3))
-            s["volume"] = float(np.einsum("ij,ij->", e1, np.cross(e2, e3)) / 6.0)
+        solids = [t for t in ("tetra", "hexahedron", "wedge", "pyramid") if t in self._cells]
+        if solids and self.dim == 3:  # signed, exact for the multilinear cells
+            from .reference_cells import cell_measures
+
+            s["volume"] = float(sum(cell_measures(self._points, self._cells[t], t).sum() for t in solids))
         q = (
             quality_summary(self._points, self._cells)
             if ("tetra" in self._cells or len(tri))
@@ -366,7 +367,8 @@ class Mesh:
             ``oriented``, ``euler`` (V - E + F over referenced vertices), ``components``
             (edge-connected), ``genus`` (total, ``(2 components - euler) / 2``, only when
             watertight, manifold and oriented), ``area``, ``volume`` (signed: of the
-            closed 3D surface, or the sum of tetra volumes); ``mean_q``, ``worst_q`` (seed
+            closed 3D surface, or the sum of the volumes of the tetra, hexahedron, wedge
+            and pyramid cells); ``mean_q``, ``worst_q`` (seed
             eq. 16.15 over tetra if any, else triangles); ``bounds`` (2, d). Every key of
             ``self.info`` is included too; computed keys win on a clash.
 
