@@ -9,7 +9,8 @@ import trimesh
 from cellcheck import check_cells
 from scipy.spatial import Delaunay, cKDTree
 
-from warpmesh.merge import MergeError, _grid, match_points, merge
+from warpmesh.merge import MergeError, match_points, merge
+from warpmesh.merge_hash import _grid
 from warpmesh.mesh import Mesh
 from warpmesh.reference_cells import cell_measures, reference_cell
 
