@@ -20,7 +20,10 @@ jitter, and nothing else, the grid spacing being ~1e-3):
 - ``warpmesh match_points``: ``warpmesh.merge.match_points(A.points, B.points, tol)``
   (the pairs only);
 - ``warpmesh merge``: ``warpmesh.merge.merge(A, B, tol)``: pairs, the seed's numbering,
-  cells, duplicates, the common edges/faces and the Euler check, a new ``Mesh``;
+  cells, duplicates, the common edges/faces and the Euler check on the cells around the
+  interface (the default ``check="interface"``), a new ``Mesh``;
+- ``warpmesh merge check=full``: the same with the Euler check counting every edge and face
+  of both meshes (the meshes' own characteristics);
 - ``warpmesh merge check=False``: the same without the common edges/faces and the Euler
   check (the scope of the two other tools: points merged, cells renumbered);
 - ``trimesh``: ``trimesh.Trimesh(vstack(points), vstack(faces), process=False)`` then
@@ -64,7 +67,8 @@ import numpy as np  # noqa: E402
 import warpmesh as wm  # noqa: E402
 from warpmesh.merge import match_points, merge  # noqa: E402
 
-TOOLS = ("warpmesh match_points", "warpmesh merge", "warpmesh merge check=False", "trimesh", "pyvista")
+TOOLS = ("warpmesh match_points", "warpmesh merge", "warpmesh merge check=full", "warpmesh merge check=False",
+         "trimesh", "pyvista")
 REFERENCE = "warpmesh merge"
 
 
@@ -152,12 +156,15 @@ def run_tool(tool, A, B, tol):
         m = merge(A, B, tol, check=False)
         dt = time.perf_counter() - t0
         return dt, _map_from_faces(old, m.cells["triangle"], len(pa) + len(pb)), {}
-    if tool == "warpmesh merge":
+    if tool in ("warpmesh merge", "warpmesh merge check=full"):
+        full = tool.endswith("full")
         t0 = time.perf_counter()
-        m = merge(A, B, tol)
+        m = merge(A, B, tol, check="full" if full else "interface")
         dt = time.perf_counter() - t0
-        extra = {k: m.info[k] for k in ("euler", "euler_a", "euler_b", "euler_interface", "euler_ok",
-                                        "n_common_edges", "n_hashed_a", "n_hashed_b", "n_candidates")}
+        star = "" if full else "_star"
+        extra = {k: m.info[k.replace("euler", "euler" + star, 1) if k in ("euler", "euler_a", "euler_b") else k]
+                 for k in ("euler", "euler_a", "euler_b", "euler_interface", "euler_ok",
+                           "n_common_edges", "n_hashed_a", "n_hashed_b", "n_candidates")}
         return dt, _map_from_faces(old, m.cells["triangle"], len(pa) + len(pb)), extra
     if tool == "trimesh":
         import trimesh
@@ -265,11 +272,12 @@ def main(argv=None):
             r["ratio_vs_warpmesh_merge"] = r["time_s"] / ref if ref else None
             ratio = f"{r['ratio_vs_warpmesh_merge']:.2f}" if ref else "-"
             print(f"  {t:27s} {r['time_s']:8.3f} {ratio:>7s} {r['n_points']:>11,} {r['missed']:>7,} {r['wrong']:>6,}")
-        if "warpmesh merge" in rows:
-            w = rows["warpmesh merge"]
-            print(f"  warpmesh merge: points hashed A {w['n_hashed_a']:,}, B {w['n_hashed_b']:,} "
-                  f"(Remark 17.7), candidates {w['n_candidates']:,}; Euler {w['euler']} = {w['euler_a']} + "
-                  f"{w['euler_b']} - {w['euler_interface']} ({'ok' if w['euler_ok'] else 'FAILED'})")
+        for name, what in (("warpmesh merge", "cells around the interface"), ("warpmesh merge check=full", "meshes")):
+            if name in rows:
+                w = rows[name]
+                print(f"  {name}: points hashed A {w['n_hashed_a']:,}, B {w['n_hashed_b']:,} "
+                      f"(Remark 17.7), candidates {w['n_candidates']:,}; Euler of the {what}: {w['euler']} = "
+                      f"{w['euler_a']} + {w['euler_b']} - {w['euler_interface']} ({'ok' if w['euler_ok'] else 'FAILED'})")
         sys.stdout.flush()
         results.append({"case": case, "n_a": len(pa), "n_b": len(pb), "n_pairs": len(pairs),
                         "n_exact": n_exact, "tools": rows})

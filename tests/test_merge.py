@@ -153,8 +153,13 @@ def test_halves_give_back_the_mesh(case):
     make, side = CASES[case]
     whole = make()
     a, b = split(whole, side), split(whole, lambda x: ~side(x), shuffle=True)
-    m = merge(a, b)
+    m = merge(a, b, check="full")
     assert m.n_points == whole.n_points and m.n_cells == whole.n_cells
+    # the default check works on the cells around the interface: same verdict, same interface
+    star = merge(a, b).info
+    assert star["euler_ok"] and star["euler_check"] == "interface"
+    assert star["euler_interface"] == m.info["euler_interface"]
+    assert star["euler_star"] == star["euler_star_a"] + star["euler_star_b"] - star["euler_interface"]
     same_cells(m, whole)
     assert m.info["euler"] == chi(whole) == chi(m) == (2 if case == "surface" else 1)
     assert m.info["euler_ok"]
@@ -187,7 +192,7 @@ def test_quadratic_triangles_interface_nodes_merge():
     na[used_a], nb[used_b] = np.arange(len(used_a)), np.arange(len(used_b))
     a = Mesh(whole.points[used_a], {"triangle6": na[c[mask]]})
     b = Mesh(whole.points[used_b], {"triangle6": nb[c[~mask]]})
-    m = merge(a, b)
+    m = merge(a, b, check="full")
     assert m.n_points == whole.n_points and m.info["euler_ok"] and m.info["euler"] == 1
     assert m.stats()["area"] == pytest.approx(1.0) if "triangle" in m.cells else True
     total = cell_measures(m.points, m.cells["triangle6"][:, :3], "triangle").sum()
@@ -283,7 +288,7 @@ def test_refs_keep_coincident_vertices_of_different_refs_apart():
     a = a.replace(point_refs=np.where(crack_a, 1, 0))
     b = b.replace(point_refs=np.where(crack_b, 2, 0))
     assert crack_a.sum() == crack_b.sum() == 5
-    m = merge(a, b, refs=True)
+    m = merge(a, b, refs=True, check="full")
     assert m.n_points == whole.n_points + crack_a.sum()
     assert merge(a, b).n_points == whole.n_points  # without refs: one mesh
     check_cells(m)  # the crack is a boundary curve run twice: still closed
@@ -344,10 +349,11 @@ def test_point_refs_from_one_mesh_only_and_missing_block_types():
 def test_euler_check_fails_on_a_hanging_node():
     a = Mesh([[0, 0], [1, 0], [1, 0.5], [1, 1], [0, 1]], {"triangle": [[0, 1, 2], [0, 2, 4], [2, 3, 4]]})
     b = Mesh([[1, 0], [2, 0], [2, 1], [1, 1]], {"triangle": [[0, 1, 2], [0, 2, 3]]})
-    with pytest.raises(MergeError, match="meshed differently"):
-        merge(a, b)
-    with pytest.raises(MergeError, match="meshed differently"):
-        merge(b, a)
+    for check in ("interface", "full"):
+        with pytest.raises(MergeError, match="meshed differently"):
+            merge(a, b, check=check)
+        with pytest.raises(MergeError, match="meshed differently"):
+            merge(b, a, check=check)
     m = merge(a, b, check=False)  # merged as asked, unchecked
     assert m.n_points == 7 and "euler_ok" not in m.info
 
@@ -359,10 +365,11 @@ def test_euler_check_fails_on_other_face_diagonals_remark_17_16():
     p = cube.points - 0.5
     q = np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=1) + 0.5 + [1, 0, 0]
     other = Mesh(q, cube.cells)
-    with pytest.raises(MergeError, match="Remark 17.16"):
-        merge(cube, other)
+    for check in ("interface", "full"):
+        with pytest.raises(MergeError, match="Remark 17.16"):
+            merge(cube, other, check=check)
     same = Mesh(cube.points + [1, 0, 0], cube.cells)  # translated: same diagonal
-    assert merge(cube, same).info["euler"] == 1
+    assert merge(cube, same, check="full").info["euler"] == 1
 
 
 def test_a_large_tolerance_still_pairs_twins_only():
@@ -409,6 +416,8 @@ def test_bad_inputs():
         merge(sq, sq, -1.0)
     with pytest.raises(TypeError, match="refs"):
         merge(sq, sq, refs="yes")
+    with pytest.raises(ValueError, match="'check'"):
+        merge(sq, sq, check="some")
     with pytest.raises(ValueError, match="same kind"):
         merge(sq, Mesh(sq.points, {"line": [[0, 1]]}))
 

@@ -54,7 +54,7 @@ def test_strip_translated_four_times():
     assert len(pairs) == n
     np.testing.assert_allclose(pattern.points[pairs[:, 0]] + [1, 0], pattern.points[pairs[:, 1]], atol=1e-12)
     assert np.allclose(pattern.points[pairs[:, 0], 0], 0.0)
-    m = periodic(pattern, t, 4)
+    m = periodic(pattern, t, 4, check="full")
     assert m.n_points == 4 * pattern.n_points - 3 * n
     assert len(m.cells["triangle"]) == 4 * len(pattern.cells["triangle"])
     got = check_cells(m)
@@ -71,7 +71,7 @@ def test_strip_translated_four_times():
 def test_sector_rotated_six_times_closes_up():
     n = 6
     pattern = sector(n)
-    m = periodic(pattern, rotation_z(np.pi / 3), 6)
+    m = periodic(pattern, rotation_z(np.pi / 3), 6, check="full")
     assert m.n_points == 1 + 3 * n * (n + 1)  # the hexagonal lattice with n rings
     assert len(m.cells["triangle"]) == 6 * n * n
     got = check_cells(m)  # conforming, positively oriented, closed boundary
@@ -85,7 +85,7 @@ def test_sector_rotated_six_times_closes_up():
 
 def test_tetra_column_translated_and_periodic_pairs_3d():
     pattern = kuhn_block(3)
-    m = periodic(pattern, translation(0.0, 0.0, 1.0), 3)
+    m = periodic(pattern, translation(0.0, 0.0, 1.0), 3, check="full")
     side = 4 * 4
     assert m.n_points == 3 * pattern.n_points - 2 * side
     assert check_cells(m)["measure"] == pytest.approx(3.0)
@@ -166,7 +166,7 @@ def test_annular_sector_with_a_chord_closes_up():
     a, r = np.meshgrid(np.linspace(0, np.pi / 3, 7), np.linspace(0.4, 1.0, 5))
     pts = np.c_[(r * np.cos(a)).ravel(), (r * np.sin(a)).ravel()]
     pattern = Mesh(pts, {"triangle": Delaunay(pts).simplices})
-    ring = periodic(pattern, rotation_z(np.pi / 3), 6)
+    ring = periodic(pattern, rotation_z(np.pi / 3), 6, check="full")
     assert ring.info["euler_ok"] and ring.info["euler"] == 0  # an annulus
     assert ring.n_points == 6 * len(pts) - 6 * 5
     assert len(ring.info["periodic_pairs"]) == 0

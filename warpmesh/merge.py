@@ -45,6 +45,8 @@ __all__ = ["match_points", "merge", "default_tolerance", "MergeError", "DUPLICAT
 
 #: what :func:`merge` does with cells present in both meshes (same type, same vertex set)
 DUPLICATES = ("merge", "keep", "drop")
+#: how :func:`merge` checks the Euler formula
+CHECKS = ("interface", "full", False)
 
 
 class MergeError(WarpMeshError):
@@ -78,7 +80,7 @@ def _check_mesh(m, name: str):
 
 
 def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge",
-           check: bool = True, stacklevel: int = 3):
+           check: bool | str = "interface", stacklevel: int = 3):
     """(merged Mesh, bmap (n2,) int64: new index of each vertex of b)."""
     from .mesh import Mesh
 
@@ -90,6 +92,10 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
         raise ValueError(f"expected 'duplicates' among {list(DUPLICATES)}, got {duplicates!r}")
     if not isinstance(refs, (bool, np.bool_)):
         raise TypeError(f"expected a bool for 'refs', got {type(refs).__name__}")
+    if check is True:
+        check = "interface"
+    if check not in CHECKS:
+        raise ValueError(f"expected 'check' among {list(CHECKS)}, got {check!r}")
     tol = default_tolerance(a.points, b.points) if tolerance is None else _check_tolerance(tolerance)
     top, blocks_a, blocks_b = _euler_check_dims(a, b)
     n1, n2 = a.n_points, b.n_points
@@ -177,14 +183,22 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
             "n_hashed_a": stats["n_box_a"], "n_hashed_b": stats["n_box_b"],
             "n_candidates": stats["n_candidates"]}
     if check:
+        if check == "interface":  # the cells around the interface: the rest cancels out
+            blocks_a = [(t, c[interface_a[c].any(axis=1)]) for t, c in blocks_a]
+            blocks_b = [(t, c[(bmap[c] < n1).any(axis=1)]) for t, c in blocks_b]
         euler = _euler_check(top, blocks_a, blocks_b, bmap, interface_a, n_new, points)
         euler["n_common_points"] = len(pairs)
+        euler["euler_check"] = check
+        if check == "interface":  # χ of the interface's neighbourhoods, not of the meshes
+            for key in ("euler", "euler_a", "euler_b"):
+                euler[key.replace("euler", "euler_star")] = euler.pop(key)
         info.update(euler)
     if check and not euler["euler_ok"]:
+        star = "_star" if check == "interface" else ""
         raise MergeError(
-            f"Euler check failed: χ(T) = {euler['euler']} but χ(T1) + χ(T2) − χ(T1∩T2) = "
-            f"{euler['euler_a']} + {euler['euler_b']} − {euler['euler_interface']} (interface seen "
-            f"from 'a'; {euler['euler_interface_b']} seen from 'b'). The two interfaces do not "
+            f"Euler check failed: χ(T{star}) = {euler['euler' + star]} but χ(T1) + χ(T2) − χ(T1∩T2) = "
+            f"{euler['euler' + star + '_a']} + {euler['euler' + star + '_b']} − {euler['euler_interface']} "
+            f"(interface seen from 'a'; {euler['euler_interface_b']} seen from 'b'{'; T* = the cells around the interface' if star else ''}). The two interfaces do not "
             f"match: probably they are meshed differently (other vertices, or quads split "
             f"along other diagonals, seed Remark 17.16), or 'tolerance' = {tol:g} is too large "
             f"and merged vertices that are not on the interface; pass check=False to merge anyway"
@@ -195,7 +209,8 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
 
 
 def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
-          duplicates: Literal["merge", "keep", "drop"] = "merge", check: bool = True):
+          duplicates: Literal["merge", "keep", "drop"] = "merge",
+          check: Literal["interface", "full", False] = "interface"):
     """Merge two meshes that share an interface (seed §17.2).
 
     Parameters
@@ -214,10 +229,16 @@ def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
         Cells of the same type present in both meshes with the same vertex set (e.g. the
         interface's boundary triangles or lines): keep one (the first mesh's), keep both,
         or remove both (the interface then disappears as a boundary).
-    check : bool
-        Count the common entities, check the Euler formula and raise :class:`MergeError`
-        when it fails. ``check=False`` skips both (faster: no edge or face is built; the
-        ``euler*`` and ``n_common_edges/faces`` keys are then absent from ``info``).
+    check : {"interface", "full", False}
+        Count the common entities, check the Euler formula χ(T) = χ(T1) + χ(T2) −
+        χ(T1 ∩ T2) and raise :class:`MergeError` when it fails. ``"interface"`` (default;
+        ``True`` means it too) applies the formula to the cells that touch a common vertex
+        (T*, T1*, T2*): everything else is counted alike on both sides and cancels out, so
+        the check is the same at a fraction of the cost; ``info`` then has ``euler_star``,
+        ``euler_star_a``, ``euler_star_b``. ``"full"`` counts every entity of both meshes
+        (``euler``, ``euler_a``, ``euler_b``: the meshes' own characteristics). ``False``
+        skips both (no edge or face is built; the ``euler*`` and ``n_common_edges/faces``
+        keys are then absent from ``info``).
 
     Returns
     -------
@@ -228,9 +249,10 @@ def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
         ``cell_data`` carried; keys in only one mesh are dropped with a warning.
         ``info``: ``merge_tolerance``, ``n_common_points`` (pairs merged),
         ``n_common_vertices``, ``n_common_edges``, ``n_common_faces`` (entities of ``a``'s
-        top-dimension cells whose vertices are all common), ``euler`` (χ = V − E + F (− T)
-        of the top-dimension cells of the result, duplicates counted once), ``euler_a``,
-        ``euler_b``, ``euler_interface`` (of the common entities, from ``a``),
+        top-dimension cells whose vertices are all common and on the interface), ``euler``
+        (χ = V − E + F (− T) of the top-dimension cells of the result, duplicates counted
+        once; ``check="full"``), ``euler_a``, ``euler_b`` (or the ``euler_star*`` values),
+        ``euler_check``, ``euler_interface`` (of the common entities, from ``a``),
         ``euler_interface_b`` (from ``b``), ``euler_ok``, ``n_duplicates``,
         ``n_hashed_a``/``n_hashed_b`` (points in the box of Remark 17.7), ``n_candidates``.
 
@@ -250,8 +272,10 @@ def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
     >>> a = Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]], "line": [[1, 2]]})
     >>> b = Mesh([[1, 0], [1, 1], [0, 1]], {"triangle": [[0, 1, 2]], "line": [[2, 0]]})
     >>> m = merge(a, b)
-    >>> m.cells["triangle"].tolist(), m.cells["line"].tolist(), m.info["euler"]
-    ([[0, 1, 2], [1, 3, 2]], [[1, 2]], 1)
+    >>> m.cells["triangle"].tolist(), m.cells["line"].tolist(), m.info["euler_ok"]
+    ([[0, 1, 2], [1, 3, 2]], [[1, 2]], True)
+    >>> merge(a, b, check="full").info["euler"]  # the merged square: V - E + F = 4 - 5 + 2
+    1
     >>> len(merge(a, b, duplicates="drop").cells["line"])
     0
     """
