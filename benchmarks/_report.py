@@ -12,6 +12,16 @@ import time
 MALLOC_ENV = {"MALLOC_MMAP_THRESHOLD_": str(16 << 30), "MALLOC_TRIM_THRESHOLD_": str(16 << 30)}
 
 
+def version(package: str) -> str:
+    """The installed version of a distribution, or "?"."""
+    from importlib import metadata
+
+    try:
+        return metadata.version(package)
+    except metadata.PackageNotFoundError:
+        return "?"
+
+
 def keep_freed_memory() -> None:
     """Re-run this script with :data:`MALLOC_ENV` unless it is set, ``--default-malloc``
     or ``--help`` is given, or the platform is not Linux. Call before importing numpy."""

@@ -54,7 +54,6 @@ import platform
 import sys
 import time
 import warnings
-from importlib import metadata
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _report  # noqa: E402
@@ -200,11 +199,7 @@ def score(new: np.ndarray, exact: np.ndarray) -> dict:
 
 # ============================================================================================
 def environment():
-    def ver(pkg):
-        try:
-            return metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            return "?"
+    ver = _report.version
     return {"python": platform.python_version(), "cores": os.cpu_count(), "numpy": np.__version__,
             "trimesh": ver("trimesh"), "pyvista": ver("pyvista"), "vtk": ver("vtk"),
             "malloc": "heap kept" if all(os.environ.get(k) == v for k, v in _report.MALLOC_ENV.items()) else "glibc default"}

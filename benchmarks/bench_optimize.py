@@ -59,7 +59,9 @@ import platform
 import sys
 import time
 import warnings
-from importlib import metadata
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import _report  # noqa: E402
 
 # Memory: as bench_surface.py / bench_adaptive.py (see README.md), re-run with glibc keeping
 # freed memory in the heap (the same for every tool); --default-malloc keeps the stock allocator.
@@ -614,11 +616,7 @@ def summary(cases):
 
 
 def environment():
-    def ver(pkg):
-        try:
-            return metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            return "?"
+    ver = _report.version
     return {"python": platform.python_version(), "cores": os.cpu_count(), "numpy": np.__version__,
             "warp": wp.config.version, "pymeshlab": ver("pymeshlab"),
             "fast-simplification": ver("fast-simplification"), "pyvista": pv.__version__, "vtk": ver("vtk"),

@@ -61,7 +61,6 @@ import subprocess
 import sys
 import time
 import warnings
-from importlib import metadata
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _report  # noqa: E402
@@ -325,11 +324,7 @@ def print_ratios(results: list[dict], tools: list[str]):
 
 
 def environment():
-    def ver(pkg):
-        try:
-            return metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            return "?"
+    ver = _report.version
     try:  # read-only: which warpmesh was measured (another engineer may be editing the tree)
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         head = subprocess.run(["git", "-C", root, "rev-parse", "--short", "HEAD"], capture_output=True,
