@@ -69,6 +69,15 @@ def _sorted_unique(keys: np.ndarray) -> np.ndarray:
 _NETWORKS = {2: [(0, 1)], 3: [(0, 1), (1, 2), (0, 1)], 4: [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)]}
 
 
+def _member(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
+    """(m,) bool: keys found in a sorted array (``np.isin`` re-sorts, and numpy's hash
+    unique is slow on millions of int64)."""
+    if not len(sorted_keys):
+        return np.zeros(len(keys), dtype=bool)
+    i = np.minimum(np.searchsorted(sorted_keys, keys), len(sorted_keys) - 1)
+    return sorted_keys[i] == keys
+
+
 def _sort_rows(rows: np.ndarray) -> np.ndarray:
     """Each row sorted: min/max sorting networks for up to 4 columns (np.sort(axis=1) on
     short rows is several times slower), np.sort beyond."""
@@ -228,7 +237,7 @@ def _interface(points, ents, flag, other_keys, other_boundary, n_new) -> list[in
         keys = _row_keys(sel, n_new)
         keys, first = np.unique(keys, return_index=True)
         sel = sel[first]
-        shared = np.isin(keys, other_keys[-2])
+        shared = _member(keys, other_keys[-2])
         shared[~shared] = _overlapping(points, sel[~shared], other_boundary)
         facet_rows = sel[shared]
         cols = [facet_rows[:, k] for k in range(facet_rows.shape[1])]
@@ -239,9 +248,9 @@ def _interface(points, ents, flag, other_keys, other_boundary, n_new) -> list[in
     for k, rows in enumerate(ents[:-2] if facet_rows is not None else ents[:-1]):
         sel = rows[_all_flagged(flag, rows)]
         keys = _sorted_unique(_row_keys(sel, n_new))
-        keep = np.isin(keys, other_keys[k])
+        keep = _member(keys, other_keys[k])
         if k == 0 and facet_rows is not None and rows.shape[1] == 2:
-            keep |= np.isin(keys, kept_pairs)
+            keep |= _member(keys, kept_pairs)
         counts.append(int(keep.sum()))
     if facet_rows is not None:
         counts.append(len(facet_rows))
