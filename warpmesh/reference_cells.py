@@ -319,17 +319,50 @@ def corner_jacobians(points, cells, cell_type: str) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- new nodes
+#: compare-exchange networks sorting rows of up to 4 entries
+_NETWORKS = {1: [], 2: [(0, 1)], 3: [(0, 1), (1, 2), (0, 1)], 4: [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)]}
+
+
+def _sort_pairs(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each row of ``v`` sorted, ``w`` permuted alike: column compare-exchanges for up to 4
+    columns (several times faster than a per-row argsort), an argsort beyond."""
+    k = v.shape[1]
+    if k not in _NETWORKS:
+        order = np.argsort(v, axis=1, kind="stable")
+        return np.take_along_axis(v, order, 1), np.take_along_axis(w, order, 1)
+    vc, wc = [v[:, j].copy() for j in range(k)], [w[:, j].copy() for j in range(k)]
+    for i, j in _NETWORKS[k]:
+        swap = vc[i] > vc[j]
+        vc[i], vc[j] = np.where(swap, vc[j], vc[i]), np.where(swap, vc[i], vc[j])
+        wc[i], wc[j] = np.where(swap, wc[j], wc[i]), np.where(swap, wc[i], wc[j])
+    return np.stack(vc, axis=1), np.stack(wc, axis=1)
+
+
 def _unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(unique rows in lexicographic order, inverse): ``np.unique(rows, axis=0,
-    return_inverse=True)`` by a column lexsort, about 3x faster on millions of rows."""
-    order = np.lexsort(rows.T[::-1])
-    r = rows[order]
-    new = np.empty(len(r), bool)
-    new[:1] = True
-    np.any(r[1:] != r[:-1], axis=1, out=new[1:])
-    inverse = np.empty(len(r), INDEX_DTYPE)
+    """(unique rows in lexicographic order, inverse), like ``np.unique(rows, axis=0,
+    return_inverse=True)``: one int64 key per row when the columns' ranges fit in 62 bits
+    (a 1-D sort), else a column lexsort; both several times faster on millions of rows."""
+    lo = rows.min(axis=0)
+    span = rows.max(axis=0) - lo + 1
+    if float(np.prod(span.astype(float))) < 2.0**62:
+        key = np.zeros(len(rows), np.int64)
+        for j in range(rows.shape[1]):  # mixed radix, first column most significant
+            if span[j] > 1:
+                key = key * span[j] + (rows[:, j] - lo[j])
+        order = np.argsort(key, kind="stable")
+        sk = key[order]
+        new = np.empty(len(rows), bool)
+        new[:1] = True
+        np.not_equal(sk[1:], sk[:-1], out=new[1:])
+    else:
+        order = np.lexsort(rows.T[::-1])
+        r = rows[order]
+        new = np.empty(len(r), bool)
+        new[:1] = True
+        np.any(r[1:] != r[:-1], axis=1, out=new[1:])
+    inverse = np.empty(len(rows), INDEX_DTYPE)
     inverse[order] = np.cumsum(new) - 1
-    return r[new], inverse
+    return rows[order[new]], inverse
 
 
 def weighted_nodes(points, vertices, weights, *, point_count: int | None = None):
@@ -355,7 +388,8 @@ def weighted_nodes(points, vertices, weights, *, point_count: int | None = None)
     ids : (...) int64
         Node number of each row.
     new_points : (u, d) float64
-        Coordinates of the new nodes, numbered ``point_count + i``.
+        Coordinates of the new nodes, numbered ``point_count + i``: by the number of
+        vertices they depend on, then lexicographically.
     support : tuple of (u, k) int64 arrays
         ``(vertices, weights)`` of each new node, sorted by vertex, zero weights last
         (for interpolating data and inheriting refs).
@@ -377,21 +411,29 @@ def weighted_nodes(points, vertices, weights, *, point_count: int | None = None)
     v, w = v.reshape(-1, k), w.reshape(-1, k)
     if len(v) == 0:
         return np.zeros(shape, INDEX_DTYPE), np.zeros((0, pts.shape[1])), (v, w)
-    if (w < 0).any() or (w.sum(axis=1) == 0).any():
+    if w.min() < 0:
+        raise ValueError("expected non-negative 'weights' with a positive sum per row")
+    positive = w > 0
+    support = positive.sum(axis=1)
+    if support.min() == 0:
         raise ValueError("expected non-negative 'weights' with a positive sum per row")
     big = np.iinfo(INDEX_DTYPE).max
-    vv = np.where(w > 0, v, big)
-    order = np.argsort(vv, axis=1, kind="stable")
-    vv, ww = np.take_along_axis(vv, order, 1), np.take_along_axis(w, order, 1)
-    single = (ww[:, 1:] == 0).all(axis=1) if k > 1 else np.ones(len(vv), bool)
-    ids = np.empty(len(vv), INDEX_DTYPE)
-    ids[single] = vv[single, 0]
-    multi = np.flatnonzero(~single)
-    rows = np.concatenate([vv[multi], ww[multi]], axis=1)
-    if len(rows):
-        uniq, inverse = _unique_rows(rows)
-        ids[multi] = n0 + inverse
-        uv, uw = uniq[:, :k], uniq[:, k:]
+    ids = np.empty(len(v), INDEX_DTYPE)
+    single = np.flatnonzero(support == 1)  # an existing vertex: no sorting, no search
+    ids[single] = v[single, positive[single].argmax(axis=1)]
+    multi = np.flatnonzero(support > 1)
+    vv, ww = _sort_pairs(np.where(positive[multi], v[multi], big), w[multi])
+    if len(multi):  # one group per support size: its rows pack into one int64 key more often
+        support = support[multi]
+        parts, start = [], n0
+        for size in np.unique(support):
+            sel = np.flatnonzero(support == size)
+            uniq, inverse = _unique_rows(np.concatenate([vv[sel, :size], ww[sel, :size]], axis=1))
+            ids[multi[sel]] = start + inverse
+            start += len(uniq)
+            pad = ((0, 0), (0, k - size))
+            parts.append((np.pad(uniq[:, :size], pad, constant_values=big), np.pad(uniq[:, size:], pad)))
+        uv, uw = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         safe = np.where(uw > 0, uv, 0)
         new = np.einsum("uk,ukd->ud", uw.astype(REAL_DTYPE), pts[safe]) / uw.sum(axis=1, keepdims=True)
         uv = np.where(uw > 0, uv, -1)
