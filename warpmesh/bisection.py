@@ -274,8 +274,8 @@ def _new_boundary_edges(t, flags, rows, par, best, m_ids):
     if t == "triangle":  # a boundary triangle of a tetra mesh: its new edge (m, v_k)
         on = flags[rows]
         return edge(par[ar, 3 - i_col - j_col], on), np.concatenate([flags, on])
-    k, l = _TET_OTHERS[best, 0], _TET_OTHERS[best, 1]  # edge (m, v_k) lies in face (i, j, k)
-    add = np.concatenate([edge(par[ar, k], flags[rows, l]), edge(par[ar, l], flags[rows, k])])
+    k, q = _TET_OTHERS[best, 0], _TET_OTHERS[best, 1]  # edge (m, v_k) lies in face (i, j, k)
+    add = np.concatenate([edge(par[ar, k], flags[rows, q]), edge(par[ar, q], flags[rows, k])])
     f1, f2 = flags[rows].copy(), flags[rows].copy()
     f1[ar, i_col], f2[ar, j_col] = False, False  # the new inner face (m, v_k, v_l)
     flags[rows] = f1

@@ -127,9 +127,9 @@ def _tet_hex_template():
     mid = {frozenset(e): 4 + i for i, e in enumerate(edges)}
     face = {frozenset(f): 10 + i for i, f in enumerate(faces)}
     hexes = []
-    for i, j, k, l in [(0, 1, 2, 3), (1, 0, 3, 2), (2, 0, 1, 3), (3, 0, 2, 1)]:  # even permutations
+    for i, j, k, q in [(0, 1, 2, 3), (1, 0, 3, 2), (2, 0, 1, 3), (3, 0, 2, 1)]:  # even permutations
         m = lambda *a: mid[frozenset(a)] if len(a) == 2 else face[frozenset(a)]  # noqa: E731
-        hexes.append((i, m(i, j), m(i, j, k), m(i, k), m(i, l), m(i, j, l), 14, m(i, k, l)))
+        hexes.append((i, m(i, j), m(i, j, k), m(i, k), m(i, q), m(i, j, q), 14, m(i, k, q)))
     return hexes, req
 
 
