@@ -43,6 +43,7 @@ __all__ = [
     "cell_measures",
     "corner_jacobians",
     "weighted_nodes",
+    "extend_point_values",
 ]
 
 
@@ -440,3 +441,44 @@ def weighted_nodes(points, vertices, weights, *, point_count: int | None = None)
     else:
         new, uv, uw = np.zeros((0, pts.shape[1])), np.zeros((0, k), INDEX_DTYPE), np.zeros((0, k), INDEX_DTYPE)
     return ids.reshape(shape), new, (uv, uw)
+
+
+def extend_point_values(values, support) -> np.ndarray:
+    """Point values (n0, ...) extended to the new nodes of :func:`weighted_nodes`.
+
+    Float and complex values are the weighted mean of the supporting vertices'; any other
+    dtype (refs, ints, bools) keeps the value the supporting vertices share, else 0.
+
+    Parameters
+    ----------
+    values : (n0, ...) array
+    support : tuple of (u, k) int arrays
+        The ``support`` returned by :func:`weighted_nodes` (vertex -1 where the weight is 0).
+
+    Returns
+    -------
+    (n0 + u, ...) array of the same dtype
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> support = (np.array([[0, 1], [1, 2]]), np.array([[1, 1], [1, 1]]))
+    >>> extend_point_values(np.array([0.0, 2.0, 4.0]), support).tolist()
+    [0.0, 2.0, 4.0, 1.0, 3.0]
+    >>> extend_point_values(np.array([7, 7, 5]), support).tolist()
+    [7, 7, 5, 7, 0]
+    """
+    arr = np.asarray(values)
+    uv, uw = support
+    if len(uv) == 0:
+        return arr
+    vals = arr[np.where(uw > 0, uv, 0)]  # (u, k, ...)
+    w = uw.reshape(*uw.shape, *(1,) * (arr.ndim - 1))
+    if arr.dtype.kind in "fc":
+        new = (w * vals).sum(axis=1) / w.sum(axis=1)
+    else:
+        first = vals[:, 0]
+        agree = ((vals == first[:, None]) | (w == 0)).all(axis=1)
+        new = np.where(agree, first, np.zeros_like(first))
+    return np.concatenate([arr, new.astype(arr.dtype)])
+

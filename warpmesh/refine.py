@@ -58,7 +58,8 @@ import numpy as np
 
 from ._conventions import INDEX_DTYPE, REAL_DTYPE
 from .convert import _check_mesh
-from .reference_cells import base_type, cell_measures, corner_jacobians, reference_cell, weighted_nodes
+from .reference_cells import (base_type, cell_measures, corner_jacobians, extend_point_values,
+                              reference_cell, weighted_nodes)
 
 __all__ = ["refine_uniform", "REFINABLE_TYPES"]
 
@@ -194,29 +195,6 @@ def _tetra_orders(points: np.ndarray, tet: np.ndarray, diagonal: str) -> np.ndar
     d = np.stack([p[:, 0] + p[:, 2] - p[:, 1] - p[:, 3], p[:, 0] + p[:, 1] - p[:, 2] - p[:, 3],
                   p[:, 0] + p[:, 3] - p[:, 1] - p[:, 2]], axis=1)
     return np.einsum("mkd,mkd->mk", d, d).argmin(axis=1)
-
-
-def _common_or_zero(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """(u, ...): per node the value its supporting vertices (weights > 0) share, else 0."""
-    v0 = values[:, 0]
-    mask = (weights == 0).reshape(*weights.shape, *(1,) * (values.ndim - 2))
-    agree = np.all((values == v0[:, None]) | mask, axis=1)
-    return np.where(agree, v0, np.zeros_like(v0))
-
-
-def _extend(arr: np.ndarray, support, n_new: int) -> np.ndarray:
-    """Point array (n0, ...) extended by the new nodes: float/complex interpolated with
-    the node weights, other dtypes the supporting vertices' common value, else 0."""
-    arr = np.asarray(arr)
-    if n_new == 0:
-        return arr
-    uv, uw = support
-    vals = arr[np.where(uw > 0, uv, 0)]  # (u, k, ...)
-    if arr.dtype.kind in "fc":
-        new = np.einsum("uk,uk...->u...", uw / uw.sum(axis=1, keepdims=True), vals).astype(arr.dtype)
-    else:
-        new = _common_or_zero(vals, uw)
-    return np.concatenate([arr, new])
 
 
 def _corner_frames(points: np.ndarray, cells: np.ndarray, tdim: int) -> np.ndarray:
@@ -453,10 +431,9 @@ def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
                           "than the thickness of the first layer; refine in steps of n=2, projecting "
                           "each time", UserWarning, stacklevel=2)
 
-    n_new = len(points) - n0
     s = {t: k ** reference_cell(t).tdim for t in types}
-    point_refs = None if mesh.point_refs is None else _extend(mesh.point_refs, support, n_new)
-    point_data = {key: _extend(v, support, n_new) for key, v in mesh.point_data.items()}
+    point_refs = None if mesh.point_refs is None else extend_point_values(mesh.point_refs, support)
+    point_data = {key: extend_point_values(v, support) for key, v in mesh.point_data.items()}
     cell_refs = (None if mesh.cell_refs is None
                  else {t: np.repeat(r, s.get(t, 1)) for t, r in mesh.cell_refs.items()})
     cell_data = {key: {t: np.repeat(np.asarray(a), s.get(t, 1), axis=0) for t, a in v.items()}

@@ -58,6 +58,7 @@ from .quality import tetra_quality, triangle_quality
 from .reference_cells import (
     P1_TYPES,
     cell_measures,
+    extend_point_values,
     mirror_permutation,
     reference_cell,
     weighted_nodes,
@@ -324,32 +325,6 @@ def _validate(mesh, target, quads, hexes):
     return quads, hexes
 
 
-def _new_node_attributes(mesh, support):
-    """point_refs and point_data extended to the new nodes (refs: common value else 0;
-    float data: the weighted mean; other data: common value else 0)."""
-    uv, uw = support
-    safe = np.where(uw > 0, uv, 0)
-
-    def common(arr):
-        vals = arr[safe]
-        first = vals[:, 0]
-        agree = ((vals == first[:, None]) | (uw == 0).reshape(len(uw), _K, *(1,) * (arr.ndim - 1))).all(1)
-        return np.where(agree, first, np.zeros_like(first))
-
-    refs = None
-    if mesh.point_refs is not None:
-        refs = np.concatenate([mesh.point_refs, common(mesh.point_refs)])
-    data = {}
-    for name, arr in mesh.point_data.items():
-        if arr.dtype.kind in "fc":
-            w = uw.reshape(len(uw), _K, *(1,) * (arr.ndim - 1)).astype(float)
-            new = (w * arr[safe]).sum(1) / w.sum(1)
-        else:
-            new = common(arr)
-        data[name] = np.concatenate([arr, new.astype(arr.dtype)])
-    return refs, data
-
-
 def convert_cells(mesh, target: Target, *, quads: Literal["best", "min", 4] | None = None,
                   hexes: Literal["auto", 5, 6] | None = None):
     """A new mesh whose elements of some types are split into elements of type ``target``.
@@ -515,7 +490,8 @@ def _assemble(mesh, pieces, target, info):
 
     cell_refs = None if mesh.cell_refs is None else gather(mesh.cell_refs, INDEX_DTYPE)
     cell_data = {k: gather(v, next(iter(v.values())).dtype) for k, v in mesh.cell_data.items()}
-    point_refs, point_data = _new_node_attributes(mesh, support)
+    point_refs = None if mesh.point_refs is None else extend_point_values(mesh.point_refs, support)
+    point_data = {k: extend_point_values(v, support) for k, v in mesh.point_data.items()}
     n_split = {t: int(len(mesh.cells[t])) for t in mesh.cells if t in pieces}
     info = {**mesh.info, "converted_to": target, "n_split": n_split,
             "n_new_points": int(len(new_pts)), **info}
