@@ -26,6 +26,7 @@ from warpmesh.quality import quality_summary, tetra_quality, triangle_quality
 from warpmesh.shapes import (EXAMPLES, Shape, box, capsule, complement, cone, cylinder, difference,
                              ellipsoid, example, halfspace, intersection, sphere, superquadric,
                              supertorus, torus, union)
+from warpmesh.shapes2d import EXAMPLES_2D, cassini, circle, ellipse, halfplane, rectangle, regular_polygon
 from warpmesh.surface import mesh_surface
 from warpmesh.remesh import optimize, simplify
 from warpmesh.projection import VolumeField, surface_error
@@ -40,6 +41,7 @@ __all__ = [
     "sphere", "box", "cylinder", "cone", "torus", "ellipsoid", "halfspace", "capsule",
     "superquadric", "supertorus", "union", "intersection", "difference", "complement",
     "example", "EXAMPLES",
+    "circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "cassini", "EXAMPLES_2D",
     "Tape", "compile_tape", "evaluate", "evaluate_interval",
     "WarpMeshError", "ReadError", "TopologyError", "MergeError",
 ]

@@ -260,16 +260,31 @@ class Expr:
         raise TypeError("an expression has no truth value; compare values after evaluating it")
 
 
-def coords() -> tuple[Expr, Expr, Expr]:
-    """The coordinate expressions ``x, y, z``.
+def coords(dim: int = 3) -> tuple[Expr, ...]:
+    """The coordinate expressions: ``x, y, z`` (``dim=3``) or ``x, y`` (``dim=2``).
+
+    A field built from ``coords(2)`` does not depend on z: it is a planar shape (an
+    implicit curve f(x, y) = 0 bounding a domain f > 0), meshed by
+    :func:`warpmesh.mesh_curve` and :func:`warpmesh.mesh_domain`.
 
     Example
     -------
     >>> import warpmesh as wm
     >>> x, y, z = wm.coords()
     >>> sphere = 1 - wm.sqrt(x**2 + y**2 + z**2)
+    >>> x, y = wm.coords(2)
+    >>> lemniscate = 2 * (x**2 - y**2) - (x**2 + y**2) ** 2
     """
-    return _node(O.X), _node(O.Y), _node(O.Z)
+    if dim not in (2, 3) or isinstance(dim, bool):
+        raise ValueError(f"expected dim 2 or 3 for 'dim', got {dim!r}")
+    xyz = _node(O.X), _node(O.Y), _node(O.Z)
+    return xyz[:dim]
+
+
+def depends_on(expr: "Expr", axis: int) -> bool:
+    """Whether ``expr`` reads coordinate ``axis`` (0, 1, 2 for x, y, z)."""
+    op = (O.X, O.Y, O.Z)[axis]
+    return any(n.op == op for n in as_expr(expr).nodes())
 
 
 def sqrt(a) -> Expr:

@@ -34,12 +34,18 @@ _METHODS = ("rfunction", "minmax", "smooth")
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
-def _vec3(value, name: str, *, positive: bool = False) -> np.ndarray:
+def _vec3(value, name: str, *, positive: bool = False, fill: float | str | None = None) -> np.ndarray:
+    """3 floats from a number or 3 values; with a ``fill``, also from 2 values (a planar
+    shape's x, y) completed with it ("min": the smaller of the two, so a 2D scale stays
+    isotropic)."""
     arr = np.asarray(value, dtype=np.float64)
     if arr.ndim == 0:
         arr = np.full(3, float(arr))
+    if arr.shape == (2,) and fill is not None:
+        arr = np.append(arr, arr.min() if fill == "min" else float(fill))
     if arr.shape != (3,):
-        raise ValueError(f"expected 3 values for '{name}', got shape {arr.shape}")
+        n = "2 or 3" if fill is not None else "3"
+        raise ValueError(f"expected {n} values for '{name}', got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"expected finite values for '{name}', got {arr.tolist()}")
     if positive and np.any(arr <= 0):
@@ -86,7 +92,16 @@ class Shape:
 
     def __repr__(self):
         kind = "signed distance" if self.exact else "bound"
-        return f"<Shape ({kind}) with {len(self.field.nodes())} expression nodes>"
+        return f"<Shape {self.dim}D ({kind}) with {len(self.field.nodes())} expression nodes>"
+
+    def _fill(self, value):
+        """How a planar shape completes 2-value transform arguments (3D shapes take 3)."""
+        return value if self.dim == 2 else None
+
+    @property
+    def dim(self) -> int:
+        """2 for a planar shape (its field does not read z), else 3."""
+        return 3 if E.depends_on(self.field, 2) else 2
 
     # -- booleans -------------------------------------------------------------------
     def __or__(self, other):
@@ -117,8 +132,8 @@ class Shape:
         return Shape(field * scale if scale != 1.0 else field, exact)
 
     def translate(self, offset) -> "Shape":
-        """Move by ``offset`` (3 values). Keeps a signed distance exact."""
-        t = _vec3(offset, "offset")
+        """Move by ``offset`` (3 values, or 2 for a planar shape). Keeps a signed distance exact."""
+        t = _vec3(offset, "offset", fill=self._fill(0.0))
         return self._mapped(np.eye(3), -t, 1.0, self.exact)
 
     def rotate(self, angle: float, axis=(0.0, 0.0, 1.0), about=(0.0, 0.0, 0.0)) -> "Shape":
@@ -131,7 +146,7 @@ class Shape:
         if n == 0:
             raise ValueError("expected a non-zero 'axis', got (0, 0, 0)")
         a = a / n
-        c = _vec3(about, "about")
+        c = _vec3(about, "about", fill=self._fill(0.0))
         k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
         rot = np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
         inv = rot.T  # p -> R^T (p - c) + c
@@ -139,20 +154,20 @@ class Shape:
 
     def scale(self, factor, about=(0.0, 0.0, 0.0)) -> "Shape":
         """Scale by a number (keeps a distance exact) or by 3 factors (a bound only)."""
-        s = _vec3(factor, "factor", positive=True)
-        c = _vec3(about, "about")
+        s = _vec3(factor, "factor", positive=True, fill=self._fill("min"))
+        c = _vec3(about, "about", fill=self._fill(0.0))
         inv = np.diag(1.0 / s)
         iso = bool(np.all(s == s[0]))
         return self._mapped(inv, c - inv @ c, float(s.min()), self.exact and iso)
 
     def mirror(self, normal=(1.0, 0.0, 0.0), point=(0.0, 0.0, 0.0)) -> "Shape":
         """Reflect through the plane with ``normal`` through ``point``."""
-        nrm = _vec3(normal, "normal")
+        nrm = _vec3(normal, "normal", fill=self._fill(0.0))
         if not np.any(nrm):
             raise ValueError("expected a non-zero 'normal', got (0, 0, 0)")
         nrm = nrm / np.linalg.norm(nrm)
         h = np.eye(3) - 2.0 * np.outer(nrm, nrm)
-        c = _vec3(point, "point")
+        c = _vec3(point, "point", fill=self._fill(0.0))
         return self._mapped(h, c - h @ c, 1.0, self.exact)
 
     def affine(self, matrix, offset=(0.0, 0.0, 0.0)) -> "Shape":
@@ -384,7 +399,13 @@ def supertorus(major: float = 1.0, minor: float = 0.3, e1: float = 0.5, e2: floa
 
 
 def example(name: str) -> tuple[Shape, tuple]:
-    """Bundled examples by name: (shape, bounds). Names: 'part', 'degree6', 'sphere', 'torus'."""
+    """Bundled examples by name: (shape, bounds). Names: 'part', 'degree6', 'sphere', 'torus';
+    the planar examples of :func:`warpmesh.shapes2d.example2d` ('gear', 'plate',
+    'lemniscate', 'cassini') return 2D bounds ((x0, y0), (x1, y1))."""
+    from warpmesh.shapes2d import EXAMPLES_2D, example2d
+
+    if name in EXAMPLES_2D:
+        return example2d(name)
     if name == "part":
         holes = [cylinder(0.2).translate((sx * 0.6, sy * 0.6, 0)) for sx in (-1, 1) for sy in (-1, 1)]
         return (box((2, 2, 0.6)) - union(*holes)) | sphere(0.5), ((-1.2,) * 3, (1.2,) * 3)
@@ -396,7 +417,7 @@ def example(name: str) -> tuple[Shape, tuple]:
         return sphere(1.0), ((-1.2,) * 3, (1.2,) * 3)
     if name == "torus":
         return torus(1.0, 0.35), ((-1.5, -1.5, -0.5), (1.5, 1.5, 0.5))
-    raise ValueError(f"Unknown example {name!r}. Pick one of ['part', 'degree6', 'sphere', 'torus']")
+    raise ValueError(f"Unknown example {name!r}. Pick one of {list(EXAMPLES) + list(EXAMPLES_2D)}")
 
 
 EXAMPLES: Sequence[str] = ("part", "degree6", "sphere", "torus")
