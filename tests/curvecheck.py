@@ -41,16 +41,25 @@ def point_segment_distance(q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
     return np.linalg.norm(q - (a + t[:, None] * d), axis=1)
 
 
-def distance_to_polyline(q: np.ndarray, points: np.ndarray, segments: np.ndarray, k: int = 16) -> np.ndarray:
-    """Exact distance from each query point to the nearest of ``segments`` (among the k
-    segments whose midpoints are nearest, plus the segments at the nearest vertex)."""
-    mid = 0.5 * (points[segments[:, 0]] + points[segments[:, 1]])
-    k = min(k, len(segments))
-    _, idx = cKDTree(mid).query(q, k=k)
-    idx = idx.reshape(len(q), k)
-    a, b = points[segments[idx, 0]], points[segments[idx, 1]]
-    d = point_segment_distance(np.repeat(q, k, axis=0), a.reshape(-1, 2), b.reshape(-1, 2)).reshape(len(q), k)
-    return d.min(axis=1)
+def distance_to_polyline(q: np.ndarray, points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Exact distance from each query point to the nearest of ``segments``.
+
+    A segment of length <= L whose midpoint is farther than d0 + L / 2 from q (d0: the
+    distance to the nearest midpoint, an upper bound of the answer) cannot be the nearest,
+    so only the segments with midpoints within that radius are measured.
+    """
+    a, b = points[segments[:, 0]], points[segments[:, 1]]
+    mid, half = 0.5 * (a + b), 0.5 * float(np.linalg.norm(b - a, axis=1).max())
+    tree = cKDTree(mid)
+    d0, _ = tree.query(q)
+    cand = tree.query_ball_point(q, d0 + half + 1e-12)
+    counts = np.array([len(c) for c in cand])
+    seg = np.concatenate([np.asarray(c, dtype=np.int64) for c in cand])
+    qi = np.repeat(np.arange(len(q)), counts)
+    d = point_segment_distance(q[qi], a[seg], b[seg])
+    out = np.full(len(q), np.inf)
+    np.minimum.at(out, qi, d)
+    return out
 
 
 def check_curve(mesh, shape, bounds, *, n_components: int | None = None, hausdorff: float | None = None,
