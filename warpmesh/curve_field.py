@@ -20,7 +20,7 @@ import numpy as np
 
 from ._conventions import REAL_DTYPE
 
-__all__ = ["PlanarField", "check_bounds2d"]
+__all__ = ["PlanarField", "check_bounds2d", "newton_project"]
 
 _TINY = 1.0e-30
 #: Newton steps of :meth:`PlanarField.project` (seed Remark 16.1)
@@ -36,6 +36,30 @@ def check_bounds2d(bounds, name: str = "bounds") -> np.ndarray:
     if b.shape != (2, 2) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
         raise ValueError(f"expected '{name}' ((x0, y0), (x1, y1)) with x0 < x1 and y0 < y1, got {bounds!r}")
     return b
+
+
+def newton_project(value_gradient, x: np.ndarray, max_step, steps: int, stop) -> np.ndarray:
+    """Newton steps x -= f grad f / |grad f|² in place on (n, d) points x (seed Remark 16.1).
+
+    ``value_gradient(points) -> (f, grad f)``; ``max_step`` (None, scalar or (n,)) caps each
+    step; a point stops once its step is below ``stop`` (a scalar, or a function of the
+    moving points giving one threshold each). Points where the gradient vanishes stay put.
+    """
+    cap = None if max_step is None else np.broadcast_to(np.asarray(max_step, REAL_DTYPE), (len(x),))
+    active = np.arange(len(x))
+    for _ in range(steps):  # a loop over Newton iterations, every point at once
+        if len(active) == 0:
+            break
+        f, g = value_gradient(x[active])
+        g2 = np.einsum("ij,ij->i", g, g)
+        step = np.where(g2 > _TINY, f / np.maximum(g2, _TINY), 0.0)[:, None] * g
+        if cap is not None:
+            ln = np.linalg.norm(step, axis=1)
+            step *= np.minimum(1.0, cap[active] / np.maximum(ln, _TINY))[:, None]
+        x[active] -= step
+        threshold = stop(x[active]) if callable(stop) else stop
+        active = active[np.linalg.norm(step, axis=1) > threshold]
+    return x
 
 
 class PlanarField:
@@ -130,20 +154,7 @@ class PlanarField:
         another branch; points where the gradient vanishes stay put.
         """
         x = np.array(points, dtype=REAL_DTYPE, copy=True).reshape(-1, 2)
-        cap = None if max_step is None else np.broadcast_to(np.asarray(max_step, REAL_DTYPE), (len(x),))
-        active = np.arange(len(x))
-        for _ in range(steps):
-            if len(active) == 0:
-                break
-            f, g = self.value_gradient(x[active])
-            g2 = np.einsum("ij,ij->i", g, g)
-            step = np.where(g2 > _TINY, f / np.maximum(g2, _TINY), 0.0)[:, None] * g
-            if cap is not None:
-                ln = np.linalg.norm(step, axis=1)
-                step *= np.minimum(1.0, cap[active] / np.maximum(ln, _TINY))[:, None]
-            x[active] -= step
-            active = active[np.linalg.norm(step, axis=1) > 1e-7 * self.fd_step]
-        return x
+        return newton_project(self.value_gradient, x, max_step, steps, 1e-7 * self.fd_step)
 
     def distance(self, points, refine: int = 3) -> np.ndarray:
         """Distance from each point to the curve: an upper bound, the nearest curve point

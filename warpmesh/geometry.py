@@ -34,6 +34,7 @@ import itertools
 import numpy as np
 
 from ._conventions import REAL_DTYPE
+from .curve_field import newton_project
 from .lipschitz import check_box, lipschitz_bound
 
 __all__ = ["gradient", "normal", "tangent", "hessian", "inflection_function", "curvature",
@@ -342,21 +343,8 @@ def project(shape, points, max_step=None, steps: int = 8, *, device: str = "cpu"
         cap = np.broadcast_to(np.asarray(max_step, REAL_DTYPE), (len(x),))
         if not np.all(np.isfinite(cap)) or np.any(cap <= 0):
             raise ValueError(f"expected a positive finite 'max_step', got {max_step!r}")
-    x = x.copy()
-    active = np.arange(len(x))
-    for _ in range(steps):
-        if len(active) == 0:
-            break
-        f, g = _value_gradient(tape, x[active], device)
-        g2 = np.einsum("ij,ij->i", g, g)
-        step = np.where(g2 > _TINY, f / np.maximum(g2, _TINY), 0.0)[:, None] * g
-        if cap is not None:
-            ln = np.linalg.norm(step, axis=1)
-            step *= np.minimum(1.0, cap[active] / np.maximum(ln, _TINY))[:, None]
-        x[active] -= step
-        scale = np.maximum(1.0, np.abs(x[active]).max(axis=1))
-        active = active[np.linalg.norm(step, axis=1) > 1e-9 * scale]
-    return x
+    return newton_project(lambda q: _value_gradient(tape, q, device), x.copy(), cap, steps,
+                          lambda q: 1e-9 * np.maximum(1.0, np.abs(q).max(axis=1)))
 
 
 # -- second order --------------------------------------------------------------------------

@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._conventions import REAL_DTYPE
+from .curve_field import newton_project
 
 __all__ = ["ImplicitTarget", "VolumeField", "MeshTarget", "as_target", "surface_error"]
 
@@ -88,22 +89,7 @@ class _FunctionTarget:
         cap = None if max_step is None else np.broadcast_to(np.asarray(max_step, REAL_DTYPE), (len(x),))
         if self.newton_cap is not None:  # sampled fields: never more than a sample spacing per step
             cap = np.full(len(x), self.newton_cap) if cap is None else np.minimum(cap, self.newton_cap)
-        active = np.arange(len(x))
-        for _ in range(steps):
-            f, g = self._clipped(x[active])
-            g2 = np.einsum("ij,ij->i", g, g)
-            ok = g2 > _TINY
-            step = np.where(ok, f / np.maximum(g2, _TINY), 0.0)[:, None] * g
-            if cap is not None:
-                ln = np.linalg.norm(step, axis=1)
-                scale = np.minimum(1.0, cap[active] / np.maximum(ln, _TINY))
-                step *= scale[:, None]
-            x[active] -= step
-            moving = np.linalg.norm(step, axis=1) > 1e-9 * self.fd_step / HESSIAN_STEP
-            active = active[moving]
-            if len(active) == 0:
-                break
-        return x
+        return newton_project(self._clipped, x, cap, steps, 1e-9 * self.fd_step / HESSIAN_STEP)
 
     def distance(self, points, refine: int = FOOT_STEPS) -> np.ndarray:
         """Distance from each point to the surface: an upper bound, the nearest of the
