@@ -28,6 +28,7 @@ from warpmesh.shapes import (EXAMPLES, Shape, box, capsule, complement, cone, cy
                              supertorus, torus, union)
 from warpmesh.shapes2d import EXAMPLES_2D, cassini, circle, ellipse, halfplane, rectangle, regular_polygon
 from warpmesh.surface import mesh_surface
+from warpmesh.curves import mesh_curve, mesh_domain
 from warpmesh.remesh import optimize, simplify
 from warpmesh.projection import VolumeField, surface_error
 from warpmesh.tape import Tape, compile_tape, evaluate, evaluate_interval
@@ -35,7 +36,7 @@ from warpmesh.tape import Tape, compile_tape, evaluate, evaluate_interval
 __version__ = "0.1.0"
 
 __all__ = [
-    "Mesh", "load", "to_order", "renumber", "mesh_surface", "optimize", "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
+    "Mesh", "load", "to_order", "renumber", "mesh_surface", "mesh_curve", "mesh_domain", "optimize", "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
     "triangle_quality", "tetra_quality", "quality_summary",
     "Shape", "Expr", "coords", "sqrt", "abs", "min", "max", "sin", "cos", "exp", "log",
     "sphere", "box", "cylinder", "cone", "torus", "ellipsoid", "halfspace", "capsule",

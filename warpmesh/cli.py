@@ -10,6 +10,8 @@ Examples
     meshes every label of a segmentation (triangle refs = labels).
 ``warpmesh transform | refine | convert | merge | crack | periodic ...``
     modify a mesh file (seed ch. 17): see :mod:`warpmesh.cli_modify`.
+``warpmesh curve | domain --example gear ...``
+    mesh a planar curve or domain (seed 16.3, 16.5.2): see :mod:`warpmesh.cli_curves`.
 ``warpmesh info part.ply``
     prints the statistics of a mesh file.
 ``warpmesh renumber in.msh out.msh --method gibbs``
@@ -83,9 +85,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--color", choices=["face", "node"],
                    help="also sort the elements into colour packets (neighbours by face or by node)")
     r.add_argument("--json", action="store_true", help="print the statistics as JSON")
-    from warpmesh import cli_modify
+    from warpmesh import cli_curves, cli_modify
 
     cli_modify.add_parsers(sub)
+    cli_curves.add_parsers(sub)
     i = sub.add_parser("info", help="print statistics of a mesh file")
     i.add_argument("path")
     i.add_argument("--json", action="store_true", help="print statistics as JSON")
@@ -185,7 +188,7 @@ def _renumber(wm, args) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     import warpmesh as wm
-    from warpmesh import cli_modify
+    from warpmesh import cli_curves, cli_modify
     from warpmesh.io import check_path
 
     try:
@@ -196,6 +199,8 @@ def main(argv: list[str] | None = None) -> int:
             return _renumber(wm, args)
         if args.command in cli_modify.COMMANDS:
             return cli_modify.run(wm, args)
+        if args.command in cli_curves.COMMANDS:
+            return cli_curves.run(wm, args)
         if args.output:
             check_path(args.output)  # before meshing: a bad extension fails at once
         common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,

@@ -46,7 +46,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ._conventions import INDEX_DTYPE, REAL_DTYPE
-from .delaunay2d import min_angles, refine, signed_area2
+from .delaunay2d import classify, conform, min_angles, refine, signed_area2
 from .domain_quality import smooth
 from .errors import WarpMeshError
 
@@ -183,6 +183,14 @@ def interior_points(field, points, segments, h, max_points: int, stats: dict | N
 
 
 # -- public entry -----------------------------------------------------------------------
+def frame_inside(points, segments, frame: np.ndarray) -> bool:
+    """Whether an inside triangle of the boundary-conforming Delaunay triangulation of
+    ``points`` (before any refinement) uses one of the ``frame`` vertices: the segments
+    then run the wrong way round (the unbounded region would be meshed)."""
+    p, s, tris, _ = conform(points, segments)
+    return bool(np.isin(tris[classify(tris, s, len(p))], frame).any())
+
+
 def mesh_domain_from_boundary(field, points, segments, *, size: float | None = None, min_angle: float = 28.0,
                               gradation: float = 1.5, max_points: int = 200_000, optimize: bool = True,
                               method: Literal["global", "triangle"] = "global"):
@@ -256,8 +264,18 @@ def mesh_domain_from_boundary(field, points, segments, *, size: float | None = N
         h = size_function(pts, segs, float(size), float(gradation))
         inner = interior_points(field, pts, segs, h, max_points - len(pts), stats)
         stats["interior_seeds"] = len(inner)
-        allp = np.concatenate([pts, inner])
-        free = np.concatenate([np.zeros(len(pts), bool), np.ones(len(inner), bool)])
+        # four frame points well outside: the boundary is never on the convex hull, where
+        # nearly collinear boundary vertices (a straight side) would make flat slivers whose
+        # orientation is noise; the frame's triangles are outside and dropped with it
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        margin = 0.5 * (hi - lo).max()
+        frame = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+        frame += margin * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+        allp = np.concatenate([pts, inner, frame])
+        free = np.concatenate([np.zeros(len(pts), bool), np.ones(len(inner), bool), np.zeros(4, bool)])
+        if frame_inside(allp, segs, np.arange(len(allp) - 4, len(allp))):
+            raise WarpMeshError("the region around the boundary lies on the LEFT of its segments: expected the "
+                                "domain on the LEFT of every segment (outer loops counter-clockwise)")
         p, segs, tris, free, rounds = refine(allp, segs, free, field, min_angle=float(min_angle),
                                              max_points=max_points, stats=stats)
         stats["rounds"] = rounds

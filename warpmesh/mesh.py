@@ -336,6 +336,10 @@ class Mesh:
             s["area"] = float(_topo.face_areas(self._points, tri).sum())
             if s["watertight"] and self.dim == 3:
                 s["volume"] = _topo.signed_volume(self._points, tri)
+        if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
+            from .polyline import components
+
+            s["components"] = components(self._cells["line"], self.n_points)[0]
         solids = [t for t in ("tetra", "hexahedron", "wedge", "pyramid") if t in self._cells]
         if solids and self.dim == 3:  # signed, exact for the multilinear cells
             from .reference_cells import cell_measures
@@ -365,7 +369,7 @@ class Mesh:
             ``n_triangles``, ``n_tetra``; of the triangle block (None without one):
             ``watertight`` (every edge in two faces), ``manifold`` (edge and vertex),
             ``oriented``, ``euler`` (V - E + F over referenced vertices), ``components``
-            (edge-connected), ``genus`` (total, ``(2 components - euler) / 2``, only when
+            (edge-connected; for a mesh of lines only, the connected polylines), ``genus`` (total, ``(2 components - euler) / 2``, only when
             watertight, manifold and oriented), ``area``, ``volume`` (signed: of the
             closed 3D surface, or the sum of the volumes of the tetra, hexahedron, wedge
             and pyramid cells); ``mean_q``, ``worst_q`` (seed
