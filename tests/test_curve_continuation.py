@@ -195,7 +195,8 @@ def test_predictor_corrector_turns_corners(shape, n_corners):
 def test_predictor_corrector_csg_corners(name):
     shape, bounds = wm.example(name)
     sample = sample_predictor_corrector(PlanarField(shape, bounds), tolerance=2e-2)
-    assert sample.info["failures"] == [] and sample.info["corners"] > 0
+    assert sample.info["failures"] == []
+    assert sample.info["corners"] > 0 or name == "plate"  # the plate's corners are rounded (r = 0.1)
     check_curve(mesh_of(sample), shape, bounds, hausdorff=2e-2 * sample.info["hmax"] + 1e-5)
 
 

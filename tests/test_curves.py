@@ -126,6 +126,9 @@ def test_domain_acceptance(name, holes):
     dist = PlanarField(shape, bounds).distance(p[np.unique(bnd)])
     assert dist.max() <= 1e-4 and s["boundary_distance"] <= 1e-4
     assert s["boundary_components"] == holes + 1
+    if name == "plate":  # 2.4 x 1.4, corners rounded to r = 0.1, holes of radii 0.3 and 4 x 0.12
+        exact = 2.4 * 1.4 - 4 * 0.01 * (1 - np.pi / 4) - np.pi * (0.09 + 4 * 0.0144)
+        assert abs(s["area"] - exact) < 2e-4 * exact
     n_edges = len(np.unique(np.sort(t[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0))
     assert len(np.unique(t)) - n_edges + len(t) == 1 - holes  # Euler characteristic of a disc with holes
 

@@ -61,7 +61,7 @@ from ._conventions import EDGE_T_MIN, INDEX_DTYPE, REAL_DTYPE
 from .curve_field import PlanarField
 from .curve_sample import CurveSample
 
-__all__ = ["sample_grid", "sample_freudenthal", "ROOT_METHODS", "DECIDERS"]
+__all__ = ["sample_grid", "sample_freudenthal", "edge_roots", "ROOT_METHODS", "DECIDERS"]
 
 ROOT_METHODS = ("linear", "bisection", "newton")
 DECIDERS = ("asymptotic", "center")
@@ -103,7 +103,7 @@ def _grid_shape(bounds: np.ndarray, resolution) -> tuple[int, int]:
 # ------------------------------------------------------------------ roots on edges
 
 
-def _edge_roots(field: PlanarField, a: np.ndarray, b: np.ndarray, fa: np.ndarray, fb: np.ndarray,
+def edge_roots(field: PlanarField, a: np.ndarray, b: np.ndarray, fa: np.ndarray, fb: np.ndarray,
                 root: str, tolerance: float) -> tuple[np.ndarray, int, int]:
     """Roots on crossing edges (m, 2) from node a to node b; returns (points, evaluations,
     edges left unconverged by Newton). f > 0 at exactly one end of every edge."""
@@ -197,7 +197,7 @@ def _sample_points(field, xs, ys, f, inside, edges, diagonals, root, tolerance):
     ids, ends = _crossing_edges(edges, inside, diagonals)
     nodes = np.stack([xs[ends[..., 0]], ys[ends[..., 1]]], axis=-1)  # (m, 2 ends, 2)
     values = f[ends[..., 0], ends[..., 1]]
-    points, evals, unconverged = _edge_roots(field, nodes[:, 0], nodes[:, 1], values[:, 0], values[:, 1],
+    points, evals, unconverged = edge_roots(field, nodes[:, 0], nodes[:, 1], values[:, 0], values[:, 1],
                                              root, tolerance)
     lookup = np.full(edges.n_h + edges.n_v + (edges.nx * edges.ny if diagonals else 0), -1, INDEX_DTYPE)
     lookup[ids] = np.arange(len(ids))

@@ -23,15 +23,15 @@ import time
 
 import numpy as np
 
-from ._conventions import EDGE_T_MIN, INDEX_DTYPE, REAL_DTYPE
+from ._conventions import INDEX_DTYPE, REAL_DTYPE
 from .curve_field import PlanarField
+from .curve_grid import edge_roots
 from .curve_sample import CurveSample
 from .curve_seeds import check_count, check_field, check_positive, check_seeds, find_seeds, grid_cells, inside_box
 from .marching_squares import AMBIGUOUS, JOINED, SEGMENT_COUNT, SEGMENT_TABLE, SEPARATED, asymptotic_decider
 
 __all__ = ["sample_progression"]
 
-_TINY = 1.0e-30
 
 # =====================================================================================
 # progression: cell tracking on a virtual grid
@@ -63,26 +63,6 @@ class _NodeCache:
             order = np.argsort(keys, kind="stable")
             self.keys, self.vals = keys[order], vals[order]
         return self.vals[np.searchsorted(self.keys, flat)].reshape(key.shape)
-
-
-def _bisect_edges(field: PlanarField, a, b, fa, fb, tolerance: float) -> tuple[np.ndarray, int]:
-    """Roots on edges [a, b] (f(a), f(b) of opposite signs): bisection until the bracket
-    is below ``tolerance`` times the edge, then the secant point of the last bracket,
-    clamped to [EDGE_T_MIN, 1 - EDGE_T_MIN] of the edge. Returns (roots, evaluations)."""
-    inside_a = fa > 0
-    t0, t1 = np.zeros(len(a)), np.ones(len(a))
-    g0, g1 = fa.copy(), fb.copy()
-    steps = max(0, int(np.ceil(np.log2(1.0 / tolerance))))
-    for _ in range(steps):  # loop over bisection steps, every edge at once
-        tm = 0.5 * (t0 + t1)
-        fm = field.values(a + tm[:, None] * (b - a))
-        same = (fm > 0) == inside_a
-        t0, g0 = np.where(same, tm, t0), np.where(same, fm, g0)
-        t1, g1 = np.where(same, t1, tm), np.where(same, g1, fm)
-    den = g0 - g1
-    w = np.where(np.abs(den) > _TINY, g0 / np.where(np.abs(den) > _TINY, den, 1.0), 0.5)
-    t = np.clip(t0 + np.clip(w, 0.0, 1.0) * (t1 - t0), EDGE_T_MIN, 1.0 - EDGE_T_MIN)
-    return a + t[:, None] * (b - a), steps * len(a)
 
 
 def sample_progression(field: PlanarField, *, resolution: int = 64, tolerance: float = 1e-3,
@@ -209,7 +189,7 @@ def sample_progression(field: PlanarField, *, resolution: int = 64, tolerance: f
     a = bounds[0] + (cij[src_cell] + _CORNER[src_edge]) * cell
     b = bounds[0] + (cij[src_cell] + _CORNER[(src_edge + 1) % 4]) * cell
     fa, fb = fc[src_cell, src_edge], fc[src_cell, (src_edge + 1) % 4]
-    points, root_evals = _bisect_edges(field, a, b, fa, fb, tolerance)
+    points, root_evals, _ = edge_roots(field, a, b, fa, fb, "bisection", tolerance)
     segments = np.column_stack([np.searchsorted(keys, k_from), np.searchsorted(keys, k_to)]).astype(INDEX_DTYPE)
     lo = bounds[0] + cij * cell
     info.update(root_evaluations=int(root_evals), evaluations=int(nodes.evaluations + root_evals),

@@ -45,18 +45,27 @@ def hole_points(tr, pts: np.ndarray, segs: np.ndarray) -> np.ndarray:
     of the boundary cut by the segments, those on the right of the segments, each
     represented by the incentre of its triangle of largest inradius (the point farthest
     from the segments that this triangulation offers)."""
-    cdt = tr.triangulate({"vertices": pts, "segments": segs}, "pc")
-    if len(cdt["vertices"]) != len(pts):
+    # four frame points well outside, so that no boundary vertex is on the convex hull (flat
+    # slivers between nearly collinear vertices of a straight side would form regions of
+    # arbitrary orientation); the unbounded region, the frame's, needs no hole point
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    frame = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    frame += 0.5 * (hi - lo).max() * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+    allp = np.concatenate([pts, frame])
+    cdt = tr.triangulate({"vertices": allp, "segments": segs}, "p")
+    if len(cdt["vertices"]) != len(allp):
         raise WarpMeshError("triangle changed the boundary of a plain constrained triangulation "
                             "(crossing segments?)")
-    t = ccw(pts, cdt["triangles"])
-    out = np.flatnonzero(~classify(t, segs, len(pts)))
+    t = ccw(allp, cdt["triangles"])
+    lab_all = regions(t, segs, len(allp))
+    framed = np.isin(lab_all, lab_all[np.isin(t, np.arange(len(pts), len(allp))).any(axis=1)])
+    out = np.flatnonzero(~classify(t, segs, len(allp)) & ~framed)
     if len(out) == 0:
         return np.zeros((0, 2))
-    lab = regions(t, segs, len(pts))[out]
-    e = pts[t[out]]
+    lab = lab_all[out]
+    e = allp[t[out]]
     ln = np.linalg.norm(e[:, [1, 2, 0]] - e, axis=2)  # side j joins corners j and j + 1
-    rho = np.abs(signed_area2(pts, t[out])) / np.maximum(ln.sum(axis=1), _TINY)
+    rho = np.abs(signed_area2(allp, t[out])) / np.maximum(ln.sum(axis=1), _TINY)
     best = np.lexsort((-rho, lab))
     first = best[np.r_[0, np.flatnonzero(np.diff(lab[best])) + 1]]
     w = ln[first][:, [1, 2, 0]]  # weight of corner j: the side opposite it (j + 1 -> j + 2)

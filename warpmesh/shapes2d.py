@@ -105,9 +105,10 @@ def _gear(teeth: int = 12) -> Shape:
 
 
 def _plate() -> Shape:
-    """A rectangular plate with rounded corners and five holes of two sizes."""
+    """A rectangular plate with corners rounded to radius 0.1 and five holes of two sizes."""
     body = rectangle((2.4, 1.4))
-    corners = union(*[rectangle((0.2, 0.2), center=(sx * 1.1, sy * 0.6)) - circle(0.1, (sx * 1.0, sy * 0.5))
+    # corner pieces reach past the body, so no side of theirs lies on the body's sides
+    corners = union(*[rectangle((0.2, 0.2), center=(sx * 1.2, sy * 0.7)) - circle(0.1, (sx * 1.1, sy * 0.6))
                       for sx in (-1, 1) for sy in (-1, 1)])
     holes = union(circle(0.3), *[circle(0.12, (sx * 0.8, sy * 0.35)) for sx in (-1, 1) for sy in (-1, 1)])
     return body - corners - holes
