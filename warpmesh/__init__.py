@@ -19,7 +19,7 @@ from warpmesh.expr import Expr, abs, coords, cos, exp, log, max, min, sin, sqrt 
 from warpmesh.mesh import Mesh, load
 from warpmesh.merge import MergeError
 from warpmesh.numbering import renumber
-from warpmesh import coloring, graph, nodes, numbering, transforms  # noqa: E402,F401  (wm.coloring, wm.nodes, ...)
+from warpmesh import coloring, geometry, graph, nodes, numbering, transforms  # noqa: E402,F401  (wm.coloring, wm.nodes, ...)
 from warpmesh.nodes import to_order
 from warpmesh.orientation import orient, orient_faces
 from warpmesh.quality import quality_summary, tetra_quality, triangle_quality
