@@ -34,23 +34,27 @@ _METHODS = ("rfunction", "minmax", "smooth")
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
-def _vec3(value, name: str, *, positive: bool = False, fill: float | str | None = None) -> np.ndarray:
-    """3 floats from a number or 3 values; with a ``fill``, also from 2 values (a planar
-    shape's x, y) completed with it ("min": the smaller of the two, so a 2D scale stays
-    isotropic)."""
+def _vector(value, name: str, n: int, *, positive: bool = False, fill: float | str | None = None) -> np.ndarray:
+    """n floats from a number or n values; for n = 3 with a ``fill``, also from 2 values (a
+    planar shape's x, y) completed with it ("min": the smaller of the two, so a 2D scale
+    stays isotropic)."""
     arr = np.asarray(value, dtype=np.float64)
     if arr.ndim == 0:
-        arr = np.full(3, float(arr))
-    if arr.shape == (2,) and fill is not None:
+        arr = np.full(n, float(arr))
+    if n == 3 and arr.shape == (2,) and fill is not None:
         arr = np.append(arr, arr.min() if fill == "min" else float(fill))
-    if arr.shape != (3,):
-        n = "2 or 3" if fill is not None else "3"
-        raise ValueError(f"expected {n} values for '{name}', got shape {arr.shape}")
+    if arr.shape != (n,):
+        count = "2 or 3" if n == 3 and fill is not None else str(n)
+        raise ValueError(f"expected {count} values for '{name}', got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"expected finite values for '{name}', got {arr.tolist()}")
     if positive and np.any(arr <= 0):
         raise ValueError(f"expected positive values for '{name}', got {arr.tolist()}")
     return arr
+
+
+def _vec3(value, name: str, *, positive: bool = False, fill: float | str | None = None) -> np.ndarray:
+    return _vector(value, name, 3, positive=positive, fill=fill)
 
 
 def _positive(value, name: str) -> float:

@@ -22,22 +22,13 @@ import math
 import numpy as np
 
 from warpmesh import expr as E
-from warpmesh.shapes import Shape, _positive, union
+from warpmesh.shapes import Shape, _positive, _vector, union
 
 __all__ = ["circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "example2d", "EXAMPLES_2D"]
 
 
 def _vec2(value, name: str, *, positive: bool = False) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = np.full(2, float(arr))
-    if arr.shape != (2,):
-        raise ValueError(f"expected 2 values (x, y) for '{name}', got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"expected finite values for '{name}', got {arr.tolist()}")
-    if positive and np.any(arr <= 0):
-        raise ValueError(f"expected positive values for '{name}', got {arr.tolist()}")
-    return arr
+    return _vector(value, name, 2, positive=positive)
 
 
 def _placed(shape: Shape, center) -> Shape:
