@@ -281,6 +281,18 @@ def coords(dim: int = 3) -> tuple[Expr, ...]:
     return xyz[:dim]
 
 
+def last_uses(nodes: list["Expr"]) -> tuple[dict[int, int], np.ndarray]:
+    """For nodes in topological order (:meth:`Expr.nodes`): the position of each node
+    (keyed by ``id``) and, per position, the position of the last node reading it (its
+    own position when nothing reads it)."""
+    index = {id(n): i for i, n in enumerate(nodes)}
+    last = np.arange(len(nodes))
+    for i, n in enumerate(nodes):  # a loop over expression nodes, not points
+        for a in n.args:
+            last[index[id(a)]] = i
+    return index, last
+
+
 def depends_on(expr: "Expr", axis: int) -> bool:
     """Whether ``expr`` reads coordinate ``axis`` (0, 1, 2 for x, y, z)."""
     op = (O.X, O.Y, O.Z)[axis]

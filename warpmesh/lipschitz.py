@@ -47,7 +47,7 @@ import math
 import numpy as np
 
 from ._conventions import REAL_DTYPE
-from .expr import _NUMPY
+from .expr import _NUMPY, last_uses
 from .kernels import opcodes as O
 
 __all__ = ["lipschitz_bound", "gradient_enclosure", "check_box", "MAX_BOXES"]
@@ -396,11 +396,7 @@ def gradient_enclosure(shape, lo, hi):
     lo, hi = np.asarray(lo, REAL_DTYPE), np.asarray(hi, REAL_DTYPE)
     m, d = lo.shape
     nodes = root.nodes()
-    index = {id(n): i for i, n in enumerate(nodes)}
-    last = np.arange(len(nodes))
-    for i, n in enumerate(nodes):
-        for a in n.args:
-            last[index[id(a)]] = i
+    index, last = last_uses(nodes)
     keep_alive = set()  # the terms of norm patterns are read by their SQRT, not by the sum
     for n in nodes:
         if n.op == O.SQRT and _norm_terms(n.args[0]) is not None:

@@ -23,7 +23,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh.codegen import EVALUATORS, Evaluator, generated_kernel
-from warpmesh.expr import Expr
+from warpmesh.expr import Expr, last_uses
 from warpmesh.kernels import opcodes as O
 from warpmesh.kernels import tape as K
 
@@ -81,11 +81,7 @@ def compile_tape(shape) -> Tape:
 
     root: Expr = as_shape(shape).field if not isinstance(shape, Expr) else shape
     nodes = root.nodes()
-    index = {id(n): i for i, n in enumerate(nodes)}
-    last_use = np.arange(len(nodes))
-    for i, n in enumerate(nodes):
-        for a in n.args:
-            last_use[index[id(a)]] = i
+    index, last_use = last_uses(nodes)
     last_use[-1] = len(nodes)  # the output lives to the end
 
     reg_of: dict[int, int] = {}
