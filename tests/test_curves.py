@@ -100,6 +100,25 @@ def test_mesh_curve_bad_arguments():
         wm.mesh_curve(wm.sphere(0.5), box)
     with pytest.raises(ValueError, match="bounds"):
         wm.mesh_curve(circle, ((1, 1), (-1, -1)))
+    with pytest.raises(ValueError, match="bounds"):
+        wm.mesh_curve(circle, ((float("nan"), -1), (1, 1)))
+    with pytest.raises(TypeError):
+        wm.mesh_curve("circle", box)
+
+
+def test_mesh_domain_bad_arguments():
+    circle, box = wm.circle(0.5), ((-1, -1), (1, 1))
+    for size in (0, -0.1, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="size"):
+            wm.mesh_domain(circle, box, size=size)
+    with pytest.raises(ValueError, match="smoothing"):
+        wm.mesh_domain(circle, box, smoothing=3)
+    with pytest.raises(ValueError, match="method"):
+        wm.mesh_domain(circle, box, method="advancing-front")
+    with pytest.raises(ValueError, match="min_angle"):
+        wm.mesh_domain(circle, box, min_angle=40)
+    with pytest.raises(ValueError, match="curve"):
+        wm.mesh_domain(wm.circle(0.1, (5.0, 5.0)), box)  # no boundary in the box
 
 
 def test_no_curve_in_the_box_gives_an_empty_mesh():
