@@ -93,7 +93,7 @@ def mem_available() -> float | None:
 # =============================================================================================
 @wp.func
 def _sd_box(p: wp.vec3, h: wp.vec3):
-    # warpmesh.shapes.box: -(|max(q, 0)| + min(max(q), 0)), q = |p| - h
+    # warpmesh.frep.shapes.box: -(|max(q, 0)| + min(max(q), 0)), q = |p| - h
     q = wp.vec3(wp.abs(p[0]) - h[0], wp.abs(p[1]) - h[1], wp.abs(p[2]) - h[2])
     mx = wp.max(q[0], 0.0)
     my = wp.max(q[1], 0.0)

@@ -13,7 +13,7 @@ Cases (``--cases``, default all):
   ``skimage.measure.find_contours``, ``contourpy.contour_generator(...).lines(0)`` and
   pyvista ``ImageData.contour([0])`` (VTK). Checked: the number of closed curves (the gear
   has 7 boundary components) and the largest distance of an output vertex to the exact
-  curve (Newton projection, warpmesh.curve_field.PlanarField.distance).
+  curve (Newton projection, warpmesh.frep.planar_field.PlanarField.distance).
 - ``geometric``: the ellipse with semi-axes 1 and 0.1 at relative tolerance eps: vertices of
   the geometric mesh (warpmesh ``mesh_curve``) against the uniform polylines (equal edges)
   with the same largest chord deviation, absolute (the factor of issue 5's acceptance) and
@@ -63,7 +63,7 @@ def contour_tools(shape, bounds, n):
     import pyvista as pv
     from skimage import measure
 
-    from warpmesh.curves import sample_curve
+    from warpmesh.planar.curves import sample_curve
 
     (x0, y0), (x1, y1) = bounds
     xs, ys = np.linspace(x0, x1, n + 1), np.linspace(y0, y1, n + 1)
@@ -113,8 +113,8 @@ def _as_points_segments(result):
 
 def run_contour(args, doc):
     import warpmesh as wm
-    from warpmesh.curve_field import PlanarField
-    from warpmesh.polyline import components, weld
+    from warpmesh.frep.planar_field import PlanarField
+    from warpmesh.planar.polyline import components, weld
 
     shape, bounds = wm.example("gear")
     field = PlanarField(shape, bounds)
@@ -172,8 +172,8 @@ def uniform_vertices(pts, s, target):
 
 def run_geometric(args, doc):
     import warpmesh as wm
-    from warpmesh.curve_field import PlanarField
-    from warpmesh.curve_metric import chord_size
+    from warpmesh.frep.planar_field import PlanarField
+    from warpmesh.planar.metric import chord_size
 
     print("\n== geometric: ellipse 1 x 0.1, geometric mesh vs uniform polylines of the same chord error ==")
     print("   (uniform abs: equal edges, the same worst absolute deviation; uniform rel: worst deviation / h <= eps)")

@@ -17,9 +17,9 @@ Every tool gets the same two meshes and the same absolute tolerance ``--toleranc
 (default 1e-8; the exact answer merges every interface pair, at distance <= sqrt(3) x
 jitter, and nothing else, the grid spacing being ~1e-3):
 
-- ``warpmesh match_points``: ``warpmesh.merge.match_points(A.points, B.points, tol)``
+- ``warpmesh match_points``: ``warpmesh.modify.merge.match_points(A.points, B.points, tol)``
   (the pairs only);
-- ``warpmesh merge``: ``warpmesh.merge.merge(A, B, tol)``: pairs, the seed's numbering,
+- ``warpmesh merge``: ``warpmesh.modify.merge.merge(A, B, tol)``: pairs, the seed's numbering,
   cells, duplicates, the common edges/faces and the Euler check on the cells around the
   interface (the default ``check="interface"``), a new ``Mesh``;
 - ``warpmesh merge check=full``: the same with the Euler check counting every edge and face
@@ -64,7 +64,7 @@ if __name__ == "__main__":  # memory as the other benchmarks (README.md): freed 
 import numpy as np  # noqa: E402
 
 import warpmesh as wm  # noqa: E402
-from warpmesh.merge import match_points, merge  # noqa: E402
+from warpmesh.modify.merge import match_points, merge  # noqa: E402
 
 TOOLS = ("warpmesh match_points", "warpmesh merge", "warpmesh merge check=full", "warpmesh merge check=False",
          "trimesh", "pyvista")

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Surface optimization and simplification: warpmesh against its peers on the CPU.
 
-(1) Optimization (isotropic remeshing). For each shape (``wm.shapes.example`` "sphere",
+(1) Optimization (isotropic remeshing). For each shape (``wm.example`` "sphere",
 "degree6", "part") the marching-cubes mesh at ``--resolution`` (default 64, method "mc")
 is remeshed to a constant target edge length h = ``--size`` x the MC cell size
 (bounds extent / resolution), with surface tolerance ``--tolerance`` x h:
@@ -120,7 +120,7 @@ def mesh_measures(points, tris) -> dict:
     tris = np.asarray(tris, np.int64)
     n_edges, open_edges, nonmanifold = edge_counts(tris)
     used = len(np.unique(tris))
-    q = np.asarray(wm.quality.triangle_quality(points, tris), np.float64)
+    q = np.asarray(wm.triangle_quality(points, tris), np.float64)
     q = np.where(np.isfinite(q), q, np.inf)
     return {"np": int(len(points)), "unreferenced": int(len(points) - used), "ne": int(len(tris)),
             "mean_q": float(q.mean()), "worst_q": float(q.max()), "min_angle": float(min_angles_deg(points, tris).min()),
@@ -407,7 +407,7 @@ def _wm_mesh(p, t, mesh):
 # (1) optimization
 # =============================================================================================
 def optimize_case(args, name) -> dict:
-    shape, bounds = wm.shapes.example(name)
+    shape, bounds = wm.example(name)
     lo, hi = np.asarray(bounds[0], float), np.asarray(bounds[1], float)
     cell = float((hi - lo).max()) / args.resolution
     h, tol = args.size * cell, args.tolerance * args.size * cell
@@ -479,7 +479,7 @@ def load_frog(label: int):
 
 def simplify_case(args, name, frog=None) -> dict:
     if frog is None:
-        shape, bounds = wm.shapes.example(name)
+        shape, bounds = wm.example(name)
         lo, hi = np.asarray(bounds[0], float), np.asarray(bounds[1], float)
         cell = float((hi - lo).max()) / args.simplify_resolution
         t0 = time.perf_counter()

@@ -3,16 +3,16 @@
 
 Every mesh gets a random node permutation first (``--seed``, default 0), so the initial
 numbering is bad on purpose, as in the seed's tables. Then, on the symmetric node graph
-``warpmesh.graph.node_graph(mesh.cells, mesh.n_points)`` (build time measured):
+``warpmesh.numbering.graph.node_graph(mesh.cells, mesh.n_points)`` (build time measured):
 
 - ``scipy rcm``: ``scipy.sparse.csgraph.reverse_cuthill_mckee(graph, symmetric_mode=True)``
   (start node of minimal degree per component, already reversed);
-- ``warpmesh <method>``: ``warpmesh.numbering.renumber_graph(graph, method)`` for each of
-  ``warpmesh.numbering.METHODS`` (gibbs, rcm, frontal, frontal-diameter; default
+- ``warpmesh <method>``: ``warpmesh.numbering.renumber.renumber_graph(graph, method)`` for each of
+  ``warpmesh.numbering.renumber.METHODS`` (gibbs, rcm, frontal, frontal-diameter; default
   ``reverse="auto"``).
 
 Both get the same graph object; each returns ``order`` (old indices in new order). The
-statistics of every order come from one function, ``warpmesh.numbering.matrix_stats``
+statistics of every order come from one function, ``warpmesh.numbering.renumber.matrix_stats``
 (bandwidth β, profile pr, mean profile pr / np; Table 17.1). Times: one untimed round
 first (for warpmesh a full ``mesh.renumber(method)``: loads the Warp kernels and
 cross-checks its ``info`` against the figures here), then ``--repeat`` rounds, one call per
@@ -76,8 +76,8 @@ wp.config.log_level = wp.LOG_WARNING
 from scipy.sparse.csgraph import reverse_cuthill_mckee  # noqa: E402
 
 import warpmesh as wm  # noqa: E402
-from warpmesh.graph import node_graph  # noqa: E402
-from warpmesh.numbering import METHODS, format_table, matrix_stats, renumber_graph  # noqa: E402
+from warpmesh.numbering.graph import node_graph  # noqa: E402
+from warpmesh.numbering.renumber import METHODS, format_table, matrix_stats, renumber_graph  # noqa: E402
 
 import _meshes  # noqa: E402
 

@@ -69,13 +69,13 @@ wp.config.log_level = wp.LOG_WARNING  # no init banner / module-load lines in th
 import warp.geometry as wpg  # noqa: E402
 
 import warpmesh as wm  # noqa: E402
-from warpmesh.tape import eval_values, tape_of  # noqa: E402
-from warpmesh.volume import SLAB_VOXELS  # noqa: E402
+from warpmesh.frep.tape import eval_values, tape_of  # noqa: E402
+from warpmesh.surface.volume import SLAB_VOXELS  # noqa: E402
 
 try:
     mesh_surface = wm.mesh_surface
 except AttributeError:  # not yet re-exported at the top level
-    from warpmesh.surface import mesh_surface
+    from warpmesh.surface.pipeline import mesh_surface
 
 import mcubes  # noqa: E402
 import pyvista as pv  # noqa: E402

@@ -41,7 +41,7 @@ vec8d = wp.types.vector(length=8, dtype=wp.float64)
 
 @wp.struct
 class Tables:
-    """A method's tables on one device (see ``warpmesh.block_grid.method_tables``)."""
+    """A method's tables on one device (see ``warpmesh.surface.block_grid.method_tables``)."""
 
     corners: wp.array2d(dtype=wp.int32)  # (8, 3) corner offsets
     type_delta: wp.array2d(dtype=wp.int32)  # (8, 3) TYPE_DELTA

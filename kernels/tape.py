@@ -8,12 +8,12 @@ plain array arithmetic. Registers live in a flat scratch array laid out
 
 The segment kernels (``eval_segments_kernel``, ``interval_segments_kernel``) run a
 different tape per thread: each thread takes one segment of at most ``batch`` items that
-share a pruned tape from a pool (:mod:`warpmesh.prune`), and the interval one records
+share a pruned tape from a pool (:mod:`warpmesh.frep.prune`), and the interval one records
 which MIN/MAX/MINC/MAXC its boxes decide. Both families share the per-instruction
 helpers ``value_step`` and ``interval_step``.
 
 Opcodes are defined in :mod:`warpmesh.kernels.opcodes`; the numpy semantics of each are
-in :mod:`warpmesh.expr` (the test oracle). COPY (dst = a) appears only in pruned tapes.
+in :mod:`warpmesh.frep.expr` (the test oracle). COPY (dst = a) appears only in pruned tapes.
 """
 
 import warp as wp

@@ -1,4 +1,4 @@
-"""Shared fixtures: ``check_mesh`` (see ``meshcheck.py``) and ``device``.
+"""Shared fixtures: ``check_mesh`` (see ``tests/helpers/meshcheck.py``) and ``device``.
 
 ``device`` runs a test on "cpu" and, when Warp reports a CUDA device, on "cuda" too.
 Warp is imported only when a collected test asks for ``device``.
@@ -7,16 +7,10 @@ Warp is imported only when a collected test asks for ``device``.
 from __future__ import annotations
 
 import functools
-import sys
-from pathlib import Path
 
 import pytest
 
-sys.path.insert(
-    0, str(Path(__file__).parent)
-)  # so `from meshcheck import check_mesh` works anywhere
-
-from meshcheck import check_mesh as _check_mesh  # noqa: E402
+from tests.helpers.meshcheck import check_mesh as _check_mesh
 
 
 @functools.cache

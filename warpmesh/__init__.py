@@ -1,5 +1,23 @@
 """warpmesh: meshes from implicit geometry (F-Rep trees, sampled volumes) with Warp kernels.
 
+It follows chapters 16 and 17 of Frey & George, *Mesh Generation* (cited as [FG §16.4]).
+
+The public face is this module's ``__all__`` plus the subpackages, one per stage of the
+pipeline (see ``docs/architecture.md``):
+
+``frep``       expressions, shapes, examples, the tape and its evaluators, differential geometry
+``surface``    surface meshes of shapes and sampled volumes (grid, continuation, adaptive octree)
+``planar``     implicit curves and planar domains
+``optimize``   surface optimisation and simplification
+``modify``     transforms, refinement, cell-type conversion, merge, periodic meshes, cracks
+``numbering``  renumbering, colouring, node graphs, higher-order nodes
+``cells``      the cell vocabulary: types, reference cells, topology, quality, validity checks
+``io``         conversions (meshio, trimesh, pyvista) and files
+``cli``        the ``warpmesh`` command line
+``kernels``    the Warp device code
+
+plus the modules ``mesh`` (the :class:`Mesh` type) and ``errors``.
+
 Example
 -------
 >>> import warpmesh as wm
@@ -14,35 +32,78 @@ import warp as _wp
 if _wp.config.log_level < _wp.LOG_WARNING:  # Warp's banner and module-load lines would drown the results
     _wp.config.log_level = _wp.LOG_WARNING
 
-from warpmesh.errors import ReadError, TopologyError, WarpMeshError
-from warpmesh.expr import Expr, abs, coords, cos, exp, log, max, min, sin, sqrt  # noqa: A004
-from warpmesh.mesh import Mesh, load
-from warpmesh.merge import MergeError
-from warpmesh.numbering import renumber
-from warpmesh import coloring, geometry, graph, nodes, numbering, transforms  # noqa: E402,F401  (wm.coloring, wm.nodes, ...)
-from warpmesh.nodes import to_order
-from warpmesh.orientation import orient, orient_faces
-from warpmesh.quality import quality_summary, tetra_quality, triangle_quality
-from warpmesh.shapes import (EXAMPLES, Shape, box, capsule, complement, cone, cylinder, difference,
-                             ellipsoid, example, halfspace, intersection, sphere, superquadric,
-                             supertorus, torus, union)
-from warpmesh.shapes2d import EXAMPLES_2D, cassini, circle, ellipse, halfplane, rectangle, regular_polygon
-from warpmesh.surface import mesh_surface
-from warpmesh.curves import mesh_curve, mesh_domain
-from warpmesh.remesh import optimize, simplify
-from warpmesh.projection import VolumeField, surface_error
-from warpmesh.tape import Tape, compile_tape, evaluate, evaluate_interval
+from warpmesh.errors import MergeError as MergeError
+from warpmesh.errors import ReadError as ReadError
+from warpmesh.errors import TopologyError as TopologyError
+from warpmesh.errors import WarpMeshError as WarpMeshError
+from warpmesh.frep import geometry as geometry
+from warpmesh.modify import transforms as transforms
+from warpmesh.frep.expr import Expr as Expr
+from warpmesh.frep.expr import abs as abs  # noqa: A004  (reachable as wm.abs, kept out of __all__)
+from warpmesh.frep.expr import coords as coords
+from warpmesh.frep.expr import cos as cos
+from warpmesh.frep.expr import exp as exp
+from warpmesh.frep.expr import log as log
+from warpmesh.frep.expr import max as max  # noqa: A004
+from warpmesh.frep.expr import min as min  # noqa: A004
+from warpmesh.frep.expr import sin as sin
+from warpmesh.frep.expr import sqrt as sqrt
+from warpmesh.frep.projection import VolumeField as VolumeField
+from warpmesh.frep.projection import surface_error as surface_error
+from warpmesh.frep.shapes import EXAMPLES as EXAMPLES
+from warpmesh.frep.shapes import Shape as Shape
+from warpmesh.frep.shapes import box as box
+from warpmesh.frep.shapes import capsule as capsule
+from warpmesh.frep.shapes import complement as complement
+from warpmesh.frep.shapes import cone as cone
+from warpmesh.frep.shapes import cylinder as cylinder
+from warpmesh.frep.shapes import difference as difference
+from warpmesh.frep.shapes import ellipsoid as ellipsoid
+from warpmesh.frep.shapes import example as example
+from warpmesh.frep.shapes import halfspace as halfspace
+from warpmesh.frep.shapes import intersection as intersection
+from warpmesh.frep.shapes import sphere as sphere
+from warpmesh.frep.shapes import superquadric as superquadric
+from warpmesh.frep.shapes import supertorus as supertorus
+from warpmesh.frep.shapes import torus as torus
+from warpmesh.frep.shapes import union as union
+from warpmesh.frep.shapes2d import EXAMPLES_2D as EXAMPLES_2D
+from warpmesh.frep.shapes2d import cassini as cassini
+from warpmesh.frep.shapes2d import circle as circle
+from warpmesh.frep.shapes2d import ellipse as ellipse
+from warpmesh.frep.shapes2d import halfplane as halfplane
+from warpmesh.frep.shapes2d import rectangle as rectangle
+from warpmesh.frep.shapes2d import regular_polygon as regular_polygon
+from warpmesh.frep.tape import Tape as Tape
+from warpmesh.frep.tape import compile_tape as compile_tape
+from warpmesh.frep.tape import evaluate as evaluate
+from warpmesh.frep.tape import evaluate_interval as evaluate_interval
+from warpmesh.cells.quality import quality_summary as quality_summary
+from warpmesh.cells.quality import tetra_quality as tetra_quality
+from warpmesh.cells.quality import triangle_quality as triangle_quality
+from warpmesh.mesh import Mesh as Mesh
+from warpmesh.mesh import load as load
+from warpmesh.numbering.high_order import to_order as to_order
+from warpmesh.numbering.renumber import renumber as renumber
+from warpmesh.optimize.remesh import optimize as optimize
+from warpmesh.optimize.remesh import simplify as simplify
+from warpmesh.planar.curves import mesh_curve as mesh_curve
+from warpmesh.planar.curves import mesh_domain as mesh_domain
+from warpmesh.surface.orientation import orient as orient
+from warpmesh.surface.orientation import orient_faces as orient_faces
+from warpmesh.surface.pipeline import mesh_surface as mesh_surface
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Mesh", "load", "to_order", "renumber", "mesh_surface", "mesh_curve", "mesh_domain", "optimize", "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
+    "Mesh", "load", "to_order", "renumber", "mesh_surface", "mesh_curve", "mesh_domain", "optimize",
+    "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
     "triangle_quality", "tetra_quality", "quality_summary",
-    "Shape", "Expr", "coords", "sqrt", "abs", "min", "max", "sin", "cos", "exp", "log",
+    "Shape", "Expr", "coords", "sqrt", "sin", "cos", "exp", "log",
     "sphere", "box", "cylinder", "cone", "torus", "ellipsoid", "halfspace", "capsule",
     "superquadric", "supertorus", "union", "intersection", "difference", "complement",
     "example", "EXAMPLES",
     "circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "cassini", "EXAMPLES_2D",
-    "Tape", "compile_tape", "evaluate", "evaluate_interval",
+    "Tape", "compile_tape", "evaluate", "evaluate_interval", "geometry", "transforms",
     "WarpMeshError", "ReadError", "TopologyError", "MergeError",
 ]

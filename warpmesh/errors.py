@@ -13,7 +13,7 @@ True
 
 from __future__ import annotations
 
-__all__ = ["WarpMeshError", "ReadError", "TopologyError"]
+__all__ = ["WarpMeshError", "ReadError", "TopologyError", "MergeError"]
 
 
 class WarpMeshError(Exception):
@@ -26,3 +26,7 @@ class ReadError(WarpMeshError, ValueError):
 
 class TopologyError(WarpMeshError):
     """A mesh does not have the topology an operation needs (e.g. it is not manifold)."""
+
+
+class MergeError(WarpMeshError):
+    """The merged mesh fails the Euler check: the interfaces do not match."""

@@ -15,7 +15,7 @@ Layout
     pyvista and trimesh objects, and as ``"gmsh:physical"`` in gmsh files. Refs that
     are all zero are read back as "no refs" (medit and gmsh always store one).
 
-Conversions live in :mod:`warpmesh.convert` and files in :mod:`warpmesh.io` (with the
+Conversions live in :mod:`warpmesh.io.convert` and files in :mod:`warpmesh.io.files` (with the
 table of what each format keeps); the methods below delegate to them.
 
 Examples
@@ -40,13 +40,13 @@ from typing import Literal
 import meshio
 import numpy as np
 
-from . import convert as _convert
-from . import io as _io
-from . import topology as _topo
-from ._conventions import INDEX_DTYPE, REAL_DTYPE
-from .convert import CELL_TYPES, REF_KEY
-from .io import FILE_FORMATS, FileFormat, load
-from .quality import quality_summary, tetra_quality, triangle_quality
+from warpmesh.io import convert as _convert
+from warpmesh.io import files as _io
+from warpmesh.cells import topology as _topo
+from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh.io.convert import CELL_TYPES, REF_KEY
+from warpmesh.io.files import FILE_FORMATS, FileFormat, load
+from warpmesh.cells.quality import quality_summary, tetra_quality, triangle_quality
 
 __all__ = ["Mesh", "load", "CELL_TYPES", "FILE_FORMATS", "REF_KEY"]
 
@@ -337,12 +337,12 @@ class Mesh:
             if s["watertight"] and self.dim == 3:
                 s["volume"] = _topo.signed_volume(self._points, tri)
         if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
-            from .polyline import components
+            from warpmesh.planar.polyline import components
 
             s["components"] = components(self._cells["line"], self.n_points)[0]
         solids = [t for t in ("tetra", "hexahedron", "wedge", "pyramid") if t in self._cells]
         if solids and self.dim == 3:  # signed, exact for the multilinear cells
-            from .reference_cells import cell_measures
+            from warpmesh.cells.reference import cell_measures
 
             s["volume"] = float(sum(cell_measures(self._points, self._cells[t], t).sum() for t in solids))
         q = (
@@ -402,33 +402,33 @@ class Mesh:
         return triangle_quality(self._points, self._cells["triangle"])
 
     def optimize(self, shape=None, **options) -> Mesh:
-        """A new mesh optimised on the exact surface: :func:`warpmesh.remesh.optimize`."""
-        from .remesh import optimize
+        """A new mesh optimised on the exact surface: :func:`warpmesh.optimize.remesh.optimize`."""
+        from warpmesh.optimize.remesh import optimize
 
         return optimize(self, shape, **options)
 
     def simplify(self, shape=None, **options) -> Mesh:
-        """A new, decimated mesh within a tolerance: :func:`warpmesh.remesh.simplify`."""
-        from .remesh import simplify
+        """A new, decimated mesh within a tolerance: :func:`warpmesh.optimize.remesh.simplify`."""
+        from warpmesh.optimize.remesh import simplify
 
         return simplify(self, shape, **options)
 
     def to_order(self, order: int, shape=None, **options) -> Mesh:
-        """The order-k Lagrange mesh of this P1 mesh (seed §17.3): :func:`warpmesh.nodes.to_order`.
+        """The order-k Lagrange mesh of this P1 mesh (seed §17.3): :func:`warpmesh.numbering.high_order.to_order`.
 
         Examples
         --------
         >>> Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_order(3).cells["triangle10"].shape
         (1, 10)
         """
-        from .nodes import _to_order
+        from warpmesh.numbering.high_order import _to_order
 
         return _to_order(self, order, shape, stacklevel=3, **options)  # warnings name the caller
 
     # ---------------------------------------------------------------- numbering
     def renumber(self, method: str = "gibbs", **options) -> Mesh:
         """A copy with nodes and elements renumbered (seed §17.4):
-        :func:`warpmesh.numbering.renumber`; ``stats()`` then include ``bandwidth`` and
+        :func:`warpmesh.numbering.renumber.renumber`; ``stats()`` then include ``bandwidth`` and
         ``profile`` (and their ``_before`` values).
 
         Examples
@@ -437,13 +437,13 @@ class Mesh:
         >>> m.renumber("rcm").stats()["bandwidth"]
         2
         """
-        from .numbering import renumber
+        from warpmesh.numbering.renumber import renumber
 
         return renumber(self, method, **options)
 
     def color_elements(self, **options) -> Mesh:
         """A copy with elements in packets of one colour each (seed §17.4.4):
-        :func:`warpmesh.coloring.color_mesh`; ``cell_data["color"]``, ``stats()["n_colors"]``.
+        :func:`warpmesh.numbering.coloring.color_mesh`; ``cell_data["color"]``, ``stats()["n_colors"]``.
 
         Examples
         --------
@@ -451,14 +451,14 @@ class Mesh:
         >>> m.color_elements().cell_data["color"]["triangle"].tolist()
         [0, 1]
         """
-        from .coloring import color_mesh
+        from warpmesh.numbering.coloring import color_mesh
 
         return color_mesh(self, **options)
 
     # ---------------------------------------------------------------- modifications (seed ch. 17)
     def transform(self, matrix, **options) -> Mesh:
         """The mesh mapped by a homogeneous matrix (seed §17.1.1):
-        :func:`warpmesh.transforms.transform`; build matrices with ``wm.transforms``.
+        :func:`warpmesh.modify.transforms.transform`; build matrices with ``wm.transforms``.
 
         Examples
         --------
@@ -467,16 +467,16 @@ class Mesh:
         >>> m.transform(wm.transforms.symmetry((1, 0, 0))).cells["triangle"].tolist()
         [[0, 2, 1]]
         """
-        from .transforms import transform
+        from warpmesh.modify.transforms import transform
 
         return transform(self, matrix, **options)
 
     def refine(self, n: int | None = None, shape=None, *, where=None, max_length=None,
                **options) -> Mesh:
         """A refined mesh (seed §17.1.2): every element split into n^d
-        (:func:`warpmesh.refine.refine_uniform`), or, with ``where`` (vertices or an element
+        (:func:`warpmesh.modify.refine_uniform.refine_uniform`), or, with ``where`` (vertices or an element
         mask) or ``max_length`` (a size or a size function), longest-edge bisection of the
-        elements concerned, kept conforming (:func:`warpmesh.bisection.refine_local`).
+        elements concerned, kept conforming (:func:`warpmesh.modify.refine_local.refine_local`).
         With ``shape``, new boundary nodes are projected onto f = 0 (Remark 17.3).
 
         Examples
@@ -489,16 +489,16 @@ class Mesh:
             if n is not None:
                 raise ValueError("expected either n (uniform refinement) or where/max_length (local "
                                  f"refinement), got n={n!r} and a local criterion")
-            from .bisection import refine_local
+            from warpmesh.modify.refine_local import refine_local
 
             return refine_local(self, where=where, max_length=max_length, shape=shape, **options)
-        from .refine import refine_uniform
+        from warpmesh.modify.refine_uniform import refine_uniform
 
         return refine_uniform(self, 2 if n is None else n, shape, **options)
 
     def convert(self, target: str, **options) -> Mesh:
         """The mesh with its elements split into another type (seed §17.1.3):
-        :func:`warpmesh.type_conversion.convert_cells`.
+        :func:`warpmesh.modify.convert_cells.convert_cells`.
 
         Examples
         --------
@@ -506,13 +506,13 @@ class Mesh:
         >>> m.convert("triangle").cells["triangle"].shape
         (2, 3)
         """
-        from .type_conversion import convert_cells
+        from warpmesh.modify.convert_cells import convert_cells
 
         return convert_cells(self, target, **options)
 
     def merge(self, other: Mesh, tolerance: float | None = None, **options) -> Mesh:
         """This mesh and ``other`` merged along their common vertices, edges and faces
-        (seed §17.2): :func:`warpmesh.merge.merge`.
+        (seed §17.2): :func:`warpmesh.modify.merge.merge`.
 
         Examples
         --------
@@ -521,12 +521,12 @@ class Mesh:
         >>> a.merge(b).n_points
         4
         """
-        from .merge import merge
+        from warpmesh.modify.merge import merge
 
         return merge(self, other, tolerance, **options)
 
     def crack(self, facets=None, **options) -> Mesh:
-        """The mesh cut open along interior facets (seed §17.5): :func:`warpmesh.crack.crack`
+        """The mesh cut open along interior facets (seed §17.5): :func:`warpmesh.modify.crack.crack`
         (``facets`` (k, 2|3|4) vertex indices, or ``ref=R`` for the facet cells with that ref;
         ``side_refs=(r1, r2)`` tags the two lips; ``info["crack_pairs"]`` lists the copies).
 
@@ -536,13 +536,13 @@ class Mesh:
         >>> m.crack([[0, 2]]).n_points  # the crack crosses the square: both ends split
         6
         """
-        from .crack import crack
+        from warpmesh.modify.crack import crack
 
         return crack(self, facets, **options)
 
     def periodic(self, matrix, copies: int, **options) -> Mesh:
         """A periodic mesh: this pattern and ``copies - 1`` images by ``matrix``, merged
-        (seed §17.5): :func:`warpmesh.periodic.periodic`.
+        (seed §17.5): :func:`warpmesh.modify.periodic.periodic`.
 
         Examples
         --------
@@ -551,13 +551,13 @@ class Mesh:
         >>> m.periodic(wm.transforms.translation((1, 0)), 3).n_points
         8
         """
-        from .periodic import periodic
+        from warpmesh.modify.periodic import periodic
 
         return periodic(self, matrix, copies, **options)
 
     # ---------------------------------------------------------------- meshio
     def to_meshio(self) -> meshio.Mesh:
-        """Convert to ``meshio.Mesh``, refs as ``"medit:ref"`` (:func:`warpmesh.convert.to_meshio`).
+        """Convert to ``meshio.Mesh``, refs as ``"medit:ref"`` (:func:`warpmesh.io.convert.to_meshio`).
 
         Examples
         --------
@@ -568,7 +568,7 @@ class Mesh:
 
     @classmethod
     def from_meshio(cls, m: meshio.Mesh, *, dim: Literal[2, 3] | None = None, info=None) -> Mesh:
-        """Convert from ``meshio.Mesh`` (:func:`warpmesh.convert.from_meshio`).
+        """Convert from ``meshio.Mesh`` (:func:`warpmesh.io.convert.from_meshio`).
 
         Examples
         --------
@@ -581,7 +581,7 @@ class Mesh:
 
     # ---------------------------------------------------------------- trimesh
     def to_trimesh(self):
-        """Convert the triangle block to ``trimesh.Trimesh`` (:func:`warpmesh.convert.to_trimesh`).
+        """Convert the triangle block to ``trimesh.Trimesh`` (:func:`warpmesh.io.convert.to_trimesh`).
 
         Examples
         --------
@@ -592,7 +592,7 @@ class Mesh:
 
     @classmethod
     def from_trimesh(cls, tm, *, info=None) -> Mesh:
-        """Convert from ``trimesh.Trimesh`` (:func:`warpmesh.convert.from_trimesh`).
+        """Convert from ``trimesh.Trimesh`` (:func:`warpmesh.io.convert.from_trimesh`).
 
         Examples
         --------
@@ -604,7 +604,7 @@ class Mesh:
 
     # ---------------------------------------------------------------- pyvista
     def to_pyvista(self):
-        """Convert to a pyvista PolyData or UnstructuredGrid (:func:`warpmesh.convert.to_pyvista`).
+        """Convert to a pyvista PolyData or UnstructuredGrid (:func:`warpmesh.io.convert.to_pyvista`).
 
         Examples
         --------
@@ -617,7 +617,7 @@ class Mesh:
     def from_pyvista(
         cls, obj, *, triangulate: bool = False, dim: Literal[2, 3] | None = None, info=None
     ) -> Mesh:
-        """Convert from any ``pyvista.DataSet`` (:func:`warpmesh.convert.from_pyvista`).
+        """Convert from any ``pyvista.DataSet`` (:func:`warpmesh.io.convert.from_pyvista`).
 
         Examples
         --------
@@ -631,7 +631,7 @@ class Mesh:
     def save(self, path, *, file_format: FileFormat | None = None) -> Path:
         """Write the mesh through meshio, atomically, and return ``path``.
 
-        See :func:`warpmesh.io.save` for the parameters and what each format keeps.
+        See :func:`warpmesh.io.files.save` for the parameters and what each format keeps.
 
         Examples
         --------
@@ -647,5 +647,5 @@ class Mesh:
     def load(
         cls, path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | None = None
     ) -> Mesh:
-        """Read a mesh file (:func:`warpmesh.io.load`)."""
+        """Read a mesh file (:func:`warpmesh.io.files.load`)."""
         return _io.load(path, file_format=file_format, dim=dim)

@@ -1,0 +1,1 @@
+"""Oracles and checkers shared by the tests: written independently of the code they check."""

@@ -1,0 +1,1 @@
+"""The cell vocabulary: types, reference cells, topology, quality and validity checks (the bottom layer)."""

@@ -1,0 +1,262 @@
+"""Element shape quality, the measure of seed eq. 16.15.
+
+``Q_K = alpha * h_max / rho_K``: ``h_max`` is the element diameter (its longest edge),
+``rho_K`` the radius of the inscribed circle or sphere, and ``alpha`` normalises the
+regular element to exactly 1. Larger is worse; a degenerate element (zero area or
+volume, up to ``REL_TOL * h_max**d``) scores ``inf``.
+
+=========  ======================================  ===========================
+element    rho_K                                   alpha
+=========  ======================================  ===========================
+triangle   2 * area / perimeter                    ``ALPHA_TRIANGLE`` = sqrt(3)/6
+tetra      3 * volume / (sum of the 4 face areas)  ``ALPHA_TETRA`` = sqrt(6)/12
+=========  ======================================  ===========================
+
+Examples
+--------
+>>> import numpy as np
+>>> from warpmesh.cells.quality import triangle_quality
+>>> triangle_quality([[0, 0], [1, 0], [0.5, np.sqrt(3) / 2]], [[0, 1, 2]]).round(12).tolist()
+[1.0]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from warpmesh._conventions import ALPHA_TETRA, ALPHA_TRIANGLE, INDEX_DTYPE, REAL_DTYPE, REL_TOL
+from warpmesh.cells.topology import face_areas
+
+__all__ = ["ALPHA_TETRA", "triangle_quality", "tetra_quality", "quality_summary", "triangle_angles",
+           "edge_length_ratio", "quality_table", "quality_histogram", "format_table"]
+
+_TET_EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
+_TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+
+
+def _validate(points, cells, k: int, dims: tuple[int, ...], name: str):
+    pts = np.asarray(points, dtype=REAL_DTYPE)
+    if pts.ndim != 2 or pts.shape[1] not in dims:
+        want = " or ".join(f"(n, {d})" for d in dims)
+        raise ValueError(f"expected 'points' of shape {want}, got shape {pts.shape}")
+    arr = np.asarray(cells)
+    if arr.size == 0:
+        return pts, np.zeros((0, k), dtype=INDEX_DTYPE)
+    if not np.issubdtype(arr.dtype, np.integer):
+        raise TypeError(f"expected an integer array for '{name}', got dtype {arr.dtype}")
+    if arr.ndim != 2 or arr.shape[1] != k:
+        raise ValueError(f"expected '{name}' of shape (m, {k}), got shape {arr.shape}")
+    if arr.min() < 0 or arr.max() >= len(pts):
+        raise ValueError(
+            f"expected indices in [0, {len(pts)}) in '{name}', got [{arr.min()}, {arr.max()}]"
+        )
+    return pts, arr.astype(INDEX_DTYPE, copy=False)
+
+
+def _ratio(alpha: float, h_max: np.ndarray, rho: np.ndarray, degenerate: np.ndarray) -> np.ndarray:
+    q = np.full(len(h_max), np.inf)
+    ok = ~degenerate
+    q[ok] = alpha * h_max[ok] / rho[ok]
+    return q
+
+
+def triangle_quality(points, triangles) -> np.ndarray:
+    """Shape measure ``Q_K`` of triangles in 2D or 3D.
+
+    Parameters
+    ----------
+    points : (n, 2) or (n, 3) float
+    triangles : (m, 3) int
+
+    Returns
+    -------
+    (m,) float64
+        1 for an equilateral triangle, larger is worse, ``inf`` when degenerate.
+
+    Examples
+    --------
+    >>> q = triangle_quality([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]])  # right isosceles
+    >>> bool(np.isclose(q[0], (1 + np.sqrt(2)) / np.sqrt(3)))
+    True
+    """
+    pts, tri = _validate(points, triangles, 3, (2, 3), "triangles")
+    p = pts[tri]
+    lengths = np.stack(
+        [np.linalg.norm(p[:, (j + 1) % 3] - p[:, j], axis=1) for j in range(3)], axis=1
+    )
+    h_max = lengths.max(axis=1) if len(tri) else np.zeros(0)
+    area = face_areas(pts, tri)
+    rho = 2.0 * area / np.maximum(lengths.sum(axis=1), np.finfo(REAL_DTYPE).tiny)
+    return _ratio(ALPHA_TRIANGLE, h_max, rho, area <= REL_TOL * h_max**2)
+
+
+def tetra_quality(points, tetra) -> np.ndarray:
+    """Shape measure ``Q_K`` of tetrahedra.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    tetra : (m, 4) int
+
+    Returns
+    -------
+    (m,) float64
+        1 for a regular tetrahedron, larger is worse, ``inf`` when degenerate. The
+        orientation (sign of the volume) is ignored.
+
+    Examples
+    --------
+    >>> pts = [[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]]
+    >>> tetra_quality(pts, [[0, 1, 2, 3]]).round(12).tolist()
+    [1.0]
+    """
+    pts, tet = _validate(points, tetra, 4, (3,), "tetra")
+    p = pts[tet]
+    edges = p[:, _TET_EDGES[:, 1]] - p[:, _TET_EDGES[:, 0]]
+    h_max = np.linalg.norm(edges, axis=2).max(axis=1) if len(tet) else np.zeros(0)
+    volume = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
+    faces = tet[:, _TET_FACES].reshape(-1, 3)
+    total_area = face_areas(pts, faces).reshape(-1, 4).sum(axis=1)
+    rho = 3.0 * volume / np.maximum(total_area, np.finfo(REAL_DTYPE).tiny)
+    return _ratio(ALPHA_TETRA, h_max, rho, volume <= REL_TOL * h_max**3)
+
+
+def quality_summary(points, cells) -> dict:
+    """Quality figures of a triangle or tetrahedron mesh, as in Table 16.1 of the seed.
+
+    Parameters
+    ----------
+    points : (n, 2) or (n, 3) float
+    cells : (m, 3) int triangles, (m, 4) int tetrahedra, or a mapping with a
+        ``"tetra"`` or ``"triangle"`` block (tetrahedra are used when present).
+
+    Returns
+    -------
+    dict
+        ``n_elements``; ``mean_q`` (mean over non-degenerate elements), ``worst_q``
+        (max, ``inf`` if any element is degenerate), ``best_q`` (min), ``n_degenerate``.
+        With no elements the three Q figures are NaN.
+
+    Examples
+    --------
+    >>> s = quality_summary([[0, 0], [1, 0], [0.5, np.sqrt(3) / 2]], [[0, 1, 2]])
+    >>> s["n_elements"], round(s["worst_q"], 12)
+    (1, 1.0)
+    """
+    if isinstance(cells, Mapping):
+        name = "tetra" if "tetra" in cells else "triangle"
+        if name not in cells:
+            raise ValueError(
+                f"expected a 'triangle' or 'tetra' block in 'cells', got {sorted(cells)}"
+            )
+        cells = cells[name]
+    k = np.shape(cells)[1] if np.ndim(cells) == 2 else 0
+    if k not in (3, 4):
+        raise ValueError(f"expected 'cells' of shape (m, 3) or (m, 4), got shape {np.shape(cells)}")
+    q = triangle_quality(points, cells) if k == 3 else tetra_quality(points, cells)
+    finite = q[np.isfinite(q)]
+    empty = len(q) == 0
+    return {
+        "n_elements": int(len(q)),
+        "mean_q": float("nan") if empty else float(finite.mean()) if len(finite) else float("inf"),
+        "worst_q": float("nan") if empty else float(q.max()),
+        "best_q": float("nan") if empty else float(q.min()),
+        "n_degenerate": int(len(q) - len(finite)),
+    }
+
+
+def triangle_angles(points, triangles) -> np.ndarray:
+    """(m, 3) interior angles in degrees, at each corner of each triangle.
+
+    Examples
+    --------
+    >>> triangle_angles([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]]).round(6).tolist()
+    [[90.0, 45.0, 45.0]]
+    """
+    pts, tri = _validate(points, triangles, 3, (2, 3), "triangles")
+    p = pts[tri]
+    out = np.empty((len(tri), 3))
+    for j in range(3):
+        u = p[:, (j + 1) % 3] - p[:, j]
+        v = p[:, (j + 2) % 3] - p[:, j]
+        cos = np.einsum("ij,ij->i", u, v) / np.maximum(
+            np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1), np.finfo(REAL_DTYPE).tiny)
+        out[:, j] = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return out
+
+
+def edge_length_ratio(points, triangles) -> np.ndarray:
+    """(m,) longest over shortest edge of each triangle (1 for an equilateral one, inf if an edge is 0)."""
+    pts, tri = _validate(points, triangles, 3, (2, 3), "triangles")
+    p = pts[tri]
+    lens = np.stack([np.linalg.norm(p[:, (j + 1) % 3] - p[:, j], axis=1) for j in range(3)], axis=1)
+    with np.errstate(divide="ignore"):
+        return np.where(lens.min(1) > 0, lens.max(1) / np.where(lens.min(1) > 0, lens.min(1), 1.0), np.inf)
+
+
+#: the bins of :func:`quality_histogram` (Q_K), open at the top
+Q_BINS = (1.0, 1.1, 1.25, 1.5, 2.0, 3.0, 5.0, 10.0, 100.0, np.inf)
+
+
+def quality_histogram(points, triangles, bins=Q_BINS) -> dict:
+    """Counts of triangles per Q_K bin: ``{"1-1.1": k, ...}`` (degenerate ones in the last bin)."""
+    q = triangle_quality(points, triangles)
+    counts, _ = np.histogram(np.minimum(q, np.finfo(REAL_DTYPE).max), bins=np.asarray(bins, float))
+    label = lambda lo, hi: f"{lo:g}-{hi:g}" if np.isfinite(hi) else f">{lo:g}"  # noqa: E731
+    return {label(lo, hi): int(c) for lo, hi, c in zip(bins[:-1], bins[1:], counts)}
+
+
+def quality_table(points, triangles) -> dict:
+    """One row of a Table 16.1-style statistics table of a triangle mesh.
+
+    Returns
+    -------
+    dict
+        ``np`` (vertices used), ``ne``, ``q_mean``, ``q_worst``, ``angle_min``,
+        ``angle_max`` (degrees), ``edge_ratio_max``, ``histogram``.
+
+    Examples
+    --------
+    >>> row = quality_table([[0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0]], [[0, 1, 2]])
+    >>> row["np"], row["ne"], round(row["q_worst"], 9), round(row["angle_min"], 6)
+    (3, 1, 1.0, 60.0)
+    """
+    pts, tri = _validate(points, triangles, 3, (2, 3), "triangles")
+    if len(tri) == 0:
+        raise ValueError("expected at least one triangle in 'triangles'")
+    q = triangle_quality(pts, tri)
+    ang = triangle_angles(pts, tri)
+    finite = q[np.isfinite(q)]
+    return {
+        "np": int(len(np.unique(tri))),
+        "ne": int(len(tri)),
+        "q_mean": float(finite.mean()) if len(finite) else float("inf"),
+        "q_worst": float(q.max()),
+        "angle_min": float(ang.min()),
+        "angle_max": float(ang.max()),
+        "edge_ratio_max": float(edge_length_ratio(pts, tri).max()),
+        "histogram": quality_histogram(pts, tri),
+    }
+
+
+def format_table(rows: Mapping[str, Mapping]) -> str:
+    """Text table of :func:`quality_table` rows keyed by a label (e.g. "before", "after").
+
+    Examples
+    --------
+    >>> row = quality_table([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    >>> print(format_table({"mesh": row}).splitlines()[0])
+    |        |  np |  ne | Q mean | Q worst | angle min | angle max | distance max |
+    """
+    head = ["", "np", "ne", "Q mean", "Q worst", "angle min", "angle max", "distance max"]
+    body = []
+    for name, r in rows.items():
+        dist = r.get("distance_max")
+        body.append([name, f"{r['np']:,}", f"{r['ne']:,}", f"{r['q_mean']:.3f}", f"{r['q_worst']:.2f}",
+                     f"{r['angle_min']:.1f}", f"{r['angle_max']:.1f}",
+                     "" if dist is None else f"{dist:.2e}"])
+    width = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(head)]
+    line = lambda cells: "| " + " | ".join(c.rjust(w) for c, w in zip(cells, width)) + " |"  # noqa: E731
+    return "\n".join([line(head), "|" + "|".join("-" * (w + 2) for w in width) + "|", *map(line, body)])

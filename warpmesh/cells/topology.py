@@ -1,0 +1,414 @@
+"""Topology and basic geometry of triangle meshes, as plain vectorised functions.
+
+Every function takes ``faces`` as an ``(m, 3)`` integer array of vertex indices (the
+winding convention of :mod:`warpmesh._conventions`: counter-clockwise seen from
+outside) and, where geometry is needed, ``points`` as an ``(n, 3)`` (or, where stated,
+``(n, 2)``) float array. Nothing loops over faces or points in Python.
+
+Edge numbering
+    Edge ``j`` of face ``f`` runs from corner ``j`` to corner ``(j + 1) % 3``, i.e.
+    ``(faces[f, j], faces[f, (j + 1) % 3])``; :func:`unique_edges` returns, for each
+    face, the index of each of its three edges in that order.
+
+Examples
+--------
+>>> import numpy as np
+>>> from warpmesh import topology
+>>> tet = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+>>> topology.is_watertight(tet), topology.euler_characteristic(None, tet)
+(True, 2)
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
+
+from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE, REL_TOL
+
+__all__ = [
+    "unique_edges",
+    "is_watertight",
+    "is_edge_manifold",
+    "is_vertex_manifold",
+    "nonmanifold_vertices",
+    "is_consistently_oriented",
+    "euler_characteristic",
+    "connected_components",
+    "signed_volume",
+    "face_normals",
+    "face_areas",
+    "degenerate_faces",
+    "duplicate_faces",
+]
+
+
+# ----------------------------------------------------------------------------- helpers
+def _as_faces(faces, name: str = "faces") -> np.ndarray:
+    """Return ``faces`` as a C-contiguous ``(m, 3)`` INDEX_DTYPE array, or raise."""
+    arr = np.asarray(faces)
+    if arr.size == 0:
+        return np.zeros((0, 3), dtype=INDEX_DTYPE)
+    if not np.issubdtype(arr.dtype, np.integer):
+        raise TypeError(f"expected an integer array for '{name}', got dtype {arr.dtype}")
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"expected '{name}' of shape (m, 3), got shape {arr.shape}")
+    if arr.min() < 0:
+        raise ValueError(f"expected non-negative indices in '{name}', got {arr.min()}")
+    return np.ascontiguousarray(arr, dtype=INDEX_DTYPE)
+
+
+def _as_points(points, dims: tuple[int, ...] = (2, 3), name: str = "points") -> np.ndarray:
+    arr = np.asarray(points, dtype=REAL_DTYPE)
+    if arr.ndim != 2 or arr.shape[1] not in dims:
+        want = " or ".join(f"(n, {d})" for d in dims)
+        raise ValueError(f"expected '{name}' of shape {want}, got shape {arr.shape}")
+    return arr
+
+
+def _count(faces: np.ndarray, n_points: int | None) -> int:
+    """Number of vertex ids needed to index ``faces`` (at least ``n_points``)."""
+    need = int(faces.max()) + 1 if faces.size else 0
+    return max(need, int(n_points or 0))
+
+
+def _unique(a: np.ndarray) -> np.ndarray:
+    """Sorted unique values of a 1-D array (np.unique without return_* takes a slower path)."""
+    s = np.sort(a, axis=None)
+    return s[np.concatenate([[True], s[1:] != s[:-1]])] if len(s) else s
+
+
+def _edge_keys(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Directed and undirected int64 keys of the 3m half-edges, in edge-numbering order."""
+    u = faces.ravel()
+    v = faces[:, [1, 2, 0]].ravel()
+    n = max(n, 1)
+    return u * n + v, np.minimum(u, v) * n + np.maximum(u, v)
+
+
+def _cross(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``(p1 - p0) x (p2 - p0)`` per face: (m, 3) in 3D, (m,) (the z part) in 2D."""
+    p0, p1, p2 = (points[faces[:, j]] for j in range(3))
+    return (
+        np.cross(p1 - p0, p2 - p0)
+        if points.shape[1] == 3
+        else ((p1 - p0)[:, 0] * (p2 - p0)[:, 1] - (p1 - p0)[:, 1] * (p2 - p0)[:, 0])
+    )
+
+
+# ----------------------------------------------------------------------------- edges
+def unique_edges(faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Undirected edges of a triangle mesh.
+
+    Parameters
+    ----------
+    faces : (m, 3) int
+        Triangle vertex indices.
+
+    Returns
+    -------
+    edges : (e, 2) int64
+        Unique edges, each row sorted ascending, rows sorted lexicographically.
+    face_edge : (m, 3) int64
+        ``face_edge[f, j]`` indexes the edge ``(faces[f, j], faces[f, (j+1) % 3])``.
+    counts : (e,) int64
+        Number of faces using each edge (2 everywhere on a closed manifold surface).
+
+    Examples
+    --------
+    >>> edges, face_edge, counts = unique_edges([[0, 1, 2], [2, 1, 3]])
+    >>> edges.tolist(), counts.tolist()
+    ([[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]], [1, 1, 2, 1, 1])
+    """
+    faces = _as_faces(faces)
+    n = max(_count(faces, None), 1)
+    _, key = _edge_keys(faces, n)
+    uniq, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    edges = np.stack([uniq // n, uniq % n], axis=1).astype(INDEX_DTYPE)
+    return edges, inverse.reshape(-1, 3).astype(INDEX_DTYPE), counts.astype(INDEX_DTYPE)
+
+
+def is_watertight(faces) -> bool:
+    """True when every edge is shared by exactly two faces (False for no faces).
+
+    Examples
+    --------
+    >>> is_watertight([[0, 1, 2]])
+    False
+    """
+    faces = _as_faces(faces)
+    return bool(len(faces)) and bool(np.all(unique_edges(faces)[2] == 2))
+
+
+def is_edge_manifold(faces) -> bool:
+    """True when no edge is shared by more than two faces.
+
+    Examples
+    --------
+    >>> is_edge_manifold([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+    False
+    """
+    return bool(np.all(unique_edges(faces)[2] <= 2))
+
+
+def nonmanifold_vertices(faces, n_points: int | None = None) -> np.ndarray:
+    """Mask of vertices whose link is not a single fan or cycle.
+
+    The faces around a vertex are grouped into *fans*: two faces are in the same fan
+    when they share an edge through the vertex. A vertex is manifold when its faces
+    form one fan and no edge through it has more than two faces. Two cones touching at
+    their apex, or two surfaces sharing one vertex, give a non-manifold vertex.
+
+    Parameters
+    ----------
+    faces : (m, 3) int
+    n_points : int, optional
+        Length of the returned mask (default: largest index + 1).
+
+    Returns
+    -------
+    (n_points,) bool
+        True at non-manifold vertices; unreferenced vertices are False.
+
+    Examples
+    --------
+    >>> bowtie = [[0, 1, 2], [0, 3, 4]]
+    >>> nonmanifold_vertices(bowtie).tolist()
+    [True, False, False, False, False]
+    """
+    faces = _as_faces(faces)
+    n = _count(faces, n_points)
+    m = len(faces)
+    if m == 0:
+        return np.zeros(n, dtype=bool)
+    vert = faces.ravel()  # corner c = 3 f + j sits at vertex vert[c]
+    c0 = np.arange(3 * m)
+    c1 = c0 - c0 % 3 + (c0 + 1) % 3  # half-edge c runs from corner c0 to corner c1
+    _, key = _edge_keys(faces, n)
+    order = np.argsort(key, kind="stable")
+    same = key[order[1:]] == key[order[:-1]]  # consecutive half-edges on one edge
+    h1, h2 = order[:-1][same], order[1:][same]
+    flip = vert[c0[h1]] != vert[c0[h2]]
+    rows = np.concatenate([c0[h1], c1[h1]])
+    cols = np.concatenate([np.where(flip, c1[h2], c0[h2]), np.where(flip, c0[h2], c1[h2])])
+    graph = sparse.coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(3 * m, 3 * m))
+    n_fans, labels = csgraph.connected_components(graph, directed=False)
+    pairs = _unique(vert * n_fans + labels)
+    bad = np.bincount(pairs // n_fans, minlength=n) > 1
+    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    heavy = counts[inverse] > 2
+    bad[vert[c0[heavy]]] = True
+    bad[vert[c1[heavy]]] = True
+    return bad
+
+
+def is_vertex_manifold(faces, n_points: int | None = None) -> bool:
+    """True when every vertex's faces form one fan or cycle (see :func:`nonmanifold_vertices`).
+
+    Examples
+    --------
+    >>> is_vertex_manifold([[0, 1, 2], [0, 3, 4]])
+    False
+    """
+    return not bool(nonmanifold_vertices(faces, n_points).any())
+
+
+def is_consistently_oriented(faces) -> bool:
+    """True when no directed edge occurs twice.
+
+    Then every edge shared by two faces is traversed once in each direction, so
+    neighbouring faces agree on their winding. An edge with more than two faces always
+    repeats a direction, so a non-edge-manifold mesh is never consistently oriented.
+
+    Examples
+    --------
+    >>> is_consistently_oriented([[0, 1, 2], [2, 1, 3]])
+    True
+    >>> is_consistently_oriented([[0, 1, 2], [1, 2, 3]])  # edge 1-2 twice in one direction
+    False
+    """
+    faces = _as_faces(faces)
+    directed, _ = _edge_keys(faces, _count(faces, None))
+    return len(_unique(directed)) == len(directed)
+
+
+def euler_characteristic(n_points_used: int | None, faces) -> int:
+    """Euler characteristic ``V - E + F`` of a triangle mesh.
+
+    Parameters
+    ----------
+    n_points_used : int or None
+        ``V``, the number of vertices *referenced by faces*. Pass None to count them
+        (recommended: unreferenced points must not count).
+    faces : (m, 3) int
+
+    Returns
+    -------
+    int
+        2 for a sphere, 0 for a torus, ``2 c - 2 g`` for c closed components of total genus g.
+
+    Examples
+    --------
+    >>> euler_characteristic(None, [[0, 1, 2]])
+    1
+    """
+    faces = _as_faces(faces)
+    v = len(_unique(faces)) if n_points_used is None else int(n_points_used)
+    return v - len(unique_edges(faces)[0]) + len(faces)
+
+
+def connected_components(
+    faces, n_points: int | None = None, *, connectivity: Literal["edge", "vertex"] = "edge"
+) -> tuple[int, np.ndarray]:
+    """Label the connected components of a triangle mesh.
+
+    Parameters
+    ----------
+    faces : (m, 3) int
+    n_points : int, optional
+        Number of points (default: largest index + 1); only bounds the graph.
+    connectivity : {'edge', 'vertex'}
+        ``'edge'`` (default): two faces are connected when they share an edge, so two
+        spheres touching at one vertex are two components (what the genus formula
+        ``g = (2 c - chi) / 2`` needs). ``'vertex'``: sharing a vertex suffices.
+
+    Returns
+    -------
+    n_components : int
+    labels : (m,) int64
+        Component of each face, numbered 0.. in order of first appearance.
+
+    Examples
+    --------
+    >>> bowtie = [[0, 1, 2], [0, 3, 4]]
+    >>> connected_components(bowtie)[0], connected_components(bowtie, connectivity="vertex")[0]
+    (2, 1)
+    """
+    faces = _as_faces(faces)
+    m = len(faces)
+    if connectivity == "edge":
+        _, links, _ = unique_edges(faces)
+    elif connectivity == "vertex":
+        links = faces
+    else:
+        raise ValueError(f"expected connectivity 'edge' or 'vertex', got {connectivity!r}")
+    if m == 0:
+        return 0, np.zeros(0, dtype=INDEX_DTYPE)
+    k = _count(links, n_points if connectivity == "vertex" else None)
+    rows = np.repeat(np.arange(m), 3)  # bipartite graph: faces 0..m-1, then edges/vertices
+    graph = sparse.coo_matrix(
+        (np.ones(3 * m, np.int8), (rows, m + links.ravel())), shape=(m + k, m + k)
+    )
+    _, labels = csgraph.connected_components(graph, directed=False)
+    _, first, inverse = np.unique(labels[:m], return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=INDEX_DTYPE)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return len(first), rank[inverse]
+
+
+# ----------------------------------------------------------------------------- geometry
+def face_areas(points, faces) -> np.ndarray:
+    """Unsigned triangle areas, for ``(n, 2)`` or ``(n, 3)`` points; returns ``(m,)``.
+
+    Examples
+    --------
+    >>> face_areas([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]]).tolist()
+    [0.5]
+    """
+    points, faces = _as_points(points), _as_faces(faces)
+    c = _cross(points, faces)
+    return 0.5 * (np.linalg.norm(c, axis=1) if c.ndim == 2 else np.abs(c))
+
+
+def face_normals(points, faces) -> np.ndarray:
+    """Unit right-hand normals ``(p1 - p0) x (p2 - p0)``, ``(m, 3)``; zero rows for zero-area faces.
+
+    Examples
+    --------
+    >>> face_normals([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]).tolist()
+    [[0.0, 0.0, 1.0]]
+    """
+    points, faces = _as_points(points, (3,)), _as_faces(faces)
+    c = _cross(points, faces)
+    norm = np.linalg.norm(c, axis=1, keepdims=True)
+    return np.divide(c, norm, out=np.zeros_like(c), where=norm > 0)
+
+
+def signed_volume(points, faces) -> float:
+    """Volume enclosed by a closed surface, by the divergence theorem.
+
+    Positive when the faces wind counter-clockwise seen from outside (the warpmesh
+    convention). The sum of signed tetrahedra is taken about the centre of the bounding
+    box, which does not change the result for a closed surface but avoids cancellation
+    far from the origin; for an open surface the value depends on that centre.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    faces : (m, 3) int
+
+    Examples
+    --------
+    >>> tet = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]
+    >>> round(signed_volume([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], tet), 12)
+    0.166666666667
+    """
+    points, faces = _as_points(points, (3,)), _as_faces(faces)
+    if len(faces) == 0:
+        return 0.0
+    used = points[_unique(faces)]
+    p = points - 0.5 * (used.min(axis=0) + used.max(axis=0))
+    p0, p1, p2 = (p[faces[:, j]] for j in range(3))
+    return float(np.einsum("ij,ij->", p0, np.cross(p1, p2)) / 6.0)
+
+
+def degenerate_faces(points, faces, rel_tol: float = REL_TOL) -> np.ndarray:
+    """Mask of faces with a repeated vertex or an area ``<= rel_tol * h_max**2``.
+
+    ``h_max`` is the longest edge of the face, so the test is scale invariant.
+
+    Parameters
+    ----------
+    points : (n, 2) or (n, 3) float
+    faces : (m, 3) int
+    rel_tol : float
+        Relative tolerance (default ``REL_TOL``).
+
+    Returns
+    -------
+    (m,) bool
+
+    Examples
+    --------
+    >>> degenerate_faces([[0, 0], [1, 0], [2, 0], [0, 1]], [[0, 1, 2], [0, 1, 3]]).tolist()
+    [True, False]
+    """
+    points, faces = _as_points(points), _as_faces(faces)
+    p = points[faces]
+    h2 = np.max([np.sum((p[:, (j + 1) % 3] - p[:, j]) ** 2, axis=1) for j in range(3)], axis=0)
+    repeated = (
+        (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    )
+    return repeated | (face_areas(points, faces) <= rel_tol * h2)
+
+
+def duplicate_faces(faces) -> np.ndarray:
+    """Mask of faces that repeat an earlier face's vertex set (either winding).
+
+    The first occurrence is False, later copies True, so ``faces[~mask]`` drops them.
+
+    Examples
+    --------
+    >>> duplicate_faces([[0, 1, 2], [1, 2, 3], [2, 1, 0]]).tolist()
+    [False, False, True]
+    """
+    faces = _as_faces(faces)
+    rows = np.sort(faces, axis=1)
+    order = np.lexsort(rows.T[::-1])  # rows sorted, equal rows adjacent in input order
+    repeat = np.all(rows[order[1:]] == rows[order[:-1]], axis=1)
+    mask = np.zeros(len(faces), dtype=bool)
+    mask[order[1:][repeat]] = True
+    return mask

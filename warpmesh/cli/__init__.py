@@ -1,0 +1,1 @@
+"""The warpmesh command line."""

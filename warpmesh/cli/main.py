@@ -1,0 +1,249 @@
+"""The ``warpmesh`` command line.
+
+Examples
+--------
+``warpmesh mesh --example part --resolution 256 -o part.ply``
+    meshes the bundled CSG part and prints its statistics.
+``warpmesh mesh --volume ct.npy --level 300 --spacing 0.5 -o bone.stl``
+    extracts an iso-surface of a volume saved with ``numpy.save``.
+``warpmesh mesh --volume seg.npy --labels all --method mt -o organs.vtu``
+    meshes every label of a segmentation (triangle refs = labels).
+``warpmesh transform | refine | convert | merge | crack | periodic ...``
+    modify a mesh file (seed ch. 17): see :mod:`warpmesh.cli.modify`.
+``warpmesh curve | domain --example gear ...``
+    mesh a planar curve or domain (seed 16.3, 16.5.2): see :mod:`warpmesh.cli.curves`.
+``warpmesh info part.ply``
+    prints the statistics of a mesh file.
+``warpmesh renumber in.msh out.msh --method gibbs``
+    renumbers nodes and elements for a small bandwidth and profile (seed 17.4) and prints
+    the statistics table (Table 17.1).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+
+def _parser() -> argparse.ArgumentParser:
+    from warpmesh.frep.shapes import EXAMPLES
+
+    p = argparse.ArgumentParser(prog="warpmesh", description="Meshes from implicit geometry.")
+    sub = p.add_subparsers(dest="command", required=True)
+    m = sub.add_parser("mesh", help="mesh a bundled example shape or a volume (.npy) and print statistics")
+    src = m.add_mutually_exclusive_group(required=True)
+    src.add_argument("--example", choices=list(EXAMPLES), help="a bundled example shape")
+    src.add_argument("--volume", metavar="FILE.npy", help="a 3D array saved with numpy.save")
+    m.add_argument("--resolution", type=int, help="cells along the longest side (shapes; default 128)")
+    m.add_argument("--level", type=float, help="iso-level (volumes; default 0)")
+    m.add_argument("--inside", choices=["above", "below"], help="inside side of the level (volumes)")
+    m.add_argument("--spacing", type=float, nargs="+", help="sample spacing, 1 or 3 values (volumes)")
+    m.add_argument("--origin", type=float, nargs=3, help="position of sample [0, 0, 0] (volumes)")
+    m.add_argument("--method", choices=["mc33", "mt", "mc"], default=None,
+                   help="cell triangulation: marching cubes 33 (default), marching tetrahedra, plain mc")
+    m.add_argument("--covering", choices=["grid", "continuation"], default=None,
+                   help="shapes: culled grid (default) or continuation from seed cells")
+    m.add_argument("--labels", nargs="+", metavar="LABEL",
+                   help="integer volumes: mesh each label's region ('all' or label values)")
+    m.add_argument("--slab-voxels", type=int, help="volumes: samples per slab (default 16M)")
+    m.add_argument("--root", choices=["linear", "bisection", "newton"], default=None,
+                   help="vertex placement (default linear; newton with --adaptive)")
+    m.add_argument("--adaptive", action="store_true",
+                   help="shapes: adaptive octree (curvature-driven, sharp edges); --resolution is its finest level")
+    m.add_argument("--tolerance", type=float, help="--adaptive: relative chord tolerance (default 0.02)")
+    m.add_argument("--gradient", choices=["exact", "central", "forward"],
+                   help="gradient for Newton roots: exact (default) or finite differences")
+    m.add_argument("--no-cap", action="store_true", help="leave the surface open at the bounds")
+    m.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
+    m.add_argument("-o", "--output", help="mesh file to write (.ply .obj .stl .vtk .vtu .msh .mesh)")
+    m.add_argument("--root-iterations", type=int, help="iterations of bisection / Newton")
+    m.add_argument("--evaluator", choices=["interpreter", "compiled"],
+                   help="shapes: the tape interpreter (default, no compile) or a kernel generated for "
+                        "the shape (about 1.5 s to compile once per structure, cached)")
+    m.add_argument("--json", action="store_true", help="print statistics as JSON")
+    m.add_argument("--optimize", action="store_true",
+                   help="optimise the mesh for finite elements on the exact surface (seed 16.4.3) and "
+                        "print the before/after quality table")
+    m.add_argument("--simplify", type=float, metavar="FRACTION",
+                   help="decimate to about this fraction of the triangles within --max-error")
+    m.add_argument("--size", type=float, help="--optimize: target edge length (default: the input's mean)")
+    m.add_argument("--max-error", type=float,
+                   help="--optimize/--simplify: largest distance to the surface accepted (absolute)")
+    r = sub.add_parser("renumber", help="renumber a mesh file's nodes and elements (bandwidth, profile)")
+    r.add_argument("input", help="mesh file to read (any format meshio reads)")
+    r.add_argument("output", help="mesh file to write")
+    r.add_argument("--method", choices=["gibbs", "rcm", "frontal", "frontal-diameter"], default="gibbs")
+    r.add_argument("--higher-order", choices=["ball", "graph"], default="ball",
+                   help="nodes other than vertices: by the seed's ball rule (default) or the full graph")
+    r.add_argument("--reverse", choices=["auto", "yes", "no"], default="auto",
+                   help="reverse the numbering (auto: whichever gives the smaller profile)")
+    r.add_argument("--reduced", action="store_true", help="quads/hexahedra connect along edges only")
+    r.add_argument("--keep-elements", action="store_true", help="do not renumber the elements")
+    r.add_argument("--color", choices=["face", "node"],
+                   help="also sort the elements into colour packets (neighbours by face or by node)")
+    r.add_argument("--json", action="store_true", help="print the statistics as JSON")
+    from warpmesh.cli.main import curves as cli_curves
+    from warpmesh.cli.main import modify as cli_modify
+
+    cli_modify.add_parsers(sub)
+    cli_curves.add_parsers(sub)
+    i = sub.add_parser("info", help="print statistics of a mesh file")
+    i.add_argument("path")
+    i.add_argument("--json", action="store_true", help="print statistics as JSON")
+    return p
+
+
+def _print_stats(stats: dict, as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(stats, indent=2, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
+        return
+    for key, value in stats.items():
+        if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):  # a table
+            cols = list(value[0])
+            print(f"{key:>22}:")
+            print(" " * 24 + " ".join(f"{c:>15}" for c in cols))
+            for row in value:
+                print(" " * 24 + " ".join(f"{row.get(c, ''):>15.4g}" if isinstance(row.get(c), float)
+                                          else f"{row.get(c, ''):>15}" for c in cols))
+            continue
+        if isinstance(value, dict):
+            value = ", ".join(f"{k} {v:.3f}s" if isinstance(v, float) else f"{k} {v}" for k, v in value.items())
+        elif isinstance(value, float):
+            value = f"{value:.6g}"
+        print(f"{key:>22}: {value}")
+
+
+def _labels(values):
+    if values is None:
+        return None
+    if values == ["all"]:
+        return "all"
+    try:
+        return [int(v) for v in values]
+    except ValueError:
+        raise ValueError(f"expected --labels all or integer labels, got {' '.join(values)}") from None
+
+
+def _volume_target(wm, args, volume, spacing):
+    labels = _labels(args.labels)
+    if labels is not None:
+        if labels == "all" or len(labels) != 1:
+            raise ValueError("expected one label with --labels when optimising (one surface per run)")
+        return wm.VolumeField(np.asarray(volume) == labels[0], spacing=spacing or 1.0,
+                              origin=args.origin or 0.0, level=0.5)
+    return wm.VolumeField(volume, spacing=spacing or 1.0, origin=args.origin or 0.0,
+                          level=args.level or 0.0, inside=args.inside or "above")
+
+
+def _improve(wm, args, mesh, bounds, target):
+    from warpmesh.cells.quality import format_table
+
+    if args.optimize and args.simplify is not None:
+        raise ValueError("expected one of --optimize and --simplify, got both")
+    capped = bounds is not None and not args.no_cap
+    if args.optimize:
+        out = wm.optimize(mesh, target, bounds=bounds if capped else None, size=args.size,
+                          tolerance=args.max_error, progress=True)
+    else:
+        out = wm.simplify(mesh, target, bounds=bounds if capped else None, fraction=args.simplify,
+                          tolerance=args.max_error, progress=True)
+    info = out.info["optimize"]
+    rows = {"before": dict(info["before"]), "after": dict(info["after"])}
+    rows["after"]["distance_max"] = wm.surface_error(out, target, bounds=bounds if capped else None)["max"]
+    print(format_table(rows))
+    print(f"{info['seconds']:.2f} s; splits {info['splits']}, collapses {info['collapses']}, "
+          f"flips {info['flips']}, moves {info['moves']}, crease points {info['creases']}")
+    return out
+
+
+def _renumber(wm, args) -> int:
+    from warpmesh.io.files import check_path
+    from warpmesh.numbering.renumber import format_table
+
+    check_path(args.output)  # a bad extension fails before any work
+    mesh = wm.load(args.input)
+    reverse = {"auto": "auto", "yes": True, "no": False}[args.reverse]
+    out = mesh.renumber(args.method, reverse=reverse, higher_order=args.higher_order,
+                        reduced=args.reduced, elements=not args.keep_elements)
+    if args.color:
+        out = out.color_elements(adjacency=args.color)
+    out.save(args.output)
+    s = out.stats()
+    keys = ["np", "ne", "bandwidth_before", "profile_before", "profile_mean_before", "bandwidth",
+            "profile", "profile_mean", "profile_ratio", "nodes_per_second", "renumber_time",
+            "graph_time"] + (["n_colors", "packet_sizes"] if args.color else [])
+    row = {k: s[k] for k in keys}
+    if args.json:
+        print(json.dumps({**row, "method": args.method, "written": args.output}))
+    else:
+        print(format_table({args.input: row}))
+        print(f"method {args.method}; written {args.output}")
+        if args.color:
+            print(f"{s['n_colors']} colours, packets {s['packet_sizes']}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    import warpmesh as wm
+    from warpmesh.cli.main import curves as cli_curves
+    from warpmesh.cli.main import modify as cli_modify
+    from warpmesh.io.files import check_path
+
+    try:
+        if args.command == "info":
+            _print_stats(wm.load(args.path).stats(), args.json)
+            return 0
+        if args.command == "renumber":
+            return _renumber(wm, args)
+        if args.command in cli_modify.COMMANDS:
+            return cli_modify.run(wm, args)
+        if args.command in cli_curves.COMMANDS:
+            return cli_curves.run(wm, args)
+        if args.output:
+            check_path(args.output)  # before meshing: a bad extension fails at once
+        common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
+                      device=args.device, gradient=args.gradient, labels=_labels(args.labels),
+                      slab_voxels=args.slab_voxels)
+        if args.method:
+            common["method"] = args.method
+        if args.covering:
+            common["covering"] = args.covering
+        if args.adaptive or args.tolerance is not None:
+            common.update(adaptive=args.adaptive, tolerance=args.tolerance)
+        if args.example:
+            shape, bounds = wm.example(args.example)
+            mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
+                                   evaluator=args.evaluator or (None if args.adaptive else "interpreter"),
+                                   inside=args.inside, origin=args.origin,
+                                   spacing=None if args.spacing is None else args.spacing[0], **common)
+        else:
+            try:
+                volume = np.load(args.volume, allow_pickle=False)
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"cannot read --volume {args.volume!r}: {exc}") from None
+            spacing = args.spacing if args.spacing is None or len(args.spacing) > 1 else args.spacing[0]
+            bounds = None
+            mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,
+                                   evaluator=args.evaluator,
+                                   spacing=spacing, origin=args.origin, **common)
+        if args.optimize or args.simplify is not None:
+            mesh = _improve(wm, args, mesh, bounds if args.example else None,
+                            shape if args.example else _volume_target(wm, args, volume, spacing))
+        if args.output:
+            mesh.save(args.output)
+        stats = mesh.stats()
+        if args.output:
+            stats["written"] = args.output
+        _print_stats(stats, args.json)
+        return 0
+    except (ValueError, TypeError, OSError, wm.WarpMeshError) as exc:
+        print(f"warpmesh: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,427 @@
+"""F-Rep shapes (seed §16.5.1): primitives, booleans and transforms over :mod:`warpmesh.frep.expr`.
+
+A :class:`Shape` wraps one scalar field ``f`` (an :class:`~warpmesh.frep.expr.Expr`) with
+the sign convention f > 0 inside, f = 0 on the boundary, f < 0 outside. Shapes combine
+with ``|`` (union), ``&`` (intersection), ``-`` (difference) and ``~`` (complement);
+by default with the R-functions of eq. 16.17, or with ``method="minmax"`` / ``"smooth"``
+through :func:`union`, :func:`intersection`, :func:`difference`. Transforms chain:
+``sphere(1).translate((1, 0, 0)).scale(2)``.
+
+Each primitive says whether its field is a true signed distance ("exact") or only has
+the right sign and a gradient norm at most 1 ("bound").
+
+Example
+-------
+>>> import warpmesh as wm
+>>> holes = [wm.cylinder(0.2).translate((sx * 0.6, sy * 0.6, 0)) for sx in (-1, 1) for sy in (-1, 1)]
+>>> part = (wm.box((2, 2, 0.6)) - wm.union(*holes)) | wm.sphere(0.5)
+>>> bool(part.eval_numpy(0.0, 0.0, 0.45) > 0), bool(part.eval_numpy(0.6, 0.6, 0.0) > 0)
+(True, False)
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal, Sequence
+
+import numpy as np
+
+from warpmesh.frep import expr as E
+from warpmesh.frep.expr import Expr, as_expr
+
+BooleanMethod = Literal["rfunction", "minmax", "smooth"]
+_METHODS = ("rfunction", "minmax", "smooth")
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _vector(value, name: str, n: int, *, positive: bool = False, fill: float | str | None = None) -> np.ndarray:
+    """n floats from a number or n values; for n = 3 with a ``fill``, also from 2 values (a
+    planar shape's x, y) completed with it ("min": the smaller of the two, so a 2D scale
+    stays isotropic)."""
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if n == 3 and arr.shape == (2,) and fill is not None:
+        arr = np.append(arr, arr.min() if fill == "min" else float(fill))
+    if arr.shape != (n,):
+        count = "2 or 3" if n == 3 and fill is not None else str(n)
+        raise ValueError(f"expected {count} values for '{name}', got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"expected finite values for '{name}', got {arr.tolist()}")
+    if positive and np.any(arr <= 0):
+        raise ValueError(f"expected positive values for '{name}', got {arr.tolist()}")
+    return arr
+
+
+def _vec3(value, name: str, *, positive: bool = False, fill: float | str | None = None) -> np.ndarray:
+    return _vector(value, name, 3, positive=positive, fill=fill)
+
+
+def _positive(value, name: str) -> float:
+    v = float(value)
+    if not math.isfinite(v) or v <= 0:
+        raise ValueError(f"expected a positive finite '{name}', got {value!r}")
+    return v
+
+
+def _axis_index(axis) -> int:
+    if axis not in _AXES:
+        raise ValueError(f"Unknown axis {axis!r}. Pick one of {list(_AXES)}")
+    return _AXES[axis]
+
+
+class Shape:
+    """A solid given by a field f (f > 0 inside). Operations return new shapes.
+
+    Parameters
+    ----------
+    field : Expr or number
+        The defining function.
+    exact : bool
+        Whether ``field`` is a true signed distance.
+    """
+
+    __slots__ = ("field", "exact")
+
+    def __init__(self, field, exact: bool = False):
+        self.field: Expr = as_expr(field)
+        self.exact = bool(exact)
+
+    # -- evaluation ---------------------------------------------------------------
+    def eval_numpy(self, x, y, z=0.0) -> np.ndarray:
+        """f at broadcast points, in float64 numpy (the test oracle)."""
+        return self.field.eval_numpy(x, y, z)
+
+    __call__ = eval_numpy
+
+    def __repr__(self):
+        kind = "signed distance" if self.exact else "bound"
+        return f"<Shape {self.dim}D ({kind}) with {len(self.field.nodes())} expression nodes>"
+
+    def _fill(self, value):
+        """How a planar shape completes 2-value transform arguments (3D shapes take 3)."""
+        return value if self.dim == 2 else None
+
+    @property
+    def dim(self) -> int:
+        """2 for a planar shape (its field does not read z), else 3."""
+        return 3 if E.depends_on(self.field, 2) else 2
+
+    # -- booleans -------------------------------------------------------------------
+    def __or__(self, other):
+        return union(self, other)
+
+    def __and__(self, other):
+        return intersection(self, other)
+
+    def __sub__(self, other):
+        return difference(self, other)
+
+    def __invert__(self):
+        return Shape(-self.field, self.exact)
+
+    # -- transforms (substitute the inverse map into the field) --------------------
+    def _mapped(self, lin: np.ndarray, off: np.ndarray, scale: float, exact: bool) -> "Shape":
+        """Shape whose field at p is ``scale * f(lin @ p + off)``."""
+        x, y, z = E.coords()
+        c = (x, y, z)
+        new = []
+        for row, o in zip(lin, off):
+            term = as_expr(float(o))
+            for coef, var in zip(row, c):
+                if coef != 0.0:
+                    term = term + var * float(coef)
+            new.append(term)
+        field = self.field.substitute(*new)
+        return Shape(field * scale if scale != 1.0 else field, exact)
+
+    def translate(self, offset) -> "Shape":
+        """Move by ``offset`` (3 values, or 2 for a planar shape). Keeps a signed distance exact."""
+        t = _vec3(offset, "offset", fill=self._fill(0.0))
+        return self._mapped(np.eye(3), -t, 1.0, self.exact)
+
+    def rotate(self, angle: float, axis=(0.0, 0.0, 1.0), about=(0.0, 0.0, 0.0)) -> "Shape":
+        """Rotate by ``angle`` radians about the line through ``about`` along ``axis``."""
+        angle = float(angle)
+        if not math.isfinite(angle):
+            raise ValueError(f"expected a finite 'angle' (radians), got {angle!r}")
+        a = _vec3(axis, "axis") if not isinstance(axis, str) else np.eye(3)[_axis_index(axis)]
+        n = np.linalg.norm(a)
+        if n == 0:
+            raise ValueError("expected a non-zero 'axis', got (0, 0, 0)")
+        a = a / n
+        c = _vec3(about, "about", fill=self._fill(0.0))
+        k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+        rot = np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
+        inv = rot.T  # p -> R^T (p - c) + c
+        return self._mapped(inv, c - inv @ c, 1.0, self.exact)
+
+    def scale(self, factor, about=(0.0, 0.0, 0.0)) -> "Shape":
+        """Scale by a number (keeps a distance exact) or by 3 factors (a bound only)."""
+        s = _vec3(factor, "factor", positive=True, fill=self._fill("min"))
+        c = _vec3(about, "about", fill=self._fill(0.0))
+        inv = np.diag(1.0 / s)
+        iso = bool(np.all(s == s[0]))
+        return self._mapped(inv, c - inv @ c, float(s.min()), self.exact and iso)
+
+    def mirror(self, normal=(1.0, 0.0, 0.0), point=(0.0, 0.0, 0.0)) -> "Shape":
+        """Reflect through the plane with ``normal`` through ``point``."""
+        nrm = _vec3(normal, "normal", fill=self._fill(0.0))
+        if not np.any(nrm):
+            raise ValueError("expected a non-zero 'normal', got (0, 0, 0)")
+        nrm = nrm / np.linalg.norm(nrm)
+        h = np.eye(3) - 2.0 * np.outer(nrm, nrm)
+        c = _vec3(point, "point", fill=self._fill(0.0))
+        return self._mapped(h, c - h @ c, 1.0, self.exact)
+
+    def affine(self, matrix, offset=(0.0, 0.0, 0.0)) -> "Shape":
+        """Apply p -> matrix @ p + offset (matrix 3x3 invertible, or 4x4 homogeneous).
+
+        The field is scaled by the smallest singular value of ``matrix`` so its gradient
+        norm stays at most that of the original (a bound, exact only for similarities).
+        """
+        m = np.asarray(matrix, dtype=np.float64)
+        if m.shape == (4, 4):
+            if not np.allclose(m[3], (0.0, 0.0, 0.0, 1.0)):
+                raise ValueError(f"expected a 4x4 'matrix' with last row (0, 0, 0, 1), got {m[3].tolist()}")
+            if np.any(np.asarray(offset, dtype=np.float64) != 0.0):
+                raise ValueError("expected either a 4x4 'matrix' or an 'offset', got both")
+            m, offset = m[:3, :3], m[:3, 3]
+        if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+            raise ValueError(f"expected a finite 3x3 or 4x4 'matrix', got shape {m.shape}")
+        sv = np.linalg.svd(m, compute_uv=False)
+        if sv.min() <= 1e-12 * max(sv.max(), 1e-300):
+            raise ValueError("expected an invertible 'matrix', got a singular one")
+        t = _vec3(offset, "offset")
+        inv = np.linalg.inv(m)
+        similar = bool(np.isclose(sv.min(), sv.max()))
+        return self._mapped(inv, -inv @ t, float(sv.min()), self.exact and similar)
+
+
+def as_shape(value) -> Shape:
+    """A :class:`Shape` from a shape, an expression or a number."""
+    if isinstance(value, Shape):
+        return value
+    if isinstance(value, Expr):
+        return Shape(value)
+    raise TypeError(f"expected a Shape or an expression, got {type(value).__name__}")
+
+
+# -- booleans ------------------------------------------------------------------------
+def _check_method(method, k):
+    if method not in _METHODS:
+        raise ValueError(f"Unknown boolean method {method!r}. Pick one of {list(_METHODS)}")
+    if method == "smooth":
+        _positive(k, "k")
+
+
+def _smooth_max(a: Expr, b: Expr, k: float) -> Expr:
+    # polynomial smooth maximum: max(a, b) + k/4 * h^2, h = max(k - |a - b|, 0) / k
+    h = E.max(k - abs(a - b), 0.0) * (1.0 / k)
+    return E.max(a, b) + h * h * (k / 4.0)
+
+
+def _combine(shapes, method, k, is_union: bool) -> Shape:
+    if len(shapes) == 0:
+        raise ValueError("expected at least one shape, got none")
+    _check_method(method, k)
+    fields = [as_shape(s).field for s in shapes]
+    out = fields[0]
+    for f in fields[1:]:
+        if method == "rfunction":
+            out = E.runion(out, f) if is_union else E.rintersection(out, f)
+        elif method == "minmax":
+            out = E.max(out, f) if is_union else E.min(out, f)
+        else:
+            out = _smooth_max(out, f, k) if is_union else -_smooth_max(-out, -f, k)
+    exact = len(shapes) == 1 and as_shape(shapes[0]).exact
+    return Shape(out, exact)
+
+
+def union(*shapes, method: BooleanMethod = "rfunction", k: float = 0.1) -> Shape:
+    """Union of shapes (f > 0 where any is inside).
+
+    Parameters
+    ----------
+    *shapes : Shape
+        One or more shapes.
+    method : {'rfunction', 'minmax', 'smooth'}
+        R-function of eq. 16.17 (default, C¹ away from the shapes' common boundary),
+        ``max`` of the fields, or a polynomial smooth maximum with blend radius ``k``.
+    """
+    return _combine(shapes, method, k, True)
+
+
+def intersection(*shapes, method: BooleanMethod = "rfunction", k: float = 0.1) -> Shape:
+    """Intersection of shapes (f > 0 where all are inside); options as :func:`union`."""
+    return _combine(shapes, method, k, False)
+
+
+def difference(a, *others, method: BooleanMethod = "rfunction", k: float = 0.1) -> Shape:
+    """``a`` minus the union of ``others``; options as :func:`union`."""
+    if not others:
+        _check_method(method, k)
+        return as_shape(a)
+    cut = union(*others, method=method, k=k)
+    return intersection(a, ~cut, method=method, k=k)
+
+
+def complement(a) -> Shape:
+    """Everything outside ``a`` (f -> -f)."""
+    return ~as_shape(a)
+
+
+# -- primitives ------------------------------------------------------------------------
+def _frame(axis: str):
+    """(u, v, w) coordinate expressions with w along ``axis``."""
+    x, y, z = E.coords()
+    i = _axis_index(axis)
+    return [(y, z, x), (z, x, y), (x, y, z)][i]
+
+
+def _centered(shape: Shape, center) -> Shape:
+    c = _vec3(center, "center")
+    return shape.translate(c) if np.any(c) else shape
+
+
+def sphere(radius: float = 1.0, center=(0.0, 0.0, 0.0)) -> Shape:
+    """Ball of ``radius`` (exact): f = r - |p - c|."""
+    r = _positive(radius, "radius")
+    x, y, z = E.coords()
+    return _centered(Shape(r - E.sqrt(x * x + y * y + z * z), True), center)
+
+
+def box(size=(1.0, 1.0, 1.0), center=(0.0, 0.0, 0.0)) -> Shape:
+    """Axis-aligned box with edge lengths ``size`` (exact signed distance)."""
+    h = _vec3(size, "size", positive=True) / 2.0
+    x, y, z = E.coords()
+    q = [abs(x) - h[0], abs(y) - h[1], abs(z) - h[2]]
+    outside = E.sqrt(sum(E.max(qi, 0.0) ** 2 for qi in q))
+    inside = E.min(E.max(*q), 0.0)
+    return _centered(Shape(-(outside + inside), True), center)
+
+
+def cylinder(radius: float = 1.0, height: float | None = None, axis: str = "z",
+             center=(0.0, 0.0, 0.0)) -> Shape:
+    """Cylinder of ``radius`` along ``axis``; infinite when ``height`` is None (exact)."""
+    r = _positive(radius, "radius")
+    u, v, w = _frame(axis)
+    rho = E.sqrt(u * u + v * v)
+    if height is None:
+        return _centered(Shape(r - rho, True), center)
+    hh = _positive(height, "height") / 2.0
+    d0, d1 = rho - r, abs(w) - hh
+    f = -(E.min(E.max(d0, d1), 0.0) + E.sqrt(E.max(d0, 0.0) ** 2 + E.max(d1, 0.0) ** 2))
+    return _centered(Shape(f, True), center)
+
+
+def cone(radius: float = 1.0, height: float = 1.0, axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
+    """Solid cone: base disk of ``radius`` at w = 0, apex at w = ``height`` (a bound:
+    the distance to the side and to the base plane, combined with min)."""
+    r, hgt = _positive(radius, "radius"), _positive(height, "height")
+    u, v, w = _frame(axis)
+    cos_t = hgt / math.hypot(r, hgt)
+    side = ((hgt - w) * (r / hgt) - E.sqrt(u * u + v * v)) * cos_t
+    return _centered(Shape(E.min(side, w), False), center)
+
+
+def torus(major: float = 1.0, minor: float = 0.25, axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
+    """Torus around ``axis`` with radii ``major`` > ``minor`` (exact)."""
+    big, small = _positive(major, "major"), _positive(minor, "minor")
+    if small >= big:
+        raise ValueError(f"expected minor < major, got minor={small}, major={big}")
+    u, v, w = _frame(axis)
+    q = E.sqrt(u * u + v * v) - big
+    return _centered(Shape(small - E.sqrt(q * q + w * w), True), center)
+
+
+def ellipsoid(semi_axes=(1.0, 0.5, 0.25), center=(0.0, 0.0, 0.0)) -> Shape:
+    """Ellipsoid with ``semi_axes`` (a bound: min(a) * (1 - |p / a|), exact on a sphere)."""
+    a = _vec3(semi_axes, "semi_axes", positive=True)
+    x, y, z = E.coords()
+    rho = E.sqrt((x * (1 / a[0])) ** 2 + (y * (1 / a[1])) ** 2 + (z * (1 / a[2])) ** 2)
+    return _centered(Shape((1.0 - rho) * float(a.min()), bool(np.all(a == a[0]))), center)
+
+
+def halfspace(normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0)) -> Shape:
+    """Half-space behind the plane through ``point`` with outward ``normal`` (exact)."""
+    n = _vec3(normal, "normal")
+    if not np.any(n):
+        raise ValueError("expected a non-zero 'normal', got (0, 0, 0)")
+    n = n / np.linalg.norm(n)
+    p = _vec3(point, "point")
+    x, y, z = E.coords()
+    return Shape(float(n @ p) - (x * n[0] + y * n[1] + z * n[2]), True)
+
+
+def capsule(a=(0.0, 0.0, -0.5), b=(0.0, 0.0, 0.5), radius: float = 0.25) -> Shape:
+    """Points within ``radius`` of the segment ab (exact)."""
+    pa, pb = _vec3(a, "a"), _vec3(b, "b")
+    r = _positive(radius, "radius")
+    ba = pb - pa
+    ll = float(ba @ ba)
+    if ll == 0:
+        raise ValueError("expected distinct end points 'a' and 'b'")
+    x, y, z = E.coords()
+    d = [x - pa[0], y - pa[1], z - pa[2]]
+    t = E.min(E.max((d[0] * ba[0] + d[1] * ba[1] + d[2] * ba[2]) * (1.0 / ll), 0.0), 1.0)
+    q = [d[i] - t * ba[i] for i in range(3)]
+    return Shape(r - E.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2), True)
+
+
+def superquadric(semi_axes=(1.0, 1.0, 1.0), e1: float = 0.5, e2: float = 0.5,
+                 center=(0.0, 0.0, 0.0)) -> Shape:
+    """Barr's superellipsoid with shape exponents ``e1`` (along z) and ``e2`` (in xy).
+
+    f = min(a) * (1 - F^(e1/2)), F = (|x/a|^(2/e2) + |y/b|^(2/e2))^(e2/e1) + |z/c|^(2/e1);
+    homogeneous of degree one; e1 = e2 = 1 with equal axes is the exact sphere. A bound
+    (|∇f| ≤ 1) for e1, e2 ≤ 1; for larger exponents only the sign is meaningful (the
+    gradient grows towards sqrt(3) at e = 2 and is unbounded near the axes for e > 2).
+    """
+    a = _vec3(semi_axes, "semi_axes", positive=True)
+    e1, e2 = _positive(e1, "e1"), _positive(e2, "e2")
+    x, y, z = E.coords()
+    xy = (abs(x * (1 / a[0])) ** (2 / e2) + abs(y * (1 / a[1])) ** (2 / e2)) ** (e2 / e1)
+    big_f = xy + abs(z * (1 / a[2])) ** (2 / e1)
+    return _centered(Shape((1.0 - big_f ** (e1 / 2)) * float(a.min())), center)
+
+
+def supertorus(major: float = 1.0, minor: float = 0.3, e1: float = 0.5, e2: float = 0.5,
+               axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
+    """Supertoroid (seed Fig. 16.22): a torus whose section (``e1``) and sweep (``e2``)
+    are superellipses. e1 = e2 = 1 gives the exact torus; a bound (|∇f| ≤ 1) for
+    e1, e2 ≤ 1; for larger exponents only the sign is meaningful."""
+    big, small = _positive(major, "major"), _positive(minor, "minor")
+    if small >= big:
+        raise ValueError(f"expected minor < major, got minor={small}, major={big}")
+    e1, e2 = _positive(e1, "e1"), _positive(e2, "e2")
+    u, v, w = _frame(axis)
+    rho = (abs(u) ** (2 / e2) + abs(v) ** (2 / e2)) ** (e2 / 2)
+    big_f = abs((rho - big) * (1 / small)) ** (2 / e1) + abs(w * (1 / small)) ** (2 / e1)
+    exact = e1 == 1.0 and e2 == 1.0
+    return _centered(Shape((1.0 - big_f ** (e1 / 2)) * small, exact), center)
+
+
+def example(name: str) -> tuple[Shape, tuple]:
+    """Bundled examples by name: (shape, bounds). Names: 'part', 'degree6', 'sphere', 'torus';
+    the planar examples of :func:`warpmesh.frep.shapes2d.example2d` ('gear', 'plate',
+    'lemniscate', 'cassini') return 2D bounds ((x0, y0), (x1, y1))."""
+    from warpmesh.frep.shapes2d import EXAMPLES_2D, example2d
+
+    if name in EXAMPLES_2D:
+        return example2d(name)
+    if name == "part":
+        holes = [cylinder(0.2).translate((sx * 0.6, sy * 0.6, 0)) for sx in (-1, 1) for sy in (-1, 1)]
+        return (box((2, 2, 0.6)) - union(*holes)) | sphere(0.5), ((-1.2,) * 3, (1.2,) * 3)
+    if name == "degree6":
+        x, y, z = E.coords()
+        f = (x**2 + y**2 - 4) * (x**2 + z**2 - 4) * (y**2 + z**2 - 4) - 4.0078
+        return Shape(f), ((-3.0,) * 3, (3.0,) * 3)
+    if name == "sphere":
+        return sphere(1.0), ((-1.2,) * 3, (1.2,) * 3)
+    if name == "torus":
+        return torus(1.0, 0.35), ((-1.5, -1.5, -0.5), (1.5, 1.5, 0.5))
+    raise ValueError(f"Unknown example {name!r}. Pick one of {list(EXAMPLES) + list(EXAMPLES_2D)}")
+
+
+EXAMPLES: Sequence[str] = ("part", "degree6", "sphere", "torus")

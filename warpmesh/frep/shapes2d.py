@@ -1,0 +1,134 @@
+"""Planar F-Rep shapes: primitives in x, y and the bundled 2D examples.
+
+A planar shape is a :class:`~warpmesh.frep.shapes.Shape` whose field does not read z
+(``shape.dim == 2``): the same booleans (``|``, ``&``, ``-``, ``~``, R-functions by
+default) and transforms (``translate((dx, dy))``, ``rotate(angle)`` about the z axis,
+``scale``, ``mirror((nx, ny))``) apply. Its zero set is an implicit curve (seed §16.1.2),
+meshed by :func:`warpmesh.mesh_curve`; the domain f > 0 is meshed by
+:func:`warpmesh.mesh_domain`.
+
+Example
+-------
+>>> import warpmesh as wm
+>>> plate = wm.rectangle((2.0, 1.0)) - wm.circle(0.3)
+>>> plate.dim, bool(plate.eval_numpy(0.8, 0.0) > 0), bool(plate.eval_numpy(0.0, 0.0) > 0)
+(2, True, False)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from warpmesh.frep import expr as E
+from warpmesh.frep.shapes import Shape, _positive, _vector, union
+
+__all__ = ["circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "example2d", "EXAMPLES_2D"]
+
+
+def _vec2(value, name: str, *, positive: bool = False) -> np.ndarray:
+    return _vector(value, name, 2, positive=positive)
+
+
+def _placed(shape: Shape, center) -> Shape:
+    c = _vec2(center, "center")
+    return shape.translate((c[0], c[1], 0.0)) if np.any(c) else shape
+
+
+def circle(radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
+    """Disc of ``radius`` (exact signed distance): f = r - |p - c|."""
+    r = _positive(radius, "radius")
+    x, y = E.coords(2)
+    return _placed(Shape(r - E.sqrt(x * x + y * y), True), center)
+
+
+def ellipse(semi_axes=(1.0, 0.5), center=(0.0, 0.0)) -> Shape:
+    """Ellipse with semi-axes (a, b) along x and y (a bound: min(a, b) (1 - |p / (a, b)|);
+    exact for a circle)."""
+    a = _vec2(semi_axes, "semi_axes", positive=True)
+    x, y = E.coords(2)
+    rho = E.sqrt((x * (1 / a[0])) ** 2 + (y * (1 / a[1])) ** 2)
+    return _placed(Shape((1.0 - rho) * float(a.min()), bool(a[0] == a[1])), center)
+
+
+def rectangle(size=(1.0, 1.0), center=(0.0, 0.0)) -> Shape:
+    """Axis-aligned rectangle with edge lengths ``size`` = (w, h) (exact signed distance)."""
+    h = _vec2(size, "size", positive=True) / 2.0
+    x, y = E.coords(2)
+    qx, qy = abs(x) - h[0], abs(y) - h[1]
+    outside = E.sqrt(E.max(qx, 0.0) ** 2 + E.max(qy, 0.0) ** 2)
+    inside = E.min(E.max(qx, qy), 0.0)
+    return _placed(Shape(-(outside + inside), True), center)
+
+
+def halfplane(normal=(0.0, 1.0), point=(0.0, 0.0)) -> Shape:
+    """Half-plane behind the line through ``point`` with outward ``normal`` (exact)."""
+    n = _vec2(normal, "normal")
+    if not np.any(n):
+        raise ValueError("expected a non-zero 'normal', got (0, 0)")
+    n = n / np.linalg.norm(n)
+    p = _vec2(point, "point")
+    x, y = E.coords(2)
+    return Shape(float(n @ p) - (x * n[0] + y * n[1]), True)
+
+
+def regular_polygon(n: int, radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
+    """Convex regular polygon with ``n`` >= 3 vertices on the circle of ``radius``, one at
+    angle 0 (a bound: the min of its edges' half-planes, exact inside)."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 3:
+        raise ValueError(f"expected an integer 'n' >= 3, got {n!r}")
+    r = _positive(radius, "radius")
+    x, y = E.coords(2)
+    apothem = r * math.cos(math.pi / n)
+    sides = [apothem - (x * math.cos(t) + y * math.sin(t))
+             for t in (2 * math.pi * (k + 0.5) / n for k in range(n))]
+    return _placed(Shape(E.min(*sides), False), center)
+
+
+def _gear(teeth: int = 12) -> Shape:
+    """A spur-gear-like CSG part: a disc with rectangular teeth, a bore and a key way."""
+    tooth = rectangle((0.22, 0.3), center=(1.0, 0.0))
+    ring = union(circle(1.0), *[tooth.rotate(2 * math.pi * k / teeth) for k in range(teeth)])
+    return ring - circle(0.35) - rectangle((0.12, 0.16), center=(0.0, 0.4)) - union(
+        *[circle(0.12, center=(0.62 * math.cos(t), 0.62 * math.sin(t)))
+          for t in (2 * math.pi * k / 5 + 0.3 for k in range(5))])
+
+
+def _plate() -> Shape:
+    """A rectangular plate with corners rounded to radius 0.1 and five holes of two sizes."""
+    body = rectangle((2.4, 1.4))
+    # corner pieces reach past the body, so no side of theirs lies on the body's sides
+    corners = union(*[rectangle((0.2, 0.2), center=(sx * 1.2, sy * 0.7)) - circle(0.1, (sx * 1.1, sy * 0.6))
+                      for sx in (-1, 1) for sy in (-1, 1)])
+    holes = union(circle(0.3), *[circle(0.12, (sx * 0.8, sy * 0.35)) for sx in (-1, 1) for sy in (-1, 1)])
+    return body - corners - holes
+
+
+def cassini(a: float = 1.0, b: float = 1.05) -> Shape:
+    """Cassini ovals |p - (a, 0)| |p + (a, 0)| = b²: one oval for b > a, two for b < a,
+    the lemniscate of Bernoulli (a singular point at the origin) for b = a. f > 0 inside,
+    f = b⁴ - ((x² + y² + a²)² - 4 a² x²)."""
+    a, b = _positive(a, "a"), _positive(b, "b")
+    x, y = E.coords(2)
+    return Shape(b**4 - ((x * x + y * y + a * a) ** 2 - 4 * a * a * x * x))
+
+
+EXAMPLES_2D = ("gear", "plate", "lemniscate", "cassini")
+
+
+def example2d(name: str) -> tuple[Shape, tuple]:
+    """Bundled planar examples by name: (shape, bounds ((x0, y0), (x1, y1))).
+
+    Names: 'gear' and 'plate' (CSG domains), 'lemniscate' (a singular point at the
+    origin), 'cassini' (one oval just past the topology change, b = 1.05 a).
+    """
+    if name == "gear":
+        return _gear(), ((-1.3, -1.3), (1.3, 1.3))
+    if name == "plate":
+        return _plate(), ((-1.3, -0.8), (1.3, 0.8))
+    if name == "lemniscate":
+        return cassini(1.0, 1.0), ((-1.6, -0.6), (1.6, 0.6))
+    if name == "cassini":
+        return cassini(1.0, 1.05), ((-1.6, -0.7), (1.6, 0.7))
+    raise ValueError(f"Unknown example {name!r}. Pick one of {list(EXAMPLES_2D)}")

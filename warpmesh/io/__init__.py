@@ -1,0 +1,1 @@
+"""Interop: conversions to and from meshio, trimesh and pyvista; mesh files."""

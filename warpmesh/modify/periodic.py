@@ -1,0 +1,208 @@
+"""Periodic meshes (seed §17.5, Remark 17.16): pairs of nodes related by a transformation,
+and a mesh built from a pattern and its transformed copies.
+
+A transformation is a homogeneous (d+1) x (d+1) matrix acting on column vectors
+``[x, 1]`` (the matrices of :mod:`warpmesh.modify.transforms`): last row ``[0, ..., 0, 1]``.
+The seed's requirement for a periodic mesh is that the two zones put in correspondence
+are meshed the same way; :func:`periodic_pairs` finds the node pairs, by the hashing of
+:func:`warpmesh.modify.merge.match_points`, and :func:`periodic` merges the copies with
+:func:`warpmesh.modify.merge.merge` (which then also checks the Euler formula at each step).
+
+Examples
+--------
+>>> import numpy as np
+>>> from warpmesh.mesh import Mesh
+>>> from warpmesh.modify.periodic import periodic
+>>> square = Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"quad": [[0, 1, 2, 3]]})
+>>> shift = np.array([[1.0, 0, 1], [0, 1, 0], [0, 0, 1]])
+>>> strip = periodic(square, shift, 3)
+>>> strip.n_points, len(strip.cells["quad"]), strip.info["periodic_pairs"].tolist()
+(8, 3, [[0, 6], [3, 7]])
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh.io.convert import CELL_TYPES
+from warpmesh.modify.merge import _check_mesh, _check_tolerance, _match, _merge, default_tolerance
+from warpmesh.cells.reference import mirror_permutation
+
+__all__ = ["periodic_pairs", "periodic"]
+
+
+def _check_matrix(matrix, d: int) -> np.ndarray:
+    arr = np.asarray(matrix)
+    if arr.dtype.kind not in "iuf":
+        raise TypeError(f"expected a float array for 'matrix', got dtype {arr.dtype}")
+    if arr.shape != (d + 1, d + 1):
+        raise ValueError(
+            f"expected a homogeneous 'matrix' of shape ({d + 1}, {d + 1}) for a {d}D mesh, "
+            f"got shape {arr.shape}"
+        )
+    arr = arr.astype(REAL_DTYPE)
+    if not np.isfinite(arr).all():
+        raise ValueError("expected a finite 'matrix', got NaN or inf")
+    last = np.zeros(d + 1)
+    last[-1] = 1.0
+    if not np.allclose(arr[-1], last, rtol=0, atol=1e-12):
+        raise ValueError(
+            f"expected an affine 'matrix' (last row {last.tolist()}), got last row {arr[-1].tolist()}"
+        )
+    det = np.linalg.det(arr[:d, :d])
+    if not abs(det) > 1e-12 * max(np.abs(arr[:d, :d]).max(), 1e-300) ** d:
+        raise ValueError(f"expected an invertible 'matrix', got determinant {det:g}")
+    return arr
+
+
+def _apply(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    d = points.shape[1]
+    return points @ matrix[:d, :d].T + matrix[:d, d]
+
+
+def _transformed(mesh, matrix: np.ndarray):
+    """``mesh`` with points mapped by ``matrix``; cells of dimension d and d - 1 mirrored
+    when the matrix reverses orientation (so volumes stay positive, normals outward)."""
+    pts = _apply(matrix, mesh.points)
+    if np.linalg.det(matrix[:-1, :-1]) > 0:
+        return mesh.replace(points=pts, info={})
+    d = mesh.dim
+    cells = {
+        t: (c[:, mirror_permutation(t)] if CELL_TYPES[t][1] in (d, d - 1) and t != "vertex" else c)
+        for t, c in mesh.cells.items()
+    }
+    return mesh.replace(points=pts, cells=cells, info={})
+
+
+def _check_copies(copies) -> int:
+    if isinstance(copies, bool) or not isinstance(copies, numbers.Integral):
+        raise TypeError(f"expected an int for 'copies', got {type(copies).__name__}")
+    if copies < 1:
+        raise ValueError(f"expected 'copies' >= 1, got {copies}")
+    return int(copies)
+
+
+def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
+    """Pairs of nodes (i, j) with T(x_i) ≈ x_j: the node pairs of periodic boundary
+    conditions (seed §17.5).
+
+    Found by :func:`warpmesh.modify.merge.match_points` between the transformed points and the
+    points (one-to-one, nearest both ways); a node mapped onto itself (on a rotation axis,
+    a symmetry plane) is not a pair.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    matrix : (d+1, d+1) float
+        Homogeneous affine transformation T, invertible.
+    tolerance : float, optional
+        Absolute; default ``1e-8 × Δ`` of the mesh and its image (:func:`default_tolerance`).
+
+    Returns
+    -------
+    (k, 2) int64
+        Sorted by i.
+
+    Raises
+    ------
+    TypeError
+        ``mesh`` not a Mesh, non-numeric matrix.
+    ValueError
+        Matrix of the wrong shape, not affine, singular or not finite; tolerance <= 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from warpmesh.mesh import Mesh
+    >>> m = Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"quad": [[0, 1, 2, 3]]})
+    >>> periodic_pairs(m, np.array([[1.0, 0, 1], [0, 1, 0], [0, 0, 1]])).tolist()
+    [[0, 1], [3, 2]]
+    """
+    _check_mesh(mesh, "mesh")
+    t = _check_matrix(matrix, mesh.dim)
+    image = _apply(t, mesh.points)
+    tol = default_tolerance(mesh.points, image) if tolerance is None else _check_tolerance(tolerance)
+    pairs = _match(image, mesh.points, tol)[0]
+    return pairs[pairs[:, 0] != pairs[:, 1]]
+
+
+def periodic(mesh, matrix, copies: int, tolerance: float | None = None, **options):
+    """The pattern ``mesh`` and its images by T, T², ..., T^(copies-1), merged one after
+    the other (seed §17.5, "Periodic mesh").
+
+    Each copy is merged with everything before it (:func:`warpmesh.modify.merge.merge`, with its
+    Euler check), so a last copy that comes back onto the first (a rotation by
+    2π/copies) merges with it as well: the result closes up. A matrix with a negative
+    determinant reverses each odd copy: its cells of dimension d and d - 1 are permuted
+    with :func:`~warpmesh.cells.reference.mirror_permutation`, so volumes stay positive
+    and boundary faces outward. The two sides of the pattern must be meshed alike (for
+    hexahedra or wedges split into tetrahedra, split the faces compatibly, Remark 17.16),
+    else the merge fails its Euler check.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The pattern.
+    matrix : (d+1, d+1) float
+        Homogeneous affine transformation T, invertible.
+    copies : int
+        Number of copies, the pattern included (>= 1).
+    tolerance : float, optional
+        Absolute; default ``1e-8 × Δ``, Δ the largest side of the box of all copies.
+    **options
+        ``refs``, ``duplicates``, ``check`` of :func:`warpmesh.modify.merge.merge`.
+
+    Returns
+    -------
+    Mesh
+        The pattern's points keep their numbers; every copy carries the pattern's refs and
+        data unchanged (vector data are not rotated). ``info["periodic_pairs"]`` (k, 2) int64:
+        pairs (i, j) with T^copies(x_i) ≈ x_j between the first pattern and the last
+        copy: the periodic boundary conditions of the whole; empty when the copies close
+        up. Also ``copies`` and the last merge's counts (``euler``, ...).
+
+    Raises
+    ------
+    TypeError
+        ``mesh`` not a Mesh, non-numeric matrix, non-integer ``copies``, unknown option.
+    ValueError
+        Bad matrix (shape, not affine, singular, not finite), ``copies`` < 1.
+    warpmesh.modify.merge.MergeError
+        A merge fails its Euler check (sides meshed differently or tolerance too large).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from warpmesh.mesh import Mesh
+    >>> tri = Mesh([[0, 0], [1, 0], [0.5, 3**0.5 / 2]], {"triangle": [[0, 1, 2]]})
+    >>> c, s = np.cos(np.pi / 3), np.sin(np.pi / 3)
+    >>> hexagon = periodic(tri, np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]), 6)
+    >>> hexagon.n_points, len(hexagon.cells["triangle"]), len(hexagon.info["periodic_pairs"])
+    (7, 6, 0)
+    """
+    _check_mesh(mesh, "mesh")
+    t = _check_matrix(matrix, mesh.dim)
+    n = _check_copies(copies)
+    unknown = set(options) - {"refs", "duplicates", "check"}
+    if unknown:
+        raise TypeError(f"expected options among ['check', 'duplicates', 'refs'], got {sorted(unknown)}")
+    powers = [np.eye(mesh.dim + 1)]
+    for _ in range(n):
+        powers.append(t @ powers[-1])
+    parts = [mesh] + [_transformed(mesh, p) for p in powers[1:n]]
+    if tolerance is None:
+        tol = default_tolerance(*(p.points for p in parts))
+    else:
+        tol = _check_tolerance(tolerance)
+    result, last = mesh.replace(info={}), np.arange(mesh.n_points, dtype=INDEX_DTYPE)
+    for part in parts[1:]:  # a loop over copies, not over points
+        result, last = _merge(result, part, tol, stacklevel=4, **options)
+    # T^copies maps the pattern's free side onto the last copy's free side
+    image = _apply(powers[n], mesh.points)
+    pairs = _match(image, result.points[last], tol)[0]
+    pairs = np.stack([pairs[:, 0], last[pairs[:, 1]]], axis=1).astype(INDEX_DTYPE)
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    return result.replace(info={**result.info, "copies": n, "periodic_pairs": pairs})

@@ -1,0 +1,1 @@
+"""Numbering [FG §17.4]: node renumbering, element colouring, node graphs, higher-order nodes."""

@@ -1,0 +1,777 @@
+"""Vertex (node) renumbering for small bandwidth and profile (seed §17.4.1, §17.4.4).
+
+The walks whose order depends on the walk so far (breadth-first searches, the
+Cuthill–McKee numbering of each level, the components of Step 2) run as one-thread Warp
+kernels in :mod:`warpmesh.kernels.numbering`, on all connected components at once. Each
+component is first relabelled in the order of a search, so that on a randomly numbered
+mesh the later walks read memory nearly in order.
+
+Methods (each takes the symmetric node graph of :func:`warpmesh.numbering.graph.node_graph` and
+returns ``order``: the old node indices in their new order)
+
+``"gibbs"``
+    The Gibbs method of the seed: Step 1, a pseudo-diameter PQ by the George–Liu
+    search (start at a node of minimal degree, go to the node of minimal degree of the
+    last level while the depth grows); Step 2, the level structure that combines the
+    descents D(P) and D(Q) — pairs (i, j), nodes with i = j fixed, the remaining
+    connected components placed, largest first, on the side (i or j) that keeps the
+    widest level smaller (ties: the rooted structure of smaller width); Step 3,
+    Cuthill–McKee numbering level by level from the end of lower degree, neighbours
+    within a level first, then the next level in order of the numbered parent and by
+    increasing degree.
+``"rcm"``
+    Reverse Cuthill–McKee from a George–Liu pseudo-peripheral node.
+``"frontal"``
+    The naive frontal method (Table 17.2): the front starts at a node of minimal
+    degree; each front F_k numbers its new neighbours V_i in order of the numbered
+    node they touch first and by increasing ``nbneigh`` — here the number of their
+    neighbours that enter the next front (the greedy choice).
+``"frontal-diameter"``
+    The same front grown from the end of the pseudo-diameter (Table 17.3).
+
+Every method handles several connected components (each numbered in turn, in the order
+of its smallest old index; nodes in no element go last). ``reverse="auto"`` keeps
+the numbering or its reverse, whichever has the smaller profile (both are measured,
+O(nnz)); the seed decides the reversal in advance from the degrees of P and Q and the
+side chosen for the first component — measuring is as cheap and never worse.
+
+Statistics (:func:`matrix_stats`, Table 17.1): bandwidth β = max_i (i − j_i), profile
+pr = Σ_i (i − j_i) where j_i is the first column of row i holding a neighbour (or i),
+mean profile pr / n.
+
+Examples
+--------
+>>> import numpy as np
+>>> from warpmesh.numbering.graph import node_graph
+>>> from warpmesh.numbering.renumber import renumber_graph, matrix_stats
+>>> tri = np.array([[0, 5, 1], [1, 5, 4], [1, 4, 2], [2, 4, 3]])   # a strip, badly numbered
+>>> g = node_graph({"triangle": tri}, 6)
+>>> matrix_stats(g)["bandwidth"]
+5
+>>> order = renumber_graph(g, "gibbs")
+>>> new = np.empty(6, int); new[order] = np.arange(6)
+>>> matrix_stats(g, new)["bandwidth"]
+2
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+import warp as wp
+
+from warpmesh.kernels import numbering as KN
+
+from warpmesh.numbering.graph import corner_count, degrees, node_graph
+from warpmesh.frep.tape import parallel_ranges, run_parallel
+
+__all__ = ["METHODS", "renumber", "renumber_graph", "matrix_stats", "profile_stats", "element_order"]
+
+Method = Literal["gibbs", "rcm", "frontal", "frontal-diameter"]
+METHODS: tuple[str, ...] = ("gibbs", "rcm", "frontal", "frontal-diameter")
+#: components up to this size keep their old relative order (numbered in one go)
+SMALL_COMPONENT = 2
+
+
+# ----------------------------------------------------------------------------- kernels
+_as_wp = functools.partial(wp.array, dtype=wp.int32, device="cpu")  # int32 CPU arrays (views of numpy ones)
+
+
+def _per_node(kernel, n: int, inputs: list, outputs: list) -> None:
+    """Launch a one-thread-per-node kernel (first argument ``first``) over [0, n),
+    split across the CPU cores; returns when done."""
+    wp.load_module(KN, device="cpu")  # load once here, not in the worker threads
+    run_parallel(lambda a=a, b=b: wp.launch(kernel, dim=b - a, inputs=[a, *inputs], outputs=outputs,
+                                            device="cpu")
+                 for a, b in parallel_ranges(n, "cpu"))
+    wp.synchronize_device("cpu")
+
+
+# ----------------------------------------------------------------------------- statistics
+def matrix_stats(graph: sp.csr_matrix, new: np.ndarray | None = None) -> dict:
+    """Bandwidth and profile of the matrix of ``graph`` with nodes numbered ``new``.
+
+    Parameters
+    ----------
+    graph : (n, n) csr_matrix
+        Symmetric node graph.
+    new : (n,) int, optional
+        New number of each node (a permutation of 0..n-1); default the identity.
+
+    Returns
+    -------
+    dict
+        ``bandwidth`` β, ``profile`` pr, ``profile_mean`` pr / n, and the same three for
+        the reversed numbering (``bandwidth_reversed``, ...).
+
+    Examples
+    --------
+    >>> from warpmesh.numbering.graph import node_graph
+    >>> g = node_graph({"line": np.array([[0, 2], [2, 1]])}, 3)
+    >>> s = matrix_stats(g); s["bandwidth"], s["profile"]
+    (2, 2)
+    """
+    n = graph.shape[0]
+    new = np.arange(n) if new is None else np.asarray(new)
+    if new.shape != (n,):
+        raise ValueError(f"expected 'new' of shape ({n},), got {new.shape}")
+    g = sp.csr_matrix(graph)
+    delta = wp.empty(n, dtype=wp.int32, device="cpu")
+    delta_rev = wp.empty(n, dtype=wp.int32, device="cpu")
+    inputs = [_as_wp(g.indptr.astype(np.int32, copy=False)), _as_wp(g.indices.astype(np.int32, copy=False)),
+              _as_wp(new.astype(np.int32, copy=False))]
+    _per_node(KN.profile_kernel, n, inputs, [delta, delta_rev])
+    out = {}
+    for suffix, d in (("", delta.numpy()), ("_reversed", delta_rev.numpy())):  # sync points
+        out["bandwidth" + suffix] = int(d.max(initial=0))
+        out["profile" + suffix] = int(d.sum(dtype=np.int64))
+        out["profile_mean" + suffix] = out["profile" + suffix] / n if n else 0.0
+    return out
+
+
+def element_order(cells: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """Element renumbering of seed §17.4.2 in linear time.
+
+    Elements are numbered by their node of smallest new number (a vertex, for P1
+    elements), then by their old index — the order the seed's double loop ("for each vertex, the elements containing
+    it not yet numbered") gives, found by one counting sort instead of O(n²) work.
+
+    Parameters
+    ----------
+    cells : (m, k) int
+    new : (n,) int
+        New number of each node.
+
+    Returns
+    -------
+    (m,) int: old element indices in their new order.
+
+    Examples
+    --------
+    >>> element_order(np.array([[2, 3], [0, 1], [1, 2]]), np.arange(4)).tolist()
+    [1, 2, 0]
+    """
+    m = len(cells)
+    if not m:
+        return np.zeros(0, np.int64)
+    key = new[cells].min(axis=1)
+    # a CSR matrix built from (key, element) pairs lists each row's elements in input
+    # order: scipy's coo -> csr conversion is a stable counting sort, O(m + n)
+    csr = sp.csr_matrix(
+        (np.ones(m, bool), (key, np.arange(m))), shape=(int(key.max()) + 1, m)
+    )
+    return csr.indices.astype(np.int64)
+
+
+# ----------------------------------------------------------------------------- numbering
+def _min_index(nodes: np.ndarray, key: np.ndarray) -> int:
+    """The node of smallest key, ties to the smallest index."""
+    k = key[nodes]
+    cand = nodes[k == k.min()]
+    return int(cand.min())
+
+
+def _order_by(*columns) -> np.ndarray:
+    """Indices sorting by the first column, then the second, ... (non-negative ints):
+    one argsort of a combined int64 key when it fits (np.lexsort is several times
+    slower on large arrays)."""
+    spans = [int(c.max(initial=0)) + 1 for c in columns]
+    if float(np.prod([float(s) for s in spans])) < 2.0**62:
+        combined = np.zeros(len(columns[0]), np.int64)
+        for c, s in zip(columns, spans):
+            combined = combined * s + c
+        return np.argsort(combined, kind="stable")
+    return np.lexsort(columns[::-1])
+
+
+class _Graph:
+    """A relabelled graph whose connected components are the contiguous label ranges
+    ``bounds[c]:bounds[c + 1]``, with the Warp views and scratch arrays of its walks
+    (kernels/numbering.py); every method works on all components at once."""
+
+    def __init__(self, graph: sp.csr_matrix, bounds):
+        self.graph = graph
+        self.n = n = graph.shape[0]
+        self.bounds = np.asarray(bounds, np.int64)
+        self.n_comp = len(self.bounds) - 1
+        self.comp = np.repeat(np.arange(self.n_comp), np.diff(self.bounds))
+        self.deg = degrees(graph)
+        self.indptr = _as_wp(graph.indptr.astype(np.int32, copy=False))
+        self.indices = _as_wp(graph.indices.astype(np.int32, copy=False))
+        self.queue = wp.empty(max(n, 1), dtype=wp.int32, device="cpu")
+        self.level = np.full(n, -1, np.int32)  # scratch of the searches
+        self.level_wp = _as_wp(self.level, copy=False)
+
+    def nodes_of(self, comps: np.ndarray) -> np.ndarray:
+        """The nodes of components ``comps`` (ascending), in order."""
+        lo, size = self.bounds[comps], np.diff(self.bounds)[comps]
+        first = np.cumsum(size) - size
+        return np.repeat(lo - first, size) + np.arange(int(size.sum()))
+
+    def first_per_component(self, nodes: np.ndarray, *keys, comps=None) -> np.ndarray:
+        """For each component (of ``comps``, ascending; default all), the one of
+        ``nodes`` (some in each) smallest by ``keys`` (arrays over all nodes), ties by
+        index."""
+        comps = np.arange(self.n_comp) if comps is None else comps
+        nodes = nodes[_order_by(self.comp[nodes], *(k[nodes] for k in keys), nodes)]
+        return nodes[np.searchsorted(self.comp[nodes], comps)]
+
+    def descent(self, sources: np.ndarray, nodes: np.ndarray | None = None) -> np.ndarray:
+        """Each node's level in the descent of its component's source: (n,) int64, or
+        the values at ``nodes`` (the nodes of the sources' components) when given."""
+        if nodes is None:
+            self.level[:] = -1
+        else:
+            self.level[nodes] = -1  # the search touches these only
+        wp.launch(KN.descent_kernel, dim=1, inputs=[self.indptr, self.indices, _as_wp(sources.astype(np.int32))],
+                  outputs=[self.level_wp, self.queue], device="cpu")
+        wp.synchronize_device("cpu")
+        return (self.level if nodes is None else self.level[nodes]).astype(np.int64)
+
+    def depths(self, level: np.ndarray, comps: np.ndarray | None = None) -> np.ndarray:
+        """Number of levels of each component's descent: ``level`` over all nodes, or
+        over the nodes of ``comps`` (ascending) in order."""
+        if comps is None:
+            return np.maximum.reduceat(level, self.bounds[:-1]) + 1
+        size = np.diff(self.bounds)[comps]
+        return np.maximum.reduceat(level, np.cumsum(size) - size) + 1
+
+    def components(self, nodes: np.ndarray) -> np.ndarray:
+        """Component label of each of ``nodes`` in the subgraph they induce, labelled in
+        the order of each one's smallest node."""
+        inside = np.zeros(self.n, np.int32)
+        inside[nodes] = 1
+        label = np.full(self.n, -1, np.int32)
+        count = wp.zeros(1, dtype=wp.int32, device="cpu")
+        wp.launch(KN.label_components_kernel, dim=1,
+                  inputs=[self.indptr, self.indices, _as_wp(inside), _as_wp(np.sort(nodes).astype(np.int32))],
+                  outputs=[_as_wp(label, copy=False), self.queue, count], device="cpu")
+        wp.synchronize_device("cpu")
+        return label[nodes].astype(np.int64)
+
+    def number(self, level: np.ndarray, start: np.ndarray, key: np.ndarray) -> np.ndarray:
+        """Step 3 on every component: ``level`` (n,) per node, numbering from ``start``
+        (one per component) with neighbours by increasing ``key``. Component c gets the
+        numbers ``bounds[c]:bounds[c + 1]``. Returns ``out`` (number -> node)."""
+        depth = self.depths(level)
+        first_level = np.concatenate([[0], np.cumsum(depth)])
+        flat = first_level[self.comp] + level  # a global index for every (component, level)
+        members = _order_by(flat, key, np.arange(self.n))
+        bounds = np.searchsorted(flat[members], np.arange(first_level[-1] + 1))
+        num, out = np.full(self.n, -1, np.int32), np.full(self.n, -1, np.int32)
+        buf = wp.empty(max(int(self.deg.max(initial=0)), 1), dtype=wp.int32, device="cpu")
+        wp.launch(KN.number_levels_kernel, dim=1,
+                  inputs=[self.indptr, self.indices, _as_wp(flat.astype(np.int32)),
+                          _as_wp(key.astype(np.int32)), _as_wp(members.astype(np.int32)),
+                          _as_wp(bounds.astype(np.int32)), _as_wp(start.astype(np.int32)),
+                          _as_wp(first_level.astype(np.int32)), _as_wp(self.bounds[:-1].astype(np.int32))],
+                  outputs=[_as_wp(num, copy=False), _as_wp(out, copy=False), buf], device="cpu")
+        wp.synchronize_device("cpu")
+        return out.astype(np.int64)
+
+
+def _pseudo_diameters(g: _Graph, start: np.ndarray, start_level: np.ndarray):
+    """Seed Step 1 (George–Liu) in every component: from ``start`` (whose descents are
+    ``start_level``), Q is the node of minimal degree of the last level (ties: smallest
+    index); while D(Q) is deeper than D(P), Q becomes P and the search goes on. Each
+    round works on the components still going only.
+
+    Returns P, D(P), Q, D(Q) (per component / per node), d(Q) = d(P) everywhere.
+    """
+    p, p_lv = start.copy(), start_level.copy()
+    q, q_lv = np.zeros_like(p), np.full(g.n, -1, np.int64)
+    depth = g.depths(p_lv)
+    active = np.arange(g.n_comp)
+    while len(active):
+        nodes = g.nodes_of(active)
+        last = nodes[p_lv[nodes] == depth[g.comp[nodes]] - 1]
+        cand = g.first_per_component(last, g.deg, comps=active)
+        lv = g.descent(cand, nodes)
+        new_depth = g.depths(lv, active)
+        deeper = new_depth > depth[active]
+        per_node = np.repeat(deeper, np.diff(g.bounds)[active])
+        q[active[~deeper]] = cand[~deeper]
+        q_lv[nodes[~per_node]] = lv[~per_node]
+        go = active[deeper]
+        p[go], depth[go] = cand[deeper], new_depth[deeper]
+        p_lv[nodes[per_node]] = lv[per_node]
+        active = go
+    return p, p_lv, q, q_lv
+
+
+def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
+    """Step 2 in every component: pairs (i, j), nodes with i = j fixed, the other
+    nodes' connected components placed, largest first, on the side that keeps the widest
+    level smaller (ties: the rooted structure of smaller width). Returns the levels."""
+    depth = g.depths(p_lv)
+    first_level = np.concatenate([[0], np.cumsum(depth)])
+    base = first_level[g.comp]
+    i, j = p_lv, depth[g.comp] - 1 - q_lv
+    level = np.where(i == j, i, -1)
+    counts = np.bincount((base + i)[i == j], minlength=first_level[-1])
+    rest = np.flatnonzero(i != j)
+    if not len(rest):
+        return level
+    width_p = np.maximum.reduceat(np.bincount(base + p_lv, minlength=first_level[-1]), first_level[:-1])
+    width_q = np.maximum.reduceat(np.bincount(base + q_lv, minlength=first_level[-1]), first_level[:-1])
+    label = g.components(rest)
+    sizes = np.bincount(label)
+    owner = np.empty(len(sizes), np.int64)
+    owner[label] = g.comp[rest]
+    # the k-th largest piece of every component is placed in round k, all at once: pieces
+    # of different components never share a level count
+    order = _order_by(owner, sizes.max() - sizes, np.arange(len(sizes)))
+    round_of = np.empty(len(sizes), np.int64)
+    round_of[order] = np.arange(len(sizes)) - np.searchsorted(owner[order], owner[order])
+    by_round = rest[_order_by(round_of[label], label, rest)]
+    lab = label[np.searchsorted(rest, by_round)]
+    ends = np.searchsorted(round_of[lab], np.arange(round_of.max() + 2))
+    for k in range(len(ends) - 1):
+        nodes, piece = by_round[ends[k]: ends[k + 1]], lab[ends[k]: ends[k + 1]]
+        first = np.flatnonzero(np.r_[True, piece[1:] != piece[:-1]])  # pieces are contiguous
+        fi, fj = base[nodes] + i[nodes], base[nodes] + j[nodes]
+        size = first_level[-1]
+        h0 = np.maximum.reduceat(counts[fi] + np.bincount(fi, minlength=size)[fi], first)
+        l0 = np.maximum.reduceat(counts[fj] + np.bincount(fj, minlength=size)[fj], first)
+        own = g.comp[nodes[first]]
+        side_i = (h0 < l0) | ((h0 == l0) & (width_p[own] <= width_q[own]))
+        chosen = np.where(np.repeat(side_i, np.diff(np.r_[first, len(nodes)])), i[nodes], j[nodes])
+        level[nodes] = chosen
+        counts += np.bincount(base[nodes] + chosen, minlength=size)
+    return level
+
+
+def _number_components(g: _Graph, method: str, start_level=None) -> np.ndarray:
+    """The order (new -> old label) of the graph by ``method``, component by component;
+    ``start_level`` is the descent of each component's node of minimal degree, if known."""
+    start = g.first_per_component(np.arange(g.n), g.deg)
+    lv = g.descent(start) if start_level is None else start_level
+    if method == "frontal":
+        return g.number(lv, start, _forward_degree(g.graph, lv))
+    p, p_lv, q, q_lv = _pseudo_diameters(g, start, lv)
+    from_q = g.deg[q] < g.deg[p]  # start from the end of lower degree
+    if method == "gibbs":
+        level = _gibbs_levels(g, p_lv, q_lv)
+        depth = g.depths(p_lv)
+        level = np.where(from_q[g.comp], depth[g.comp] - 1 - level, level)
+        return g.number(level, np.where(from_q, q, p), g.deg)
+    lv = np.where(from_q[g.comp], q_lv, p_lv)
+    key = g.deg if method == "rcm" else _forward_degree(g.graph, lv)
+    return g.number(lv, np.where(from_q, q, p), key)
+
+
+def _forward_degree(graph, level_of):
+    """Number of neighbours one level further: what a node brings into the next front."""
+    n = graph.shape[0]
+    rows = np.repeat(np.arange(n), np.diff(graph.indptr))
+    ahead = level_of[graph.indices] == level_of[rows] + 1
+    return np.bincount(rows[ahead], minlength=n)
+
+
+def _relabel(graph: sp.csr_matrix, seq: np.ndarray, size: int) -> sp.csr_matrix:
+    """The subgraph of nodes ``seq[:size]`` (closed under adjacency), node ``seq[r]``
+    relabelled r, rows sorted, in csgraph format (a kernel: scipy's two-sided fancy
+    indexing plus sorting costs several times more)."""
+    n = graph.shape[0]
+    new_of_old = np.full(n, -1, np.int32)
+    new_of_old[seq[:size]] = np.arange(size, dtype=np.int32)
+    indptr = np.zeros(size + 1, np.int32)
+    np.cumsum(np.diff(graph.indptr)[seq[:size]], out=indptr[1:])
+    indices = np.empty(int(indptr[-1]), np.int32)
+    _per_node(KN.relabel_rows_kernel, size,
+              [_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(seq[:size].astype(np.int32)),
+               _as_wp(new_of_old), _as_wp(indptr)], [_as_wp(indices, copy=False)])
+    g = sp.csr_matrix((np.ones(len(indices)), indices, indptr), shape=(size, size))
+    g.has_sorted_indices = True
+    return g
+
+
+def _search_relabel(graph: sp.csr_matrix, start: int):
+    """Breadth-first search from ``start`` that relabels as it goes (one kernel pass).
+
+    Returns the nodes reached in search order, the subgraph they span relabelled by
+    that order (csgraph format) and the level of each label."""
+    n = graph.shape[0]
+    new_of_old = np.full(n, -1, np.int32)
+    old_of_new, level = np.empty(n, np.int32), np.empty(n, np.int32)
+    indptr, indices = np.zeros(n + 1, np.int32), np.empty(graph.nnz, np.int32)
+    count = wp.zeros(1, dtype=wp.int32, device="cpu")
+    wp.launch(KN.search_relabel_kernel, dim=1,
+              inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), int(start)],
+              outputs=[_as_wp(a, copy=False) for a in (new_of_old, old_of_new, level, indptr, indices)]
+              + [count], device="cpu")
+    c = int(count.numpy()[0])  # sync point
+    local = sp.csr_matrix((np.ones(int(indptr[c])), indices[: indptr[c]], indptr[: c + 1]), shape=(c, c))
+    local.has_sorted_indices = True
+    return old_of_new[:c].astype(np.int64), local, level[:c].astype(np.int64)
+
+
+def _layout(graph, deg):
+    """A relabelling that makes every connected component a contiguous range.
+
+    Returns ``seq`` (new label -> node: the components with more than SMALL_COMPONENT
+    nodes, then the smaller ones, then isolated nodes), the sizes of the large
+    components, the number of nodes in small components and (the large components'
+    relabelled graph, each label's level in the descent of its component's node of
+    minimal degree, when the graph is connected, else None). Each large component is
+    laid out in the breadth-first order of a search, so that the walks that follow
+    read memory nearly in order: on a randomly numbered mesh that alone makes them ~3x
+    faster.
+    """
+    n = graph.shape[0]
+    used = np.flatnonzero(deg)
+    isolated = np.flatnonzero(deg == 0)
+    if not len(used):
+        return isolated, [], 0, None
+    reached, local, level = _search_relabel(graph, _min_index(used, deg))
+    if len(reached) == len(used):
+        seq = np.concatenate([reached, isolated])
+        if len(used) <= SMALL_COMPONENT:
+            return seq, [], len(used), None
+        return seq, [len(used)], 0, (local, level)
+    # several components: one search labels them all, each laid out contiguously in the
+    # order of its search (from its smallest node; components by smallest node)
+    label, queue = np.full(n, -1, np.int32), np.empty(n, np.int32)
+    count = wp.zeros(1, dtype=wp.int32, device="cpu")
+    wp.launch(KN.label_components_kernel, dim=1,
+              inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(np.ones(n, np.int32)),
+                      _as_wp(np.arange(n, dtype=np.int32))],
+              outputs=[_as_wp(label, copy=False), _as_wp(queue, copy=False), count], device="cpu")
+    wp.synchronize_device("cpu")
+    sizes = np.bincount(label)
+    kind = np.where(sizes > SMALL_COMPONENT, 0, np.where(sizes > 1, 1, 2))
+    seq = queue.astype(np.int64)[_order_by(kind[label[queue]], np.arange(n))]
+    total = int(sizes[kind == 0].sum())
+    local = (_relabel(graph, seq, total), None) if total else None
+    return seq, sizes[kind == 0].tolist(), int(sizes[kind == 1].sum()), local
+
+
+def _as_csgraph(graph) -> sp.csr_matrix:
+    """The structure of ``graph`` as CSR with float64 data, int32 indices, sorted rows,
+    no duplicates and no diagonal.
+
+    Raises ValueError for a graph that cannot be symmetric (a node with more entries in
+    its row than in its column) or too large for int32 indices."""
+    g = sp.csr_matrix(graph, dtype=np.float64, copy=True)
+    g.sum_duplicates()  # also sorts the rows
+    if g.nnz >= np.iinfo(np.int32).max:
+        raise ValueError(f"expected fewer than 2**31 - 1 entries in 'graph', got {g.nnz}")
+    g.data[:] = 1.0  # explicit zeros are entries too
+    if g.nnz and g.diagonal().any():
+        g.setdiag(0)
+        g.eliminate_zeros()
+    if not np.array_equal(np.diff(g.indptr), np.bincount(g.indices, minlength=g.shape[0])):
+        raise ValueError("expected a symmetric 'graph' (every entry (i, j) with its (j, i)); "
+                         "use g + g.T, or warpmesh.numbering.graph.node_graph")
+    g.indices = g.indices.astype(np.int32)
+    g.indptr = g.indptr.astype(np.int32)
+    g.has_sorted_indices = True
+    return g
+
+
+def renumber_graph(
+    graph: sp.csr_matrix,
+    method: Method = "gibbs",
+    *,
+    reverse: bool | Literal["auto"] = "auto",
+) -> np.ndarray:
+    """A new numbering of the nodes of ``graph`` (see the module docstring for methods).
+
+    Parameters
+    ----------
+    graph : (n, n) csr_matrix
+        Symmetric, no diagonal (:func:`warpmesh.numbering.graph.node_graph`).
+    method : {"gibbs", "rcm", "frontal", "frontal-diameter"}
+    reverse : bool or "auto"
+        Reverse the numbering; "auto" (default) keeps the direction of smaller profile.
+        "rcm" is reversed by definition unless ``reverse=False`` is given.
+
+    Returns
+    -------
+    (n,) int64
+        ``order[new] = old``.
+
+    Raises
+    ------
+    ValueError
+        Unknown method or reverse option, non-square graph.
+
+    Examples
+    --------
+    >>> from warpmesh.numbering.graph import node_graph
+    >>> g = node_graph({"line": np.array([[0, 3], [3, 1], [1, 2]])}, 4)
+    >>> renumber_graph(g, "rcm").tolist()
+    [2, 1, 3, 0]
+    """
+    if method not in METHODS:
+        raise ValueError(f"expected method among {list(METHODS)}, got {method!r}")
+    if reverse not in (True, False, "auto"):
+        raise ValueError(f"expected reverse=True, False or 'auto', got {reverse!r}")
+    if not sp.issparse(graph) or graph.shape[0] != graph.shape[1]:
+        raise ValueError(f"expected a square sparse 'graph', got {type(graph).__name__}")
+    graph = _as_csgraph(graph)
+    n = graph.shape[0]
+    deg = degrees(graph)
+    seq, sizes, n_small, connected = _layout(graph, deg)
+    new_of_local = np.empty(n, np.int64)
+    offset = sum(sizes)  # the large components come first, each a contiguous range
+    if offset:
+        local, start_level = connected
+        order = _number_components(_Graph(local, np.concatenate([[0], np.cumsum(sizes)])), method, start_level)
+        new_of_local[order] = np.arange(offset)
+    new_of_local[offset:] = np.arange(offset, n)  # small components, then isolated nodes
+    used = offset + n_small  # nodes in some element
+    if reverse == "auto" and method != "rcm":
+        # measured on the relabelled large components (memory read nearly in order): the
+        # small components' profile is the same both ways
+        s = matrix_stats(local, new_of_local[:offset]) if offset else None
+        flip = s is not None and (
+            (s["profile_reversed"], s["bandwidth_reversed"]) < (s["profile"], s["bandwidth"]))
+    else:
+        flip = bool(reverse) if method != "rcm" else reverse != False  # noqa: E712
+    if flip:  # isolated nodes stay last
+        head = new_of_local < used
+        new_of_local[head] = used - 1 - new_of_local[head]
+    order = np.empty(n, np.int64)
+    order[new_of_local] = seq
+    return order
+
+
+# ----------------------------------------------------------------------------- meshes
+def _is_higher_order(mesh) -> bool:
+    return any(c.shape[1] > corner_count(t) for t, c in mesh.cells.items())
+
+
+def profile_stats(mesh, *, reduced: bool = False) -> dict:
+    """Bandwidth and profile of the finite-element matrix of ``mesh`` as numbered now.
+
+    Every pair of nodes of an element is a coefficient (seed Fig. 17.11 i/ii; with
+    ``reduced``, quads and hexahedra connect along edges only, Fig. 17.11 iii).
+
+    Returns
+    -------
+    dict
+        ``bandwidth``, ``profile``, ``profile_mean`` (see :func:`matrix_stats`).
+
+    Examples
+    --------
+    >>> import warpmesh as wm
+    >>> m = wm.Mesh([[0, 0], [1, 0], [0, 1], [1, 1]], {"triangle": [[0, 1, 3], [0, 3, 2]]})
+    >>> profile_stats(m)
+    {'bandwidth': 3, 'profile': 6, 'profile_mean': 1.5}
+    """
+    s = matrix_stats(node_graph(mesh.cells, mesh.n_points, reduced=reduced))
+    return {k: s[k] for k in ("bandwidth", "profile", "profile_mean")}
+
+
+#: facts of ``Mesh.info`` that an element renumbering makes stale (colour packets)
+_ELEMENT_ORDER_FACTS = ("n_colors", "packet_sizes", "color_adjacency")
+
+
+def _inverse(order: np.ndarray) -> np.ndarray:
+    """``new[old]`` from ``order[new] = old``."""
+    new = np.empty(len(order), np.int64)
+    new[order] = np.arange(len(order))
+    return new
+
+
+def _ball_order(mesh, corner_order: np.ndarray):
+    """Seed's rule for arbitrary meshes: walk the vertices in their new order and number
+    the not yet numbered nodes of the elements of each one's ball, element by element
+    (by old index), in local order. Elements are numbered in the order the walk first
+    meets them: by (first vertex of the element in the walk, old index). Vectorised: a
+    node's place is the smallest (first vertex, element, local index) over its
+    occurrences.
+
+    Returns the node order (new -> old) and {cell type: element order}.
+    """
+    n = mesh.n_points
+    vnum = np.empty(n, np.int64)
+    vnum[corner_order] = np.arange(n)
+    best = np.full(n, np.iinfo(np.int64).max)
+    total = sum(len(c) for c in mesh.cells.values())
+    width = max(c.shape[1] for c in mesh.cells.values())
+    if float(n) * total * width >= 2.0**62:
+        raise ValueError(f"expected a mesh small enough for int64 keys, got {n} nodes")
+    offset, elements = 0, {}
+    for t, cells in mesh.cells.items():
+        m, k = cells.shape
+        first = vnum[cells[:, : corner_count(t)]].min(axis=1)
+        key = (first[:, None] * total + offset + np.arange(m)[:, None]) * width + np.arange(k)
+        np.minimum.at(best, cells.ravel(), key.ravel())
+        elements[t] = _order_by(first, np.arange(m))
+        offset += m
+    return np.argsort(best, kind="stable"), elements
+
+
+def renumber(
+    mesh,
+    method: Method = "gibbs",
+    *,
+    reverse: bool | Literal["auto"] = "auto",
+    higher_order: Literal["ball", "graph"] = "ball",
+    reduced: bool = False,
+    elements: bool = True,
+):
+    """A copy of ``mesh`` with its nodes (and elements) renumbered (seed §17.4).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    method : {"gibbs", "rcm", "frontal", "frontal-diameter"}
+        See the module docstring.
+    reverse : bool or "auto"
+        See :func:`renumber_graph`; with the ball rule it applies to the whole numbering
+        (the walk run backwards), "auto" measuring it on every node.
+    higher_order : {"ball", "graph"}
+        For meshes with nodes other than vertices (P2, ...): number the vertices
+        first and the other nodes by the seed's ball rule (default), or run the method
+        on the full node graph (Remark 17.13: better, more work).
+    reduced : bool
+        Number on the reduced graph: quads/hexahedra connect along their edges only (Fig.
+        17.11 iii). The statistics always count every pair of an element's nodes.
+    elements : bool
+        Also renumber the elements of each block after their new vertices (§17.4.2).
+
+    Returns
+    -------
+    Mesh
+        Points, refs and data permuted; ``info`` (and so ``stats()``) gains
+        ``bandwidth``, ``profile``, ``profile_mean``, the same with ``_before``,
+        ``profile_ratio`` (before / after), ``renumber_method``, ``renumber_time``
+        (seconds, the method on the graph), ``graph_time`` and ``nodes_per_second``
+        (nodes / renumber_time, the seed's v).
+
+    Raises
+    ------
+    TypeError
+        ``mesh`` is not a Mesh.
+    ValueError
+        Unknown method or option.
+
+    Examples
+    --------
+    >>> import numpy as np, warpmesh as wm
+    >>> pts = np.array([[x, y] for x in range(30) for y in range(3)], float)
+    >>> grid = wm.Mesh(pts, {"triangle": [[3 * x + y, 3 * x + y + 3, 3 * x + y + 4]
+    ...                                  for x in range(29) for y in range(2)]})
+    >>> shuffled = grid.replace(points=pts[::-1], cells={"triangle": 89 - grid.cells["triangle"]})
+    >>> r = wm.renumber(shuffled, "gibbs")
+    >>> r.stats()["bandwidth"], r.stats()["profile_before"] > r.stats()["profile"]
+    (4, True)
+    """
+    from warpmesh.mesh import Mesh
+
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"expected a warpmesh Mesh for 'mesh', got {type(mesh).__name__}")
+    if method not in METHODS:
+        raise ValueError(f"expected method among {list(METHODS)}, got {method!r}")
+    if higher_order not in ("ball", "graph"):
+        raise ValueError(f"expected higher_order='ball' or 'graph', got {higher_order!r}")
+    n = mesh.n_points
+    wp.load_module(KN, device="cpu")  # compiled once per machine, loaded once per process: not timed
+    t0 = time.perf_counter()
+    graph = node_graph(mesh.cells, n, reduced=reduced)
+    t1 = time.perf_counter()
+    walk = None
+    if _is_higher_order(mesh) and higher_order == "ball":
+        corners = node_graph(mesh.cells, n, nodes="corners", reduced=reduced)
+        t1b = time.perf_counter()
+        order, walk = _ball_order(mesh, renumber_graph(corners, method, reverse=False))
+        if reverse == "auto" or method == "rcm" and reverse != False:  # noqa: E712
+            s = matrix_stats(graph, _inverse(order))  # direction of the whole numbering
+            flip = method == "rcm" if reverse != "auto" else (
+                (s["profile_reversed"], s["bandwidth_reversed"]) < (s["profile"], s["bandwidth"]))
+        else:
+            flip = bool(reverse)
+        if flip:  # the walk run backwards: nodes and elements
+            used = np.isin(np.arange(n), np.concatenate([c.ravel() for c in mesh.cells.values()]))
+            k = int(used.sum())
+            order = np.concatenate([order[:k][::-1], order[k:]])
+            walk = {t: w[::-1] for t, w in walk.items()}
+        graph_time = (t1 - t0) + (t1b - t1)
+        t1 = t1b
+    else:
+        order = renumber_graph(graph, method, reverse=reverse)
+        graph_time = t1 - t0
+    elapsed = time.perf_counter() - t1
+    new = _inverse(order)
+    full = graph if not reduced else node_graph(mesh.cells, n)  # statistics: every coefficient
+    before, after = matrix_stats(full), matrix_stats(full, new)
+    cells, cell_refs, cell_data = {}, {}, {k: {} for k in mesh.cell_data}
+    for t, block in mesh.cells.items():
+        block = new[block]
+        if not elements:
+            keep = np.arange(len(block))
+        else:  # the ball walk's order, or by first vertex (seed 17.4.2)
+            keep = walk[t] if walk is not None else element_order(block, np.arange(n))
+        cells[t] = block[keep]
+        if mesh.cell_refs is not None and t in mesh.cell_refs:
+            cell_refs[t] = mesh.cell_refs[t][keep]
+        for k in mesh.cell_data:
+            cell_data[k][t] = mesh.cell_data[k][t][keep]
+    info = {k: v for k, v in mesh.info.items() if k not in _ELEMENT_ORDER_FACTS}
+    for k in ("bandwidth", "profile", "profile_mean"):
+        info[k], info[k + "_before"] = after[k], before[k]
+    info.update(
+        profile_ratio=before["profile"] / max(after["profile"], 1),
+        renumber_method=method,
+        renumber_time=elapsed,
+        graph_time=graph_time,
+        nodes_per_second=n / elapsed if elapsed > 0 else float("inf"),
+    )
+    return Mesh(
+        mesh.points[order],
+        cells,
+        point_data={k: v[order] for k, v in mesh.point_data.items()},
+        cell_data=cell_data,
+        point_refs=None if mesh.point_refs is None else mesh.point_refs[order],
+        cell_refs=cell_refs or None,
+        info=info,
+    )
+
+
+#: rows of the statistics table, after seed Table 17.1: (label, stats key, format)
+TABLE_ROWS = (
+    ("np", "np", "{:,}"),
+    ("ne", "ne", "{:,}"),
+    ("beta (initial)", "bandwidth_before", "{:,}"),
+    ("pr (initial)", "profile_before", "{:,}"),
+    ("pr_mean (initial)", "profile_mean_before", "{:,.0f}"),
+    ("beta (final)", "bandwidth", "{:,}"),
+    ("pr (final)", "profile", "{:,}"),
+    ("pr_mean (final)", "profile_mean", "{:,.0f}"),
+    ("pr ratio", "profile_ratio", "{:,.0f}"),
+    ("v (nodes/s)", "nodes_per_second", "{:,.0f}"),
+)
+
+
+def format_table(columns: dict[str, dict]) -> str:
+    """The statistics of renumbered meshes as seed Table 17.1: one column per mesh.
+
+    Parameters
+    ----------
+    columns : {name: stats}
+        ``Mesh.stats()`` of renumbered meshes (or any dicts with the keys of
+        :data:`TABLE_ROWS`; missing ones print "-").
+
+    Examples
+    --------
+    >>> print(format_table({"a": {"np": 1200, "bandwidth": 30}}).splitlines()[1])
+    np                    1,200
+    """
+    names = list(columns)
+    cells = [[label] + [fmt.format(columns[m][key]) if columns[m].get(key) is not None else "-"
+                        for m in names] for label, key, fmt in TABLE_ROWS]
+    header = ["mesh"] + names
+    widths = [max(len(r[i]) for r in [header] + cells) for i in range(len(header))]
+    widths[0] = max(widths[0], 20)
+
+    def line(row):
+        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(row, widths)))
+
+    return "\n".join([line(header)] + [line(r) for r in cells])

@@ -1,0 +1,1 @@
+"""The adaptive covering-up [FG §16.4.1]: octree, per-cell tapes, contouring of the leaves, QEF vertex placement."""

@@ -1,0 +1,387 @@
+"""Typed launch wrappers of the block-sparse grid (seed §16.4.1-16.4.2, §16.3.3).
+
+:class:`BlockGrid` owns the device arrays of one extraction and launches the kernels of
+:mod:`warpmesh.kernels.block_grid` (block culling and compaction: count -> prefix sum ->
+allocate -> write; sampling a shape's tape or a volume's samples; capping) and of
+:mod:`warpmesh.kernels.emit` (the two-pass emission of vertices and triangles by
+"mc33", "mt" or "mc"); :func:`refine_roots` moves vertices onto the exact surface. Launches over slots are split across CPU cores from Python threads.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import warp as wp
+
+from warpmesh import _conventions as C
+from warpmesh.frep import codegen
+from warpmesh.errors import WarpMeshError
+from warpmesh.kernels import block_grid as K
+from warpmesh.kernels import emit as KE
+from warpmesh.frep.tape import eval_gradients, eval_intervals, eval_values, parallel_ranges, run_parallel
+
+_TABLE_CACHE: dict[tuple[str, str], KE.Tables] = {}
+METHODS = ("mc33", "mt", "mc")
+#: method -> (kernel method id, vertex types per node: the grid-edge directions it uses)
+_METHOD_IDS = {"mc": (KE.METHOD_MC, 3), "mc33": (KE.METHOD_MC33, 3), "mt": (KE.METHOD_MT, 7)}
+
+
+def _host_tables(method: str) -> dict[str, np.ndarray]:
+    """A method's tables as int32 numpy arrays, in the layout of ``kernels.emit.Tables``."""
+    from warpmesh.kernels import mc_tables as MC
+
+    one = np.zeros(1, np.int32)
+    tabs = {"corners": MC.CORNERS, "type_delta": KE.TYPE_DELTA, "case_offset": one, "interior_test": one,
+            "test_corners": np.zeros((1, 1), np.int32),
+            "face_corners": np.array(MC.FACES, dtype=np.int32)}
+    if method == "mc":
+        tabs.update(origin=MC.EDGE_ORIGIN, tri_count=MC.TRI_COUNT, tris=MC.TRI_TABLE.reshape(256, -1),
+                    quad_count=np.zeros(256, np.int32), quads=np.zeros((256, 4), np.int32),
+                    center=np.zeros(256, np.int32))
+    elif method == "mt":
+        from warpmesh.kernels import mt_tables as MT
+
+        assert np.array_equal(MT.EDGE_TYPE_DELTA, KE.TYPE_DELTA[:7]), "vertex types disagree with kernels.emit"
+        tabs.update(origin=MT.MT_EDGE_ORIGIN, tri_count=MT.MT_TRI_COUNT, tris=MT.MT_TRIS.reshape(256, -1),
+                    quad_count=MT.MT_QUAD_COUNT, quads=MT.MT_QUADS.reshape(256, -1),
+                    center=np.zeros(256, np.int32))
+    else:
+        from warpmesh.kernels import mc33_tables as M33
+
+        tabs.update(M33.kernel_tables())
+    return {k: np.ascontiguousarray(v, dtype=np.int32) for k, v in tabs.items()}
+
+
+def method_tables(method: str, device) -> KE.Tables:
+    """The tables of an extraction method as a ``kernels.emit.Tables`` struct, uploaded
+    once per device."""
+    key = (method, str(device))
+    if key not in _TABLE_CACHE:
+        tab = KE.Tables()
+        for name, arr in _host_tables(method).items():
+            setattr(tab, name, wp.array(arr, dtype=wp.int32, device=device))
+        _TABLE_CACHE[key] = tab
+    return _TABLE_CACHE[key]
+
+
+# -- the grid ----------------------------------------------------------------------------------
+class BlockGrid:
+    """The block-sparse grid of one extraction: its device arrays and the kernel launches
+    (allocation, prefix sums, per-core splits), so that :func:`mesh_surface` reads as a pipeline."""
+
+    def __init__(self, n_nodes, origin, h, device, node_offset=(0, 0, 0), global_nodes=None):
+        self.n = np.asarray(n_nodes, dtype=np.int64)
+        # a slab of a larger grid: where its first node sits, and the whole grid's size
+        # (vertex keys are node ids of the whole grid, so slabs weld exactly)
+        self.wgoff = wp.vec3i(*[int(v) for v in node_offset])
+        self.wgn = wp.vec3i(*[int(v) for v in (self.n if global_nodes is None else global_nodes)])
+        self.nb = np.maximum(1, -(-(self.n - 1) // K.BLOCK))
+        self.n_blocks = int(np.prod(self.nb))
+        self.origin = np.asarray(origin, dtype=np.float64)
+        self.h = np.asarray(h, dtype=np.float64)
+        self.device = device
+        wp.load_module(K, device=device)  # compile/load once here, not in worker threads
+        wp.load_module(KE, device=device)
+        self.wn = wp.vec3i(*self.n.tolist())
+        self.wnb = wp.vec3i(*self.nb.tolist())
+        self.worigin = wp.vec3(*self.origin.tolist())
+        self.wh = wp.vec3(*self.h.tolist())
+        self.info = {"grid": tuple(int(v) for v in self.n), "cell_size": tuple(float(v) for v in self.h),
+                     "blocks": self.n_blocks}
+
+    def _launch(self, kernel, dim, inputs, outputs=()):
+        wp.launch(kernel, dim=dim, inputs=inputs, outputs=list(outputs), device=self.device)
+
+    def _compact(self, state: wp.array) -> None:
+        """Slots for the surviving blocks: EVALUATE ones first, then INSIDE ones."""
+        counts = []
+        offsets = []
+        for which in (K.EVALUATE, K.INSIDE):
+            flags = wp.empty_like(state)
+            self._launch(K.flag_state_kernel, self.n_blocks, [state, int(which)], [flags])
+            off = wp.empty_like(state)
+            wp.utils.array_scan(flags, off, inclusive=False)
+            offsets.append(off)
+            counts.append(int(off.numpy()[-1] + flags.numpy()[-1]))  # sync point: slot counts
+        self.n_evaluate, n_inside = counts
+        self.n_slots = self.n_evaluate + n_inside
+        self._check_slots()
+        self.slot_block = wp.empty(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
+        self.block_slot = wp.empty(self.n_blocks, dtype=wp.int32, device=self.device)
+        self._launch(K.compact_blocks_kernel, self.n_blocks, [state, offsets[0], offsets[1], self.n_evaluate],
+                     [self.slot_block, self.block_slot])
+        self.info["active_blocks"] = self.n_slots
+        self.info["inside_blocks"] = n_inside
+
+    def _check_slots(self) -> None:
+        if self.n_slots * K.NODES * 7 >= 2**31:
+            raise WarpMeshError(
+                f"{self.n_slots} blocks of {K.BLOCK}^3 cells would be sampled, more than one pass can "
+                "index (int32): keep cull=True, or lower 'resolution'")
+
+    def cull_shape(self, tape, cull: bool, cap: int, timings) -> None:
+        t0 = time.perf_counter()
+        state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
+        self.info["interval_evaluations"] = 0
+        if cull:
+            lo = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
+            hi = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
+            self._launch(K.block_boxes_kernel, self.n_blocks, [self.wnb, self.wn, self.worigin, self.wh], [lo, hi])
+            intervals = eval_intervals(tape, lo, hi, device=self.device)
+            self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [state])
+            self.info["interval_evaluations"] = self.n_blocks
+        self._compact(state)
+        timings["cull"] = time.perf_counter() - t0
+
+    def sample_shape(self, tape, cull: bool, evaluator, timings) -> None:
+        """f at the nodes of the EVALUATE slots that a sub-block interval cannot settle
+        (the others get the sign it proves); +1 (inside) at the nodes of INSIDE slots."""
+        t0 = time.perf_counter()
+        dev, ne = self.device, self.n_evaluate
+        n_nodes = ne * K.NODES
+        self.values = wp.empty(max(self.n_slots * K.NODES, 1), dtype=wp.float32, device=dev)
+        n_pts = 0
+        if ne:
+            needs = wp.ones(n_nodes, dtype=wp.int8, device=dev)
+            need_count = wp.full(ne, K.NODES, dtype=wp.int32, device=dev)
+            if cull:
+                lo = wp.empty(ne * K.SUBS, dtype=wp.vec3, device=dev)
+                hi = wp.empty(ne * K.SUBS, dtype=wp.vec3, device=dev)
+                self._launch(K.sub_boxes_kernel, (ne, K.SUBS), [self.slot_block, self.wnb, self.wn,
+                                                                self.worigin, self.wh], [lo, hi])
+                intervals = eval_intervals(tape, lo, hi, device=dev)
+                states = wp.empty(ne * K.SUBS, dtype=wp.int32, device=dev)
+                self._per_slot(K.node_needs_kernel, [intervals], [states, self.values, needs, need_count], ne)
+                self.info["interval_evaluations"] += ne * K.SUBS
+            need_offset = wp.empty_like(need_count)
+            wp.utils.array_scan(need_count, need_offset, inclusive=False)
+            n_pts = int(need_offset[ne - 1:].numpy()[0] + need_count[ne - 1:].numpy()[0])  # sync point
+            pts = wp.empty(max(n_pts, 1), dtype=wp.vec3, device=dev)
+            self._per_slot(K.needed_points_kernel, [self.slot_block, self.wnb, self.wn, self.worigin, self.wh,
+                                                    needs, need_offset], [pts], ne)
+            # choose once (and count this as one large run of the structure under "auto")
+            used = "compiled" if codegen.generated_kernel(tape, dev, evaluator, n_pts) else "interpreter"
+            self.info["evaluator"] = used
+            compact = eval_values(tape, pts[:n_pts], device=dev, evaluator=used)
+            self._per_slot(K.scatter_values_kernel, [needs, need_offset, compact], [self.values], ne)
+        if self.n_slots > ne:
+            self._launch(K.fill_values_kernel, (self.n_slots - ne) * K.NODES, [ne, 1.0], [self.values])
+        self.info["evaluations"] = n_pts
+        timings["evaluate"] = time.perf_counter() - t0
+
+    def cull_volume(self, vol, level, sign, cull, cap, timings) -> tuple[float, float]:
+        """Exact value ranges per block (also the volume's validation: NaN / infinity
+        raise), then the samples of the surviving blocks. Returns the range of
+        sign * (vol - level) over the grid, which the caller checks against 0."""
+        t0 = time.perf_counter()
+        host = np.ascontiguousarray(vol, dtype=np.float32)  # no copy for a C-order float32 volume
+        # on the CPU Warp reads the numpy buffer in place; elsewhere it is uploaded once
+        wvol = wp.array(host, dtype=wp.float32, device=self.device, copy=not self.device.is_cpu)
+        self._volume_refs = (host, wvol)  # keep the borrowed buffer alive while kernels read it
+        timings["upload"] = timings.get("upload", 0.0) + time.perf_counter() - t0
+        t0 = time.perf_counter()
+        intervals = wp.empty(self.n_blocks, dtype=wp.vec2, device=self.device)
+        bad = wp.zeros(self.n_blocks, dtype=wp.int32, device=self.device)
+        run_parallel([lambda a=a, b=b: self._launch(K.volume_block_range_kernel, b - a,
+                                                     [a, self.wnb, wvol, level, sign], [intervals, bad])
+                      for a, b in parallel_ranges(self.n_blocks, self.device, min_per_worker=64)])
+        n_bad = int(bad.numpy().sum())  # sync point: validation (samples on block faces count twice)
+        if n_bad:
+            raise ValueError("expected finite values in 'volume', got NaN or infinity (or values beyond "
+                             "float32's range, where the volume is converted to float32)")
+        ranges = intervals.numpy()
+        vmin, vmax = float(ranges[:, 0].min()), float(ranges[:, 1].max())  # of sign * (volume - level)
+        state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
+        if cull:
+            self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [state])
+        self._compact(state)
+        timings["cull"] = timings.get("cull", 0.0) + time.perf_counter() - t0
+        t0 = time.perf_counter()
+        self.values = wp.empty(max(self.n_slots * K.NODES, 1), dtype=wp.float32, device=self.device)
+        if self.n_slots:
+            self._per_slot(K.gather_volume_kernel, [self.slot_block, self.wnb, wvol, level, sign], [self.values])
+        self.info["evaluations"] = 0
+        timings["evaluate"] = timings.get("evaluate", 0.0) + time.perf_counter() - t0
+        return vmin, vmax
+
+    def node_values(self, tape, ids: np.ndarray, evaluator) -> np.ndarray:
+        """f at grid nodes given by linear id (i + nx (j + ny k)), with the coordinates
+        computed exactly as the sampling kernels do (continuation matches the grid)."""
+        wids = wp.array(np.ascontiguousarray(ids, dtype=np.int64), dtype=wp.int64, device=self.device)
+        pts = wp.empty(len(ids), dtype=wp.vec3, device=self.device)
+        self._launch(K.node_points_kernel, len(ids), [wids, self.wn, self.worigin, self.wh], [pts])
+        used = "compiled" if codegen.generated_kernel(tape, self.device, evaluator, len(ids)) else "interpreter"
+        self.info["evaluator"] = used
+        return eval_values(tape, pts, device=self.device, evaluator=used).numpy()  # sync point
+
+    def load_cells(self, cells: np.ndarray, node_ids: np.ndarray, node_values: np.ndarray) -> wp.array:
+        """Slots for a given set of cells (continuation): every block owning a vertex of one
+        of them, filled with the known node values (-1, outside, elsewhere: the vertices
+        that creates are on no marked cell and are dropped). Returns the cell mask."""
+        n = self.n
+        cdim = n - 1
+        ci = np.stack([cells % cdim[0], cells // cdim[0] % cdim[1], cells // (cdim[0] * cdim[1])], axis=1)
+        owners = []
+        for corner in range(8):  # the blocks owning the corners' edges
+            g = ci + np.array([corner & 1, (corner >> 1) & 1, (corner >> 2) & 1])
+            ob = np.minimum(g // K.BLOCK, self.nb - 1)
+            owners.append(ob[:, 0] + self.nb[0] * (ob[:, 1] + self.nb[1] * ob[:, 2]))
+        blocks = np.unique(np.concatenate(owners))
+        del owners
+        self.n_slots = self.n_evaluate = len(blocks)
+        self._check_slots()
+        block_slot = np.full(self.n_blocks, -1, dtype=np.int32)
+        block_slot[blocks] = np.arange(len(blocks), dtype=np.int32)
+        side = np.arange(K.SIDE)
+        lk, lj, li = np.meshgrid(side, side, side, indexing="ij")  # local_index: i fastest
+        local = np.stack([li.ravel(), lj.ravel(), lk.ravel()], axis=1)  # (NODES, 3)
+        values = np.empty(len(blocks) * K.NODES, dtype=np.float32)
+        for first in range(0, len(blocks), 1024):  # bounded temporaries: 1024 blocks at a time
+            part = blocks[first:first + 1024]
+            bc = np.stack([part % self.nb[0], part // self.nb[0] % self.nb[1], part // (self.nb[0] * self.nb[1])],
+                          axis=1)
+            g = np.minimum(bc[:, None, :] * K.BLOCK + local[None], n - 1)  # clamped, as node_point
+            gid = (g[..., 0] + n[0] * (g[..., 1] + n[1] * g[..., 2])).ravel()
+            pos = np.clip(np.searchsorted(node_ids, gid), 0, max(len(node_ids) - 1, 0))
+            known = node_ids[pos] == gid if len(node_ids) else np.zeros(len(gid), bool)
+            values[first * K.NODES:(first + len(part)) * K.NODES] = \
+                np.where(known, node_values[pos] if len(node_ids) else 0.0, -1.0)
+        cb = ci // K.BLOCK
+        slot = block_slot[cb[:, 0] + self.nb[0] * (cb[:, 1] + self.nb[1] * cb[:, 2])]
+        lc = ci - cb * K.BLOCK
+        mask = np.zeros(max(len(blocks), 1) * K.CELLS, dtype=np.uint8)
+        mask[slot * K.CELLS + lc[:, 0] + K.BLOCK * (lc[:, 1] + K.BLOCK * lc[:, 2])] = 1
+        dev = self.device
+        self.values = wp.array(values if len(values) else np.zeros(1, np.float32), dtype=wp.float32, device=dev)
+        self.slot_block = wp.array(np.maximum(blocks, 0).astype(np.int32) if len(blocks) else np.zeros(1, np.int32),
+                                   dtype=wp.int32, device=dev)
+        self.block_slot = wp.array(block_slot, dtype=wp.int32, device=dev)
+        self.info["active_blocks"] = self.n_slots
+        self.info["inside_blocks"] = 0
+        return wp.array(mask, dtype=wp.uint8, device=dev)
+
+    def finish_values(self, cap: int, timings) -> None:
+        t0 = time.perf_counter()
+        bad = wp.zeros(max(self.n_slots, 1), dtype=wp.int32, device=self.device)
+        if self.n_slots:
+            self._per_slot(K.check_cap_values_kernel, [self.slot_block, self.wnb, self.wn, int(cap)],
+                           [self.values, bad])
+        if int(bad.numpy().sum()):  # sync point
+            raise ValueError("the shape evaluates to NaN or infinity at grid nodes inside 'bounds' "
+                             "(e.g. sqrt/log of a negative or a division by zero); change the "
+                             "expression or the bounds")
+        timings["cap"] = timings.get("cap", 0.0) + time.perf_counter() - t0
+
+    def _per_slot(self, kernel, inputs, outputs, count: int | None = None) -> None:
+        """Launch a one-thread-per-slot kernel over slots [0, count), split across CPU cores."""
+        count = self.n_slots if count is None else count
+        jobs = [lambda a=a, b=b: self._launch(kernel, b - a, [a, *inputs], outputs)
+                for a, b in parallel_ranges(count, self.device, min_per_worker=32)]
+        run_parallel(jobs)
+
+    def extract(self, method: str, cap: int, timings, cell_mask: wp.array | None = None):
+        """Emit the surface with ``method`` ("mc", "mc33" or "mt"); ``cell_mask`` (uint8 per
+        slot cell, optional) restricts the triangles to the cells it marks (continuation).
+        Returns (vertices, triangles, edges): grid-local float32 positions, vec3i
+        triangles, and per vertex its edge (t, p0, p1, flags, key) for root refinement."""
+        t0 = time.perf_counter()
+        dev, ns = self.device, self.n_slots
+        tab = method_tables(method, dev)
+        mid, n_types = _METHOD_IDS[method]
+        mask = cell_mask if cell_mask is not None else wp.zeros(1, dtype=wp.uint8, device=dev)
+        vcount, tcount, ccount = (wp.zeros(max(ns, 1), dtype=wp.int32, device=dev) for _ in range(3))
+        voff, toff, coff = (wp.zeros(max(ns, 1), dtype=wp.int32, device=dev) for _ in range(3))
+        cases = wp.empty(max(ns, 1) * K.CELLS, dtype=wp.int32, device=dev)
+        if ns:
+            self._per_slot(KE.count_crossings_kernel, [self.slot_block, self.wnb, self.wn, mid, n_types,
+                                                       self.values, tab, mask], [vcount, tcount, ccount, cases])
+            for count, off in ((vcount, voff), (tcount, toff), (ccount, coff)):
+                wp.utils.array_scan(count, off, inclusive=False)
+        # sync point: output sizes
+        nv_edges, nt, nc = ((int(off.numpy()[-1] + count.numpy()[-1]) if ns else 0)
+                            for count, off in ((vcount, voff), (tcount, toff), (ccount, coff)))
+        nv = nv_edges + nc
+        verts = wp.empty(nv, dtype=wp.vec3, device=dev)
+        tris = wp.empty(nt, dtype=wp.vec3i, device=dev)
+        edges = {"t": wp.empty(nv, dtype=wp.float32, device=dev), "p0": wp.empty(nv, dtype=wp.vec3, device=dev),
+                 "p1": wp.empty(nv, dtype=wp.vec3, device=dev), "flags": wp.empty(nv, dtype=wp.int32, device=dev),
+                 "key": wp.empty(nv, dtype=wp.int64, device=dev)}
+        slot_volume = wp.zeros(max(ns, 1), dtype=wp.float64, device=dev)
+        if nv:
+            eid = wp.full(ns * K.NODES * n_types, -1, dtype=wp.int32, device=dev)
+            # positions relative to the grid origin: float32 keeps its precision far from 0;
+            # the host adds the origin in float64
+            local, t_min = wp.vec3(0.0), float(C.EDGE_T_MIN)
+            self._per_slot(KE.emit_vertices_kernel, [self.slot_block, self.wnb, self.wn, n_types, int(cap), local,
+                                                     self.wh, t_min, self.wgoff, self.wgn, tab, self.values, voff],
+                           [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"]])
+            if nc:  # interior vertices after the edge vertices
+                wp.launch(KE.add_offset_kernel, dim=ns, inputs=[nv_edges], outputs=[coff], device=dev)
+            self._per_slot(KE.emit_triangles_kernel,
+                           [self.slot_block, self.block_slot, self.wnb, self.wn, n_types, local, self.wh, t_min,
+                            self.wgoff, self.wgn, tab, self.values, cases, toff, coff, eid],
+                           [verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"], tris,
+                            slot_volume])
+        self.info["signed_volume"] = float(slot_volume.numpy().sum()) / 6.0  # linear placement
+        self.info["interior_vertices"] = nc
+        timings["extract"] = timings.get("extract", 0.0) + time.perf_counter() - t0
+        return verts, tris, edges
+
+
+GRADIENTS = ("exact", "central", "forward")
+FD_STEP = 1.0e-2  # finite-difference step, as a fraction of the cell size (seed: "a fraction of the cell size")
+
+
+def gradients(tape, points: wp.array, out: wp.array, scheme: str, h, evaluator="interpreter") -> wp.array:
+    """(f, grad f) at points: exact forward mode, or finite differences of f alone (seed
+    eq. 16.13 forward, 16.14 centred) with steps ``FD_STEP * h`` per axis."""
+    if scheme == "exact":
+        return eval_gradients(tape, points, out, device=points.device)
+    dev, n = points.device, points.shape[0]
+    central = int(scheme == "central")
+    per = 4 + 3 * central
+    step = wp.vec3(*(FD_STEP * np.asarray(h, dtype=np.float64)).tolist())
+    shifted = wp.empty(n * per, dtype=wp.vec3, device=dev)
+    wp.launch(KE.fd_points_kernel, dim=n, inputs=[points, step, central], outputs=[shifted], device=dev)
+    values = eval_values(tape, shifted, device=dev, evaluator=evaluator)
+    wp.launch(KE.fd_gradient_kernel, dim=n, inputs=[values, step, central], outputs=[out], device=dev)
+    return out
+
+
+def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluator="auto",
+                 gradient: str = "exact", h=(1.0, 1.0, 1.0), fg_out=None) -> None:
+    """Move each vertex to the root of f on its edge (bisection or safeguarded Newton, with
+    the exact or a finite-difference gradient); f is evaluated at origin + the grid-local
+    positions. Interior vertices ("mc33", flagged as zero ends) stay where they are.
+    With Newton, ``fg_out`` (vec4 per vertex) receives (f, grad f) of the last step."""
+    t0 = time.perf_counter()
+    dev = verts.device
+    nv = verts.shape[0]
+    world = wp.empty(nv, dtype=wp.vec3, device=dev)
+    if evaluator == "auto":  # the bisection steps use what is ready; they start no compile
+        evaluator = "compiled" if codegen.is_loaded(tape, dev) else "interpreter"
+    t, flags, p0, p1 = edges["t"], edges["flags"], edges["p0"], edges["p1"]
+    t_lo = wp.empty(nv, dtype=wp.float32, device=dev)
+    t_hi = wp.empty(nv, dtype=wp.float32, device=dev)
+    bisect = root == "bisection"
+    wp.launch(KE.bracket_init_kernel, dim=nv, inputs=[flags, int(bisect)], outputs=[t_lo, t_hi, t], device=dev)
+    if bisect:
+        f_mid = wp.empty(nv, dtype=wp.float32, device=dev)
+        for _ in range(iterations or 12):
+            wp.launch(KE.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
+            eval_values(tape, world, f_mid, device=dev, evaluator=evaluator)
+            wp.launch(KE.bisection_step_kernel, dim=nv, inputs=[flags, f_mid], outputs=[t_lo, t_hi, t], device=dev)
+    else:
+        fg = wp.empty(nv, dtype=wp.vec4, device=dev)
+        f_prev = wp.full(nv, 3.0e38, dtype=wp.float32, device=dev)  # |f| one step back
+        for _ in range(iterations or 10):
+            wp.launch(KE.edge_points_kernel, dim=nv, inputs=[t, p0, p1, origin], outputs=[world], device=dev)
+            gradients(tape, world, fg, gradient, h, evaluator)
+            wp.launch(KE.newton_step_kernel, dim=nv, inputs=[flags, fg, p0, p1],
+                      outputs=[t_lo, t_hi, f_prev, t], device=dev)
+        if fg_out is not None:
+            wp.copy(fg_out, fg)
+    wp.launch(KE.clamp_edge_t_kernel, dim=nv, inputs=[float(C.EDGE_T_MIN)], outputs=[t], device=dev)
+    wp.launch(KE.edge_points_kernel, dim=nv, inputs=[t, p0, p1, wp.vec3(0.0)], outputs=[verts], device=dev)
+    timings["root"] = time.perf_counter() - t0

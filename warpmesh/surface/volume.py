@@ -1,0 +1,169 @@
+"""Iso-surfaces and label surfaces of sampled volumes, in bounded memory.
+
+The volume is processed in *slabs* along its first axis (contiguous in a C-order array):
+each slab of ``s + 1`` node planes is converted to float32 on its own (a label volume
+becomes the indicator field of one label), culled, sampled and emitted by the block grid
+pipeline, and its output kept on the host. Consecutive slabs share one node plane; the
+vertices on it are emitted by both with identical values, and every vertex carries the
+key ``node * 8 + type`` of its grid edge in the *whole* grid, so welding the seams is an
+exact join on keys (no position tolerance). Only the grid faces that are faces of the
+whole volume are capped. Peak memory is one slab's float32 copy and block arrays plus the
+output, instead of a float copy of the whole volume.
+
+Example
+-------
+>>> import numpy as np, warpmesh as wm
+>>> labels = np.zeros((40, 30, 30), dtype=np.uint8)
+>>> labels[5:15, 5:25, 5:25] = 1
+>>> labels[20:35, 5:25, 5:25] = 2
+>>> m = wm.mesh_surface(labels, labels="all", slab_voxels=20_000)
+>>> sorted(set(m.cell_refs["triangle"].tolist())), m.stats()["components"]
+([1, 2], 2)
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from warpmesh import _conventions as C
+from warpmesh.surface.block_grid import BlockGrid
+from warpmesh.errors import WarpMeshError
+from warpmesh.kernels import block_grid as KB
+
+#: default slab size: 16 M samples (64 MB as float32) per pass
+SLAB_VOXELS = 1 << 24
+CHUNK = 1 << 18  # rows per step of the host-side passes over the whole output
+
+
+def slab_ranges(n0: int, plane: int, slab_voxels: int) -> list[tuple[int, int]]:
+    """Node ranges [a, b] (inclusive) along axis 0, consecutive slabs sharing node b.
+
+    Each slab holds a multiple of the block size of cells (at least one block), about
+    ``slab_voxels`` samples in all (``plane`` samples per node plane).
+
+    >>> slab_ranges(20, 100, 1000)
+    [(0, 8), (8, 16), (16, 19)]
+    """
+    step = max(KB.BLOCK, (slab_voxels // max(plane, 1)) // KB.BLOCK * KB.BLOCK)
+    return [(a, min(a + step, n0 - 1)) for a in range(0, n0 - 1, step)]
+
+
+def check_labels(labels, vol: np.ndarray) -> np.ndarray:
+    """The label values to mesh: "all" (every value but 0) or a sequence of values."""
+    if not (np.issubdtype(vol.dtype, np.integer) or vol.dtype == np.bool_):
+        raise TypeError(f"expected an integer (label) 'volume' with 'labels', got dtype {vol.dtype}")
+    if isinstance(labels, str):
+        if labels != "all":
+            raise ValueError(f"expected 'labels' as \"all\" or a sequence of label values, got {labels!r}")
+        values = np.unique(np.concatenate([np.unique(vol[a:a + 64]) for a in range(0, len(vol), 64)]))
+        values = values[values != 0]  # (slab by slab: no sorted copy of the whole volume)
+        if len(values) == 0:
+            raise ValueError("expected some non-zero labels in 'volume' with labels=\"all\", got only 0")
+        check_label_range(values)
+        return values
+    values = np.asarray(labels)
+    if values.ndim != 1 or len(values) == 0 or not np.issubdtype(values.dtype, np.integer):
+        raise ValueError(f"expected 'labels' as \"all\" or a non-empty sequence of integers, got {labels!r}")
+    if len(np.unique(values)) != len(values):
+        raise ValueError(f"expected distinct values in 'labels', got {values.tolist()}")
+    check_label_range(values)
+    return values
+
+
+def check_label_range(values: np.ndarray) -> None:
+    """Labels become int64 triangle refs."""
+    if values.dtype == np.uint64 and np.any(values > np.iinfo(np.int64).max):
+        big = values[values > np.iinfo(np.int64).max][0]
+        raise ValueError(f"expected labels that fit int64 triangle refs, got {big}")
+
+
+def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool,
+                   cull: bool, device, slab_voxels: int, label=None, timings: dict, info: dict):
+    """Points (float64), triangles, per-vertex edge flags and the value range of one
+    field of the volume (the indicator of ``label`` when given), slab by slab."""
+    n = np.array(vol.shape, dtype=np.int64)
+    origin = np.asarray(origin, dtype=np.float64)
+    slabs = slab_ranges(int(n[0]), int(n[1] * n[2]), slab_voxels)
+    full = KB.ALL_FACES if cap else 0
+    pts, tris, keys, flags = [], [], [], []
+    vmin, vmax, n_verts, n_blocks = np.inf, -np.inf, 0, 0
+    for idx, (a, b) in enumerate(slabs):
+        mask = full & ~(0b01 if idx > 0 else 0) & ~(0b10 if idx < len(slabs) - 1 else 0)
+        part = vol[a:b + 1]
+        if label is not None:
+            part = part == label
+        grid = BlockGrid(np.array([b - a + 1, n[1], n[2]]), origin + np.array([a, 0, 0]) * spacing, spacing,
+                         device, node_offset=(a, 0, 0), global_nodes=n)
+        lo, hi = grid.cull_volume(part, level, sign, cull, mask, timings)
+        vmin, vmax = min(vmin, lo), max(vmax, hi)
+        grid.finish_values(mask, timings)
+        verts, faces, edges = grid.extract(method, mask, timings)
+        t0 = time.perf_counter()
+        # sync point: copies (a CPU array's .numpy() is a view of memory freed with the slab);
+        # float32 grid-local points and int32 slab-local ids: half the memory of the result's
+        pts.append((verts.numpy().copy(), grid.origin))
+        tris.append((faces.numpy().copy(), n_verts))
+        keys.append(edges["key"].numpy().copy())
+        flags.append(edges["flags"].numpy().copy())
+        n_verts += len(pts[-1][0])
+        for k in ("active_blocks", "interior_vertices"):  # summed over slabs and labels
+            info[k] = info.get(k, 0) + grid.info[k]
+        n_blocks += grid.info["blocks"]
+        timings["host"] = timings.get("host", 0.0) + time.perf_counter() - t0
+        del grid, part  # one slab's device arrays at a time
+    t0 = time.perf_counter()
+    points = _concatenate(pts, C.REAL_DTYPE)  # float64 = local + slab origin; the lists are emptied
+    faces = _concatenate(tris, C.INDEX_DTYPE)  # int64 = slab-local id + the slab's first vertex
+    key, flag = _concatenate(keys), _concatenate(flags)
+    if len(slabs) > 1 and len(points):
+        points, faces, flag = _weld_seams(points, faces, flag, key, [b for _, b in slabs[:-1]], int(n[0]))
+    info["slabs"], info["blocks"] = len(slabs), n_blocks  # of the grid (the same for every label)
+    timings["weld"] = timings.get("weld", 0.0) + time.perf_counter() - t0
+    return points, faces, flag, (vmin, vmax)
+
+
+def _weld_seams(points, faces, flags, keys, seams: list[int], nx: int):
+    """Merge the vertices that two slabs emitted for one grid edge of a seam plane (equal
+    keys); only vertices on the seams are looked at."""
+    on_seam = np.flatnonzero(np.isin((keys >> 3) % nx, seams))
+    _, first, inverse = np.unique(keys[on_seam], return_index=True, return_inverse=True)
+    remap = np.arange(len(points), dtype=C.INDEX_DTYPE)
+    remap[on_seam] = on_seam[first][inverse]
+    keep = remap == np.arange(len(points))
+    new_index = np.cumsum(keep, dtype=C.INDEX_DTYPE) - 1
+    for a in range(0, len(faces), CHUNK):  # in place, a chunk at a time: no second copy of the faces
+        faces[a:a + CHUNK] = new_index[remap[faces[a:a + CHUNK]]]
+    return points[keep], faces, flags[keep]
+
+
+def _concatenate(pieces: list, dtype=None) -> np.ndarray:
+    """np.concatenate that frees each piece once copied (peak: the result plus one piece).
+    Pieces may be (array, offset) pairs, added on the way in ``dtype``."""
+    pairs = [p if isinstance(p, tuple) else (p, 0) for p in pieces]
+    pieces.clear()
+    first = pairs[0][0]
+    out = np.empty((sum(len(a) for a, _ in pairs),) + first.shape[1:], dtype=dtype or first.dtype)
+    start = 0
+    while pairs:
+        piece, offset = pairs.pop(0)
+        out[start:start + len(piece)] = piece
+        out[start:start + len(piece)] += offset
+        start += len(piece)
+    return out
+
+
+def check_closed_outward(points: np.ndarray, faces: np.ndarray, chunk: int = 1 << 18) -> float:
+    """The enclosed volume of a capped surface, which must be positive (outward winding);
+    summed in chunks of triangles (about a common centre) so the check adds little to the
+    peak memory."""
+    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    vol = 0.0
+    for a in range(0, len(faces), chunk):
+        p0, p1, p2 = (points[faces[a:a + chunk, j]] - centre for j in range(3))
+        vol += float(np.einsum("ij,ij->", p0, np.cross(p1, p2))) / 6.0
+    if not vol > 0.0:
+        raise WarpMeshError(f"the capped surface encloses a signed volume of {vol:g}: its triangles do "
+                            "not face outward (an internal error: please report it)")
+    return vol
