@@ -17,7 +17,7 @@ Cases (``--cases``, default all):
 - ``geometric``: the ellipse with semi-axes 1 and 0.1 at relative tolerance eps: vertices of
   the geometric mesh (warpmesh ``mesh_curve``) against the uniform polylines (equal edges)
   with the same largest chord deviation, absolute (the factor of issue 5's acceptance) and
-  relative to the edge length (the criterion delta <= eps h of seed §16.2.2).
+  relative to the edge length (the criterion delta <= eps h of [FG §16.2.2]).
 - ``domain``: the plate with holes and the gear meshed with triangles at edge size
   ``--size`` (default 0.04): warpmesh ``mesh_domain`` (global approach) against the same
   boundary handed to Triangle (``method="triangle"``, quality switch q28). Checked: min

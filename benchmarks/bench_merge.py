@@ -19,7 +19,7 @@ jitter, and nothing else, the grid spacing being ~1e-3):
 
 - ``warpmesh match_points``: ``warpmesh.modify.merge.match_points(A.points, B.points, tol)``
   (the pairs only);
-- ``warpmesh merge``: ``warpmesh.modify.merge.merge(A, B, tol)``: pairs, the seed's numbering,
+- ``warpmesh merge``: ``warpmesh.modify.merge.merge(A, B, tol)``: pairs, the book's numbering,
   cells, duplicates, the common edges/faces and the Euler check on the cells around the
   interface (the default ``check="interface"``), a new ``Mesh``;
 - ``warpmesh merge check=full``: the same with the Euler check counting every edge and face

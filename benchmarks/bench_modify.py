@@ -19,7 +19,7 @@ Cases (``--cases``, default all):
   Checked with ``tests/cellcheck.check_cells``: positive volumes, every face in at most two
   tetrahedra, closed boundary, volume and boundary area of the grid kept (a face cut along
   different diagonals from its two sides shows as extra boundary area); worst and mean Q_K
-  (seed eq. 16.15, 1 = regular).
+  [FG eq. 16.15, 1 = regular].
 
 Times: one untimed round, then ``--repeat`` rounds, round-robin, best kept. Each tool's
 input object is built once, outside the timer; the timer covers the operation and the

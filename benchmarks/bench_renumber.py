@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""Node renumbering (seed Frey & George §17.4, Tables 17.1-17.3): warpmesh against scipy.
+"""Node renumbering ([FG §17.4], Tables 17.1-17.3): warpmesh against scipy.
 
 Every mesh gets a random node permutation first (``--seed``, default 0), so the initial
-numbering is bad on purpose, as in the seed's tables. Then, on the symmetric node graph
+numbering is bad on purpose, as in the book's tables. Then, on the symmetric node graph
 ``warpmesh.numbering.graph.node_graph(mesh.cells, mesh.n_points)`` (build time measured):
 
 - ``scipy rcm``: ``scipy.sparse.csgraph.reverse_cuthill_mckee(graph, symmetric_mode=True)``
@@ -16,7 +16,7 @@ statistics of every order come from one function, ``warpmesh.numbering.renumber.
 (bandwidth β, profile pr, mean profile pr / np; Table 17.1). Times: one untimed round
 first (for warpmesh a full ``mesh.renumber(method)``: loads the Warp kernels and
 cross-checks its ``info`` against the figures here), then ``--repeat`` rounds, one call per
-tool per round (round-robin), best kept; nodes/s = np / best time (the seed's v).
+tool per round (round-robin), best kept; nodes/s = np / best time (the book's v).
 
 Meshes (``--meshes``: names or groups ``plate``, ``surface``, ``tet``, ``frog``, ``all``;
 default every mesh not marked optional):

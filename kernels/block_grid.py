@@ -1,4 +1,4 @@
-"""The block-sparse regular grid of an extraction (seed §16.4.1 exhaustive enumeration):
+"""The block-sparse regular grid of an extraction [FG §16.4.1 exhaustive enumeration]:
 block layout, interval culling, sampling, volume gathering and capping.
 
 The grid of ``n = (nx, ny, nz)`` nodes is cut into blocks of ``BLOCK`` cells a side; a

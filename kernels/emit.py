@@ -1,4 +1,4 @@
-"""Surface emission over the block-sparse grid (seed §16.4.2): marching cubes ("mc", the
+"""Surface emission over the block-sparse grid [FG §16.4.2]: marching cubes ("mc", the
 plain table), marching cubes 33 ("mc33", the topology of the trilinear interpolant) and
 marching tetrahedra on the Kuhn split of each cube ("mt"); then root refinement along the
 crossing edges (§16.3.3).
@@ -427,7 +427,7 @@ def emit_triangles_kernel(
                     out += 2
                     vol += signed_volume6(points, t1) + signed_volume6(points, t2)
     slot_volume[s] = vol
-# -- root refinement along crossing edges (seed §16.3.3) ------------------------------------
+# -- root refinement along crossing edges [FG §16.3.3] ------------------------------------
 @wp.kernel
 def edge_points_kernel(
     t: wp.array(dtype=wp.float32), p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
@@ -459,7 +459,7 @@ def bisection_step_kernel(
 ):
     """One thread per vertex: keep the half of the bracket where f changes sign. The end
     at t_lo is the p0 end; 'inside' is f > 0, as in the classification, so a sub-segment
-    where f vanishes is kept on the side of the outside end (seed Fig. 16.9)."""
+    where f vanishes is kept on the side of the outside end [FG Fig. 16.9]."""
     v = wp.tid()
     if (flags[v] & 2) != 0:
         return
@@ -526,7 +526,7 @@ def add_offset_kernel(offset: int, values: wp.array(dtype=wp.int32)):
     values[i] = values[i] + offset
 
 
-# -- finite-difference gradients (seed eq. 16.13, 16.14) --------------------------------------
+# -- finite-difference gradients [FG eq. 16.13, 16.14] --------------------------------------
 @wp.kernel
 def fd_points_kernel(points: wp.array(dtype=wp.vec3), step: wp.vec3, central: int,
                      shifted: wp.array(dtype=wp.vec3)):

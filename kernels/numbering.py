@@ -1,4 +1,4 @@
-"""Sequential graph walks of node renumbering and element colouring (seed §17.4):
+"""Sequential graph walks of node renumbering and element colouring [FG §17.4]:
 breadth-first searches, Cuthill–McKee numbering over a level structure, connected
 components of a node subset, greedy colouring.
 
@@ -192,7 +192,7 @@ def profile_kernel(
     delta: wp.array(dtype=wp.int32), delta_reversed: wp.array(dtype=wp.int32),
 ):
     """A thread finds, for one node, its distance to the first column of its matrix row
-    (seed Table 17.1: i - j_i) under ``num`` and under the reversed numbering; node
+    [FG Table 17.1: i - j_i] under ``num`` and under the reversed numbering; node
     i = first + tid."""
     i = first + wp.tid()
     own = num[i]

@@ -1,4 +1,4 @@
-"""Refinement criteria of the adaptive octree (seed §16.4.1, after [Schmidt-1993]), one
+"""Refinement criteria of the adaptive octree [FG §16.4.1, after [Schmidt-1993]], one
 thread per cell; the host partner is :mod:`warpmesh.surface.adaptive.octree`."""
 
 import warp as wp

@@ -31,7 +31,7 @@ EXP = 22
 LOG = 23  # dst = log(a) (a > 0)
 POWI = 24  # dst = a ** imm, imm an integer
 POWF = 25  # dst = |a| ** imm (non-integer exponent: the sign of a is dropped)
-RUNION = 26  # dst = a + b + sqrt(a^2 + b^2)   (R-function union, seed eq. 16.17)
+RUNION = 26  # dst = a + b + sqrt(a^2 + b^2)   (R-function union, [FG eq. 16.17])
 RINTER = 27  # dst = a + b - sqrt(a^2 + b^2)   (R-function intersection)
 COPY = 28  # dst = a  (made only by tape pruning, warpmesh.frep.prune: a min/max decided over a cell)
 

@@ -50,7 +50,9 @@ from warpmesh.frep.expr import sin as sin
 from warpmesh.frep.expr import sqrt as sqrt
 from warpmesh.frep.projection import VolumeField as VolumeField
 from warpmesh.frep.projection import surface_error as surface_error
-from warpmesh.frep.shapes import EXAMPLES as EXAMPLES
+from warpmesh.frep.examples import EXAMPLES as EXAMPLES
+from warpmesh.frep.examples import EXAMPLES_2D as EXAMPLES_2D
+from warpmesh.frep.examples import example as example
 from warpmesh.frep.shapes import Shape as Shape
 from warpmesh.frep.shapes import box as box
 from warpmesh.frep.shapes import capsule as capsule
@@ -59,7 +61,6 @@ from warpmesh.frep.shapes import cone as cone
 from warpmesh.frep.shapes import cylinder as cylinder
 from warpmesh.frep.shapes import difference as difference
 from warpmesh.frep.shapes import ellipsoid as ellipsoid
-from warpmesh.frep.shapes import example as example
 from warpmesh.frep.shapes import halfspace as halfspace
 from warpmesh.frep.shapes import intersection as intersection
 from warpmesh.frep.shapes import sphere as sphere
@@ -67,7 +68,6 @@ from warpmesh.frep.shapes import superquadric as superquadric
 from warpmesh.frep.shapes import supertorus as supertorus
 from warpmesh.frep.shapes import torus as torus
 from warpmesh.frep.shapes import union as union
-from warpmesh.frep.shapes2d import EXAMPLES_2D as EXAMPLES_2D
 from warpmesh.frep.shapes2d import cassini as cassini
 from warpmesh.frep.shapes2d import circle as circle
 from warpmesh.frep.shapes2d import ellipse as ellipse

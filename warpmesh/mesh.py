@@ -7,7 +7,7 @@ and statistics are cached.
 Layout
     ``points`` (n, d) float64, d = 2 or 3. ``cells`` maps meshio cell-type names to
     (m, k) int64 blocks, one block per type, in insertion order. ``point_refs`` (n,)
-    int and ``cell_refs`` {type: (m,) int} are the physical attributes of seed §17.5
+    int and ``cell_refs`` {type: (m,) int} are the physical attributes of [FG §17.5]
     (a block without refs has ref 0). ``point_data`` {name: (n, ...)}; ``cell_data``
     {name: {type: (m, ...)}} with an entry for every block (meshio's layout is
     {name: [array per block]}; :meth:`Mesh.to_meshio` / :meth:`Mesh.from_meshio`
@@ -40,13 +40,26 @@ from typing import Literal
 import meshio
 import numpy as np
 
+from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh.cells import topology as _topo
+from warpmesh.cells.quality import quality_summary, tetra_quality, triangle_quality
+from warpmesh.cells.reference import cell_measures
+from warpmesh.cells.types import CELL_TYPES, REF_KEY
 from warpmesh.io import convert as _convert
 from warpmesh.io import files as _io
-from warpmesh.cells import topology as _topo
-from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh.io.convert import CELL_TYPES, REF_KEY
-from warpmesh.io.files import FILE_FORMATS, FileFormat, load
-from warpmesh.cells.quality import quality_summary, tetra_quality, triangle_quality
+from warpmesh.io.files import FILE_FORMATS, FileFormat
+from warpmesh.modify.convert_cells import convert_cells
+from warpmesh.modify.crack import crack
+from warpmesh.modify.merge import merge
+from warpmesh.modify.periodic import periodic
+from warpmesh.modify.refine_local import refine_local
+from warpmesh.modify.refine_uniform import refine_uniform
+from warpmesh.modify.transforms import transform
+from warpmesh.numbering.coloring import color_mesh
+from warpmesh.numbering.high_order import to_order
+from warpmesh.numbering.renumber import renumber
+from warpmesh.optimize.remesh import optimize, simplify
+from warpmesh.planar.polyline import components
 
 __all__ = ["Mesh", "load", "CELL_TYPES", "FILE_FORMATS", "REF_KEY"]
 
@@ -337,13 +350,9 @@ class Mesh:
             if s["watertight"] and self.dim == 3:
                 s["volume"] = _topo.signed_volume(self._points, tri)
         if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
-            from warpmesh.planar.polyline import components
-
             s["components"] = components(self._cells["line"], self.n_points)[0]
         solids = [t for t in ("tetra", "hexahedron", "wedge", "pyramid") if t in self._cells]
         if solids and self.dim == 3:  # signed, exact for the multilinear cells
-            from warpmesh.cells.reference import cell_measures
-
             s["volume"] = float(sum(cell_measures(self._points, self._cells[t], t).sum() for t in solids))
         q = (
             quality_summary(self._points, self._cells)
@@ -388,7 +397,7 @@ class Mesh:
 
     # ---------------------------------------------------------------- quality and optimisation
     def quality(self) -> np.ndarray:
-        """Q_K (seed eq. 16.15) of each element: the tetrahedra if any, else the triangles.
+        """Q_K [FG eq. 16.15] of each element: the tetrahedra if any, else the triangles.
 
         Examples
         --------
@@ -403,31 +412,25 @@ class Mesh:
 
     def optimize(self, shape=None, **options) -> Mesh:
         """A new mesh optimised on the exact surface: :func:`warpmesh.optimize.remesh.optimize`."""
-        from warpmesh.optimize.remesh import optimize
-
         return optimize(self, shape, **options)
 
     def simplify(self, shape=None, **options) -> Mesh:
         """A new, decimated mesh within a tolerance: :func:`warpmesh.optimize.remesh.simplify`."""
-        from warpmesh.optimize.remesh import simplify
-
         return simplify(self, shape, **options)
 
     def to_order(self, order: int, shape=None, **options) -> Mesh:
-        """The order-k Lagrange mesh of this P1 mesh (seed §17.3): :func:`warpmesh.numbering.high_order.to_order`.
+        """The order-k Lagrange mesh of this P1 mesh [FG §17.3]: :func:`warpmesh.numbering.high_order.to_order`.
 
         Examples
         --------
         >>> Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_order(3).cells["triangle10"].shape
         (1, 10)
         """
-        from warpmesh.numbering.high_order import _to_order
-
-        return _to_order(self, order, shape, stacklevel=3, **options)  # warnings name the caller
+        return to_order(self, order, shape, stacklevel=3, **options)  # warnings name the caller
 
     # ---------------------------------------------------------------- numbering
     def renumber(self, method: str = "gibbs", **options) -> Mesh:
-        """A copy with nodes and elements renumbered (seed §17.4):
+        """A copy with nodes and elements renumbered [FG §17.4]:
         :func:`warpmesh.numbering.renumber.renumber`; ``stats()`` then include ``bandwidth`` and
         ``profile`` (and their ``_before`` values).
 
@@ -437,12 +440,10 @@ class Mesh:
         >>> m.renumber("rcm").stats()["bandwidth"]
         2
         """
-        from warpmesh.numbering.renumber import renumber
-
         return renumber(self, method, **options)
 
     def color_elements(self, **options) -> Mesh:
-        """A copy with elements in packets of one colour each (seed §17.4.4):
+        """A copy with elements in packets of one colour each [FG §17.4.4]:
         :func:`warpmesh.numbering.coloring.color_mesh`; ``cell_data["color"]``, ``stats()["n_colors"]``.
 
         Examples
@@ -451,13 +452,11 @@ class Mesh:
         >>> m.color_elements().cell_data["color"]["triangle"].tolist()
         [0, 1]
         """
-        from warpmesh.numbering.coloring import color_mesh
-
         return color_mesh(self, **options)
 
-    # ---------------------------------------------------------------- modifications (seed ch. 17)
+    # ---------------------------------------------------------------- modifications [FG ch. 17]
     def transform(self, matrix, **options) -> Mesh:
-        """The mesh mapped by a homogeneous matrix (seed §17.1.1):
+        """The mesh mapped by a homogeneous matrix [FG §17.1.1]:
         :func:`warpmesh.modify.transforms.transform`; build matrices with ``wm.transforms``.
 
         Examples
@@ -467,13 +466,11 @@ class Mesh:
         >>> m.transform(wm.transforms.symmetry((1, 0, 0))).cells["triangle"].tolist()
         [[0, 2, 1]]
         """
-        from warpmesh.modify.transforms import transform
-
         return transform(self, matrix, **options)
 
     def refine(self, n: int | None = None, shape=None, *, where=None, max_length=None,
                **options) -> Mesh:
-        """A refined mesh (seed §17.1.2): every element split into n^d
+        """A refined mesh [FG §17.1.2]: every element split into n^d
         (:func:`warpmesh.modify.refine_uniform.refine_uniform`), or, with ``where`` (vertices or an element
         mask) or ``max_length`` (a size or a size function), longest-edge bisection of the
         elements concerned, kept conforming (:func:`warpmesh.modify.refine_local.refine_local`).
@@ -489,15 +486,11 @@ class Mesh:
             if n is not None:
                 raise ValueError("expected either n (uniform refinement) or where/max_length (local "
                                  f"refinement), got n={n!r} and a local criterion")
-            from warpmesh.modify.refine_local import refine_local
-
             return refine_local(self, where=where, max_length=max_length, shape=shape, **options)
-        from warpmesh.modify.refine_uniform import refine_uniform
-
         return refine_uniform(self, 2 if n is None else n, shape, **options)
 
     def convert(self, target: str, **options) -> Mesh:
-        """The mesh with its elements split into another type (seed §17.1.3):
+        """The mesh with its elements split into another type [FG §17.1.3]:
         :func:`warpmesh.modify.convert_cells.convert_cells`.
 
         Examples
@@ -506,13 +499,11 @@ class Mesh:
         >>> m.convert("triangle").cells["triangle"].shape
         (2, 3)
         """
-        from warpmesh.modify.convert_cells import convert_cells
-
         return convert_cells(self, target, **options)
 
     def merge(self, other: Mesh, tolerance: float | None = None, **options) -> Mesh:
         """This mesh and ``other`` merged along their common vertices, edges and faces
-        (seed §17.2): :func:`warpmesh.modify.merge.merge`.
+        [FG §17.2]: :func:`warpmesh.modify.merge.merge`.
 
         Examples
         --------
@@ -521,12 +512,10 @@ class Mesh:
         >>> a.merge(b).n_points
         4
         """
-        from warpmesh.modify.merge import merge
-
         return merge(self, other, tolerance, **options)
 
     def crack(self, facets=None, **options) -> Mesh:
-        """The mesh cut open along interior facets (seed §17.5): :func:`warpmesh.modify.crack.crack`
+        """The mesh cut open along interior facets [FG §17.5]: :func:`warpmesh.modify.crack.crack`
         (``facets`` (k, 2|3|4) vertex indices, or ``ref=R`` for the facet cells with that ref;
         ``side_refs=(r1, r2)`` tags the two lips; ``info["crack_pairs"]`` lists the copies).
 
@@ -536,13 +525,11 @@ class Mesh:
         >>> m.crack([[0, 2]]).n_points  # the crack crosses the square: both ends split
         6
         """
-        from warpmesh.modify.crack import crack
-
         return crack(self, facets, **options)
 
     def periodic(self, matrix, copies: int, **options) -> Mesh:
         """A periodic mesh: this pattern and ``copies - 1`` images by ``matrix``, merged
-        (seed §17.5): :func:`warpmesh.modify.periodic.periodic`.
+        [FG §17.5]: :func:`warpmesh.modify.periodic.periodic`.
 
         Examples
         --------
@@ -551,8 +538,6 @@ class Mesh:
         >>> m.periodic(wm.transforms.translation((1, 0)), 3).n_points
         8
         """
-        from warpmesh.modify.periodic import periodic
-
         return periodic(self, matrix, copies, **options)
 
     # ---------------------------------------------------------------- meshio
@@ -577,7 +562,7 @@ class Mesh:
         >>> Mesh.from_meshio(m).n_cells
         1
         """
-        return _convert.from_meshio(m, dim=dim, info=info)
+        return _convert.from_meshio(m, mesh_type=cls, dim=dim, info=info)
 
     # ---------------------------------------------------------------- trimesh
     def to_trimesh(self):
@@ -600,7 +585,7 @@ class Mesh:
         >>> Mesh.from_trimesh(trimesh.creation.box()).n_cells
         12
         """
-        return _convert.from_trimesh(tm, info=info)
+        return _convert.from_trimesh(tm, mesh_type=cls, info=info)
 
     # ---------------------------------------------------------------- pyvista
     def to_pyvista(self):
@@ -625,7 +610,7 @@ class Mesh:
         >>> Mesh.from_pyvista(pv.Cube()).cells["quad"].shape
         (6, 4)
         """
-        return _convert.from_pyvista(obj, triangulate=triangulate, dim=dim, info=info)
+        return _convert.from_pyvista(obj, mesh_type=cls, triangulate=triangulate, dim=dim, info=info)
 
     # ---------------------------------------------------------------- files
     def save(self, path, *, file_format: FileFormat | None = None) -> Path:
@@ -641,11 +626,26 @@ class Mesh:
         ...     load(m.save(os.path.join(d, "t.vtu")), dim=2).n_cells
         1
         """
-        return _io._save(self, path, file_format, stacklevel=2)
+        return _io.save_mesh(self, path, file_format, stacklevel=2)
 
     @classmethod
     def load(
         cls, path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | None = None
     ) -> Mesh:
         """Read a mesh file (:func:`warpmesh.io.files.load`)."""
-        return _io.load(path, file_format=file_format, dim=dim)
+        return _io.load(path, mesh_type=cls, file_format=file_format, dim=dim)
+
+
+def load(path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | None = None) -> Mesh:
+    """Read a mesh file written by :meth:`Mesh.save` or another program.
+
+    See :func:`warpmesh.io.files.load` for the parameters, the formats and the errors.
+
+    Examples
+    --------
+    >>> load("no/such/file.vtu")
+    Traceback (most recent call last):
+    ...
+    FileNotFoundError: [Errno 2] no such mesh file: 'no/such/file.vtu'
+    """
+    return _io.load(path, mesh_type=Mesh, file_format=file_format, dim=dim)

@@ -1,4 +1,4 @@
-"""The shape measure Q_K = alpha h_max / rho_K (seed eq. 16.15) on elements computed by hand."""
+"""The shape measure Q_K = alpha h_max / rho_K [FG eq. 16.15] on elements computed by hand."""
 
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import warpmesh as wm
-from warpmesh.cli.main import main
+from warpmesh.cli.commands import main
 
 
 def test_mesh_example_writes_a_file_and_prints_stats(tmp_path, capsys):
@@ -90,7 +90,7 @@ def test_errors_are_reported_not_raised(tmp_path, capsys):
 
 
 def test_console_script_is_installed():
-    done = subprocess.run([sys.executable, "-m", "warpmesh.cli.main", "--help"], capture_output=True, text=True)
+    done = subprocess.run([sys.executable, "-m", "warpmesh.cli", "--help"], capture_output=True, text=True)
     assert done.returncode == 0 and "mesh" in done.stdout
 
 

@@ -9,7 +9,7 @@ from tests.helpers.cellcheck import check_cells
 from pyvista import examples
 
 import warpmesh as wm
-from warpmesh.cli.main import main
+from warpmesh.cli.commands import main
 
 
 @pytest.fixture

@@ -11,7 +11,7 @@ import pytest
 import warpmesh as wm
 from warpmesh.frep import geometry as geo
 from warpmesh.frep.lipschitz import gradient_enclosure, lipschitz_bound
-from warpmesh.frep.shapes2d import example2d
+from warpmesh.frep.examples import example
 
 T = np.linspace(0.0, 2 * math.pi, 97, endpoint=False)
 
@@ -54,7 +54,7 @@ def test_tangent_keeps_domain_on_the_left(shape):
     t = geo.tangent(shape, p[on])
     left = np.column_stack([-t[:, 1], t[:, 0]])
     seed_h = np.column_stack([-g[on, 1], g[on, 0]]) / np.linalg.norm(g[on], axis=1)[:, None]
-    np.testing.assert_allclose(t, -seed_h, atol=1e-12)  # the seed's H (eq. 16.11) is minus it
+    np.testing.assert_allclose(t, -seed_h, atol=1e-12)  # the book's H (eq. 16.11) is minus it
     eps = 1e-3
     inside = shape.eval_numpy(*(p[on] + eps * left).T)
     outside = shape.eval_numpy(*(p[on] - eps * left).T)
@@ -240,7 +240,7 @@ def test_singular_points_tolerance_and_thin_walls():
     box = ((-1.6, -0.6), (1.6, 0.6))
     assert len(geo.singular_points(near, box)["points"]) == 0
     assert geo.singular_points(near, box, tolerance=0.05)["kind"] == ["saddle"]
-    gear, bounds = example2d("gear")  # a 0.02 wall between the key way and a hole: a saddle near f = 0
+    gear, bounds = example("gear")  # a 0.02 wall between the key way and a hole: a saddle near f = 0
     assert len(geo.singular_points(gear, bounds)["points"]) == 0
     x, y, z = wm.coords()
     cone = geo.singular_points(x * x + y * y - z * z, ((-1, -1, -1), (1.2, 1.1, 1.3)), resolution=16)
@@ -325,7 +325,7 @@ def test_lipschitz_unbounded_and_refinement():
     assert lipschitz_bound(wm.sqrt(abs(x)) + y, ((-1, -1), (1, 1))) == np.inf  # sqrt at 0: unbounded
     assert lipschitz_bound(1 / x, ((-1, -1), (1, 1))) == np.inf
     assert np.isfinite(lipschitz_bound(wm.sqrt(abs(x)) + y, ((0.5, -1), (1, 1))))
-    gear, bounds = example2d("gear")
+    gear, bounds = example("gear")
     coarse = lipschitz_bound(gear, bounds, depth=4, refine=0)
     refined = lipschitz_bound(gear, bounds, depth=4)
     sampled = np.linalg.norm(geo.gradient(gear, random_points(bounds, 20000, seed=9)), axis=1).max()

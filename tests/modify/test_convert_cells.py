@@ -1,4 +1,4 @@
-"""warpmesh.modify.convert_cells and warpmesh.modify.hex_splits: element type conversion (seed §17.1.3,
+"""warpmesh.modify.convert_cells and warpmesh.modify.hex_splits: element type conversion ([FG §17.1.3],
 Remark 17.6, Exercise 17.1, Remark 17.16)."""
 
 from __future__ import annotations

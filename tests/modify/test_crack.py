@@ -1,9 +1,9 @@
-"""Cracks (seed §17.5, Figs. 17.15, 17.16): the mesh is cut open along interior facets.
+"""Cracks [FG §17.5, Figs. 17.15, 17.16]: the mesh is cut open along interior facets.
 
 Every case is a planar crack (axis = value, over a region of the plane) in a mesh whose
 facets cover that plane, so the expected answer follows from geometry alone: a crack
 vertex is duplicated unless it lies on an in-plane facet that is not cracked (a tip or
-the crack front) — the rule of the seed's first method (two meshes merged with
+the crack front) — the rule of the book's first method (two meshes merged with
 attributes that keep the crack vertices apart), which one test emulates in full.
 """
 
@@ -166,7 +166,7 @@ def facet_measure(points, keys) -> float:
 
 
 def expected_duplicates(crack_keys, other_plane_keys) -> int:
-    """Crack vertices not on an uncracked in-plane facet (seed Fig. 17.15)."""
+    """Crack vertices not on an uncracked in-plane facet [FG Fig. 17.15]."""
     cv = np.unique(crack_keys[crack_keys >= 0])
     return len(np.setdiff1d(cv, other_plane_keys[other_plane_keys >= 0]))
 
@@ -408,7 +408,7 @@ def test_pyramids_crack_on_quad_faces():
 
 # ----------------------------------------------------------------------------- method 1
 def merge_two_sides(mesh, crack_keys, other_keys, axis, value):
-    """The seed's first method, emulated: the two sides become two meshes with their own
+    """The book's first method, emulated: the two sides become two meshes with their own
     points, crack vertices off the uncracked part of the plane get a side attribute, and
     points are merged when coordinates and attributes agree (§17.2)."""
     top = next(iter(mesh.cells.values()))

@@ -1,4 +1,4 @@
-"""Merging two meshes (seed §17.2): match_points' guarantees, the numbering, the common
+"""Merging two meshes [FG §17.2]: match_points' guarantees, the numbering, the common
 entities and the Euler check, duplicates, refs (cracks), data carried."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 from tests.helpers.cellcheck import check_cells
-from scipy.spatial import Delaunay, cKDTree
+from scipy.spatial import cKDTree
 
 from warpmesh.errors import MergeError
 from warpmesh.modify.merge import match_points, merge
@@ -118,7 +118,7 @@ def test_halves_give_back_the_mesh(case):
     assert m.info["euler_a"] == chi(a) and m.info["euler_b"] == chi(b)
     assert m.info["euler"] == m.info["euler_a"] + m.info["euler_b"] - m.info["euler_interface"]
     assert m.info["n_common_points"] == a.n_points + b.n_points - whole.n_points > 0
-    # the seed's numbering: a's points first, unchanged; b's interface points take a's numbers
+    # the book's numbering: a's points first, unchanged; b's interface points take a's numbers
     np.testing.assert_array_equal(m.points[: a.n_points], a.points)
     for t, c in a.cells.items():
         np.testing.assert_array_equal(m.cells[t][: len(c)], c)

@@ -1,4 +1,4 @@
-"""Periodic meshes (seed §17.5): node pairs under a transformation, and meshes made of a
+"""Periodic meshes [FG §17.5]: node pairs under a transformation, and meshes made of a
 pattern and its transformed copies (translation, rotation closing up, reflection)."""
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ def test_reflection_keeps_orientation():
 
 def test_sides_meshed_differently_fail_the_euler_check():
     # a Kuhn cube rotated by 90° about x before the translation: the shared faces are split
-    # along different diagonals (seed Remark 17.16)
+    # along different diagonals [FG Remark 17.16]
     cube = kuhn_block(1)
     rot = np.eye(4)
     rot[1:3, 1:3] = [[0, -1], [1, 0]]

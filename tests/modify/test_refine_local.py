@@ -1,4 +1,4 @@
-"""Local refinement by longest-edge bisection (warpmesh.modify.refine_local, seed §17.1.2).
+"""Local refinement by longest-edge bisection (warpmesh.modify.refine_local, [FG §17.1.2]).
 
 Meshes made by others: scipy's Delaunay triangulations, trimesh's icosphere, TetGen
 balls, pyvista's ant (its airplane has an edge in three faces, so is not a

@@ -1,4 +1,4 @@
-"""Global refinement (seed §17.1.2, Remark 17.3): warpmesh.modify.refine_uniform.refine_uniform."""
+"""Global refinement [FG §17.1.2, Remark 17.3]: warpmesh.modify.refine_uniform.refine_uniform."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""warpmesh.modify.transforms: geometric transformations (seed §17.1.1, Remarks 17.1-17.2, §17.5)."""
+"""warpmesh.modify.transforms: geometric transformations [FG §17.1.1, Remarks 17.1-17.2, §17.5]."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def rodrigues(axis, angle):
 
 
 def apply(t, p):
-    """Points (n, d) through a homogeneous matrix, written out as the seed's eq. 17.1."""
+    """Points (n, d) through a homogeneous matrix, written out as [FG eq. 17.1]."""
     p = np.atleast_2d(np.asarray(p, float))
     h = np.column_stack([p, np.ones(len(p))]) @ np.asarray(t).T
     return h[:, :-1]
@@ -51,7 +51,7 @@ def test_dilation_closed_form():
     t = dilation(a, center=c)
     expect = np.eye(4)
     expect[[0, 1, 2], [0, 1, 2]] = a
-    expect[:3, 3] = c * (1 - a)  # the seed's last column
+    expect[:3, 3] = c * (1 - a)  # the book's last column
     assert np.allclose(t, expect)
     assert np.allclose(apply(t, c), c)  # the centre is fixed
     p = RNG.normal(size=(5, 3))
@@ -78,7 +78,7 @@ def test_rotation_2d_closed_form():
 def test_rotation_about_coordinate_axes_matches_seed(axis):
     alpha = 0.9
     c, s = np.cos(alpha), np.sin(alpha)
-    seed = {0: [[1, 0, 0], [0, c, -s], [0, s, c]],  # the seed's three matrices
+    seed = {0: [[1, 0, 0], [0, c, -s], [0, s, c]],  # the book's three matrices
             1: [[c, 0, s], [0, 1, 0], [-s, 0, c]],
             2: [[c, -s, 0], [s, c, 0], [0, 0, 1]]}[axis]
     e = np.eye(3)[axis]
@@ -110,7 +110,7 @@ def test_symmetry_closed_form_involution_fixed_points():
         n, k = np.array(coef[:-1]), coef[-1]
         f = -2.0 / (n @ n)
         d = len(n)
-        expect = np.eye(d + 1)  # the seed's matrix, entry by entry
+        expect = np.eye(d + 1)  # the book's matrix, entry by entry
         for i, j in itertools.product(range(d), range(d)):
             expect[i, j] = (i == j) + n[i] * n[j] * f
         expect[:d, d] = n * k * f
@@ -433,7 +433,7 @@ def test_positive_maps_keep_connectivity_and_measures(kind):
 def test_fig_17_14_side_attributes():
     """Fig. 17.14: a quad whose sides carry attributes 1, 2, 3, 4 (boundary lines with refs).
     After a translation the element's local sides read 1, 2, 3, 4; after a symmetry they read
-    the attributes in the reversed cyclic order (the seed's 1, 4, 3, 2 up to the starting
+    the attributes in the reversed cyclic order (the book's 1, 4, 3, 2 up to the starting
     side), while each ref stays on the image of its own side and the lines keep the domain on
     their left."""
     quad = Mesh([[0, 0], [1, 0], [1, 1], [0, 1]],

@@ -1,4 +1,4 @@
-"""Element colouring (seed §17.4.4): valid packets, no more colours than the sequential
+"""Element colouring [FG §17.4.4]: valid packets, no more colours than the sequential
 largest-first greedy colouring (networkx), red-black where two colours suffice."""
 
 from __future__ import annotations

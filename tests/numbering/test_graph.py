@@ -1,4 +1,4 @@
-"""Node graphs and level structures (seed §17.4.1, Fig. 17.11) against brute force."""
+"""Node graphs and level structures [FG §17.4.1, Fig. 17.11] against brute force."""
 
 from __future__ import annotations
 

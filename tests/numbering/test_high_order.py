@@ -1,4 +1,4 @@
-"""warpmesh.numbering.high_order: higher-order node creation (seed §17.3) and the p-compatibility check."""
+"""warpmesh.numbering.high_order: higher-order node creation [FG §17.3] and the p-compatibility check."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ from scipy.spatial import Delaunay
 
 import warpmesh as wm
 from warpmesh.mesh import CELL_TYPES, Mesh, load
-from warpmesh.numbering.high_order import inverted_elements, jacobians, reference_nodes, to_order
+from warpmesh.cells.lagrange import reference_nodes
+from warpmesh.numbering.high_order import inverted_elements, jacobians, to_order
 
 R = 1.0
 BOUNDS = ((-1.2,) * 3, (1.2,) * 3)

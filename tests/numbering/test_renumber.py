@@ -1,5 +1,5 @@
-"""Vertex and element renumbering (seed §17.4): each step against a plain sequential
-implementation of the seed's algorithm, and the results against brute force and scipy."""
+"""Vertex and element renumbering [FG §17.4]: each step against a plain sequential
+implementation of the book's algorithm, and the results against brute force and scipy."""
 
 from __future__ import annotations
 
@@ -231,7 +231,7 @@ def test_element_order_is_the_seed_loop():
     cells = m.cells["triangle"]
     new = np.random.default_rng(1).permutation(m.n_points)
     ref, done = [], np.zeros(len(cells), bool)
-    for i in np.argsort(new):  # vertices in new order; the seed's O(n^2) double loop
+    for i in np.argsort(new):  # vertices in new order; the book's O(n^2) double loop
         for j in range(len(cells)):
             if i in cells[j] and not done[j]:
                 done[j] = True
@@ -272,7 +272,7 @@ def test_gibbs_beats_scipy_rcm_on_shuffled_meshes(name):
 @pytest.mark.slow
 @pytest.mark.parametrize("h", [0.01])
 def test_bandwidth_factors_of_table_17_1(h):
-    """The seed's 2D meshes of 37k-59k nodes: bandwidth / 44-117, profile / 33-90."""
+    """The book's 2D meshes of 37k-59k nodes: bandwidth / 44-117, profile / 33-90."""
     m = shuffled(plate(h), 3)  # 66k nodes
     r = m.renumber("gibbs")
     s = r.stats()
@@ -326,7 +326,7 @@ def test_renumber_mesh_keeps_cells_refs_and_data():
     assert np.array_equal(r.cells["triangle"], new[m.cells["triangle"][old]])
     assert np.array_equal(r.point_refs[new], m.point_refs)
     firsts = r.triangles.min(axis=1)
-    assert np.all(np.diff(firsts) >= 0)  # elements follow their first vertex (seed 17.4.2)
+    assert np.all(np.diff(firsts) >= 0)  # elements follow their first vertex ([FG §17.4.2])
     s = r.stats()
     assert s["bandwidth"] < s["bandwidth_before"] and s["profile"] < s["profile_before"]
     assert s["profile"] == profile_stats(r)["profile"]
@@ -347,7 +347,7 @@ def test_p2_ball_rule_is_the_seed_loop():
     m = shuffled(plate(0.3), 9).to_order(2)
     corner_order = np.random.default_rng(2).permutation(m.n_points)
     order, walk = _ball_order(m, corner_order)
-    # the seed's loop: vertices in their new order; the elements of each one's ball, by
+    # the book's loop: vertices in their new order; the elements of each one's ball, by
     # index; their nodes in local order, each numbered when first met
     cells = m.cells["triangle6"]
     seen, met = [], []

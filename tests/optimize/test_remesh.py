@@ -1,4 +1,4 @@
-"""Surface optimisation and simplification on the exact surface (issue 6, seed §16.4.3)."""
+"""Surface optimisation and simplification on the exact surface (issue 6, [FG §16.4.3])."""
 
 import numpy as np
 import pytest

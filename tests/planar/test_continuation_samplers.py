@@ -1,4 +1,4 @@
-"""Continuation samplers (seed §16.3.1) and automatic seeds, checked against the exact curves.
+"""Continuation samplers [FG §16.3.1] and automatic seeds, checked against the exact curves.
 
 Every polyline goes through tests/curvecheck.check_curve: no crossing segments, closed
 (or open only on the box boundary), the component count, f > 0 on the left of every

@@ -1,4 +1,4 @@
-"""mesh_curve / mesh_domain: every method of seed §16.3.1 on the acceptance curves, checked
+"""mesh_curve / mesh_domain: every method of [FG §16.3.1] on the acceptance curves, checked
 against the exact function (components, Hausdorff distance, crossings, orientation)."""
 
 import json
@@ -8,7 +8,7 @@ import pytest
 
 import warpmesh as wm
 from tests.helpers.curvecheck import check_curve
-from warpmesh.cli.main import main
+from warpmesh.cli.commands import main
 from warpmesh.planar.curves import boundary_edges
 from warpmesh.cells.quality import triangle_angles
 
@@ -33,7 +33,7 @@ CURVES = _curves()
 #: options that make each enumeration method resolve the 0.01 gap and the small island
 OPTIONS = {"grid": {"resolution": 384}, "freudenthal": {"resolution": 384}, "progression": {"resolution": 384},
            "continuation": {}, "quadtree": {}, "rays": {"n_rays": 256}}
-#: the naive method's documented failures (seed §16.3.1: no a priori criterion for the rays)
+#: the naive method's documented failures [FG §16.3.1: no a priori criterion for the rays]
 RAYS_FAIL = {"touching", "island", "lemniscate"}
 
 

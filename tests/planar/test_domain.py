@@ -1,4 +1,4 @@
-"""Triangle meshes of planar implicit domains {f > 0} (seed §16.5.2): global approach and
+"""Triangle meshes of planar implicit domains {f > 0} [FG §16.5.2]: global approach and
 the `triangle` cross-check.
 
 Boundaries are built here, independently of the curve samplers: exact parametrisations

@@ -1,4 +1,4 @@
-"""Geometric meshes of implicit curves (seed §16.2.2, Def. 16.4, §16.3.2): warpmesh.planar.geometric.
+"""Geometric meshes of implicit curves [FG §16.2.2, Def. 16.4, §16.3.2]: warpmesh.planar.geometric.
 
 The raw polylines come from a dense sampler written here (exact parametrisations,
 oriented with the domain on the left), independent of the library's samplers.

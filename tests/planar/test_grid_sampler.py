@@ -1,4 +1,4 @@
-"""Tests of the exhaustive-enumeration curve samplers (warpmesh/curve_grid.py, seed §16.3.1-16.3.3).
+"""Tests of the exhaustive-enumeration curve samplers (warpmesh/curve_grid.py, [FG §16.3.1-16.3.3]).
 
 Hausdorff bounds used below (h = cell size, R = 1 / kappa the smallest radius of curvature):
 every segment is a chord across one cell, of length <= sqrt(2) h, so its sagitta is at most
@@ -183,7 +183,7 @@ def test_lemniscate_singular_point_on_a_node(sampler):
     h = max(s.info["cell_size"])
     m = check(s, shape, box, n_components=2, singular=[(0.0, 0.0)], hausdorff=0.05 * h)
     # float32 evaluation: f(x, 0) = 2x^2 - x^4 rounds to 0 for |x| < ~2e-4, a zero stretch
-    # whose end the bisection finds (seed Figure 16.9)
+    # whose end the bisection finds [FG Figure 16.9]
     assert np.linalg.norm(s.points, axis=1).min() < 0.01 * h
     assert m["wrong_orientation"] == 0
 
@@ -294,7 +294,7 @@ def test_zero_at_nodes_counts_as_outside(root):
 
 @pytest.mark.parametrize("root", ["bisection", "newton"])
 def test_root_past_a_zero_stretch_of_the_edge(root):
-    """f = 0 on 0 <= x <= 0.3 (seed Figure 16.9, right): the modified search returns the end
+    """f = 0 on 0 <= x <= 0.3 [FG Figure 16.9, right]: the modified search returns the end
     of the zero stretch next to the positive node, x = 0.3."""
     x, _ = wm.coords(2)
     f = E.min(x, 0.0) + E.max(x - 0.3, 0.0)

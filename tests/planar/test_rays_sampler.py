@@ -1,5 +1,5 @@
 """The naive ray-casting sampler (warpmesh.planar.samplers.rays): what it gets right with enough rays,
-and its failure modes (seed §16.3.1, Fig 16.2) shown against the exact curve and against
+and its failure modes [FG §16.3.1, Fig 16.2] shown against the exact curve and against
 the quadtree sampler, which has an a-priori criterion."""
 
 from __future__ import annotations

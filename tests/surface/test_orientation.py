@@ -1,4 +1,4 @@
-"""warpmesh.surface.orientation: consistent orientation by adjacency (seed §16.4.4), on known shapes."""
+"""warpmesh.surface.orientation: consistent orientation by adjacency [FG §16.4.4], on known shapes."""
 
 from __future__ import annotations
 

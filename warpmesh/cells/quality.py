@@ -1,4 +1,4 @@
-"""Element shape quality, the measure of seed eq. 16.15.
+"""Element shape quality, the measure of [FG eq. 16.15].
 
 ``Q_K = alpha * h_max / rho_K``: ``h_max`` is the element diameter (its longest edge),
 ``rho_K`` the radius of the inscribed circle or sphere, and ``alpha`` normalises the

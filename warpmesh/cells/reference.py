@@ -1,7 +1,7 @@
 """Reference cells: local vertices, edges, faces, mirror permutations, signed measures, and
 nodes defined as weighted combinations of mesh vertices.
 
-One table serves every mesh modification (seed ch. 17): transformations permute local
+One table serves every mesh modification [FG ch. 17]: transformations permute local
 vertices with :func:`mirror_permutation`; refinement and type conversion create nodes with
 :func:`weighted_nodes`, which numbers a node shared by several elements (an edge midpoint,
 a face centre) once; tests check orientation and conservation with :func:`cell_measures`.
@@ -31,7 +31,9 @@ from types import MappingProxyType
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh.io.convert import CELL_TYPES
+from warpmesh._util.arrays import unique_rows
+from warpmesh.cells.lagrange import reference_nodes
+from warpmesh.cells.types import CELL_TYPES
 
 __all__ = [
     "P1_TYPES",
@@ -180,8 +182,6 @@ def node_weights(cell_type: str) -> np.ndarray:
         mid[np.arange(len(e)), e[:, 0]] = mid[np.arange(len(e)), e[:, 1]] = 0.5
         w = np.concatenate([np.eye(nv), mid])
     else:
-        from warpmesh.numbering.high_order import reference_nodes  # the Lagrange node tables live there
-
         w = _p1_shape(base, reference_nodes(cell_type))
     w.setflags(write=False)
     return w
@@ -339,33 +339,6 @@ def _sort_pairs(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.stack(vc, axis=1), np.stack(wc, axis=1)
 
 
-def _unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(unique rows in lexicographic order, inverse), like ``np.unique(rows, axis=0,
-    return_inverse=True)``: one int64 key per row when the columns' ranges fit in 62 bits
-    (a 1-D sort), else a column lexsort; both several times faster on millions of rows."""
-    lo = rows.min(axis=0)
-    span = rows.max(axis=0) - lo + 1
-    if float(np.prod(span.astype(float))) < 2.0**62:
-        key = np.zeros(len(rows), np.int64)
-        for j in range(rows.shape[1]):  # mixed radix, first column most significant
-            if span[j] > 1:
-                key = key * span[j] + (rows[:, j] - lo[j])
-        order = np.argsort(key, kind="stable")
-        sk = key[order]
-        new = np.empty(len(rows), bool)
-        new[:1] = True
-        np.not_equal(sk[1:], sk[:-1], out=new[1:])
-    else:
-        order = np.lexsort(rows.T[::-1])
-        r = rows[order]
-        new = np.empty(len(r), bool)
-        new[:1] = True
-        np.any(r[1:] != r[:-1], axis=1, out=new[1:])
-    inverse = np.empty(len(rows), INDEX_DTYPE)
-    inverse[order] = np.cumsum(new) - 1
-    return rows[order[new]], inverse
-
-
 def weighted_nodes(points, vertices, weights, *, point_count: int | None = None):
     """Number nodes given as integer-weighted combinations of mesh vertices, once each.
 
@@ -429,7 +402,7 @@ def weighted_nodes(points, vertices, weights, *, point_count: int | None = None)
         parts, start = [], n0
         for size in np.unique(support):
             sel = np.flatnonzero(support == size)
-            uniq, inverse = _unique_rows(np.concatenate([vv[sel, :size], ww[sel, :size]], axis=1))
+            uniq, _, inverse, _ = unique_rows(np.concatenate([vv[sel, :size], ww[sel, :size]], axis=1))
             ids[multi[sel]] = start + inverse
             start += len(uniq)
             pad = ((0, 0), (0, k - size))

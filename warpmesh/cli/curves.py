@@ -1,4 +1,4 @@
-"""The planar sub-commands of ``warpmesh`` (seed §16.3, §16.5.2): curve and domain.
+"""The planar sub-commands of ``warpmesh`` [FG §16.3, §16.5.2]: curve and domain.
 
 Both mesh a bundled planar example (``wm.EXAMPLES_2D``), print the statistics and, with
 ``-o``, write the mesh atomically (any format meshio writes that keeps lines/triangles).

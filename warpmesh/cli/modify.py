@@ -1,4 +1,4 @@
-"""The mesh-modification sub-commands of ``warpmesh`` (seed ch. 17): transform, refine,
+"""The mesh-modification sub-commands of ``warpmesh`` [FG ch. 17]: transform, refine,
 convert, merge, crack, periodic. Each reads any format meshio reads, writes atomically
 (nothing is written when the operation fails) and prints the statistics of the result.
 

@@ -355,7 +355,7 @@ def log(a) -> Expr:
 
 
 def runion(a, b) -> Expr:
-    """R-function union ``a + b + sqrt(a² + b²)`` (seed eq. 16.17): > 0 where a > 0 or b > 0."""
+    """R-function union ``a + b + sqrt(a² + b²)`` [FG eq. 16.17]: > 0 where a > 0 or b > 0."""
     return _node(O.RUNION, (as_expr(a), as_expr(b)))
 
 

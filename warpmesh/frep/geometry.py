@@ -1,4 +1,4 @@
-"""Differential geometry of implicit curves f(x, y) = 0 and surfaces f(x, y, z) = 0 (seed §16.1.2).
+"""Differential geometry of implicit curves f(x, y) = 0 and surfaces f(x, y, z) = 0 [FG §16.1.2].
 
 Every function takes a shape (:class:`~warpmesh.frep.shapes.Shape` or
 :class:`~warpmesh.frep.expr.Expr`, f > 0 inside) and points ``(n, 2)`` or ``(n, 3)``: the
@@ -8,10 +8,10 @@ second derivatives are central differences of the exact gradient (:func:`hessian
 
 Conventions (f > 0 inside, :mod:`warpmesh._conventions`):
 
-* :func:`normal` is grad f / |grad f|, the seed's principal normal: it points INTO the
+* :func:`normal` is grad f / |grad f|, the book's principal normal: it points INTO the
   domain (towards f > 0), i.e. it is the inward normal.
 * :func:`tangent` (2D) is (f_y, -f_x) / |grad f|: walking along it keeps the domain on
-  the LEFT, the orientation of every warpmesh polyline. The seed's H = (-f_y, f_x)
+  the LEFT, the orientation of every warpmesh polyline. The book's H = (-f_y, f_x)
   (eq. 16.11) is minus this vector.
 * curvatures are positive where the domain is locally convex: the circle f = r - |p|
   has kappa = +1/r, the ball f = r - |p| has k1 = k2 = +1/r.
@@ -35,7 +35,10 @@ import numpy as np
 
 from warpmesh._conventions import REAL_DTYPE
 from warpmesh.frep.planar_field import newton_project
-from warpmesh.frep.lipschitz import check_box, lipschitz_bound
+from warpmesh._util.validate import check_box
+from warpmesh.frep.lipschitz import lipschitz_bound
+from warpmesh.frep.tape import tape_of, value_gradient_at
+from warpmesh.frep.expr import as_expr, depends_on
 
 __all__ = ["gradient", "normal", "tangent", "hessian", "inflection_function", "curvature",
            "radius_of_curvature", "principal_curvatures", "distance_estimate", "project",
@@ -77,8 +80,6 @@ SINGULAR_RTOL = 1.0e-3
 
 # -- validation and evaluation ------------------------------------------------------------
 def _tape_of(shape):
-    from warpmesh.frep.tape import tape_of
-
     try:
         return tape_of(shape)
     except TypeError:
@@ -86,8 +87,6 @@ def _tape_of(shape):
 
 
 def _reads_z(shape) -> bool:
-    from warpmesh.frep.expr import as_expr, depends_on
-
     return depends_on(as_expr(shape), 2)
 
 
@@ -106,22 +105,6 @@ def _setup(shape, points, dims=(2, 3)):
     if p.shape[1] == 2 and _reads_z(shape):
         raise ValueError("expected (n, 3) 'points' for a shape that depends on z, got (n, 2) points")
     return tape, p
-
-
-def _value_gradient(tape, p, device) -> tuple[np.ndarray, np.ndarray]:
-    """f (n,) and grad f (n, d) at float64 or float32 points (n, d), d = 2 (z = 0) or 3."""
-    import warp as wp
-
-    from warpmesh.frep.tape import eval_gradients
-
-    n, d = p.shape
-    if n == 0:
-        return np.zeros(0), np.zeros((0, d))
-    p3 = np.zeros((n, 3), np.float32)
-    p3[:, :d] = p
-    fg = eval_gradients(tape, wp.array(p3, dtype=wp.vec3, device=device), device=device).numpy()
-    fg = fg.astype(REAL_DTYPE)
-    return fg[:, 0], fg[:, 1:1 + d]
 
 
 def _floor_steps(p):
@@ -151,7 +134,7 @@ def _fd_hessian(tape, p, device, h):
     plus, minus = p32[:, None, :] + offs, p32[:, None, :] - offs  # float32 sums
     spacing = (plus.astype(REAL_DTYPE) - minus.astype(REAL_DTYPE))[:, np.arange(d), np.arange(d)]  # (n, d)
     allp = np.concatenate([p32, plus.reshape(-1, d), minus.reshape(-1, d)])
-    f, g = _value_gradient(tape, allp, device)
+    f, g = value_gradient_at(tape, allp, device)
     gp, gm = g[n:n + n * d].reshape(n, d, d), g[n + n * d:].reshape(n, d, d)
     hess = (gp - gm) / spacing[:, :, None]  # row i: d grad / d x_i
     hess = 0.5 * (hess + hess.transpose(0, 2, 1))
@@ -206,11 +189,11 @@ def gradient(shape, points, *, device: str = "cpu") -> np.ndarray:
     [[-0.6, -0.8]]
     """
     tape, p = _setup(shape, points)
-    return _value_gradient(tape, p, device)[1]
+    return value_gradient_at(tape, p, device)[1]
 
 
 def normal(shape, points, *, device: str = "cpu") -> np.ndarray:
-    """The unit normal grad f / |grad f| (the seed's principal normal).
+    """The unit normal grad f / |grad f| (the book's principal normal).
 
     Since f > 0 inside, it points INTO the domain (the inward normal); the outward normal
     is its opposite. Zero where the gradient vanishes.
@@ -245,7 +228,7 @@ def tangent(shape, points, *, device: str = "cpu") -> np.ndarray:
     """The unit tangent (f_y, -f_x) / |grad f| of a curve: the domain f > 0 is on its LEFT.
 
     This is the orientation of warpmesh polylines (counter-clockwise around a disc). The
-    seed's tangent H = (-f_y, f_x) of eq. 16.11 is minus this vector.
+    book's tangent H = (-f_y, f_x) of [FG eq. 16.11] is minus this vector.
 
     Parameters
     ----------
@@ -270,13 +253,13 @@ def tangent(shape, points, *, device: str = "cpu") -> np.ndarray:
     [[-1.0, 0.0]]
     """
     tape, p = _setup(shape, points, dims=(2,))
-    g = _value_gradient(tape, p, device)[1]
+    g = value_gradient_at(tape, p, device)[1]
     gn = np.linalg.norm(g, axis=1)
     return np.column_stack([g[:, 1], -g[:, 0]]) / np.where(gn > _TINY, gn, 1.0)[:, None]
 
 
 def distance_estimate(shape, points, *, device: str = "cpu") -> np.ndarray:
-    """First-order distance to f = 0: |f| / |grad f| (seed eq. 16.6).
+    """First-order distance to f = 0: |f| / |grad f| [FG eq. 16.6].
 
     Exact for a signed distance; for a general f an estimate, valid near a regular part
     of the zero set (a rigorous lower bound is |f| / :func:`lipschitz_bound`).
@@ -299,14 +282,14 @@ def distance_estimate(shape, points, *, device: str = "cpu") -> np.ndarray:
     [0.75]
     """
     tape, p = _setup(shape, points)
-    f, g = _value_gradient(tape, p, device)
+    f, g = value_gradient_at(tape, p, device)
     gn = np.linalg.norm(g, axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(gn > _TINY, np.abs(f) / np.where(gn > _TINY, gn, 1.0), np.where(f == 0, 0.0, np.inf))
 
 
 def project(shape, points, max_step=None, steps: int = 8, *, device: str = "cpu") -> np.ndarray:
-    """Points moved onto f = 0 by Newton steps p -= f grad f / |grad f|² (seed Remark 16.1).
+    """Points moved onto f = 0 by Newton steps p -= f grad f / |grad f|² [FG Remark 16.1].
 
     Parameters
     ----------
@@ -343,7 +326,7 @@ def project(shape, points, max_step=None, steps: int = 8, *, device: str = "cpu"
         cap = np.broadcast_to(np.asarray(max_step, REAL_DTYPE), (len(x),))
         if not np.all(np.isfinite(cap)) or np.any(cap <= 0):
             raise ValueError(f"expected a positive finite 'max_step', got {max_step!r}")
-    return newton_project(lambda q: _value_gradient(tape, q, device), x.copy(), cap, steps,
+    return newton_project(lambda q: value_gradient_at(tape, q, device), x.copy(), cap, steps,
                           lambda q: 1e-9 * np.maximum(1.0, np.abs(q).max(axis=1)))
 
 
@@ -388,7 +371,7 @@ def _h_of(g, hess):
 
 
 def inflection_function(shape, points, *, step=None, device: str = "cpu") -> np.ndarray:
-    """The seed's H = f_y² f_xx - 2 f_x f_y f_xy + f_x² f_yy of a planar curve.
+    """The book's H = f_y² f_xx - 2 f_x f_y f_xy + f_x² f_yy of a planar curve.
 
     It vanishes at the inflection points of the curve (and at its singular points); its
     sign is the opposite of the curvature's (:func:`curvature` is -H / |grad f|³).
@@ -488,7 +471,7 @@ def _tangent_frame(n):
 
 
 def principal_curvatures(shape, points, *, step=None, device: str = "cpu"):
-    """Principal curvatures and directions of the level surface through each point (seed eq. 16.9).
+    """Principal curvatures and directions of the level surface through each point [FG eq. 16.9].
 
     The shape operator is -P Hess(f) P / |grad f| restricted to the tangent plane (P the
     projector orthogonal to grad f): its eigenvalues are the principal curvatures, signed
@@ -595,8 +578,6 @@ def _check_resolution(resolution):
 
 def _critical(shape, bounds, resolution, device):
     """Critical points with their Hessian eigenvalues, and the grid's scales."""
-    from warpmesh.frep.expr import as_expr
-
     tape = _tape_of(shape)
     box = check_box(bounds)
     d = box.shape[1]
@@ -606,7 +587,7 @@ def _critical(shape, bounds, resolution, device):
     res = _check_resolution(resolution)
     cell = (box[1] - box[0]) / res
     _, nodes = _grid_nodes(box, res)
-    fgrid, ggrid = _value_gradient(tape, nodes, device)
+    fgrid, ggrid = value_gradient_at(tape, nodes, device)
     size = float(np.linalg.norm(box[1] - box[0]))
     gscale = max(float(np.linalg.norm(ggrid, axis=1).max()), _TINY)
     fscale = max(float(np.abs(fgrid).max()), _TINY)
@@ -659,7 +640,7 @@ def critical_points(shape, bounds, resolution: int = 64, *, device: str = "cpu")
     steps capped at a cell diagonal). Converged points (|grad f| <= 1e-4 of the largest
     gradient on the grid) inside the box are merged when closer than 1e-2 cell.
 
-    The kind follows the Hessian eigenvalues (seed §16.1.2: det < 0 is a saddle in 2D):
+    The kind follows the Hessian eigenvalues [FG §16.1.2: det < 0 is a saddle in 2D]:
     all positive "minimum", all negative "maximum", mixed signs "saddle", any eigenvalue
     below ``DEGENERATE_RTOL`` of the Hessian scale "degenerate".
 
@@ -704,7 +685,7 @@ def critical_points(shape, bounds, resolution: int = 64, *, device: str = "cpu")
 
 
 def singular_points(shape, bounds, resolution: int = 64, tolerance=None, *, device: str = "cpu") -> dict:
-    """The singular points of the curve or surface f = 0 (seed Def. 16.1): critical points on it.
+    """The singular points of the curve or surface f = 0 [FG Def. 16.1]: critical points on it.
 
     Parameters
     ----------
@@ -756,7 +737,7 @@ def singular_points(shape, bounds, resolution: int = 64, tolerance=None, *, devi
 
 
 def inflection_points(shape, bounds, resolution: int = 64, *, device: str = "cpu") -> dict:
-    """Inflection points of a planar curve f = 0: where the seed's H (:func:`inflection_function`)
+    """Inflection points of a planar curve f = 0: where the book's H (:func:`inflection_function`)
     vanishes and changes sign along the curve, at a regular point (grad f != 0).
 
     Seeds are the cells of a regular grid over which both f and H change sign; Newton's

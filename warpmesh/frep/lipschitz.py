@@ -47,10 +47,13 @@ import math
 import numpy as np
 
 from warpmesh._conventions import REAL_DTYPE
-from warpmesh.frep.expr import _NUMPY, last_uses
+from warpmesh._util.validate import check_box
+from warpmesh.frep.expr import _NUMPY, Expr, depends_on, last_uses
+from warpmesh.frep.shapes import Shape
+from warpmesh.frep.tape import tape_of, value_gradient_at
 from warpmesh.kernels import opcodes as O
 
-__all__ = ["lipschitz_bound", "gradient_enclosure", "check_box", "MAX_BOXES"]
+__all__ = ["lipschitz_bound", "gradient_enclosure", "MAX_BOXES"]
 
 #: the largest number of sub-boxes one call evaluates ((2**depth)**d)
 MAX_BOXES = 1 << 21
@@ -58,9 +61,6 @@ MAX_BOXES = 1 << 21
 
 def _root(shape):
     """The expression of a Shape or an Expr (TypeError for anything else)."""
-    from warpmesh.frep.expr import Expr
-    from warpmesh.frep.shapes import Shape
-
     if isinstance(shape, Expr):
         return shape
     if isinstance(shape, Shape):
@@ -68,21 +68,6 @@ def _root(shape):
     raise TypeError(f"expected a Shape or an Expr for 'shape', got {type(shape).__name__}")
 
 
-def check_box(bounds, name: str = "bounds") -> np.ndarray:
-    """((x0, y0), (x1, y1)) or ((x0, y0, z0), (x1, y1, z1)) as a (2, d) float64 array, lo < hi."""
-    try:
-        b = np.asarray(bounds, dtype=REAL_DTYPE)
-    except (TypeError, ValueError):
-        raise ValueError(f"expected '{name}' ((x0, y0), (x1, y1)) or ((x0, y0, z0), (x1, y1, z1)) of "
-                         f"numbers, got {bounds!r}") from None
-    if b.ndim != 2 or b.shape[0] != 2 or b.shape[1] not in (2, 3):
-        raise ValueError(f"expected '{name}' of shape (2, 2) or (2, 3), got shape {b.shape}")
-    if not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
-        raise ValueError(f"expected finite '{name}' with lo < hi on every axis, got {b.tolist()}")
-    return b
-
-
-# -- interval helpers (arrays broadcast; (lo, hi) pairs) -------------------------------------
 def _mul(alo, ahi, blo, bhi):
     with np.errstate(invalid="ignore"):
         c = np.stack(np.broadcast_arrays(alo * blo, alo * bhi, ahi * blo, ahi * bhi))
@@ -445,9 +430,7 @@ def gradient_enclosure(shape, lo, hi):
 
 def _centre_gradient_norms(root, lo, hi, d):
     """|grad f| at the box centres (exact forward mode on the tape): a lower bound of the max."""
-    from warpmesh.frep.geometry import gradient
-
-    return np.linalg.norm(gradient(root, 0.5 * (lo + hi)), axis=1)
+    return np.linalg.norm(value_gradient_at(tape_of(root), 0.5 * (lo + hi))[1], axis=1)
 
 
 def _split(lo, hi):
@@ -472,7 +455,7 @@ def lipschitz_bound(shape, bounds, depth: int = 5, *, refine: int = 6, rtol: flo
     box centres (a lower bound of the true maximum) are halved along every axis and
     enclosed again, for at most ``refine`` levels and ``budget`` new sub-boxes. The result
     is the largest bound over the final sub-boxes, so |f(p)| / bound is a lower bound of
-    the distance from p to f = 0 (seed §16.1.2, 'Practical aspects') for p and its nearest
+    the distance from p to f = 0 [FG §16.1.2, 'Practical aspects'] for p and its nearest
     curve point in the box.
 
     Parameters
@@ -512,8 +495,6 @@ def lipschitz_bound(shape, bounds, depth: int = 5, *, refine: int = 6, rtol: flo
     >>> 15.44 < lam < 1.25 * 15.45     # the largest |grad f| is 15.44..., at the box corners
     True
     """
-    from warpmesh.frep.expr import depends_on
-
     box = check_box(bounds)
     d = box.shape[1]
     root = _root(shape)

@@ -19,11 +19,13 @@ from __future__ import annotations
 import numpy as np
 
 from warpmesh._conventions import REAL_DTYPE
+from warpmesh.frep.expr import depends_on
+from warpmesh.frep.tape import points_array, eval_gradients, eval_intervals, eval_values, tape_of
 
 __all__ = ["PlanarField", "check_bounds2d", "newton_project"]
 
 _TINY = 1.0e-30
-#: Newton steps of :meth:`PlanarField.project` (seed Remark 16.1)
+#: Newton steps of :meth:`PlanarField.project` [FG Remark 16.1]
 NEWTON_STEPS = 8
 
 
@@ -39,7 +41,7 @@ def check_bounds2d(bounds, name: str = "bounds") -> np.ndarray:
 
 
 def newton_project(value_gradient, x: np.ndarray, max_step, steps: int, stop) -> np.ndarray:
-    """Newton steps x -= f grad f / |grad f|² in place on (n, d) points x (seed Remark 16.1).
+    """Newton steps x -= f grad f / |grad f|² in place on (n, d) points x [FG Remark 16.1].
 
     ``value_gradient(points) -> (f, grad f)``; ``max_step`` (None, scalar or (n,)) caps each
     step; a point stops once its step is below ``stop`` (a scalar, or a function of the
@@ -83,9 +85,6 @@ class PlanarField:
     """
 
     def __init__(self, shape, bounds, device: str = "cpu"):
-        from warpmesh.frep.expr import depends_on
-        from warpmesh.frep.tape import tape_of
-
         self.tape = tape_of(shape)  # raises TypeError for anything that is not a shape
         field = getattr(shape, "field", shape)
         if depends_on(field, 2):
@@ -99,15 +98,11 @@ class PlanarField:
 
     # -- evaluation -----------------------------------------------------------------
     def _pts3(self, points):
-        from warpmesh.frep.tape import _points_array
-
         p = np.asarray(points, dtype=REAL_DTYPE).reshape(-1, 2)
-        return _points_array(np.column_stack([p, np.zeros(len(p))]), self.device)
+        return points_array(np.column_stack([p, np.zeros(len(p))]), self.device)
 
     def values(self, points) -> np.ndarray:
         """f at (n, 2) points, (n,) float64."""
-        from warpmesh.frep.tape import eval_values
-
         p = np.asarray(points, dtype=REAL_DTYPE).reshape(-1, 2)
         if len(p) == 0:
             return np.zeros(0)
@@ -115,8 +110,6 @@ class PlanarField:
 
     def value_gradient(self, points) -> tuple[np.ndarray, np.ndarray]:
         """f (n,) and its exact gradient (n, 2) at (n, 2) points (forward mode)."""
-        from warpmesh.frep.tape import eval_gradients
-
         p = np.asarray(points, dtype=REAL_DTYPE).reshape(-1, 2)
         if len(p) == 0:
             return np.zeros(0), np.zeros((0, 2))
@@ -136,17 +129,15 @@ class PlanarField:
     def intervals(self, lo, hi) -> np.ndarray:
         """Intervals (m, 2) enclosing f over boxes [lo_i, hi_i] ((m, 2) each): interval
         arithmetic on the tape, so f has no zero in a box whose interval excludes 0."""
-        from warpmesh.frep.tape import _points_array, eval_intervals
-
         lo, hi = np.asarray(lo, REAL_DTYPE).reshape(-1, 2), np.asarray(hi, REAL_DTYPE).reshape(-1, 2)
         if len(lo) == 0:
             return np.zeros((0, 2))
         z = np.zeros((len(lo), 1))
-        out = eval_intervals(self.tape, _points_array(np.hstack([lo, z]), self.device),
-                             _points_array(np.hstack([hi, z]), self.device), device=self.device)
+        out = eval_intervals(self.tape, points_array(np.hstack([lo, z]), self.device),
+                             points_array(np.hstack([hi, z]), self.device), device=self.device)
         return out.numpy().astype(REAL_DTYPE)
 
-    # -- Newton projection (seed Remark 16.1) ----------------------------------------
+    # -- Newton projection [FG Remark 16.1] ----------------------------------------
     def project(self, points, max_step=None, steps: int = NEWTON_STEPS) -> np.ndarray:
         """Points moved onto f = 0 by Newton steps P -= f grad f / |grad f|² (Remark 16.1).
 
@@ -172,6 +163,6 @@ class PlanarField:
         return best
 
     def estimate(self, points) -> np.ndarray:
-        """First-order distance |f| / |grad f| (seed eq. 16.6)."""
+        """First-order distance |f| / |grad f| [FG eq. 16.6]."""
         f, g = self.value_gradient(points)
         return np.abs(f) / np.maximum(np.linalg.norm(g, axis=1), _TINY)

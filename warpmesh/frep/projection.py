@@ -7,7 +7,7 @@ through one of these *targets*:
 target               surface                                                    projection
 ===================  =========================================================  ==========================
 ``ImplicitTarget``   f = 0 of a shape (Warp tape, exact gradient); with          safeguarded Newton steps
-                     ``bounds``, the boundary of {f > 0} clipped to the box     (seed Remark 16.1)
+                     ``bounds``, the boundary of {f > 0} clipped to the box     [FG Remark 16.1]
 ``VolumeField``      ``level`` iso-surface of the trilinear interpolant of a    the same Newton steps on
                      sampled volume                                             the trilinear function
 ``MeshTarget``       a reference triangle mesh (no function known)              closest point (VTK locator)
@@ -34,20 +34,26 @@ import numpy as np
 
 from warpmesh._conventions import REAL_DTYPE
 from warpmesh.frep.planar_field import newton_project
+from warpmesh.frep.tape import points_array, eval_gradients, tape_of
+from warpmesh.kernels.block_grid import trilinear_value_gradient_kernel
+from warpmesh.cells.topology import face_normals
 
-__all__ = ["ImplicitTarget", "VolumeField", "MeshTarget", "as_target", "surface_error"]
+__all__ = ["ImplicitTarget", "FunctionTarget", "VolumeField", "MeshTarget", "as_target", "project_nodes", "surface_error"]
 
 NEWTON_STEPS = 6
 #: finite-difference step of the Hessian, relative to the size of the target's box
 HESSIAN_STEP = 1.0e-4
 _TINY = 1.0e-30
+_TINY_G2 = 1.0e-300  # smallest |grad f|^2 a float64 Newton step divides by
+#: Newton steps in float64 after the (float32-evaluated) projection of a shape target
+POLISH_STEPS = 2
 
 
-#: foot-point refinement steps of :meth:`_FunctionTarget.distance`
+#: foot-point refinement steps of :meth:`FunctionTarget.distance`
 FOOT_STEPS = 3
 
 
-class _FunctionTarget:
+class FunctionTarget:
     """Shared Newton projection, normals and curvature for targets with a function f (f > 0 inside)."""
 
     bounds: np.ndarray | None = None
@@ -110,7 +116,7 @@ class _FunctionTarget:
         return best
 
     def estimate(self, points) -> np.ndarray:
-        """First-order distance |f| / |grad f| (seed eq. 16.6): one evaluation, for checks."""
+        """First-order distance |f| / |grad f| [FG eq. 16.6]: one evaluation, for checks."""
         f, g = self._clipped(np.asarray(points, dtype=REAL_DTYPE))
         return np.abs(f) / np.maximum(np.linalg.norm(g, axis=1), _TINY)
 
@@ -120,7 +126,7 @@ class _FunctionTarget:
         return -g / np.maximum(np.linalg.norm(g, axis=1), _TINY)[:, None]
 
     def curvature(self, points) -> np.ndarray:
-        """Largest absolute principal curvature: eigenvalues of P H P / |grad f| (seed eq. 16.9).
+        """Largest absolute principal curvature: eigenvalues of P H P / |grad f| [FG eq. 16.9].
 
         The Hessian H comes from central differences of the exact gradient; P projects
         onto the tangent plane. Planes and box caps give 0.
@@ -156,7 +162,7 @@ def _check_bounds(bounds):
     return b
 
 
-class ImplicitTarget(_FunctionTarget):
+class ImplicitTarget(FunctionTarget):
     """The surface f = 0 of a shape (f > 0 inside), optionally clipped to a box.
 
     Parameters
@@ -169,8 +175,6 @@ class ImplicitTarget(_FunctionTarget):
     """
 
     def __init__(self, shape, bounds=None, device: str = "cpu"):
-        from warpmesh.frep.tape import tape_of
-
         self.tape = tape_of(shape)  # raises TypeError for anything that is not a shape
         self.shape, self.device = shape, device
         self.bounds = _check_bounds(bounds)
@@ -178,16 +182,14 @@ class ImplicitTarget(_FunctionTarget):
             self.fd_step = HESSIAN_STEP * float(np.linalg.norm(self.bounds[1] - self.bounds[0]))
 
     def value_gradient(self, points):
-        from warpmesh.frep.tape import _points_array, eval_gradients
-
         if len(points) == 0:
             return np.zeros(0), np.zeros((0, 3))
-        fg = eval_gradients(self.tape, _points_array(points, self.device), device=self.device).numpy()
+        fg = eval_gradients(self.tape, points_array(points, self.device), device=self.device).numpy()
         fg = fg.astype(REAL_DTYPE)
         return fg[:, 0], fg[:, 1:]
 
 
-class VolumeField(_FunctionTarget):
+class VolumeField(FunctionTarget):
     """The iso-surface of a sampled volume, trilinear between the samples.
 
     ``f(x) = s * (trilinear(values)(x) - level)`` with ``s = +1`` when values above the
@@ -238,7 +240,6 @@ class VolumeField(_FunctionTarget):
     def value_gradient(self, points):
         import warp as wp
 
-        from warpmesh.kernels.block_grid import trilinear_value_gradient_kernel
 
         p = np.ascontiguousarray(points, dtype=REAL_DTYPE).reshape(-1, 3)
         if len(p) == 0:
@@ -267,7 +268,6 @@ class MeshTarget:
         import pyvista as pv
         from scipy.spatial import cKDTree
 
-        from warpmesh.cells.topology import face_normals
 
         self.points = np.asarray(points, REAL_DTYPE)
         self.triangles = np.asarray(triangles)
@@ -314,7 +314,7 @@ def as_target(shape=None, *, bounds=None, reference=None, device: str = "cpu"):
         if reference is None:
             raise ValueError("expected a 'shape' (or a reference mesh) to project onto")
         return MeshTarget(*reference)
-    if isinstance(shape, (_FunctionTarget, MeshTarget)):
+    if isinstance(shape, (FunctionTarget, MeshTarget)):
         if bounds is not None:
             shape.bounds = _check_bounds(bounds)
         return shape
@@ -335,7 +335,7 @@ def surface_sample_points(points, triangles) -> np.ndarray:
 
 
 def surface_error(mesh, shape=None, *, bounds=None, reference=None) -> dict:
-    """Distance from a triangle mesh to the exact surface (seed §16.2.2), by Newton projection.
+    """Distance from a triangle mesh to the exact surface [FG §16.2.2], by Newton projection.
 
     Sampled at the vertices, edge midpoints and centroids of the triangles.
 
@@ -366,3 +366,43 @@ def surface_error(mesh, shape=None, *, bounds=None, reference=None) -> dict:
     d = target.distance(samples)
     nv = len(np.unique(tri))
     return {"max": float(d.max()), "mean": float(d.mean()), "vertex_max": float(d[:nv].max())}
+
+
+def project_nodes(target, x: np.ndarray, cap: np.ndarray) -> np.ndarray:
+    """Newton projection onto f = 0, then float64 Newton steps on shapes.
+
+    The tape evaluates f in float32 (about 1e-7 of the size); a shape also evaluates in
+    float64 (``eval_numpy``), which brings the nodes to f = 0 within float64 rounding.
+    Points on a cap of ``bounds`` (where the box is nearer than the surface) are exact.
+    Used by every stage that places new nodes on the boundary (higher-order nodes,
+    uniform and local refinement).
+
+    Parameters
+    ----------
+    target : a projection target (:func:`as_target`)
+    x : (n, 3) float64
+        The points to project.
+    cap : (n,) float64
+        The longest move allowed for each point.
+
+    Returns
+    -------
+    (n, 3) float64
+    """
+    y = target.project(x, max_step=cap)
+    shape = getattr(target, "shape", None)
+    if shape is None or not hasattr(shape, "eval_numpy") or len(y) == 0:
+        return y
+    for _ in range(POLISH_STEPS):
+        f = np.broadcast_to(np.asarray(shape.eval_numpy(y[:, 0], y[:, 1], y[:, 2]), REAL_DTYPE),
+                            (len(y),))
+        g = target.value_gradient(y)[1]
+        g2 = np.einsum("ij,ij->i", g, g)
+        ok = np.isfinite(f) & (g2 > _TINY_G2)
+        if target.bounds is not None:
+            lo, hi = target.bounds
+            box = np.concatenate([y - lo, hi - y], axis=1).min(axis=1)
+            ok &= box >= np.abs(f) / np.sqrt(np.maximum(g2, _TINY_G2))
+        step = np.where(ok, f / np.maximum(g2, _TINY_G2), 0.0)[:, None] * g
+        y = y - np.where(np.linalg.norm(step, axis=1) <= cap, 1.0, 0.0)[:, None] * step
+    return y

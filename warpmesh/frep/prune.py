@@ -56,7 +56,8 @@ import warp as wp
 
 from warpmesh.kernels import opcodes as O
 from warpmesh.kernels import tape as K
-from warpmesh.frep.tape import _CHUNK_POINTS, Tape, batch_size, run_parallel
+from warpmesh._util.parallel import run_parallel
+from warpmesh.frep.tape import CHUNK_POINTS, Tape, batch_size
 
 #: the opcodes an interval can decide (their ``sel`` column numbers them)
 SELECTION_OPS = (O.MIN, O.MAX, O.MINC, O.MAXC)
@@ -602,7 +603,7 @@ def _launch_segments(kernel, tape: Tape, pool: TapePool, tid: np.ndarray, inputs
         work = np.cumsum(seg_count.astype(np.int64) * seg_rows)
         mid = int(np.searchsorted(work, work[-1] / 2)) + 1
         ranges = [(0, mid), (mid, n_seg)] if mid < n_seg else ranges
-    span = max(1, _CHUNK_POINTS[cpu] // batch)  # segments per launch: bounds the scratch
+    span = max(1, CHUNK_POINTS[cpu] // batch)  # segments per launch: bounds the scratch
 
     def job(lo, hi):
         width = min(span, hi - lo)

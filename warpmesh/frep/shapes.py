@@ -1,4 +1,4 @@
-"""F-Rep shapes (seed §16.5.1): primitives, booleans and transforms over :mod:`warpmesh.frep.expr`.
+"""F-Rep shapes [FG §16.5.1]: primitives, booleans and transforms over :mod:`warpmesh.frep.expr`.
 
 A :class:`Shape` wraps one scalar field ``f`` (an :class:`~warpmesh.frep.expr.Expr`) with
 the sign convention f > 0 inside, f = 0 on the boundary, f < 0 outside. Shapes combine
@@ -22,7 +22,7 @@ Example
 from __future__ import annotations
 
 import math
-from typing import Literal, Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -388,7 +388,7 @@ def superquadric(semi_axes=(1.0, 1.0, 1.0), e1: float = 0.5, e2: float = 0.5,
 
 def supertorus(major: float = 1.0, minor: float = 0.3, e1: float = 0.5, e2: float = 0.5,
                axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
-    """Supertoroid (seed Fig. 16.22): a torus whose section (``e1``) and sweep (``e2``)
+    """Supertoroid [FG Fig. 16.22]: a torus whose section (``e1``) and sweep (``e2``)
     are superellipses. e1 = e2 = 1 gives the exact torus; a bound (|∇f| ≤ 1) for
     e1, e2 ≤ 1; for larger exponents only the sign is meaningful."""
     big, small = _positive(major, "major"), _positive(minor, "minor")
@@ -400,28 +400,3 @@ def supertorus(major: float = 1.0, minor: float = 0.3, e1: float = 0.5, e2: floa
     big_f = abs((rho - big) * (1 / small)) ** (2 / e1) + abs(w * (1 / small)) ** (2 / e1)
     exact = e1 == 1.0 and e2 == 1.0
     return _centered(Shape((1.0 - big_f ** (e1 / 2)) * small, exact), center)
-
-
-def example(name: str) -> tuple[Shape, tuple]:
-    """Bundled examples by name: (shape, bounds). Names: 'part', 'degree6', 'sphere', 'torus';
-    the planar examples of :func:`warpmesh.frep.shapes2d.example2d` ('gear', 'plate',
-    'lemniscate', 'cassini') return 2D bounds ((x0, y0), (x1, y1))."""
-    from warpmesh.frep.shapes2d import EXAMPLES_2D, example2d
-
-    if name in EXAMPLES_2D:
-        return example2d(name)
-    if name == "part":
-        holes = [cylinder(0.2).translate((sx * 0.6, sy * 0.6, 0)) for sx in (-1, 1) for sy in (-1, 1)]
-        return (box((2, 2, 0.6)) - union(*holes)) | sphere(0.5), ((-1.2,) * 3, (1.2,) * 3)
-    if name == "degree6":
-        x, y, z = E.coords()
-        f = (x**2 + y**2 - 4) * (x**2 + z**2 - 4) * (y**2 + z**2 - 4) - 4.0078
-        return Shape(f), ((-3.0,) * 3, (3.0,) * 3)
-    if name == "sphere":
-        return sphere(1.0), ((-1.2,) * 3, (1.2,) * 3)
-    if name == "torus":
-        return torus(1.0, 0.35), ((-1.5, -1.5, -0.5), (1.5, 1.5, 0.5))
-    raise ValueError(f"Unknown example {name!r}. Pick one of {list(EXAMPLES) + list(EXAMPLES_2D)}")
-
-
-EXAMPLES: Sequence[str] = ("part", "degree6", "sphere", "torus")

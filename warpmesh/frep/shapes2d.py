@@ -3,7 +3,7 @@
 A planar shape is a :class:`~warpmesh.frep.shapes.Shape` whose field does not read z
 (``shape.dim == 2``): the same booleans (``|``, ``&``, ``-``, ``~``, R-functions by
 default) and transforms (``translate((dx, dy))``, ``rotate(angle)`` about the z axis,
-``scale``, ``mirror((nx, ny))``) apply. Its zero set is an implicit curve (seed §16.1.2),
+``scale``, ``mirror((nx, ny))``) apply. Its zero set is an implicit curve [FG §16.1.2],
 meshed by :func:`warpmesh.mesh_curve`; the domain f > 0 is meshed by
 :func:`warpmesh.mesh_domain`.
 
@@ -22,9 +22,9 @@ import math
 import numpy as np
 
 from warpmesh.frep import expr as E
-from warpmesh.frep.shapes import Shape, _positive, _vector, union
+from warpmesh.frep.shapes import Shape, _positive, _vector
 
-__all__ = ["circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "example2d", "EXAMPLES_2D"]
+__all__ = ["circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "cassini"]
 
 
 def _vec2(value, name: str, *, positive: bool = False) -> np.ndarray:
@@ -86,25 +86,6 @@ def regular_polygon(n: int, radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
     return _placed(Shape(E.min(*sides), False), center)
 
 
-def _gear(teeth: int = 12) -> Shape:
-    """A spur-gear-like CSG part: a disc with rectangular teeth, a bore and a key way."""
-    tooth = rectangle((0.22, 0.3), center=(1.0, 0.0))
-    ring = union(circle(1.0), *[tooth.rotate(2 * math.pi * k / teeth) for k in range(teeth)])
-    return ring - circle(0.35) - rectangle((0.12, 0.16), center=(0.0, 0.4)) - union(
-        *[circle(0.12, center=(0.62 * math.cos(t), 0.62 * math.sin(t)))
-          for t in (2 * math.pi * k / 5 + 0.3 for k in range(5))])
-
-
-def _plate() -> Shape:
-    """A rectangular plate with corners rounded to radius 0.1 and five holes of two sizes."""
-    body = rectangle((2.4, 1.4))
-    # corner pieces reach past the body, so no side of theirs lies on the body's sides
-    corners = union(*[rectangle((0.2, 0.2), center=(sx * 1.2, sy * 0.7)) - circle(0.1, (sx * 1.1, sy * 0.6))
-                      for sx in (-1, 1) for sy in (-1, 1)])
-    holes = union(circle(0.3), *[circle(0.12, (sx * 0.8, sy * 0.35)) for sx in (-1, 1) for sy in (-1, 1)])
-    return body - corners - holes
-
-
 def cassini(a: float = 1.0, b: float = 1.05) -> Shape:
     """Cassini ovals |p - (a, 0)| |p + (a, 0)| = b²: one oval for b > a, two for b < a,
     the lemniscate of Bernoulli (a singular point at the origin) for b = a. f > 0 inside,
@@ -112,23 +93,3 @@ def cassini(a: float = 1.0, b: float = 1.05) -> Shape:
     a, b = _positive(a, "a"), _positive(b, "b")
     x, y = E.coords(2)
     return Shape(b**4 - ((x * x + y * y + a * a) ** 2 - 4 * a * a * x * x))
-
-
-EXAMPLES_2D = ("gear", "plate", "lemniscate", "cassini")
-
-
-def example2d(name: str) -> tuple[Shape, tuple]:
-    """Bundled planar examples by name: (shape, bounds ((x0, y0), (x1, y1))).
-
-    Names: 'gear' and 'plate' (CSG domains), 'lemniscate' (a singular point at the
-    origin), 'cassini' (one oval just past the topology change, b = 1.05 a).
-    """
-    if name == "gear":
-        return _gear(), ((-1.3, -1.3), (1.3, 1.3))
-    if name == "plate":
-        return _plate(), ((-1.3, -0.8), (1.3, 0.8))
-    if name == "lemniscate":
-        return cassini(1.0, 1.0), ((-1.6, -0.6), (1.6, 0.6))
-    if name == "cassini":
-        return cassini(1.0, 1.05), ((-1.6, -0.7), (1.6, 0.7))
-    raise ValueError(f"Unknown example {name!r}. Pick one of {list(EXAMPLES_2D)}")

@@ -16,19 +16,20 @@ Example
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass, field
 
 import numpy as np
 import warp as wp
 
 from warpmesh.frep.codegen import EVALUATORS, Evaluator, generated_kernel
+from warpmesh._util.parallel import parallel_ranges, run_parallel
 from warpmesh.frep.expr import Expr, last_uses
+from warpmesh.frep.shapes import as_shape
 from warpmesh.kernels import opcodes as O
 from warpmesh.kernels import tape as K
 
 BATCH = 256  # points per interpreter thread (column-wise evaluation)
-_CHUNK_POINTS = {True: 1 << 18, False: 1 << 20}  # points per launch, CPU / GPU (bounds the scratch)
+CHUNK_POINTS = {True: 1 << 18, False: 1 << 20}  # points per launch, CPU / GPU (bounds the scratch)
 
 
 @dataclass
@@ -77,8 +78,6 @@ def compile_tape(shape) -> Tape:
     -------
     Tape
     """
-    from warpmesh.frep.shapes import as_shape
-
     root: Expr = as_shape(shape).field if not isinstance(shape, Expr) else shape
     nodes = root.nodes()
     index, last_use = last_uses(nodes)
@@ -109,8 +108,6 @@ _TAPE_CACHE: dict[int, tuple] = {}
 
 def tape_of(shape) -> Tape:
     """Compile once per expression object (expressions are immutable and hash-consed)."""
-    from warpmesh.frep.shapes import as_shape
-
     root = shape if isinstance(shape, Expr) else as_shape(shape).field
     hit = _TAPE_CACHE.get(id(root))
     if hit is not None and hit[0] is root:
@@ -123,40 +120,6 @@ def tape_of(shape) -> Tape:
 
 
 # -- launching ---------------------------------------------------------------------------
-def _n_workers(device) -> int:
-    return 2 if wp.get_device(device).is_cpu else 1
-
-
-def parallel_ranges(n: int, device, min_per_worker: int = 1 << 14) -> list[tuple[int, int]]:
-    """Split [0, n) into per-core ranges for CPU launches (one range on CUDA)."""
-    k = _n_workers(device) if n >= 2 * min_per_worker else 1
-    edges = np.linspace(0, n, k + 1).astype(int)
-    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
-
-
-def run_parallel(jobs) -> None:
-    """Run callables concurrently from Python threads (Warp's CPU launches drop the GIL)."""
-    jobs = list(jobs)
-    if len(jobs) == 1:
-        jobs[0]()
-        return
-    errors = []
-
-    def wrap(job):
-        try:
-            job()
-        except BaseException as exc:  # re-raised below, on the calling thread
-            errors.append(exc)
-
-    threads = [threading.Thread(target=wrap, args=(j,)) for j in jobs]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    if errors:
-        raise errors[0]
-
-
 def _eval(tape: Tape, kernel, inputs: list, n: int, out: wp.array, dtype, device) -> None:
     """Launch an interpreter kernel over n items in chunks (bounded scratch), split
     across CPU cores; ``inputs`` are the kernel's per-item arrays."""
@@ -167,7 +130,7 @@ def _eval(tape: Tape, kernel, inputs: list, n: int, out: wp.array, dtype, device
     batch = batch_size(device)
 
     def job(lo, hi):
-        span = min(hi - lo, _CHUNK_POINTS[wp.get_device(device).is_cpu])
+        span = min(hi - lo, CHUNK_POINTS[wp.get_device(device).is_cpu])
         n_threads = (span + batch - 1) // batch
         scratch = wp.empty(n_threads * tape.n_registers * batch, dtype=dtype, device=device)
         for start in range(lo, hi, span):
@@ -228,7 +191,7 @@ def eval_intervals(tape: Tape, boxes_lo: wp.array, boxes_hi: wp.array, out: wp.a
     return out
 
 
-def _points_array(points, device) -> wp.array:
+def points_array(points, device) -> wp.array:
     pts = np.asarray(points)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"expected an (n, 3) array for 'points', got shape {pts.shape}")
@@ -265,7 +228,7 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu",
     [[1.0, 0.0, 0.0, -1.0]]
     """
     tape = tape_of(shape)
-    pts = _points_array(points, device)
+    pts = points_array(points, device)
     if gradient:
         if evaluator != "auto":
             raise ValueError("'evaluator' applies to values; gradients always use the interpreter")
@@ -276,9 +239,41 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu",
 def evaluate_interval(shape, lo, hi, *, device: str = "cpu") -> np.ndarray:
     """Intervals (m, 2) enclosing f over boxes [lo_i, hi_i] (each (m, 3))."""
     tape = tape_of(shape)
-    blo, bhi = _points_array(lo, device), _points_array(hi, device)
+    blo, bhi = points_array(lo, device), points_array(hi, device)
     if blo.shape != bhi.shape:
         raise ValueError(f"expected 'lo' and 'hi' of one shape, got {blo.shape} and {bhi.shape}")
     if np.any(np.asarray(lo) > np.asarray(hi)):
         raise ValueError("expected lo <= hi for every box")
     return eval_intervals(tape, blo, bhi, device=device).numpy()
+
+
+def value_gradient_at(tape: Tape, points: np.ndarray, device="cpu") -> tuple[np.ndarray, np.ndarray]:
+    """f and its exact gradient at float64 points, on the host.
+
+    Parameters
+    ----------
+    tape : Tape
+    points : (n, d) float array, d = 2 (evaluated at z = 0) or 3
+    device : str
+
+    Returns
+    -------
+    f : (n,) float64
+    grad : (n, d) float64
+
+    Examples
+    --------
+    >>> import numpy as np, warpmesh as wm
+    >>> f, g = value_gradient_at(tape_of(wm.sphere(1.0)), np.array([[2.0, 0.0, 0.0]]))
+    >>> float(f[0]), g.round(6).tolist()
+    (-1.0, [[-1.0, 0.0, 0.0]])
+    """
+    p = np.asarray(points)
+    n, d = p.shape
+    if n == 0:
+        return np.zeros(0), np.zeros((0, d))
+    p3 = np.zeros((n, 3), np.float32)
+    p3[:, :d] = p
+    fg = eval_gradients(tape, wp.array(p3, dtype=wp.vec3, device=device), device=device).numpy()
+    fg = fg.astype(np.float64)
+    return fg[:, 0], fg[:, 1:1 + d]

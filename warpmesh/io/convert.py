@@ -1,8 +1,8 @@
 """Conversions between :class:`~warpmesh.mesh.Mesh` and meshio, trimesh and pyvista objects.
 
 Plain functions over a mesh (the ``Mesh.to_*`` / ``Mesh.from_*`` methods delegate here).
-The cell vocabulary is meshio's (:data:`CELL_TYPES`, with each type's VTK id). Refs
-travel as arrays named :data:`REF_KEY` (``"medit:ref"``) in meshio, pyvista and trimesh
+The cell vocabulary is meshio's (:data:`warpmesh.cells.types.CELL_TYPES`, with each type's
+VTK id). Refs travel as arrays named :data:`~warpmesh.cells.types.REF_KEY` (``"medit:ref"``) in meshio, pyvista and trimesh
 objects; on the way in ``"gmsh:physical"`` is read as cell refs too. Refs that are all
 zero are read back as "no refs". meshio keeps one data array per block
 ({name: [array per block]}); a :class:`~warpmesh.mesh.Mesh` keeps {name: {type: array}}.
@@ -11,28 +11,24 @@ Examples
 --------
 >>> import trimesh
 >>> from warpmesh.io.convert import from_trimesh, to_pyvista
->>> m = from_trimesh(trimesh.creation.box())
+>>> from warpmesh.mesh import Mesh
+>>> m = from_trimesh(trimesh.creation.box(), mesh_type=Mesh)
 >>> m.cells["triangle"].shape, to_pyvista(m).n_cells
 ((12, 3), 12)
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from types import MappingProxyType
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import meshio
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh.cells.types import CELL_TYPES, REF_KEY, MeshLike, block_refs, points3, require_mesh
 
-if TYPE_CHECKING:  # the Mesh class is imported where it is built: mesh.py imports this module
-    from warpmesh.mesh import Mesh
 
 __all__ = [
-    "CELL_TYPES",
-    "REF_KEY",
     "to_meshio",
     "from_meshio",
     "to_trimesh",
@@ -41,39 +37,6 @@ __all__ = [
     "from_pyvista",
 ]
 
-#: meshio cell-type name -> (nodes per cell, topological dimension, VTK cell type id).
-#: line4/5, triangle10/15 and tetra20/35 have no VTK type of their own (meshio's vtu/vtk
-#: writers refuse them; gmsh files keep them, in gmsh's node order): their id is VTK's
-#: Lagrange cell (68 curve, 69 triangle, 71 tetrahedron), whose node order is gmsh's for
-#: the curves and triangles but not for the tetrahedra (other edge and face order), so
-#: :func:`to_pyvista` refuses tetra20/35 (:data:`_VTK_ORDER_DIFFERS`).
-CELL_TYPES: Mapping[str, tuple[int, int, int]] = MappingProxyType(
-    {
-        "vertex": (1, 0, 1),
-        "line": (2, 1, 3),
-        "line3": (3, 1, 21),
-        "line4": (4, 1, 68),
-        "line5": (5, 1, 68),
-        "triangle": (3, 2, 5),
-        "triangle6": (6, 2, 22),
-        "triangle10": (10, 2, 69),
-        "triangle15": (15, 2, 69),
-        "quad": (4, 2, 9),
-        "quad8": (8, 2, 23),
-        "quad9": (9, 2, 28),
-        "tetra": (4, 3, 10),
-        "tetra10": (10, 3, 24),
-        "tetra20": (20, 3, 71),
-        "tetra35": (35, 3, 71),
-        "hexahedron": (8, 3, 12),
-        "hexahedron20": (20, 3, 25),
-        "hexahedron27": (27, 3, 29),
-        "wedge": (6, 3, 13),
-        "wedge15": (15, 3, 26),
-        "pyramid": (5, 3, 14),
-        "pyramid13": (13, 3, 27),
-    }
-)
 #: VTK Lagrange cell id -> {nodes per cell: meshio name}, for the sizes whose VTK node
 #: order is meshio's (checked against VTK's parametric coordinates in tests/test_nodes.py)
 _VTK_LAGRANGE = {
@@ -90,9 +53,7 @@ _VTK_TO_NAME = {vtk: name for name, (_, _, vtk) in CELL_TYPES.items() if vtk not
 _VTK_EXTRA = {8: ("quad", [0, 1, 3, 2]), 11: ("hexahedron", [0, 1, 3, 2, 4, 5, 7, 6])}
 _POLY_TYPES = ("vertex", "line", "triangle", "quad")  # what a pyvista PolyData holds
 
-#: name of the refs arrays in meshio, pyvista and trimesh objects
-REF_KEY = "medit:ref"
-_GMSH_REF, _GMSH_GEO = "gmsh:physical", "gmsh:geometrical"
+GMSH_REF, GMSH_GEO = "gmsh:physical", "gmsh:geometrical"
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -102,7 +63,7 @@ def _native(value) -> np.ndarray:
     return arr.astype(arr.dtype.newbyteorder("=")) if arr.dtype.byteorder not in "=|" else arr
 
 
-def _set_dim(points: np.ndarray, dim) -> np.ndarray:
+def set_dim(points: np.ndarray, dim) -> np.ndarray:
     """Drop a zero z column (dim=2) or append one (dim=3); dim=None keeps ``points``."""
     if dim not in (None, 2, 3):
         raise ValueError(f"expected dim None, 2 or 3, got {dim!r}")
@@ -115,31 +76,10 @@ def _set_dim(points: np.ndarray, dim) -> np.ndarray:
     return points
 
 
-def _check_mesh(mesh) -> None:
-    from warpmesh.mesh import Mesh
-
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a warpmesh Mesh for 'mesh', got {type(mesh).__name__}")
-
-
-def _points3(mesh: Mesh) -> np.ndarray:
-    """(n, 3) float64: the points, 2D ones with z = 0."""
-    if mesh.dim == 3:
-        return np.asarray(mesh.points)
-    return np.column_stack([mesh.points, np.zeros(mesh.n_points, dtype=REAL_DTYPE)])
-
-
-def _block_refs(mesh: Mesh, t: str) -> np.ndarray:
-    """(m,) int64: the refs of block ``t``, zeros when it has none."""
-    refs = None if mesh.cell_refs is None else mesh.cell_refs.get(t)
-    return np.zeros(len(mesh.cells[t]), dtype=INDEX_DTYPE) if refs is None else refs
-
-
-def _from_parts(points, blocks, point_data, cell_data, dim, info) -> Mesh:
-    """Build from blocks that may repeat a type; pull the refs out of the data arrays."""
-    from warpmesh.mesh import Mesh
-
-    points = _set_dim(np.asarray(points, dtype=REAL_DTYPE), dim)
+def _from_parts(mesh_type, points, blocks, point_data, cell_data, dim, info) -> MeshLike:
+    """Build a ``mesh_type`` from blocks that may repeat a type; pull the refs out of the
+    data arrays."""
+    points = set_dim(np.asarray(points, dtype=REAL_DTYPE), dim)
     names = list(dict.fromkeys(t for t, _ in blocks))
     cells = {t: np.concatenate([np.asarray(c) for u, c in blocks if u == t]) for t in names}
     point_data = {k: _native(v) for k, v in point_data.items()}
@@ -155,15 +95,15 @@ def _from_parts(points, blocks, point_data, cell_data, dim, info) -> Mesh:
         if not np.all(point_refs == np.round(point_refs)):
             raise ValueError(f"expected integer point refs {REF_KEY!r}, got non-integral values")
         point_refs = point_refs.astype(INDEX_DTYPE)
-    cell_refs = next((cell_data.pop(k) for k in (REF_KEY, _GMSH_REF) if k in cell_data), None)
-    if cell_refs is not None and _GMSH_GEO in cell_data:
-        if all(np.array_equal(cell_data[_GMSH_GEO][t], cell_refs[t]) for t in names):
-            del cell_data[_GMSH_GEO]
+    cell_refs = next((cell_data.pop(k) for k in (REF_KEY, GMSH_REF) if k in cell_data), None)
+    if cell_refs is not None and GMSH_GEO in cell_data:
+        if all(np.array_equal(cell_data[GMSH_GEO][t], cell_refs[t]) for t in names):
+            del cell_data[GMSH_GEO]
     if point_refs is not None and not np.any(point_refs):
         point_refs = None
     if cell_refs is not None and not any(np.any(r) for r in cell_refs.values()):
         cell_refs = None
-    return Mesh(
+    return mesh_type(
         points,
         cells,
         point_data=point_data,
@@ -175,7 +115,7 @@ def _from_parts(points, blocks, point_data, cell_data, dim, info) -> Mesh:
 
 
 # ----------------------------------------------------------------------------- meshio
-def to_meshio(mesh: Mesh) -> meshio.Mesh:
+def to_meshio(mesh: MeshLike) -> meshio.Mesh:
     """Convert to ``meshio.Mesh``; refs go to point/cell data ``"medit:ref"``.
 
     Parameters
@@ -195,19 +135,20 @@ def to_meshio(mesh: Mesh) -> meshio.Mesh:
     >>> mm.cells[0].type, mm.point_data["medit:ref"].tolist()
     ('triangle', [1, 2, 3])
     """
-    _check_mesh(mesh)
+    require_mesh(mesh)
     point_data = dict(mesh.point_data)
     cell_data = {k: [v[t] for t in mesh.cells] for k, v in mesh.cell_data.items()}
     if mesh.point_refs is not None:
         point_data[REF_KEY] = mesh.point_refs
     if mesh.cell_refs is not None:
-        cell_data[REF_KEY] = [_block_refs(mesh, t) for t in mesh.cells]
+        cell_data[REF_KEY] = [block_refs(mesh, t) for t in mesh.cells]
     return meshio.Mesh(
         mesh.points, list(mesh.cells.items()), point_data=point_data, cell_data=cell_data
     )
 
 
-def from_meshio(m: meshio.Mesh, *, dim: Literal[2, 3] | None = None, info=None) -> Mesh:
+def from_meshio(m: meshio.Mesh, *, mesh_type: type[MeshLike], dim: Literal[2, 3] | None = None,
+                info=None) -> MeshLike:
     """Convert from ``meshio.Mesh``.
 
     Blocks of the same type are concatenated. Refs are read from ``"medit:ref"``
@@ -217,6 +158,9 @@ def from_meshio(m: meshio.Mesh, *, dim: Literal[2, 3] | None = None, info=None) 
     Parameters
     ----------
     m : meshio.Mesh
+    mesh_type : type
+        The class to build, :class:`~warpmesh.mesh.Mesh` (``Mesh.from_*`` pass their own
+        class: this module sits below ``mesh.py`` and does not import it).
     dim : {None, 2, 3}
         ``2`` drops a zero z column, ``3`` pads 2D points with z = 0.
     info : dict, optional
@@ -233,18 +177,19 @@ def from_meshio(m: meshio.Mesh, *, dim: Literal[2, 3] | None = None, info=None) 
     --------
     >>> import meshio
     >>> m = meshio.Mesh([[0, 0], [1, 0], [0, 1]], [("triangle", [[0, 1, 2]])])
-    >>> from_meshio(m).n_cells
+    >>> from warpmesh.mesh import Mesh
+    >>> from_meshio(m, mesh_type=Mesh).n_cells
     1
     """
     if not isinstance(m, meshio.Mesh):
         raise TypeError(f"expected a meshio.Mesh for 'm', got {type(m).__name__}")
     blocks = [(c.type, c.data) for c in m.cells]
     point_data = {k: v for k, v in m.point_data.items() if k != "gmsh:dim_tags"}
-    return _from_parts(m.points, blocks, point_data, dict(m.cell_data), dim, info)
+    return _from_parts(mesh_type, m.points, blocks, point_data, dict(m.cell_data), dim, info)
 
 
 # ----------------------------------------------------------------------------- trimesh
-def to_trimesh(mesh: Mesh):
+def to_trimesh(mesh: MeshLike):
     """Convert the triangle block to ``trimesh.Trimesh`` (``process=False``: nothing merged).
 
     Other blocks are left out. Point data / refs become ``vertex_attributes``, the
@@ -271,7 +216,7 @@ def to_trimesh(mesh: Mesh):
     """
     import trimesh
 
-    _check_mesh(mesh)
+    require_mesh(mesh)
     if "triangle" not in mesh.cells:
         raise ValueError(
             f"expected a 'triangle' block for to_trimesh, got blocks {list(mesh.cells)}"
@@ -281,9 +226,9 @@ def to_trimesh(mesh: Mesh):
     if mesh.point_refs is not None:
         va[REF_KEY] = np.asarray(mesh.point_refs)
     if mesh.cell_refs is not None:
-        fa[REF_KEY] = np.asarray(_block_refs(mesh, "triangle"))
+        fa[REF_KEY] = np.asarray(block_refs(mesh, "triangle"))
     return trimesh.Trimesh(
-        _points3(mesh),
+        points3(mesh),
         np.asarray(mesh.triangles),
         process=False,
         validate=False,
@@ -292,7 +237,7 @@ def to_trimesh(mesh: Mesh):
     )
 
 
-def from_trimesh(tm, *, info=None) -> Mesh:
+def from_trimesh(tm, *, mesh_type: type[MeshLike], info=None) -> MeshLike:
     """Convert from ``trimesh.Trimesh`` (vertex/face attributes become point/cell data).
 
     Attributes whose length is not the number of vertices / faces are left out.
@@ -300,6 +245,9 @@ def from_trimesh(tm, *, info=None) -> Mesh:
     Parameters
     ----------
     tm : trimesh.Trimesh
+    mesh_type : type
+        The class to build, :class:`~warpmesh.mesh.Mesh` (``Mesh.from_*`` pass their own
+        class: this module sits below ``mesh.py`` and does not import it).
     info : dict, optional
         Passed to the :class:`~warpmesh.mesh.Mesh` constructor.
 
@@ -311,7 +259,8 @@ def from_trimesh(tm, *, info=None) -> Mesh:
     Examples
     --------
     >>> import trimesh
-    >>> from_trimesh(trimesh.creation.box()).n_cells
+    >>> from warpmesh.mesh import Mesh
+    >>> from_trimesh(trimesh.creation.box(), mesh_type=Mesh).n_cells
     12
     """
     import trimesh
@@ -322,12 +271,12 @@ def from_trimesh(tm, *, info=None) -> Mesh:
     cell_data = {k: [v] for k, v in tm.face_attributes.items() if len(v) == len(faces)}
     point_data = {k: v for k, v in tm.vertex_attributes.items() if len(v) == len(tm.vertices)}
     return _from_parts(
-        np.asarray(tm.vertices), [("triangle", faces)], point_data, cell_data, None, info
+        mesh_type, np.asarray(tm.vertices), [("triangle", faces)], point_data, cell_data, None, info
     )
 
 
 # ----------------------------------------------------------------------------- pyvista
-def to_pyvista(mesh: Mesh):
+def to_pyvista(mesh: MeshLike):
     """Convert to ``pyvista.PolyData`` (vertex/line/triangle/quad cells only) or else
     ``pyvista.UnstructuredGrid``. Refs become arrays ``"medit:ref"``; 2D points get z = 0.
 
@@ -355,7 +304,7 @@ def to_pyvista(mesh: Mesh):
     """
     import pyvista as pv
 
-    _check_mesh(mesh)
+    require_mesh(mesh)
     cells = mesh.cells
     differ = [t for t in cells if t in _VTK_ORDER_DIFFERS]
     if differ:
@@ -375,7 +324,7 @@ def to_pyvista(mesh: Mesh):
     if all(t in _POLY_TYPES for t in cells):
         order = [t for t in _POLY_TYPES if t in cells]  # VTK's order: verts, lines, polys
         out = pv.PolyData()
-        out.points = _points3(mesh)
+        out.points = points3(mesh)
         for attr, types in (
             ("verts", ["vertex"]),
             ("lines", ["line"]),
@@ -388,7 +337,7 @@ def to_pyvista(mesh: Mesh):
         kinds = np.concatenate(
             [np.full(len(cells[t]), CELL_TYPES[t][2], dtype=np.uint8) for t in order]
         )
-        out = pv.UnstructuredGrid(flat(order), kinds, _points3(mesh))
+        out = pv.UnstructuredGrid(flat(order), kinds, points3(mesh))
     for k, v in mesh.point_data.items():
         out.point_data[k] = np.asarray(v)
     for k, v in mesh.cell_data.items():
@@ -396,18 +345,21 @@ def to_pyvista(mesh: Mesh):
     if mesh.point_refs is not None:
         out.point_data[REF_KEY] = np.asarray(mesh.point_refs)
     if mesh.cell_refs is not None:
-        out.cell_data[REF_KEY] = np.concatenate([_block_refs(mesh, t) for t in order])
+        out.cell_data[REF_KEY] = np.concatenate([block_refs(mesh, t) for t in order])
     return out
 
 
 def from_pyvista(
-    obj, *, triangulate: bool = False, dim: Literal[2, 3] | None = None, info=None
-) -> Mesh:
+    obj, *, mesh_type: type[MeshLike], triangulate: bool = False, dim: Literal[2, 3] | None = None, info=None
+) -> MeshLike:
     """Convert from any ``pyvista.DataSet`` (PolyData, UnstructuredGrid, ImageData, ...).
 
     Parameters
     ----------
     obj : pyvista.DataSet
+    mesh_type : type
+        The class to build, :class:`~warpmesh.mesh.Mesh` (``Mesh.from_*`` pass their own
+        class: this module sits below ``mesh.py`` and does not import it).
     triangulate : bool
         Polygons with more than 4 vertices and triangle strips have no meshio cell
         type: by default they raise ValueError; with ``triangulate=True`` the whole
@@ -428,7 +380,8 @@ def from_pyvista(
     Examples
     --------
     >>> import pyvista as pv
-    >>> from_pyvista(pv.Cube()).cells["quad"].shape
+    >>> from warpmesh.mesh import Mesh
+    >>> from_pyvista(pv.Cube(), mesh_type=Mesh).cells["quad"].shape
     (6, 4)
     """
     import pyvista as pv
@@ -458,7 +411,7 @@ def from_pyvista(
                 f"expected cells of types {list(CELL_TYPES)}, got VTK cell types {names}; "
                 "pass triangulate=True to split them into triangles/tetrahedra"
             )
-        return from_pyvista(obj.triangulate(), triangulate=False, dim=dim, info=info)
+        return from_pyvista(obj.triangulate(), mesh_type=mesh_type, triangulate=False, dim=dim, info=info)
     blocks, masks = [], []
     for kind, size in pairs:
         mask = (kinds == kind) & (sizes == size)
@@ -469,4 +422,4 @@ def from_pyvista(
         masks.append(mask)
     point_data = {k: np.asarray(v) for k, v in ug.point_data.items()}
     cell_data = {k: [np.asarray(v)[m] for m in masks] for k, v in ug.cell_data.items()}
-    return _from_parts(np.asarray(ug.points), blocks, point_data, cell_data, dim, info)
+    return _from_parts(mesh_type, np.asarray(ug.points), blocks, point_data, cell_data, dim, info)

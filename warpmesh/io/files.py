@@ -33,7 +33,7 @@ Examples
 >>> from warpmesh.io.files import load, save
 >>> m = Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}, cell_refs={"triangle": [4]})
 >>> with tempfile.TemporaryDirectory() as d:
-...     load(save(m, os.path.join(d, "t.mesh"))).cell_refs["triangle"].tolist()
+...     load(save(m, os.path.join(d, "t.mesh")), mesh_type=Mesh).cell_refs["triangle"].tolist()
 [4]
 """
 
@@ -47,40 +47,29 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import meshio
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
-from warpmesh.io.convert import (
-    _GMSH_GEO,
-    _GMSH_REF,
-    CELL_TYPES,
-    REF_KEY,
-    _block_refs,
-    _points3,
-    _set_dim,
-    from_meshio,
-    to_meshio,
-)
+from warpmesh.cells.types import CELL_TYPES, REF_KEY, MeshLike, block_refs, points3
+from warpmesh.io.convert import GMSH_GEO, GMSH_REF, from_meshio, set_dim, to_meshio
 from warpmesh.errors import ReadError
 
-if TYPE_CHECKING:
-    from warpmesh.mesh import Mesh
 
 __all__ = ["save", "load", "FILE_FORMATS", "FileFormat"]
 
 #: what a format keeps of the point data and cell data ({name: [array per block]}):
 #: ``(mesh, point_data, cell_data) -> (point_data, cell_data, names dropped)``
-_DataFilter = Callable[["Mesh", dict, dict], tuple[dict, dict, list]]
+_DataFilter = Callable[[MeshLike, dict, dict], tuple[dict, dict, list]]
 
 
-def _keep_all(mesh: Mesh, pd: dict, cd: dict) -> tuple[dict, dict, list]:
+def _keep_all(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
     return pd, cd, []
 
 
-def _keep_nothing(mesh: Mesh, pd: dict, cd: dict) -> tuple[dict, dict, list]:
+def _keep_nothing(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
     return {}, {}, [*pd, *cd]
 
 
@@ -133,31 +122,31 @@ def _find_format(path: Path, file_format: str | None) -> _Format:
 
 
 # ----------------------------------------------------------------------------- formats
-def _medit_data(mesh: Mesh, pd: dict, cd: dict) -> tuple[dict, dict, list]:
+def _medit_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
     """Medit stores one ref per point and per cell, nothing else."""
     dropped = [k for k in [*pd, *cd] if k != REF_KEY]
     pd = {REF_KEY: pd.get(REF_KEY, np.zeros(mesh.n_points, dtype=INDEX_DTYPE))}
-    cd = {REF_KEY: [_block_refs(mesh, t) for t in mesh.cells]}
+    cd = {REF_KEY: [block_refs(mesh, t) for t in mesh.cells]}
     return pd, cd, dropped
 
 
-def _gmsh_data(mesh: Mesh, pd: dict, cd: dict) -> tuple[dict, dict, list]:
+def _gmsh_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
     """Cell refs become gmsh:physical = gmsh:geometrical; cell data only with one block."""
     dropped = []
     if len(mesh.cells) > 1:
         dropped += [k for k in cd if k != REF_KEY]  # meshio cannot read them back
         cd = {}
-    dropped += [k for k in cd if k in (_GMSH_REF, _GMSH_GEO)]  # replaced by the refs
-    tags = [_block_refs(mesh, t).astype(np.int32) for t in mesh.cells]
+    dropped += [k for k in cd if k in (GMSH_REF, GMSH_GEO)]  # replaced by the refs
+    tags = [block_refs(mesh, t).astype(np.int32) for t in mesh.cells]
     cd = {
-        **{k: v for k, v in cd.items() if k not in (REF_KEY, _GMSH_REF, _GMSH_GEO)},
-        _GMSH_REF: tags,
-        _GMSH_GEO: tags,
+        **{k: v for k, v in cd.items() if k not in (REF_KEY, GMSH_REF, GMSH_GEO)},
+        GMSH_REF: tags,
+        GMSH_GEO: tags,
     }
     return pd, cd, dropped
 
 
-def _ply_data(mesh: Mesh, pd: dict, cd: dict) -> tuple[dict, dict, list]:
+def _ply_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
     """PLY keeps scalar point data only (integers as int32)."""
     dropped = [*cd, *(k for k, v in pd.items() if v.ndim != 1)]
     pd = {k: v.astype(np.int32) if v.dtype.kind in "iu" else v for k, v in pd.items()}
@@ -209,7 +198,7 @@ _register_format(
 
 
 # ----------------------------------------------------------------------------- save / load
-def _meshio_for(mesh: Mesh, fmt: _Format, stacklevel: int) -> meshio.Mesh:
+def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
     """The meshio object written for ``fmt``; warns about what the format drops.
 
     ``stacklevel`` counts frames as ``warnings.warn`` would from the caller (here and in
@@ -232,13 +221,13 @@ def _meshio_for(mesh: Mesh, fmt: _Format, stacklevel: int) -> meshio.Mesh:
             UserWarning,
             stacklevel=stacklevel + 1,
         )
-    points = np.asarray(mesh.points) if fmt.keeps_2d else _points3(mesh)
+    points = np.asarray(mesh.points) if fmt.keeps_2d else points3(mesh)
     cells = [(t, c.astype(fmt.index_dtype, copy=False)) for t, c in mesh.cells.items()]
     return meshio.Mesh(points, cells, point_data=pd, cell_data=cd)
 
 
-def _save(mesh: Mesh, path, file_format: str | None, stacklevel: int) -> Path:
-    """:func:`save`, for :func:`save` and :meth:`Mesh.save` (see :func:`_meshio_for`)."""
+def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) -> Path:
+    """:func:`save` with the stack level of its warnings (``Mesh.save`` passes its caller's)."""
     path = Path(path)
     fmt = _find_format(path, file_format)
     if mesh.n_points == 0 or mesh.n_cells == 0:
@@ -255,7 +244,7 @@ def _save(mesh: Mesh, path, file_format: str | None, stacklevel: int) -> Path:
     return path
 
 
-def save(mesh: Mesh, path, *, file_format: FileFormat | None = None) -> Path:
+def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path:
     """Write ``mesh`` through meshio, atomically (also :meth:`Mesh.save <warpmesh.mesh.Mesh.save>`).
 
     The file is written to a temporary name in the same directory and renamed over
@@ -289,15 +278,19 @@ def save(mesh: Mesh, path, *, file_format: FileFormat | None = None) -> Path:
     ...     load(save(m, os.path.join(d, "t.vtu")), dim=2).n_cells
     1
     """
-    return _save(mesh, path, file_format, stacklevel=2)
+    return save_mesh(mesh, path, file_format, stacklevel=2)
 
 
-def load(path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | None = None) -> Mesh:
+def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = None,
+         dim: Literal[2, 3] | None = None) -> MeshLike:
     """Read a mesh file written by :func:`save` or another program.
 
     Parameters
     ----------
     path : str or os.PathLike
+    mesh_type : type
+        The class to build, :class:`~warpmesh.mesh.Mesh` (``warpmesh.load`` and
+        ``Mesh.load`` pass it: this module sits below ``mesh.py``).
     file_format : {'vtu', 'vtk', 'gmsh', 'medit', 'ply', 'obj', 'stl'}, optional
         Default: from the extension.
     dim : {None, 2, 3}
@@ -318,14 +311,15 @@ def load(path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | No
 
     Examples
     --------
-    >>> load("no/such/file.vtu")
+    >>> from warpmesh.mesh import Mesh
+    >>> load("no/such/file.vtu", mesh_type=Mesh)
     Traceback (most recent call last):
     ...
     FileNotFoundError: [Errno 2] no such mesh file: 'no/such/file.vtu'
     """
     path = Path(path)
     fmt = _find_format(path, file_format)
-    _set_dim(np.zeros((0, 3)), dim)  # check the argument before reading
+    set_dim(np.zeros((0, 3)), dim)  # check the argument before reading
     if not path.exists():
         raise FileNotFoundError(errno.ENOENT, "no such mesh file", str(path))
     reader = getattr(meshio, fmt.name).read  # the format's own: meshio.read calls sys.exit
@@ -342,9 +336,9 @@ def load(path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | No
     if len(m.points) == 0:
         raise ReadError(f"could not read {str(path)!r} as {fmt.name}: the file holds no points")
     try:
-        mesh = from_meshio(m)
+        mesh = from_meshio(m, mesh_type=mesh_type)
     except (ValueError, TypeError) as exc:
         raise ReadError(f"could not read {str(path)!r} as {fmt.name}: invalid mesh: {exc}") from exc
     if dim in (None, mesh.dim):
         return mesh
-    return mesh.replace(points=_set_dim(np.asarray(mesh.points), dim))
+    return mesh.replace(points=set_dim(np.asarray(mesh.points), dim))

@@ -1,4 +1,4 @@
-"""Element type conversion (seed §17.1.3, Fig. 17.6, Remarks 17.6 and 17.16).
+"""Element type conversion [FG §17.1.3, Fig. 17.6, Remarks 17.6 and 17.16].
 
 :func:`convert_cells` splits every element of some types into elements of another type
 without moving a point:
@@ -53,6 +53,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from warpmesh._conventions import INDEX_DTYPE
+from warpmesh.cells.types import require_mesh
 from warpmesh.errors import WarpMeshError
 from warpmesh.cells.quality import tetra_quality, triangle_quality
 from warpmesh.cells.reference import (
@@ -63,6 +64,7 @@ from warpmesh.cells.reference import (
     reference_cell,
     weighted_nodes,
 )
+from warpmesh.modify.hex_splits import hex_configurations, HEX_SPLIT_CONFIGS, HEX_SPLITS, steiner_split
 
 __all__ = ["convert_cells", "TARGETS"]
 
@@ -190,8 +192,6 @@ def _hex5_variants(hexes: np.ndarray, others: list[np.ndarray]) -> np.ndarray:
     faces shared with wedges/pyramids (``others``, (r, 4) quad faces) keep the min-index
     diagonal. Parity constraints x_i ^ x_j = c over a doubled graph (node 2i + a means
     "x_i = a"); hexahedron m is a reference fixed to variant 0."""
-    from warpmesh.modify.hex_splits import HEX_SPLIT_CONFIGS
-
     m = len(hexes)
     hf = hexes[:, _HEX_FACES].reshape(-1, 4)  # (6m, 4)
     b0 = np.tile((int(HEX_SPLIT_CONFIGS[0]) >> np.arange(6)) & 1, m)  # variant 0's cuts
@@ -224,8 +224,6 @@ def _hex5_variants(hexes: np.ndarray, others: list[np.ndarray]) -> np.ndarray:
 def _hex_pieces(points, hexes, mode, others):
     """Pieces splitting hexahedra, the chosen split of each (index into HEX_SPLITS, -1 for
     the centroid split) and the counts of 5-, 6- and 12-tetrahedra hexahedra."""
-    from warpmesh.modify.hex_splits import HEX_SPLITS, HEX_SPLIT_CONFIGS, hex_configurations, steiner_split
-
     pieces, counts = [], {5: 0, 6: 0, 12: 0}
     config = hex_configurations(hexes)
     if mode == 5:
@@ -281,7 +279,6 @@ def _boundary_quad_bits(quads, hexes, choice, mode):
     bit = _min_diagonal(quads)
     if mode != 5 or not len(hexes) or not len(quads):
         return bit
-    from warpmesh.modify.hex_splits import HEX_SPLIT_CONFIGS
 
     hf = hexes[:, _HEX_FACES].reshape(-1, 4)
     cfg = HEX_SPLIT_CONFIGS[choice]
@@ -301,10 +298,7 @@ def _boundary_quad_bits(quads, hexes, choice, mode):
 
 # ----------------------------------------------------------------------------- assembly
 def _validate(mesh, target, quads, hexes):
-    from warpmesh.mesh import Mesh
-
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a warpmesh Mesh for 'mesh', got {type(mesh).__name__}")
+    require_mesh(mesh)
     if target not in TARGETS:
         raise ValueError(f"expected 'target' among {list(TARGETS)}, got {target!r}")
     if quads is not None and target != "triangle":
@@ -341,7 +335,7 @@ def convert_cells(mesh, target: Target, *, quads: Literal["best", "min", 4] | No
         kept volume cells, e.g. ``"triangle"`` on the quads bounding hexahedra, leaves
         them non-conforming: convert the volume too).
     quads : {"best", "min", 4}, optional (only with ``target="triangle"``; default "best")
-        ``"best"``: the diagonal whose worse triangle has the smaller Q_K (seed eq. 16.15;
+        ``"best"``: the diagonal whose worse triangle has the smaller Q_K ([FG eq. 16.15];
         in 2D, a diagonal inverting a triangle of a non-convex quad is avoided);
         ``"min"``: the diagonal through the vertex of smallest number (matches what
         ``target="tetra"`` does to hexahedra faces); ``4``: 4 triangles around the centroid.

@@ -1,8 +1,8 @@
-"""Cracks and widthless regions (seed §17.5, Figs. 17.15, 17.16): cut a mesh open along
+"""Cracks and widthless regions [FG §17.5, Figs. 17.15, 17.16]: cut a mesh open along
 a set of interior facets.
 
 A crack is a set of facets (edges of 2D elements, triangle or quad faces of 3D
-elements) whose two sides must stop being neighbours. The seed's second method (Fig.
+elements) whose two sides must stop being neighbours. The book's second method (Fig.
 17.16) is used: around each crack vertex ``v`` the elements containing ``v`` are split
 into groups, two elements being in one group when they are connected through facets
 that contain ``v`` and are *not* crack facets. A vertex with ``g >= 2`` groups is
@@ -14,7 +14,7 @@ A facet all of whose vertices are tips (a single crack edge inside a 2D domain) 
 groups nowhere and stays closed; ``info["n_opened_facets"]`` counts the facets that
 opened and ``info["crack_lips"]`` pairs their two sides (for widthless elements).
 
-The seed's first method — build the two sides as two meshes and merge them with
+The book's first method — build the two sides as two meshes and merge them with
 physical attributes that keep the crack vertices apart (§17.2, "more sophisticated
 merging") — gives the same vertices; the tests use it as a cross-check.
 
@@ -46,7 +46,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from warpmesh._conventions import INDEX_DTYPE
-from warpmesh.io.convert import CELL_TYPES
+from warpmesh._util.arrays import unique_rows
+from warpmesh.cells.types import CELL_TYPES, require_mesh
 from warpmesh.cells.reference import P1_TYPES, mirror_permutation, reference_cell
 
 __all__ = ["crack"]
@@ -66,33 +67,9 @@ def _keys(rows: np.ndarray) -> np.ndarray:
     return np.pad(s, ((0, 0), (0, 4 - s.shape[1])), constant_values=-1)
 
 
-def _unique_rows(a: np.ndarray):
-    """``np.unique(a, axis=0, return_index, return_inverse, return_counts)`` for an int
-    array, by one lexsort (numpy's axis=0 path sorts byte strings, 10x slower)."""
-    if len(a) == 0:
-        return a, np.zeros(0, INDEX_DTYPE), np.zeros(0, INDEX_DTYPE), np.zeros(0, INDEX_DTYPE)
-    var = a[:, (a != a[:1]).any(axis=0)]  # constant columns (-1 padding) do not sort
-    lo = int(var.min(initial=0))
-    base = int(var.max(initial=0)) - lo + 1
-    if float(base) ** var.shape[1] < 2.0**62:  # one int64 per row, same order as lexsort
-        code = np.zeros(len(a), np.int64)
-        for j in range(var.shape[1]):  # a loop over the (up to 5) columns
-            code = code * base + (var[:, j] - lo)
-        o = np.argsort(code, kind="stable")
-    else:
-        o = np.lexsort(var.T[::-1])
-    s = a[o]
-    new = np.ones(len(a), bool)
-    new[1:] = (s[1:] != s[:-1]).any(axis=1)
-    inv = np.empty(len(a), INDEX_DTYPE)
-    inv[o] = np.cumsum(new) - 1
-    start = np.flatnonzero(new)
-    return s[start], o[start], inv, np.diff(np.append(start, len(a)))
-
-
 def _lookup(table: np.ndarray, query: np.ndarray) -> np.ndarray:
     """Row of each ``query`` key in the ``table`` of distinct keys, or -1."""
-    _, _, inv, _ = _unique_rows(np.concatenate([table, query]))
+    _, _, inv, _ = unique_rows(np.concatenate([table, query]))
     lut = np.full(len(table) + len(query), -1, INDEX_DTYPE)
     lut[inv[: len(table)]] = np.arange(len(table))
     return lut[inv[len(table):]]
@@ -126,7 +103,7 @@ def _facet_table(blocks: dict[str, np.ndarray], near: np.ndarray) -> _Facets:
     w = np.concatenate(width)
     keys = np.sort(np.where(oriented < 0, np.iinfo(INDEX_DTYPE).max, oriented), axis=1)
     keys[keys == np.iinfo(INDEX_DTYPE).max] = -1
-    uniq, _, fid, count = _unique_rows(keys)
+    uniq, _, fid, count = unique_rows(keys)
     owner = np.concatenate(owner)
     o = np.lexsort((owner, fid))  # rows of one facet consecutive, by element
     return _Facets(owner[o], oriented[o], w[o], fid[o], uniq, count)
@@ -315,7 +292,7 @@ def _lower_block(t, block, split: _Split, table: _Facets, tdim: int):
         inside = np.all([split.contains(cell, b[local, j]) for j in range(k)], axis=0)
         local, cell = local[inside], cell[inside]
         image = np.stack([split.copy_of(cell, b[local, j]) for j in range(k)], axis=1)
-        rec, at, _, _ = _unique_rows(np.concatenate([local[:, None], image], axis=1))
+        rec, at, _, _ = unique_rows(np.concatenate([local[:, None], image], axis=1))
         local, image, cell = rec[:, 0], rec[:, 1:], cell[at]
         lone = np.setdiff1d(np.arange(len(b)), local)  # in no element: left as it is
         ncopy = np.bincount(local, minlength=len(b))
@@ -339,7 +316,7 @@ def _lower_block(t, block, split: _Split, table: _Facets, tdim: int):
 
 # ----------------------------------------------------------------------------- public
 def crack(mesh, facets=None, *, ref: int | None = None, side_refs: tuple[int, int] | None = None):
-    """Cut ``mesh`` open along interior facets (seed §17.5, Fig. 17.16).
+    """Cut ``mesh`` open along interior facets [FG §17.5, Fig. 17.16].
 
     The elements (cells of the highest topological dimension: triangles and quads in
     2D, tetrahedra, hexahedra, wedges and pyramids in 3D, any mix) around each crack
@@ -379,7 +356,7 @@ def crack(mesh, facets=None, *, ref: int | None = None, side_refs: tuple[int, in
         first in the mesh (lip 0) and, position by position, the vertices the other element
         uses (lip 1); w is the
         widest facet, narrower rows end in -1. Widthless-region elements between the two
-        sides (the seed's line elements; zero-thickness interface elements) are built from
+        sides (the book's line elements; zero-thickness interface elements) are built from
         ``crack_lips``, as in the example.
 
     Raises
@@ -409,10 +386,7 @@ def crack(mesh, facets=None, *, ref: int | None = None, side_refs: tuple[int, in
     >>> np.concatenate([lips[:, 0], lips[:, 1, ::-1]], axis=1).tolist()  # interface quads
     [[4, 3, 9, 10], [5, 4, 10, 11]]
     """
-    from warpmesh.mesh import Mesh
-
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a warpmesh Mesh for 'mesh', got {type(mesh).__name__}")
+    require_mesh(mesh)
     if side_refs is not None:
         sr = np.asarray(side_refs)
         if sr.shape != (2,) or sr.dtype.kind not in "iu":
@@ -455,7 +429,7 @@ def crack(mesh, facets=None, *, ref: int | None = None, side_refs: tuple[int, in
     info = dict(mesh.info, crack_pairs=split.pairs, crack_lips=lips,
                 n_duplicated=len(split.pairs), n_crack_facets=len(crack_ids),
                 n_opened_facets=len(lips))
-    return Mesh(
+    return type(mesh)(
         np.concatenate([mesh.points, mesh.points[split.pairs[:, 0]]]), cells,
         point_refs=None if mesh.point_refs is None else mesh.point_refs[src_pts],
         point_data={k: v[src_pts] for k, v in mesh.point_data.items()},

@@ -1,10 +1,10 @@
-"""Merging two meshes that share an interface (seed §17.2, Figs. 17.7-17.9, Remarks 17.7-17.10).
+"""Merging two meshes that share an interface [FG §17.2, Figs. 17.7-17.9, Remarks 17.7-17.10].
 
 Three sub-problems, as in the seed:
 
 1. *Common vertices* (:func:`match_points`, in :mod:`warpmesh.modify.merge_hash`): hashing on a virtual grid, vectorised (sorted
    keys + ``searchsorted``), restricted to the intersection of the two bounding boxes
-   (Remark 17.7), with the seed's shifted keys (Fig. 17.8) so that pairs straddling a
+   (Remark 17.7), with the book's shifted keys (Fig. 17.8) so that pairs straddling a
    grid-cell border are found, and symmetric pairing (Remark 17.9): a pair is kept only
    when each point is the other's nearest. Optional physical attributes (refs): only
    points with equal refs match ("more sophisticated merging", cracks).
@@ -36,8 +36,8 @@ from typing import Literal
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
-from warpmesh.io.convert import _block_refs
-from warpmesh.errors import MergeError, WarpMeshError
+from warpmesh.cells.types import block_refs, require_mesh
+from warpmesh.errors import MergeError
 from warpmesh.modify.merge_check import _euler_check, _euler_check_dims, _sort_rows
 from warpmesh.modify.merge_hash import _check_tolerance, _match, default_tolerance, match_points  # noqa: F401
 
@@ -67,21 +67,11 @@ def _duplicate_masks(ca: np.ndarray, cb: np.ndarray, interface_a: np.ndarray, n1
     return da, db
 
 
-def _check_mesh(m, name: str):
-    from warpmesh.mesh import Mesh
-
-    if not isinstance(m, Mesh):
-        raise TypeError(f"expected a warpmesh Mesh for {name!r}, got {type(m).__name__}; "
-                        "convert with Mesh.from_meshio / from_pyvista / from_trimesh")
-
-
 def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge",
            check: bool | str = "interface", stacklevel: int = 3):
     """(merged Mesh, bmap (n2,) int64: new index of each vertex of b)."""
-    from warpmesh.mesh import Mesh
-
-    _check_mesh(a, "a")
-    _check_mesh(b, "b")
+    require_mesh(a, "a")
+    require_mesh(b, "b")
     if a.dim != b.dim:
         raise ValueError(f"expected meshes of the same dimension, got {a.dim}D 'a' and {b.dim}D 'b'")
     if duplicates not in DUPLICATES:
@@ -101,7 +91,7 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
         rb = b.point_refs if b.point_refs is not None else np.zeros(n2, dtype=INDEX_DTYPE)
     pairs, stats = _match(a.points, b.points, tol, ra, rb)
 
-    # numbering (seed §17.2, 'Numbering issues')
+    # numbering [FG §17.2, 'Numbering issues']
     bmap = np.full(n2, -1, dtype=INDEX_DTYPE)
     bmap[pairs[:, 1]] = pairs[:, 0]
     free = bmap < 0
@@ -143,7 +133,7 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
 
     cell_refs = None
     if a.cell_refs is not None or b.cell_refs is not None:  # blocks without refs: 0
-        cell_refs = per_type(lambda t: _block_refs(a, t), lambda t: _block_refs(b, t))
+        cell_refs = per_type(lambda t: block_refs(a, t), lambda t: block_refs(b, t))
     point_refs = None
     if a.point_refs is not None or b.point_refs is not None:
         pa = a.point_refs if a.point_refs is not None else np.zeros(n1, dtype=INDEX_DTYPE)
@@ -196,10 +186,10 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
             f"{euler['euler' + star + '_a']} + {euler['euler' + star + '_b']} − {euler['euler_interface']} "
             f"(interface seen from 'a'; {euler['euler_interface_b']} seen from 'b'{'; T* = the cells around the interface' if star else ''}). The two interfaces do not "
             f"match: probably they are meshed differently (other vertices, or quads split "
-            f"along other diagonals, seed Remark 17.16), or 'tolerance' = {tol:g} is too large "
+            f"along other diagonals, [FG Remark 17.16]), or 'tolerance' = {tol:g} is too large "
             f"and merged vertices that are not on the interface; pass check=False to merge anyway"
         )
-    mesh = Mesh(points, cells, point_data=point_data, cell_data=cell_data,
+    mesh = type(a)(points, cells, point_data=point_data, cell_data=cell_data,
                 point_refs=point_refs, cell_refs=cell_refs, info=info)
     return mesh, bmap
 
@@ -207,7 +197,7 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
 def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
           duplicates: Literal["merge", "keep", "drop"] = "merge",
           check: Literal["interface", "full", False] = "interface"):
-    """Merge two meshes that share an interface (seed §17.2).
+    """Merge two meshes that share an interface [FG §17.2].
 
     Parameters
     ----------
@@ -220,7 +210,7 @@ def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
         enclosing both meshes.
     refs : bool
         Only vertices with equal ``point_refs`` merge (missing refs are 0): coincident
-        vertices of different refs stay apart, e.g. a crack (seed §17.2, §17.5).
+        vertices of different refs stay apart, e.g. a crack [FG §17.2, §17.5].
     duplicates : {"merge", "keep", "drop"}
         Cells of the same type present in both meshes with the same vertex set (e.g. the
         interface's boundary triangles or lines): keep one (the first mesh's), keep both,

@@ -1,4 +1,4 @@
-"""The Euler check of a merge (seed §17.2, "Finding the common entities"): the entities of
+"""The Euler check of a merge [FG §17.2, "Finding the common entities"]: the entities of
 the top-dimension cells of each mesh, the interface complex seen from either side, and
 the formula chi(T) = chi(T1) + chi(T2) - chi(T1 ∩ T2).
 
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
-from warpmesh.io.convert import CELL_TYPES
+from warpmesh.cells.types import CELL_TYPES
 from warpmesh.cells.reference import base_type, reference_cell
 
 
@@ -223,7 +223,7 @@ def _overlapping(points: np.ndarray, facets: np.ndarray, others: np.ndarray) -> 
 
 
 def _interface(points, ents, flag, other_keys, other_boundary, n_new) -> list[int]:
-    """Counts per dimension of one side's interface complex (seed §17.2 "Finding the common
+    """Counts per dimension of one side's interface complex ([FG §17.2] "Finding the common
     entities"): its facets whose vertices are all common and which are facets of the other
     mesh too, or lie on the other mesh's boundary (then the two interfaces are meshed
     differently, which the Euler check reveals); their edges; and the lower entities with
@@ -274,7 +274,7 @@ def _boundary_facets(ents, n_new, flag) -> np.ndarray:
 
 
 def _euler_check(top_a, blocks_a, blocks_b, bmap, common_a, n_new, points) -> dict:
-    """The counts of seed §17.2 'Finding the common entities' and the Euler formula.
+    """The counts of [FG §17.2] 'Finding the common entities' and the Euler formula.
 
     Per dimension k: the distinct k-entities of each mesh's top cells (a's numbering is
     the merged one; b's is mapped) and those in both, so that |T_k| = |T1_k| + |T2_k| -

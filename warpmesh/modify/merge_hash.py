@@ -1,8 +1,8 @@
-"""The merge hash (seed §17.2, Figs. 17.7-17.8, Remarks 17.7-17.9): pairs of coincident
+"""The merge hash [FG §17.2, Figs. 17.7-17.8, Remarks 17.7-17.9]: pairs of coincident
 points of two point sets, found by hashing on a virtual grid.
 
 Vectorised: every key is packed into an integer with its point's position and sorted
-once; the second set's points look up the seed's shifted keys (Fig. 17.8) with
+once; the second set's points look up the book's shifted keys (Fig. 17.8) with
 ``searchsorted``, so a pair straddling a grid-cell border is found; only points inside the
 intersection of the two bounding boxes take part (Remark 17.7); a pair is kept when each
 point is the other's nearest (symmetric pairing, Remark 17.9); with refs, only equal refs
@@ -29,7 +29,7 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 __all__ = ["match_points", "default_tolerance", "RELATIVE_TOLERANCE", "CELL_FACTOR"]
 
 #: the default tolerance, relative to the largest side of the box enclosing both meshes
-#: (the seed's δ = 2εΔ: a resolution relative to the box)
+#: (the book's δ = 2εΔ: a resolution relative to the box)
 RELATIVE_TOLERANCE = 1.0e-8
 #: the virtual grid's step, in shifts s (s = tolerance + a few ulps): any value >= 2 finds
 #: every pair; 4 makes floor((x - s)/h) == floor((x + s)/h) on half of the axes, so a point
@@ -72,7 +72,7 @@ def _check_refs(refs, n: int, name: str) -> np.ndarray | None:
 
 def default_tolerance(*point_sets) -> float:
     """``RELATIVE_TOLERANCE`` × Δ, Δ the largest side of the box enclosing all the points
-    (the seed's δ = 2εΔ idea: a tolerance relative to the size of the problem).
+    (the book's δ = 2εΔ idea: a tolerance relative to the size of the problem).
 
     Examples
     --------
@@ -247,7 +247,7 @@ def _match(a, b, tol, a_refs=None, b_refs=None):
 
 
 def match_points(a, b, tolerance, *, a_refs=None, b_refs=None) -> np.ndarray:
-    """One-to-one pairs of points of ``a`` and ``b`` closer than ``tolerance`` (seed §17.2).
+    """One-to-one pairs of points of ``a`` and ``b`` closer than ``tolerance`` [FG §17.2].
 
     Hashing on a virtual grid of step ``h = 4 s`` (``s`` = ``tolerance`` plus a relative
     1e-7 and 8 ulps of the largest coordinate, Fig. 17.7), vectorised: the points of one
@@ -262,7 +262,7 @@ def match_points(a, b, tolerance, *, a_refs=None, b_refs=None) -> np.ndarray:
     the other's, with |y - x| <= tolerance < s. floor is monotone, so
     floor((x - s)/h) <= floor(y/h) <= floor((x + s)/h); the arguments of the two bounds
     differ by 2s/h <= 1 (any h >= 2s will do), so the bounds are equal or consecutive and
-    y's cell is one of the two cells floor((x ± s)/h) of the seed's shifted points. A pair
+    y's cell is one of the two cells floor((x ± s)/h) of the book's shifted points. A pair
     closer than ``tolerance`` in Euclidean norm is that close on every axis, so y's cell
     is one of the (at most 2^d, distinct) keys formed per axis from these two cells,
     whatever cell borders the pair straddles. The margin of ``s`` over ``tolerance``

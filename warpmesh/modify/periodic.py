@@ -1,9 +1,9 @@
-"""Periodic meshes (seed §17.5, Remark 17.16): pairs of nodes related by a transformation,
+"""Periodic meshes [FG §17.5, Remark 17.16]: pairs of nodes related by a transformation,
 and a mesh built from a pattern and its transformed copies.
 
 A transformation is a homogeneous (d+1) x (d+1) matrix acting on column vectors
 ``[x, 1]`` (the matrices of :mod:`warpmesh.modify.transforms`): last row ``[0, ..., 0, 1]``.
-The seed's requirement for a periodic mesh is that the two zones put in correspondence
+The book's requirement for a periodic mesh is that the two zones put in correspondence
 are meshed the same way; :func:`periodic_pairs` finds the node pairs, by the hashing of
 :func:`warpmesh.modify.merge.match_points`, and :func:`periodic` merges the copies with
 :func:`warpmesh.modify.merge.merge` (which then also checks the Euler formula at each step).
@@ -27,8 +27,8 @@ import numbers
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh.io.convert import CELL_TYPES
-from warpmesh.modify.merge import _check_mesh, _check_tolerance, _match, _merge, default_tolerance
+from warpmesh.cells.types import CELL_TYPES, require_mesh
+from warpmesh.modify.merge import _check_tolerance, _match, _merge, default_tolerance
 from warpmesh.cells.reference import mirror_permutation
 
 __all__ = ["periodic_pairs", "periodic"]
@@ -87,7 +87,7 @@ def _check_copies(copies) -> int:
 
 def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
     """Pairs of nodes (i, j) with T(x_i) ≈ x_j: the node pairs of periodic boundary
-    conditions (seed §17.5).
+    conditions [FG §17.5].
 
     Found by :func:`warpmesh.modify.merge.match_points` between the transformed points and the
     points (one-to-one, nearest both ways); a node mapped onto itself (on a rotation axis,
@@ -121,7 +121,7 @@ def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
     >>> periodic_pairs(m, np.array([[1.0, 0, 1], [0, 1, 0], [0, 0, 1]])).tolist()
     [[0, 1], [3, 2]]
     """
-    _check_mesh(mesh, "mesh")
+    require_mesh(mesh)
     t = _check_matrix(matrix, mesh.dim)
     image = _apply(t, mesh.points)
     tol = default_tolerance(mesh.points, image) if tolerance is None else _check_tolerance(tolerance)
@@ -131,7 +131,7 @@ def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
 
 def periodic(mesh, matrix, copies: int, tolerance: float | None = None, **options):
     """The pattern ``mesh`` and its images by T, T², ..., T^(copies-1), merged one after
-    the other (seed §17.5, "Periodic mesh").
+    the other [FG §17.5, "Periodic mesh"].
 
     Each copy is merged with everything before it (:func:`warpmesh.modify.merge.merge`, with its
     Euler check), so a last copy that comes back onto the first (a rotation by
@@ -183,7 +183,7 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, **option
     >>> hexagon.n_points, len(hexagon.cells["triangle"]), len(hexagon.info["periodic_pairs"])
     (7, 6, 0)
     """
-    _check_mesh(mesh, "mesh")
+    require_mesh(mesh)
     t = _check_matrix(matrix, mesh.dim)
     n = _check_copies(copies)
     unknown = set(options) - {"refs", "duplicates", "check"}

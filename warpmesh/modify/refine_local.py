@@ -1,9 +1,9 @@
-"""Local refinement by longest-edge bisection, kept conforming (seed §17.1.2, Remarks 17.4
+"""Local refinement by longest-edge bisection, kept conforming ([FG §17.1.2], Remarks 17.4
 and 17.5; Rivara's algorithm).
 
-:func:`refine_local` splits the elements around a list of vertices (the seed's "list of
+:func:`refine_local` splits the elements around a list of vertices (the book's "list of
 vertices around which a refinement is expected"), a mask of elements, or every element
-with an edge longer than a size ``h`` (the seed's "edges judged too long"), in a mesh of
+with an edge longer than a size ``h`` (the book's "edges judged too long"), in a mesh of
 lines, triangles (planar or on a surface) and tetrahedra.
 
 The algorithm, vectorised in rounds
@@ -64,7 +64,8 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh.io.convert import CELL_TYPES, _check_mesh
+from warpmesh.cells.types import CELL_TYPES, require_mesh
+from warpmesh.frep.projection import as_target, project_nodes
 from warpmesh.errors import WarpMeshError
 from warpmesh.cells.quality import tetra_quality, triangle_quality
 from warpmesh.cells.reference import cell_measures, reference_cell
@@ -353,12 +354,8 @@ def refine_local(mesh, *, where=None, max_length=None, shape=None, max_rounds: i
     >>> r.point_refs.tolist()            # a midpoint has the common ref of its edge's ends, else 0
     [1, 1, 2, 0, 1, 0, 0, 0, 0]
     """
-    from warpmesh.mesh import Mesh
-    from warpmesh.frep.projection import as_target
-    from warpmesh.numbering.high_order import _project
-
     t0 = time.perf_counter()
-    _check_mesh(mesh)
+    require_mesh(mesh)
     types = _check_types(mesh)
     marks = _check_where(mesh, where, types)
     size = _check_size(max_length)
@@ -414,7 +411,7 @@ def refine_local(mesh, *, where=None, max_length=None, shape=None, max_rounds: i
             if on.any():
                 x = xm[on] if dim == 3 else np.column_stack([xm[on], np.zeros(on.sum())])
                 cap = np.sqrt(_edge_lengths2(points, lo[on], hi[on]))
-                xm[on] = _project(target, x, cap)[:, :dim]
+                xm[on] = project_nodes(target, x, cap)[:, :dim]
                 n_projected += int(on.sum())
                 if not surface:  # the halves of a boundary edge are on the boundary
                     halves = np.concatenate([_keys(lo[on], ids[on]), _keys(hi[on], ids[on])])
@@ -475,5 +472,5 @@ def refine_local(mesh, *, where=None, max_length=None, shape=None, max_rounds: i
     if target is not None and not surface:  # projected midpoints may fold thin elements
         moved = cells[top][changed[top]]
         info["n_inverted"] = int(np.count_nonzero(cell_measures(points, moved, top) <= 0))
-    return Mesh(points, out_cells, point_data=point_data, cell_data=cell_data,
+    return type(mesh)(points, out_cells, point_data=point_data, cell_data=cell_data,
                 point_refs=point_refs, cell_refs=cell_refs, info=info)

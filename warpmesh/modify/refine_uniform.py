@@ -1,7 +1,7 @@
-"""Global refinement: every element split into n^d elements of its own type (seed §17.1.2).
+"""Global refinement: every element split into n^d elements of its own type [FG §17.1.2].
 
 Each element of type line, triangle, quad, tetra, hexahedron or wedge is cut along the
-lattice of step 1/n of its reference cell (seed Fig. 17.2 for a triangle, n = 3):
+lattice of step 1/n of its reference cell [FG Fig. 17.2 for a triangle, n = 3]:
 
 ==========  ================================================  ============================
 type        lattice node weights (integers)                   sub-elements (n^d)
@@ -41,7 +41,7 @@ Examples
 --------
 >>> import warpmesh as wm
 >>> m = wm.Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]})
->>> r = refine_uniform(m, 3)                  # seed Fig. 17.2
+>>> r = refine_uniform(m, 3)                  # [FG Fig. 17.2]
 >>> r.cells["triangle"].shape, r.n_points
 ((9, 3), 10)
 """
@@ -57,7 +57,9 @@ from typing import Literal
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh.io.convert import _check_mesh
+from warpmesh._util.arrays import unique_rows
+from warpmesh.cells.types import require_mesh
+from warpmesh.frep.projection import as_target, project_nodes
 from warpmesh.cells.reference import (base_type, cell_measures, corner_jacobians, extend_point_values,
                               reference_cell, weighted_nodes)
 
@@ -226,7 +228,6 @@ def _boundary_new_nodes(lattice: dict, k: int, n0: int, n: int, dim: int) -> np.
     """New nodes to project (Remark 17.3): the lattice nodes on the facets (faces in 3D,
     edges in 2D) of the parent cells of top dimension that lie in one such cell; all new
     nodes of a curve or surface mesh."""
-    from warpmesh.numbering.high_order import _unique_rows
 
     top = max(reference_cell(t).tdim for t in lattice)
     if top < dim:
@@ -244,7 +245,7 @@ def _boundary_new_nodes(lattice: dict, k: int, n0: int, n: int, dim: int) -> np.
         # the parents' facets, on their vertices as the lattice numbers them (the tetra
         # may be re-ordered): a vertex is the lattice node whose weight sits on it alone
         rows = [ids[:, np.argmax(w, axis=0)][:, f].reshape(-1, size) for ids, f, w in group]
-        _, inverse, counts = _unique_rows(np.concatenate(rows))
+        _, _, inverse, counts = unique_rows(np.sort(np.concatenate(rows), axis=1))
         once, start = counts[inverse] == 1, 0
         for (ids, facets, w), r in zip(group, rows, strict=True):
             b = once[start: start + len(r)].reshape(len(ids), len(facets))
@@ -258,13 +259,12 @@ def _boundary_new_nodes(lattice: dict, k: int, n0: int, n: int, dim: int) -> np.
 
 def _project_nodes(target, points, nodes, cap):
     """Move ``nodes`` onto f = 0 in place; return max |f| after (box distance on caps)."""
-    from warpmesh.numbering.high_order import _project
 
     dim = points.shape[1]
     x = points[nodes]
     if dim == 2:
         x = np.column_stack([x, np.zeros(len(x))])
-    y = _project(target, x, cap)
+    y = project_nodes(target, x, cap)
     points[nodes] = y[:, :dim]
     if len(y) == 0:
         return 0.0
@@ -338,7 +338,7 @@ def _project_boundary(target, mesh, k: int, points: np.ndarray, cells: dict, lat
 # ----------------------------------------------------------------------------- public API
 def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
                    tetra_diagonal: Literal["shortest", "fixed"] = "shortest"):
-    """Split every element into n^d elements of its type (seed §17.1.2, Fig. 17.2).
+    """Split every element into n^d elements of its type [FG §17.1.2, Fig. 17.2].
 
     Lines, triangles, quads, tetrahedra, hexahedra and wedges, in any mix, in 2D or 3D
     (surface cells too), are cut on the lattice of step 1/n of their reference cell
@@ -406,11 +406,8 @@ def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
     >>> c.info["n_projected"], bool(np.allclose(np.linalg.norm(c.points, axis=1), 1))
     (12, True)
     """
-    from warpmesh.mesh import Mesh
-    from warpmesh.frep.projection import as_target
-
     t0 = time.perf_counter()
-    _check_mesh(mesh)
+    require_mesh(mesh)
     k = _check_n(n)
     if tetra_diagonal not in ("shortest", "fixed"):
         raise ValueError(f"expected 'tetra_diagonal' 'shortest' or 'fixed', got {tetra_diagonal!r}")
@@ -442,5 +439,5 @@ def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
                       "n_cells_before": mesh.n_cells,
                       "n_cells_after": sum(len(c) for c in cells.values()),
                       "time": time.perf_counter() - t0}
-    return Mesh(points, cells, point_data=point_data, cell_data=cell_data, point_refs=point_refs,
+    return type(mesh)(points, cells, point_data=point_data, cell_data=cell_data, point_refs=point_refs,
                 cell_refs=cell_refs, info=info)

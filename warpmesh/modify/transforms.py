@@ -1,6 +1,6 @@
-"""Geometric transformations of meshes (seed §17.1.1, Remarks 17.1-17.2, §17.5 Fig. 17.14).
+"""Geometric transformations of meshes [FG §17.1.1, Remarks 17.1-17.2, §17.5 Fig. 17.14].
 
-Every transformation is a homogeneous (d+1, d+1) float64 matrix ``T`` (seed eq. 17.1): a
+Every transformation is a homogeneous (d+1, d+1) float64 matrix ``T`` [FG eq. 17.1]: a
 point ``p`` maps to ``T @ [p, 1]``. The builders return plain numpy arrays, so they
 combine with ``@`` (``T2 @ T1`` applies ``T1`` first) or with :func:`compose` (which
 takes them in the order they apply). :func:`transform` maps a mesh by such a matrix and,
@@ -41,7 +41,7 @@ import numbers
 import numpy as np
 
 from warpmesh._conventions import REAL_DTYPE, REL_TOL
-from warpmesh.io.convert import CELL_TYPES, _check_mesh
+from warpmesh.cells.types import CELL_TYPES, require_mesh
 from warpmesh.cells.reference import mirror_permutation
 
 __all__ = ["translation", "dilation", "rotation", "symmetry", "matrix", "compose", "transform"]
@@ -127,7 +127,7 @@ def _about(linear: np.ndarray, center: np.ndarray) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- builders
 def translation(vector) -> np.ndarray:
-    """The translation of a vector (seed §17.1.1).
+    """The translation of a vector [FG §17.1.1].
 
     Parameters
     ----------
@@ -155,9 +155,9 @@ def translation(vector) -> np.ndarray:
 
 
 def dilation(factors, center=None, *, dim: int | None = None) -> np.ndarray:
-    """An isotropic or anisotropic dilation (scaling) about a centre (seed §17.1.1).
+    """An isotropic or anisotropic dilation (scaling) about a centre [FG §17.1.1].
 
-    The seed's matrix: diagonal (alpha_x, alpha_y[, alpha_z]), last column
+    The book's matrix: diagonal (alpha_x, alpha_y[, alpha_z]), last column
     ``C_i (1 - alpha_i)``, so the centre C is fixed. A negative factor mirrors that axis
     (:func:`transform` then restores the orientation of the cells).
 
@@ -222,14 +222,14 @@ def _rx(c: float, s: float) -> np.ndarray:
 
 
 def _axis_rotation(alpha: float, axis: np.ndarray) -> np.ndarray:
-    """(3, 3): rotation of ``alpha`` about ``axis`` as the seed's product
+    """(3, 3): rotation of ``alpha`` about ``axis`` as the book's product
     T(phi, Z) T(theta, Y) T(alpha, X) T(-theta, Y) T(-phi, Z).
 
     C, S, C2, S2 come from the axis components directly (Remark 17.2), so no arctangent
     and no ambiguity modulo pi: with r = |(A_x, A_y)| and n = |A|, C = A_x / r,
     S = A_y / r, C2 = r / n, S2 = -A_z / n. Then T(phi, Z) T(theta, Y) maps the x axis
     onto A / n itself, and the product turns by +alpha about A (right-hand rule). (With
-    the seed's theta = arctan(A_z / r), S2 = +A_z / n and T(theta, Y), as printed, sends
+    the book's theta = arctan(A_z / r), S2 = +A_z / n and T(theta, Y), as printed, sends
     the x axis to (A_x, A_y, -A_z) / n: the sign of S2 is what makes the axis A.) An
     axis along z (r = 0) takes phi = 0: C = 1, S = 0, C2 = 0, S2 = -sign(A_z).
     """
@@ -241,13 +241,13 @@ def _axis_rotation(alpha: float, axis: np.ndarray) -> np.ndarray:
 
 
 def rotation(angle, *, center=None, axis=None) -> np.ndarray:
-    """A rotation about a point (2D) or about an axis through a point (3D) (seed §17.1.1).
+    """A rotation about a point (2D) or about an axis through a point (3D) [FG §17.1.1].
 
     In 2D (``axis`` None) the matrix turns counter-clockwise about ``center``; in 3D it
     turns by the right-hand rule about the line through ``center`` along ``axis``. The
-    centre is handled as in Remark 17.1: T(P) R T(-P) (the seed's 2D matrix with P in its
+    centre is handled as in Remark 17.1: T(P) R T(-P) (the book's 2D matrix with P in its
     last column is the first factor of that product; P - R P is the whole). The 3D
-    linear part is the seed's product of five rotations about the coordinate axes, with
+    linear part is the book's product of five rotations about the coordinate axes, with
     its sines and cosines taken from the axis components directly (Remark 17.2); see
     :func:`_axis_rotation` for the sign convention.
 
@@ -293,9 +293,9 @@ def rotation(angle, *, center=None, axis=None) -> np.ndarray:
 
 
 def symmetry(coefficients) -> np.ndarray:
-    """The reflection about a line (2D) or a plane (3D) (seed §17.1.1).
+    """The reflection about a line (2D) or a plane (3D) [FG §17.1.1].
 
-    The seed's matrix: ``I + F n n^T`` in the linear part and ``F n K`` in the last
+    The book's matrix: ``I + F n n^T`` in the linear part and ``F n K`` in the last
     column, with n the normal (A, B[, C]), K the constant term and F = -2 / |n|^2. It is
     an involution (T @ T = I) with determinant -1; points of the line/plane are fixed.
 
@@ -332,7 +332,7 @@ def symmetry(coefficients) -> np.ndarray:
 
 
 def matrix(m, *, dim: int | None = None) -> np.ndarray:
-    """A general transformation given by its matrix (seed §17.1.1), checked.
+    """A general transformation given by its matrix [FG §17.1.1], checked.
 
     Parameters
     ----------
@@ -387,7 +387,7 @@ def matrix(m, *, dim: int | None = None) -> np.ndarray:
 def compose(*matrices) -> np.ndarray:
     """The transformation that applies ``matrices[0]`` first, then ``matrices[1]``, ...
 
-    ``compose(a, b, c)`` is ``c @ b @ a`` (the seed's product T_1 T_2 ... applies the
+    ``compose(a, b, c)`` is ``c @ b @ a`` (the book's product T_1 T_2 ... applies the
     rightmost factor first; here the arguments read in the order they act).
 
     Parameters
@@ -426,7 +426,7 @@ def compose(*matrices) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- meshes
 def transform(mesh, matrix, *, vectors=()):
-    """The image of a mesh by a transformation (seed §17.1.1, §17.5).
+    """The image of a mesh by a transformation [FG §17.1.1, §17.5].
 
     Points map as ``p' = L p + t`` (``matrix = [[L, t], [0, 1]]``); L must be
     non-singular (smallest singular value above 1e-12 times the largest). When ``det L > 0``
@@ -490,7 +490,7 @@ def transform(mesh, matrix, *, vectors=()):
     >>> r.cells["quad"].tolist(), r.cells["line"].tolist(), r.cell_refs["line"].tolist()
     ([[0, 3, 2, 1]], [[1, 0]], [7])
     """
-    _check_mesh(mesh)
+    require_mesh(mesh)
     d = mesh.dim
     arr = np.asarray(matrix)
     if arr.ndim == 2 and arr.shape[0] == arr.shape[1] and len(arr) in (3, 4) and len(arr) != d + 1:

@@ -1,7 +1,7 @@
-"""Element colouring (seed §17.4.4): packets of elements in which no two are neighbours.
+"""Element colouring [FG §17.4.4]: packets of elements in which no two are neighbours.
 
 Two elements are *neighbours* when they share a facet (``adjacency="face"``: an edge of
-2D elements, a face of 3D elements — the seed's element adjacency, where structured
+2D elements, a face of 3D elements — the book's element adjacency, where structured
 grids need only two colours, "red–black") or any node (``adjacency="node"``: the
 packets a vector or multi-threaded assembly can process without write conflicts).
 
@@ -36,7 +36,7 @@ from scipy.sparse.csgraph import connected_components
 
 from warpmesh.kernels import numbering as KN
 
-from warpmesh.io.convert import CELL_TYPES
+from warpmesh.cells.types import CELL_TYPES, require_mesh
 from warpmesh.numbering.graph import corner_count, expand, levels
 from warpmesh.numbering.renumber import _as_wp, _order_by
 
@@ -263,10 +263,7 @@ def color_mesh(mesh, *, adjacency: Adjacency = "face"):
     >>> m.stats()["n_colors"] <= 4, sum(m.stats()["packet_sizes"]) == m.n_cells
     (True, True)
     """
-    from warpmesh.mesh import Mesh
-
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a warpmesh Mesh for 'mesh', got {type(mesh).__name__}")
+    require_mesh(mesh)
     colors = element_colors(mesh, adjacency=adjacency)
     cells, refs, data = {}, {}, {k: {} for k in mesh.cell_data}
     data["color"] = {}

@@ -1,4 +1,4 @@
-"""Node graphs of meshes and breadth-first level structures (seed §17.4.1, Fig. 17.11).
+"""Node graphs of meshes and breadth-first level structures [FG §17.4.1, Fig. 17.11].
 
 Two nodes are *neighbours* when some element has both as nodes (Fig. 17.11 i): every
 pair of an element's nodes interacts in the finite-element matrix). With
@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order
 
-from warpmesh.io.convert import CELL_TYPES
+from warpmesh.cells.types import CELL_TYPES
 
 __all__ = ["node_graph", "corner_count", "levels", "degrees", "expand"]
 

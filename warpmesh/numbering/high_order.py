@@ -48,265 +48,20 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Mapping
-from dataclasses import dataclass
-from types import MappingProxyType
 
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh.io.convert import CELL_TYPES, _check_mesh
+from warpmesh._util.arrays import unique_rows
+from warpmesh.cells.lagrange import (ELEMENT_BY_NAME, ELEMENTS, HIGHER_TYPES, LAGRANGE_NAMES, ORDERS,
+                                     P1_TOPOLOGY, LagrangeElement)
+from warpmesh.cells.types import require_mesh
+from warpmesh.frep.projection import as_target, project_nodes
 
-__all__ = ["to_order", "jacobians", "inverted_elements", "reference_nodes", "ORDERS"]
+__all__ = ["to_order", "jacobians", "inverted_elements"]
 
-#: P1 type -> the orders :func:`to_order` builds for it
-ORDERS: Mapping[str, tuple[int, ...]] = MappingProxyType({
-    "line": (1, 2, 3, 4),
-    "triangle": (1, 2, 3, 4),
-    "tetra": (1, 2, 3, 4),
-    "quad": (1, 2),
-    "hexahedron": (1, 2),
-})
-#: Newton steps in float64 after the (float32-evaluated) projection of a shape target
-POLISH_STEPS = 2
 #: cells per chunk of :func:`jacobians` (bounds its temporaries)
 _CHUNK = 1 << 15
-_TINY = 1.0e-300
-
-# ----------------------------------------------------------------------------- tables
-#: P1 type -> (reference vertices, edges, faces), local vertex indices in VTK's order.
-#: The faces of a 2D cell are the cell itself; tetra faces are gmsh's (outward).
-_P1 = {
-    "line": ([[0], [1]], [(0, 1)], []),
-    "triangle": ([[0, 0], [1, 0], [0, 1]], [(0, 1), (1, 2), (2, 0)], [(0, 1, 2)]),
-    "quad": ([[0, 0], [1, 0], [1, 1], [0, 1]], [(0, 1), (1, 2), (2, 3), (3, 0)], [(0, 1, 2, 3)]),
-    "tetra": (
-        [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]],
-        [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)],
-        [(0, 2, 1), (0, 1, 3), (0, 3, 2), (3, 1, 2)],
-    ),
-    "hexahedron": (
-        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
-        [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
-         (0, 4), (1, 5), (2, 6), (3, 7)],
-        [(0, 3, 7, 4), (1, 2, 6, 5), (0, 1, 5, 4), (3, 2, 6, 7), (0, 1, 2, 3), (4, 5, 6, 7)],
-    ),
-}
-#: gmsh's tetra edges (tetra20, tetra35); VTK's (tetra10) differ in the last three
-_GMSH_TETRA_EDGES = [(0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1)]
-_NAMES = {
-    ("line", 1): "line", ("line", 2): "line3", ("line", 3): "line4", ("line", 4): "line5",
-    ("triangle", 1): "triangle", ("triangle", 2): "triangle6", ("triangle", 3): "triangle10",
-    ("triangle", 4): "triangle15",
-    ("tetra", 1): "tetra", ("tetra", 2): "tetra10", ("tetra", 3): "tetra20", ("tetra", 4): "tetra35",
-    ("quad", 1): "quad", ("quad", 2): "quad9",
-    ("hexahedron", 1): "hexahedron", ("hexahedron", 2): "hexahedron27",
-}
-
-
-def _triangle_lattice(k: int) -> np.ndarray:
-    """(m, 3) int: gmsh's order-k triangle as integer barycentric weights (sum k).
-
-    Vertices, edges (0 1), (1 2), (2 0), then the interior: an order k-3 triangle, each
-    weight + 1 (recursively). Order 0 is the single centroid node.
-    """
-    if k < 0:
-        return np.zeros((0, 3), dtype=int)
-    if k == 0:
-        return np.zeros((1, 3), dtype=int)
-    rows = [k * np.eye(3, dtype=int)]
-    t = np.arange(1, k)
-    for a, b in _P1["triangle"][1]:
-        r = np.zeros((k - 1, 3), dtype=int)
-        r[:, a], r[:, b] = k - t, t
-        rows.append(r)
-    return np.concatenate([*rows, _triangle_lattice(k - 3) + 1])
-
-
-def _tetra_lattice(k: int) -> np.ndarray:
-    """(m, 4) int: gmsh's order-k tetrahedron as integer barycentric weights (sum k).
-
-    Vertices, gmsh's edges, the inside of each gmsh face (an order k-3 triangle laid
-    on the face's vertices, weights + 1), the inside (an order k-4 tetrahedron, + 1).
-    """
-    if k < 0:
-        return np.zeros((0, 4), dtype=int)
-    if k == 0:
-        return np.zeros((1, 4), dtype=int)
-    rows = [k * np.eye(4, dtype=int)]
-    t = np.arange(1, k)
-    for a, b in _GMSH_TETRA_EDGES:
-        r = np.zeros((k - 1, 4), dtype=int)
-        r[:, a], r[:, b] = k - t, t
-        rows.append(r)
-    inside = _triangle_lattice(k - 3) + 1
-    for f in _P1["tetra"][2]:
-        r = np.zeros((len(inside), 4), dtype=int)
-        r[:, list(f)] = inside
-        rows.append(r)
-    return np.concatenate([*rows, _tetra_lattice(k - 4) + 1])
-
-
-def _powers(xi: np.ndarray, exps: np.ndarray, d: int | None = None) -> np.ndarray:
-    """(s, q): the monomials ``xi ** exps`` at the points xi (s, t), or their derivative in xi_d."""
-    if d is None:
-        return np.prod(xi[:, None, :] ** exps[None], axis=2)
-    e = exps.copy()
-    factor = e[:, d].astype(REAL_DTYPE)
-    e[:, d] = np.maximum(e[:, d] - 1, 0)
-    return factor[None] * np.prod(xi[:, None, :] ** e[None], axis=2)
-
-
-@dataclass(frozen=True, eq=False)
-class _Element:
-    """One Lagrange element: its nodes' structure and its shape functions.
-
-    ``weights`` (n, nv): node i of a straight element sits at ``weights[i] @ vertices``
-    (barycentric for simplices; the bi/trilinear weights of a midpoint for quad/hex).
-    ``edge_nodes`` (ne, k-1) lists the nodes of each local edge from its first vertex to
-    its second; ``face_nodes`` (nf, q) those inside each face in the face's own layout
-    ``face_layout`` (q, 3 or 4) (integer weights over the face's vertices);
-    ``closure`` (nf, c) the non-vertex nodes on each face (its edges' and its own).
-    """
-
-    name: str
-    base: str
-    order: int
-    lattice: np.ndarray
-    coords: np.ndarray
-    edges: np.ndarray
-    edge_nodes: np.ndarray
-    faces: np.ndarray
-    face_nodes: np.ndarray
-    face_layout: np.ndarray
-    interior: np.ndarray
-    closure: np.ndarray
-    exps: np.ndarray
-    coefficients: np.ndarray
-
-    @property
-    def weights(self) -> np.ndarray:
-        return self.lattice / self.lattice.sum(axis=1, keepdims=True)
-
-    @property
-    def n_vertices(self) -> int:
-        return len(self.lattice[0])
-
-    @property
-    def tdim(self) -> int:
-        return self.coords.shape[1]
-
-    def shape(self, xi: np.ndarray) -> np.ndarray:
-        """(s, n): the shape functions at reference points xi (s, tdim)."""
-        return _powers(xi, self.exps) @ self.coefficients
-
-    def dshape(self, xi: np.ndarray) -> np.ndarray:
-        """(s, n, tdim): their derivatives."""
-        return np.stack([_powers(xi, self.exps, d) @ self.coefficients for d in range(self.tdim)],
-                        axis=2)
-
-    def samples(self) -> np.ndarray:
-        """(s, tdim): where :func:`jacobians` looks: the nodes; for k >= 2 also the centroid
-        and the points halfway between it and each vertex."""
-        if self.order == 1:
-            return self.coords
-        v = self.coords[: self.n_vertices]
-        c = v.mean(axis=0)
-        return np.concatenate([self.coords, c[None], (v + c) / 2])
-
-
-def _build(base: str, k: int) -> _Element:
-    verts, edges, faces = _P1[base]
-    simplex = base in ("line", "triangle", "tetra")
-    if base == "tetra" and k >= 3:
-        edges = _GMSH_TETRA_EDGES
-    nv, nfv = len(verts), (len(faces[0]) if faces else 0)
-    rows, count = [np.eye(nv, dtype=int)], nv
-    edge_nodes, face_nodes = [], []
-    t = np.arange(1, k)
-    for a, b in edges:
-        r = np.zeros((k - 1, nv), dtype=int)
-        r[:, a], r[:, b] = k - t, t
-        rows.append(r)
-        edge_nodes.append(count + np.arange(k - 1))
-        count += k - 1
-    if nfv == 3:
-        layout = _triangle_lattice(k - 3) + 1
-    elif nfv == 4:
-        layout = np.ones((1 if k == 2 else 0, 4), dtype=int)
-    else:
-        layout = np.zeros((0, 0), dtype=int)
-    for f in faces:
-        r = np.zeros((len(layout), nv), dtype=int)
-        r[:, list(f)] = layout
-        rows.append(r)
-        face_nodes.append(count + np.arange(len(layout)))
-        count += len(layout)
-    if base == "tetra":
-        inside = _tetra_lattice(k - 4) + 1
-    elif base == "hexahedron" and k == 2:
-        inside = np.ones((1, 8), dtype=int)
-    else:
-        inside = np.zeros((0, nv), dtype=int)
-    rows.append(inside)
-    lattice = np.concatenate(rows)
-    n = len(lattice)
-    coords = (lattice / lattice.sum(axis=1, keepdims=True)) @ np.asarray(verts, dtype=REAL_DTYPE)
-    support = lattice > 0
-    closure = [np.flatnonzero(~support[:, np.setdiff1d(np.arange(nv), f)].any(axis=1)
-                              & (np.arange(n) >= nv)) for f in faces]
-    tdim = coords.shape[1]
-    grid = np.stack(np.meshgrid(*[np.arange(k + 1)] * tdim, indexing="ij"), -1).reshape(-1, tdim)
-    exps = grid[grid.sum(axis=1) <= k] if simplex else grid  # P_k, or Q_k for quad/hex
-    vandermonde = _powers(coords, exps)
-    if vandermonde.shape != (n, n):  # a table that does not match its polynomial space
-        raise AssertionError(f"{base} order {k}: {n} nodes for {len(exps)} monomials")
-    return _Element(
-        name=_NAMES[base, k], base=base, order=k, lattice=lattice, coords=coords,
-        edges=np.array(edges, dtype=INDEX_DTYPE),
-        edge_nodes=np.array(edge_nodes, dtype=INDEX_DTYPE).reshape(len(edges), k - 1),
-        faces=np.array(faces, dtype=INDEX_DTYPE).reshape(len(faces), nfv),
-        face_nodes=np.array(face_nodes, dtype=INDEX_DTYPE).reshape(len(faces), len(layout)),
-        face_layout=layout, interior=np.arange(n - len(inside), n, dtype=INDEX_DTYPE),
-        closure=np.array(closure, dtype=INDEX_DTYPE).reshape(len(faces), -1 if faces else 0),
-        exps=exps, coefficients=np.linalg.inv(vandermonde),
-    )
-
-
-_ELEMENTS = {(b, k): _build(b, k) for b, orders in ORDERS.items() for k in orders}
-_BY_NAME = {el.name: el for el in _ELEMENTS.values()}
-for _el in _BY_NAME.values():  # the tables agree with the meshio vocabulary
-    assert CELL_TYPES[_el.name][:2] == (len(_el.lattice), _el.tdim), _el.name
-_HIGHER = {t for t in CELL_TYPES if t not in _P1 and t not in ("vertex", "wedge", "pyramid")}
-
-
-def reference_nodes(cell_type: str) -> np.ndarray:
-    """Reference coordinates of the local nodes of a Lagrange cell type, in local order.
-
-    Parameters
-    ----------
-    cell_type : str
-        A meshio name among the types of the module table (P1 types included).
-
-    Returns
-    -------
-    (n, tdim) float64
-        Coordinates in [0, 1] per axis (VTK's parametric space; gmsh's for simplices,
-        its [-1, 1] mapped to [0, 1] for lines, quads and hexahedra).
-
-    Raises
-    ------
-    ValueError
-        An unknown or unsupported type.
-
-    Examples
-    --------
-    >>> reference_nodes("triangle6").tolist()
-    [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]]
-    """
-    if cell_type not in _BY_NAME:
-        raise ValueError(f"expected 'cell_type' among {sorted(_BY_NAME)}, got {cell_type!r}")
-    return _BY_NAME[cell_type].coords.copy()
 
 
 # ----------------------------------------------------------------------------- validation
@@ -319,40 +74,32 @@ def _check_order(order) -> int:
     return int(order)
 
 
-def _plan(mesh, k: int) -> list[tuple[str, _Element | None]]:
+def _plan(mesh, k: int) -> list[tuple[str, LagrangeElement | None]]:
     """(type, element) per block, element None for the blocks kept as they are."""
     plan = []
     for t in mesh.cells:
         if t == "vertex":
             plan.append((t, None))
-        elif t in _P1:
+        elif t in P1_TOPOLOGY:
             if k not in ORDERS[t]:
                 raise ValueError(f"expected 'order' in {list(ORDERS[t])} for {t!r} cells "
-                                 f"({_NAMES[t, 2]} is the highest {t} type), got order={k}")
-            plan.append((t, _ELEMENTS[t, k]))
+                                 f"({LAGRANGE_NAMES[t, 2]} is the highest {t} type), got order={k}")
+            plan.append((t, ELEMENTS[t, k]))
         else:
-            why = "already higher-order" if t in _HIGHER else "not supported"
-            raise ValueError(f"expected P1 cell blocks {list(_P1)} (and 'vertex', kept), got "
+            why = "already higher-order" if t in HIGHER_TYPES else "not supported"
+            raise ValueError(f"expected P1 cell blocks {list(P1_TOPOLOGY)} (and 'vertex', kept), got "
                              f"{t!r} cells ({why}); drop or split that block first")
     if all(el is None for _, el in plan):
-        raise ValueError(f"expected a block of {list(_P1)} cells in 'mesh', got {list(mesh.cells)}")
+        raise ValueError(f"expected a block of {list(P1_TOPOLOGY)} cells in 'mesh', got {list(mesh.cells)}")
     return plan
 
 
 # ----------------------------------------------------------------------------- numbering
-def _unique_rows(rows: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-    """(number of unique rows, inverse (r,), counts (u,)) of the rows sorted within themselves,
-    the unique rows in lexicographic order."""
-    if len(rows) == 0:
-        return 0, np.zeros(0, dtype=INDEX_DTYPE), np.zeros(0, dtype=INDEX_DTYPE)
-    rows = np.sort(rows, axis=1)
-    base = int(rows.max()) + 1
-    if base ** rows.shape[1] < 2**62:  # one int64 key per row: a 1-D unique, much faster
-        rows = rows @ (base ** np.arange(rows.shape[1] - 1, -1, -1, dtype=INDEX_DTYPE))
-        uniq, inverse, counts = np.unique(rows, return_inverse=True, return_counts=True)
-    else:
-        uniq, inverse, counts = np.unique(rows, axis=0, return_inverse=True, return_counts=True)
-    return len(uniq), inverse.reshape(-1), counts
+def _unique_sets(rows: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """(number of distinct vertex sets, inverse (r,), counts (u,)) of the rows, each row
+    taken as a set (sorted within itself)."""
+    uniq, _, inverse, counts = unique_rows(np.sort(rows, axis=1))
+    return len(uniq), inverse, counts
 
 
 def _number_faces(elements, conn, k: int, nfv: int, first: int) -> int:
@@ -366,7 +113,7 @@ def _number_faces(elements, conn, k: int, nfv: int, first: int) -> int:
     if not use:
         return first
     occ = [c[:, el.faces] for el, c in use]  # (m, nf, nfv) global vertex numbers
-    n_faces, inverse, _ = _unique_rows(np.concatenate([o.reshape(-1, nfv) for o in occ]))
+    n_faces, inverse, _ = _unique_sets(np.concatenate([o.reshape(-1, nfv) for o in occ]))
     layout = use[0][0].face_layout
     q, radix = len(layout), (k + 1) ** np.arange(nfv)[::-1]
     lookup = np.full((k + 1) ** nfv, -1, dtype=INDEX_DTYPE)
@@ -390,7 +137,7 @@ def _numbering(blocks, n0: int, k: int):
         c[:, : el.n_vertices] = cells
         conn.append(c)
     occ = [cells[:, el.edges] for el, cells in blocks]  # (m, ne, 2)
-    n_edges, inverse, _ = _unique_rows(np.concatenate([o.reshape(-1, 2) for o in occ]))
+    n_edges, inverse, _ = _unique_sets(np.concatenate([o.reshape(-1, 2) for o in occ]))
     edge_ids, start, t = [], 0, np.arange(k - 1)
     for (el, _), o, c in zip(blocks, occ, conn, strict=True):
         m, ne = o.shape[:2]
@@ -430,7 +177,7 @@ def _boundary_nodes(blocks, conn, edge_ids, n0: int, n: int, dim: int) -> np.nda
             if not group:
                 continue
             occ = np.concatenate([c[:, el.faces].reshape(-1, nfv) for el, c in group])
-            _, inverse, counts = _unique_rows(occ)
+            _, inverse, counts = _unique_sets(occ)
             start = 0
             for el, c in group:
                 m, nf = len(c), len(el.faces)
@@ -438,33 +185,6 @@ def _boundary_nodes(blocks, conn, edge_ids, n0: int, n: int, dim: int) -> np.nda
                 start += m * nf
                 found.append(c[:, el.closure][once].ravel())
     return np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=INDEX_DTYPE)
-
-
-# ----------------------------------------------------------------------------- projection
-def _project(target, x: np.ndarray, cap: np.ndarray) -> np.ndarray:
-    """Newton projection onto f = 0, then float64 Newton steps on shapes.
-
-    The tape evaluates f in float32 (about 1e-7 of the size); a shape also evaluates in
-    float64 (``eval_numpy``), which brings the nodes to f = 0 within float64 rounding.
-    Points on a cap of ``bounds`` (where the box is nearer than the surface) are exact.
-    """
-    y = target.project(x, max_step=cap)
-    shape = getattr(target, "shape", None)
-    if shape is None or not hasattr(shape, "eval_numpy") or len(y) == 0:
-        return y
-    for _ in range(POLISH_STEPS):
-        f = np.broadcast_to(np.asarray(shape.eval_numpy(y[:, 0], y[:, 1], y[:, 2]), REAL_DTYPE),
-                            (len(y),))
-        g = target.value_gradient(y)[1]
-        g2 = np.einsum("ij,ij->i", g, g)
-        ok = np.isfinite(f) & (g2 > _TINY)
-        if target.bounds is not None:
-            lo, hi = target.bounds
-            box = np.concatenate([y - lo, hi - y], axis=1).min(axis=1)
-            ok &= box >= np.abs(f) / np.sqrt(np.maximum(g2, _TINY))
-        step = np.where(ok, f / np.maximum(g2, _TINY), 0.0)[:, None] * g
-        y = y - np.where(np.linalg.norm(step, axis=1) <= cap, 1.0, 0.0)[:, None] * step
-    return y
 
 
 # ----------------------------------------------------------------------------- attributes
@@ -494,14 +214,14 @@ def _node_values(arr: np.ndarray, blocks, conn, n: int) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- public API
-def to_order(mesh, order: int, shape=None, *, bounds=None, check: bool = True):
+def to_order(mesh, order: int, shape=None, *, bounds=None, check: bool = True, stacklevel: int = 2):
     """The Pk mesh of a P1 mesh: new nodes on edges, faces and inside cells.
 
     Every line, triangle, quad, tetra and hexahedron block becomes its order-k type (see
     the module table); nodes on an edge or face shared by several cells, in any blocks,
     are one global node (numbering in the module docstring). New nodes are placed
     straight (the affine / bi- / trilinear image of the reference nodes); with ``shape``,
-    the nodes on the boundary are then projected onto f = 0 (seed Fig. 17.10): in a
+    the nodes on the boundary are then projected onto f = 0 [FG Fig. 17.10]: in a
     curve or surface mesh (cells of lower dimension than the points) every new node; in a
     volume mesh the nodes on the edges and faces of boundary faces (faces of one cell);
     in a planar mesh the nodes of boundary edges (edges of one cell). Other nodes stay
@@ -527,6 +247,9 @@ def to_order(mesh, order: int, shape=None, *, bounds=None, check: bool = True):
     check : bool
         Compute :func:`jacobians` of the result, store ``info["n_inverted"]`` and warn
         when some elements are inverted (the mesh is not k-compatible, Definition 17.3).
+    stacklevel : int
+        Whose line the warning names, as for ``warnings.warn``: 2, the caller of this
+        function (:meth:`Mesh.to_order` passes 3, its own caller).
 
     Returns
     -------
@@ -559,15 +282,12 @@ def to_order(mesh, order: int, shape=None, *, bounds=None, check: bool = True):
     >>> p3.cells["line4"].shape, np.linalg.norm(p3.points, axis=1).round(12).tolist()[4:6]
     ((4, 4), [1.0, 1.0])
     """
-    return _to_order(mesh, order, shape, bounds=bounds, check=check, stacklevel=3)
+    return _to_order(mesh, order, shape, bounds=bounds, check=check, stacklevel=stacklevel + 1)
 
 
 def _to_order(mesh, order, shape=None, *, bounds=None, check=True, stacklevel: int = 2):
-    from warpmesh.mesh import Mesh
-    from warpmesh.frep.projection import as_target
-
     t0 = time.perf_counter()
-    _check_mesh(mesh)
+    require_mesh(mesh)
     k = _check_order(order)
     if not isinstance(check, bool):
         raise TypeError(f"expected a bool for 'check', got {type(check).__name__}")
@@ -596,7 +316,7 @@ def _to_order(mesh, order, shape=None, *, bounds=None, check=True, stacklevel: i
         x = points[projected]
         if dim == 2:
             x = np.column_stack([x, np.zeros(len(x))])
-        points[projected] = _project(target, x, cap[projected])[:, :dim]
+        points[projected] = project_nodes(target, x, cap[projected])[:, :dim]
 
     renamed = {t: (t if el is None else el.name) for t, el in plan}
     new_conn = iter(conn)
@@ -615,10 +335,10 @@ def _to_order(mesh, order, shape=None, *, bounds=None, check=True, stacklevel: i
         if bad:
             total = sum(len(s) for s in scores.values())
             warnings.warn(f"{bad} of {total} elements are inverted after to_order(order={k}): the "
-                          f"mesh is not {k}-compatible (seed Definition 17.3); list them with "
+                          f"mesh is not {k}-compatible [FG Definition 17.3]; list them with "
                           "warpmesh.numbering.high_order.inverted_elements(mesh)", UserWarning, stacklevel=stacklevel)
     info["to_order"]["time"] = time.perf_counter() - t0
-    return Mesh(points, cells, point_data=point_data, cell_data=cell_data, point_refs=point_refs,
+    return type(mesh)(points, cells, point_data=point_data, cell_data=cell_data, point_refs=point_refs,
                 cell_refs=cell_refs, info=info)
 
 
@@ -650,10 +370,10 @@ def _normal(j: np.ndarray) -> np.ndarray:
     return np.stack([c * f - e * d, e * b - a * f, a * d - c * b])
 
 
-def _scores(points: np.ndarray, cells: np.ndarray, el: _Element) -> np.ndarray:
+def _scores(points: np.ndarray, cells: np.ndarray, el: LagrangeElement) -> np.ndarray:
     """(m,): the minimum scaled Jacobian of each cell (see :func:`jacobians`)."""
     xi = el.samples()
-    d_k, d_1 = el.dshape(xi), _ELEMENTS[el.base, 1].dshape(xi)  # (s, n, t), (s, nv, t)
+    d_k, d_1 = el.dshape(xi), ELEMENTS[el.base, 1].dshape(xi)  # (s, n, t), (s, nv, t)
     dim, out = points.shape[1], np.empty(len(cells))
     for a in range(0, len(cells), _CHUNK):
         x = points[cells[a: a + _CHUNK]]
@@ -671,15 +391,15 @@ def _scores(points: np.ndarray, cells: np.ndarray, el: _Element) -> np.ndarray:
 
 def _jacobians(points, cells) -> dict[str, np.ndarray]:
     points = np.asarray(points, dtype=REAL_DTYPE)
-    out = {t: _scores(points, np.asarray(c), _BY_NAME[t]) for t, c in cells.items() if t in _BY_NAME}
+    out = {t: _scores(points, np.asarray(c), ELEMENT_BY_NAME[t]) for t, c in cells.items() if t in ELEMENT_BY_NAME}
     if not out:
-        raise ValueError(f"expected a block of the types {sorted(_BY_NAME)} in 'mesh', "
+        raise ValueError(f"expected a block of the types {sorted(ELEMENT_BY_NAME)} in 'mesh', "
                          f"got {list(cells)}")
     return out
 
 
 def jacobians(mesh) -> dict[str, np.ndarray]:
-    """Minimum scaled Jacobian of every cell: the p-compatibility check (seed Definition 17.3).
+    """Minimum scaled Jacobian of every cell: the p-compatibility check [FG Definition 17.3].
 
     For each cell, the Jacobian matrix J of its isoparametric map (the Lagrange shape
     functions of its type, from a monomial Vandermonde matrix) is sampled at the cell's
@@ -718,7 +438,7 @@ def jacobians(mesh) -> dict[str, np.ndarray]:
     >>> jacobians(m.replace(points=m.points * [1, -1]))["triangle6"].round(12).tolist()  # mirrored
     [-1.0]
     """
-    _check_mesh(mesh)
+    require_mesh(mesh)
     return _jacobians(mesh.points, mesh.cells)
 
 

@@ -1,4 +1,4 @@
-"""Vertex (node) renumbering for small bandwidth and profile (seed §17.4.1, §17.4.4).
+"""Vertex (node) renumbering for small bandwidth and profile [FG §17.4.1, §17.4.4].
 
 The walks whose order depends on the walk so far (breadth-first searches, the
 Cuthill–McKee numbering of each level, the components of Step 2) run as one-thread Warp
@@ -67,7 +67,8 @@ import warp as wp
 from warpmesh.kernels import numbering as KN
 
 from warpmesh.numbering.graph import corner_count, degrees, node_graph
-from warpmesh.frep.tape import parallel_ranges, run_parallel
+from warpmesh._util.parallel import parallel_ranges, run_parallel
+from warpmesh.cells.types import require_mesh
 
 __all__ = ["METHODS", "renumber", "renumber_graph", "matrix_stats", "profile_stats", "element_order"]
 
@@ -134,10 +135,10 @@ def matrix_stats(graph: sp.csr_matrix, new: np.ndarray | None = None) -> dict:
 
 
 def element_order(cells: np.ndarray, new: np.ndarray) -> np.ndarray:
-    """Element renumbering of seed §17.4.2 in linear time.
+    """Element renumbering of [FG §17.4.2] in linear time.
 
     Elements are numbered by their node of smallest new number (a vertex, for P1
-    elements), then by their old index — the order the seed's double loop ("for each vertex, the elements containing
+    elements), then by their old index — the order the book's double loop ("for each vertex, the elements containing
     it not yet numbered") gives, found by one counting sort instead of O(n²) work.
 
     Parameters
@@ -549,7 +550,7 @@ def _is_higher_order(mesh) -> bool:
 def profile_stats(mesh, *, reduced: bool = False) -> dict:
     """Bandwidth and profile of the finite-element matrix of ``mesh`` as numbered now.
 
-    Every pair of nodes of an element is a coefficient (seed Fig. 17.11 i/ii; with
+    Every pair of nodes of an element is a coefficient ([FG Fig. 17.11] i/ii; with
     ``reduced``, quads and hexahedra connect along edges only, Fig. 17.11 iii).
 
     Returns
@@ -617,7 +618,7 @@ def renumber(
     reduced: bool = False,
     elements: bool = True,
 ):
-    """A copy of ``mesh`` with its nodes (and elements) renumbered (seed §17.4).
+    """A copy of ``mesh`` with its nodes (and elements) renumbered [FG §17.4].
 
     Parameters
     ----------
@@ -629,7 +630,7 @@ def renumber(
         (the walk run backwards), "auto" measuring it on every node.
     higher_order : {"ball", "graph"}
         For meshes with nodes other than vertices (P2, ...): number the vertices
-        first and the other nodes by the seed's ball rule (default), or run the method
+        first and the other nodes by the book's ball rule (default), or run the method
         on the full node graph (Remark 17.13: better, more work).
     reduced : bool
         Number on the reduced graph: quads/hexahedra connect along their edges only (Fig.
@@ -644,7 +645,7 @@ def renumber(
         ``bandwidth``, ``profile``, ``profile_mean``, the same with ``_before``,
         ``profile_ratio`` (before / after), ``renumber_method``, ``renumber_time``
         (seconds, the method on the graph), ``graph_time`` and ``nodes_per_second``
-        (nodes / renumber_time, the seed's v).
+        (nodes / renumber_time, the book's v).
 
     Raises
     ------
@@ -664,10 +665,7 @@ def renumber(
     >>> r.stats()["bandwidth"], r.stats()["profile_before"] > r.stats()["profile"]
     (4, True)
     """
-    from warpmesh.mesh import Mesh
-
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a warpmesh Mesh for 'mesh', got {type(mesh).__name__}")
+    require_mesh(mesh)
     if method not in METHODS:
         raise ValueError(f"expected method among {list(METHODS)}, got {method!r}")
     if higher_order not in ("ball", "graph"):
@@ -707,7 +705,7 @@ def renumber(
         block = new[block]
         if not elements:
             keep = np.arange(len(block))
-        else:  # the ball walk's order, or by first vertex (seed 17.4.2)
+        else:  # the ball walk's order, or by first vertex ([FG §17.4.2])
             keep = walk[t] if walk is not None else element_order(block, np.arange(n))
         cells[t] = block[keep]
         if mesh.cell_refs is not None and t in mesh.cell_refs:
@@ -724,7 +722,7 @@ def renumber(
         graph_time=graph_time,
         nodes_per_second=n / elapsed if elapsed > 0 else float("inf"),
     )
-    return Mesh(
+    return type(mesh)(
         mesh.points[order],
         cells,
         point_data={k: v[order] for k, v in mesh.point_data.items()},
@@ -735,7 +733,7 @@ def renumber(
     )
 
 
-#: rows of the statistics table, after seed Table 17.1: (label, stats key, format)
+#: rows of the statistics table, after [FG Table 17.1]: (label, stats key, format)
 TABLE_ROWS = (
     ("np", "np", "{:,}"),
     ("ne", "ne", "{:,}"),
@@ -751,7 +749,7 @@ TABLE_ROWS = (
 
 
 def format_table(columns: dict[str, dict]) -> str:
-    """The statistics of renumbered meshes as seed Table 17.1: one column per mesh.
+    """The statistics of renumbered meshes as [FG Table 17.1]: one column per mesh.
 
     Parameters
     ----------

@@ -31,8 +31,8 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-from warpmesh.optimize.local_ops import CORNER, FREE, LINE, SPLIT_CHILD_Q, Surface, edge_key, quality_of, select_independent, \
-    splits_keep_faces
+from warpmesh.optimize.local_ops import (CORNER, FREE, gather, LINE, quality_of, select_independent, SPLIT_CHILD_Q, splits_keep_faces, Surface, vertex_neighbours)
+from warpmesh.surface.adaptive.qef import qef_points
 
 __all__ = ["detect_features", "insert_creases", "FeatureLines", "DEFAULT_ANGLE", "CORNER_TURN"]
 
@@ -195,9 +195,6 @@ def snap_corners(s: Surface, target, crease: np.ndarray) -> np.ndarray:
     is then the corner. One vertex per corner moves (the strongest spread among vertices
     two rings apart). Returns the crease flags with the snapped vertices set.
     """
-    from warpmesh.optimize.local_ops import gather, vertex_neighbours
-    from warpmesh.surface.adaptive.qef import qef_points
-
     topo = s.topology()
     n = len(s.points)
     ptr, nb = vertex_neighbours(topo.edges, n)

@@ -1,6 +1,6 @@
 """Vectorised local operators on oriented triangle meshes: edge split, collapse and flip.
 
-The topological operators of seed §16.4.3 (and Chapter 19), applied in batches: each
+The topological operators of [FG §16.4.3] (and Chapter 19), applied in batches: each
 pass picks an *independent* set of candidate edges (no two share a triangle for splits
 and flips, no two touch a common vertex ball for collapses) by a Luby-style rule — a
 candidate wins when it has the best priority among every candidate it conflicts with —
@@ -191,7 +191,7 @@ def triangle_frames(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def quality_of(p: np.ndarray) -> np.ndarray:
-    """Q_K of (k, 3, 3) triangles (seed eq. 16.15), inf when degenerate."""
+    """Q_K of (k, 3, 3) triangles [FG eq. 16.15], inf when degenerate."""
     nrm, hmax, perim = triangle_frames(p)
     area2 = np.sqrt(np.einsum("ij,ij->i", nrm, nrm))  # 2 * area; rho = 2 area / perimeter = area2 / perim
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -1,4 +1,4 @@
-"""Surface mesh optimisation and simplification on the exact surface (seed §16.4.3).
+"""Surface mesh optimisation and simplification on the exact surface [FG §16.4.3].
 
 :func:`optimize` turns a geometric mesh (marching cubes, octree) into a *unit* mesh of
 a size field (Definition 16.4) with well-shaped triangles, every vertex on the exact
@@ -43,11 +43,13 @@ import numpy as np
 from warpmesh.optimize.local_ops import CORNER, FREE, LINE, Surface, edge_key, gather, quality_of, select_independent, \
     splits_keep_faces, vertex_faces, vertex_neighbours
 from warpmesh.optimize.features import DEFAULT_ANGLE, FeatureLines, detect_features, feature_edges_of, insert_creases, snap_corners
-from warpmesh.mesh import Mesh
-from warpmesh.frep.projection import ImplicitTarget, MeshTarget, VolumeField, _FunctionTarget, as_target
+from warpmesh.frep.projection import ImplicitTarget, VolumeField, FunctionTarget, as_target
+from warpmesh._conventions import CAP_REF, SURFACE_REF
 from warpmesh.cells.quality import quality_table
-from warpmesh.surface.pipeline import CAP_REF, SURFACE_REF
+from warpmesh.cells.types import MeshLike, require_mesh
 from warpmesh.optimize.sizing import GRADATION, graded, size_field
+from warpmesh.cells.topology import is_edge_manifold
+from warpmesh.errors import TopologyError
 
 __all__ = ["optimize", "simplify"]
 
@@ -120,7 +122,7 @@ class _Run:
 
     def _distance(self, pts):
         # one foot-point step: a slightly looser upper bound, at half the cost
-        if isinstance(self.target, _FunctionTarget):
+        if isinstance(self.target, FunctionTarget):
             return self.target.distance(pts, refine=1)
         return self.target.distance(pts)
 
@@ -535,9 +537,8 @@ class _Run:
         return self.collapse_pass(cand_mask=mask, limit_q=q_limit)
 
 
-def _run_setup(mesh: Mesh, shape, bounds, size, tolerance, features, angle, fraction, simplifying):
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a warpmesh Mesh for 'mesh', got {type(mesh).__name__}")
+def _run_setup(mesh: MeshLike, shape, bounds, size, tolerance, features, angle, fraction, simplifying):
+    require_mesh(mesh)
     tri = mesh.triangles
     if len(tri) == 0 or mesh.dim != 3:
         raise ValueError("expected a 3D mesh with a 'triangle' block for 'mesh'")
@@ -545,10 +546,8 @@ def _run_setup(mesh: Mesh, shape, bounds, size, tolerance, features, angle, frac
         raise TypeError(f"expected True, False or None for 'features', got {features!r}")
     if not (0.0 < angle < 180.0):
         raise ValueError(f"expected 0 < 'angle' < 180 degrees, got {angle!r}")
-    from warpmesh.cells.topology import is_edge_manifold
 
     if not is_edge_manifold(tri):
-        from warpmesh.errors import TopologyError
         raise TopologyError("expected an edge-manifold triangle mesh (no edge in more than two triangles)")
     used = np.unique(tri)
     pts = mesh.points
@@ -593,12 +592,12 @@ def _run_setup(mesh: Mesh, shape, bounds, size, tolerance, features, angle, frac
 
 
 def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations, progress, fraction,
-           simplifying) -> Mesh:
+           simplifying) -> MeshLike:
     t0 = time.perf_counter()
     s, target, hfield, tol = _run_setup(mesh, shape, bounds, size, tolerance, features, angle, fraction,
                                         simplifying)
     counts = {"creases": 0, "splits": 0, "collapses": 0, "flips": 0, "moves": 0}
-    exact = isinstance(target, _FunctionTarget)
+    exact = isinstance(target, FunctionTarget)
     if exact:
         s.points = target.project(s.points)
     crease = None
@@ -703,7 +702,7 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     cell_refs = None if mesh.cell_refs is None else {"triangle": s.refs}
     if cell_refs is not None and not s.refs.any():
         cell_refs = {"triangle": _cap_refs(s.points, s.triangles, target.bounds, tol)}
-    return Mesh(s.points, {"triangle": s.triangles}, cell_refs=cell_refs, info=info)
+    return type(mesh)(s.points, {"triangle": s.triangles}, cell_refs=cell_refs, info=info)
 
 
 def _cap_refs(points, triangles, bounds, tol):
@@ -768,9 +767,9 @@ def _progress(total: int, progress: bool):
     return tqdm(total=total, desc="optimize", unit="pass", leave=False)
 
 
-def optimize(mesh: Mesh, shape=None, *, bounds=None, size=None, tolerance: float | None = None,
+def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: float | None = None,
              features: bool | None = None, angle: float = DEFAULT_ANGLE, iterations: int = 8,
-             progress: bool = False) -> Mesh:
+             progress: bool = False) -> MeshLike:
     """Optimise a surface mesh for finite elements, every vertex on the exact surface.
 
     Parameters
@@ -823,13 +822,13 @@ def optimize(mesh: Mesh, shape=None, *, bounds=None, size=None, tolerance: float
                   iterations=int(iterations), progress=progress, fraction=None, simplifying=False)
 
 
-def simplify(mesh: Mesh, shape=None, *, tolerance: float | None = None, fraction: float | None = None,
+def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, fraction: float | None = None,
              bounds=None, features: bool | None = None, angle: float = DEFAULT_ANGLE, iterations: int = 8,
-             progress: bool = False) -> Mesh:
+             progress: bool = False) -> MeshLike:
     """Decimate a surface mesh, keeping it within ``tolerance`` of the surface.
 
     The size field follows the curvature, h = sqrt(8 tolerance / κ) (never below the
-    input's mean edge length), so flat regions coarsen most (seed Fig. 16.20). Edges
+    input's mean edge length), so flat regions coarsen most [FG Fig. 16.20]. Edges
     shorter than 4/5 h collapse into one of their ends (half-edge collapses, a maximal
     independent set per pass), each checked for the link condition, quality and the
     tolerance (centroid and edge midpoints of the new faces); flips and tangential

@@ -8,7 +8,7 @@ curvature extrema as vertices, every component closed. :func:`mesh_domain` meshe
 graded covering-up, a boundary-conforming Delaunay triangulation and quality refinement.
 
 =================  ===========================================================  ============================
-method             covering-up (seed §16.3.1)                                     module
+method             covering-up [FG §16.3.1]                                     module
 =================  ===========================================================  ============================
 ``continuation``   prediction-correction along the tangent (eq. 16.11), Newton    :mod:`~warpmesh.planar.samplers.continuation`
 ``progression``    cell tracking from seed cells with a stack                     :mod:`~warpmesh.planar.samplers.continuation`
@@ -40,6 +40,8 @@ from warpmesh.frep.planar_field import PlanarField
 from warpmesh.planar.samplers.sample import CurveSample
 from warpmesh.mesh import Mesh
 from warpmesh.planar.polyline import components
+from warpmesh.planar.domain.pipeline import mesh_domain_from_boundary
+from warpmesh.planar.geometric import geometric_mesh
 
 __all__ = ["mesh_curve", "mesh_domain", "sample_curve", "boundary_edges", "CURVE_METHODS"]
 
@@ -83,7 +85,7 @@ def _check_tolerance(tolerance) -> float:
 
 def sample_curve(shape, bounds, *, method: CurveMethod = "continuation", tolerance: float = 1e-2,
                  device: str = "cpu", **options) -> tuple[PlanarField, CurveSample]:
-    """The raw samples of one method of seed §16.3.1 (no geometric remeshing).
+    """The raw samples of one method of [FG §16.3.1] (no geometric remeshing).
 
     Returns the :class:`~warpmesh.frep.planar_field.PlanarField` and the
     :class:`~warpmesh.planar.samplers.sample.CurveSample`; :func:`mesh_curve` wraps this.
@@ -116,7 +118,7 @@ def mesh_curve(shape, bounds, *, method: CurveMethod = "continuation", tolerance
     bounds : ((x0, y0), (x1, y1))
         The box; curves that leave it end on its sides (open chains).
     method : {'continuation', 'progression', 'grid', 'freudenthal', 'quadtree', 'rays'}
-        The covering-up of seed §16.3.1 (table in the module docstring). 'rays' is the naive
+        The covering-up of [FG §16.3.1] (table in the module docstring). 'rays' is the naive
         method: it misses components between its lines (kept to show why).
     tolerance : float
         Relative chord deviation ε: every edge of length h stays within ε h of the curve
@@ -166,8 +168,6 @@ def mesh_curve(shape, bounds, *, method: CurveMethod = "continuation", tolerance
     info = {"method": method, "tolerance": float(tolerance), "time_sample": t1 - t0,
             **{f"sample_{k}": v for k, v in sample.info.items()}}
     if geometric and len(sample.segments):
-        from warpmesh.planar.geometric import geometric_mesh
-
         sample = geometric_mesh(field, sample, tolerance=float(tolerance), size=size, hmin=hmin, hmax=hmax,
                                 singular=singular)
         info.update(sample.info)
@@ -188,7 +188,7 @@ def boundary_edges(triangles) -> np.ndarray:
 def mesh_domain(shape, bounds, *, size: float | None = None, tolerance: float = 1e-2, min_angle: float = 28.0,
                 method: Literal["global", "triangle"] = "global", boundary: CurveMethod = "quadtree",
                 device: str = "cpu", **options) -> Mesh:
-    """Mesh the planar domain {f > 0} with triangles (seed §16.5.2).
+    """Mesh the planar domain {f > 0} with triangles [FG §16.5.2].
 
     The boundary is the geometric mesh of f = 0 (:func:`mesh_curve` with ``boundary`` as
     the covering-up, edges at most ``size``); then either the global approach of the seed
@@ -232,8 +232,6 @@ def mesh_domain(shape, bounds, *, size: float | None = None, tolerance: float = 
     >>> round(s["area"], 1), s["min_angle"] >= 25
     (2.6, True)
     """
-    from warpmesh.planar.domain.pipeline import mesh_domain_from_boundary
-
     _check_options(mesh_domain_from_boundary, options, "mesh_domain")
     field = PlanarField(shape, bounds, device=device)
     h = field.size / 20 if size is None else size

@@ -1,8 +1,8 @@
-"""Geometric mesh of an implicit curve from any sampler's polyline (seed §16.2.2, §16.3.2).
+"""Geometric mesh of an implicit curve from any sampler's polyline [FG §16.2.2, §16.3.2].
 
 A sampler (grid, Freudenthal, continuation, quadtree, rays) returns a raw polyline,
 coarse or fine. :func:`geometric_mesh` remeshes it so that each edge of length h stays
-within delta <= eps h of the curve (seed §16.2.2), following the general scheme of the
+within delta <= eps h of the curve [FG §16.2.2], following the general scheme of the
 seed:
 
 1. mandatory vertices: the singular points (each pass of a chain near one is replaced
@@ -18,7 +18,7 @@ seed:
    length, the integral of ds / h(s), h = min(chord_size(rho), user size) (the metric
    intersection of Chapter 10); the vertices are equidistributed in metric length
    (a unit mesh, Definition 16.4) and projected onto the curve;
-4. verification (seed §16.2.2: "sampling the segment"): the chord deviation delta of
+4. verification [FG §16.2.2: "sampling the segment"]: the chord deviation delta of
    every edge is the largest distance from 5 points of the edge to the curve, each
    measured to a curve point found from the edge's own arc (no jump to a nearby branch);
    edges with delta > eps h and edges crossing another edge are split at their arc
@@ -630,7 +630,7 @@ def _check_dense(d: _Dense):
 
 def _deviation(d: _Dense, u_dense, out: _Out, e, foot_steps: int = 1):
     """Chord deviation delta of edges e: the largest distance from EDGE_SAMPLES points of the
-    edge to the curve (seed §16.2.2). Each distance is that to a curve point found from the
+    edge to the curve [FG §16.2.2]. Each distance is that to a curve point found from the
     edge's own arc (the arc point at the same fraction, then foot-point steps: drop the
     sample onto the tangent there, project again), so an upper bound that never measures
     to another branch and is not fooled by corners."""

@@ -1,6 +1,6 @@
 """Edge sizes for curve meshes: the geometric metric of a chord tolerance and a user metric.
 
-A geometric mesh of a curve (seed §16.2.2) wants every edge of length h to stay within
+A geometric mesh of a curve [FG §16.2.2] wants every edge of length h to stay within
 delta <= eps h of the curve. On a circle of radius rho an edge spanning the angle theta
 has h = 2 rho sin(theta / 2) and delta / h = tan(theta / 4) / 2, so the largest edge
 allowed where the radius of curvature is rho is

@@ -1,7 +1,7 @@
 """Polylines from segments: weld, orient (domain on the left), order into chains, count components.
 
 Every curve sampler returns directed segments between sample points; this module turns
-them into ordered chains (seed §16.3.2: "connecting the points two by two") with
+them into ordered chains [FG §16.3.2: "connecting the points two by two"] with
 vectorised list ranking (pointer jumping, log n rounds), never a walk point by point.
 
 Conventions: a segment (a, b) has the domain f > 0 on its left, i.e. its left normal

@@ -1,4 +1,4 @@
-"""Typed launch wrappers of the block-sparse grid (seed §16.4.1-16.4.2, §16.3.3).
+"""Typed launch wrappers of the block-sparse grid [FG §16.4.1-16.4.2, §16.3.3].
 
 :class:`BlockGrid` owns the device arrays of one extraction and launches the kernels of
 :mod:`warpmesh.kernels.block_grid` (block culling and compaction: count -> prefix sum ->
@@ -19,7 +19,8 @@ from warpmesh.frep import codegen
 from warpmesh.errors import WarpMeshError
 from warpmesh.kernels import block_grid as K
 from warpmesh.kernels import emit as KE
-from warpmesh.frep.tape import eval_gradients, eval_intervals, eval_values, parallel_ranges, run_parallel
+from warpmesh._util.parallel import parallel_ranges, run_parallel
+from warpmesh.frep.tape import eval_gradients, eval_intervals, eval_values
 
 _TABLE_CACHE: dict[tuple[str, str], KE.Tables] = {}
 METHODS = ("mc33", "mt", "mc")

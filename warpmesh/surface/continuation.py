@@ -1,4 +1,4 @@
-"""Spatial covering-up by continuation, progression type (seed §16.3.1, §16.4.1).
+"""Spatial covering-up by continuation, progression type [FG §16.3.1, §16.4.1].
 
 Starting from seed cells crossed by the surface, the covering-up grows "on the fly" by
 adjacency: a crossed cell hands the surface on to the neighbour across each face whose
@@ -259,7 +259,7 @@ def _ray_positions(n, stride, cap):
 
 
 def _ray_seeds(store, dims, cell_dims, stride, cap) -> np.ndarray:
-    """Crossed cells around every sign change along the rays (seed §16.3.1, "naive" approach)."""
+    """Crossed cells around every sign change along the rays [FG §16.3.1, "naive" approach]."""
     found = []
     for axis in range(3):
         a, b = (x for x in range(3) if x != axis)
@@ -323,9 +323,9 @@ def _progress(store, frontier, cases, dims, cell_dims, max_cells):
 
 def grow_cells(evaluate: Callable[[np.ndarray], np.ndarray], n_nodes, *, seeds=None,
                ray_stride: int | None = 8, cap: bool = True, max_cells: int | None = None) -> Growth:
-    """The crossed cells reachable from seed cells by progression (seed §16.4.1).
+    """The crossed cells reachable from seed cells by progression [FG §16.4.1].
 
-    The seed's progression pops one cell at a time from a stack and pushes its unvisited
+    The book's progression pops one cell at a time from a stack and pushes its unvisited
     neighbours across the faces the surface crosses. Here the stack is replaced by its
     data-parallel form, a *wavefront*: the whole frontier (all cells discovered in the
     previous wave) is processed at once with array operations, its neighbours across
@@ -393,7 +393,7 @@ def grow_cells(evaluate: Callable[[np.ndarray], np.ndarray], n_nodes, *, seeds=N
     -----
     Limit of automatic seeds: a component that no ray crosses - one that fits between
     grid lines ``ray_stride`` apart, e.g. a small ball, or a thin shell between rays - is
-    missed (seed §16.3.1: "some lines ... can 'miss' some intersections"; remark 16.8:
+    missed ([FG §16.3.1]: "some lines ... can 'miss' some intersections"; remark 16.8:
     a seed is needed per component). Pass a seed inside it, or lower ``ray_stride``.
 
     Examples
@@ -445,7 +445,7 @@ def grow_cells(evaluate: Callable[[np.ndarray], np.ndarray], n_nodes, *, seeds=N
 
 # -- exhaustive reference -------------------------------------------------------------------
 def crossed_cells_dense(values_grid, cap: bool = True) -> np.ndarray:
-    """Every crossed cell of a fully sampled grid: exhaustive enumeration (seed §16.4.1).
+    """Every crossed cell of a fully sampled grid: exhaustive enumeration [FG §16.4.1].
 
     Parameters
     ----------

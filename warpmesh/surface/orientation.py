@@ -1,4 +1,4 @@
-"""Consistent orientation of triangle surfaces, a posteriori (seed §16.4.4).
+"""Consistent orientation of triangle surfaces, a posteriori [FG §16.4.4].
 
 "The polygons are oriented by adjacency in a consistent way, in each connected
 component": two faces sharing an edge must traverse it in opposite directions. The

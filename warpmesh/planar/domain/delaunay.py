@@ -1,6 +1,6 @@
 """Conforming Delaunay triangulation of a planar domain and Ruppert-style refinement.
 
-The global approach of seed §16.5.2 builds its elements with a Delaunay kernel; here
+The global approach of [FG §16.5.2] builds its elements with a Delaunay kernel; here
 the kernel is ``scipy.spatial.Delaunay`` (Qhull), re-run on the whole point set once per
 round, and everything around it is vectorised over triangles, edges and segments:
 

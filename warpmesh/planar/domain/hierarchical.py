@@ -1,4 +1,4 @@
-"""The hierarchical approach of seed §16.5.2 through Shewchuk's Triangle (cross-check).
+"""The hierarchical approach of [FG §16.5.2] through Shewchuk's Triangle (cross-check).
 
 The boundary polyline (domain on the left) is handed to the optional ``triangle``
 package as a PSLG with the quality switch ``q``. Hole points are not guessed from loop

@@ -1,9 +1,9 @@
-"""Triangle meshes of planar implicit domains {f > 0} (seed §16.5.2).
+"""Triangle meshes of planar implicit domains {f > 0} [FG §16.5.2].
 
 Given the boundary curve as a directed polyline (the domain on the LEFT of each
 segment, as every curve sampler returns it), two approaches:
 
-``method="global"`` (the seed's global approach)
+``method="global"`` (the book's global approach)
     1. a size function: the boundary edge size at the boundary, growing linearly with
        the distance to it (slope ``gradation - 1``), capped by ``size``;
     2. interior points from a covering-up: a quadtree of the box refined until each
@@ -49,6 +49,8 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.planar.domain.delaunay import classify, conform, min_angles, refine, signed_area2
 from warpmesh.planar.domain.smoothing import smooth
 from warpmesh.errors import WarpMeshError
+from warpmesh.cells.quality import triangle_quality
+from warpmesh.planar.domain.hierarchical import mesh_triangle
 
 __all__ = ["mesh_domain_from_boundary", "size_function", "interior_points", "METHODS"]
 
@@ -219,7 +221,7 @@ def mesh_domain_from_boundary(field, points, segments, *, size: float | None = N
     optimize : bool
         Smooth interior vertices afterwards (never lowering the local minimum angle).
     method : {"global", "triangle"}
-        The seed's global approach, or the ``triangle`` package (hierarchical).
+        The book's global approach, or the ``triangle`` package (hierarchical).
 
     Returns
     -------
@@ -227,7 +229,7 @@ def mesh_domain_from_boundary(field, points, segments, *, size: float | None = N
     triangles : (k, 3) int64
         Counter-clockwise (positive areas).
     info : dict
-        ``np``, ``ne``, ``min_angle``, ``mean_q``, ``worst_q`` (seed eq. 16.15, 1 is
+        ``np``, ``ne``, ``min_angle``, ``mean_q``, ``worst_q`` ([FG eq. 16.15], 1 is
         equilateral), ``area``, ``boundary_distance_max`` (of the boundary vertices to
         the curve), ``rounds``, ``converged``, counts of splits and insertions, ``time``.
 
@@ -257,8 +259,6 @@ def mesh_domain_from_boundary(field, points, segments, *, size: float | None = N
         size = max(float(ln.max()), 0.1 * float((pts.max(axis=0) - pts.min(axis=0)).min()))
     stats = {"method": method, "size": float(size)}
     if method == "triangle":
-        from warpmesh.planar.domain.hierarchical import mesh_triangle
-
         p, tris, free = mesh_triangle(field, pts, segs, float(size), float(min_angle), stats)
     else:
         h = size_function(pts, segs, float(size), float(gradation))
@@ -293,8 +293,6 @@ def mesh_domain_from_boundary(field, points, segments, *, size: float | None = N
 
 
 def _report(field, p, tris, free, stats, t0):
-    from warpmesh.cells.quality import triangle_quality
-
     if len(tris) == 0:
         raise WarpMeshError("the domain mesh has no triangle: is the domain on the LEFT of the segments "
                             "(outer loops counter-clockwise)?")

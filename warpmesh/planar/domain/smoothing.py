@@ -1,6 +1,6 @@
 """Smoothing of planar triangle meshes that never lowers the local minimum angle.
 
-The last step of the global approach of seed §16.5.2 is an optimisation on element
+The last step of the global approach of [FG §16.5.2] is an optimisation on element
 shape. Here: Laplacian smoothing of the free (interior) vertices, one independent set at
 a time (no two vertices of a set share a triangle, so each move is judged alone), each
 vertex trying a few steps towards the centroid of its neighbours and keeping the best

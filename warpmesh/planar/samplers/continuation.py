@@ -1,4 +1,4 @@
-"""Continuation samplers of an implicit curve (seed §16.3.1): progression and prediction-correction.
+"""Continuation samplers of an implicit curve [FG §16.3.1]: progression and prediction-correction.
 
 Both start from seed points (:func:`warpmesh.planar.samplers.seeds.find_seeds` by default, one or
 more on every connected component) and follow the curve instead of enumerating a whole
@@ -14,7 +14,7 @@ grid:
   found by bisection.
 * :func:`sample_predictor_corrector` -- *methods by prediction-correction*: walkers step
   along the unit tangent t = (f_y, -f_x) / |grad f| (the domain f > 0 on the left; the
-  seed's H = (-f_y, f_x) of eq. 16.11 is -t), M' = M + h t, and Newton steps (Remark 16.1)
+  book's H = (-f_y, f_x) of [FG eq. 16.11] is -t), M' = M + h t, and Newton steps (Remark 16.1)
   bring M' back onto f = 0. The step h adapts to the curvature so that the chord deviation
   stays below ``tolerance * h`` (h <= 8 tolerance rho); steps that would jump to another
   branch are rejected and halved.
@@ -561,7 +561,7 @@ def _traced_segment(q, tangents, points, segments, floor, slack) -> np.ndarray:
 def sample_predictor_corrector(field: PlanarField, *, tolerance: float = 1e-3, seeds=None,
                                hmin: float | None = None, hmax: float | None = None,
                                max_points: int = 100_000) -> CurveSample:
-    """Curve points by prediction-correction continuation (seed §16.3.1, eq. 16.11, Fig. 16.6).
+    """Curve points by prediction-correction continuation [FG §16.3.1, eq. 16.11, Fig. 16.6].
 
     From each seed a walker predicts M' = M + h t(M) along the unit tangent
     t = (f_y, -f_x) / |grad f| (f > 0 on the left) and corrects M' by Newton steps

@@ -1,4 +1,4 @@
-"""Exhaustive enumeration samplers of an implicit curve (seed §16.3.1 - §16.3.3).
+"""Exhaustive enumeration samplers of an implicit curve [FG §16.3.1 - §16.3.3].
 
 Both samplers cover the box with a regular grid, evaluate f at every node, and treat every
 cell (or Freudenthal triangle) whose corners do not all have the same sign:
@@ -14,7 +14,7 @@ cell (or Freudenthal triangle) whose corners do not all have the same sign:
 Conventions, written once here:
 
 * Sign: a node is inside when f > 0; f == 0 counts as outside (as in all of warpmesh).
-  This is the seed's "modified" binary search of Figure 16.9: when f vanishes at a node, or
+  This is the book's "modified" binary search of Figure 16.9: when f vanishes at a node, or
   on a piece of an edge, the root found is the end of the zero piece next to the positive
   end, never the node itself.
 * Roots: one point per crossing edge, shared by the two cells of the edge, so the output is
@@ -232,7 +232,7 @@ def _empty(info: dict, inside: np.ndarray) -> CurveSample:
 def sample_grid(field: PlanarField, *, resolution: int | tuple = 64, tolerance: float = 1e-3,
                 root: Literal["linear", "bisection", "newton"] = "bisection",
                 decider: Literal["asymptotic", "center"] = "asymptotic") -> CurveSample:
-    """Sample f = 0 by marching squares on a regular grid (seed §16.3.1, exhaustive enumeration).
+    """Sample f = 0 by marching squares on a regular grid [FG §16.3.1, exhaustive enumeration].
 
     Parameters
     ----------
@@ -316,7 +316,7 @@ def sample_grid(field: PlanarField, *, resolution: int | tuple = 64, tolerance: 
 
 def sample_freudenthal(field: PlanarField, *, resolution: int | tuple = 64, tolerance: float = 1e-3,
                        root: Literal["linear", "bisection", "newton"] = "bisection") -> CurveSample:
-    """Sample f = 0 on the Coxeter-Freudenthal triangulation of a regular grid (seed §16.3.1).
+    """Sample f = 0 on the Coxeter-Freudenthal triangulation of a regular grid [FG §16.3.1].
 
     Every grid cell is split by its diagonal from node (i, j) to (i+1, j+1) into two
     triangles; f is linear on each for the purpose of the topology, so a crossed triangle

@@ -1,4 +1,4 @@
-"""Marching-squares and marching-triangles tables, generated from base cases (seed §16.3.2).
+"""Marching-squares and marching-triangles tables, generated from base cases [FG §16.3.2].
 
 A cell of the covering-up is a convex polygon with ``n`` corners numbered counter-clockwise
 (the square: c0 = (0, 0), c1 = (1, 0), c2 = (1, 1), c3 = (0, 1); the triangle: c0, c1, c2)
@@ -11,7 +11,7 @@ The 2^4 = 16 square patterns are not typed in: they are generated from four base
 (no crossing; one inside corner; two adjacent inside corners; two diagonal inside
 corners) by the symmetry group of the square (rotations, a reflection, which reverses the
 segments) and the complement (inside <-> outside, which reverses them too). The two
-diagonal patterns 5 and 10 are ambiguous (seed Figure 16.8, Exercise 16.1): each has two
+diagonal patterns 5 and 10 are ambiguous [FG Figure 16.8, Exercise 16.1]: each has two
 variants, ``SEPARATED`` (the inside corners cut off one by one) and ``JOINED`` (the inside
 corners connected through the cell, the outside corners cut off). The complement swaps
 the variants, so the generator checks that every entry it reaches twice agrees.

@@ -1,4 +1,4 @@
-"""Continuation by progression (seed §16.3.1): cell tracking on a virtual regular grid.
+"""Continuation by progression [FG §16.3.1]: cell tracking on a virtual regular grid.
 
 The covering-up grows from the cells holding the seeds (:func:`warpmesh.planar.samplers.seeds.find_seeds`
 by default) to the neighbours across crossed edges (a sign change of f at the edge's ends),
@@ -67,7 +67,7 @@ class _NodeCache:
 
 def sample_progression(field: PlanarField, *, resolution: int = 64, tolerance: float = 1e-3,
                        seeds=None, max_cells: int | None = None) -> CurveSample:
-    """Curve points by progression: cell tracking from seed cells (seed §16.3.1, Fig. 16.5).
+    """Curve points by progression: cell tracking from seed cells [FG §16.3.1, Fig. 16.5].
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Adaptive quadtree sampling of an implicit curve (seed §16.3.1, "method by recursive subdivision").
+"""Adaptive quadtree sampling of an implicit curve [FG §16.3.1, "method by recursive subdivision"].
 
 From the bounding box, the cells of one level are processed together (vectorised per
 level; the only Python loops are over levels and bisection iterations):
@@ -7,7 +7,7 @@ level; the only Python loops are over levels and bisection iterations):
    the tape, :meth:`PlanarField.intervals`) excludes 0 holds no point of the curve and
    is dropped. A component is therefore never lost above the finest level: the cells
    holding it are kept down to ``max_level``.
-2. **Criteria** (Fig 16.7): a kept cell is split while one of the seed's criteria fails:
+2. **Criteria** (Fig 16.7): a kept cell is split while one of the book's criteria fails:
 
    - *intersection count*: the sign changes along its four edges (each edge sampled at
      its ends and 3 interior points) are not exactly 2, an edge changes sign more than
@@ -51,7 +51,7 @@ Known limits: a closed component lying inside a leaf that another arc crosses tw
 not seen (no criterion looks inside); a component or pair of crossings smaller than a
 finest cell leaves a kept leaf without segments (counted in ``info["empty_leaves"]``);
 at a singular point the polyline is split at the nearest finest corners (f = 0 counts
-as outside, seed §16.4.2), e.g. the lemniscate gives two loops a finest cell apart.
+as outside, [FG §16.4.2]), e.g. the lemniscate gives two loops a finest cell apart.
 
 Example
 -------
@@ -263,7 +263,7 @@ def _may_vanish(field, lo, hi, depth, cnt):
 
 
 def _level_pass(field, ci, cj, size, origin, rel_tol, max_angle, cnt):
-    """Criteria of seed §16.3.1 on the kept cells (ci, cj) of one level.
+    """Criteria of [FG §16.3.1] on the kept cells (ci, cj) of one level.
 
     Returns ``fails`` (n,) (split the cell), ``empty`` (n,) (no sign change and f cannot
     vanish inside: drop it) and ``total`` (n,) sign changes on the cell boundary."""
@@ -317,7 +317,7 @@ def _level_pass(field, ci, cj, size, origin, rel_tol, max_angle, cnt):
 
 def sample_quadtree(field: PlanarField, *, tolerance: float = 1e-3, max_level: int = 10, min_level: int = 2,
                     max_angle: float | None = None, newton: bool = True) -> CurveSample:
-    """Sample f = 0 by adaptive quadtree subdivision with interval culling (seed §16.3.1).
+    """Sample f = 0 by adaptive quadtree subdivision with interval culling [FG §16.3.1].
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""The naive ray-casting sampler of an implicit curve (seed §16.3.1, Fig 16.2).
+"""The naive ray-casting sampler of an implicit curve [FG §16.3.1, Fig 16.2].
 
 The box is crossed by a beam of ``n_rays`` parallel lines at the centres of ``n_rays``
 equal strips (no ray runs along the box boundary). On each line the 1D function is
@@ -225,7 +225,7 @@ def _grid_of_rays(field, n_rays, samples_per_ray, tolerance, cnt):
 
 def sample_rays(field: PlanarField, *, n_rays: int = 64, direction: Literal["x", "y", "both"] = "x",
                 tolerance: float = 1e-3, samples_per_ray: int = 256) -> CurveSample:
-    """Sample f = 0 on a beam of parallel lines: the naive method of seed §16.3.1.
+    """Sample f = 0 on a beam of parallel lines: the naive method of [FG §16.3.1].
 
     Parameters
     ----------

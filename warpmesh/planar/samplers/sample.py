@@ -1,4 +1,4 @@
-"""The result type every curve sampler of seed §16.3.1 returns.
+"""The result type every curve sampler of [FG §16.3.1] returns.
 
 A sampler (grid, Freudenthal, continuation, quadtree, rays) turns a
 :class:`~warpmesh.frep.planar_field.PlanarField` into points on the curve and directed

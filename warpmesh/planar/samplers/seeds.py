@@ -1,6 +1,6 @@
 """Seed points on every connected component of an implicit curve, located automatically.
 
-Continuation methods (seed §16.3.1) need "a starting point M_0 in each connected
+Continuation methods [FG §16.3.1] need "a starting point M_0 in each connected
 component of Γ". :func:`find_seeds` finds them with an interval-arithmetic quadtree:
 
 1. the box is tiled by a coarse grid of ``resolution`` cells along its longer side;

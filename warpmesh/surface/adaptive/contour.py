@@ -1,4 +1,4 @@
-"""Crack-free surfaces on an adaptive octree: face loops closed by fans (seed §16.4.2 on
+"""Crack-free surfaces on an adaptive octree: face loops closed by fans ([FG §16.4.2] on
 the covering-up of :mod:`warpmesh.surface.adaptive.octree`).
 
 Why this method. Marching cubes on leaves of different sizes leaves cracks where a big
@@ -49,7 +49,7 @@ from warpmesh import _conventions as C
 from warpmesh.errors import WarpMeshError
 from warpmesh.surface.adaptive.octree import LEAF, CORNERS, Octree, pack, search, unpack
 from warpmesh.surface.adaptive.qef import mass_points, qef_points
-from warpmesh.frep.tape import run_parallel
+from warpmesh._util.parallel import run_parallel
 
 PROJECT_STEPS = 2  # Newton steps projecting a loop's vertex onto f = 0 (quadratic: it starts within ~h^2/r)
 SPREAD_COS = 0.97  # a loop whose normals all lie within 14 degrees of their mean is smooth: no QEF

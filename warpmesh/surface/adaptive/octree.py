@@ -1,4 +1,4 @@
-"""The adaptive covering-up (seed §16.4.1, Fig. 16.7): an octree built breadth-first.
+"""The adaptive covering-up [FG §16.4.1, Fig. 16.7]: an octree built breadth-first.
 
 Each level's cells are classified in one batch: an interval of f over the cell (or a
 Lipschitz bound around its centre, §16.1.2 "Practical aspects") that excludes 0 culls

@@ -22,11 +22,11 @@ import time
 import numpy as np
 import warp as wp
 
-from warpmesh.surface.pipeline.adaptive import contour as OC
+from warpmesh._conventions import CAP_REF, SURFACE_REF
+from warpmesh.surface.adaptive import contour as OC
 from warpmesh.surface.block_grid import refine_roots
 from warpmesh.surface.adaptive.octree import build_octree
 
-CAP_REF, SURFACE_REF = 2, 1
 NEWTON_STEPS = 4  # safeguarded Newton from the linear estimate (quadratic convergence)
 
 

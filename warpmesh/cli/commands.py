@@ -9,7 +9,7 @@ Examples
 ``warpmesh mesh --volume seg.npy --labels all --method mt -o organs.vtu``
     meshes every label of a segmentation (triangle refs = labels).
 ``warpmesh transform | refine | convert | merge | crack | periodic ...``
-    modify a mesh file (seed ch. 17): see :mod:`warpmesh.cli.modify`.
+    modify a mesh file [FG ch. 17]: see :mod:`warpmesh.cli.modify`.
 ``warpmesh curve | domain --example gear ...``
     mesh a planar curve or domain (seed 16.3, 16.5.2): see :mod:`warpmesh.cli.curves`.
 ``warpmesh info part.ply``
@@ -77,7 +77,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("output", help="mesh file to write")
     r.add_argument("--method", choices=["gibbs", "rcm", "frontal", "frontal-diameter"], default="gibbs")
     r.add_argument("--higher-order", choices=["ball", "graph"], default="ball",
-                   help="nodes other than vertices: by the seed's ball rule (default) or the full graph")
+                   help="nodes other than vertices: by the book's ball rule (default) or the full graph")
     r.add_argument("--reverse", choices=["auto", "yes", "no"], default="auto",
                    help="reverse the numbering (auto: whichever gives the smaller profile)")
     r.add_argument("--reduced", action="store_true", help="quads/hexahedra connect along edges only")
@@ -85,8 +85,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--color", choices=["face", "node"],
                    help="also sort the elements into colour packets (neighbours by face or by node)")
     r.add_argument("--json", action="store_true", help="print the statistics as JSON")
-    from warpmesh.cli.main import curves as cli_curves
-    from warpmesh.cli.main import modify as cli_modify
+    from warpmesh.cli import curves as cli_curves
+    from warpmesh.cli import modify as cli_modify
 
     cli_modify.add_parsers(sub)
     cli_curves.add_parsers(sub)
@@ -189,8 +189,8 @@ def _renumber(wm, args) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     import warpmesh as wm
-    from warpmesh.cli.main import curves as cli_curves
-    from warpmesh.cli.main import modify as cli_modify
+    from warpmesh.cli import curves as cli_curves
+    from warpmesh.cli import modify as cli_modify
     from warpmesh.io.files import check_path
 
     try:

@@ -1,0 +1,68 @@
+"""CPU launches split across cores from Python threads.
+
+Warp's CPU backend runs one launch on one thread; its launches release the GIL, so a 1-D
+launch cut into per-core ranges and launched from Python threads uses every core
+(measured: 1.5x on 2 cores, results identical to one serial launch). On CUDA a launch
+is already parallel: one range.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+import numpy as np
+import warp as wp
+
+__all__ = ["n_workers", "parallel_ranges", "run_parallel"]
+
+
+def n_workers(device) -> int:
+    """Threads to launch CPU kernels from: the machine's cores (at most 8); 1 on CUDA."""
+    return max(1, min(os.cpu_count() or 1, 8)) if wp.get_device(device).is_cpu else 1
+
+
+def parallel_ranges(n: int, device, min_per_worker: int = 1 << 14) -> list[tuple[int, int]]:
+    """Split [0, n) into per-core ranges for CPU launches (one range on CUDA).
+
+    Examples
+    --------
+    >>> parallel_ranges(10, "cpu")   # too small to split
+    [(0, 10)]
+    """
+    k = n_workers(device) if n >= 2 * min_per_worker else 1
+    k = max(1, min(k, n // max(min_per_worker, 1)))
+    edges = np.linspace(0, n, k + 1).astype(int)
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def run_parallel(jobs) -> None:
+    """Run callables concurrently from Python threads; the first exception is re-raised on
+    the calling thread after every job has ended.
+
+    Examples
+    --------
+    >>> out = []
+    >>> run_parallel([lambda: out.append(1), lambda: out.append(2)])
+    >>> sorted(out)
+    [1, 2]
+    """
+    jobs = list(jobs)
+    if len(jobs) == 1:
+        jobs[0]()
+        return
+    errors = []
+
+    def wrap(job):
+        try:
+            job()
+        except BaseException as exc:  # re-raised below, on the calling thread
+            errors.append(exc)
+
+    threads = [threading.Thread(target=wrap, args=(j,)) for j in jobs]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    if errors:
+        raise errors[0]

@@ -1,0 +1,7 @@
+"""``python -m warpmesh.cli``: the same as the ``warpmesh`` command."""
+
+import sys
+
+from warpmesh.cli.commands import main
+
+sys.exit(main())
