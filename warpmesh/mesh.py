@@ -381,8 +381,8 @@ class Mesh:
             (edge-connected; for a mesh of lines only, the connected polylines), ``genus`` (total, ``(2 components - euler) / 2``, only when
             watertight, manifold and oriented), ``area``, ``volume`` (signed: of the
             closed 3D surface, or the sum of the volumes of the tetra, hexahedron, wedge
-            and pyramid cells); ``mean_q``, ``worst_q`` (seed
-            eq. 16.15 over tetra if any, else triangles); ``bounds`` (2, d). Every key of
+            and pyramid cells); ``mean_q``, ``worst_q`` ([FG
+            eq. 16.15] over tetra if any, else triangles); ``bounds`` (2, d). Every key of
             ``self.info`` is included too; computed keys win on a clash.
 
         Examples

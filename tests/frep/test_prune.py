@@ -336,7 +336,7 @@ def test_unique_patterns_edge_cases():
 
 # -- chunks, threads and the item order ------------------------------------------------------------
 def test_many_segments_chunks_threads_and_order(monkeypatch):
-    monkeypatch.setitem(T._CHUNK_POINTS, True, 4 * T.BATCH)  # 4 segments per launch
+    monkeypatch.setitem(T.CHUNK_POINTS, True, 4 * T.BATCH)  # 4 segments per launch
     monkeypatch.setattr(prune, "_MIN_ITEMS_PER_WORKER", 256)
     rng = np.random.default_rng(9)
     shape = random_csg(np.random.default_rng(201), 3)

@@ -175,7 +175,7 @@ def test_values_batches_chunks_and_threads(dev):
     """More points than one launch chunk and than one CPU worker: every point lands in place."""
     import warpmesh.frep.tape as T
 
-    n = 2 * T._CHUNK_POINTS[True] + 12345  # several chunks per worker, ragged last batch
+    n = 2 * T.CHUNK_POINTS[True] + 12345  # several chunks per worker, ragged last batch
     rng = np.random.default_rng(5)
     pts = f32(rng.uniform(-2, 2, (n, 3)))
     shape = wm.sphere(1.0) | wm.box((1.0, 2.0, 0.5))

@@ -49,7 +49,7 @@ def bfs_levels(adj, root) -> dict[int, int]:
 
 
 def george_liu(adj, deg, start):
-    """Seed Step 1, as written: go to the node of minimal degree of the last level while
+    """[FG §17.4] Step 1, as written: go to the node of minimal degree of the last level while
     the depth grows."""
     p, lp = start, bfs_levels(adj, start)
     while True:
@@ -63,7 +63,7 @@ def george_liu(adj, deg, start):
 
 
 def gibbs_levels_reference(adj, lp, lq):
-    """Seed Step 2, as written: pairs (i, j), fixed nodes, then the components of the
+    """[FG §17.4] Step 2, as written: pairs (i, j), fixed nodes, then the components of the
     rest, largest first, on the side that keeps the widest level smaller."""
     depth = max(lp.values()) + 1
     i = {v: lp[v] for v in lp}
@@ -102,7 +102,7 @@ def gibbs_levels_reference(adj, lp, lq):
 
 
 def number_reference(adj, level, depth, start, key):
-    """Seed Step 3 (Gibbs' numbering), one node at a time."""
+    """[FG §17.4] Step 3 (Gibbs' numbering), one node at a time."""
     members = [sorted((v for v in level if level[v] == k), key=lambda v: (key[v], v)) for k in range(depth)]
     num, out = {}, []
 

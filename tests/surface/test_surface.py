@@ -10,7 +10,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 import warpmesh as wm
-import warpmesh.frep.tape as tape_module
+import warpmesh._util.parallel as parallel_module
 from tests.helpers.meshcheck import check_mesh
 from tests.helpers.topology_oracle import CSG_PART_EXPECTED, DEGREE_SIX_EXPECTED, surface_euler
 
@@ -249,7 +249,7 @@ def test_parallel_chunks_match_serial_evaluation(monkeypatch):
     pts = np.random.default_rng(3).uniform(-1.2, 1.2, (200_000, 3))
     parallel = wm.evaluate(shape, pts)
     reference = wm.mesh_surface(shape, bounds=bounds, resolution=64)
-    monkeypatch.setattr(tape_module, "_n_workers", lambda device: 1)
+    monkeypatch.setattr(parallel_module, "n_workers", lambda device: 1)
     serial = wm.evaluate(shape, pts)
     assert np.array_equal(parallel, serial)
     serial_mesh = wm.mesh_surface(shape, bounds=bounds, resolution=64)

@@ -124,7 +124,7 @@ def tetra_quality(points, tetra) -> np.ndarray:
 
 
 def quality_summary(points, cells) -> dict:
-    """Quality figures of a triangle or tetrahedron mesh, as in Table 16.1 of the seed.
+    """Quality figures of a triangle or tetrahedron mesh, as in [FG Table 16.1].
 
     Parameters
     ----------

@@ -13,7 +13,7 @@ Edge numbering
 Examples
 --------
 >>> import numpy as np
->>> from warpmesh import topology
+>>> from warpmesh.cells import topology
 >>> tet = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
 >>> topology.is_watertight(tet), topology.euler_characteristic(None, tet)
 (True, 2)

@@ -11,11 +11,11 @@ Examples
 ``warpmesh transform | refine | convert | merge | crack | periodic ...``
     modify a mesh file [FG ch. 17]: see :mod:`warpmesh.cli.modify`.
 ``warpmesh curve | domain --example gear ...``
-    mesh a planar curve or domain (seed 16.3, 16.5.2): see :mod:`warpmesh.cli.curves`.
+    mesh a planar curve or domain ([FG §16.3, 16.5.2]): see :mod:`warpmesh.cli.curves`.
 ``warpmesh info part.ply``
     prints the statistics of a mesh file.
 ``warpmesh renumber in.msh out.msh --method gibbs``
-    renumbers nodes and elements for a small bandwidth and profile (seed 17.4) and prints
+    renumbers nodes and elements for a small bandwidth and profile ([FG §17.4]) and prints
     the statistics table (Table 17.1).
 """
 
@@ -29,7 +29,7 @@ import numpy as np
 
 
 def _parser() -> argparse.ArgumentParser:
-    from warpmesh.frep.shapes import EXAMPLES
+    from warpmesh.frep.examples import EXAMPLES
 
     p = argparse.ArgumentParser(prog="warpmesh", description="Meshes from implicit geometry.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -65,7 +65,7 @@ def _parser() -> argparse.ArgumentParser:
                         "the shape (about 1.5 s to compile once per structure, cached)")
     m.add_argument("--json", action="store_true", help="print statistics as JSON")
     m.add_argument("--optimize", action="store_true",
-                   help="optimise the mesh for finite elements on the exact surface (seed 16.4.3) and "
+                   help="optimise the mesh for finite elements on the exact surface ([FG §16.4.3]) and "
                         "print the before/after quality table")
     m.add_argument("--simplify", type=float, metavar="FRACTION",
                    help="decimate to about this fraction of the triangles within --max-error")

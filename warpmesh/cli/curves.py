@@ -24,16 +24,16 @@ _DOMAIN_SHOWN = ("np", "ne", "area", "min_angle", "mean_q", "worst_q", "boundary
 def add_parsers(sub) -> None:
     """Add the sub-commands to the ``warpmesh`` parser's sub-parsers."""
     from warpmesh.planar.curves import CURVE_METHODS
-    from warpmesh.frep.shapes2d import EXAMPLES_2D
+    from warpmesh.frep.examples import EXAMPLES_2D
 
-    c = sub.add_parser("curve", help="mesh an implicit curve f(x, y) = 0 with line segments (seed 16.3)")
+    c = sub.add_parser("curve", help="mesh an implicit curve f(x, y) = 0 with line segments ([FG §16.3])")
     c.add_argument("--example", required=True, choices=list(EXAMPLES_2D), help="a bundled planar shape")
     c.add_argument("--method", choices=list(CURVE_METHODS), default="continuation")
     c.add_argument("--tolerance", type=float, default=1e-2, help="relative chord deviation (default 1e-2)")
     c.add_argument("--resolution", type=int, help="cells along the longer side (grid, freudenthal, progression)")
     c.add_argument("--raw", action="store_true", help="the method's raw polyline, no geometric remeshing")
     c.add_argument("--size", type=float, help="largest edge length (a constant size field)")
-    d = sub.add_parser("domain", help="mesh a planar implicit domain f > 0 with triangles (seed 16.5.2)")
+    d = sub.add_parser("domain", help="mesh a planar implicit domain f > 0 with triangles ([FG §16.5.2])")
     d.add_argument("--example", required=True, choices=list(EXAMPLES_2D), help="a bundled planar shape")
     d.add_argument("--size", type=float, help="target edge length (default: box diagonal / 20)")
     d.add_argument("--tolerance", type=float, default=1e-2, help="relative chord deviation of the boundary (default 1e-2)")

@@ -45,17 +45,17 @@ def _motion(p: argparse.ArgumentParser) -> None:
 
 def add_parsers(sub) -> None:
     """Add the sub-commands to the ``warpmesh`` parser's sub-parsers."""
-    t = sub.add_parser("transform", help="apply symmetries, rotations, dilations, translations (seed 17.1.1)",
+    t = sub.add_parser("transform", help="apply symmetries, rotations, dilations, translations ([FG §17.1.1])",
                        description="Applied in this order: --matrix, --scale, --rotate, --mirror, --translate.")
     _io(t, "input")
     _motion(t)
-    r = sub.add_parser("refine", help="refine globally (-n) or locally (--max-length) (seed 17.1.2)")
+    r = sub.add_parser("refine", help="refine globally (-n) or locally (--max-length) ([FG §17.1.2])")
     _io(r, "input")
     r.add_argument("-n", type=int, help="split every element into n^d (default 2 without --max-length)")
     r.add_argument("--max-length", type=float, help="bisect longest edges until every edge is at most this")
     r.add_argument("--vertices", metavar="FILE", help="refine around these vertex indices (.npy or text)")
     r.add_argument("--example", help="project new boundary nodes onto this bundled example shape")
-    c = sub.add_parser("convert", help="split elements into another type (seed 17.1.3)")
+    c = sub.add_parser("convert", help="split elements into another type ([FG §17.1.3])")
     _io(c, "input")
     c.add_argument("--to", required=True, choices=["triangle", "quad", "tetra", "hexahedron"])
     c.add_argument("--quads", choices=["best", "min", "4"],
@@ -64,21 +64,21 @@ def add_parsers(sub) -> None:
     c.add_argument("--hexes", choices=["auto", "5", "6"],
                    help="--to tetra: conforming 5- or 6-tetra split per hexahedron (auto, default), "
                         "all 5 (alternating, structured meshes) or all 6")
-    m = sub.add_parser("merge", help="merge two meshes along their common boundary (seed 17.2)")
+    m = sub.add_parser("merge", help="merge two meshes along their common boundary ([FG §17.2])")
     _io(m, "first", "second")
     m.add_argument("--tolerance", type=float, help="absolute distance under which points merge "
                    "(default 1e-8 of the bounding box)")
     m.add_argument("--refs", action="store_true", help="merge only points with equal refs")
     m.add_argument("--duplicates", choices=["merge", "keep", "drop"], default="merge",
                    help="cells found in both meshes: keep one (default), both, or none")
-    k = sub.add_parser("crack", help="cut the mesh open along interior facets (seed 17.5)")
+    k = sub.add_parser("crack", help="cut the mesh open along interior facets ([FG §17.5])")
     _io(k, "input")
     src = k.add_mutually_exclusive_group(required=True)
     src.add_argument("--ref", type=int, help="the facets of the boundary blocks with this ref")
     src.add_argument("--facets", metavar="FILE", help="(k, 2|3|4) vertex indices (.npy or text)")
     k.add_argument("--side-refs", type=int, nargs=2, metavar=("R1", "R2"),
                    help="refs of the two lips (default: both keep the facet ref)")
-    p = sub.add_parser("periodic", help="repeat a pattern by a transformation and merge (seed 17.5)",
+    p = sub.add_parser("periodic", help="repeat a pattern by a transformation and merge ([FG §17.5])",
                        description="The transformation is built as for 'transform'.")
     _io(p, "input")
     _motion(p)

@@ -93,8 +93,29 @@ def as_expr(value) -> "Expr":
     raise TypeError(f"expected a number or an expression, got {type(value).__name__}")
 
 
+def _shape_like(value) -> bool:
+    """A Shape (a solid with a ``field`` expression), not an expression itself."""
+    return not isinstance(value, Expr) and isinstance(getattr(value, "field", None), Expr)
+
+
 class Expr:
-    """A node of the expression DAG (build with :func:`coords` and operators)."""
+    """A node of the expression DAG (build with :func:`coords` and operators).
+
+    Arithmetic (``+ - * / **``, with numbers and expressions) builds fields; ``|`` and
+    ``&`` (and ``~``) treat an expression as the solid {f > 0}, as a Shape does. Mixed with
+    a :class:`~warpmesh.frep.shapes.Shape`, an expression is promoted to a shape, so
+    ``expr - shape`` is the boolean difference and ``expr | shape`` the union.
+
+    Examples
+    --------
+    >>> import warpmesh as wm
+    >>> x, y, z = wm.coords()
+    >>> ball = 1.0 - (x * x + y * y + z * z)                 # an expression: a field
+    >>> type(ball - wm.sphere(0.5, (1, 0, 0))).__name__      # a boolean difference
+    'Shape'
+    >>> float((ball | (x - 2.0))(2.5, 0, 0)) > 0             # the R-function union
+    True
+    """
 
     __slots__ = ("op", "args", "imm", "__weakref__")
 
@@ -102,7 +123,12 @@ class Expr:
         raise TypeError("build expressions with warpmesh.coords(), numbers and operators")
 
     # -- arithmetic ---------------------------------------------------------------
+    # Against a Shape (anything with a ``field`` that is not an Expr) every operator returns
+    # NotImplemented, so that the Shape's reflected operator answers: ``expr - shape`` is
+    # the boolean difference of the two solids, ``expr + shape`` the sum of the fields.
     def __add__(self, other):
+        if _shape_like(other):
+            return NotImplemented
         o = as_expr(other)
         if o.op == O.CONST:
             return self if o.imm == 0.0 else _node(O.ADDC, (self,), o.imm)
@@ -113,6 +139,8 @@ class Expr:
     __radd__ = __add__
 
     def __sub__(self, other):
+        if _shape_like(other):
+            return NotImplemented
         o = as_expr(other)
         if o.op == O.CONST:
             return self + (-o.imm)
@@ -121,9 +149,13 @@ class Expr:
         return _node(O.SUB, (self, o))
 
     def __rsub__(self, other):
+        if _shape_like(other):
+            return NotImplemented
         return as_expr(other) - self
 
     def __mul__(self, other):
+        if _shape_like(other):
+            return NotImplemented
         o = as_expr(other)
         if o.op == O.CONST:
             if o.imm == 1.0:
@@ -138,6 +170,8 @@ class Expr:
     __rmul__ = __mul__
 
     def __truediv__(self, other):
+        if _shape_like(other):
+            return NotImplemented
         o = as_expr(other)
         if o.op == O.CONST:
             if o.imm == 0.0:
@@ -148,10 +182,29 @@ class Expr:
         return _node(O.DIV, (self, o))
 
     def __rtruediv__(self, other):
+        if _shape_like(other):
+            return NotImplemented
         return as_expr(other) / self
 
     def __neg__(self):
         return _node(O.NEG, (self,))
+
+    # -- booleans: an expression is the solid {f > 0} ------------------------------------
+    def __or__(self, other):
+        """Union of the solids {self > 0} and {other > 0}: the R-function union [FG eq. 16.17]."""
+        if _shape_like(other):
+            return NotImplemented  # Shape.__ror__: a Shape union
+        return runion(self, other)
+
+    __ror__ = __or__
+
+    def __and__(self, other):
+        """Intersection of the solids: the R-function intersection [FG eq. 16.17]."""
+        if _shape_like(other):
+            return NotImplemented
+        return rintersection(self, other)
+
+    __rand__ = __and__
 
     def __invert__(self):
         """The complement of the domain {f > 0}: the expression -f."""

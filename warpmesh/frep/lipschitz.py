@@ -1,6 +1,6 @@
 """A rigorous upper bound of |grad f| over a box: forward-mode interval arithmetic on the DAG.
 
-The seed ('Practical aspects' of §16.1.2) turns a Lipschitz constant lambda of f into a
+[FG §16.1.2] ('Practical aspects') turns a Lipschitz constant lambda of f into a
 distance bound: |f(p)| / lambda is a lower bound of the distance from p to f = 0. This
 module encloses the gradient of a shape's field over boxes: each expression node carries
 an interval of its value, an interval per gradient component and a scalar bound on its

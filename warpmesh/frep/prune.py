@@ -33,7 +33,7 @@ so may a value where the two operands are that close.
 Example
 -------
 >>> import numpy as np, warpmesh as wm
->>> from warpmesh import prune
+>>> from warpmesh.frep import prune
 >>> shape = wm.union(wm.sphere(0.5, (-1, 0, 0)), wm.sphere(0.5, (1, 0, 0)), method="minmax")
 >>> tape = wm.compile_tape(shape)
 >>> root = prune.pool_for_root(tape)
@@ -86,7 +86,7 @@ def selections(tape: Tape) -> np.ndarray:
     Example
     -------
     >>> import warpmesh as wm
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> x, y, z = wm.coords()
     >>> tape = wm.compile_tape(wm.max(wm.min(x, y), 0.5) * z)
     >>> prune.selections(tape).tolist()     # x, y, min, maxc, z, mul
@@ -106,7 +106,7 @@ def n_selections(tape: Tape) -> int:
     Example
     -------
     >>> import warpmesh as wm
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> prune.n_selections(wm.compile_tape(wm.box((1, 1, 1))))   # 3 max(q, 0), max of 3, min(., 0)
     6
     """
@@ -142,7 +142,7 @@ def unique_patterns(choices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Example
     -------
     >>> import numpy as np
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> ch = np.array([[0, 1], [2, 0], [0, 1], [0, 1]], np.uint8)
     >>> patterns, inverse = prune.unique_patterns(ch)
     >>> len(patterns), bool((patterns[inverse] == ch).all()), bool(inverse[0] == inverse[2] != inverse[1])
@@ -202,7 +202,7 @@ class TapePool:
     Example
     -------
     >>> import warpmesh as wm
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> tape = wm.compile_tape(wm.union(wm.sphere(1.0), wm.box((1, 1, 3)), method="minmax"))
     >>> root = prune.pool_for_root(tape)
     >>> root.n_tapes, int(root.length[0]) == len(tape), root.rows.shape[1]
@@ -305,7 +305,7 @@ def build_pool(tape: Tape, patterns: np.ndarray) -> TapePool:
     Example
     -------
     >>> import numpy as np, warpmesh as wm
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> x, y, z = wm.coords()
     >>> tape = wm.compile_tape(wm.min(x * x, y + 1.0))
     >>> pool = prune.build_pool(tape, np.array([[0], [1], [2]], np.uint8))
@@ -401,7 +401,7 @@ def pool_for_root(tape: Tape) -> TapePool:
     Example
     -------
     >>> import warpmesh as wm
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> tape = wm.compile_tape(wm.box((1, 2, 3)))
     >>> pool = prune.pool_for_root(tape)
     >>> pool.start.tolist(), pool.length.tolist() == [len(tape)]
@@ -431,7 +431,7 @@ def pool_from_choices(tape: Tape, choices: np.ndarray) -> tuple[TapePool, np.nda
     Example
     -------
     >>> import numpy as np, warpmesh as wm
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> x, y, _ = wm.coords()
     >>> tape = wm.compile_tape(wm.max(x, y))
     >>> pool, tape_id = prune.pool_from_choices(tape, np.array([[1], [1], [0]], np.uint8))
@@ -488,7 +488,7 @@ def eval_intervals_pruned(tape: Tape, pool: TapePool, tape_id, lo, hi, choices: 
     Example
     -------
     >>> import numpy as np, warpmesh as wm
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> x, y, _ = wm.coords()
     >>> tape = wm.compile_tape(wm.min(x, 0.0))
     >>> ch = np.zeros((2, 1), np.uint8)
@@ -547,7 +547,7 @@ def eval_values_pruned(tape: Tape, pool: TapePool, tape_id, points, device="cpu"
     Example
     -------
     >>> import numpy as np, warpmesh as wm
-    >>> from warpmesh import prune
+    >>> from warpmesh.frep import prune
     >>> x, y, _ = wm.coords()
     >>> tape = wm.compile_tape(wm.max(x, y))
     >>> pool = prune.build_pool(tape, np.array([[1], [2]], np.uint8))   # x, then y

@@ -107,18 +107,60 @@ class Shape:
         """2 for a planar shape (its field does not read z), else 3."""
         return 3 if E.depends_on(self.field, 2) else 2
 
-    # -- booleans -------------------------------------------------------------------
+    # -- booleans (with shapes and expressions) -------------------------------------
     def __or__(self, other):
         return union(self, other)
+
+    def __ror__(self, other):
+        return union(other, self)
 
     def __and__(self, other):
         return intersection(self, other)
 
+    def __rand__(self, other):
+        return intersection(other, self)
+
     def __sub__(self, other):
+        """The boolean difference with a shape or an expression; the field minus a number."""
+        if _is_number(other):
+            return self._offset(-float(other))
         return difference(self, other)
+
+    def __rsub__(self, other):
+        """``expr - shape``: the boolean difference; ``c - shape``: the field c - f."""
+        if _is_number(other):
+            return Shape(float(other) - self.field)
+        return difference(other, self)
 
     def __invert__(self):
         return Shape(-self.field, self.exact)
+
+    # -- arithmetic on the field (with numbers and expressions) ------------------------
+    def _offset(self, c: float) -> "Shape":
+        return Shape(self.field + c, self.exact and c == 0.0)
+
+    def __add__(self, other):
+        """The field plus a number (an offset: ``sphere(1) + 0.1`` grows the ball) or an
+        expression. Two shapes do not add: use ``|`` for their union."""
+        if _is_number(other):
+            return self._offset(float(other))
+        return Shape(self.field + _field_operand(other, "+"))
+
+    __radd__ = __add__
+
+    def __mul__(self, other):
+        """The field times a number or an expression (a positive factor keeps the solid)."""
+        if _is_number(other):
+            return Shape(self.field * float(other), self.exact and float(other) == 1.0)
+        return Shape(self.field * _field_operand(other, "*"))
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, other):
+        return Shape(self.field / (float(other) if _is_number(other) else _field_operand(other, "/")))
+
+    def __rtruediv__(self, other):
+        return Shape((float(other) if _is_number(other) else _field_operand(other, "/")) / self.field)
 
     # -- transforms (substitute the inverse map into the field) --------------------
     def _mapped(self, lin: np.ndarray, off: np.ndarray, scale: float, exact: bool) -> "Shape":
@@ -196,6 +238,19 @@ class Shape:
         inv = np.linalg.inv(m)
         similar = bool(np.isclose(sv.min(), sv.max()))
         return self._mapped(inv, -inv @ t, float(sv.min()), self.exact and similar)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def _field_operand(value, op: str) -> Expr:
+    """An expression to combine arithmetically with a shape's field (never another shape)."""
+    if isinstance(value, Shape):
+        hint = {"+": "'|' for the union"}.get(op, "the fields: a.field {} b.field".format(op))
+        raise TypeError(f"expected a number or an expression on the other side of '{op}' with a Shape, "
+                        f"got a Shape: use {hint}")
+    return as_expr(value)
 
 
 def as_shape(value) -> Shape:

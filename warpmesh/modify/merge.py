@@ -1,6 +1,6 @@
 """Merging two meshes that share an interface [FG §17.2, Figs. 17.7-17.9, Remarks 17.7-17.10].
 
-Three sub-problems, as in the seed:
+Three sub-problems, as in [FG §17.2]:
 
 1. *Common vertices* (:func:`match_points`, in :mod:`warpmesh.modify.merge_hash`): hashing on a virtual grid, vectorised (sorted
    keys + ``searchsorted``), restricted to the intersection of the two bounding boxes

@@ -25,7 +25,7 @@ in code; a sub-element whose reference measure comes out negative is mirrored, s
 children keep their parent's orientation (and surface cells their parent's normal).
 
 Split triangles, quads, hexahedra and wedges are similar to their parent (when it is
-affine); the Kuhn sub-tetrahedra are not (the seed notes it): the octahedra inside the
+affine); the Kuhn sub-tetrahedra are not (the book notes it): the octahedra inside the
 lattice are split along one of their three diagonals, chosen by the order of the
 parent's vertices (the diagonal joins the midpoints of edges 0-2 and 1-3). Each element
 is re-ordered so that this is its SHORTEST diagonal (the choice discussed for "red"

@@ -1,28 +1,14 @@
 """Node creation for higher-order Lagrange elements, and their p-compatibility check.
 
-Seed §17.3.2–§17.3.4: :func:`to_order` builds the Pk mesh of a P1 mesh (edge
+[FG §17.3.2–§17.3.4]: :func:`to_order` builds the Pk mesh of a P1 mesh (edge
 nodes, then face nodes, then interior nodes), places the nodes of boundary edges and
 faces on the exact boundary f = 0 (the isoparametric elements of Fig. 17.10), and
 :func:`jacobians` / :func:`inverted_elements` check Definition 17.3 (a mesh is
 p-compatible when its degree-p elements are valid) through the Jacobian of each
 element's isoparametric map.
 
-==========  ==========================================  ==============================
-P1 type     higher-order types (k = 2, 3, 4)            local node order
-==========  ==========================================  ==============================
-line        line3, line4, line5                         VTK = gmsh
-triangle    triangle6, triangle10, triangle15           VTK = gmsh
-tetra       tetra10, tetra20, tetra35                   VTK (tetra10), gmsh (20, 35)
-quad        quad9 (k = 2 only)                          VTK
-hexahedron  hexahedron27 (k = 2 only)                   VTK
-==========  ==========================================  ==============================
-
-The local order is the one meshio files carry: VTK's where VTK has the type (meshio
-permutes to gmsh's itself), gmsh's where only gmsh has it. Either way the first nodes
-are the vertices, then the nodes of each edge from its first to its second vertex, then
-the nodes inside each face, then those inside the cell (§17.3.4, "local numbering");
-:func:`reference_nodes` gives their reference coordinates ([0, 1] per axis, VTK's
-parametric space), generated from that structure.
+The element types, their local node order and reference nodes are the tables of
+:mod:`warpmesh.cells.lagrange` (P1 type -> order-k type, VTK's or gmsh's node order).
 
 Global numbering (§17.3.4, vectorised): vertices keep their numbers 0..np-1; the j-th
 unique edge (sorted endpoint pairs over every block, in lexicographic order) gets the

@@ -10,7 +10,7 @@ Methods (each takes the symmetric node graph of :func:`warpmesh.numbering.graph.
 returns ``order``: the old node indices in their new order)
 
 ``"gibbs"``
-    The Gibbs method of the seed: Step 1, a pseudo-diameter PQ by the George–Liu
+    The Gibbs method of [FG §17.4]: Step 1, a pseudo-diameter PQ by the George–Liu
     search (start at a node of minimal degree, go to the node of minimal degree of the
     last level while the depth grows); Step 2, the level structure that combines the
     descents D(P) and D(Q) — pairs (i, j), nodes with i = j fixed, the remaining
@@ -32,7 +32,7 @@ returns ``order``: the old node indices in their new order)
 Every method handles several connected components (each numbered in turn, in the order
 of its smallest old index; nodes in no element go last). ``reverse="auto"`` keeps
 the numbering or its reverse, whichever has the smaller profile (both are measured,
-O(nnz)); the seed decides the reversal in advance from the degrees of P and Q and the
+O(nnz)); the book decides the reversal in advance from the degrees of P and Q and the
 side chosen for the first component — measuring is as cheap and never worse.
 
 Statistics (:func:`matrix_stats`, Table 17.1): bandwidth β = max_i (i − j_i), profile
@@ -276,7 +276,7 @@ class _Graph:
 
 
 def _pseudo_diameters(g: _Graph, start: np.ndarray, start_level: np.ndarray):
-    """Seed Step 1 (George–Liu) in every component: from ``start`` (whose descents are
+    """[FG §17.4] Step 1 (George–Liu) in every component: from ``start`` (whose descents are
     ``start_level``), Q is the node of minimal degree of the last level (ties: smallest
     index); while D(Q) is deeper than D(P), Q becomes P and the search goes on. Each
     round works on the components still going only.

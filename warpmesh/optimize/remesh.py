@@ -148,16 +148,21 @@ class _Run:
         length = np.linalg.norm(self.s.points[a] - self.s.points[b], axis=1)
         return self._split_edges(topo, np.flatnonzero(length > SPLIT_ABOVE * 0.5 * (self.h[a] + self.h[b])))
 
-    def cap_pass(self, q_limit: float) -> int:
-        """Split the longest edge of flat ("cap") triangles worse than ``q_limit``."""
+    def _bad_triangles(self, q_limit: float):
+        """(topology, triangles worse than ``q_limit``, their edge lengths (k, 3)); edge j
+        runs from corner j to corner j + 1."""
         s = self.s
         topo = s.topology()
         p, t = s.points, s.triangles
-        q = quality_of(p[t])
-        bad = np.flatnonzero(q > q_limit)
+        bad = np.flatnonzero(quality_of(p[t]) > q_limit)
+        lens = np.stack([np.linalg.norm(p[t[bad, (j + 1) % 3]] - p[t[bad, j]], axis=1) for j in range(3)], 1)
+        return topo, bad, lens
+
+    def cap_pass(self, q_limit: float) -> int:
+        """Split the longest edge of flat ("cap") triangles worse than ``q_limit``."""
+        topo, bad, lens = self._bad_triangles(q_limit)
         if len(bad) == 0:
             return 0
-        lens = np.stack([np.linalg.norm(p[t[bad, (j + 1) % 3]] - p[t[bad, j]], axis=1) for j in range(3)], 1)
         srt = np.sort(lens, axis=1)
         cap = srt[:, 2] ** 2 > srt[:, 0] ** 2 + srt[:, 1] ** 2 - srt[:, 0] * srt[:, 1]  # largest angle > 120
         edges = np.unique(topo.face_edges[bad[cap], lens[cap].argmax(1)])
@@ -522,14 +527,9 @@ class _Run:
 
     def needle_pass(self, q_limit: float) -> int:
         """Collapse the shortest edge of triangles worse than ``q_limit`` when it is short."""
-        s = self.s
-        topo = s.topology()
-        p, t = s.points, s.triangles
-        q = quality_of(p[t])
-        bad = np.flatnonzero(q > q_limit)
+        topo, bad, lens = self._bad_triangles(q_limit)
         if len(bad) == 0:
             return 0
-        lens = np.stack([np.linalg.norm(p[t[bad, (j + 1) % 3]] - p[t[bad, j]], axis=1) for j in range(3)], 1)
         j = lens.argmin(1)
         short = lens[np.arange(len(bad)), j] < 0.6 * np.sort(lens, axis=1)[:, 1]
         mask = np.zeros(len(topo.edges), bool)

@@ -1,10 +1,10 @@
 """Size fields for surface optimisation: the target edge length h(x) of a unit mesh.
 
-Seed §16.2.2: a mesh is *unit* (Definition 16.4) when its edge lengths measured in the
+[FG §16.2.2]: a mesh is *unit* (Definition 16.4) when its edge lengths measured in the
 metric of the size field are close to 1, and *geometric* when the chord deviation of
 every edge stays below the tolerance. An edge of length h on a curve of curvature κ
 deviates by the sagitta δ ≈ h² κ / 8, so ``δ ≤ tolerance`` gives
-``h ≤ sqrt(8 tolerance / κ)`` (the relative form δ ≤ εh of the seed is
+``h ≤ sqrt(8 tolerance / κ)`` (the relative form δ ≤ εh of the book is
 ``h ≤ 8 ε / κ``, ``relative=True``).
 
 A size field here is any callable ``h(points) -> (n,) float``; :func:`size_field` builds

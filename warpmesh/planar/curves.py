@@ -1,7 +1,7 @@
 """Meshes of implicit curves and planar implicit domains: the public entry points.
 
-:func:`mesh_curve` samples the curve f(x, y) = 0 with one of the methods of seed
-§16.3.1, then (by default) turns the samples into a geometric mesh (§16.2.2): edges whose
+:func:`mesh_curve` samples the curve f(x, y) = 0 with one of the methods of
+[FG §16.3.1], then (by default) turns the samples into a geometric mesh (§16.2.2): edges whose
 chord deviation stays below ``tolerance`` times their length, singular points and
 curvature extrema as vertices, every component closed. :func:`mesh_domain` meshes
 {f > 0} with triangles (§16.5.2): the geometric boundary mesh, interior points from a
@@ -191,7 +191,7 @@ def mesh_domain(shape, bounds, *, size: float | None = None, tolerance: float = 
     """Mesh the planar domain {f > 0} with triangles [FG §16.5.2].
 
     The boundary is the geometric mesh of f = 0 (:func:`mesh_curve` with ``boundary`` as
-    the covering-up, edges at most ``size``); then either the global approach of the seed
+    the covering-up, edges at most ``size``); then either the global approach of [FG §16.5.2]
     (interior points from a graded covering-up, Delaunay conforming to the boundary,
     refinement of the triangles below ``min_angle``, smoothing; :mod:`warpmesh.planar.domain.pipeline`)
     or, with ``method="triangle"``, the hierarchical approach handing the boundary to

@@ -2,8 +2,8 @@
 
 A sampler (grid, Freudenthal, continuation, quadtree, rays) returns a raw polyline,
 coarse or fine. :func:`geometric_mesh` remeshes it so that each edge of length h stays
-within delta <= eps h of the curve [FG §16.2.2], following the general scheme of the
-seed:
+within delta <= eps h of the curve [FG §16.2.2], following the general scheme of
+[FG §16.2.2]:
 
 1. mandatory vertices: the singular points (each pass of a chain near one is replaced
    by the exact point, shared by all passes: the lemniscate becomes two loops through

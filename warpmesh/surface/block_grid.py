@@ -335,8 +335,8 @@ FD_STEP = 1.0e-2  # finite-difference step, as a fraction of the cell size (seed
 
 
 def gradients(tape, points: wp.array, out: wp.array, scheme: str, h, evaluator="interpreter") -> wp.array:
-    """(f, grad f) at points: exact forward mode, or finite differences of f alone (seed
-    eq. 16.13 forward, 16.14 centred) with steps ``FD_STEP * h`` per axis."""
+    """(f, grad f) at points: exact forward mode, or finite differences of f alone ([FG
+    eq. 16.13] forward, 16.14 centred) with steps ``FD_STEP * h`` per axis."""
     if scheme == "exact":
         return eval_gradients(tape, points, out, device=points.device)
     dev, n = points.device, points.shape[0]

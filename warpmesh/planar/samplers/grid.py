@@ -5,7 +5,7 @@ cell (or Freudenthal triangle) whose corners do not all have the same sign:
 
 * :func:`sample_grid` - marching squares on the grid cells, the 16 patterns of
   :mod:`warpmesh.planar.samplers.marching_squares`; the two ambiguous patterns (diagonal corners of the
-  same sign, seed Figure 16.8 / Exercise 16.1) are resolved by the asymptotic decider (the
+  same sign, [FG Fig. 16.8, Exercise 16.1]) are resolved by the asymptotic decider (the
   sign of the bilinear interpolant at its saddle) or by the sign of f at the cell centre.
 * :func:`sample_freudenthal` - each cell split by its diagonal (i, j) -> (i+1, j+1) into
   two triangles (Coxeter-Freudenthal); a crossed triangle gives exactly one segment, so no

@@ -30,7 +30,7 @@ level; the only Python loops are over levels and bisection iterations):
    and sagitta s = R (1 - cos(theta/2)), so s / c = tan(theta/4) / 2 ~ theta / 8. Asking
    s <= eps c (``tolerance`` = eps, a chord deviation relative to the chord length) gives
    ``max_angle = 4 atan(2 eps)`` (~ 8 eps radians).
-3. **Conforming polyline.** The tree is not balanced (the seed does not ask for the 2:1
+3. **Conforming polyline.** The tree is not balanced (the book does not ask for the 2:1
    rule). Each leaf side is split at the corners of the smaller kept leaves that touch
    it, so two neighbours share the same *elementary edges*; one crossing point is
    computed per elementary edge whose end signs differ (bisection to ``tolerance`` times

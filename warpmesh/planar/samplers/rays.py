@@ -33,7 +33,7 @@ crossings on its four ray pieces are joined around its boundary like a quadtree 
 positive corners are connected through the cell when f > 0 at its centre). The margins
 outside the outermost rays are not covered.
 
-**Failure modes** (the seed: no a-priori criterion fixes the rays): a component lying
+**Failure modes** ([FG §16.3.1]: no a-priori criterion fixes the rays): a component lying
 between two rays is missed; a part crossing a ray over less than a sample spacing (near
 tangency) is missed; a component crossing a single ray comes out as a flat loop of two
 opposite segments on that ray; turning points are cut flat, so horizontal and vertical

@@ -3,7 +3,7 @@
 Each level's cells are classified in one batch: an interval of f over the cell (or a
 Lipschitz bound around its centre, §16.1.2 "Practical aspects") that excludes 0 culls
 the cell as wholly inside or outside; the other cells are refined while a criterion of
-the seed fails (after [Schmidt-1993]):
+[FG §16.4.1] fails (after [Schmidt-1993]):
 
 - signs: the corner signs must form one connected inside set and one connected outside
   set (one sheet through the cell); a cell whose interval holds 0 but whose corners
