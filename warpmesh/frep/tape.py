@@ -265,7 +265,7 @@ def value_gradient_at(tape: Tape, points: np.ndarray, device="cpu") -> tuple[np.
     --------
     >>> import numpy as np, warpmesh as wm
     >>> f, g = value_gradient_at(tape_of(wm.sphere(1.0)), np.array([[2.0, 0.0, 0.0]]))
-    >>> float(f[0]), g.round(6).tolist()
+    >>> float(f[0]), (g.round(6) + 0.0).tolist()
     (-1.0, [[-1.0, 0.0, 0.0]])
     """
     p = np.asarray(points)

@@ -275,7 +275,7 @@ def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path
     >>> from warpmesh.mesh import Mesh
     >>> m = Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]})
     >>> with tempfile.TemporaryDirectory() as d:
-    ...     load(save(m, os.path.join(d, "t.vtu")), dim=2).n_cells
+    ...     load(save(m, os.path.join(d, "t.vtu")), mesh_type=Mesh, dim=2).n_cells
     1
     """
     return save_mesh(mesh, path, file_format, stacklevel=2)
