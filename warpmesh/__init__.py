@@ -78,6 +78,7 @@ from warpmesh.frep.tape import Tape as Tape
 from warpmesh.frep.tape import compile_tape as compile_tape
 from warpmesh.frep.tape import evaluate as evaluate
 from warpmesh.frep.tape import evaluate_interval as evaluate_interval
+from warpmesh.cells.intersections import check as check
 from warpmesh.cells.quality import quality_summary as quality_summary
 from warpmesh.cells.quality import tetra_quality as tetra_quality
 from warpmesh.cells.quality import triangle_quality as triangle_quality
@@ -91,14 +92,19 @@ from warpmesh.planar.curves import mesh_curve as mesh_curve
 from warpmesh.planar.curves import mesh_domain as mesh_domain
 from warpmesh.surface.orientation import orient as orient
 from warpmesh.surface.orientation import orient_faces as orient_faces
+from warpmesh.surface.options import AdaptiveOptions as AdaptiveOptions
+from warpmesh.surface.options import ContinuationOptions as ContinuationOptions
+from warpmesh.surface.options import GridOptions as GridOptions
+from warpmesh.surface.options import VolumeOptions as VolumeOptions
 from warpmesh.surface.pipeline import mesh_surface as mesh_surface
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Mesh", "load", "to_order", "renumber", "mesh_surface", "mesh_curve", "mesh_domain", "optimize",
+    "Mesh", "load", "to_order", "renumber", "mesh_surface", "GridOptions", "ContinuationOptions",
+    "AdaptiveOptions", "VolumeOptions", "mesh_curve", "mesh_domain", "optimize",
     "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
-    "triangle_quality", "tetra_quality", "quality_summary",
+    "triangle_quality", "tetra_quality", "quality_summary", "check",
     "Shape", "Expr", "coords", "sqrt", "sin", "cos", "exp", "log",
     "sphere", "box", "cylinder", "cone", "torus", "ellipsoid", "halfspace", "capsule",
     "superquadric", "supertorus", "union", "intersection", "difference", "complement",

@@ -41,6 +41,7 @@ import meshio
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh.cells import intersections as _intersections
 from warpmesh.cells import topology as _topo
 from warpmesh.cells.quality import quality_summary, tetra_quality, triangle_quality
 from warpmesh.cells.reference import cell_measures
@@ -333,6 +334,7 @@ class Mesh:
             "genus",
             "area",
             "volume",
+            "self_intersections",
         ):
             s[key] = None
         if len(tri):
@@ -351,6 +353,8 @@ class Mesh:
                 s["volume"] = _topo.signed_volume(self._points, tri)
         if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
             s["components"] = components(self._cells["line"], self.n_points)[0]
+        if len(tri) or ("line" in self._cells and self.dim == 2):
+            s["self_intersections"] = len(self._crossings)
         solids = [t for t in ("tetra", "hexahedron", "wedge", "pyramid") if t in self._cells]
         if solids and self.dim == 3:  # signed, exact for the multilinear cells
             s["volume"] = float(sum(cell_measures(self._points, self._cells[t], t).sum() for t in solids))
@@ -368,6 +372,24 @@ class Mesh:
         )
         return s
 
+    @cached_property
+    def _crossings(self) -> np.ndarray:
+        return _intersections.check(self)
+
+    def check(self) -> np.ndarray:
+        """The pairs of crossing cells (triangles; segments of a planar polyline):
+        :func:`warpmesh.cells.intersections.check`. Empty when the mesh is embedded.
+
+        Examples
+        --------
+        >>> m = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.2, 0.2, -1], [0.2, 0.2, 1], [2, 2, 0]],
+        ...          {"triangle": [[0, 1, 2], [3, 4, 5]]})
+        >>> m.check().tolist()
+        [[0, 1]]
+        """
+        out = self._crossings.copy()
+        return out
+
     def stats(self) -> dict:
         """Counts, topology, measures and quality, merged over ``self.info``.
 
@@ -381,7 +403,9 @@ class Mesh:
             (edge-connected; for a mesh of lines only, the connected polylines), ``genus`` (total, ``(2 components - euler) / 2``, only when
             watertight, manifold and oriented), ``area``, ``volume`` (signed: of the
             closed 3D surface, or the sum of the volumes of the tetra, hexahedron, wedge
-            and pyramid cells); ``mean_q``, ``worst_q`` ([FG
+            and pyramid cells); ``self_intersections`` (pairs of crossing triangles, or
+            of crossing segments of a planar polyline: :meth:`check`; 0 for an embedded
+            mesh); ``mean_q``, ``worst_q`` ([FG
             eq. 16.15] over tetra if any, else triangles); ``bounds`` (2, d). Every key of
             ``self.info`` is included too; computed keys win on a clash.
 

@@ -6,7 +6,9 @@ Checks, raising AssertionError with the first offender:
   by at most two of them, and the facets used once (the boundary) form a closed curve or
   surface (each of their own facets used an even number of times), so no hanging node or
   half-shared face goes unnoticed;
-- no cell repeats a vertex.
+- no cell repeats a vertex;
+- embedded: no two planar triangles overlap (2D), no two triangular boundary faces cross
+  (3D) — :func:`warpmesh.cells.intersections.find_self_intersections`.
 
 Returns ``{"measure": total signed area/volume, "n_boundary": boundary facets,
 "boundary_measure": their total length/area, "types": [...]}``.
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from warpmesh.cells.intersections import find_self_intersections
 from warpmesh.cells.reference import cell_measures, corner_jacobians, reference_cell
 
 
@@ -36,7 +39,9 @@ def _keys(rows: np.ndarray, width: int = 4) -> np.ndarray:
     return np.pad(s, ((0, 0), (0, width - s.shape[1])), constant_values=-1)
 
 
-def check_cells(mesh) -> dict:
+def check_cells(mesh, *, embedded: bool = True) -> dict:
+    """See the module docstring; ``embedded=False`` skips the crossing check, for meshes with
+    widthless regions (cracks: the two lips coincide by design)."""
     dim = mesh.dim
     blocks = {t: c for t, c in mesh.cells.items() if t != "vertex" and reference_cell(t).tdim == dim}
     assert blocks, f"no cells of dimension {dim} in {list(mesh.cells)}"
@@ -62,6 +67,10 @@ def check_cells(mesh) -> dict:
         ends = np.bincount(boundary.ravel(), minlength=mesh.n_points)
         assert (ends % 2 == 0).all(), f"open boundary (hanging node?) at vertex {int(np.flatnonzero(ends % 2)[0])}"
         bmeasure = float(np.linalg.norm(mesh.points[boundary[:, 1]] - mesh.points[boundary[:, 0]], axis=1).sum())
+        if embedded and "triangle" in blocks:
+            p3 = np.column_stack([mesh.points, np.zeros(mesh.n_points)])
+            pairs = find_self_intersections(p3, blocks["triangle"])
+            assert len(pairs) == 0, f"{len(pairs)} pairs of overlapping triangles, first {pairs[0].tolist()}"
     else:  # rebuild the boundary faces from the unsorted facet rows (orientation kept)
         b_edges, bmeasure, start = [], 0.0, 0
         for f in facets:
@@ -76,5 +85,10 @@ def check_cells(mesh) -> dict:
         _, ec = np.unique(np.concatenate(b_edges), axis=0, return_counts=True)
         assert (ec % 2 == 0).all(), (f"open boundary surface (hanging node?): {int((ec % 2).sum())} "
                                      "edges used an odd number of times")
+        tri = [f[counts[inv.ravel()[o: o + len(f)]] == 1] for f, o in zip(facets, np.cumsum([0] + [len(f) for f in facets]))]
+        tri = [f for f in tri if f.shape[1] == 3 and len(f)]
+        if embedded and tri:
+            pairs = find_self_intersections(mesh.points, np.concatenate(tri))
+            assert len(pairs) == 0, f"{len(pairs)} pairs of crossing boundary faces, first {pairs[0].tolist()}"
     return {"measure": total, "n_boundary": n_boundary, "boundary_measure": bmeasure,
             "types": list(blocks)}

@@ -12,7 +12,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from warpmesh.frep.planar_field import PlanarField
-from warpmesh.planar.polyline import components, segment_intersections
+from warpmesh.cells.intersections import find_segment_intersections
+from warpmesh.planar.polyline import components
 
 
 def reference_points(field: PlanarField, resolution: int = 1024) -> np.ndarray:
@@ -80,7 +81,7 @@ def check_curve(mesh, shape, bounds, *, n_components: int | None = None, hausdor
     assert len(s) > 0 and s.min() >= 0 and s.max() < len(p)
     length = np.linalg.norm(p[s[:, 1]] - p[s[:, 0]], axis=1)
     assert length.min() > 0, "zero-length segment"
-    crossing = segment_intersections(p, s)
+    crossing = find_segment_intersections(p, s)
     assert len(crossing) == 0, f"{len(crossing)} pairs of segments intersect, e.g. {crossing[:3].tolist()}"
     indeg, outdeg = np.bincount(s[:, 1], minlength=len(p)), np.bincount(s[:, 0], minlength=len(p))
     ends = np.flatnonzero(indeg != outdeg)

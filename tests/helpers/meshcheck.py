@@ -1,8 +1,10 @@
 """``check_mesh``: the one validity check every mesher test runs on its output.
 
-Written with plain numpy/scipy and independent of ``warpmesh.cells.topology``, so a bug there
-cannot hide a bug in a mesher. Import it (``from meshcheck import check_mesh``) or use
-the ``check_mesh`` fixture of ``conftest.py``.
+The combinatorial checks are plain numpy/scipy, independent of ``warpmesh.cells.topology``,
+so a bug there cannot hide a bug in a mesher; the geometric check (no two faces cross) is
+warpmesh's own, cross-checked against pymeshlab in ``tests/cells/test_intersections.py``.
+Import it (``from tests.helpers.meshcheck import check_mesh``) or use the ``check_mesh``
+fixture of ``conftest.py``.
 """
 
 from __future__ import annotations
@@ -10,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
+
+from warpmesh.cells.intersections import find_self_intersections
 
 __all__ = ["check_mesh"]
 
@@ -34,21 +38,26 @@ def _require(bad: np.ndarray, what: str, first) -> None:
         )
 
 
-def check_mesh(mesh_or_points, faces=None, *, closed: bool = True, oriented: bool = True) -> dict:
+def check_mesh(mesh_or_points, faces=None, *, closed: bool = True, oriented: bool = True,
+               embedded: bool = True) -> dict:
     """Assert that a triangle mesh is valid; return a few counts.
 
     Checks, in order: points (n, 2|3) finite; faces (m, 3) integer with indices in
     range; no face with a repeated vertex or zero area; no duplicate face (either
     winding); no edge in more than two faces, and every edge in exactly two when
     ``closed``; no directed edge twice (consistent orientation) when ``oriented``;
-    every vertex's link a single path or cycle (vertex-manifold).
+    every vertex's link a single path or cycle (vertex-manifold); no two faces crossing
+    when ``embedded`` (the geometric check of :func:`warpmesh.cells.intersections.
+    find_self_intersections`, itself cross-checked against pymeshlab in
+    tests/cells/test_intersections.py: a closed, manifold, oriented surface can still
+    pass through itself).
 
     Parameters
     ----------
     mesh_or_points : Mesh, trimesh.Trimesh or (n, 3) float
     faces : (m, 3) int, optional
         Required when the first argument is a points array.
-    closed, oriented : bool
+    closed, oriented, embedded : bool
 
     Returns
     -------
@@ -116,6 +125,11 @@ def check_mesh(mesh_or_points, faces=None, *, closed: bool = True, oriented: boo
     pieces = np.unique(nodes // n * n_comp + labels, return_counts=True)[0] // n_comp
     fans = np.bincount(pieces, minlength=n)
     _require(fans > 1, "non-manifold vertices (link not one fan)", lambda i: f"{i}: {fans[i]} fans")
+    if embedded:
+        p3 = np.column_stack([points, np.zeros(n)]) if points.shape[1] == 2 else points
+        pairs = find_self_intersections(p3, faces)
+        _require(np.isin(np.arange(m), pairs.ravel()), f"faces crossing another ({len(pairs)} pairs)",
+                 lambda i: f"{face(i)} crosses face(s) {pairs[(pairs == i).any(axis=1)].ravel()[:6].tolist()}")
     return {
         "n_points": n,
         "n_faces": m,

@@ -19,7 +19,8 @@ from warpmesh.planar.domain.delaunay import classify, delaunay, min_angles
 from warpmesh.planar.domain.pipeline import mesh_domain_from_boundary
 from warpmesh.planar.domain.smoothing import smooth
 from warpmesh.errors import WarpMeshError
-from warpmesh.planar.polyline import components, segment_intersections, weld
+from warpmesh.cells.intersections import find_segment_intersections
+from warpmesh.planar.polyline import components, weld
 from warpmesh.cells.quality import triangle_quality
 
 
@@ -158,7 +159,7 @@ def test_csg_domains(name, n, holes):
     shape, bounds = wm.example(name)
     field = PlanarField(shape, bounds)
     bp, bs = grid_boundary(field, n)
-    assert len(segment_intersections(bp, bs)) == 0
+    assert len(find_segment_intersections(bp, bs)) == 0
     p, tris, info = mesh_domain_from_boundary(field, bp, bs)
     bnd = check_domain_mesh(p, tris, holes=holes)
     assert info["min_angle"] >= 28.0  # acceptance: >= 25

@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from warpmesh.planar.polyline import chain_segments, chains, components, orient_segments, segment_intersections, weld
+from warpmesh.cells.intersections import find_segment_intersections
+from warpmesh.planar.polyline import chain_segments, chains, components, orient_segments, weld
 
 RNG = np.random.default_rng(11)
 
@@ -57,13 +58,13 @@ def test_segment_intersections_finds_crossings_only():
     t = np.linspace(0, 2 * np.pi, 200, endpoint=False)
     circle = np.column_stack([np.cos(t), np.sin(t)])
     segs = _cycle(np.arange(200))
-    assert len(segment_intersections(circle, segs)) == 0
+    assert len(find_segment_intersections(circle, segs)) == 0
     pts = np.vstack([circle, [[-2.0, 0.01], [2.0, 0.01]]])
-    hits = segment_intersections(pts, np.vstack([segs, [[200, 201]]]))
+    hits = find_segment_intersections(pts, np.vstack([segs, [[200, 201]]]))
     assert len(hits) == 2 and np.all(hits[:, 1] == 200)
     # a long segment spanning many buckets against many short ones
     square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
-    assert len(segment_intersections(square, np.array([[0, 2], [1, 3]]))) == 1
+    assert len(find_segment_intersections(square, np.array([[0, 2], [1, 3]]))) == 1
 
 
 def test_weld_merges_close_points_and_drops_collapsed_segments():

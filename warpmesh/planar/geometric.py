@@ -48,7 +48,8 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.planar.metric import SizeOption, check_tolerance
 from warpmesh.planar.samplers.sample import CurveSample
 from warpmesh.errors import TopologyError
-from warpmesh.planar.polyline import chains, components, segment_intersections, weld
+from warpmesh.cells.intersections import find_segment_intersections
+from warpmesh.planar.polyline import chains, components, weld
 
 __all__ = ["geometric_mesh"]
 
@@ -622,7 +623,7 @@ def _check_dense(d: _Dense):
     gap = np.abs(i - j)
     neighbours = (d.cid[i] == d.cid[j]) & ((gap <= 1) | (closed & (gap >= count - 2)))
     overlap = (dist < 0.25 * np.minimum(local[i], local[j])) & ~twin & ~neighbours & (i != j)
-    cross = np.zeros((int(overlap.sum()), 2)) if overlap.any() else segment_intersections(*_assemble(d))
+    cross = np.zeros((int(overlap.sum()), 2)) if overlap.any() else find_segment_intersections(*_assemble(d))
     if len(cross):
         raise TopologyError(f"the sample's polyline, projected onto the curve, crosses or overlaps itself "
                             f"({len(cross)} pairs): its topology is not the curve's; sample the curve finer")
@@ -673,7 +674,7 @@ def _verify(d: _Dense, out: _Out, eps, hmin):
                                 + fscale / np.maximum(np.linalg.norm(g, axis=1), _TINY))
         bad = dev > eps * h + noise
         points, segments = _assemble(out)
-        cross = segment_intersections(points, segments)
+        cross = find_segment_intersections(points, segments)
         bad[cross.ravel()] = True
         bad &= h > 2.0 * hmin
         if not bad.any() or (rounds > 2 and len(cross) >= history[-2] > 0):  # crossings must go

@@ -24,7 +24,7 @@ from scipy.sparse.csgraph import connected_components
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 
-__all__ = ["chains", "chain_segments", "components", "orient_segments", "weld", "segment_intersections"]
+__all__ = ["chains", "chain_segments", "components", "orient_segments", "weld"]
 
 _TINY = 1.0e-30
 
@@ -131,58 +131,3 @@ def chain_segments(chain: np.ndarray, closed: bool) -> np.ndarray:
     if closed:
         return np.column_stack([c, np.roll(c, -1)])
     return np.column_stack([c[:-1], c[1:]])
-
-
-def segment_intersections(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
-    """Pairs (k, 2) of segments that cross or touch, other than neighbours sharing a vertex.
-
-    Candidates come from a uniform bucket grid of the segments' boxes (cell of the mean
-    segment length), then an exact orientation test on each pair.
-    """
-    p = np.asarray(points, REAL_DTYPE)
-    s = np.asarray(segments, INDEX_DTYPE).reshape(-1, 2)
-    if len(s) < 2:
-        return np.zeros((0, 2), INDEX_DTYPE)
-    a, b = p[s[:, 0]], p[s[:, 1]]
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    cell = max(float(np.linalg.norm(b - a, axis=1).mean()), _TINY)
-    origin = lo.min(axis=0)
-    ilo = np.floor((lo - origin) / cell).astype(np.int64)
-    ihi = np.floor((hi - origin) / cell).astype(np.int64)
-    span = ihi - ilo + 1
-    reps = span[:, 0] * span[:, 1]
-    seg_id = np.repeat(np.arange(len(s)), reps)
-    start = np.repeat(np.cumsum(reps) - reps, reps)
-    k = np.arange(len(seg_id)) - start
-    cx = ilo[seg_id, 0] + k // span[seg_id, 1]
-    cy = ilo[seg_id, 1] + k % span[seg_id, 1]
-    key = cx * (int(ihi[:, 1].max()) + 2) + cy
-    order = np.argsort(key, kind="stable")
-    key, seg_id = key[order], seg_id[order]
-    brk = np.flatnonzero(np.diff(key)) + 1
-    starts = np.concatenate([[0], brk])
-    counts = np.diff(np.concatenate([starts, [len(key)]]))
-    pairs = []
-    for c in np.unique(counts[counts > 1]):  # one vectorised pass per bucket size
-        st = starts[counts == c]
-        iu, ju = np.triu_indices(int(c), 1)
-        pairs.append(np.column_stack([seg_id[st[:, None] + iu[None]].ravel(), seg_id[st[:, None] + ju[None]].ravel()]))
-    if not pairs:
-        return np.zeros((0, 2), INDEX_DTYPE)
-    pr = np.unique(np.sort(np.concatenate(pairs), axis=1), axis=0)
-    i, j = pr[:, 0], pr[:, 1]
-    share = (s[i, :, None] == s[j, None, :]).any(axis=(1, 2))
-    i, j = i[~share], j[~share]
-
-    def orient(p0, p1, q):
-        d1, d2 = p1 - p0, q - p0
-        return d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-
-    o1, o2 = orient(a[i], b[i], a[j]), orient(a[i], b[i], b[j])
-    o3, o4 = orient(a[j], b[j], a[i]), orient(a[j], b[j], b[i])
-    hit = (o1 * o2 <= 0) & (o3 * o4 <= 0)
-    # collinear pairs pass the sign test; keep them only when their boxes overlap
-    col = (o1 == 0) & (o2 == 0)
-    overlap = np.all((np.maximum(lo[i], lo[j]) <= np.minimum(hi[i], hi[j])), axis=1)
-    hit &= ~col | overlap
-    return np.column_stack([i[hit], j[hit]]).astype(INDEX_DTYPE)

@@ -1,9 +1,10 @@
-"""Surface meshes of implicit shapes and sampled volumes (seed §16.4): the host pipeline.
+"""Surface meshes of implicit shapes and sampled volumes [FG §16.4]: the host pipeline.
 
-validate -> build the grid -> cull blocks (interval arithmetic on the tape, or exact
-block ranges of the volume) -> sample the surviving blocks -> marching cubes in kernels
-(one vertex per crossing edge, welded by construction) -> optional root refinement on
-the exact function -> host stage (numpy arrays, orientation check, statistics).
+validate (one options group per pipeline, :mod:`warpmesh.surface.options`) -> build the
+grid -> cull blocks (interval arithmetic on the tape, or exact block ranges of the
+volume) -> sample the surviving blocks -> marching cubes in kernels (one vertex per
+crossing edge, welded by construction) -> optional root refinement on the exact
+function -> host stage (numpy arrays, orientation check, statistics).
 
 Example
 -------
@@ -16,7 +17,7 @@ Example
 
 from __future__ import annotations
 
-import math
+import dataclasses
 import time
 import warnings
 from typing import Literal
@@ -25,392 +26,310 @@ import numpy as np
 import warp as wp
 
 from warpmesh import _conventions as C
-from warpmesh.surface.block_grid import GRADIENTS, METHODS, BlockGrid, gradients, refine_roots
-from warpmesh.frep.codegen import EVALUATORS, Evaluator
 from warpmesh.errors import WarpMeshError
 from warpmesh.frep.expr import Expr
+from warpmesh.frep.shapes import Shape
+from warpmesh.frep.tape import tape_of
 from warpmesh.kernels import block_grid as KB
 from warpmesh.kernels import emit as KE
 from warpmesh.mesh import Mesh
-from warpmesh.frep.shapes import Shape
-from warpmesh.frep.tape import tape_of
+from warpmesh.surface.block_grid import BlockGrid, gradients, refine_roots
 from warpmesh.surface.continuation import grow_cells
-from warpmesh.surface.volume import SLAB_VOXELS, check_closed_outward, check_labels, extract_volume
+from warpmesh.surface.options import (AdaptiveOptions, ContinuationOptions, GridOptions, SurfaceOptions,
+                                      VolumeOptions, check_choice)
+from warpmesh.surface.volume import check_closed_outward, check_labels, extract_volume
 
-Method = Literal["mc33", "mt", "mc"]
-RootMethod = Literal["linear", "bisection", "newton"]
-_ROOTS = ("linear", "bisection", "newton")
 RAY_LINES = 32  # continuation's automatic seeds: rays along 32 grid lines per axis (every 8th at least)
-MAX_RESOLUTION = 2048  # 2048^3 cells: 16.8 M blocks of 8^3, about 1 GB of block bookkeeping
+COVERINGS = ("grid", "continuation")
 
-def _check_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
-    if bounds is None:
-        raise ValueError("expected 'bounds' ((x0, y0, z0), (x1, y1, z1)) for a shape, got None")
-    try:
-        b = np.asarray(bounds, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"expected 'bounds' as ((x0, y0, z0), (x1, y1, z1)), got {bounds!r}") from None
-    if b.shape != (2, 3):
-        raise ValueError(f"expected 'bounds' of shape (2, 3), got shape {b.shape}")
-    if not np.all(np.isfinite(b)):
-        raise ValueError(f"expected finite 'bounds', got {b.tolist()}")
-    if np.any(b[1] <= b[0]):
-        raise ValueError(f"expected non-empty 'bounds' (lower < upper on every axis), got {b.tolist()}")
-    return b[0], b[1]
+# -- which pipeline takes which keywords --------------------------------------------------------
+#: per options group: the pipeline as errors name it, and the keywords it does not take
+#: because it always runs with these values (given with that value, they are accepted)
+_PIPELINES: dict[type, tuple[str, dict]] = {
+    GridOptions: ("a shape on a grid", {}),
+    ContinuationOptions: ("a shape with covering='continuation'", {"cull": True}),
+    AdaptiveOptions: ("a shape with adaptive=True", {"cull": True, "normals": False}),
+    VolumeOptions: ("a volume", {"root": "linear", "normals": False}),
+}
+_SHAPE_GROUPS = (GridOptions, ContinuationOptions, AdaptiveOptions)
 
 
-def _check_resolution(resolution, extent: np.ndarray, cap: bool) -> np.ndarray:
-    """Cells per axis: an int is the count along the longest side (cells near-cubic)."""
-    cells = _cells(resolution, extent)
-    if cap and np.any(cells < 2):
-        raise ValueError(f"expected at least 2 cells per axis with cap=True (the boundary nodes are "
-                         f"outside), got {cells.tolist()} from resolution={resolution!r}: raise "
-                         "'resolution' or widen the thin side of 'bounds'")
-    return cells
+def _names(group: type) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(group))
 
 
-def _cells(resolution, extent: np.ndarray) -> np.ndarray:
-    if isinstance(resolution, (bool, np.bool_)):
-        raise TypeError(f"expected an integer 'resolution', got {resolution!r}")
-    if np.ndim(resolution) == 0:
-        if not isinstance(resolution, (int, np.integer)):
-            raise TypeError(f"expected an integer 'resolution', got {type(resolution).__name__}")
-        r = int(resolution)
-        if not 1 <= r <= MAX_RESOLUTION:
-            raise ValueError(f"expected 1 <= 'resolution' <= {MAX_RESOLUTION}, got {r}")
-        h = extent.max() / r
-        return np.maximum(1, np.round(extent / h)).astype(np.int64)
-    cells = np.asarray(resolution)
-    if cells.shape != (3,) or not np.issubdtype(cells.dtype, np.integer):
-        raise ValueError(f"expected an int or 3 ints for 'resolution', got {resolution!r}")
-    if np.any(cells < 1) or np.any(cells > MAX_RESOLUTION):
-        raise ValueError(f"expected 1 <= 'resolution' <= {MAX_RESOLUTION} per axis, got {cells.tolist()}")
-    return cells.astype(np.int64)
+_KEYWORDS = {name for group in _PIPELINES for name in _names(group)}
 
 
-def _refuse(*named, source: str, hint: str) -> None:
-    """Options that do not apply to the source raise instead of being ignored."""
-    given = [name for name, value in named if value is not None]
-    if given:
-        verb = "does" if len(given) == 1 else "do"
-        raise ValueError(f"{', '.join(repr(g) for g in given)} {verb} not apply to {source} ({hint})")
-
-
-def _check_choice(value, name: str, choices) -> None:
-    if value not in choices:
-        raise ValueError(f"Unknown {name} {value!r}. Pick one of {list(choices)}")
-
-
-def _check_volume(volume, spacing, origin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    vol = np.asarray(volume)
-    if vol.ndim != 3:
-        raise ValueError(f"expected a 3D array for 'volume', but got {vol.ndim}D with shape {vol.shape}")
-    if min(vol.shape) < 2:
-        raise ValueError(f"expected at least 2 samples per axis in 'volume', got shape {vol.shape}")
-    if not (np.issubdtype(vol.dtype, np.number) or vol.dtype == np.bool_) or np.iscomplexobj(vol):
-        raise TypeError(f"expected a real numeric 'volume', got dtype {vol.dtype}")
-    sp = np.broadcast_to(np.asarray(spacing, dtype=np.float64), (3,)) if np.ndim(spacing) == 0 else \
-        np.asarray(spacing, dtype=np.float64)
-    if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
-        raise ValueError(f"expected 'spacing' as a positive number or 3 positive numbers, got {spacing!r}")
-    org = np.asarray(origin, dtype=np.float64)
-    if org.shape != (3,) or not np.all(np.isfinite(org)):
-        raise ValueError(f"expected 'origin' as 3 finite numbers, got {origin!r}")
-    return vol, sp, org
-
-
-# -- the pipeline -------------------------------------------------------------------------------
 def mesh_surface(
     source,
     *,
-    method: Method | None = None,
-    covering: Literal["grid", "continuation"] = "grid",
-    seeds=None,
-    bounds=None,
-    resolution: int | tuple[int, int, int] | None = None,
-    level: float | None = None,
-    inside: Literal["above", "below"] | None = None,
-    labels=None,
-    spacing=None,
-    origin=None,
-    root: RootMethod | None = None,
-    root_iterations: int | None = None,
-    gradient: Literal["exact", "central", "forward"] | None = None,
-    cap: bool = True,
-    cull: bool = True,
-    slab_voxels: int | None = None,
-    normals: bool = False,
-    evaluator: Evaluator | None = None,
+    options: SurfaceOptions | None = None,
+    covering: Literal["grid", "continuation"] | None = None,
     adaptive: bool = False,
-    max_level: int | None = None,
-    min_level: int | None = None,
-    tolerance: float | None = None,
-    angles: tuple[float, float] | None = None,
-    chord: float | None = None,
-    bound: Literal["interval", "lipschitz"] | None = None,
-    lipschitz: float | None = None,
-    prune: bool | None = None,
-    features: bool | None = None,
     device: str = C.DEFAULT_DEVICE,
+    **keywords,
 ) -> Mesh:
     """Triangulate the surface f = 0 of a shape, or an iso-surface of a sampled volume.
+
+    Four pipelines, each with one options group (:mod:`warpmesh.surface.options`
+    documents every option):
+
+    - a shape: :class:`~warpmesh.surface.options.GridOptions` (bounds, resolution,
+      method, root, root_iterations, gradient, normals, cap, evaluator, cull);
+    - a shape with ``covering="continuation"``:
+      :class:`~warpmesh.surface.options.ContinuationOptions` (the same without cull,
+      plus seeds);
+    - a shape with ``adaptive=True``: :class:`~warpmesh.surface.options.AdaptiveOptions`
+      (bounds, max_level, resolution, min_level, tolerance, angles, chord, bound,
+      lipschitz, root, root_iterations, gradient, cap, prune, features);
+    - an array: :class:`~warpmesh.surface.options.VolumeOptions` (level, inside, labels,
+      spacing, origin, method, cap, cull, slab_voxels).
+
+    Give the options as keywords (the group is built from them), or as one group
+    built beforehand with ``options=``; not both.
 
     Parameters
     ----------
     source : Shape, Expr or (nx, ny, nz) array
-        A shape (f > 0 inside) or sampled values ``volume[i, j, k]`` at
+        A shape (f > 0 inside), or sampled values ``volume[i, j, k]`` at
         ``origin + (i, j, k) * spacing`` (trilinear in between).
-    method : {'mc33', 'mt', 'mc'}, optional
-        How each cell is triangulated (default "mc33"; not with ``adaptive``) (seed §16.4.2): "mc33" follows the topology of
-        the trilinear interpolant of the corner values (asymptotic decider on faces,
-        interior test for tunnels); "mt" splits every cube into 6 Kuhn tetrahedra
-        (16 configurations, triangles and quadrilaterals split on shape: about 3x the
-        triangles, the topology of the piecewise-linear interpolant); "mc" is the plain
-        table (closed and manifold, but it separates the inside corners of every
-        ambiguous face whatever the values say). All three give closed, 2-manifold,
-        outward-oriented surfaces.
-    covering : {'grid', 'continuation'}, shapes only
-        "grid" samples every block that interval arithmetic cannot cull; "continuation"
-        grows from seed cells across the cell faces the surface crosses and evaluates
-        only the corners of crossed cells (plus rays to find seeds): the same triangles
-        for every component it reaches, far fewer evaluations (``mesh.info``).
-    seeds : (m, 3) points, continuation only
-        Points in cells crossed by the surface to grow from. Default: found by casting
-        rays along 32 grid lines per axis direction and transverse axis (every 8th line
-        on grids up to 256 cells), which finds every component that one of those lines
-        crosses; give a seed for smaller components.
-    bounds : ((x0, y0, z0), (x1, y1, z1)), required for a shape
-        The box sampled; the surface is closed (capped) on it when ``cap``.
-    resolution : int or (3,) ints, shapes only
-        Cells along the longest side of ``bounds`` (near-cubic cells), or per axis;
-        default 128.
-    level : float, volumes only
-        The iso-level (default 0; 0.5 for a bool volume).
-    inside : {'above', 'below'}, volumes only
-        Whether values above (default) or below ``level`` are inside.
-    labels : "all" or sequence of ints, integer volumes only
-        Mesh the boundary of each label's region (the samples equal to it) instead of an
-        iso-surface: "all" takes every value but 0. Each label's surface is closed on its
-        own (with ``cap=True``) (interfaces between two labels appear once per label, with opposite
-        windings); ``mesh.cell_refs["triangle"]`` holds the label of each triangle.
-    spacing, origin : float or (3,) floats, volumes only
-        The sample spacing (default 1) and the position of ``volume[0, 0, 0]`` (default 0).
-    root : {'linear', 'bisection', 'newton'}, optional
-        Vertex placement on a crossing edge: linear interpolation (eq. 16.12), bisection
-        or safeguarded Newton on the exact function (§16.3.3; shapes only). Default
-        "linear", and "newton" with ``adaptive`` (large leaves make linear roots poor).
-    root_iterations : int, optional
-        Iterations of bisection (default 12) or safeguarded Newton (default 10).
-    gradient : {'exact', 'central', 'forward'}, optional
-        How Newton (``root='newton'``) and ``normals`` get grad f: exact forward-mode
-        differentiation of the tape (default), or finite differences of f alone with a
-        step of 1/100 of the cell size, centred (eq. 16.14, error O(h^2), 6 extra
-        evaluations per point) or forward (eq. 16.13, O(h), 3 extra).
-    cap : bool
-        Treat the grid boundary as outside, so every surface is closed on the bounds.
-    cull : bool
-        Skip blocks of 8³ cells that cannot hold the surface (interval arithmetic for
-        shapes, exact block ranges for volumes). The mesh is the same either way.
-    slab_voxels : int, volumes only
-        Samples per slab: a volume is processed in slabs of about this many samples
-        along its first axis (default 16 M), whose seams are welded exactly; peak memory
-        grows with the slab, not with the volume.
-    normals : bool
-        Shapes only: store outward unit normals (-∇f / |∇f|) as ``point_data["normals"]``.
-    evaluator : {'auto', 'interpreter', 'compiled'}, shapes only
-        Evaluate with the tape interpreter, or with a kernel generated for the shape's
-        structure (2x faster; about 1.5 s to compile once per structure, cached on disk;
-        constants can change freely). "auto" (default) never waits for a compile: it
-        interprets until a background compile, started when a structure comes back for
-        a second large run, is ready. ``mesh.info["evaluator"]`` says which ran.
-    adaptive : bool, shapes only
-        Mesh on an adaptive octree (seed §16.4.1, :mod:`warpmesh.surface.adaptive.octree`): cells are
-        culled by interval arithmetic on pruned per-cell tapes and refined where the
-        surface is curved, so evaluations follow the surface and triangle sizes follow
-        its curvature; the surface is crack-free across leaves of different sizes by
-        construction, with sharp edges and corners placed by a quadratic error function
-        (:mod:`warpmesh.surface.adaptive.contour`). ``mesh.info`` holds cells per level, tape
-        lengths, ``evaluations`` and the dense grid's count, culled fraction, timings.
-    max_level : int, adaptive only
-        Finest level: 2**max_level cells along the longest side (the resolution
-        equivalent; ``resolution=512`` means max_level=9). Default from ``resolution``
-        (128).
-    min_level : int, adaptive only
-        Cells are refined at least to this level (default min(5, max_level)).
-    tolerance : float, adaptive only
-        The relative chord tolerance epsilon of §16.2.2 (delta <= epsilon h), default
-        0.02: the planarity and divergence angles of the refinement are 4 epsilon.
-    angles : (eps1, eps2), adaptive only
-        The planarity and divergence angles in radians, instead of ``tolerance``.
-    chord : float, adaptive only
-        An absolute chord tolerance (in the units of ``bounds``) instead of the relative
-        one: cells are refined while their chords may deviate more than this from the
-        surface (element sizes then grow as the square root of the curvature radius:
-        the fewest triangles for a given maximum distance). With ``tolerance`` too,
-        both hold.
-    bound : {'interval', 'lipschitz'}, adaptive only
-        How a cell is proven free of the surface: interval arithmetic on the tape
-        (default), or |f(centre)| > L * half-diagonal with ``lipschitz=L`` (for a field
-        whose intervals are too loose; no tape pruning then).
-    lipschitz : float, with bound='lipschitz'
-        A Lipschitz constant of f over the bounds (|f(P) - f(Q)| <= L |P - Q|).
-    prune : bool, adaptive only
-        Evaluate each cell's pruned tape (default True); False evaluates the whole tape.
-    features : bool, adaptive only
-        Sharp edges and corners (default True); False places every loop vertex at its
-        mass point projected onto the surface (smooth, chamfered edges).
+    options : GridOptions, ContinuationOptions, AdaptiveOptions or VolumeOptions, optional
+        All the options of one pipeline; the group's type chooses the pipeline.
+    covering : {'grid', 'continuation'}, optional
+        For a shape, with keywords: "grid" (default) samples every block that interval
+        arithmetic cannot cull; "continuation" grows from seed cells across the cell
+        faces the surface crosses and evaluates only the corners of crossed cells: the
+        same triangles for every component it reaches, far fewer evaluations.
+    adaptive : bool
+        For a shape, with keywords: mesh on an adaptive octree [FG §16.4.1], so
+        evaluations follow the surface and triangle sizes its curvature, with sharp
+        edges and corners.
     device : str
         Warp device ("cpu" or "cuda").
+    **keywords
+        The fields of the chosen pipeline's group, by name. A keyword given as None
+        takes its default. A keyword of another pipeline raises one ValueError that
+        names the pipeline and the keywords it takes; a name no pipeline knows raises
+        TypeError.
 
     Returns
     -------
     Mesh
         ``mesh.cells["triangle"]`` oriented outward (towards f < 0); where caps close
         the surface on the bounds, ``mesh.cell_refs["triangle"]`` is 2 on the caps and 1
-        on the surface f = 0 (no refs when nothing was capped); ``mesh.info`` holds timings per stage and counts
+        on the surface f = 0 (no refs when nothing was capped; the label of each
+        triangle with ``labels``); ``mesh.info`` holds timings per stage and counts
         (``mesh.stats()`` shows them).
 
     Raises
     ------
     ValueError, TypeError
-        Bad arguments, NaN / infinite values, a constant volume.
+        Bad options (from the group, naming the option), options of another pipeline,
+        NaN / infinite values, a constant volume.
 
-    Example
-    -------
+    Examples
+    --------
+    Keywords, for each pipeline:
+
     >>> import numpy as np, warpmesh as wm
+    >>> part, bounds = wm.example("part")
+    >>> grid = wm.mesh_surface(part, bounds=bounds, resolution=32, method="mt")
+    >>> grown = wm.mesh_surface(part, bounds=bounds, resolution=32, covering="continuation")
+    >>> octree = wm.mesh_surface(part, bounds=bounds, adaptive=True, max_level=5, tolerance=0.05)
     >>> g = np.linspace(-1, 1, 40)
     >>> vol = 0.8 - np.sqrt(g[:, None, None]**2 + g[None, :, None]**2 + g[None, None, :]**2)
-    >>> m = wm.mesh_surface(vol, spacing=g[1] - g[0], origin=(-1, -1, -1))
-    >>> m.stats()["euler"]
-    2
+    >>> ball = wm.mesh_surface(vol, spacing=g[1] - g[0], origin=(-1, -1, -1))
+    >>> [m.stats()["euler"] for m in (grid, grown, octree, ball)]
+    [-6, -6, -6, 2]
+
+    The same, with a group built beforehand:
+
+    >>> from warpmesh.surface.options import GridOptions, VolumeOptions
+    >>> opts = GridOptions(bounds=bounds, resolution=32, method="mt")
+    >>> np.array_equal(wm.mesh_surface(part, options=opts).triangles, grid.triangles)
+    True
+    >>> wm.mesh_surface(vol, options=VolumeOptions(spacing=g[1] - g[0], origin=(-1, -1, -1))).n_cells == ball.n_cells
+    True
+
+    An option of another pipeline is refused once, with what this one takes:
+
+    >>> wm.mesh_surface(part, bounds=bounds, level=0.1)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: 'level' does not apply to a shape on a grid ('level' is an option of a volume); GridOptions ...
     """
     t_start = time.perf_counter()
+    if options is None:
+        options = _options_from_keywords(source, covering, adaptive, keywords)
+    else:
+        _check_options(source, options, covering, adaptive, keywords)
+    device = wp.get_device(device)
+    if isinstance(options, VolumeOptions):
+        return _mesh_volume(source, options, device, t_start)
+    if isinstance(options, AdaptiveOptions):
+        return _mesh_adaptive(source, options, device, t_start)
+    return _mesh_grid(source, options, device, t_start)
+
+
+# -- keywords -> the options group ---------------------------------------------------------------
+def _is_shape(source) -> bool:
+    """True for a shape, False for a volume (anything an array can be made of)."""
+    if isinstance(source, (Shape, Expr)):
+        return True
+    if isinstance(source, np.ndarray) or hasattr(source, "__array__"):
+        return False
+    raise TypeError(f"expected a Shape, an expression or a 3D array for 'source', got {type(source).__name__}")
+
+
+def _group_of(source, covering, adaptive) -> type:
+    """The options group, hence the pipeline, of the source and the two selectors."""
     if not isinstance(adaptive, (bool, np.bool_)):
         raise TypeError(f"expected True or False for 'adaptive', got {adaptive!r}")
+    if covering is not None:
+        check_choice(covering, "covering", COVERINGS)
     if adaptive:
-        return _mesh_adaptive(source, locals(), t_start)
-    _refuse(("max_level", max_level), ("min_level", min_level), ("tolerance", tolerance), ("angles", angles),
-            ("chord", chord), ("bound", bound), ("lipschitz", lipschitz), ("prune", prune), ("features", features),
-            source="a grid", hint="they configure adaptive=True")
-    method = "mc33" if method is None else method
-    root = "linear" if root is None else root
-    _check_choice(method, "method", METHODS)
-    _check_choice(covering, "covering", COVERINGS)
-    if seeds is not None and covering != "continuation":
-        raise ValueError(f"'seeds' applies to covering='continuation', got covering={covering!r}")
-    _check_choice(root, "root", _ROOTS)
-    if evaluator is not None:
-        _check_choice(evaluator, "evaluator", EVALUATORS)
-    for name, flag in (("cap", cap), ("cull", cull), ("normals", normals)):
-        if not isinstance(flag, (bool, np.bool_)):
-            raise TypeError(f"expected True or False for '{name}', got {flag!r}")
-    if gradient is not None:
-        _check_choice(gradient, "gradient", GRADIENTS)
-        if root != "newton" and not normals:
-            raise ValueError(f"'gradient' applies to root='newton' or normals=True, got root={root!r} "
-                             "and normals=False")
-    gradient = gradient or "exact"
-    if root_iterations is not None:
-        if root == "linear":
-            raise ValueError("'root_iterations' applies to root='bisection' or 'newton', not 'linear'")
-        if isinstance(root_iterations, bool) or not isinstance(root_iterations, (int, np.integer)) \
-                or not 1 <= root_iterations <= 64:
-            raise ValueError(f"expected 1 <= 'root_iterations' <= 64, got {root_iterations!r}")
-    device = wp.get_device(device)
-    cap_mask = KB.ALL_FACES if cap else 0
-    cell_mask = None
-    timings: dict[str, float] = {}
-    info: dict = {"method": method, "root": root, "device": str(device)}
-
-    if isinstance(source, (Shape, Expr)):
-        _refuse(("level", level), ("inside", inside), ("spacing", spacing), ("origin", origin),
-                ("labels", labels), ("slab_voxels", slab_voxels), source="a shape",
-                hint="they describe sampled volumes")
-        evaluator = evaluator or "auto"
-        lo, hi = _check_bounds(bounds)
-        cells = _check_resolution(128 if resolution is None else resolution, hi - lo, cap)
-        h = (hi - lo) / cells
-        tape = tape_of(source)
-        timings["compile"] = time.perf_counter() - t_start
-        grid = BlockGrid(cells + 1, lo, h, device)
+        if not isinstance(source, (Shape, Expr)):
+            raise TypeError(f"adaptive=True meshes a Shape or an expression (it evaluates the function where "
+                            f"it needs it), got {type(source).__name__} for 'source'")
         if covering == "continuation":
-            cell_mask = _grow(grid, tape, seeds, cap, evaluator, timings, info)
-        else:
-            grid.cull_shape(tape, cull, cap_mask, timings)
-            grid.sample_shape(tape, cull, evaluator, timings)
-        info["tape_length"] = len(tape)
-    elif isinstance(source, np.ndarray) or hasattr(source, "__array__"):
-        _refuse(("bounds", bounds), ("resolution", resolution), ("evaluator", evaluator), source="a volume",
-                hint="a volume's grid is its samples, and there is no function to evaluate")
-        if covering != "grid":
+            raise ValueError(f"adaptive=True is its own covering-up; got covering={covering!r}")
+        return AdaptiveOptions
+    if not _is_shape(source):
+        if covering == "continuation":
             raise ValueError("covering='continuation' saves evaluations of a shape's function; a volume's "
                              "samples are all given: use covering='grid'")
-        if root != "linear":
-            raise ValueError(f"root={root!r} needs the exact function of a shape; a volume's "
-                             "trilinear field is linear along grid edges: use root='linear'")
-        if normals:
-            raise ValueError("normals=True needs a shape; compute them on the mesh for a volume")
-        if labels is not None:
-            _refuse(("level", level), ("inside", inside), source="labels",
-                    hint="each label's surface bounds the samples equal to it")
-            level, inside = 0.5, "above"
-        if slab_voxels is not None and (isinstance(slab_voxels, bool) or not isinstance(
-                slab_voxels, (int, np.integer)) or slab_voxels < 1):
-            raise ValueError(f"expected a positive integer for 'slab_voxels', got {slab_voxels!r}")
-        slab_voxels = SLAB_VOXELS if slab_voxels is None else int(slab_voxels)
-        if level is None:  # a bool volume's surface sits halfway between False and True samples
-            level = 0.5 if np.asarray(source).dtype == np.bool_ else 0.0
-        inside = "above" if inside is None else inside
-        _check_choice(inside, "inside", ("above", "below"))
-        vol, sp, org = _check_volume(source, 1.0 if spacing is None else spacing,
-                                     (0.0, 0.0, 0.0) if origin is None else origin)
-        if isinstance(level, (bool, np.bool_)) or not isinstance(level, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(level):
-            raise ValueError(f"expected a finite number for 'level', got {level!r}")
-        if cap and min(vol.shape) < 3:
-            raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
-                             f"boundary samples are outside), got shape {vol.shape}")
-        return _mesh_volume(vol, org, sp, float(level), 1.0 if inside == "above" else -1.0, labels, method, cap,
-                            cull, device, slab_voxels, timings, info, t_start)
+        return VolumeOptions
+    return ContinuationOptions if covering == "continuation" else GridOptions
+
+
+def _check_names(keywords: dict, takes: str) -> None:
+    unknown = [name for name in keywords if name not in _KEYWORDS]
+    if unknown:
+        s = "s" if len(unknown) > 1 else ""
+        raise TypeError(f"mesh_surface() got an unexpected keyword argument{s} {', '.join(map(repr, unknown))}; "
+                        f"{takes}")
+
+
+def _options_from_keywords(source, covering, adaptive, keywords: dict) -> SurfaceOptions:
+    """Build the chosen pipeline's group from the keywords (None: not given); refuse, in
+    one error, the keywords of other pipelines."""
+    group = _group_of(source, covering, adaptive)
+    names = _names(group)
+    what, fixed = _PIPELINES[group]
+    _check_names(keywords, f"{what} takes {', '.join(names)}")
+    given = {name: value for name, value in keywords.items() if value is not None}
+    refused = [name for name, value in given.items() if name not in names and not _fixed(value, fixed, name)]
+    if refused:
+        raise ValueError(_refusal(group, refused))
+    args = {name: value for name, value in given.items() if name in names}
+    if "bounds" in names:
+        args.setdefault("bounds", None)  # required: the group says what is missing
+    return group(**args)
+
+
+def _fixed(value, fixed: dict, name: str) -> bool:
+    """Whether a keyword the pipeline does not take holds the value it always runs with."""
+    return name in fixed and isinstance(value, (bool, np.bool_, str)) and value == fixed[name]
+
+
+def _refusal(group: type, refused: list[str]) -> str:
+    """One message for the keywords a pipeline does not take: where each belongs, what it takes."""
+    what, fixed = _PIPELINES[group]
+    owners: dict[str, list[str]] = {}  # where the keywords belong -> those keywords
+    for name in refused:
+        if name not in fixed:
+            groups = [g for g in _PIPELINES if name in _names(g)]
+            labels = [_PIPELINES[g][0] for g in groups]
+            if groups == list(_SHAPE_GROUPS):
+                where = "every shape pipeline"
+            else:
+                where = labels[0] if len(labels) == 1 else ", ".join(labels[:-1]) + " and " + labels[-1]
+            owners.setdefault(where, []).append(name)
+    parts = [f"{', '.join(map(repr, names))} {'is an option' if len(names) == 1 else 'are options'} of {where}"
+             for where, names in owners.items()]
+    always = [f"{name}={fixed[name]!r}" for name in refused if name in fixed]
+    if always:
+        parts.append(f"this pipeline always runs with {', '.join(always)}")
+    verb = "does" if len(refused) == 1 else "do"
+    return (f"{', '.join(map(repr, refused))} {verb} not apply to {what} ({'; '.join(parts)}); "
+            f"{group.__name__} takes {', '.join(_names(group))}")
+
+
+def _check_options(source, options, covering, adaptive, keywords: dict) -> None:
+    """``options=``: one of the groups, matching the source, and no option keyword besides."""
+    if not isinstance(options, tuple(_PIPELINES)):
+        raise TypeError(f"expected {', '.join(g.__name__ for g in _PIPELINES)} for 'options', "
+                        f"got {type(options).__name__}")
+    _check_names(keywords, "with options=, give only 'source', 'options' and 'device'")
+    mixed = [name for name, value in keywords.items() if value is not None]
+    mixed += (["covering"] if covering is not None else []) + (["adaptive"] if adaptive is not False else [])
+    if mixed:
+        raise ValueError(f"give the options as options={type(options).__name__}(...) or as keywords, not both: "
+                         f"got {', '.join(map(repr, mixed))} too")
+    if _is_shape(source) != isinstance(options, _SHAPE_GROUPS):
+        what = _PIPELINES[type(options)][0]
+        expected = "a Shape or an expression" if isinstance(options, _SHAPE_GROUPS) else "a 3D array"
+        raise TypeError(f"{type(options).__name__} meshes {what}: expected {expected} for 'source', "
+                        f"got {type(source).__name__}")
+
+
+# -- the shape pipelines on a uniform grid (covering 'grid' and 'continuation') -------------------
+def _mesh_grid(source, opts: GridOptions | ContinuationOptions, device, t_start: float) -> Mesh:
+    """Cull and sample (grid) or grow (continuation) -> extract -> roots -> host stage."""
+    cap_mask = KB.ALL_FACES if opts.cap else 0
+    cell_mask = None
+    timings: dict[str, float] = {}
+    info: dict = {"method": opts.method, "root": opts.root, "device": str(device)}
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in opts.bounds)
+    cells = opts.cells
+    h = (hi - lo) / cells
+    tape = tape_of(source)
+    timings["compile"] = time.perf_counter() - t_start
+    grid = BlockGrid(cells + 1, lo, h, device)
+    if isinstance(opts, ContinuationOptions):
+        cell_mask = _grow(grid, tape, opts.seeds, opts.cap, opts.evaluator, timings, info)
     else:
-        raise TypeError(f"expected a Shape, an expression or a 3D array for 'source', got {type(source).__name__}")
+        grid.cull_shape(tape, opts.cull, cap_mask, timings)
+        grid.sample_shape(tape, opts.cull, opts.evaluator, timings)
+    info["tape_length"] = len(tape)
 
     grid.finish_values(cap_mask, timings)
-    verts, tris, edges = grid.extract(method, cap_mask, timings, cell_mask)
+    verts, tris, edges = grid.extract(opts.method, cap_mask, timings, cell_mask)
     if cell_mask is not None:  # continuation: drop the vertices of edges on no grown cell first
         verts, tris, edges = _drop_unused(verts, tris, edges)
-    if tape is not None and root != "linear" and len(verts):
-        refine_roots(tape, verts, edges, grid.worigin, root, root_iterations, timings, evaluator,
-                     gradient, grid.h)
+    if opts.root != "linear" and len(verts):
+        refine_roots(tape, verts, edges, grid.worigin, opts.root, opts.root_iterations, timings, opts.evaluator,
+                     opts.gradient, grid.h)
 
     t0 = time.perf_counter()
     point_data = {}
-    if normals and tape is not None and len(verts):
-        point_data["normals"] = _vertex_normals(tape, grid, verts, edges, cap, gradient)
+    if opts.normals and len(verts):
+        point_data["normals"] = _vertex_normals(tape, grid, verts, edges, opts.cap, opts.gradient)
     points = verts.numpy().astype(C.REAL_DTYPE) + grid.origin  # sync point: results to the host
     faces = tris.numpy().astype(C.INDEX_DTYPE)
     if len(faces) and faces.min() < 0:
         raise WarpMeshError("a block culled as uniform holds a crossing edge: the interval bound "
                             "of the shape is wrong; mesh with cull=False and report the shape")
-    if cap and len(faces):  # closed by construction: outward winding encloses a positive volume
+    if opts.cap and len(faces):  # closed by construction: outward winding encloses a positive volume
         if not grid.info["signed_volume"] > 0.0:
             raise WarpMeshError(f"the capped surface encloses a signed volume of {grid.info['signed_volume']:g}: "
                                 "its triangles do not face outward (an internal error: please report it)")
         info["orientation"] = "outward (closed, positive enclosed volume)"
-    refs = _surface_refs(edges, faces) if cap and len(faces) else None
+    refs = _surface_refs(edges, faces) if opts.cap and len(faces) else None
     cell_refs = {"triangle": refs} if refs is not None and np.any(refs == CAP_REF) else None
     info.update(grid.info)
     info["vertices"], info["triangles"] = len(points), len(faces)
     if len(faces) == 0:
         warnings.warn("the surface does not cross the sampled grid: the mesh is empty "
-                      "(check 'bounds', 'level' and the sign convention f > 0 inside)", stacklevel=2)
+                      "(check 'bounds', 'level' and the sign convention f > 0 inside)", stacklevel=3)
     timings["host"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     info["time"] = timings
     return Mesh(points, {"triangle": faces}, point_data=point_data or None, cell_refs=cell_refs, info=info)
 
 
-SURFACE_REF, CAP_REF = 1, 2
+SURFACE_REF, CAP_REF = C.SURFACE_REF, C.CAP_REF
 
 
 def _surface_refs(edges: dict, faces: np.ndarray) -> np.ndarray:
@@ -443,15 +362,27 @@ def _vertex_normals(tape, grid: BlockGrid, verts, edges: dict, cap: bool, gradie
     return normals
 
 
-def _mesh_volume(vol, org, sp, level, sign, labels, method, cap, cull, device, slab_voxels, timings, info,
-                 t_start) -> Mesh:
+def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
     """The volume pipeline: one extraction per label (or one at ``level``), slab by slab."""
+    vol = _check_volume(source)
+    if opts.cap and min(vol.shape) < 3:
+        raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
+                         f"boundary samples are outside), got shape {vol.shape}")
+    if opts.level is not None:
+        level = opts.level
+    else:  # a bool or label volume's surface sits halfway between False and True samples
+        level = 0.5 if opts.labels is not None or vol.dtype == np.bool_ else 0.0
+    sign = 1.0 if opts.inside == "above" else -1.0
+    org, sp = np.asarray(opts.origin, dtype=np.float64), np.asarray(opts.spacing, dtype=np.float64)
+    labels, cap = opts.labels, opts.cap
+    timings: dict[str, float] = {}
+    info: dict = {"method": opts.method, "root": "linear", "device": str(device)}
     fields = [None] if labels is None else list(check_labels(labels, vol))
     parts, n_verts = [], 0
     for label in fields:
         points, faces, flags, (vmin, vmax) = extract_volume(
-            vol, org, sp, level=level, sign=sign, method=method, cap=cap, cull=cull, device=device,
-            slab_voxels=slab_voxels, label=label, timings=timings, info=info)
+            vol, org, sp, level=level, sign=sign, method=opts.method, cap=cap, cull=opts.cull, device=device,
+            slab_voxels=opts.slab_voxels, label=label, timings=timings, info=info)
         if label is None and vmin == vmax:
             raise ValueError(f"expected a non-constant 'volume', got every value equal to {sign * vmin + level}")
         if label is None and not vmin <= 0.0 <= vmax:
@@ -485,7 +416,16 @@ def _mesh_volume(vol, org, sp, level, sign, labels, method, cap, cull, device, s
     return Mesh(points, {"triangle": faces}, cell_refs={"triangle": refs} if keep_refs else None, info=info)
 
 
-COVERINGS = ("grid", "continuation")
+
+def _check_volume(source) -> np.ndarray:
+    vol = np.asarray(source)
+    if vol.ndim != 3:
+        raise ValueError(f"expected a 3D array for 'volume', but got {vol.ndim}D with shape {vol.shape}")
+    if min(vol.shape) < 2:
+        raise ValueError(f"expected at least 2 samples per axis in 'volume', got shape {vol.shape}")
+    if not (np.issubdtype(vol.dtype, np.number) or vol.dtype == np.bool_) or np.iscomplexobj(vol):
+        raise TypeError(f"expected a real numeric 'volume', got dtype {vol.dtype}")
+    return vol
 
 
 def _grow(grid: BlockGrid, tape, seeds, cap: bool, evaluator, timings, info):
@@ -518,12 +458,7 @@ NAN_MESSAGE = ("the shape evaluates to NaN or infinity at grid nodes inside 'bou
 def _seed_cells(grid: BlockGrid, tape, seeds, cap: bool, evaluator) -> np.ndarray:
     """The cells to grow from: per seed point, the crossed cells among those whose closure
     holds it (up to 8 when it lies on a cell face, edge or node)."""
-    try:
-        pts = np.asarray(seeds, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"expected 'seeds' as (m, 3) points, got {seeds!r}") from None
-    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.all(np.isfinite(pts)):
-        raise ValueError(f"expected 'seeds' as finite (m, 3) points, got shape {pts.shape}")
+    pts = np.asarray(seeds, dtype=np.float64)  # finite (m, 3): ContinuationOptions checked them
     lo, hi = grid.origin, grid.origin + (grid.n - 1) * grid.h
     outside = np.any((pts < lo) | (pts > hi), axis=1)
     if outside.any():
@@ -578,88 +513,23 @@ def _drop_unused(verts, tris, edges):
 
     return sub(verts), wp.array(remap[faces], dtype=wp.vec3i, device=dev), {k: sub(v) for k, v in edges.items()}
 
-def _positive_number(value, name: str) -> float:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"expected a positive finite number for '{name}', got {value!r}")
-    return float(value)
 
-
-def _level(value, name: str, low: int, high: int) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-        raise ValueError(f"expected an integer {low} <= '{name}' <= {high}, got {value!r}")
-    return int(value)
-
-
-def _mesh_adaptive(source, a: dict, t_start: float) -> Mesh:
-    """mesh_surface(adaptive=True): validate the options, run :func:`warpmesh.surface.adaptive.pipeline.mesh_adaptive`."""
+def _mesh_adaptive(source, opts: AdaptiveOptions, device, t_start: float) -> Mesh:
+    """The octree pipeline: :func:`warpmesh.surface.adaptive.pipeline.mesh_adaptive`, then the host stage."""
     from warpmesh.surface.adaptive.pipeline import mesh_adaptive
 
-    if not isinstance(source, (Shape, Expr)):
-        raise TypeError(f"adaptive=True meshes a Shape or an expression (it evaluates the function where "
-                        f"it needs it), got {type(source).__name__} for 'source'")
-    _refuse(("method", a["method"]), ("seeds", a["seeds"]), ("level", a["level"]), ("inside", a["inside"]),
-            ("labels", a["labels"]), ("spacing", a["spacing"]), ("origin", a["origin"]),
-            ("slab_voxels", a["slab_voxels"]), ("evaluator", a["evaluator"]), source="adaptive=True",
-            hint="the octree extracts its own faces and evaluates with pruned tapes")
-    if a["covering"] != "grid":
-        raise ValueError(f"adaptive=True is its own covering-up; got covering={a['covering']!r}")
-    if a["normals"]:
-        raise ValueError("normals=True is not available with adaptive=True (use mesh.to_trimesh().vertex_normals)")
-    if not a["cull"]:
-        raise ValueError("cull=False does not apply to adaptive=True (culling is what the octree does)")
-    for name in ("cap", "prune", "features"):
-        if a[name] is not None and not isinstance(a[name], (bool, np.bool_)):
-            raise TypeError(f"expected True or False for '{name}', got {a[name]!r}")
-    root = "newton" if a["root"] is None else a["root"]
-    _check_choice(root, "root", _ROOTS)
-    gradient = a["gradient"] or "exact"
-    _check_choice(gradient, "gradient", GRADIENTS)
-    iterations = a["root_iterations"]
-    if iterations is not None and (root == "linear" or isinstance(iterations, bool)
-                                   or not isinstance(iterations, (int, np.integer)) or not 1 <= iterations <= 64):
-        raise ValueError(f"expected 1 <= 'root_iterations' <= 64 with root='bisection' or 'newton', "
-                         f"got {iterations!r} with root={root!r}")
-    lo, hi = _check_bounds(a["bounds"])
-    if a["max_level"] is not None and a["resolution"] is not None:
-        raise ValueError("give 'max_level' or 'resolution' (its equivalent, 2**max_level), not both")
-    if a["max_level"] is None:
-        res = 128 if a["resolution"] is None else a["resolution"]
-        if np.ndim(res) != 0:
-            raise ValueError(f"expected one integer 'resolution' with adaptive=True, got {res!r}")
-        max_level = int(math.ceil(math.log2(int(_cells(res, hi - lo).max()))))
-    else:
-        max_level = a["max_level"]
-    max_level = _level(max_level, "max_level", 1, 18)
-    min_level = None if a["min_level"] is None else _level(a["min_level"], "min_level", 0, max_level)
-    chord = None if a["chord"] is None else _positive_number(a["chord"], "chord")
-    tolerance = (0.02 if chord is None and a["angles"] is None else None) if a["tolerance"] is None \
-        else _positive_number(a["tolerance"], "tolerance")
-    angles = a["angles"]
-    if angles is not None:
-        if a["tolerance"] is not None:
-            raise ValueError("give 'tolerance' or 'angles', not both")
-        if np.shape(angles) != (2,):
-            raise ValueError(f"expected 'angles' as (eps1, eps2) in radians, got {angles!r}")
-        angles = tuple(_positive_number(v, "angles") for v in angles)
-    bound = "interval" if a["bound"] is None else a["bound"]
-    _check_choice(bound, "bound", ("interval", "lipschitz"))
-    lipschitz = a["lipschitz"]
-    if bound == "lipschitz":
-        lipschitz = _positive_number(lipschitz, "lipschitz")
-    elif lipschitz is not None:
-        raise ValueError("'lipschitz' applies to bound='lipschitz'")
-    device = wp.get_device(a["device"])
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in opts.bounds)
+    tolerance = opts.relative_tolerance
     timings: dict[str, float] = {}
-    info: dict = {"covering": "octree", "root": root, "device": str(device), "tolerance": tolerance, "chord": chord,
-                  "bound": bound}
+    info: dict = {"covering": "octree", "root": opts.root, "device": str(device), "tolerance": tolerance,
+                  "chord": opts.chord, "bound": opts.bound}
     tape = tape_of(source)
     info["tape_length"] = len(tape)
     points, faces, refs = mesh_adaptive(
-        tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance, angles=angles, chord=chord,
-        bound=bound, lipschitz=lipschitz, cap=bool(a["cap"]), prune=a["prune"] is not False,
-        features=a["features"] is not False, root=root, root_iterations=iterations, gradient=gradient,
-        device=device, timings=timings, info=info)
+        tape, lo, hi, max_level=opts.finest_level, min_level=opts.min_level, tolerance=tolerance,
+        angles=opts.angles, chord=opts.chord, bound=opts.bound, lipschitz=opts.lipschitz, cap=opts.cap,
+        prune=opts.prune, features=opts.features, root=opts.root, root_iterations=opts.root_iterations,
+        gradient=opts.gradient, device=device, timings=timings, info=info)
     if len(faces) == 0:
         warnings.warn("the surface does not cross the bounds: the mesh is empty "
                       "(check 'bounds' and the sign convention f > 0 inside)", stacklevel=3)

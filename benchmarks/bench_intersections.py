@@ -1,0 +1,131 @@
+"""Self-intersection check: warpmesh against pymeshlab on the same meshes, in one run.
+
+Usage::
+
+    python benchmarks/bench_intersections.py                  # about 1.5 min on 2 cores
+    python benchmarks/bench_intersections.py --cases sphere7,spheres7 --repeat 1   # smoke run
+    python benchmarks/bench_intersections.py --json results.json
+
+Cases (``--cases``, comma-separated; default ``sphere7,sphere8,spheres7,spheres8``):
+
+- ``sphere7`` / ``sphere8``: a closed icosphere (``trimesh.creation.icosphere``) with 7 / 8
+  subdivisions: 327,680 / 1,310,720 triangles, no crossing;
+- ``spheres7`` / ``spheres8``: two such spheres (radii 1 and 0.8, the second moved by
+  (0.9, 0.13, 0.071)) in one mesh: 655,360 / 2,621,440 triangles, crossing along a curve.
+
+Tools: warpmesh ``find_self_intersections`` (all cores, and ``workers=1``), which takes
+numpy arrays (its time includes validation and upload); pymeshlab
+``compute_selection_by_self_intersections_per_face`` on a ``MeshSet`` loaded beforehand
+(its time is the filter alone). Round-robin: one untimed call each (Warp loads its
+cached kernels), then ``--repeat`` rounds of one call per tool; the table gives the
+median. Offending faces: the distinct faces in warpmesh's pairs, and pymeshlab's
+selection; the run fails if the two sets differ. Columns: median wall seconds, ratio to
+warpmesh with all workers (> 1: warpmesh faster), median CPU seconds of the process
+(all threads: CPU / wall shows how much of the second core a tool used; on a busy
+machine, CPU seconds are the steadier figure), offending faces.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+from _report import finish, keep_freed_memory, load_banner, version
+
+keep_freed_memory()
+
+import numpy as np  # noqa: E402
+import pymeshlab  # noqa: E402
+import trimesh  # noqa: E402
+
+from warpmesh.cells.intersections import find_self_intersections  # noqa: E402
+
+CASES = {
+    "sphere7": ("icosphere, 7 subdivisions", 7, False),
+    "sphere8": ("icosphere, 8 subdivisions", 8, False),
+    "spheres7": ("two crossing icospheres, 7 subdivisions", 7, True),
+    "spheres8": ("two crossing icospheres, 8 subdivisions", 8, True),
+}
+
+
+def make_mesh(subdivisions: int, two: bool) -> tuple[np.ndarray, np.ndarray]:
+    a = trimesh.creation.icosphere(subdivisions=subdivisions)
+    if not two:
+        return np.asarray(a.vertices), np.asarray(a.faces)
+    b = trimesh.creation.icosphere(subdivisions=subdivisions, radius=0.8)
+    b.apply_translation([0.9, 0.13, 0.071])
+    return (np.vstack([a.vertices, b.vertices]),
+            np.vstack([a.faces, np.asarray(b.faces) + len(a.vertices)]))
+
+
+def run_case(key: str, repeat: int) -> dict:
+    name, subdivisions, two = CASES[key]
+    points, faces = make_mesh(subdivisions, two)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(points, faces))
+    out = {}
+
+    def warpmesh_all():
+        out["warpmesh"] = find_self_intersections(points, faces)
+
+    def warpmesh_one():
+        out["warpmesh 1"] = find_self_intersections(points, faces, workers=1)
+
+    def meshlab():
+        ms.compute_selection_by_self_intersections_per_face()
+
+    tools = {f"warpmesh ({os.cpu_count()} workers)": warpmesh_all, "warpmesh (workers=1)": warpmesh_one,
+             "pymeshlab": meshlab}
+    times = {t: [] for t in tools}
+    cpu = {t: [] for t in tools}
+    for fn in tools.values():  # warm-up
+        fn()
+    for _ in range(repeat):
+        for tool, fn in tools.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn()
+            times[tool].append(time.perf_counter() - t0)
+            cpu[tool].append(time.process_time() - c0)
+
+    ours = np.unique(out["warpmesh"])
+    theirs = np.flatnonzero(ms.current_mesh().face_selection_array())
+    agree = np.array_equal(ours, theirs) and np.array_equal(out["warpmesh"], out["warpmesh 1"])
+    med = {t: statistics.median(v) for t, v in times.items()}
+    ref = med[next(iter(tools))]
+    rows = [{"tool": t, "seconds": med[t], "ratio": med[t] / ref, "cpu_seconds": statistics.median(cpu[t]),
+             "samples": times[t], "faces": len(theirs) if t == "pymeshlab" else len(ours)} for t in tools]
+    print(f"\n{name}: {len(faces):,} triangles, {len(out['warpmesh']):,} crossing pairs")
+    print("| tool | seconds | ratio | cpu s | offending faces |")
+    print("| --- | --- | --- | --- | --- |")
+    for r in rows:
+        print(f"| {r['tool']} | {r['seconds']:.3f} | {r['ratio']:.2f}x | {r['cpu_seconds']:.3f} | {r['faces']:,} |")
+    print(f"offending faces agree (warpmesh = pymeshlab, and for any workers): {'yes' if agree else 'NO'}")
+    return {"case": key, "name": name, "triangles": len(faces), "pairs": len(out["warpmesh"]), "rows": rows,
+            "agree": bool(agree)}
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cases", default=",".join(CASES), help=f"comma-separated subset of {list(CASES)}")
+    p.add_argument("--repeat", type=int, default=3, help="timed rounds (median; default 3)")
+    p.add_argument("--json", default=None, help="write every row and sample to this file")
+    p.add_argument("--default-malloc", action="store_true", help="keep glibc's default allocator (see README)")
+    a = p.parse_args(argv)
+    cases = [c.strip() for c in a.cases.split(",") if c.strip()]
+    unknown = [c for c in cases if c not in CASES]
+    if unknown:
+        p.error(f"unknown case(s) {unknown}. Pick from {list(CASES)}")
+    t_start = time.perf_counter()
+    load0 = load_banner(f"self-intersections: {os.cpu_count()} cores, python {sys.version.split()[0]}, "
+                        f"warp-lang {version('warp-lang')}, pymeshlab {version('pymeshlab')}, "
+                        f"trimesh {version('trimesh')}")
+    results = [run_case(c, a.repeat) for c in cases]
+    finish(t_start, load0, a.json, {"results": results})
+    return 0 if all(r["agree"] for r in results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,486 @@
+"""Triangle–triangle intersection tests for the self-intersection check of a surface
+mesh; the host partner is :mod:`warpmesh.cells.intersections`.
+
+Predicates run in float64 on the host's points; the BVH (a ``wp.Mesh``) is float32 and
+only proposes candidates. Every sign comes from a determinant of three difference
+vectors, compared with Shewchuk's static error bound (``errboundA``, doubled): a sign
+within its bound counts as zero, so configurations within float64 rounding of touching
+are decided as touching. With ``fuse_fp`` off the kernels round every operation on its
+own, which the bound assumes.
+
+Notation: O(a, b, c, d) = ((b - a) x (c - a)) . (d - a); a triangle's plane side of x is
+O of its vertices and x. Two triangles share k vertex *indices* (k = 0..3); see
+:func:`pair_intersects` for what counts as an intersection for each k.
+"""
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False, "fuse_fp": False})
+
+_EPS = 2.0**-53
+#: Shewchuk's orient3d / orient2d errboundA, doubled (FMA contraction is off; margin)
+O3_BOUND = wp.constant(wp.float64(2.0 * (7.0 + 56.0 * _EPS) * _EPS))
+O2_BOUND = wp.constant(wp.float64(2.0 * (3.0 + 16.0 * _EPS) * _EPS))
+#: absolute floor of every bound: products below it may be subnormal
+TINY = wp.constant(wp.float64(1.0e-290))
+
+
+@wp.func
+def _filtered_sign(det: wp.float64, perm: wp.float64, rel: wp.float64) -> int:
+    bound = rel * perm + TINY
+    if det > bound:
+        return 1
+    if det < -bound:
+        return -1
+    return 0
+
+
+@wp.func
+def _abs_cross(u: wp.vec3d, v: wp.vec3d) -> wp.vec3d:
+    """The permanent companion of ``cross(u, v)``: |u_y v_z| + |u_z v_y|, ..."""
+    return wp.vec3d(
+        wp.abs(u[1] * v[2]) + wp.abs(u[2] * v[1]),
+        wp.abs(u[2] * v[0]) + wp.abs(u[0] * v[2]),
+        wp.abs(u[0] * v[1]) + wp.abs(u[1] * v[0]),
+    )
+
+
+@wp.func
+def _abs3(u: wp.vec3d) -> wp.vec3d:
+    return wp.vec3d(wp.abs(u[0]), wp.abs(u[1]), wp.abs(u[2]))
+
+
+@wp.func
+def plane_side(x: wp.vec3d, a: wp.vec3d, n: wp.vec3d, m: wp.vec3d) -> int:
+    """Sign of O(a, b, c, x) for a triangle (a, b, c) with n = (b - a) x (c - a) and m its
+    permanent companion (:func:`_abs_cross`)."""
+    w = x - a
+    return _filtered_sign(wp.dot(n, w), wp.dot(m, _abs3(w)), O3_BOUND)
+
+
+@wp.func
+def _side_unless(x: wp.vec3d, k: int, shared: int, a: wp.vec3d, n: wp.vec3d, m: wp.vec3d) -> int:
+    """:func:`plane_side` of vertex k, x; exactly 0 for the shared vertex (k == shared)."""
+    if k == shared:
+        return 0
+    return plane_side(x, a, n, m)
+
+
+@wp.func
+def orient3d(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, d: wp.vec3d) -> int:
+    """Sign of O(a, b, c, d): positive when d is on the side of plane (a, b, c) that its
+    right-hand normal points to."""
+    u = b - a
+    v = c - a
+    return plane_side(d, a, wp.cross(u, v), _abs_cross(u, v))
+
+
+@wp.func
+def orient2d(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, i: int, j: int) -> int:
+    """Sign of the 2D orientation of (a, b, c) on coordinates (i, j): positive when
+    counter-clockwise."""
+    acx = a[i] - c[i]
+    bcx = b[i] - c[i]
+    acy = a[j] - c[j]
+    bcy = b[j] - c[j]
+    l = acx * bcy
+    r = acy * bcx
+    return _filtered_sign(l - r, wp.abs(l) + wp.abs(r), O2_BOUND)
+
+
+@wp.func
+def _in_box_2d(a: wp.vec3d, b: wp.vec3d, x: wp.vec3d, i: int, j: int) -> bool:
+    return (wp.min(a[i], b[i]) <= x[i] and x[i] <= wp.max(a[i], b[i])
+            and wp.min(a[j], b[j]) <= x[j] and x[j] <= wp.max(a[j], b[j]))
+
+
+@wp.func
+def segments_meet_2d(p1: wp.vec3d, p2: wp.vec3d, p3: wp.vec3d, p4: wp.vec3d, i: int, j: int) -> bool:
+    """Closed segments [p1, p2] and [p3, p4] meet (coordinates i, j)."""
+    o1 = orient2d(p1, p2, p3, i, j)
+    o2 = orient2d(p1, p2, p4, i, j)
+    o3 = orient2d(p3, p4, p1, i, j)
+    o4 = orient2d(p3, p4, p2, i, j)
+    if o1 * o2 < 0 and o3 * o4 < 0:
+        return True
+    if o1 == 0 and _in_box_2d(p1, p2, p3, i, j):
+        return True
+    if o2 == 0 and _in_box_2d(p1, p2, p4, i, j):
+        return True
+    if o3 == 0 and _in_box_2d(p3, p4, p1, i, j):
+        return True
+    if o4 == 0 and _in_box_2d(p3, p4, p2, i, j):
+        return True
+    return False
+
+
+@wp.func
+def point_in_triangle_2d(x: wp.vec3d, t: wp.mat33d, i: int, j: int) -> bool:
+    """x in the closed triangle t (rows), either orientation (coordinates i, j); a
+    triangle that projects to a segment contains everything (conservative)."""
+    s = orient2d(t[0], t[1], t[2], i, j)
+    return (orient2d(t[0], t[1], x, i, j) * s >= 0 and orient2d(t[1], t[2], x, i, j) * s >= 0
+            and orient2d(t[2], t[0], x, i, j) * s >= 0)
+
+
+@wp.func
+def coplanar_overlap(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
+    """Closed coplanar triangles p, q (rows) meet: some edges meet, or one holds a
+    vertex of the other (then it holds all of it)."""
+    for a in range(3):
+        for b in range(3):
+            if segments_meet_2d(p[a], p[(a + 1) % 3], q[b], q[(b + 1) % 3], i, j):
+                return True
+    return point_in_triangle_2d(p[0], q, i, j) or point_in_triangle_2d(q[0], p, i, j)
+
+
+@wp.func
+def ray_in_wedge_2d(v: wp.vec3d, a: wp.vec3d, b: wp.vec3d, x: wp.vec3d, i: int, j: int) -> bool:
+    """The ray from v through x lies in the closed convex wedge at v spanned by a and b."""
+    s = orient2d(v, a, b, i, j)
+    if s == 0:
+        return True
+    return orient2d(v, a, x, i, j) * s >= 0 and orient2d(v, x, b, i, j) * s >= 0
+
+
+@wp.func
+def drop_axis(n: wp.vec3d) -> int:
+    """The axis along which the plane with normal n projects without degenerating."""
+    ax = wp.abs(n[0])
+    ay = wp.abs(n[1])
+    az = wp.abs(n[2])
+    if ax >= ay and ax >= az:
+        return 0
+    if ay >= az:
+        return 1
+    return 2
+
+
+@wp.func
+def canonical_order(s0: int, s1: int, s2: int):
+    """For plane-side signs of a triangle's vertices, not all zero and not all of one
+    strict sign: the vertex k alone on its side and the flip f = +-1 of the other plane
+    such that f*s_k >= 0 >= f*s_(k+1), f*s_(k+2), with f*s_k > 0 unless both others
+    are < 0 (Guigue–Devillers' canonical form)."""
+    npos = int(0)
+    nneg = int(0)
+    kpos = int(0)
+    kneg = int(0)
+    kzero = int(0)
+    if s0 > 0:
+        npos += 1
+        kpos = 0
+    elif s0 < 0:
+        nneg += 1
+        kneg = 0
+    else:
+        kzero = 0
+    if s1 > 0:
+        npos += 1
+        kpos = 1
+    elif s1 < 0:
+        nneg += 1
+        kneg = 1
+    else:
+        kzero = 1
+    if s2 > 0:
+        npos += 1
+        kpos = 2
+    elif s2 < 0:
+        nneg += 1
+        kneg = 2
+    else:
+        kzero = 2
+    if npos == 1:
+        return kpos, 1
+    if nneg == 1:
+        return kneg, -1
+    if npos == 2:  # (+, +, 0): the zero vertex, plane flipped
+        return kzero, -1
+    return kzero, 1  # (-, -, 0)
+
+
+@wp.func
+def pair_intersects(p: wp.mat33d, ip: wp.vec3i, n1: wp.vec3d, m1: wp.vec3d,
+                    q: wp.mat33d, iq: wp.vec3i) -> bool:
+    """Whether triangles p and q (rows: vertices; ip, iq: their vertex indices; n1, m1:
+    p's normal and permanent companion) intersect other than through shared vertices:
+
+    - no shared index: any common point (touching, coplanar overlap);
+    - one shared vertex v: a common point other than v;
+    - a shared edge: coplanar and folded onto each other (opposite vertices on the same
+      side of the edge);
+    - three shared indices (a duplicate face): always.
+
+    Neither triangle may be degenerate. Non-coplanar pairs follow Guigue & Devillers
+    (2003). In canonical order p = (a, b, c), q = (x, y, z) (:func:`canonical_order`: a
+    alone on the positive side of q's plane, or on it with b, c strictly below; x
+    likewise for p's plane; rotations keep a triangle's orientation, a swap of its last
+    two vertices flips the other's plane), p and q cut the planes' common line L in
+    [j, i] and [k, l] along n1 x n2 (i on ab, j on ac, k on xy, l on xz), and
+    k <= i iff O(a, b, x, y) <= 0, j <= l iff O(a, c, x, z) >= 0: O(a, b, x, y) is the
+    signed distance i -> k times (d(b) - d(a)) (e(y) - e(x)) > 0, d and e the sides of
+    q's and p's planes. A shared vertex v is an end of both segments (v = c or b, v = y or
+    z): they overlap beyond v iff both leave v the same way.
+    """
+    shared = int(0)
+    pv = int(-1)
+    qv = int(-1)
+    for a in range(3):
+        for b in range(3):
+            if ip[a] == iq[b]:
+                shared += 1
+                pv = a
+                qv = b
+    if shared == 3:
+        return True
+    if shared == 2:
+        # the vertices off the shared edge (u, w)
+        px = int(0)
+        for a in range(3):
+            if ip[a] != iq[0] and ip[a] != iq[1] and ip[a] != iq[2]:
+                px = a
+        qy = int(0)
+        for b in range(3):
+            if iq[b] != ip[0] and iq[b] != ip[1] and iq[b] != ip[2]:
+                qy = b
+        if plane_side(q[qy], p[0], n1, m1) != 0:
+            return False
+        u = p[(px + 1) % 3]
+        w = p[(px + 2) % 3]
+        e = w - u
+        return wp.dot(wp.cross(e, p[px] - u), wp.cross(e, q[qy] - u)) > wp.float64(0.0)
+
+    # e: sides of q's vertices wrt p's plane (the shared vertex: exactly 0)
+    e0 = _side_unless(q[0], 0, qv, p[0], n1, m1)
+    e1 = _side_unless(q[1], 1, qv, p[0], n1, m1)
+    e2 = _side_unless(q[2], 2, qv, p[0], n1, m1)
+    free = 3 - shared  # vertices that may leave the other plane
+    epos = int(e0 > 0) + int(e1 > 0) + int(e2 > 0)
+    eneg = int(e0 < 0) + int(e1 < 0) + int(e2 < 0)
+    if epos == free or eneg == free:
+        return False
+    u2 = q[1] - q[0]
+    v2 = q[2] - q[0]
+    n2 = wp.cross(u2, v2)
+    m2 = _abs_cross(u2, v2)
+    d0 = _side_unless(p[0], 0, pv, q[0], n2, m2)
+    d1 = _side_unless(p[1], 1, pv, q[0], n2, m2)
+    d2 = _side_unless(p[2], 2, pv, q[0], n2, m2)
+    dpos = int(d0 > 0) + int(d1 > 0) + int(d2 > 0)
+    dneg = int(d0 < 0) + int(d1 < 0) + int(d2 < 0)
+    if dpos == free or dneg == free:
+        return False
+
+    if dpos + dneg == 0 or epos + eneg == 0:  # coplanar: 2D tests in the plane
+        k = drop_axis(n1)
+        if dpos + dneg == 0:
+            k = drop_axis(n2)
+        i = (k + 1) % 3
+        j = (k + 2) % 3
+        if shared == 0:
+            return coplanar_overlap(p, q, i, j)
+        v = p[pv]
+        pa = p[(pv + 1) % 3]
+        pb = p[(pv + 2) % 3]
+        qa = q[(qv + 1) % 3]
+        qb = q[(qv + 2) % 3]
+        return (ray_in_wedge_2d(v, pa, pb, qa, i, j) or ray_in_wedge_2d(v, pa, pb, qb, i, j)
+                or ray_in_wedge_2d(v, qa, qb, pa, i, j) or ray_in_wedge_2d(v, qa, qb, pb, i, j))
+
+    # canonical order: p rotated by k1 (q's plane flipped if f1 < 0: q's rows 1, 2 swap),
+    # then q rotated by k2 (p's plane flipped if f2 < 0: p's rows b, c swap);
+    # p = (ia, ib, ic), q = (jp, jq, jr) = (x, y, z) of the docstring
+    k1, f1 = canonical_order(d0, d1, d2)
+    qb0 = int(0)
+    qb1 = int(1)
+    qb2 = int(2)
+    if f1 < 0:
+        qb1 = 2
+        qb2 = 1
+    es = wp.vec3i(e0, e1, e2)
+    k2, f2 = canonical_order(es[qb0], es[qb1], es[qb2])
+    qbase = wp.vec3i(qb0, qb1, qb2)
+    ia = k1
+    ib = (k1 + 1) % 3
+    ic = (k1 + 2) % 3
+    if f2 < 0:
+        ib = (k1 + 2) % 3
+        ic = (k1 + 1) % 3
+    jp = qbase[k2]
+    jq = qbase[(k2 + 1) % 3]
+    jr = qbase[(k2 + 2) % 3]
+    if shared == 1:
+        # p ∩ L = [v, i] (v = c) or [j, v] (v = b); q ∩ L = [v, l] (v = y) or [k, v] (v = z):
+        # they overlap beyond v iff both leave v the same way along L
+        return (ic == pv) == (jq == qv)
+    return orient3d(p[ia], p[ib], q[jp], q[jq]) <= 0 and orient3d(p[ia], p[ic], q[jp], q[jr]) >= 0
+
+
+@wp.func
+def load_triangle(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), f: int):
+    i0 = tris[3 * f]
+    i1 = tris[3 * f + 1]
+    i2 = tris[3 * f + 2]
+    return wp.matrix_from_rows(points[i0], points[i1], points[i2]), wp.vec3i(i0, i1, i2)
+
+
+@wp.kernel
+def classify_faces_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+                          degenerate: wp.array(dtype=wp.int32)):
+    """One thread per face: 1 when its area is zero to within float64 rounding (every
+    2D projection's orientation is filtered to 0; repeated indices included), else 0."""
+    f = wp.tid()
+    t, it = load_triangle(points, tris, f)
+    flag = int(1)
+    if it[0] != it[1] and it[1] != it[2] and it[0] != it[2]:
+        for k in range(3):
+            if orient2d(t[0], t[1], t[2], (k + 1) % 3, (k + 2) % 3) != 0:
+                flag = 0
+    degenerate[f] = flag
+
+
+@wp.func
+def _spread_bits(x: int) -> int:
+    """The 10 low bits of x moved to every third bit (Morton interleave)."""
+    x = (x | (x << 16)) & 0x030000FF
+    x = (x | (x << 8)) & 0x0300F00F
+    x = (x | (x << 4)) & 0x030C30C3
+    return (x | (x << 2)) & 0x09249249
+
+
+@wp.kernel
+def morton_codes_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
+                        keys: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32)):
+    """One thread per face: the 30-bit Morton code of its centroid (points in [-1, 1]^3)
+    as the sort key, its index as the value."""
+    f = wp.tid()
+    c = (points32[tris[3 * f]] + points32[tris[3 * f + 1]] + points32[tris[3 * f + 2]]) / 3.0
+    u = (c + wp.vec3(1.0, 1.0, 1.0)) * 511.5
+    x = wp.clamp(int(u[0]), 0, 1023)
+    y = wp.clamp(int(u[1]), 0, 1023)
+    z = wp.clamp(int(u[2]), 0, 1023)
+    keys[f] = (_spread_bits(x) << 2) | (_spread_bits(y) << 1) | _spread_bits(z)
+    ids[f] = f
+
+
+@wp.kernel
+def gather_faces_kernel(tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                        sorted_tris: wp.array(dtype=wp.int32)):
+    """One thread per position s of the face order: the vertex indices of face order[s]."""
+    s = wp.tid()
+    f = order[s]
+    sorted_tris[3 * s] = tris[3 * f]
+    sorted_tris[3 * s + 1] = tris[3 * f + 1]
+    sorted_tris[3 * s + 2] = tris[3 * f + 2]
+
+
+@wp.func
+def face_query(points: wp.array(dtype=wp.vec3d), points32: wp.array(dtype=wp.vec3),
+               tris: wp.array(dtype=wp.int32), pad: float, s: int):
+    """Face s's vertices, indices, normal, its permanent companion and its float32 box
+    (the BVH's own corners) grown by ``pad``."""
+    p, ip = load_triangle(points, tris, s)
+    u1 = p[1] - p[0]
+    v1 = p[2] - p[0]
+    c0 = points32[ip[0]]
+    c1 = points32[ip[1]]
+    c2 = points32[ip[2]]
+    grow = wp.vec3(pad, pad, pad)
+    lo = wp.min(wp.min(c0, c1), c2) - grow
+    hi = wp.max(wp.max(c0, c1), c2) + grow
+    return p, ip, wp.cross(u1, v1), _abs_cross(u1, v1), lo, hi
+
+
+@wp.kernel
+def count_intersections_kernel(meshes: wp.array(dtype=wp.uint64), mesh_first: wp.array(dtype=wp.int32),
+                               points: wp.array(dtype=wp.vec3d), points32: wp.array(dtype=wp.vec3),
+                               tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                               degenerate: wp.array(dtype=wp.int32), pad: float, first: int,
+                               counts: wp.array(dtype=wp.int64)):
+    """One thread per position s = first + tid of the face order (``tris``, ``degenerate``
+    are in that order; ``order[s]`` is the face's input index f): how many faces g > f
+    intersect it (:func:`pair_intersects`), into ``counts[f]``.
+
+    Candidates come from the BVHs ``meshes``; BVH t holds the faces from position
+    ``mesh_first[t]`` on, in order.
+    """
+    s = wp.tid() + first
+    f = order[s]
+    count = wp.int64(0)
+    if degenerate[s] == 0:
+        p, ip, n1, m1, lo, hi = face_query(points, points32, tris, pad, s)
+        for t in range(meshes.shape[0]):
+            query = wp.mesh_query_aabb(meshes[t], lo, hi)
+            local = int(0)
+            while wp.mesh_query_aabb_next(query, local):
+                s2 = mesh_first[t] + local
+                if order[s2] > f and degenerate[s2] == 0:
+                    q, iq = load_triangle(points, tris, s2)
+                    if pair_intersects(p, ip, n1, m1, q, iq):
+                        count += wp.int64(1)
+    counts[f] = count
+
+
+@wp.func
+def _sift_down(pairs: wp.array(dtype=wp.vec2i), start: wp.int64, root: int, end: int):
+    r = root
+    while 2 * r + 1 < end:
+        c = 2 * r + 1
+        if c + 1 < end and pairs[start + wp.int64(c + 1)][1] > pairs[start + wp.int64(c)][1]:
+            c += 1
+        top = pairs[start + wp.int64(r)]
+        if top[1] >= pairs[start + wp.int64(c)][1]:
+            return
+        pairs[start + wp.int64(r)] = pairs[start + wp.int64(c)]
+        pairs[start + wp.int64(c)] = top
+        r = c
+
+
+@wp.func
+def sort_segment(pairs: wp.array(dtype=wp.vec2i), start: wp.int64, n: int):
+    """Heap sort of ``pairs[start:start + n]`` by the second index (n log n at worst: a
+    face of a pathological soup may cross thousands of others)."""
+    i = n // 2 - 1
+    while i >= 0:
+        _sift_down(pairs, start, i, n)
+        i -= 1
+    end = n - 1
+    while end > 0:
+        top = pairs[start]
+        pairs[start] = pairs[start + wp.int64(end)]
+        pairs[start + wp.int64(end)] = top
+        _sift_down(pairs, start, 0, end)
+        end -= 1
+
+
+@wp.kernel
+def write_intersections_kernel(meshes: wp.array(dtype=wp.uint64), mesh_first: wp.array(dtype=wp.int32),
+                               points: wp.array(dtype=wp.vec3d), points32: wp.array(dtype=wp.vec3),
+                               tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                               degenerate: wp.array(dtype=wp.int32), pad: float, first: int,
+                               counts: wp.array(dtype=wp.int64), offsets: wp.array(dtype=wp.int64),
+                               pairs: wp.array(dtype=wp.vec2i)):
+    """One thread per position s = first + tid with ``counts[f] > 0`` (f = order[s]): the
+    walk of :func:`count_intersections_kernel` again, writing (f, g) to
+    ``pairs[offsets[f]:]``, sorted by g."""
+    s = wp.tid() + first
+    f = order[s]
+    n = int(counts[f])
+    if n == 0:
+        return
+    start = offsets[f]
+    p, ip, n1, m1, lo, hi = face_query(points, points32, tris, pad, s)
+    k = int(0)
+    for t in range(meshes.shape[0]):
+        query = wp.mesh_query_aabb(meshes[t], lo, hi)
+        local = int(0)
+        while wp.mesh_query_aabb_next(query, local):
+            s2 = mesh_first[t] + local
+            g = order[s2]
+            if g > f and degenerate[s2] == 0 and k < n:
+                q, iq = load_triangle(points, tris, s2)
+                if pair_intersects(p, ip, n1, m1, q, iq):
+                    pairs[start + wp.int64(k)] = wp.vec2i(f, g)
+                    k += 1
+    sort_segment(pairs, start, n)

@@ -1,0 +1,398 @@
+"""The self-intersection check: exact cases built by hand, random triangle soups against an
+exact brute-force reference written here (edge-against-triangle in Python integers, a
+formulation independent of the kernel's orientation-sign one), closed spheres, and two
+interpenetrating spheres against pymeshlab's face selection."""
+
+from __future__ import annotations
+
+import itertools
+from fractions import Fraction
+
+import numpy as np
+import pytest
+import trimesh
+
+from warpmesh.cells import intersections as wmi
+from warpmesh.cells.intersections import (
+    count_self_intersecting_faces,
+    find_degenerate_faces,
+    find_self_intersections,
+)
+
+# -- exact reference: Python integers, every edge of one triangle against the other --------
+
+
+def _sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _scale(a, s):
+    return (a[0] * s, a[1] * s, a[2] * s)
+
+
+def _exact(points) -> list[tuple[int, int, int]]:
+    """float64 coordinates as Python integers on one common power-of-two scale (exact)."""
+    fr = [[Fraction(float(x)) for x in row] for row in np.asarray(points, dtype=float)]
+    den = max((x.denominator for row in fr for x in row), default=1)
+    return [tuple(int(x * den) for x in row) for row in fr]
+
+
+def _in_triangle(x, a, b, c, n) -> bool:
+    """x (in the plane of a, b, c) in the closed triangle."""
+    return all(_dot(_cross(_sub(w, u), _sub(x, u)), n) >= 0 for u, w in ((a, b), (b, c), (c, a)))
+
+
+def _on_segment(x, a, b) -> bool:  # x collinear with a, b
+    return _dot(_sub(x, a), _sub(x, b)) <= 0
+
+
+def _segments_meet(p1, p2, p3, p4, n) -> bool:
+    """Closed coplanar segments meet (normal n of their plane)."""
+    def o(a, b, c):
+        v = _dot(_cross(_sub(b, a), _sub(c, a)), n)
+        return (v > 0) - (v < 0)
+    o1, o2, o3, o4 = o(p1, p2, p3), o(p1, p2, p4), o(p3, p4, p1), o(p3, p4, p2)
+    if o1 * o2 < 0 and o3 * o4 < 0:
+        return True
+    return ((o1 == 0 and _on_segment(p3, p1, p2)) or (o2 == 0 and _on_segment(p4, p1, p2))
+            or (o3 == 0 and _on_segment(p1, p3, p4)) or (o4 == 0 and _on_segment(p2, p3, p4)))
+
+
+def _segment_meets_triangle(x, y, a, b, c) -> bool:
+    """Closed segment [x, y] and closed non-degenerate triangle (a, b, c) share a point."""
+    n = _cross(_sub(b, a), _sub(c, a))
+    sx, sy = _dot(n, _sub(x, a)), _dot(n, _sub(y, a))
+    if sx * sy > 0:
+        return False
+    if sx == 0 and sy == 0:  # in the plane
+        return (_in_triangle(x, a, b, c, n) or _in_triangle(y, a, b, c, n)
+                or any(_segments_meet(x, y, u, w, n) for u, w in ((a, b), (b, c), (c, a))))
+    den = sx - sy  # the crossing point is z = big / den
+    big = _sub(_scale(y, sx), _scale(x, sy))
+    sign = 1 if den > 0 else -1
+    return all(_dot(_cross(_sub(w, u), _sub(big, _scale(u, den))), n) * sign >= 0
+               for u, w in ((a, b), (b, c), (c, a)))
+
+
+def _ray_in_wedge(v, a, b, x) -> bool:
+    """x - v lies in the closed wedge at v spanned by a - v and b - v (x in their plane)."""
+    n = _cross(_sub(a, v), _sub(b, v))
+    return (_dot(_cross(_sub(a, v), _sub(x, v)), n) >= 0 and _dot(_cross(_sub(x, v), _sub(b, v)), n) >= 0)
+
+
+def _pair_reference(P, ip, Q, iq) -> bool:
+    shared = set(ip) & set(iq)
+    if len(shared) == 3:
+        return True
+    n1 = _cross(_sub(P[1], P[0]), _sub(P[2], P[0]))
+    n2 = _cross(_sub(Q[1], Q[0]), _sub(Q[2], Q[0]))
+    if len(shared) == 2:
+        x = P[next(k for k in range(3) if ip[k] not in shared)]
+        y = Q[next(k for k in range(3) if iq[k] not in shared)]
+        u, w = (P[k] for k in range(3) if ip[k] in shared)
+        if _dot(n1, _sub(y, P[0])) != 0:
+            return False
+        return _dot(_cross(_sub(w, u), _sub(x, u)), _cross(_sub(w, u), _sub(y, u))) > 0
+    p_edges = [(P[a], P[(a + 1) % 3]) for a in range(3)]
+    q_edges = [(Q[a], Q[(a + 1) % 3]) for a in range(3)]
+    if not shared:
+        return (any(_segment_meets_triangle(x, y, *Q) for x, y in p_edges)
+                or any(_segment_meets_triangle(x, y, *P) for x, y in q_edges))
+    (s,) = shared  # one vertex v: the opposite edges against the other triangle, or an
+    v = P[ip.index(s)]  # edge at v lying in the other's plane, inside its wedge at v
+    pa, pb = (P[k] for k in range(3) if ip[k] != s)
+    qa, qb = (Q[k] for k in range(3) if iq[k] != s)
+    if _segment_meets_triangle(pa, pb, *Q) or _segment_meets_triangle(qa, qb, *P):
+        return True
+    return (any(_dot(n2, _sub(x, v)) == 0 and _ray_in_wedge(v, qa, qb, x) for x in (pa, pb))
+            or any(_dot(n1, _sub(x, v)) == 0 and _ray_in_wedge(v, pa, pb, x) for x in (qa, qb)))
+
+
+def _degenerate_reference(pts, tris) -> list[int]:
+    return [f for f, t in enumerate(tris)
+            if len(set(t)) < 3 or _cross(_sub(pts[t[1]], pts[t[0]]), _sub(pts[t[2]], pts[t[0]])) == (0, 0, 0)]
+
+
+def reference_pairs(points, triangles) -> np.ndarray:
+    """O(m^2) exact reference: the intersecting pairs (i < j) of non-degenerate faces."""
+    pts = _exact(points)
+    tris = [tuple(int(i) for i in t) for t in np.asarray(triangles)]
+    bad = set(_degenerate_reference(pts, tris))
+    out = []
+    for i, j in itertools.combinations(range(len(tris)), 2):
+        if i in bad or j in bad:
+            continue
+        P, Q = [pts[k] for k in tris[i]], [pts[k] for k in tris[j]]
+        if _pair_reference(P, list(tris[i]), Q, list(tris[j])):
+            out.append((i, j))
+    return np.array(out, dtype=np.int64).reshape(-1, 2)
+
+
+def pairs_of(points, triangles, **kw) -> set:
+    return {tuple(p) for p in find_self_intersections(np.asarray(points, float), triangles, **kw).tolist()}
+
+
+# -- exact cases -----------------------------------------------------------------------------
+
+TRI = [[0.0, 0, 0], [4, 0, 0], [0, 4, 0]]  # in z = 0, face 0 of every case below
+
+
+@pytest.mark.parametrize("name, extra, expect", [
+    ("crossing (X)", [[1, 1, -1], [1, 1, 1], [6, 6, 0]], True),
+    ("above, no contact", [[1, 1, 1], [2, 1, 1], [1, 2, 2]], False),
+    ("vertex on the face", [[1, 1, 0], [1, 1, 2], [2, 1, 2]], True),
+    ("vertex on an edge", [[2, 0, 0], [2, 1, 2], [3, 1, 2]], True),
+    ("vertex on a vertex", [[4, 0, 0], [5, 1, 2], [5, 0, 2]], True),
+    ("edge across an edge, in the plane", [[1, -1, 0], [1, 1, 0], [1, 0, 3]], True),
+    ("edge in the plane, outside", [[3, 3, 0], [5, 3, 0], [4, 4, 3]], False),
+    ("edge just past a corner", [[4.5, -1, -1], [4.5, 1, 1], [6, 0, 0]], False),
+    ("coplanar overlap", [[1, 1, 0], [5, 1, 0], [1, 5, 0]], True),
+    ("coplanar, inside", [[1, 1, 0], [2, 1, 0], [1, 2, 0]], True),
+    ("coplanar, touching at a vertex", [[4, 0, 0], [6, 0, 0], [5, 1, 0]], True),
+    ("coplanar, disjoint", [[3, 3, 0], [5, 3, 0], [3, 5, 0]], False),
+    ("parallel plane", [[0, 0, 1], [4, 0, 1], [0, 4, 1]], False),
+])
+def test_disjoint_index_pairs(name, extra, expect, device):
+    pts = np.array(TRI + extra, float)
+    assert find_self_intersections(pts, [[0, 1, 2], [3, 4, 5]], device=device).tolist() == ([[0, 1]] if expect else [])
+    assert bool(len(reference_pairs(pts, [[0, 1, 2], [3, 4, 5]]))) == expect  # the reference agrees
+
+
+@pytest.mark.parametrize("name, extra, expect", [
+    ("edge through the face", [[1, 1, -1], [1, 1, 1]], True),  # (4,0,0) shared: edge 4-5 pierces
+    ("edge along the face (coplanar, inside the wedge)", [[1, 1, 0], [2, 2, 3]], True),
+    ("dihedral angle, apart", [[2, 2, 2], [1, 3, 2]], False),
+    ("edge touching the far edge", [[0, 2, -1], [0, 2, 1]], True),
+    ("coplanar, wedges overlap", [[1, 1, 0], [1, -1, 0]], True),
+    ("coplanar, wedges apart", [[5, 1, 0], [5, -1, 0]], False),
+    ("coplanar, wedges share a ray", [[2, 0, 0], [3, -1, 0]], True),  # collinear edges overlap
+    ("coplanar, opposite ray", [[8, 0, 0], [7, -1, 0]], False),
+])
+def test_one_shared_vertex(name, extra, expect, device):
+    # face 1 = (vertex 1 of face 0, 3, 4)
+    pts = np.array(TRI + extra, float)
+    tris = [[0, 1, 2], [1, 3, 4]]
+    assert pairs_of(pts, tris, device=device) == ({(0, 1)} if expect else set())
+    assert bool(len(reference_pairs(pts, tris))) == expect
+
+
+@pytest.mark.parametrize("name, apex, expect", [
+    ("folded flat onto each other", [1, 1, 0], True),
+    ("folded, apex past the other", [3, 3, 0], True),
+    ("at a dihedral angle", [1, 1, 1], False),
+    ("nearly folded (10 degrees)", [1, 1, 0.17], False),
+    ("flat, unfolded", [3, -1, 0], False),
+])
+def test_shared_edge(name, apex, expect, device):
+    pts = np.array(TRI + [apex], float)
+    for tris in ([[0, 1, 2], [0, 1, 3]], [[0, 1, 2], [1, 0, 3]], [[2, 0, 1], [3, 1, 0]]):
+        assert pairs_of(pts, tris, device=device) == ({(0, 1)} if expect else set()), tris
+    assert bool(len(reference_pairs(pts, [[0, 1, 2], [0, 1, 3]]))) == expect
+
+
+def test_duplicate_faces_are_reported(device):
+    pts = np.array(TRI + [[0, 0, 5]], float)
+    tris = [[0, 1, 2], [1, 2, 0], [2, 1, 0], [0, 1, 3]]
+    assert pairs_of(pts, tris, device=device) == {(0, 1), (0, 2), (1, 2)}
+    assert count_self_intersecting_faces(pts, tris, device=device) == 3
+
+
+def test_degenerate_faces_are_listed_and_skipped(device):
+    pts = np.array(TRI + [[2, 0, 0], [1, 1, -1], [1, 1, 1]], float)
+    tris = [[0, 1, 2], [0, 3, 1], [4, 4, 5], [4, 5, 5], [0, 1, 3]]  # 1 and 4: collinear; 2, 3: repeated index
+    assert find_degenerate_faces(pts, tris, device=device).tolist() == [1, 2, 3, 4]
+    assert find_self_intersections(pts, tris, device=device).shape == (0, 2)
+    assert find_degenerate_faces(pts, np.zeros((0, 3), int)).shape == (0,)
+
+
+def test_empty_and_single_inputs():
+    assert find_self_intersections(np.zeros((0, 3)), np.zeros((0, 3), int)).shape == (0, 2)
+    assert find_self_intersections(TRI, [[0, 1, 2]]).dtype == np.int64
+
+
+# -- meshes ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("subdivisions", [1, 5])
+def test_closed_sphere_has_none(subdivisions, device):
+    s = trimesh.creation.icosphere(subdivisions=subdivisions)
+    assert find_self_intersections(s.vertices, s.faces, device=device).shape == (0, 2)
+
+
+def test_sharp_but_embedded_surface_has_none(device):
+    # a thin cone (sharp apex, nearly folded edges) and a closed flat box of coplanar fans
+    cone = trimesh.creation.cone(radius=1e-3, height=10.0, sections=64)
+    box = trimesh.creation.box(extents=[1, 1, 1e-6]).subdivide().subdivide()
+    for m in (cone, box):
+        assert find_self_intersections(m.vertices, m.faces, device=device).shape == (0, 2)
+
+
+def _two_spheres(subdivisions: int, offset) -> trimesh.Trimesh:
+    a = trimesh.creation.icosphere(subdivisions=subdivisions)
+    b = trimesh.creation.icosphere(subdivisions=subdivisions, radius=0.8)
+    b.apply_translation(offset)
+    return trimesh.Trimesh(np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)]),
+                           process=False)
+
+
+def test_two_interpenetrating_spheres_agree_with_pymeshlab():
+    pymeshlab = pytest.importorskip("pymeshlab")
+    m = _two_spheres(4, [0.9, 0.13, 0.071])
+    pairs = find_self_intersections(m.vertices, m.faces)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(m.vertices, m.faces))
+    ms.compute_selection_by_self_intersections_per_face()
+    selected = np.flatnonzero(ms.current_mesh().face_selection_array())
+    assert len(pairs) > 100
+    assert np.array_equal(np.unique(pairs), selected)
+    na = len(m.faces) // 2  # every pair has one face from each sphere
+    assert np.all((pairs[:, 0] < na) & (pairs[:, 1] >= na))
+    assert count_self_intersecting_faces(m.vertices, m.faces) == len(selected)
+
+
+def test_two_spheres_against_the_reference_on_the_candidates():
+    # the O(m^2) reference on the faces near the crossing curve, plus a pair of far ones
+    m = _two_spheres(2, [0.9, 0.13, 0.071])
+    pairs = find_self_intersections(m.vertices, m.faces)
+    near = np.unique(np.concatenate([pairs.ravel(), [0, len(m.faces) - 1]]))
+    sub = np.searchsorted(near, pairs)
+    ref = reference_pairs(m.vertices, m.faces[near])
+    assert np.array_equal(sub, ref)
+
+
+def test_every_pair_crossing_gives_long_sorted_segments(device):
+    # 150 triangles through one axis (each holds the origin): all 11,175 pairs meet
+    rng = np.random.default_rng(3)
+    theta = rng.uniform(0, np.pi, 150)
+    c, s = np.cos(theta), np.sin(theta)
+    pts = np.column_stack([np.stack([2 * c, 2 * s, 0 * c], 1), np.stack([-2 * c, -2 * s, 0 * c], 1),
+                           np.stack([0 * c, 0 * c, 1 + rng.uniform(0, 1, 150)], 1)]).reshape(-1, 3)
+    tris = rng.permutation(np.arange(450).reshape(150, 3))
+    expect = np.array(list(itertools.combinations(range(150), 2)))
+    assert np.array_equal(find_self_intersections(pts, tris, device=device), expect)
+
+
+# -- random soups against the reference ------------------------------------------------------
+
+
+def _soup(rng, n_points, n_tris, grid):
+    pts = rng.integers(0, grid + 1, size=(n_points, 3)).astype(float)
+    tris = np.array([rng.choice(n_points, 3, replace=False) for _ in range(n_tris)])
+    dup = tris[rng.choice(n_tris, 3, replace=False)]
+    tris = np.vstack([tris, dup, np.roll(dup[:1], 1, axis=1)])  # duplicates, in order and rotated
+    return pts, tris
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_integer_grid_soups_match_the_reference(seed):
+    # small integer coordinates: every determinant exact in float64, so exact agreement;
+    # few points, so many shared vertices and edges, coplanar and touching pairs
+    rng = np.random.default_rng(seed)
+    pts, tris = _soup(rng, n_points=30, n_tris=70, grid=3)
+    got = find_self_intersections(pts, tris)
+    ref = reference_pairs(pts, tris)
+    assert np.array_equal(got, ref)
+    assert find_degenerate_faces(pts, tris).tolist() == _degenerate_reference(_exact(pts), tris.tolist())
+    # the same answer for any vertex order of each face and any face order
+    perm = rng.permutation(len(tris))
+    rolled = np.array([np.roll(t, k) if k < 3 else t[::-1] for t, k in zip(tris, rng.integers(0, 4, len(tris)))])
+    again = np.sort(perm[find_self_intersections(pts, rolled[perm])], axis=1)
+    assert np.array_equal(again[np.lexsort(again.T[::-1])], ref)
+
+
+@pytest.mark.parametrize("seed, noise", [(0, 0.3), (1, 0.05), (2, 1e-7), (3, 1e-7)])
+def test_perturbed_soups_match_the_reference(seed, noise):
+    # grid soups moved off the grid: generic (noise 0.3) to nearly degenerate (1e-7)
+    rng = np.random.default_rng(100 + seed)
+    pts, tris = _soup(rng, n_points=40, n_tris=90, grid=3)
+    pts = pts + rng.uniform(-noise, noise, pts.shape)
+    assert np.array_equal(find_self_intersections(pts, tris), reference_pairs(pts, tris))
+
+
+def test_workers_and_ranges_give_the_same_pairs(monkeypatch):
+    # many small launches from several threads at once, against one serial launch
+    m = _two_spheres(3, [0.9, 0.13, 0.071])
+    serial = find_self_intersections(m.vertices, m.faces, workers=1)
+    monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 16)
+    for workers in (2, 3, 64):
+        for _ in range(5):
+            assert np.array_equal(find_self_intersections(m.vertices, m.faces, workers=workers), serial)
+
+
+def test_scale_and_translation_do_not_matter():
+    rng = np.random.default_rng(7)
+    pts, tris = _soup(rng, n_points=30, n_tris=60, grid=3)
+    base = find_self_intersections(pts, tris)
+    for scale, shift in ((2.0**-600, 0.0), (2.0**600, 0.0), (1.0, 2.0**20)):
+        assert np.array_equal(find_self_intersections(pts * scale + shift, tris), base)
+
+
+# -- bad input: one pytest.raises each -------------------------------------------------------
+
+GOOD_T = [[0, 1, 2]]
+
+
+def test_nan_points():
+    with pytest.raises(ValueError, match="'points'.*NaN"):
+        find_self_intersections([[0, 0, 0], [1, 0, np.nan], [0, 1, 0]], GOOD_T)
+
+
+def test_infinite_points():
+    with pytest.raises(ValueError, match="'points'"):
+        find_self_intersections([[0, 0, 0], [1, 0, np.inf], [0, 1, 0]], GOOD_T)
+
+
+def test_points_of_wrong_shape():
+    with pytest.raises(ValueError, match=r"expected an \(n, 3\) array for 'points', got shape \(3, 2\)"):
+        find_self_intersections([[0, 0], [1, 0], [0, 1]], GOOD_T)
+
+
+def test_points_not_numbers():
+    with pytest.raises(TypeError, match="'points'.*dtype"):
+        find_self_intersections([["a", "b", "c"]] * 3, GOOD_T)
+
+
+def test_triangles_not_integers():
+    with pytest.raises(TypeError, match="expected integer indices for 'triangles', got .*float64"):
+        find_self_intersections(TRI, [[0.0, 1.0, 2.0]])
+
+
+def test_triangles_of_wrong_shape():
+    with pytest.raises(ValueError, match=r"expected an \(m, 3\) array for 'triangles', got shape \(1, 4\)"):
+        find_self_intersections(TRI, [[0, 1, 2, 0]])
+
+
+def test_index_out_of_range():
+    with pytest.raises(ValueError, match=r"indices in \[0, 3\) for 'triangles'.*got 3"):
+        find_self_intersections(TRI, [[0, 1, 3]])
+
+
+def test_negative_index():
+    with pytest.raises(ValueError, match="'triangles'.*got -1"):
+        find_degenerate_faces(TRI, [[0, -1, 2]])
+
+
+def test_bad_workers():
+    with pytest.raises(ValueError, match="'workers'"):
+        find_self_intersections(TRI, GOOD_T, workers=0)
+
+
+# -- integration (optional: skipped while the package does not import) -----------------------
+
+
+def test_meshed_surface_is_embedded():
+    wm = pytest.importorskip("warpmesh")
+    try:
+        shape, bounds = wm.example("part")
+        mesh = wm.mesh_surface(shape, bounds=bounds, resolution=48)
+    except (AttributeError, ImportError) as exc:  # the package mid-move
+        pytest.skip(f"warpmesh.mesh_surface unavailable: {exc}")
+    assert find_self_intersections(mesh.points, mesh.triangles).shape == (0, 2)

@@ -1,0 +1,445 @@
+"""Self-intersection check of triangle surfaces: which pairs of triangles cross.
+
+Closed-and-manifold checks pass on surfaces whose triangles cross each other, so the
+validity checks run this geometric one too. The pipeline (kernels in
+:mod:`warpmesh.kernels.intersect`):
+
+1. validate, convert once: points float64 scaled by a power of two (exact: no product
+   of the predicates over- or underflows), float32 copies in [-1, 1]^3 for the BVH,
+   triangles int32;
+2. faces in Morton order of their centroids (radix sort), degenerate faces flagged;
+3. one ``wp.Mesh`` (float32 BVH) per worker over its range of that order, built
+   concurrently (a range is a compact region of space);
+4. one thread per face f: query every BVH with f's box (``wp.mesh_query_aabb``), test
+   each candidate g > f exactly in float64, count the hits; prefix sum
+   (``wp.utils.array_scan``); a second walk, only for the faces with hits, writes the
+   pairs (f, g) at f's offset, sorted by g — so the output is sorted with no host sort.
+
+Warp's CPU backend runs a launch on one thread, so on the CPU launches are split into
+ranges run from Python threads (launches release the GIL); every face's result depends
+on the set of BVHs' faces only, so the answer does not depend on ``workers``.
+
+The float32 BVH loses no candidate: the map float64 -> float32 behind both the BVH's
+boxes and the query boxes is monotone in each coordinate, so boxes that meet in float64
+meet in float32; the query boxes are grown by a few float32 ulps besides.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import warp as wp
+
+from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh._util.parallel import run_parallel
+from warpmesh.cells.types import points3, require_mesh
+from warpmesh.kernels import intersect as K
+
+__all__ = ["check", "find_self_intersections", "count_self_intersecting_faces", "find_degenerate_faces",
+           "find_segment_intersections"]
+
+#: query boxes are grown by this much, in BVH coordinates (points in [-1, 1]^3): 4 float32 ulps at 1
+_QUERY_PAD = 4.0 * 2.0**-24
+#: faces per worker below which a CPU launch is not split
+_MIN_FACES_PER_WORKER = 1 << 13
+#: at most this many BVHs (one per worker, built concurrently): every face queries each
+_MAX_TREES = 4
+_INT32_MAX = np.iinfo(np.int32).max
+_TINY_LENGTH = 1.0e-30
+
+
+def find_self_intersections(points, triangles, *, device: str = "cpu", workers: int | None = None) -> np.ndarray:
+    """The pairs of triangles that intersect other than through shared vertices.
+
+    What counts, for two non-degenerate triangles sharing k vertex *indices*:
+
+    - k = 0: any common point (crossing, touching at a point or along a segment,
+      coplanar overlap);
+    - k = 1: a common point other than the shared vertex (an edge piercing the other
+      triangle, coplanar overlap beyond the vertex);
+    - k = 2 (a shared edge): both in one plane and folded onto each other (the opposite
+      vertices on the same side of the edge), as a bad edge collapse leaves them;
+    - k = 3 (the same vertex triple in any order, a duplicate face): always.
+
+    Points with equal coordinates but different indices are different vertices: two
+    triangles meeting there touch (k = 0). Degenerate faces (zero area to within
+    float64 rounding, or a repeated index) are skipped; :func:`find_degenerate_faces`
+    lists them.
+
+    The predicates run in float64 on the given coordinates with a static error bound;
+    a configuration within rounding of touching (relative 1e-15) is decided as touching,
+    i.e. reported. Exact for coordinates on which the determinants are computed exactly
+    (e.g. small integers).
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+        Vertex coordinates, finite.
+    triangles : (m, 3) array_like of int
+        Vertex indices of each triangle, in [0, n).
+    device : str
+        Warp device, "cpu" (default) or "cuda".
+    workers : int, optional
+        CPU threads for the BVH walks (default: the machine's cores); ignored on CUDA.
+
+    Returns
+    -------
+    (k, 2) ndarray of int64
+        Pairs (i, j), i < j, of intersecting triangles, sorted lexicographically.
+
+    Raises
+    ------
+    TypeError
+        ``points`` not real numbers, ``triangles`` not integers.
+    ValueError
+        Wrong shapes, NaN or infinite coordinates, indices out of range, ``workers`` < 1.
+
+    Examples
+    --------
+    Two triangles crossing each other, and one far away:
+
+    >>> import numpy as np
+    >>> from warpmesh.cells.intersections import find_self_intersections
+    >>> points = np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0],
+    ...                    [0.5, 0.5, -1], [0.5, 0.5, 1], [1.5, 1.5, 0],
+    ...                    [9, 9, 9], [10, 9, 9], [9, 10, 9]], dtype=float)
+    >>> find_self_intersections(points, [[0, 1, 2], [3, 4, 5], [6, 7, 8]])
+    array([[0, 1]])
+    """
+    pts, tris = _validate(points, triangles)
+    n_workers = _check_workers(workers)
+    if len(tris) < 2:
+        return np.zeros((0, 2), dtype=INDEX_DTYPE)
+    with wp.ScopedDevice(device):
+        return _find_pairs(pts, tris, wp.get_device(device), n_workers)
+
+
+def count_self_intersecting_faces(points, triangles, *, device: str = "cpu", workers: int | None = None) -> int:
+    """How many triangles intersect some other triangle (what a face selection by
+    self-intersection selects); the rules are those of :func:`find_self_intersections`.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+    triangles : (m, 3) array_like of int
+    device : str
+    workers : int, optional
+
+    Returns
+    -------
+    int
+        The number of distinct triangles that appear in the pairs.
+
+    Raises
+    ------
+    TypeError, ValueError
+        As :func:`find_self_intersections`.
+
+    Examples
+    --------
+    A square of two triangles and a copy of one of them (a duplicate face):
+
+    >>> from warpmesh.cells.intersections import count_self_intersecting_faces
+    >>> square = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    >>> count_self_intersecting_faces(square, [[0, 1, 2], [0, 2, 3], [2, 0, 1]])
+    2
+    """
+    pairs = find_self_intersections(points, triangles, device=device, workers=workers)
+    return int(np.unique(pairs).size)
+
+
+def find_degenerate_faces(points, triangles, *, device: str = "cpu") -> np.ndarray:
+    """The triangles of zero area, which :func:`find_self_intersections` skips.
+
+    A face is degenerate when two of its indices are equal or its three points are
+    collinear to within float64 rounding (every 2D projection's orientation is within
+    Shewchuk's error bound of zero).
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+    triangles : (m, 3) array_like of int
+    device : str
+
+    Returns
+    -------
+    (d,) ndarray of int64
+        Indices of the degenerate triangles, increasing.
+
+    Raises
+    ------
+    TypeError, ValueError
+        As :func:`find_self_intersections`.
+
+    Examples
+    --------
+    >>> from warpmesh.cells.intersections import find_degenerate_faces
+    >>> points = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]]
+    >>> find_degenerate_faces(points, [[0, 1, 3], [0, 1, 2], [0, 0, 3]])
+    array([1, 2])
+    """
+    pts, tris = _validate(points, triangles)
+    if len(tris) == 0:
+        return np.zeros(0, dtype=INDEX_DTYPE)
+    with wp.ScopedDevice(device):
+        dev = wp.get_device(device)
+        points64, tris32 = _device_arrays(_scaled(pts), tris, dev)
+        flags = _degenerate_flags(points64, tris32, dev)
+        return np.flatnonzero(flags.numpy()).astype(INDEX_DTYPE)  # sync point
+
+
+def check(mesh, *, device: str = "cpu") -> np.ndarray:
+    """The pairs of cells of a mesh that cross: is the mesh embedded?
+
+    Closed, manifold and oriented meshes can still have triangles that pass through each
+    other; this is the geometric check. It tests the ``"triangle"`` block (a surface, or
+    a planar triangle mesh at z = 0: overlapping planar triangles are reported), else the
+    ``"line"`` block of a planar polyline.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    device : str
+        Warp device of the triangle check.
+
+    Returns
+    -------
+    (k, 2) int64
+        Pairs (i, j), i < j, of cell indices in the block tested; empty when embedded.
+
+    Raises
+    ------
+    TypeError
+        ``mesh`` is not a Mesh.
+    ValueError
+        No ``"triangle"`` block, and no ``"line"`` block of 2D points.
+
+    Examples
+    --------
+    >>> import warpmesh as wm
+    >>> part, bounds = wm.example("part")
+    >>> len(wm.check(wm.mesh_surface(part, bounds=bounds, resolution=32)))
+    0
+    """
+    require_mesh(mesh)
+    if "triangle" in mesh.cells:
+        return find_self_intersections(points3(mesh), mesh.cells["triangle"], device=device)
+    if "line" in mesh.cells and mesh.dim == 2:
+        return find_segment_intersections(mesh.points, mesh.cells["line"])
+    raise ValueError(f"expected a 'triangle' block, or a 'line' block of 2D points, got blocks "
+                     f"{list(mesh.cells)} in {mesh.dim}D")
+
+
+def find_segment_intersections(points, segments) -> np.ndarray:
+    """The pairs of segments of a planar polyline that cross or touch, other than
+    neighbours through their shared vertex.
+
+    Candidates come from a uniform bucket grid of the segments' boxes (cell of the mean
+    segment length), then an orientation test on each pair in float64.
+
+    Parameters
+    ----------
+    points : (n, 2) float
+    segments : (m, 2) int
+
+    Returns
+    -------
+    (k, 2) int64
+        Pairs (i, j) of segment indices, i < j.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    >>> find_segment_intersections(square, np.array([[0, 2], [1, 3], [0, 1]])).tolist()  # the diagonals
+    [[0, 1]]
+    """
+    p = np.asarray(points, REAL_DTYPE)
+    s = np.asarray(segments, INDEX_DTYPE).reshape(-1, 2)
+    if len(s) < 2:
+        return np.zeros((0, 2), INDEX_DTYPE)
+    a, b = p[s[:, 0]], p[s[:, 1]]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    cell = max(float(np.linalg.norm(b - a, axis=1).mean()), _TINY_LENGTH)
+    origin = lo.min(axis=0)
+    ilo = np.floor((lo - origin) / cell).astype(np.int64)
+    ihi = np.floor((hi - origin) / cell).astype(np.int64)
+    span = ihi - ilo + 1
+    reps = span[:, 0] * span[:, 1]
+    seg_id = np.repeat(np.arange(len(s)), reps)
+    start = np.repeat(np.cumsum(reps) - reps, reps)
+    k = np.arange(len(seg_id)) - start
+    cx = ilo[seg_id, 0] + k // span[seg_id, 1]
+    cy = ilo[seg_id, 1] + k % span[seg_id, 1]
+    key = cx * (int(ihi[:, 1].max()) + 2) + cy
+    order = np.argsort(key, kind="stable")
+    key, seg_id = key[order], seg_id[order]
+    brk = np.flatnonzero(np.diff(key)) + 1
+    starts = np.concatenate([[0], brk])
+    counts = np.diff(np.concatenate([starts, [len(key)]]))
+    pairs = []
+    for c in np.unique(counts[counts > 1]):  # one vectorised pass per bucket size
+        st = starts[counts == c]
+        iu, ju = np.triu_indices(int(c), 1)
+        pairs.append(np.column_stack([seg_id[st[:, None] + iu[None]].ravel(), seg_id[st[:, None] + ju[None]].ravel()]))
+    if not pairs:
+        return np.zeros((0, 2), INDEX_DTYPE)
+    pr = np.unique(np.sort(np.concatenate(pairs), axis=1), axis=0)
+    i, j = pr[:, 0], pr[:, 1]
+    share = (s[i, :, None] == s[j, None, :]).any(axis=(1, 2))
+    i, j = i[~share], j[~share]
+
+    def orient(p0, p1, q):
+        d1, d2 = p1 - p0, q - p0
+        return d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+
+    o1, o2 = orient(a[i], b[i], a[j]), orient(a[i], b[i], b[j])
+    o3, o4 = orient(a[j], b[j], a[i]), orient(a[j], b[j], b[i])
+    hit = (o1 * o2 <= 0) & (o3 * o4 <= 0)
+    # collinear pairs pass the sign test; keep them only when their boxes overlap
+    col = (o1 == 0) & (o2 == 0)
+    overlap = np.all((np.maximum(lo[i], lo[j]) <= np.minimum(hi[i], hi[j])), axis=1)
+    hit &= ~col | overlap
+    return np.column_stack([i[hit], j[hit]]).astype(INDEX_DTYPE)
+
+
+# -- pipeline ------------------------------------------------------------------------------
+
+
+def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int) -> np.ndarray:
+    m = len(tris)
+    scaled = _scaled(pts)
+    points64, tris32 = _device_arrays(scaled, tris, device)
+    points32 = wp.array(_bvh_coordinates(scaled), dtype=wp.vec3, device=device)
+    order, sorted_tris = _spatial_order(points32, tris32, device)
+    degenerate = _degenerate_flags(points64, sorted_tris, device)
+    ranges = _ranges(m, device, n_workers)
+    tree_ranges = ranges if len(ranges) <= _MAX_TREES else _ranges(m, device, _MAX_TREES)
+    meshes = _build_bvhs(points32, sorted_tris, tree_ranges)
+    walk = [wp.array([mesh.id for mesh in meshes], dtype=wp.uint64, device=device),
+            wp.array([a for a, _ in tree_ranges], dtype=wp.int32, device=device),
+            points64, points32, sorted_tris, order, degenerate, _QUERY_PAD]
+
+    wp.load_module(K, device=device)  # compiled/loaded once here, not by two worker threads at once
+    counts = wp.empty(m, dtype=wp.int64, device=device)
+    run_parallel([lambda a=a, b=b: wp.launch(K.count_intersections_kernel, dim=b - a, inputs=[*walk, a],
+                                              outputs=[counts], device=device)
+                   for a, b in ranges])
+    offsets = wp.empty(m, dtype=wp.int64, device=device)
+    wp.utils.array_scan(counts, offsets, inclusive=False)
+    total = int(offsets[m - 1:].numpy()[0] + counts[m - 1:].numpy()[0])  # sync point: output size
+    if total == 0:
+        return np.zeros((0, 2), dtype=INDEX_DTYPE)
+
+    pairs = wp.empty(total, dtype=wp.vec2i, device=device)
+    run_parallel([lambda a=a, b=b: wp.launch(K.write_intersections_kernel, dim=b - a,
+                                              inputs=[*walk, a, counts, offsets], outputs=[pairs],
+                                              device=device)
+                   for a, b in ranges])
+    return pairs.numpy().astype(INDEX_DTYPE)  # sync point
+
+
+def _spatial_order(points32: wp.array, tris32: wp.array, device) -> tuple[wp.array, wp.array]:
+    """Faces sorted by the Morton code of their centroid (stable): ``order[s]`` is the
+    face at position s, and the faces' indices in that order. Neighbouring positions are
+    neighbours in space, so a range of positions is a compact region (one BVH each) and
+    the walks stay in cache."""
+    m = tris32.shape[0] // 3
+    keys = wp.empty(2 * m, dtype=wp.int32, device=device)  # radix sort's scratch: 2m
+    ids = wp.empty(2 * m, dtype=wp.int32, device=device)
+    wp.launch(K.morton_codes_kernel, dim=m, inputs=[points32, tris32], outputs=[keys, ids], device=device)
+    wp.utils.radix_sort_pairs(keys, ids, m)
+    order = ids[:m]
+    sorted_tris = wp.empty(3 * m, dtype=wp.int32, device=device)
+    wp.launch(K.gather_faces_kernel, dim=m, inputs=[tris32, order], outputs=[sorted_tris], device=device)
+    return order, sorted_tris
+
+
+def _build_bvhs(points32: wp.array, sorted_tris: wp.array, ranges: list[tuple[int, int]]) -> list[wp.Mesh]:
+    """One ``wp.Mesh`` (float32 BVH) per range of face positions, built concurrently
+    (a range of the Morton order is a compact region, so a face's query box meets
+    mostly its own range's tree)."""
+    meshes = [None] * len(ranges)
+
+    def build(k, a, b):
+        meshes[k] = wp.Mesh(points=points32, indices=sorted_tris[3 * a:3 * b])
+
+    run_parallel([lambda k=k, a=a, b=b: build(k, a, b) for k, (a, b) in enumerate(ranges)])
+    return meshes
+
+
+def _scaled(pts: np.ndarray) -> np.ndarray:
+    """Points scaled by a power of two (exact) so that max |x| is in [0.5, 1): no product
+    of the predicates over- or underflows, and the BVH map below cannot overflow."""
+    big = float(np.abs(pts).max()) if pts.size else 0.0
+    return np.ldexp(pts, -np.frexp(big)[1]) if big > 0.0 else pts
+
+
+def _device_arrays(scaled: np.ndarray, tris: np.ndarray, device) -> tuple[wp.array, wp.array]:
+    """The points as vec3d; the triangles as one flat int32 array (``wp.Mesh``'s layout)."""
+    return (wp.array(scaled, dtype=wp.vec3d, device=device),
+            wp.array(tris.astype(np.int32).ravel(), dtype=wp.int32, device=device))
+
+
+def _bvh_coordinates(scaled: np.ndarray) -> np.ndarray:
+    """float32 points in [-1, 1]^3 for the BVH, by a map that is monotone in each
+    coordinate (centre, divide, round), so boxes that meet in float64 meet in float32."""
+    lo = scaled.min(axis=0)
+    hi = scaled.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    half = float(0.5 * (hi - lo).max())
+    return ((scaled - centre) / (half if half > 0.0 else 1.0)).astype(np.float32)
+
+
+def _degenerate_flags(points64: wp.array, tris32: wp.array, device) -> wp.array:
+    flags = wp.empty(tris32.shape[0] // 3, dtype=wp.int32, device=device)
+    wp.launch(K.classify_faces_kernel, dim=flags.shape[0], inputs=[points64, tris32], outputs=[flags],
+              device=device)
+    return flags
+
+
+def _ranges(n: int, device, n_workers: int) -> list[tuple[int, int]]:
+    """Split [0, n) into one range per CPU worker (one range on CUDA or for small n)."""
+    k = 1 if device.is_cuda else max(1, min(n_workers, n // _MIN_FACES_PER_WORKER))
+    edges = np.linspace(0, n, k + 1).astype(int)
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def _validate(points, triangles) -> tuple[np.ndarray, np.ndarray]:
+    """points as (n, 3) float64, triangles as (m, 3) int64, or a ValueError/TypeError
+    naming the argument."""
+    pts = np.asarray(points)
+    if pts.dtype.kind not in "iuf":
+        raise TypeError(f"expected real numbers for 'points', got an array of dtype {pts.dtype}")
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"expected an (n, 3) array for 'points', got shape {pts.shape}")
+    pts = np.ascontiguousarray(pts, dtype=REAL_DTYPE)
+    if not np.isfinite(pts).all():
+        raise ValueError("expected finite coordinates in 'points', got NaN or infinity "
+                         f"in row {int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])}")
+    tris = np.asarray(triangles)
+    if tris.size == 0 and tris.dtype.kind == "f":  # an empty list: no triangles
+        tris = tris.astype(INDEX_DTYPE)
+    if tris.dtype.kind not in "iu":
+        raise TypeError(f"expected integer indices for 'triangles', got an array of dtype {tris.dtype}")
+    if tris.size == 0:
+        tris = tris.reshape(0, 3)
+    if tris.ndim != 2 or tris.shape[1] != 3:
+        raise ValueError(f"expected an (m, 3) array for 'triangles', got shape {tris.shape}")
+    if len(pts) > _INT32_MAX or 3 * len(tris) > _INT32_MAX:
+        raise ValueError(f"expected fewer than 2**31 points and 2**31 / 3 triangles, got {len(pts)} points "
+                         f"and {len(tris)} triangles")
+    if tris.size and (tris.min() < 0 or tris.max() >= len(pts)):
+        bad = tris.min() if tris.min() < 0 else tris.max()
+        raise ValueError(f"expected indices in [0, {len(pts)}) for 'triangles' (the number of points), "
+                         f"got {int(bad)}")
+    return pts, tris.astype(INDEX_DTYPE, copy=False)
+
+
+def _check_workers(workers: int | None) -> int:
+    if workers is None:
+        return os.cpu_count() or 1
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ValueError(f"expected a positive integer for 'workers', got {workers!r}")
+    return int(workers)
