@@ -44,7 +44,7 @@ import numpy as np
 
 from warpmesh.frep.codegen import EVALUATORS, Evaluator
 from warpmesh.surface.block_grid import GRADIENTS, METHODS
-from warpmesh.surface.volume import SLAB_VOXELS
+from warpmesh.surface.volume import SLAB_VOXELS, label_form
 
 __all__ = ["AdaptiveOptions", "ContinuationOptions", "GridOptions", "SurfaceOptions", "VolumeOptions"]
 
@@ -525,7 +525,7 @@ class VolumeOptions:
                 raise ValueError(f"expected a finite number for 'level', got {self.level!r}")
             set_(self, "level", float(self.level))
         if self.labels is not None:
-            set_(self, "labels", _labels(self.labels))
+            set_(self, "labels", label_form(self.labels))
             if self.level is not None or self.inside != "above":
                 given = "'level'" if self.level is not None else f"inside={self.inside!r}"
                 raise ValueError(f"{given} does not apply with 'labels' (each label's surface bounds the "
@@ -543,20 +543,6 @@ class VolumeOptions:
                 or self.slab_voxels < 1:
             raise ValueError(f"expected a positive integer for 'slab_voxels', got {self.slab_voxels!r}")
         set_(self, "slab_voxels", int(self.slab_voxels))
-
-
-def _labels(labels) -> str | tuple[int, ...]:
-    """"all", or the label values as distinct Python ints (the volume checks the rest)."""
-    if isinstance(labels, str):
-        if labels != "all":
-            raise ValueError(f"expected 'labels' as \"all\" or a sequence of label values, got {labels!r}")
-        return labels
-    values = np.asarray(labels)
-    if values.ndim != 1 or len(values) == 0 or not np.issubdtype(values.dtype, np.integer):
-        raise ValueError(f"expected 'labels' as \"all\" or a non-empty sequence of integers, got {labels!r}")
-    if len(np.unique(values)) != len(values):
-        raise ValueError(f"expected distinct values in 'labels', got {values.tolist()}")
-    return tuple(int(v) for v in values.tolist())
 
 
 #: any one of the groups: what ``mesh_surface(options=...)`` takes

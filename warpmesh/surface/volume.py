@@ -54,9 +54,8 @@ def check_labels(labels, vol: np.ndarray) -> np.ndarray:
     """The label values to mesh: "all" (every value but 0) or a sequence of values."""
     if not (np.issubdtype(vol.dtype, np.integer) or vol.dtype == np.bool_):
         raise TypeError(f"expected an integer (label) 'volume' with 'labels', got dtype {vol.dtype}")
+    labels = label_form(labels)
     if isinstance(labels, str):
-        if labels != "all":
-            raise ValueError(f"expected 'labels' as \"all\" or a sequence of label values, got {labels!r}")
         values = np.unique(np.concatenate([np.unique(vol[a:a + 64]) for a in range(0, len(vol), 64)]))
         values = values[values != 0]  # (slab by slab: no sorted copy of the whole volume)
         if len(values) == 0:
@@ -64,12 +63,29 @@ def check_labels(labels, vol: np.ndarray) -> np.ndarray:
         check_label_range(values)
         return values
     values = np.asarray(labels)
+    check_label_range(values)
+    return values
+
+
+def label_form(labels) -> str | tuple[int, ...]:
+    """``"all"``, or the label values as distinct Python ints; the checks of the form of
+    ``labels`` that need no volume (``VolumeOptions`` and :func:`check_labels` share them).
+
+    Examples
+    --------
+    >>> label_form([3, 1]), label_form("all")
+    ((3, 1), 'all')
+    """
+    if isinstance(labels, str):
+        if labels != "all":
+            raise ValueError(f"expected 'labels' as \"all\" or a sequence of label values, got {labels!r}")
+        return labels
+    values = np.asarray(labels)
     if values.ndim != 1 or len(values) == 0 or not np.issubdtype(values.dtype, np.integer):
         raise ValueError(f"expected 'labels' as \"all\" or a non-empty sequence of integers, got {labels!r}")
     if len(np.unique(values)) != len(values):
         raise ValueError(f"expected distinct values in 'labels', got {values.tolist()}")
-    check_label_range(values)
-    return values
+    return tuple(int(v) for v in values.tolist())
 
 
 def check_label_range(values: np.ndarray) -> None:
