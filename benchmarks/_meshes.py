@@ -20,8 +20,8 @@ import numpy as np
 
 import warpmesh as wm
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
-from numbering_meshes import plate, shuffled  # noqa: E402,F401  (re-exported for bench_renumber)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))  # the project root: tests.helpers
+from tests.helpers.numbering_meshes import plate, shuffled  # noqa: E402,F401  (re-exported for bench_renumber)
 
 SPHERE_BOUNDS = ((-1.2,) * 3, (1.2,) * 3)
 #: bump when a generator changes, so that cached meshes of the old one are not reused

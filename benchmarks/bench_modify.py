@@ -44,8 +44,8 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
-from cellcheck import check_cells  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # the project root: tests.helpers
+from tests.helpers.cellcheck import check_cells  # noqa: E402
 
 CASES = ("transform", "subdivide", "hex-to-tet")
 TOOLS = {"transform": ("warpmesh", "trimesh", "pyvista"), "subdivide": ("warpmesh", "trimesh", "pyvista"),

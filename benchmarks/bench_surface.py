@@ -37,8 +37,8 @@ Run:  python benchmarks/bench_surface.py [--quick] [--repeat 3] [--cases sphere,
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import gc
-import inspect
 import json
 import os
 import platform
@@ -702,7 +702,7 @@ def environment():
         "pyvista": pv.__version__, "vtk": vtk.vtkVersion.GetVTKVersion(),
         "vtk_smp_backend": f"{smp.GetBackend()} ({smp.GetEstimatedNumberOfThreads()} threads)",
         "pymcubes": getattr(mcubes, "__version__", "?"), "warp": wp.config.version,
-        "warpmesh default method": inspect.signature(mesh_surface).parameters["method"].default,
+        "warpmesh default method": {f.name: f.default for f in dataclasses.fields(wm.GridOptions)}["method"],
         "malloc": "freed memory kept in the heap (MALLOC_MMAP_THRESHOLD_/MALLOC_TRIM_THRESHOLD_ 16 GiB)"
                   if all(os.environ.get(k) == v for k, v in _MALLOC_ENV.items()) else "glibc default",
     }
