@@ -5,8 +5,10 @@ Predicates run in float64 on the host's points; the BVH (a ``wp.Mesh``) is float
 only proposes candidates. Every sign comes from a determinant of three difference
 vectors, compared with Shewchuk's static error bound (``errboundA``, doubled): a sign
 within its bound counts as zero, so configurations within float64 rounding of touching
-are decided as touching. With ``fuse_fp`` off the kernels round every operation on its
-own, which the bound assumes.
+are decided as touching; a "touching" that rests on such a tie is confirmed in a 2D
+projection, where nearly coplanar pairs are well conditioned (:func:`pair_intersects`).
+With ``fuse_fp`` off the kernels round every operation on its own, which the bound
+assumes.
 
 Notation: O(a, b, c, d) = ((b - a) x (c - a)) . (d - a); a triangle's plane side of x is
 O of its vertices and x. Two triangles share k vertex *indices* (k = 0..3); see
@@ -23,6 +25,11 @@ O3_BOUND = wp.constant(wp.float64(2.0 * (7.0 + 56.0 * _EPS) * _EPS))
 O2_BOUND = wp.constant(wp.float64(2.0 * (3.0 + 16.0 * _EPS) * _EPS))
 #: absolute floor of every bound: products below it may be subnormal
 TINY = wp.constant(wp.float64(1.0e-290))
+#: how far (absolute, per coordinate) the given points may be from the configuration they
+#: stand for: a few ulps at 1, the points being scaled to max |x| < 1 (a rounded rotation,
+#: an interpolated refinement node). Only certificates of separation use it (see
+#: :func:`orient2d_margin`); the signs that decide "meet" do not.
+INPUT_TOL = wp.constant(wp.float64(2.0**-48))
 
 
 @wp.func
@@ -135,12 +142,75 @@ def coplanar_overlap(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
 
 
 @wp.func
-def ray_in_wedge_2d(v: wp.vec3d, a: wp.vec3d, b: wp.vec3d, x: wp.vec3d, i: int, j: int) -> bool:
-    """The ray from v through x lies in the closed convex wedge at v spanned by a and b."""
-    s = orient2d(v, a, b, i, j)
-    if s == 0:
+def orient2d_margin(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, i: int, j: int) -> int:
+    """:func:`orient2d`'s sign when it holds by a margin: the same for every move of a, b, c
+    by up to ``INPUT_TOL`` per coordinate (besides the rounding of the computation), else
+    0. Moving the points by delta changes each difference by at most 2 delta, the
+    determinant by at most 2 delta (|acx| + |acy| + |bcx| + |bcy|) + 8 delta^2."""
+    acx = a[i] - c[i]
+    bcx = b[i] - c[i]
+    acy = a[j] - c[j]
+    bcy = b[j] - c[j]
+    l = acx * bcy
+    r = acy * bcx
+    lin = wp.abs(acx) + wp.abs(acy) + wp.abs(bcx) + wp.abs(bcy)
+    moved = wp.float64(2.0) * INPUT_TOL * lin * (wp.float64(1.0) + O2_BOUND) + wp.float64(8.0) * INPUT_TOL * INPUT_TOL
+    det = l - r
+    bound = O2_BOUND * (wp.abs(l) + wp.abs(r)) + moved + TINY
+    if det > bound:
+        return 1
+    if det < -bound:
+        return -1
+    return 0
+
+
+@wp.func
+def _ray_outside_wedge_2d(v: wp.vec3d, a: wp.vec3d, b: wp.vec3d, x: wp.vec3d, i: int, j: int) -> bool:
+    """The ray from v through x is certified (:func:`orient2d_margin`) outside the closed
+    convex wedge at v spanned by a and b: beyond one of its edge lines, or strictly on one
+    side of both (outside whatever the wedge's orientation: a sliver's wedge)."""
+    oa = orient2d_margin(v, a, x, i, j)
+    ob = orient2d_margin(v, b, x, i, j)
+    if oa != 0 and oa == ob:
         return True
-    return orient2d(v, a, x, i, j) * s >= 0 and orient2d(v, x, b, i, j) * s >= 0
+    s = orient2d_margin(v, a, b, i, j)
+    if s == 0:
+        return False
+    return oa * s < 0 or ob * s > 0  # x before a, or past b: orient(v, x, b) = -ob
+
+
+@wp.func
+def wedges_apart_2d(v: wp.vec3d, pa: wp.vec3d, pb: wp.vec3d, qa: wp.vec3d, qb: wp.vec3d, i: int, j: int) -> bool:
+    """The wedges at v spanned by (pa, pb) and by (qa, qb) are certified to share no ray
+    (coordinates i, j): each of the four edge rays is certified outside the other wedge
+    (two convex wedges share a ray iff an edge ray of one lies in the other). Collinear
+    edge rays pointing opposite ways are apart (the other edge of each wedge decides);
+    pointing the same way they are never apart."""
+    return (_ray_outside_wedge_2d(v, pa, pb, qa, i, j) and _ray_outside_wedge_2d(v, pa, pb, qb, i, j)
+            and _ray_outside_wedge_2d(v, qa, qb, pa, i, j) and _ray_outside_wedge_2d(v, qa, qb, pb, i, j))
+
+
+@wp.func
+def _outside_edge_2d(t: wp.mat33d, other: wp.mat33d, i: int, j: int) -> bool:
+    """Some edge line of triangle t has all of ``other`` certified on its outer side."""
+    s = orient2d_margin(t[0], t[1], t[2], i, j)
+    if s == 0:
+        return False
+    for a in range(3):
+        u = t[a]
+        w = t[(a + 1) % 3]
+        if (orient2d_margin(u, w, other[0], i, j) * s < 0 and orient2d_margin(u, w, other[1], i, j) * s < 0
+                and orient2d_margin(u, w, other[2], i, j) * s < 0):
+            return True
+    return False
+
+
+@wp.func
+def separated_2d(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
+    """The closed triangles p, q (rows) are certified disjoint in the projection on
+    coordinates (i, j), hence in space: an edge line of one has the other strictly
+    outside, by a margin (two convex polygons are disjoint iff such an edge exists)."""
+    return _outside_edge_2d(p, q, i, j) or _outside_edge_2d(q, p, i, j)
 
 
 @wp.func
@@ -212,16 +282,35 @@ def pair_intersects(p: wp.mat33d, ip: wp.vec3i, n1: wp.vec3d, m1: wp.vec3d,
       side of the edge);
     - three shared indices (a duplicate face): always.
 
-    Neither triangle may be degenerate. Non-coplanar pairs follow Guigue & Devillers
-    (2003). In canonical order p = (a, b, c), q = (x, y, z) (:func:`canonical_order`: a
-    alone on the positive side of q's plane, or on it with b, c strictly below; x
-    likewise for p's plane; rotations keep a triangle's orientation, a swap of its last
-    two vertices flips the other's plane), p and q cut the planes' common line L in
-    [j, i] and [k, l] along n1 x n2 (i on ab, j on ac, k on xy, l on xz), and
-    k <= i iff O(a, b, x, y) <= 0, j <= l iff O(a, c, x, z) >= 0: O(a, b, x, y) is the
-    signed distance i -> k times (d(b) - d(a)) (e(y) - e(x)) > 0, d and e the sides of
-    q's and p's planes. A shared vertex v is an end of both segments (v = c or b, v = y or
-    z): they overlap beyond v iff both leave v the same way.
+    Neither triangle may be degenerate. d and e are the sides of p's vertices wrt q's
+    plane and of q's wrt p's; a *tie* is a side within rounding of 0 at a free vertex
+    (not a shared one). When all of one triangle's free vertices tie, the pair is
+    coplanar and decided in 2D (the projection along the dominant axis of that normal;
+    one shared vertex: the wedges at it meet unless :func:`wedges_apart_2d`).
+    Otherwise the 3D tests below take a tie as exactly 0: exact for exact inputs,
+    conservative for touching ones. But a tie can also be rounding noise where the
+    geometry is ill-conditioned (nearly coplanar neighbours: a fan of coplanar triangles
+    around a vertex, flat parts of a refined surface; an edge lying in the other's plane)
+    and then the other signs are noise too; so a "meet" that rests on a tie is confirmed
+    in the projection along p's dominant normal axis: it is dropped when the projections
+    are certified apart by more than rounding and ``INPUT_TOL`` (:func:`separated_2d`,
+    :func:`wedges_apart_2d`). Projections of triangles that meet meet, so this never
+    drops an exact intersection, and it keeps pairs that touch within rounding.
+
+    No shared index, not coplanar: Guigue & Devillers (2003). In canonical order
+    p = (a, b, c), q = (x, y, z) (:func:`canonical_order`: a alone on the positive side of
+    q's plane, or on it with b, c strictly below; x likewise for p's plane; rotations
+    keep a triangle's orientation, a swap of its last two vertices flips the other's
+    plane), p and q cut the planes' common line L in [j, i] and [k, l] along n1 x n2
+    (i on ab, j on ac, k on xy, l on xz), and k <= i iff O(a, b, x, y) <= 0, j <= l iff
+    O(a, c, x, z) >= 0: O(a, b, x, y) is the signed distance i -> k times
+    (d(b) - d(a)) (e(y) - e(x)) > 0.
+
+    One shared vertex v, not coplanar: with p = (v, a, b) and q = (v, f, g) (rotated,
+    orientation kept), the triangles meet beyond v iff their wedges at v share a ray; it
+    lies on L, direction +-u with u = n1 x n2. u is in p's wedge iff d(a) >= 0 >= d(b)
+    ((a x u) . n1 = |n1|^2 d(a) for a in p's plane), in q's iff e(f) <= 0 <= e(g); -u
+    with the inequalities reversed. A tie meets both inequalities (it only adds "meet").
     """
     shared = int(0)
     pv = int(-1)
@@ -246,10 +335,15 @@ def pair_intersects(p: wp.mat33d, ip: wp.vec3i, n1: wp.vec3d, m1: wp.vec3d,
                 qy = b
         if plane_side(q[qy], p[0], n1, m1) != 0:
             return False
+        # coplanar: folded iff both apexes are strictly on the same side of the edge, in the
+        # projection along p's dominant normal axis (which keeps sides); a tie is no fold:
+        # coplanar triangles on opposite sides of the edge touch only along it
+        k = drop_axis(n1)
+        i = (k + 1) % 3
+        j = (k + 2) % 3
         u = p[(px + 1) % 3]
         w = p[(px + 2) % 3]
-        e = w - u
-        return wp.dot(wp.cross(e, p[px] - u), wp.cross(e, q[qy] - u)) > wp.float64(0.0)
+        return orient2d(u, w, p[px], i, j) * orient2d(u, w, q[qy], i, j) > 0
 
     # e: sides of q's vertices wrt p's plane (the shared vertex: exactly 0)
     e0 = _side_unless(q[0], 0, qv, p[0], n1, m1)
@@ -272,21 +366,36 @@ def pair_intersects(p: wp.mat33d, ip: wp.vec3i, n1: wp.vec3d, m1: wp.vec3d,
     if dpos == free or dneg == free:
         return False
 
-    if dpos + dneg == 0 or epos + eneg == 0:  # coplanar: 2D tests in the plane
-        k = drop_axis(n1)
-        if dpos + dneg == 0:
-            k = drop_axis(n2)
-        i = (k + 1) % 3
-        j = (k + 2) % 3
-        if shared == 0:
-            return coplanar_overlap(p, q, i, j)
+    k = drop_axis(n1)
+    if dpos + dneg == 0:
+        k = drop_axis(n2)
+    i = (k + 1) % 3
+    j = (k + 2) % 3
+    coplanar = dpos + dneg == 0 or epos + eneg == 0
+    ties = dpos + dneg + epos + eneg < 2 * free
+
+    if shared == 1:
         v = p[pv]
         pa = p[(pv + 1) % 3]
         pb = p[(pv + 2) % 3]
         qa = q[(qv + 1) % 3]
         qb = q[(qv + 2) % 3]
-        return (ray_in_wedge_2d(v, pa, pb, qa, i, j) or ray_in_wedge_2d(v, pa, pb, qb, i, j)
-                or ray_in_wedge_2d(v, qa, qb, pa, i, j) or ray_in_wedge_2d(v, qa, qb, pb, i, j))
+        if coplanar:
+            return not wedges_apart_2d(v, pa, pb, qa, qb, i, j)
+        ds = wp.vec3i(d0, d1, d2)
+        es = wp.vec3i(e0, e1, e2)
+        da = ds[(pv + 1) % 3]
+        db = ds[(pv + 2) % 3]
+        ef = es[(qv + 1) % 3]
+        eg = es[(qv + 2) % 3]
+        hit = ((da >= 0 and db <= 0 and ef <= 0 and eg >= 0)
+               or (da <= 0 and db >= 0 and ef >= 0 and eg <= 0))
+        if hit and ties:
+            hit = not wedges_apart_2d(v, pa, pb, qa, qb, i, j)
+        return hit
+
+    if coplanar:  # 2D tests in the plane
+        return coplanar_overlap(p, q, i, j)
 
     # canonical order: p rotated by k1 (q's plane flipped if f1 < 0: q's rows 1, 2 swap),
     # then q rotated by k2 (p's plane flipped if f2 < 0: p's rows b, c swap);
@@ -310,11 +419,12 @@ def pair_intersects(p: wp.mat33d, ip: wp.vec3i, n1: wp.vec3d, m1: wp.vec3d,
     jp = qbase[k2]
     jq = qbase[(k2 + 1) % 3]
     jr = qbase[(k2 + 2) % 3]
-    if shared == 1:
-        # p ∩ L = [v, i] (v = c) or [j, v] (v = b); q ∩ L = [v, l] (v = y) or [k, v] (v = z):
-        # they overlap beyond v iff both leave v the same way along L
-        return (ic == pv) == (jq == qv)
-    return orient3d(p[ia], p[ib], q[jp], q[jq]) <= 0 and orient3d(p[ia], p[ic], q[jp], q[jr]) >= 0
+    o1 = orient3d(p[ia], p[ib], q[jp], q[jq])
+    o2 = orient3d(p[ia], p[ic], q[jp], q[jr])
+    hit = o1 <= 0 and o2 >= 0
+    if hit and (ties or o1 == 0 or o2 == 0):
+        hit = not separated_2d(p, q, i, j)
+    return hit
 
 
 @wp.func

@@ -1,7 +1,9 @@
 """The self-intersection check: exact cases built by hand, random triangle soups against an
 exact brute-force reference written here (edge-against-triangle in Python integers, a
-formulation independent of the kernel's orientation-sign one), closed spheres, and two
-interpenetrating spheres against pymeshlab's face selection."""
+formulation independent of the kernel's orientation-sign one), closed spheres, two
+interpenetrating spheres against pymeshlab's face selection, and flat refined faces (fans
+of coplanar triangles, rounded and rotated) whose neighbours only touch through what they
+share."""
 
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ from warpmesh.cells.intersections import (
     find_degenerate_faces,
     find_self_intersections,
 )
+from warpmesh.mesh import Mesh
 
 # -- exact reference: Python integers, every edge of one triangle against the other --------
 
@@ -278,6 +281,149 @@ def test_every_pair_crossing_gives_long_sorted_segments(device):
     tris = rng.permutation(np.arange(450).reshape(150, 3))
     expect = np.array(list(itertools.combinations(range(150), 2)))
     assert np.array_equal(find_self_intersections(pts, tris, device=device), expect)
+
+
+# -- nearly coplanar neighbours: fans of coplanar triangles ----------------------------------
+# A flat face split into sub-triangles is a fan of coplanar triangles around each vertex.
+# With rounded coordinates (nodes at thirds, a rotation) their plane sides are rounding
+# noise, and edges collinear through a shared vertex point opposite ways: neighbours that
+# touch only through what they share, which must not be reported.
+
+
+def _rotation(seed: int) -> np.ndarray:
+    q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def _moved(points, seed: int, shift: float = 2.0) -> np.ndarray:
+    """points under a random rotation and translation (rounded: no longer coplanar)."""
+    return points @ _rotation(seed).T + np.random.default_rng(seed).uniform(-shift, shift, 3)
+
+
+def _fan(k: int):
+    """k triangles around vertex 0, the centre of a regular k-gon in z = 0."""
+    t = 2 * np.pi * np.arange(k) / k
+    pts = np.vstack([[0.0, 0.0, 0.0], np.column_stack([np.cos(t), np.sin(t), np.zeros(k)])])
+    return pts, np.array([[0, 1 + i, 1 + (i + 1) % k] for i in range(k)])
+
+
+def _kuhn_block(nc: int):
+    """[0, 1]^3 as nc^3 cubes of 6 Kuhn tetrahedra each (the paths from a cube's lowest to
+    its highest corner along the axes), positively oriented."""
+    g = np.arange(nc + 1)
+    pts = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3) / nc
+
+    def idx(c):
+        return (c[..., 0] * (nc + 1) + c[..., 1]) * (nc + 1) + c[..., 2]
+
+    low = np.stack(np.meshgrid(*[np.arange(nc)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    tets = []
+    for perm in itertools.permutations(range(3)):
+        path, c = [idx(low)], low.copy()
+        for ax in perm:
+            c = c.copy()
+            c[:, ax] += 1
+            path.append(idx(c))
+        tets.append(np.stack(path, axis=1))
+    tets = np.concatenate(tets)
+    x = pts[tets]
+    neg = np.linalg.det(x[:, 1:] - x[:, :1]) < 0
+    tets[neg] = tets[neg][:, [0, 2, 1, 3]]
+    return pts, tets
+
+
+def _boundary_triangles(tets: np.ndarray) -> np.ndarray:
+    """The faces used by one tetrahedron only."""
+    faces = tets[:, [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]].reshape(-1, 3)
+    _, inv, count = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True, return_counts=True)
+    return faces[count[inv.ravel()] == 1]
+
+
+def test_coplanar_neighbours_touching_at_the_shared_vertex_only():
+    # faces (117, 118, 478) and (478, 479, 477) of icosphere(1).refine(4): coplanar to
+    # rounding; 117 - 478 - 477 collinear, 117 and 477 on opposite sides of 478
+    pts = np.array([[-0.23176274578121053, 0.7381955238109938, 0.58766270208801],
+                    [-0.1545084971874737, 0.6673740532470405, 0.6753254041760199],
+                    [-0.07725424859373685, 0.738195523810994, 0.58766270208801],
+                    [0.0, 0.6673740532470405, 0.6753254041760199],
+                    [0.07725424859373685, 0.7381955238109938, 0.58766270208801]])
+    tris = [[0, 1, 2], [2, 3, 4]]
+    assert find_self_intersections(pts, tris).shape == (0, 2)
+    assert reference_pairs(pts, tris).shape == (0, 2)  # exactly: only the shared vertex
+
+
+@pytest.mark.parametrize("n", [2, 3, 4])
+def test_refined_icosphere_has_none_and_agrees_with_pymeshlab(n, device):
+    # flat subdivision: the n^2 sub-triangles of each face are coplanar
+    m = Mesh.from_trimesh(trimesh.creation.icosphere(subdivisions=1)).refine(n)
+    pts, tris = np.asarray(m.points, float), np.asarray(m.cells["triangle"])
+    assert find_self_intersections(pts, tris, device=device).shape == (0, 2)
+    try:
+        import pymeshlab
+    except ImportError:
+        return
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(pts, tris))
+    ms.compute_selection_by_self_intersections_per_face()
+    assert not ms.current_mesh().face_selection_array().any()
+
+
+@pytest.mark.parametrize("k", [3, 5, 6, 8, 12])
+def test_refined_flat_fans_have_none(k, device):
+    pts, tris = _fan(k)
+    m = Mesh(pts, {"triangle": tris}).refine(3)  # nodes at thirds of the edges: rounded
+    p, t = np.asarray(m.points, float), np.asarray(m.cells["triangle"])
+    assert find_self_intersections(p, t, device=device).shape == (0, 2)  # in z = 0
+    for seed in range(6):
+        assert find_self_intersections(_moved(p, seed), t, device=device).shape == (0, 2), seed
+
+
+@pytest.mark.parametrize("n", [3, 4])
+def test_refined_planar_mesh_rotated_has_none(n):
+    g = np.linspace(0.0, 1.0, 4)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    a = (np.arange(3)[:, None] * 4 + np.arange(3)[None, :]).ravel()
+    tris = np.concatenate([np.stack([a, a + 4, a + 5], 1), np.stack([a, a + 5, a + 1], 1)])
+    m = Mesh(np.column_stack([x.ravel(), y.ravel()]), {"triangle": tris}).refine(n)
+    p = np.column_stack([m.points, np.zeros(m.n_points)])
+    for seed in range(10):
+        assert find_self_intersections(_moved(p, seed), m.cells["triangle"]).shape == (0, 2), seed
+
+
+@pytest.mark.parametrize("rotate", [False, True])
+def test_refined_tetra_boundary_has_none(rotate, device):
+    # the boundary of a refined Kuhn block: coplanar fans on each side of the cube, and
+    # sides meeting at right angles along edges that lie in both planes
+    pts, tets = _kuhn_block(2)
+    m = Mesh(pts, {"tetra": tets}).refine(3)
+    p, faces = np.asarray(m.points, float), _boundary_triangles(np.asarray(m.cells["tetra"]))
+    assert len(faces) == 6 * (2 * 3) ** 2 * 2
+    for seed in range(6) if rotate else [None]:
+        q = p if seed is None else _moved(p, seed, shift=0.5)
+        assert find_self_intersections(q, faces, device=device).shape == (0, 2), seed
+
+
+def test_genuine_overlaps_in_a_fan_are_reported(device):
+    # integer points of the tilted plane x + 2y + 3z = 0 (exact): a fan of 8 around vertex
+    # 0, then rim vertex 2 pulled across the ray of vertex 3: face 1 turns over and folds
+    # onto faces 0 and 2 (across the shared edges 0-2, 0-3), and face 0 overlaps face 2
+    # beyond their one shared vertex 0; a 9th triangle through vertex 0 whose far edge
+    # pierces face 7. Exact as given, and the same under rotations (rounded: no longer
+    # coplanar).
+    e1, e2, normal = np.array([2, -1, 0]), np.array([3, 0, -1]), np.array([1, 2, 3])
+    rim = [(3, 0), (2, 2), (0, 3), (-2, 2), (-3, 0), (-2, -2), (0, -3), (2, -2)]
+    ab = np.array([(0, 0)] + rim, float)
+    tris = np.array([[0, 1 + i, 1 + (i + 1) % 8] for i in range(8)] + [[0, 9, 10]])
+    centre = 1.5 * e1 - 0.5 * e2  # inside face 7 = (0, 8, 1)
+    for folded, expect in ((False, {(7, 8)}), (True, {(0, 1), (0, 2), (1, 2), (7, 8)})):
+        if folded:
+            ab[2] = (-1, 3.5)
+        pts = np.vstack([ab[:, :1] * e1 + ab[:, 1:] * e2, centre + normal, centre - normal])
+        assert {tuple(x) for x in reference_pairs(pts, tris).tolist()} == expect
+        assert pairs_of(pts, tris, device=device) == expect
+        for seed in range(20):
+            assert pairs_of(pts @ _rotation(seed).T, tris, device=device) == expect, (folded, seed)
 
 
 # -- random soups against the reference ------------------------------------------------------

@@ -70,7 +70,13 @@ def find_self_intersections(points, triangles, *, device: str = "cpu", workers: 
     The predicates run in float64 on the given coordinates with a static error bound;
     a configuration within rounding of touching (relative 1e-15) is decided as touching,
     i.e. reported. Exact for coordinates on which the determinants are computed exactly
-    (e.g. small integers).
+    (e.g. small integers). Nearly coplanar neighbours are not reported for touching
+    only through what they share: a "touching" that rests on a sign within rounding is
+    kept only if the pair's projection on the plane is not certified apart (by more
+    than rounding and a few ulps of the coordinates), so collinear edges pointing
+    opposite ways from a shared vertex meet only there, and coplanar triangles on
+    opposite sides of a shared edge do not fold (a fan of coplanar triangles, the flat
+    parts of a refined surface). This never drops an exact intersection.
 
     Parameters
     ----------
