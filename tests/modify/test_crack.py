@@ -124,7 +124,7 @@ def cells_ok(mesh) -> dict:
     """``check_cells``, and the same checks here for wedges and pyramids (triangle and quad
     faces together), which tests/cellcheck.py cannot concatenate yet."""
     if not any(t in ("wedge", "pyramid") for t in mesh.cells):
-        return check_cells(mesh)
+        return check_cells(mesh, embedded=False)  # a crack's two lips coincide by design
     from warpmesh.cells.reference import corner_jacobians
 
     total = 0.0
@@ -290,7 +290,7 @@ def test_branching_crack_gives_each_sheet_a_copy(kind):
     flat, _ = plane_facets(m, 1, 0.5, lambda c: np.ones(len(c), bool))  # y = 1/2, through
     up, _ = plane_facets(m, 0, 0.5, lambda c: c[:, 1] > 0.5)  # x = 1/2 from the centre up
     out = crack(m, np.concatenate([flat, up]))
-    before, after = check_cells(m), check_cells(out)
+    before, after = check_cells(m), check_cells(out, embedded=False)  # the lips coincide
     assert after["measure"] == pytest.approx(before["measure"], rel=1e-12)
     assert after["boundary_measure"] == pytest.approx(before["boundary_measure"] + 2 * 1.5)
     assert components(out) == 3

@@ -293,11 +293,13 @@ def test_ant_surface():
     from pyvista import examples
 
     plane = wm.Mesh.from_pyvista(examples.load_ant())
-    base = check_mesh(plane)
+    # pyvista's ant passes through itself (80 faces by pymeshlab's check, 122 crossing pairs
+    # by ours): closed, manifold and oriented, but not embedded, before and after refinement
+    base = check_mesh(plane, embedded=False)
     rng = np.random.default_rng(1)
     vertices = rng.choice(plane.n_points, plane.n_points // 10, replace=False)
     r = refine_local(plane, where=vertices)
-    got = check_mesh(r)  # closed, manifold, consistently oriented
+    got = check_mesh(r, embedded=False)  # closed, manifold, consistently oriented
     assert got["n_faces"] > base["n_faces"]
     assert abs(r.stats()["area"] - plane.stats()["area"]) <= 1e-12 * plane.stats()["area"]
     assert abs(r.stats()["volume"] - plane.stats()["volume"]) <= 1e-9 * abs(plane.stats()["volume"])
