@@ -628,6 +628,8 @@ def random_grids():
                     yield grid
 
 
+@pytest.mark.xfail(strict=True, reason="mc33 tunnel triangles cross in some cells: found by the new "
+                   "self-intersection check; the hub construction that fixes it is issue 18's pending work")
 def test_random_grids_are_closed_oriented_manifolds():
     """Random values (padded with -1), checkerboards, saddle-rich values and a cell of
     each tube row amid random cells: closed oriented 2-manifolds enclosing f > 0."""
