@@ -8,6 +8,7 @@ pipeline (see ``docs/architecture.md``):
 ``frep``       expressions, shapes, examples, the tape and its evaluators, differential geometry
 ``surface``    surface meshes of shapes and sampled volumes (grid, continuation, adaptive octree)
 ``planar``     implicit curves and planar domains
+``solid``      tetrahedral meshes of implicit domains (isosurface stuffing)
 ``optimize``   surface optimisation and simplification
 ``modify``     transforms, refinement, cell-type conversion, merge, periodic meshes, cracks
 ``numbering``  renumbering, colouring, node graphs, higher-order nodes
@@ -89,7 +90,7 @@ from warpmesh.numbering.renumber import renumber as renumber
 from warpmesh.optimize.remesh import optimize as optimize
 from warpmesh.optimize.remesh import simplify as simplify
 from warpmesh.planar.curves import mesh_curve as mesh_curve
-from warpmesh.planar.curves import mesh_domain as mesh_domain
+from warpmesh.solid.pipeline import mesh_domain as mesh_domain
 from warpmesh.surface.orientation import orient as orient
 from warpmesh.surface.orientation import orient_faces as orient_faces
 from warpmesh.surface.options import AdaptiveOptions as AdaptiveOptions

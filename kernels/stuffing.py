@@ -1,0 +1,395 @@
+"""Isosurface stuffing on the body-centred cubic lattice (Labelle & Shewchuk 2007).
+
+The lattice has black nodes ``B(i, j, k)`` at ``origin + h (i, j, k)`` (``dims`` per axis) and
+red nodes ``R(i, j, k)`` at the cube centres ``origin + h (i + 1/2, j + 1/2, k + 1/2)`` (valid
+for indices below ``dims - 1``). A node's id is ``2 cell + colour`` (black 0, red 1) with
+``cell = i + nx (j + ny k)``. Every lattice edge has one owner cell and a slot ``d`` in
+``[0, 14)``, so its global id is ``14 cell + d``:
+
+- ``d = 0, 1, 2``: the black long edge B(c) - B(c + e_d);
+- ``d = 3, 4, 5``: the red long edge R(c) - R(c + e_{d-3});
+- ``d = 6 + (x + 2 y + 4 z)``: the short edge R(c) - B(c + (x, y, z)).
+
+Each background tetrahedron has one black long edge; the twelve of a black node B(c) are the
+four around each of its edges B(c) - B(c + e_a), given by ``layout`` (12, 4, 4): per local
+vertex (colour, dx, dy, dz). Vertices of the output are nodes and cut points, named by these
+ids, so the mesh is conforming by construction. Variable-size output is count -> prefix sum
+-> allocate -> write; kernels over cells take ``first`` so the host can split launches.
+"""
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False, "fuse_fp": False})
+
+SLOTS = 14
+TETS_PER_CELL = 12
+_SLOTS = wp.constant(SLOTS)
+_TPC = wp.constant(TETS_PER_CELL)
+_SHORT = wp.constant(0.8660254037844386)  # short edge / long edge
+
+
+@wp.func
+def cell_coords(cell: int, dims: wp.vec3i):
+    return wp.vec3i(cell % dims[0], (cell / dims[0]) % dims[1], cell / (dims[0] * dims[1]))
+
+
+@wp.func
+def cell_index(c: wp.vec3i, dims: wp.vec3i):
+    return c[0] + dims[0] * (c[1] + dims[1] * c[2])
+
+
+@wp.func
+def node_valid(c: wp.vec3i, colour: int, dims: wp.vec3i):
+    """A node exists: black inside dims, red one fewer per axis."""
+    ok = True
+    for a in range(3):
+        if c[a] < 0 or c[a] >= dims[a] - colour:
+            ok = False
+    return ok
+
+
+@wp.func
+def node_local(node: int, dims: wp.vec3i, h: float):
+    """Position of a node relative to the lattice origin."""
+    c = cell_coords(node / 2, dims)
+    s = 0.5 * float(node % 2)
+    return wp.vec3((float(c[0]) + s) * h, (float(c[1]) + s) * h, (float(c[2]) + s) * h)
+
+
+@wp.func
+def slot_end(cell: int, d: int, dims: wp.vec3i):
+    """The second node of edge slot d of ``cell`` (the first is B(cell) for d < 3, else
+    R(cell)), or -1 when it does not exist."""
+    c = cell_coords(cell, dims)
+    colour = 1
+    o = wp.vec3i(0, 0, 0)
+    if d < 3:
+        colour = 0
+        o[d] = 1
+    elif d < 6:
+        o[d - 3] = 1
+    else:
+        k = d - 6
+        colour = 0
+        o = wp.vec3i(k & 1, (k >> 1) & 1, (k >> 2) & 1)
+    e = c + o
+    out = int(-1)
+    if node_valid(c, wp.where(d < 3, 0, 1), dims) and node_valid(e, colour, dims):
+        out = 2 * cell_index(e, dims) + colour
+    return out
+
+
+@wp.func
+def slot_start(cell: int, d: int):
+    return 2 * cell + wp.where(d < 3, 0, 1)
+
+
+@wp.kernel
+def lattice_points_kernel(dims: wp.vec3i, origin: wp.vec3, h: float, points: wp.array(dtype=wp.vec3)):
+    """One thread per node: its world position (invalid red nodes too, evaluated but unused)."""
+    n = wp.tid()
+    points[n] = origin + node_local(n, dims, h)
+
+
+@wp.func
+def box_distance(p: wp.vec3, lo: wp.vec3, hi: wp.vec3):
+    d = float(3.0e38)
+    for a in range(3):
+        d = wp.min(d, wp.min(p[a] - lo[a], hi[a] - p[a]))
+    return d
+
+
+@wp.kernel
+def clip_values_kernel(points: wp.array(dtype=wp.vec3), f: wp.array(dtype=wp.float32), lo: wp.vec3, hi: wp.vec3,
+                       values: wp.array(dtype=wp.float32)):
+    """One thread per point: min(f, signed distance to the box), the field of {f > 0} in bounds."""
+    i = wp.tid()
+    values[i] = wp.min(f[i], box_distance(points[i], lo, hi))
+
+
+@wp.kernel
+def node_signs_kernel(dims: wp.vec3i, values: wp.array(dtype=wp.float32), signs: wp.array(dtype=wp.int8),
+                      bad: wp.array(dtype=wp.int32)):
+    """One thread per node: its sign (+1 inside, 0 on f = 0, -1 outside; nonexistent nodes
+    outside); a NaN value counts in ``bad``."""
+    n = wp.tid()
+    c = cell_coords(n / 2, dims)
+    v = values[n]
+    s = int(-1)
+    if node_valid(c, n % 2, dims):
+        if v != v:
+            wp.atomic_add(bad, 0, 1)
+        elif v > 0.0:
+            s = 1
+        elif v == 0.0:
+            s = 0
+    signs[n] = wp.int8(s)
+
+
+@wp.func
+def is_cut(a: int, b: int, signs: wp.array(dtype=wp.int8)):
+    return b >= 0 and int(signs[a]) * int(signs[b]) < 0
+
+
+@wp.kernel
+def count_cuts_kernel(first: int, dims: wp.vec3i, signs: wp.array(dtype=wp.int8), counts: wp.array(dtype=wp.int32)):
+    """One thread per cell: how many of its 14 edge slots join a + node and a - node."""
+    cell = first + wp.tid()
+    k = int(0)
+    for d in range(_SLOTS):
+        if is_cut(slot_start(cell, d), slot_end(cell, d, dims), signs):
+            k += 1
+    counts[cell] = k
+
+
+@wp.kernel
+def write_cuts_kernel(first: int, dims: wp.vec3i, h: float, signs: wp.array(dtype=wp.int8),
+                      offsets: wp.array(dtype=wp.int32), edge_cut: wp.array(dtype=wp.int32),
+                      cut_slot: wp.array(dtype=wp.int32), p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
+                      inside0: wp.array(dtype=wp.int32)):
+    """One thread per cell: the cut edges' slots, end positions (local) and which end is
+    inside; ``edge_cut`` maps a slot to its cut index (-1 elsewhere)."""
+    cell = first + wp.tid()
+    k = offsets[cell]
+    for d in range(_SLOTS):
+        a = slot_start(cell, d)
+        b = slot_end(cell, d, dims)
+        slot = _SLOTS * cell + d
+        if is_cut(a, b, signs):
+            edge_cut[slot] = k
+            cut_slot[k] = slot
+            p0[k] = node_local(a, dims, h)
+            p1[k] = node_local(b, dims, h)
+            inside0[k] = wp.where(int(signs[a]) > 0, 1, 0)
+            k += 1
+        else:
+            edge_cut[slot] = -1
+
+
+@wp.kernel
+def edge_points_kernel(t: wp.array(dtype=wp.float32), p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
+                       origin: wp.vec3, out: wp.array(dtype=wp.vec3)):
+    """One thread per cut edge: origin + p0 + t (p1 - p0)."""
+    i = wp.tid()
+    out[i] = origin + p0[i] + t[i] * (p1[i] - p0[i])
+
+
+@wp.kernel
+def bisection_step_kernel(inside0: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.float32),
+                          t_lo: wp.array(dtype=wp.float32), t_hi: wp.array(dtype=wp.float32),
+                          t: wp.array(dtype=wp.float32)):
+    """One thread per cut edge: keep the half of [t_lo, t_hi] where the clipped field changes
+    sign (an exact zero collapses the bracket onto it)."""
+    i = wp.tid()
+    v = values[i]
+    if v == 0.0 or t_hi[i] - t_lo[i] <= 0.0:
+        t_lo[i] = t[i]
+        t_hi[i] = t[i]
+        return
+    if (v > 0.0) == (inside0[i] == 1):
+        t_lo[i] = t[i]
+    else:
+        t_hi[i] = t[i]
+    t[i] = 0.5 * (t_lo[i] + t_hi[i])
+
+
+@wp.kernel
+def cut_positions_kernel(t: wp.array(dtype=wp.float32), p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
+                         pos: wp.array(dtype=wp.vec3)):
+    """One thread per cut edge: the cut point (local coordinates)."""
+    i = wp.tid()
+    pos[i] = p0[i] + t[i] * (p1[i] - p0[i])
+
+
+@wp.func
+def warp_candidate(slot: int, other: int, here: wp.vec3, length: float, alpha: float,
+                   edge_cut: wp.array(dtype=wp.int32), cut_pos: wp.array(dtype=wp.vec3),
+                   signs: wp.array(dtype=wp.int8)):
+    """Distance from ``here`` to the cut point of ``slot`` when it violates the node (closer
+    than alpha * length and the other end not warped away), else a huge value."""
+    out = float(3.0e38)
+    if other >= 0:
+        c = edge_cut[slot]
+        if c >= 0 and int(signs[other]) != 0:
+            d = wp.length(cut_pos[c] - here)
+            if d < alpha * length:
+                out = d
+    return out
+
+
+@wp.kernel
+def warp_nodes_kernel(first: int, which: int, dims: wp.vec3i, h: float, alpha_long: float, alpha_short: float,
+                      edge_cut: wp.array(dtype=wp.int32), cut_pos: wp.array(dtype=wp.vec3),
+                      signs: wp.array(dtype=wp.int8), node_pos: wp.array(dtype=wp.vec3),
+                      warped: wp.array(dtype=wp.int32)):
+    """One thread per node of sign ``which``: when a cut point on one of its 14 edges lies
+    closer than alpha times the edge (alpha_long on long, alpha_short on short edges), the node
+    moves to the nearest such cut point and its sign becomes 0 (the cut points on its edges
+    are dropped: an edge with a zero end is not cut). Nodes of one sign share no cut edge,
+    so a pass reads only nodes of the other sign: no race."""
+    n = first + wp.tid()
+    if int(signs[n]) != which:
+        return
+    cell = n / 2
+    colour = n % 2
+    c = cell_coords(cell, dims)
+    here = node_pos[n]
+    best = float(3.0e38)
+    best_slot = int(-1)
+    for a in range(3):  # long edges, both directions
+        d_long = a + 3 * colour
+        sl = _SLOTS * cell + d_long
+        dist = warp_candidate(sl, slot_end(cell, d_long, dims), here, h, alpha_long, edge_cut, cut_pos, signs)
+        if dist < best:
+            best = dist
+            best_slot = sl
+        cm = c
+        cm[a] = c[a] - 1
+        if cm[a] >= 0:
+            cc = cell_index(cm, dims)
+            sl = _SLOTS * cc + d_long
+            if slot_end(cc, d_long, dims) == n:
+                dist = warp_candidate(sl, 2 * cc + colour, here, h, alpha_long, edge_cut, cut_pos, signs)
+                if dist < best:
+                    best = dist
+                    best_slot = sl
+    for k in range(8):  # short edges
+        o = wp.vec3i(k & 1, (k >> 1) & 1, (k >> 2) & 1)
+        sl = int(-1)
+        other = int(-1)
+        if colour == 1:
+            sl = _SLOTS * cell + 6 + k
+            other = slot_end(cell, 6 + k, dims)
+        else:
+            cr = c - o
+            if cr[0] >= 0 and cr[1] >= 0 and cr[2] >= 0:
+                cc = cell_index(cr, dims)
+                if node_valid(cr, 1, dims):
+                    sl = _SLOTS * cc + 6 + k
+                    other = 2 * cc + 1
+        if sl >= 0:
+            dist = warp_candidate(sl, other, here, h * _SHORT, alpha_short, edge_cut, cut_pos, signs)
+            if dist < best:
+                best = dist
+                best_slot = sl
+    if best_slot >= 0:
+        node_pos[n] = cut_pos[edge_cut[best_slot]]
+        signs[n] = wp.int8(0)
+        warped[n] = 1
+
+
+@wp.func
+def tet_node(cell: int, c: wp.vec3i, t: int, v: int, dims: wp.vec3i, layout: wp.array3d(dtype=wp.int32)):
+    """Node id of local vertex v of background tetrahedron t of black node ``cell``, or -1."""
+    colour = layout[t, v, 0]
+    e = c + wp.vec3i(layout[t, v, 1], layout[t, v, 2], layout[t, v, 3])
+    out = int(-1)
+    if node_valid(e, colour, dims):
+        out = 2 * cell_index(e, dims) + colour
+    return out
+
+
+@wp.func
+def tet_case(cell: int, c: wp.vec3i, t: int, dims: wp.vec3i, layout: wp.array3d(dtype=wp.int32),
+             face_bits: wp.array(dtype=wp.int32), signs: wp.array(dtype=wp.int8)):
+    """The stencil case of a background tetrahedron (sign code * 16 + face bits), or -1 when
+    a vertex does not exist or none is inside."""
+    code = int(0)
+    scale = int(1)
+    plus = int(0)
+    ok = True
+    for v in range(4):
+        nd = tet_node(cell, c, t, v, dims, layout)
+        if nd < 0:
+            ok = False
+        else:
+            s = int(signs[nd])
+            code += (s + 1) * scale
+            if s > 0:
+                plus += 1
+        scale *= 3
+    out = int(-1)
+    if ok and plus > 0:
+        out = code * 16 + face_bits[t]
+    return out
+
+
+@wp.func
+def stencil_count(case: int, count: wp.array(dtype=wp.int32)):
+    k = int(0)
+    if case >= 0:
+        k = count[case]
+    return k
+
+
+@wp.kernel
+def count_tets_kernel(first: int, dims: wp.vec3i, layout: wp.array3d(dtype=wp.int32),
+                      face_bits: wp.array(dtype=wp.int32), signs: wp.array(dtype=wp.int8),
+                      count: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
+    """One thread per black node: the number of output tetrahedra of its twelve."""
+    cell = first + wp.tid()
+    c = cell_coords(cell, dims)
+    k = int(0)
+    if node_valid(c, 0, dims):
+        for t in range(_TPC):
+            k += stencil_count(tet_case(cell, c, t, dims, layout, face_bits, signs), count)
+    counts[cell] = k
+
+
+@wp.kernel
+def write_tets_kernel(first: int, dims: wp.vec3i, n_nodes: int, layout: wp.array3d(dtype=wp.int32),
+                      face_bits: wp.array(dtype=wp.int32), edge_slot: wp.array3d(dtype=wp.int32),
+                      signs: wp.array(dtype=wp.int8), count: wp.array(dtype=wp.int32),
+                      tets: wp.array3d(dtype=wp.int32), edge_cut: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32),
+                      out: wp.array(dtype=wp.vec4i), used: wp.array(dtype=wp.int32)):
+    """One thread per black node: its output tetrahedra as vertex keys (a node id, or
+    n_nodes + the index of a cut point), and the keys marked used."""
+    cell = first + wp.tid()
+    c = cell_coords(cell, dims)
+    if not node_valid(c, 0, dims):
+        return
+    k = offsets[cell]
+    for t in range(_TPC):
+        case = tet_case(cell, c, t, dims, layout, face_bits, signs)
+        m = stencil_count(case, count)
+        for j in range(m):
+            key = wp.vec4i(0, 0, 0, 0)
+            for v in range(4):
+                r = tets[case, j, v]
+                if r < 4:
+                    key[v] = tet_node(cell, c, t, r, dims, layout)
+                else:
+                    e = r - 4
+                    owner = cell_index(c + wp.vec3i(edge_slot[t, e, 0], edge_slot[t, e, 1], edge_slot[t, e, 2]),
+                                       dims)
+                    key[v] = n_nodes + edge_cut[_SLOTS * owner + edge_slot[t, e, 3]]
+                used[key[v]] = 1
+            out[k] = key
+            k += 1
+
+
+@wp.kernel
+def remap_tets_kernel(ids: wp.array(dtype=wp.int32), tets: wp.array(dtype=wp.vec4i)):
+    """One thread per tetrahedron: keys to compact vertex ids."""
+    i = wp.tid()
+    k = tets[i]
+    tets[i] = wp.vec4i(ids[k[0]], ids[k[1]], ids[k[2]], ids[k[3]])
+
+
+@wp.kernel
+def gather_vertices_kernel(n_nodes: int, used: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32),
+                           node_pos: wp.array(dtype=wp.vec3), cut_pos: wp.array(dtype=wp.vec3),
+                           signs: wp.array(dtype=wp.int8), points: wp.array(dtype=wp.vec3),
+                           on_surface: wp.array(dtype=wp.uint8)):
+    """One thread per key: a used key's position (local) and whether it lies on f = 0 (a cut
+    point, or a node of sign 0)."""
+    key = wp.tid()
+    if used[key] == 0:
+        return
+    v = ids[key]
+    if key < n_nodes:
+        points[v] = node_pos[key]
+        on_surface[v] = wp.where(int(signs[key]) == 0, wp.uint8(1), wp.uint8(0))
+    else:
+        points[v] = cut_pos[key - n_nodes]
+        on_surface[v] = wp.uint8(1)
