@@ -18,13 +18,6 @@ def sphere_mc():
     return shape, wm.mesh_surface(shape, bounds=bounds, resolution=32, method="mc")
 
 
-@pytest.fixture(scope="module")
-def part_opt():
-    shape, bounds = wm.example("part")
-    mc = wm.mesh_surface(shape, bounds=bounds, resolution=64, method="mc")
-    return shape, mc, wm.optimize(mc, shape, size=0.0375, tolerance=0.25 * 0.0375)
-
-
 def _closed_oriented(mesh):
     s = mesh.stats()
     return s["watertight"] and s["manifold"] and s["oriented"] and s["volume"] > 0

@@ -5,7 +5,8 @@
   edge is split at the crease point, the point of the line where the two tangent planes
   meet that lies abreast of the edge (the dual-contouring idea, applied to mesh edges).
   Two such splits in one triangle join along the crease, so the crease becomes a chain
-  of mesh edges.
+  of mesh edges. A split or snap that would fold the surface, cross a face or turn one
+  inwards is not made (:mod:`warpmesh.optimize.embedding`).
 * :func:`detect_features` marks feature edges (dihedral angle above the threshold,
   open boundaries, edges between triangles of different refs) and classifies the
   vertices: free, on a feature line, or a corner (where the feature degree is not 2 or
@@ -32,6 +33,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from warpmesh.optimize.local_ops import (CORNER, FREE, gather, LINE, quality_of, select_independent, SPLIT_CHILD_Q, splits_keep_faces, Surface, vertex_neighbours)
+from warpmesh.optimize.embedding import revert_violations, verified_split
 from warpmesh.surface.adaptive.qef import qef_points
 
 __all__ = ["detect_features", "insert_creases", "FeatureLines", "DEFAULT_ANGLE", "CORNER_TURN"]
@@ -161,10 +163,12 @@ def insert_creases(s: Surface, target, angle: float = DEFAULT_ANGLE, passes: int
         da, db = np.linalg.norm(c - p[a], axis=1), np.linalg.norm(c - p[b], axis=1)
         ok &= off < 0.75 * length
         near = ok & (np.minimum(da, db) <= 0.15 * length)
-        total += _snap(s, np.where(da <= db, a, b)[near], c[near], crease)
+        total += _snap(s, np.where(da <= db, a, b)[near], c[near], crease, normals=target.normals)
         ok &= ~near
         cand, c = cand[ok], c[ok]
-        # a crease point lies off the edge: its children may turn (a fold), never vanish
+        # a crease point lies off the edge: its children may turn away from their parent
+        # (often a twisted chamfer) but never vanish, and (the embedding checks of
+        # verified_split) never fold, cross a face or face inwards
         cand, c = splits_keep_faces(s, topo, cand, c, turn=False)
         if len(cand) == 0:
             continue
@@ -174,7 +178,7 @@ def insert_creases(s: Surface, target, angle: float = DEFAULT_ANGLE, passes: int
         prio = -np.linalg.norm(np.cross(nv[topo.edges[cand, 0]], nv[topo.edges[cand, 1]]), axis=1)
         win = select_independent(len(cand), prio, faces[keep], face_cand[keep])
         n0 = len(s.points)
-        total += s.split(topo, cand[win], c[win])
+        total += len(verified_split(s, topo, cand[win], c[win], target.normals))
         crease = np.concatenate([crease, np.zeros(len(s.points) - n0, bool)])
         crease[n0:] = True
     if len(crease) < len(s.points):
@@ -236,7 +240,7 @@ def snap_corners(s: Surface, target, crease: np.ndarray) -> np.ndarray:
     win = select_independent(len(cand), -spread[cand], np.concatenate([r1, r2[:], cand]),
                              np.concatenate([own1, own1[own2], idx]))
     crease = crease.copy()
-    _snap(s, cand[win], x[win], crease, force=True)
+    _snap(s, cand[win], x[win], crease, force=True, normals=target.normals)
     return crease
 
 
@@ -272,8 +276,10 @@ def _refine_crease(target, c, pa, pb, length, cos_a, steps: int = 3):
     return c
 
 
-def _snap(s: Surface, verts: np.ndarray, where: np.ndarray, crease: np.ndarray, force: bool = False) -> int:
-    """Move vertices onto nearby crease points (one move per vertex), unless a face would turn over."""
+def _snap(s: Surface, verts: np.ndarray, where: np.ndarray, crease: np.ndarray, force: bool = False,
+          normals=None) -> int:
+    """Move vertices onto nearby crease points (one move per vertex), unless a face would turn
+    over, fold or cross another one (:func:`warpmesh.optimize.embedding.revert_violations`)."""
     verts, first = np.unique(verts, return_index=True)
     keep = np.ones(len(verts), bool) if force else ~crease[verts]
     verts, where = verts[keep], where[first][keep]
@@ -292,6 +298,7 @@ def _snap(s: Surface, verts: np.ndarray, where: np.ndarray, crease: np.ndarray, 
     bad |= ~np.isfinite(q_new) | ((q_new > SPLIT_CHILD_Q) & (q_new > 10 * q_old))  # no sliver either
     undo = np.unique(t[faces[bad]])
     newp[undo] = s.points[undo]
+    revert_violations(s.points, newp, t, normals)
     done = verts[np.all(newp[verts] == where, axis=1)]
     s.points = newp
     crease[done] = True

@@ -219,6 +219,16 @@ class Surface:
         self.line_id = np.full(n, -1, np.int64) if self.line_id is None else np.array(self.line_id, np.int64)
         self.feature_keys = np.sort(np.asarray(self.feature_keys, np.int64))
 
+    def copy(self) -> Surface:
+        """An independent copy (arrays copied)."""
+        return Surface(self.points.copy(), self.triangles.copy(), self.refs.copy(), self.vclass.copy(),
+                       self.line_id.copy(), self.feature_keys.copy())
+
+    def assign(self, other: Surface) -> None:
+        """Take the state of ``other`` (a trial copy that passed its checks)."""
+        self.points, self.triangles, self.refs = other.points, other.triangles, other.refs
+        self.vclass, self.line_id, self.feature_keys = other.vclass, other.line_id, other.feature_keys
+
     # ------------------------------------------------------------------ topology
     def topology(self) -> Topology:
         t = self.triangles

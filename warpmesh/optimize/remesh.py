@@ -17,6 +17,13 @@ A final polishing phase flips for quality, moves the vertices of the worst trian
 to the best of a few candidate positions, and collapses needles. Sharp edges are
 recovered on the exact surface and kept by every operator (:mod:`warpmesh.optimize.features`).
 
+Every batch of splits, collapses, flips and moves is checked after the fact, locally, by
+:mod:`warpmesh.optimize.embedding`: an operation whose new faces would cross a face
+nearby, fold onto a neighbour or face inwards (against the exact normal) is undone and
+the rest of the batch kept, so an embedded input stays embedded. The result is never
+worse than the input: its worst Q_K is at most the input's, else the latest pass that
+was is returned, else the input itself (``info["optimize"]["kept"]`` says which).
+
 :func:`simplify` is the same driver with a size field from the curvature (h = sqrt(8
 tolerance / κ), so the density follows the curvature as in Fig. 16.20) that never asks
 for more vertices than the input has; ``fraction`` scales it to a target count.
@@ -34,7 +41,6 @@ Examples
 
 from __future__ import annotations
 
-import copy
 import time
 from dataclasses import dataclass, field
 
@@ -42,6 +48,8 @@ import numpy as np
 
 from warpmesh.optimize.local_ops import CORNER, FREE, LINE, Surface, edge_key, gather, quality_of, select_independent, \
     splits_keep_faces, vertex_faces, vertex_neighbours
+from warpmesh.optimize.embedding import face_violations, revert_violations, verified_collapse, verified_flip, \
+    verified_split
 from warpmesh.optimize.features import DEFAULT_ANGLE, FeatureLines, detect_features, feature_edges_of, insert_creases, snap_corners
 from warpmesh.frep.projection import ImplicitTarget, VolumeField, FunctionTarget, as_target
 from warpmesh._conventions import CAP_REF, SURFACE_REF
@@ -68,8 +76,12 @@ COLLAPSE_ROUNDS = 4
 LUBY_ROUNDS = 6
 POLISH_PASSES = 6
 #: extra local passes while the worst triangle is above RESCUE_Q
-RESCUE_PASSES = 4
+RESCUE_PASSES = 8
 RESCUE_Q = 2.0
+#: rescue passes between two searches for gaps in the crease chains
+RESCUE_REFRESH = 4
+#: largest turn (degrees) between the two faces of an edge flipped by the rescue passes
+RESCUE_TURN = 100.0
 POLISH_Q = 1.6
 #: iterations after the first that look for crease gaps again
 FEATURE_REFRESH = 2
@@ -91,6 +103,20 @@ class _Run:
     counts: dict | None = None
 
     # --------------------------------------------------------------- helpers
+    def normals(self, pts):
+        """Outward unit normals of the exact surface (the embedding checks' reference)."""
+        return self.target.normals(pts)
+
+    @property
+    def check(self) -> dict:
+        """Options of the embedding checks: a shape's normals are compared at the centroid,
+        sampled ones (a voxel staircase turns within a face) averaged over the corners too."""
+        return {"average": not isinstance(self.target, ImplicitTarget)}
+
+    def _count_rejected(self, k: int) -> None:
+        if self.counts is not None:
+            self.counts["rejected"] = self.counts.get("rejected", 0) + int(k)
+
     def sizes(self):
         s = self.s
         h = self.size(s.points)
@@ -204,8 +230,10 @@ class _Run:
         new = self.place(mid, feat, lid, 0.5 * length)
         ok = np.isin(win, splits_keep_faces(s, topo, win, new)[0])
         win, new, a, b = win[ok], new[ok], a[ok], b[ok]
-        self.h = np.concatenate([self.h, 0.5 * (self.h[a] + self.h[b])])
-        return s.split(topo, win, new)
+        done = verified_split(s, topo, win, new, self.normals, **self.check)
+        self._count_rejected(len(win) - len(done))
+        self.h = np.concatenate([self.h, 0.5 * (self.h[a[done]] + self.h[b[done]])])
+        return len(done)
 
     # --------------------------------------------------------------- collapse
     def collapse_pass(self, cand_mask=None, below: float = COLLAPSE_BELOW, limit_q: float = COLLAPSE_Q,
@@ -295,8 +323,10 @@ class _Run:
             good, pos = good[first], pos[first]
             if len(good) == 0:
                 return 0
-        gone = np.concatenate([topo.face0[cand[good]], topo.face1[cand[good]]])
-        return s.collapse(kp[good], rem[good], pos, gone[gone >= 0])
+        gone = np.stack([topo.face0[cand[good]], topo.face1[cand[good]]], axis=1)
+        done = verified_collapse(s, kp[good], rem[good], pos, gone, self.normals, **self.check)
+        self._count_rejected(len(good) - done)
+        return done
 
     def _collapse_checks(self, topo, cand, rem, kp, both_free, length_c, limit_q):
         """(failed flags, new positions of the kept ends) of independent collapses."""
@@ -342,10 +372,14 @@ class _Run:
         return np.bincount(own[bad], minlength=len(cand)) > 0, pos
 
     # --------------------------------------------------------------- flips
-    def flip_pass(self, mode: str) -> int:
+    def flip_pass(self, mode: str, turn: float | None = None) -> int:
+        """Flip edges towards valence 6 (``mode="valence"``) or better triangles
+        ("quality"), between faces turning by less than ``turn`` degrees (default: the
+        feature angle)."""
         s = self.s
         topo = s.topology()
-        cand = s.flip_candidates_ok(topo, np.arange(len(topo.edges)), np.cos(np.radians(self.angle)))
+        turn = self.angle if turn is None else turn
+        cand = s.flip_candidates_ok(topo, np.arange(len(topo.edges)), np.cos(np.radians(turn)))
         if len(cand) == 0:
             return 0
         p = s.points
@@ -383,7 +417,10 @@ class _Run:
         old = np.concatenate([p[np.stack([a, b, o0], 1)], p[np.stack([b, a, o1], 1)]])
         new = np.concatenate([p[np.stack([a, o1, o0], 1)], p[np.stack([o1, b, o0], 1)]])
         far = self.too_far(old, new)
-        return s.flip(win[~(far[:len(win)] | far[len(win):])], topo)
+        win = win[~(far[:len(win)] | far[len(win):])]
+        done = verified_flip(s, topo, win, self.normals, **self.check)
+        self._count_rejected(len(win) - done)
+        return done
 
     # --------------------------------------------------------------- relocation
     def smooth_pass(self, weight: float = 1.0, only=None) -> int:
@@ -422,36 +459,61 @@ class _Run:
         return self._commit(newp, moved)
 
     def _commit(self, newp, moved) -> int:
-        """Accept moves, undoing those that turn a face over or make it much worse."""
+        """Accept moves, undoing those that turn a face over or make it much worse, leave
+        the tolerance, or (:func:`warpmesh.optimize.embedding.face_violations`) make a face
+        cross another one, fold or face inwards. Each round looks again at the faces
+        around the vertices the last one moved back."""
         s = self.s
         p, t = s.points, s.triangles
         if len(moved) == 0:
             return 0
-        mask = np.zeros(len(p), bool)
-        mask[moved] = True
-        faces = np.flatnonzero(mask[t].any(1))
+        shifted = np.zeros(len(p), bool)
+        shifted[moved] = True
+        faces = np.flatnonzero(shifted[t].any(1))
         q_old = quality_of(p[t[faces]])
         cos_turn = np.cos(np.radians(MAX_TURN))
+        shifted = np.any(newp != p, axis=1)
+        n_refused = 0  # vertices moved back by the embedding checks
+        local, embed = np.ones(len(faces), bool), np.ones(len(faces), bool)  # still to check
         while True:  # each round undoes at least one vertex: ends at worst with none moved
-            old, new = p[t[faces]], newp[t[faces]]
+            bad = np.zeros(len(faces), bool)
+            sub = np.flatnonzero(local)
+            local[:] = False
+            old, new = p[t[faces[sub]]], newp[t[faces[sub]]]
             n_old = np.cross(old[:, 1] - old[:, 0], old[:, 2] - old[:, 0])
             n_new = np.cross(new[:, 1] - new[:, 0], new[:, 2] - new[:, 0])
             cosang = np.einsum("ij,ij->i", n_old, n_new) / np.maximum(
                 np.linalg.norm(n_old, axis=1) * np.linalg.norm(n_new, axis=1), 1e-300)
-            q_new = quality_of(new)
+            q_new, q0 = quality_of(new), q_old[sub]
             # no face turns over or gets much worse; none gets worse above SMOOTH_Q_CAP
-            bad = (cosang < cos_turn) | ((q_new > 2 * q_old) & (q_new > COLLAPSE_Q)) | (
-                q_new > np.maximum(q_old, SMOOTH_Q_CAP))
+            b = (cosang < cos_turn) | ((q_new > 2 * q0) & (q_new > COLLAPSE_Q)) | (q_new > np.maximum(q0, SMOOTH_Q_CAP))
             # nor leaves the tolerance (faces whose corners all went back are not looked at)
-            live = np.flatnonzero(~bad & np.any(new != old, axis=(1, 2)))
-            bad[live] = self.too_far(old[live], new[live])
-            if not bad.any():
+            live = np.flatnonzero(~b & np.any(new != old, axis=(1, 2)))
+            b[live] = self.too_far(old[live], new[live])
+            bad[sub] = b
+            others = np.zeros(0, np.int64)
+            embedding = not bad.any()
+            if embedding:
+                # the rest: no face crossing another one, folded or facing inwards (the
+                # faces that went back too: they may meet a face that moved)
+                chk = np.flatnonzero(embed)
+                embed[:] = False
+                bad[chk], others = face_violations(newp, t, faces[chk], self.normals, partners=True, **self.check)
+            undo = np.unique(np.concatenate([t[faces[bad]].ravel(), t[others].ravel()]))
+            undo = undo[shifted[undo]]
+            if len(undo) == 0:  # all checked, or what fails was there before the moves
                 break
-            undo = np.unique(t[faces[bad]])
             newp[undo] = p[undo]
-        n_moved = int(np.any(newp != p, axis=1).sum())
+            shifted[undo] = False
+            n_refused += len(undo) if embedding else 0
+            back = np.zeros(len(p), bool)
+            back[undo] = True
+            again = back[t[faces]].any(axis=1)
+            local |= again
+            embed |= again
+        self._count_rejected(n_refused)
         s.points = newp
-        return n_moved
+        return int(shifted.sum())
 
     def best_position_pass(self, q_limit: float) -> int:
         """Move vertices of bad triangles to the best of a few candidates (ball worst Q)."""
@@ -596,10 +658,16 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     t0 = time.perf_counter()
     s, target, hfield, tol = _run_setup(mesh, shape, bounds, size, tolerance, features, angle, fraction,
                                         simplifying)
-    counts = {"creases": 0, "splits": 0, "collapses": 0, "flips": 0, "moves": 0}
+    counts = {"creases": 0, "splits": 0, "collapses": 0, "flips": 0, "moves": 0, "rejected": 0}
+    start = s.copy()  # the input, kept if nothing better comes out
+    q_input = _worst_q(s)
     exact = isinstance(target, FunctionTarget)
     if exact:
-        s.points = target.project(s.points)
+        # onto the surface, except where a face would turn, fold or cross (later moves retry)
+        on = target.project(s.points)
+        s.points = revert_violations(s.points, on.copy(), s.triangles, target.normals,
+                                     average=not isinstance(target, ImplicitTarget))
+        counts["rejected"] += int(np.any(s.points != on, axis=1).sum())
     crease = None
     if features is None:
         # a sampled volume or a mesh has no exact sharp edges: a voxel staircase would read
@@ -616,13 +684,22 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         detect_features(s, 180.0 - 1e-9)  # boundaries and ref interfaces only
     run = _Run(s, target, hfield, tol, angle, FeatureLines(s), counts=counts, half_edge=simplifying)
     bar = _progress(iterations + POLISH_PASSES, progress)
+    fallback = None  # (label, state): the latest state no worse than the input
+
+    def keep_if_no_worse(label):
+        nonlocal fallback
+        if _worst_q(s) <= q_input:
+            fallback = (label, s.copy())
+    def refresh_creases():
+        # close gaps in the crease chains, then re-detect
+        crease = snap_corners(s, target, insert_creases(s, target, angle, crease=s.vclass > FREE))
+        counts["creases"] += int(crease.sum() - (s.vclass > FREE).sum())
+        detect_features(s, angle, target, crease)
+        run.lines = FeatureLines(s)
+
     for it in range(iterations):
         if sharp and 0 < it <= FEATURE_REFRESH:
-            # the mesh is cleaner now: close gaps in the crease chains, then re-detect
-            crease = snap_corners(s, target, insert_creases(s, target, angle, crease=s.vclass > FREE))
-            counts["creases"] += int(crease.sum() - (s.vclass > FREE).sum())
-            detect_features(s, angle, target, crease)
-            run.lines = FeatureLines(s)
+            refresh_creases()  # the mesh is cleaner now
         run.sizes()
         for _ in range(0 if simplifying else 8):  # decimation only coarsens
             k = run.split_pass()
@@ -647,6 +724,7 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         if isinstance(hfield, _Scaled):
             # a unit mesh of the field has about the expected count; correct what is left
             hfield.scale *= float(np.clip(np.sqrt(len(s.triangles) / (fraction * len(mesh.triangles))), 1.0, 1.25))
+        keep_if_no_worse(f"iteration {it + 1}")
         bar.update(1)
     for k in range(POLISH_PASSES):
         run.sizes()
@@ -663,38 +741,49 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         counts["moves"] += run.smooth_pass(0.5)
         for _ in range(2):
             counts["moves"] += run.best_position_pass(POLISH_Q)
+        keep_if_no_worse(f"polish {k + 1}")
         bar.update(1)
     # rescue: local quality operators only (no error splits, no smoothing) while a few
-    # triangles stay above 2 (a crease or corner nearby often pins them)
-    best, best_q = None, quality_of(s.points[s.triangles]).max()
-    for _ in range(RESCUE_PASSES if best_q > RESCUE_Q else 0):
+    # triangles stay above 2, or above the input's worst (a crease or corner nearby often
+    # pins them)
+    goal = min(RESCUE_Q, q_input)
+    best, best_q = None, _worst_q(s)
+    for k in range(RESCUE_PASSES if best_q > goal else 0):
         if best is None:
-            best = copy.deepcopy(s)  # the passes may go through worse states: keep the best
+            best = s.copy()  # the passes may go through worse states: keep the best
+        if sharp and k % RESCUE_REFRESH == 0:
+            refresh_creases()  # bad triangles are often a gap in a crease chain
         run.sizes()
-        counts["flips"] += run.flip_pass("quality")
+        # across bends too: the embedding checks and the tolerance still hold every flip
+        counts["flips"] += run.flip_pass("quality", turn=RESCUE_TURN)
         run.rejected = run.rejected[:0]
-        counts["collapses"] += run.needle_pass(RESCUE_Q)
+        counts["collapses"] += run.needle_pass(goal)
         s.compact()
         run.sizes()
-        counts["splits"] += run.cap_pass(RESCUE_Q)
+        counts["splits"] += run.cap_pass(goal)
         run.sizes()
         for _ in range(2):
             counts["moves"] += run.best_position_pass(POLISH_Q)
         s.compact()
-        q = quality_of(s.points[s.triangles]).max()
+        q = _worst_q(s)
         if q < best_q:
-            best, best_q = copy.deepcopy(s), q
-        if q <= RESCUE_Q:
+            best, best_q = s.copy(), q
+        if q <= goal:
             break
     if best is not None:
         s = best
     bar.close()
     s.compact()
+    # never worse than the input: else the latest state that was not, else the input
+    kept = "final"
+    if _worst_q(s) > q_input:
+        kept, s = fallback if fallback is not None else ("input", start)
+        s.compact()
     before = quality_table(mesh.points, mesh.triangles)
     after = quality_table(s.points, s.triangles)
     info = dict(mesh.info)
     info.update({
-        "optimize": {"before": before, "after": after, **counts, "tolerance": tol,
+        "optimize": {"before": before, "after": after, **counts, "kept": kept, "tolerance": tol,
                      "iterations": iterations, "seconds": time.perf_counter() - t0,
                      "feature_edges": int(len(s.feature_keys)),
                      "corners": int((s.vclass == CORNER).sum())},
@@ -703,6 +792,11 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     if cell_refs is not None and not s.refs.any():
         cell_refs = {"triangle": _cap_refs(s.points, s.triangles, target.bounds, tol)}
     return type(mesh)(s.points, {"triangle": s.triangles}, cell_refs=cell_refs, info=info)
+
+
+def _worst_q(s) -> float:
+    """Worst Q_K of the working surface (inf if a triangle is degenerate)."""
+    return float(quality_of(s.points[s.triangles]).max())
 
 
 def _cap_refs(points, triangles, bounds, tol):
@@ -805,8 +899,11 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
     Returns
     -------
     Mesh
-        ``info["optimize"]`` holds the before/after statistics (Table 16.1 style) and the
-        operator counts; ``stats()`` gives ``q_mean``, ``q_worst``.
+        ``info["optimize"]`` holds the before/after statistics (Table 16.1 style: ``np``,
+        ``ne``, ``q_mean``, ``q_worst``, ``angle_min``, ...), the operator counts,
+        ``rejected`` (operations undone by the embedding checks) and ``kept`` ("final",
+        the pass returned because the final worst Q_K was above the input's, or
+        "input"); ``stats()`` gives ``q_mean``, ``q_worst``.
 
     Examples
     --------
@@ -836,7 +933,8 @@ def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, frac
     0.1) scales the field for that fraction of the input triangles and stops there (the
     tolerance may stop it earlier). With ``shape=None`` the error is measured to the
     input mesh. Default tolerance: 0.05 x the mean input edge, one sample spacing for a
-    :class:`VolumeField`.
+    :class:`VolumeField`. As in :func:`optimize`, no operation may make faces cross,
+    fold or face inwards, and the result is never of worse worst Q_K than the input.
 
     Examples
     --------
