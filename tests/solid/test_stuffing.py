@@ -1,0 +1,177 @@
+"""Tetrahedral meshes of implicit domains by isosurface stuffing: the acceptance of issue 20.
+
+Every mesh: positive tetrahedra, conforming (each interior face in two tetrahedra, boundary
+faces in one: ``check_cells``), boundary triangles closed, manifold, outward and embedded
+(``check_mesh``: no two boundary triangles cross) with the Euler characteristic of the true
+surface, and the tetrahedra's volumes summing to the volume the boundary encloses — with
+conformity, that rules out overlapping tetrahedra. Smooth shapes: every dihedral angle in
+[10.7°, 164.8°] (tolerance 1e-9 degrees), boundary vertices within 1e-3 h of f = 0, volume
+within 1 % of the exact one.
+"""
+
+from __future__ import annotations
+
+import math
+
+import meshio
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from tests.helpers.cellcheck import check_cells
+from tests.helpers.meshcheck import check_mesh
+from warpmesh.solid.dihedral import dihedral_angles, radius_edge_ratio, signed_volumes
+from warpmesh.solid.pipeline import boundary_faces
+
+ANGLE_TOL = 1e-9  # degrees: float64 rounding of arccos near the bounds
+LO, HI = 10.7, 164.8
+
+SMOOTH = {
+    "sphere": (wm.sphere(1.0), ((-1.2,) * 3, (1.2,) * 3), 4.0 / 3.0 * math.pi, 2),
+    "torus": (wm.torus(1.0, 0.35), ((-1.5, -1.5, -0.5), (1.5, 1.5, 0.5)), 2 * math.pi**2 * 0.35**2, 0),
+    "ellipsoid": (wm.ellipsoid((1.0, 0.6, 0.4)).rotate(0.3, (1, 1, 0)), ((-1.2,) * 3, (1.2,) * 3),
+                  4.0 / 3.0 * math.pi * 0.24, 2),
+}
+
+
+def _check_volume_mesh(vol: wm.Mesh, euler: int) -> dict:
+    tets, tris = vol.cells["tetra"], vol.cells["triangle"]
+    cells = check_cells(wm.Mesh(vol.points, {"tetra": tets}))  # positive, conforming, boundary closed, no crossing
+    surf = check_mesh(vol.points, tris)  # closed, manifold, oriented, embedded
+    assert surf["n_faces"] == cells["n_boundary"] == len(tris)
+    s = vol.stats()
+    assert s["euler"] == euler and s["watertight"] and s["manifold"] and s["oriented"]
+    enclosed = wm.Mesh(vol.points, {"triangle": tris}).stats()["volume"]
+    assert signed_volumes(vol.points, tets).sum() == pytest.approx(enclosed, rel=1e-9)
+    assert (signed_volumes(vol.points, tets) > 0).all()
+    return s
+
+
+@pytest.mark.parametrize("name", list(SMOOTH))
+def test_smooth_shapes_dihedral_bounds_topology_volume(name):
+    shape, bounds, exact, euler = SMOOTH[name]
+    h = 0.08
+    vol = wm.mesh_domain(shape, bounds=bounds, size=h)
+    s = _check_volume_mesh(vol, euler)
+    ang = np.degrees(dihedral_angles(vol.points, vol.cells["tetra"]))
+    assert ang.min() >= LO - ANGLE_TOL and ang.max() <= HI + ANGLE_TOL, (ang.min(), ang.max())
+    assert s["dihedral_min"] == pytest.approx(ang.min()) and s["dihedral_max"] == pytest.approx(ang.max())
+    assert s["volume"] == pytest.approx(exact, rel=0.01)
+    assert np.isfinite(radius_edge_ratio(vol.points, vol.cells["tetra"])).all()
+    # boundary vertices on f = 0: |f| / |grad f| of the exact float64 field
+    b = np.unique(vol.cells["triangle"])
+    p = vol.points[b]
+    f = shape.eval_numpy(p[:, 0], p[:, 1], p[:, 2])
+    fg = wm.evaluate(shape, p, gradient=True)
+    dist = np.abs(f) / np.linalg.norm(fg[:, 1:], axis=1)
+    assert dist.max() <= 1e-3 * h, dist.max()
+    assert s["boundary_distance"] <= 1e-3
+    assert set(vol.cell_refs["triangle"].tolist()) == {wm._conventions.SURFACE_REF}
+    assert set(vol.cell_refs["tetra"].tolist()) == {1}
+
+
+def test_volume_converges_with_size():
+    shape, bounds, exact, _ = SMOOTH["sphere"]
+    errs = [abs(wm.mesh_domain(shape, bounds=bounds, size=h).stats()["volume"] - exact) for h in (0.2, 0.1)]
+    assert errs[1] < errs[0] / 2.5  # second order: about 4x
+
+
+def test_part_sharp_edges_positive_and_reported(capsys):
+    part, bounds = wm.example("part")
+    vol = wm.mesh_domain(part, bounds=bounds, size=0.06)
+    s = _check_volume_mesh(vol, -6)
+    assert s["dihedral_min"] > 0 and s["dihedral_max"] < 180
+    with capsys.disabled():
+        print(f"\npart, size 0.06: {s['n_tetra']} tets, dihedral {s['dihedral_min']:.2f} .. {s['dihedral_max']:.2f} deg")
+
+
+def test_caps_where_the_bounds_clip_the_shape():
+    box = ((-0.7, -0.7, -0.7), (0.7, 0.7, 0.6))
+    vol = wm.mesh_domain(wm.sphere(1.0), bounds=box, size=0.07)
+    _check_volume_mesh(vol, 2)
+    refs = vol.cell_refs["triangle"]
+    assert set(refs.tolist()) == {wm._conventions.SURFACE_REF, wm._conventions.CAP_REF}
+    caps = vol.points[vol.cells["triangle"][refs == wm._conventions.CAP_REF]]
+    lo, hi = np.array(box)
+    on_plane = np.array([any(np.allclose(tri[:, a], v, atol=1e-6) for a in range(3) for v in (lo[a], hi[a]))
+                         for tri in caps])
+    assert on_plane.all()
+    # the clipped volume: the box minus the sphere's corners, by Monte Carlo on a fixed sample
+    rng = np.random.default_rng(1)
+    q = rng.uniform(lo, hi, (400_000, 3))
+    frac = (np.einsum("ij,ij->i", q, q) < 1.0).mean()
+    assert vol.stats()["volume"] == pytest.approx(frac * np.prod(hi - lo), rel=0.01)
+
+
+def test_random_field_with_many_patterns_conforms():
+    """A field with many small blobs: many sign patterns and warps; still conforming, positive,
+    no crossing boundary faces, volumes adding up."""
+    x, y, z = wm.coords()
+    f = wm.sin(7 * x + 1) * wm.sin(6 * y + 2) * wm.sin(5 * z + 0.5) + 0.2 * wm.cos(3 * x * y) - 0.15
+    vol = wm.mesh_domain(wm.Shape(f), bounds=((-1,) * 3, (1,) * 3), size=0.09)
+    cells = check_cells(wm.Mesh(vol.points, {"tetra": vol.cells["tetra"]}))
+    p = vol.points[vol.cells["triangle"]]  # the divergence theorem (the boundary may pinch at an edge)
+    enclosed = np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0
+    assert cells["measure"] == pytest.approx(enclosed, rel=1e-9)
+    assert vol.stats()["warped_nodes"] > 0
+
+
+def test_boundary_faces_are_outward():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], float)
+    tets = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+    tets[1] = tets[1] if signed_volumes(pts, tets[1:])[0] > 0 else tets[1, [0, 2, 1, 3]]
+    tris = boundary_faces(tets)
+    assert len(tris) == 6
+    assert wm.Mesh(pts, {"triangle": tris}).stats()["volume"] == pytest.approx(signed_volumes(pts, tets).sum())
+
+
+@pytest.mark.parametrize("ext", ["msh", "mesh", "vtu"])
+def test_files_read_back_by_meshio(tmp_path, ext):
+    vol = wm.mesh_domain(wm.sphere(1.0), bounds=((-0.8,) * 3, (0.8,) * 3), size=0.2)
+    path = vol.save(tmp_path / f"ball.{ext}")
+    back = meshio.read(path)
+    blocks = {c.type: c.data for c in back.cells}
+    assert np.array_equal(blocks["tetra"], vol.cells["tetra"])
+    assert np.array_equal(blocks["triangle"], vol.cells["triangle"])
+    assert np.allclose(back.points, vol.points)
+    again = wm.load(path)
+    assert again.cell_refs is not None and np.array_equal(again.cell_refs["triangle"], vol.cell_refs["triangle"])
+
+
+def test_second_order_tetrahedra_on_the_surface():
+    shape = wm.sphere(1.0)
+    vol = wm.mesh_domain(shape, bounds=((-1.2,) * 3, (1.2,) * 3), size=0.25)
+    p2 = vol.to_order(2, shape)
+    assert p2.cells["tetra10"].shape == (len(vol.cells["tetra"]), 10)
+    mids = np.unique(p2.cells["triangle6"][:, 3:])
+    r = np.linalg.norm(p2.points[mids], axis=1)
+    assert np.abs(r - 1.0).max() < 1e-6
+
+
+def test_planar_shapes_still_get_triangles():
+    m = wm.mesh_domain(wm.circle(1.0), bounds=((-1.2, -1.2), (1.2, 1.2)), size=0.2)
+    assert m.dim == 2 and "triangle" in m.cells and "tetra" not in m.cells
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"shape": wm.sphere(0.3, center=(5, 5, 5))}, "inside"),
+    ({"size": 0.0}, "size"),
+    ({"size": -0.1}, "size"),
+    ({"size": 3.0}, "size"),
+    ({"size": float("nan")}, "size"),
+    ({"bounds": ((float("nan"), 0, 0), (1, 1, 1))}, "bounds"),
+    ({"method": "delaunay"}, "method"),
+    ({"alpha": 0.3}, "alpha"),
+    ({"alpha_long": 0.7}, "alpha_long"),
+    ({"smooth": -1}, "smooth"),
+    ({"bounds": ((-1, -1), (1, 1))}, "bounds"),
+])
+def test_bad_input_names_the_argument(kwargs, match):
+    args = {"shape": wm.sphere(1.0), "bounds": ((-1.2,) * 3, (1.2,) * 3), "size": 0.2, **kwargs}
+    with pytest.raises(ValueError, match=match):
+        wm.mesh_domain(args.pop("shape"), **args)
+
+
+def test_not_a_shape():
+    with pytest.raises(TypeError, match="shape"):
+        wm.mesh_domain("sphere", bounds=((-1,) * 3, (1,) * 3), size=0.2)
