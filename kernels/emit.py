@@ -5,7 +5,9 @@ crossing edges (§16.3.3).
 
 Vertices live on grid edges of a few direction *types* (``TYPE_DELTA``: the 3 axes, for
 "mt" also the 3 face diagonals and the body diagonal of the Kuhn split), plus, for "mc33",
-an optional vertex inside a cell (type ``CENTER``). Every grid edge ``(node, type)`` has
+vertices inside a cell (type ``CENTER``: the apex of a disk's fan, or the spoke vertices
+of a tube's hub construction, kernels/mc33_tables.py), created by the cell itself. Every
+grid edge ``(node, type)`` has
 exactly one owner block, the block of its lower node (``owner = min(g // BLOCK, nb - 1)``
 per axis), and that block creates the single vertex of the edge when it crosses the
 surface, so the output is welded by construction. A cell's polygons come from the
@@ -18,14 +20,16 @@ so the host can split them across cores.
 import numpy as np
 import warp as wp
 
-from warpmesh.kernels.block_grid import BLOCK, NODES, SIDE, block_coords, local_index, on_capped_face
+from warpmesh.kernels.block_grid import BLOCK, NODES, SIDE, block_coords, local_coords, local_index, on_capped_face
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})  # decisions as the numpy reference
 
 METHOD_MC = 0
 METHOD_MC33 = 1
 METHOD_MT = 2
-CENTER = 7  # vertex type of a cell's interior vertex ("mc33")
+CENTER = 7  # vertex type of a cell's interior vertices ("mc33")
+CENTER_VERTEX = 12  # local id of a cell's first interior vertex ("mc33": mc33_tables.CENTER_VERTEX)
+HUB_MARGIN = 0.05  # the hub's distance from the cube faces ("mc33": mc33_tables.HUB_MARGIN)
 #: (8, 3) direction of each vertex type: +x, +y, +z, +x+y, +x+z, +y+z, +x+y+z; CENTER
 TYPE_DELTA = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, 0, 1], [0, 1, 1], [1, 1, 1],
                        [0, 0, 0]], dtype=np.int32)
@@ -36,6 +40,8 @@ _NODES = wp.constant(NODES)
 _CELLS = wp.constant(BLOCK * BLOCK * BLOCK)
 _METHOD_MC33 = wp.constant(METHOD_MC33)
 _CENTER = wp.constant(CENTER)
+_CENTER_VERTEX = wp.constant(CENTER_VERTEX)
+_HUB_MARGIN = wp.constant(HUB_MARGIN)
 vec8d = wp.types.vector(length=8, dtype=wp.float64)
 
 
@@ -50,7 +56,7 @@ class Tables:
     tris: wp.array2d(dtype=wp.int32)  # per case: 3 local vertex ids per triangle
     quad_count: wp.array(dtype=wp.int32)  # per case ("mt": quads split at run time)
     quads: wp.array2d(dtype=wp.int32)  # per case: 4 local vertex ids per quad
-    center: wp.array(dtype=wp.int32)  # per case: 1 when it uses the cell's interior vertex
+    center: wp.array(dtype=wp.int32)  # per case: bit j set when it uses interior vertex j (local vertex 12 + j)
     case_offset: wp.array(dtype=wp.int32)  # "mc33": config * 64 + face bits -> first row
     interior_test: wp.array(dtype=wp.int32)  # "mc33": config * 64 + face bits -> test id or -1
     test_corners: wp.array2d(dtype=wp.int32)  # "mc33": parameters of each interior test
@@ -70,7 +76,7 @@ def config_of(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: 
 def interior_value(v: vec8d, tab: Tables, test: int):
     """Interior test of "mc33" (kernels/mc33_tables.py, ``interior_value``): 1 when the
     diagonal edges A, C of the slices along the test's axis join through the inside of
-    a slice, 2 through the outside, else 0."""
+    a slice, 2 through the outside (a slice saddle on the level counts as outside), else 0."""
     a0 = v[tab.test_corners[test, 0]]
     a1 = v[tab.test_corners[test, 1]]
     c0 = v[tab.test_corners[test, 2]]
@@ -89,25 +95,32 @@ def interior_value(v: vec8d, tab: Tables, test: int):
     two = wp.float64(2.0)
     zero = wp.float64(0.0)
     r = int(0)
-    if alpha < zero and beta > zero and beta < -two * alpha and beta * beta - wp.float64(4.0) * alpha * gamma > zero:
+    if alpha < zero and beta > zero and beta < -two * alpha:
+        disc = beta * beta - wp.float64(4.0) * alpha * gamma  # the sign of P(t*)
         sa = -two * alpha * a0 + da * beta
         sc = -two * alpha * c0 + dc * beta
-        if sa > zero and sc > zero:
+        if disc > zero and sa > zero and sc > zero:
             r = 1
-        elif sa < zero and sc < zero:
+        elif disc >= zero and sa <= zero and sc <= zero:  # the level is outside: a tie joins
             r = 2
     return r
 
 
 @wp.func
-def mc33_case(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int, tab: Tables, ci: int):
-    """Row of the "mc33" tables for a cell of configuration ci: the asymptotic decider
-    on each ambiguous face (products of float32 values, exact in float64, so the two
-    cells of a face agree), then the interior test the entry asks for."""
+def mc33_values(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int, tab: Tables):
+    """The cell's 8 corner values in float64 (products of two float32 values are exact)."""
     v = vec8d()
     for q in range(8):
         v[q] = wp.float64(values[base + local_index(i + tab.corners[q, 0], j + tab.corners[q, 1],
                                                     k + tab.corners[q, 2])])
+    return v
+
+
+@wp.func
+def mc33_entry(v: vec8d, tab: Tables, ci: int):
+    """Table entry ``config * 64 + face bits`` of "mc33": the asymptotic decider on each
+    ambiguous face, by products of the corner values, so the two cells of a face agree;
+    a tie keeps the inside corners apart (bit 0)."""
     zero = wp.float64(0.0)
     bits = int(0)
     for q in range(6):
@@ -125,12 +138,105 @@ def mc33_case(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: 
                 joined = pac > pbd
             if joined:
                 bits = bits | (1 << q)
-    entry = ci * 64 + bits
+    return ci * 64 + bits
+
+
+@wp.func
+def mc33_case(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int, tab: Tables, ci: int):
+    """Row of the "mc33" tables for a cell of configuration ci: its entry, then the
+    interior test the entry asks for."""
+    v = mc33_values(values, base, i, j, k, tab)
+    entry = mc33_entry(v, tab, ci)
     row = tab.case_offset[entry]
     test = tab.interior_test[entry]
     if test >= 0:
         row += interior_value(v, tab, test)
     return row
+
+
+@wp.func
+def interior_count(mask: int):
+    """Interior vertices of a case: the bits set in its ``center`` mask."""
+    n = int(0)
+    for b in range(9):
+        n += (mask >> b) & 1
+    return n
+
+
+@wp.func
+def trilinear(v: vec8d, tab: Tables, p: wp.vec3d):
+    """The trilinear interpolant of the corner values at a point of the unit cube."""
+    one = wp.float64(1.0)
+    f = wp.float64(0.0)
+    for q in range(8):
+        w = one
+        for a in range(3):
+            if tab.corners[q, a] == 1:
+                w = w * p[a]
+            else:
+                w = w * (one - p[a])
+        f += w * v[q]
+    return f
+
+
+@wp.func
+def mc33_hub(v: vec8d, tab: Tables, test: int, margin: wp.float64):
+    """The hub of a cell whose interior test found a connection (kernels/mc33_tables.py,
+    ``hub_point``): the saddle of the slice t* along the test's axis, kept ``margin``
+    from the cube faces."""
+    a0 = v[tab.test_corners[test, 0]]
+    a1 = v[tab.test_corners[test, 1]]
+    c0 = v[tab.test_corners[test, 2]]
+    c1 = v[tab.test_corners[test, 3]]
+    b0 = v[tab.test_corners[test, 4]]
+    b1 = v[tab.test_corners[test, 5]]
+    d0 = v[tab.test_corners[test, 6]]
+    d1 = v[tab.test_corners[test, 7]]
+    alpha = (a1 - a0) * (c1 - c0) - (b1 - b0) * (d1 - d0)
+    beta = a0 * (c1 - c0) + c0 * (a1 - a0) - b0 * (d1 - d0) - d0 * (b1 - b0)
+    t = -beta / (wp.float64(2.0) * alpha)
+    axis = test // 2
+    u = 0
+    w = 2
+    if axis == 0:
+        u = 1
+    if axis == 2:
+        w = 1
+    bit = 1 << axis
+    s00 = v[0] + t * (v[bit] - v[0])
+    s10 = v[1 << u] + t * (v[(1 << u) | bit] - v[1 << u])
+    s01 = v[1 << w] + t * (v[(1 << w) | bit] - v[1 << w])
+    s11 = v[(1 << u) | (1 << w)] + t * (v[(1 << u) | (1 << w) | bit] - v[(1 << u) | (1 << w)])
+    e = s11 - s10 - s01 + s00
+    hub = wp.vec3d()
+    hub[axis] = t
+    hub[u] = (s00 - s01) / e
+    hub[w] = (s00 - s10) / e
+    for a in range(3):
+        hub[a] = wp.clamp(hub[a], margin, wp.float64(1.0) - margin)
+    return hub
+
+
+@wp.func
+def spoke_point(v: vec8d, tab: Tables, hub: wp.vec3d, f_hub: wp.float64, q: int, t_min: wp.float64):
+    """Spoke vertex of corner q (unit cube): the root of the trilinear interpolant between
+    the hub and the corner by bisection (the midpoint when the hub's value has the
+    corner's side), its parameter clamped to [t_min, 1 - t_min]."""
+    corner = wp.vec3d(wp.float64(tab.corners[q, 0]), wp.float64(tab.corners[q, 1]), wp.float64(tab.corners[q, 2]))
+    zero = wp.float64(0.0)
+    tau = wp.float64(0.5)
+    if (f_hub > zero) != (v[q] > zero):
+        lo = zero
+        hi = wp.float64(1.0)
+        for _ in range(30):
+            mid = wp.float64(0.5) * (lo + hi)
+            if (trilinear(v, tab, hub + mid * (corner - hub)) > zero) == (f_hub > zero):
+                lo = mid
+            else:
+                hi = mid
+        tau = wp.float64(0.5) * (lo + hi)
+    tau = wp.clamp(tau, t_min, wp.float64(1.0) - t_min)
+    return hub + tau * (corner - hub)
 
 
 @wp.func
@@ -212,7 +318,7 @@ def count_crossings_kernel(
                 if cell_mask.shape[0] == 1 or cell_mask[cell] != wp.uint8(0):
                     case = cell_case(method, values, base, i, j, k, tab)
                     nt += tab.tri_count[case] + 2 * tab.quad_count[case]
-                    nc += tab.center[case]
+                    nc += interior_count(tab.center[case])
                 cell_cases[cell] = case
     vertex_count[s] = nv
     triangle_count[s] = nt
@@ -220,13 +326,103 @@ def count_crossings_kernel(
 
 
 @wp.func
+def node_inside(g: wp.vec3i, s: int, c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i, block_slot: wp.array(dtype=wp.int32),
+                values: wp.array(dtype=wp.float32), known: wp.array(dtype=wp.uint8)):
+    """1 when node g is inside, 0 outside, -1 unknown, read in slot s (block c) or, beyond
+    it, in the slot of g's owner block: unknown beyond the grid, in a culled block (an edge
+    from a node of slot s into it lies in its closure, of one sign: never a crossing) and
+    where ``known`` (one entry per slot node; a single entry: everything known) is 0."""
+    r = int(-1)
+    inside_grid = True
+    for a in range(3):
+        if g[a] < 0 or g[a] > n[a] - 1:
+            inside_grid = False
+    if inside_grid:
+        li = g - c * _BLOCK
+        slot = s
+        if li[0] < 0 or li[1] < 0 or li[2] < 0 or li[0] > _BLOCK or li[1] > _BLOCK or li[2] > _BLOCK:
+            ob = wp.vec3i(0, 0, 0)
+            for a in range(3):
+                ob[a] = wp.min(g[a] / _BLOCK, nb[a] - 1)
+            slot = block_slot[ob[0] + nb[0] * (ob[1] + nb[1] * ob[2])]
+            li = g - ob * _BLOCK
+        if slot >= 0:
+            idx = slot * _NODES + local_index(li[0], li[1], li[2])
+            if known.shape[0] == 1 or known[idx] != wp.uint8(0):
+                r = wp.where(values[idx] > 0.0, 1, 0)
+    return r
+
+
+@wp.kernel
+def node_crowding_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32), nb: wp.vec3i,
+    n: wp.vec3i, values: wp.array(dtype=wp.float32), known: wp.array(dtype=wp.uint8),
+    crowd: wp.array(dtype=wp.uint8),
+):
+    """One thread per slot, for each node it stores (faces too, so every copy of a node gets
+    the same answer from the same signs): bit a set when the node ends a crossing axis edge
+    along another axis than a, either way (``lonely``). Signs only: the copies of a node in
+    two blocks may differ in magnitude (an evaluated value, a proven sign), never in sign."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    for l in range(_NODES):
+        g = c * _BLOCK + local_coords(l)
+        bits = int(0)
+        me = node_inside(g, s, c, nb, n, block_slot, values, known)
+        if me >= 0:
+            hit = wp.vec3i(0, 0, 0)
+            for a in range(3):
+                for side in range(2):
+                    e = wp.vec3i(g[0], g[1], g[2])
+                    e[a] = g[a] + 2 * side - 1
+                    other = node_inside(e, s, c, nb, n, block_slot, values, known)
+                    if other >= 0 and other != me:
+                        hit[a] = 1
+            for a in range(3):
+                if hit[(a + 1) % 3] != 0 or hit[(a + 2) % 3] != 0:
+                    bits = bits | (1 << a)
+        crowd[s * _NODES + l] = wp.uint8(bits)
+
+
+@wp.func
+def lonely(crowd: wp.array(dtype=wp.uint8), idx: int, axis: int):
+    """Whether the node of slot-node entry idx ends no crossing edge but its own along
+    ``axis`` in any cell (``node_crowding_kernel``): no triangle then has a second vertex
+    next to it. Never when crowding was not computed (a one-entry array)."""
+    return crowd.shape[0] > 1 and ((int(crowd[idx]) >> axis) & 1) == 0
+
+
+@wp.func
+def edge_t_range(g: wp.vec3i, d: wp.vec3i, axis: int, n: wp.vec3i, cap: int, n_types: int, t_min: float,
+                 clearance: float, crowd: wp.array(dtype=wp.uint8), i0: int, i1: int):
+    """[lo, hi] for the linear vertex parameter t on the edge from node g in direction d
+    (vertex type ``axis``; its ends are slot-node entries i0, i1): ``clearance`` (at least
+    t_min) away from each end, which bounds the shape of every table triangle
+    (``_conventions.NODE_CLEARANCE``). With the axis edges alone (n_types 3: "mc", "mc33")
+    an end keeps t_min where no triangle can have a second vertex next to it: a *lonely*
+    node (``lonely``; so a plane through grid nodes stays on them), and a node on a capped
+    face (outside, as is every neighbour on its face: the caps stay on the bounds). A
+    function of the global edge alone: every block that places the vertex agrees."""
+    gap = wp.max(t_min, clearance)
+    lo = gap
+    hi = 1.0 - gap
+    if n_types == 3:
+        if on_capped_face(g, n, cap) or lonely(crowd, i0, axis):
+            lo = t_min
+        if on_capped_face(g + d, n, cap) or lonely(crowd, i1, axis):
+            hi = 1.0 - t_min
+    return wp.vec2(lo, hi)
+
+
+@wp.func
 def crossing(values: wp.array(dtype=wp.float32), base: int, li: wp.vec3i, d: wp.vec3i, g: wp.vec3i,
-             origin: wp.vec3, h: wp.vec3, t_min: float):
+             origin: wp.vec3, h: wp.vec3, t_range: wp.vec2):
     """(position, t, inside end, outside end) of the crossing on the edge from local node
-    li (global g) in direction d, by linear interpolation (eq. 16.12), t clamped."""
+    li (global g) in direction d, by linear interpolation (eq. 16.12), t clamped to
+    t_range (``edge_t_range``)."""
     v0 = values[base + local_index(li[0], li[1], li[2])]
     v1 = values[base + local_index(li[0] + d[0], li[1] + d[1], li[2] + d[2])]
-    t = wp.clamp(v0 / (v0 - v1), t_min, 1.0 - t_min)
+    t = wp.clamp(v0 / (v0 - v1), t_range[0], t_range[1])
     p0 = wp.vec3(origin[0] + float(g[0]) * h[0], origin[1] + float(g[1]) * h[1],
                  origin[2] + float(g[2]) * h[2])
     p1 = wp.vec3(p0[0] + float(d[0]) * h[0], p0[1] + float(d[1]) * h[1], p0[2] + float(d[2]) * h[2])
@@ -243,22 +439,26 @@ def node_key(g: wp.vec3i, goff: wp.vec3i, gn: wp.vec3i):
 @wp.kernel
 def emit_vertices_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, n_types: int, cap: int,
-    origin: wp.vec3, h: wp.vec3, t_min: float, goff: wp.vec3i, gn: wp.vec3i, tab: Tables,
-    values: wp.array(dtype=wp.float32), vertex_offset: wp.array(dtype=wp.int32),
+    origin: wp.vec3, h: wp.vec3, t_min: float, clearance: float, goff: wp.vec3i, gn: wp.vec3i,
+    tab: Tables, values: wp.array(dtype=wp.float32), crowd: wp.array(dtype=wp.uint8),
+    vertex_offset: wp.array(dtype=wp.int32),
     edge_vertex_id: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3),
     edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
     edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32),
-    edge_key: wp.array(dtype=wp.int64),
+    edge_key: wp.array(dtype=wp.int64), moved: wp.array(dtype=wp.int32),
 ):
     """One thread per slot: place the vertex of every crossing edge the block owns by
-    linear interpolation (eq. 16.12), t clamped to [t_min, 1 - t_min]; remember the edge
-    so a root finder can refine it, and its key ``node * 8 + type`` in the whole grid.
+    linear interpolation (eq. 16.12), t clamped to ``edge_t_range`` (the clearance off the
+    nodes); remember the edge so a root finder can refine it, and its key
+    ``node * 8 + type`` in the whole grid; count the vertices the clearance moved.
     Flags: bit 0 = first end inside, bit 1 = an end has the value 0 exactly (on the
-    surface, or capped: keep the clamped t), bit 2 = that end is on a capped face."""
+    surface, or capped: keep the clamped t), bit 2 = that end is on a capped face, bit 3
+    = it is not (an exact root at a node: root refinement puts the vertex t_min from it)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
     base = s * _NODES
     vid = vertex_offset[s]
+    n_moved = int(0)
     own = owned_count(c, nb, n)
     for k in range(own[2]):
         for j in range(own[1]):
@@ -272,7 +472,11 @@ def emit_vertices_kernel(
                     if edge_in_grid(g, n, d):
                         v1 = values[base + local_index(i + d[0], j + d[1], k + d[2])]
                         if (v1 > 0.0) != inside:
-                            p, te, p0, p1 = crossing(values, base, wp.vec3i(i, j, k), d, g, origin, h, t_min)
+                            tr = edge_t_range(g, d, t, n, cap, n_types, t_min, clearance, crowd, base + l,
+                                              base + local_index(i + d[0], j + d[1], k + d[2]))
+                            p, te, p0, p1 = crossing(values, base, wp.vec3i(i, j, k), d, g, origin, h, tr)
+                            if te != wp.clamp(v0 / (v0 - v1), t_min, 1.0 - t_min):
+                                n_moved += 1
                             points[vid] = p
                             edge_t[vid] = te
                             edge_p0[vid] = p0
@@ -284,19 +488,23 @@ def emit_vertices_kernel(
                                 flags = flags | 2
                                 if on_capped_face(g, n, cap) or on_capped_face(g + d, n, cap):
                                     flags = flags | 4  # a capped (or zero) end on a capped face
+                                else:
+                                    flags = flags | 8
                             edge_flags[vid] = flags
                             edge_key[vid] = node_key(g, goff, gn) * wp.int64(8) + wp.int64(t)
                             edge_vertex_id[(s * _NODES + l) * n_types + t] = vid
                             vid += 1
+    moved[s] = n_moved
 
 
 @wp.func
 def vertex_id(tab: Tables, v: int, g: wp.vec3i, nb: wp.vec3i, block_slot: wp.array(dtype=wp.int32),
-              edge_vertex_id: wp.array(dtype=wp.int32), n_types: int, center_id: int):
+              edge_vertex_id: wp.array(dtype=wp.int32), n_types: int, center_id: int, mask: int):
     """Global vertex id of local vertex v of the cell at node g (-1 if its owner block was
-    culled, which the host refuses)."""
+    culled, which the host refuses); the cell's interior vertices (``mask``, see
+    ``Tables.center``) are numbered from center_id in the order of their local ids."""
     if tab.origin[v, 3] == _CENTER:
-        return center_id
+        return center_id + interior_count(mask & ((1 << (v - _CENTER_VERTEX)) - 1))
     e = wp.vec3i(g[0] + tab.origin[v, 0], g[1] + tab.origin[v, 1], g[2] + tab.origin[v, 2])
     ob = wp.vec3i(0, 0, 0)
     lo = wp.vec3i(0, 0, 0)
@@ -342,22 +550,41 @@ def signed_volume6(points: wp.array(dtype=wp.vec3), tri: wp.vec3i):
     return r
 
 
+@wp.func
+def put_interior(vid: int, p: wp.vec3, cell_key: wp.int64, slot: int, points: wp.array(dtype=wp.vec3),
+                 edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
+                 edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32),
+                 edge_key: wp.array(dtype=wp.int64)):
+    """Store interior vertex ``slot`` (local vertex 12 + slot) of a cell: not on an edge,
+    flagged so that root refinement keeps it, keyed ``node * 8 + CENTER`` plus the slot
+    in bits 56 and up (unique, never on a seam's edge)."""
+    points[vid] = p
+    edge_t[vid] = 0.0
+    edge_p0[vid] = p
+    edge_p1[vid] = p
+    edge_flags[vid] = 2
+    edge_key[vid] = cell_key * wp.int64(8) + wp.int64(_CENTER) + (wp.int64(slot) << wp.int64(56))
+
+
 @wp.kernel
 def emit_triangles_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
-    nb: wp.vec3i, n: wp.vec3i, n_types: int, origin: wp.vec3, h: wp.vec3, t_min: float,
-    goff: wp.vec3i, gn: wp.vec3i, tab: Tables, values: wp.array(dtype=wp.float32),
-    cell_cases: wp.array(dtype=wp.int32), triangle_offset: wp.array(dtype=wp.int32),
+    nb: wp.vec3i, n: wp.vec3i, n_types: int, cap: int, origin: wp.vec3, h: wp.vec3, t_min: float,
+    clearance: float, goff: wp.vec3i, gn: wp.vec3i, tab: Tables, values: wp.array(dtype=wp.float32),
+    crowd: wp.array(dtype=wp.uint8), cell_cases: wp.array(dtype=wp.int32), triangle_offset: wp.array(dtype=wp.int32),
     center_offset: wp.array(dtype=wp.int32), edge_vertex_id: wp.array(dtype=wp.int32),
     points: wp.array(dtype=wp.vec3), edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
     edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32), edge_key: wp.array(dtype=wp.int64),
     triangles: wp.array(dtype=wp.vec3i), slot_volume: wp.array(dtype=wp.float64),
 ):
     """One thread per slot: the tables' triangles of every cell of the block, with vertex ids
-    looked up at the owner block of each edge; interior vertices of "mc33" cells (at the
-    mean of the cell's edge vertices); "mt" quadrilaterals split along the diagonal that
-    gives the better worst triangle; and the block's share of the signed volume (six
-    times p0 . (p1 x p2), summed: the host checks the winding)."""
+    looked up at the owner block of each edge; interior vertices of "mc33" cells (vertex 12
+    at the mean of the cell's edge vertices, placed as ``emit_vertices_kernel`` places
+    them; a spoke vertex at the root of the trilinear interpolant between the cell's hub
+    and its corner, ``mc33_tables.vertex_positions``); "mt"
+    quadrilaterals split along the diagonal that gives the better worst triangle; and the
+    block's share of the signed volume (six times p0 . (p1 x p2), summed: the host checks
+    the winding)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
     out = triangle_offset[s]
@@ -373,9 +600,10 @@ def emit_triangles_kernel(
                     continue
                 g = wp.vec3i(c[0] * _BLOCK + i, c[1] * _BLOCK + j, c[2] * _BLOCK + k)
                 center = int(-1)
-                if tab.center[case] != 0:
+                mask = tab.center[case]
+                if mask != 0:
                     center = cid
-                    cid += 1
+                    cid += interior_count(mask)
                     acc = wp.vec3(0.0)
                     m = float(0.0)
                     for t in range(3):  # the cell's 12 axis edges
@@ -386,30 +614,44 @@ def emit_triangles_kernel(
                                 v0 = values[base + local_index(li[0], li[1], li[2])]
                                 v1 = values[base + local_index(li[0] + d[0], li[1] + d[1], li[2] + d[2])]
                                 if (v0 > 0.0) != (v1 > 0.0):
-                                    p, te, p0, p1 = crossing(values, base, li, d, li + c * _BLOCK, origin, h,
-                                                             t_min)
+                                    ge = li + c * _BLOCK
+                                    tr = edge_t_range(ge, d, t, n, cap, n_types, t_min, clearance, crowd,
+                                                      base + local_index(li[0], li[1], li[2]),
+                                                      base + local_index(li[0] + d[0], li[1] + d[1], li[2] + d[2]))
+                                    p, te, p0, p1 = crossing(values, base, li, d, ge, origin, h, tr)
                                     acc = acc + p
                                     m += 1.0
-                    pc = acc / wp.max(m, 1.0)
-                    points[center] = pc
-                    edge_t[center] = 0.0
-                    edge_p0[center] = pc
-                    edge_p1[center] = pc
-                    edge_flags[center] = 2  # not on an edge: root refinement keeps it
-                    edge_key[center] = node_key(g, goff, gn) * wp.int64(8) + wp.int64(_CENTER)
+                    if (mask & 1) != 0:  # vertex 12: the mean of the edge vertices
+                        put_interior(center, acc / wp.max(m, 1.0), node_key(g, goff, gn), 0, points, edge_t,
+                                     edge_p0, edge_p1, edge_flags, edge_key)
+                    if mask > 1:  # the spokes of the hub construction (kernels/mc33_tables.py)
+                        v = mc33_values(values, base, i, j, k, tab)
+                        test = tab.interior_test[mc33_entry(v, tab, config_of(values, base, i, j, k, tab))]
+                        hub = mc33_hub(v, tab, test, wp.float64(_HUB_MARGIN))
+                        f_hub = trilinear(v, tab, hub)
+                        gap = wp.float64(wp.max(t_min, clearance))
+                        for q in range(8):
+                            if ((mask >> (q + 1)) & 1) != 0:
+                                u = spoke_point(v, tab, hub, f_hub, q, gap)
+                                pq = wp.vec3(origin[0] + (float(g[0]) + float(u[0])) * h[0],
+                                             origin[1] + (float(g[1]) + float(u[1])) * h[1],
+                                             origin[2] + (float(g[2]) + float(u[2])) * h[2])
+                                put_interior(center + interior_count(mask & ((2 << q) - 1)), pq,
+                                             node_key(g, goff, gn), q + 1, points, edge_t, edge_p0, edge_p1,
+                                             edge_flags, edge_key)
                 for q in range(tab.tri_count[case]):
                     tri = wp.vec3i(0, 0, 0)
                     for m3 in range(3):
                         tri[m3] = vertex_id(tab, tab.tris[case, q * 3 + m3], g, nb, block_slot, edge_vertex_id,
-                                            n_types, center)
+                                            n_types, center, mask)
                     triangles[out] = tri
                     out += 1
                     vol += signed_volume6(points, tri)
                 for q in range(tab.quad_count[case]):
-                    a = vertex_id(tab, tab.quads[case, q * 4 + 0], g, nb, block_slot, edge_vertex_id, n_types, center)
-                    b = vertex_id(tab, tab.quads[case, q * 4 + 1], g, nb, block_slot, edge_vertex_id, n_types, center)
-                    e = vertex_id(tab, tab.quads[case, q * 4 + 2], g, nb, block_slot, edge_vertex_id, n_types, center)
-                    f = vertex_id(tab, tab.quads[case, q * 4 + 3], g, nb, block_slot, edge_vertex_id, n_types, center)
+                    a = vertex_id(tab, tab.quads[case, q * 4 + 0], g, nb, block_slot, edge_vertex_id, n_types, center, mask)
+                    b = vertex_id(tab, tab.quads[case, q * 4 + 1], g, nb, block_slot, edge_vertex_id, n_types, center, mask)
+                    e = vertex_id(tab, tab.quads[case, q * 4 + 2], g, nb, block_slot, edge_vertex_id, n_types, center, mask)
+                    f = vertex_id(tab, tab.quads[case, q * 4 + 3], g, nb, block_slot, edge_vertex_id, n_types, center, mask)
                     t1 = wp.vec3i(a, b, e)
                     t2 = wp.vec3i(a, e, f)
                     if a >= 0 and b >= 0 and e >= 0 and f >= 0:
@@ -440,15 +682,18 @@ def edge_points_kernel(
 
 @wp.kernel
 def bracket_init_kernel(
-    flags: wp.array(dtype=wp.int32), midpoint: int, t_lo: wp.array(dtype=wp.float32),
+    flags: wp.array(dtype=wp.int32), midpoint: int, t_min: float, t_lo: wp.array(dtype=wp.float32),
     t_hi: wp.array(dtype=wp.float32), t: wp.array(dtype=wp.float32),
 ):
     """One thread per vertex: the bracket [0, 1] of the edge parameter; start at its
-    midpoint (bisection) or keep the linear estimate (Newton)."""
+    midpoint (bisection) or keep the linear estimate (Newton). An exact root at a node
+    (flag bit 3), which the emission's clearance moved off it, goes back to t_min from it."""
     v = wp.tid()
     t_lo[v] = 0.0
     t_hi[v] = 1.0
-    if midpoint != 0 and (flags[v] & 2) == 0:
+    if (flags[v] & 8) != 0:
+        t[v] = wp.where(t[v] < 0.5, t_min, 1.0 - t_min)
+    elif midpoint != 0 and (flags[v] & 2) == 0:
         t[v] = 0.5
 
 

@@ -6,8 +6,10 @@ are those of :mod:`warpmesh.kernels.mc_tables`: corner ``i`` at
 ``(i & 1, (i >> 1) & 1, (i >> 2) & 1)`` is *inside* when its value ``v_i > 0``
 (``v <= 0`` is outside), triangles are counter-clockwise seen from outside
 (``(p1 - p0) x (p2 - p0)`` points towards ``v <= 0``), local vertices ``0..11`` are the
-cube edges. Local vertex ``12`` (``CENTER_VERTEX``) is an optional vertex inside the cell,
-placed by the kernel at the mean of the cell's edge vertices.
+cube edges. Local vertex ``12`` (``CENTER_VERTEX``) is an optional vertex inside the cell
+(the apex of a disk's fan), placed by the kernel at the mean of the cell's edge vertices;
+local vertex ``13 + k`` (``SPOKE_VERTEX + k``) lies on the *spoke* from the cell's hub to
+corner ``k`` (the rows with a tube, see "Surfaces").
 
 Run time (one cell, values ``v[0..7]``)
 ---------------------------------------
@@ -23,8 +25,32 @@ Run time (one cell, values ``v[0..7]``)
    Non-ambiguous faces have bit 0. ``face_bits = sum(bit_q << q)``.
 3. ``i = config * 64 + face_bits``; ``row = CASE_OFFSET[i]`` (never -1 for the bits of
    step 2); when ``INTERIOR_TEST[i] = k >= 0``, ``row += interior_value(v, k)``.
-4. Triangles ``CASE_TRIS[row, :CASE_TRI_COUNT[row]]``; ``CASE_NEEDS_CENTER[row]`` is 1
-   when they use vertex 12.
+4. Triangles ``CASE_TRIS[row, :CASE_TRI_COUNT[row]]``; bit ``j`` of
+   ``CASE_INTERIOR[row]`` is set when they use the interior vertex ``12 + j``.
+5. Vertices (``vertex_positions``, the kernels' rule): an edge vertex by linear
+   interpolation; vertex 12 at the mean of the edge vertices; for a row with spokes,
+   the hub (``hub_point``: the saddle of the slice where the interior test found the
+   connection, so the interpolant has the tube's side there; kept ``HUB_MARGIN`` off the
+   faces) and on each spoke the root of the trilinear interpolant, by bisection.
+
+Ties
+----
+One rule resolves every tie: the level belongs to the outside, as ``v <= 0`` says for a
+corner. So a corner value equal to the level is outside; a face whose saddle value
+equals the level keeps its inside corners apart (bit 0, the plain table's choice: the
+outside corners meet at the saddle; both cells of the face compute the same two
+products, so they agree bit for bit); an interior test whose slice saddle lies on the
+level (``P(t*) = 0``) joins ``A`` and ``C`` when they are outside (value 2) and not when
+they are inside (no tunnel of inside); a vertex ``t*`` on a face (``beta = 0`` or
+``-2 alpha``) leaves the decision to that face (value 0). Each decision is thus the one
+``v - epsilon`` makes for a small enough ``epsilon > 0`` (whose level set is not
+singular), and neighbours agree on every face. Ties are where the true surface is
+singular (it pinches at a saddle); ``v - epsilon`` is one of its two smoothings. A tie
+never costs embeddedness: no row's triangles cross, for any vertex positions (see
+"Surfaces"). Binary and label volumes (0/1 samples at level 0.5) make every ambiguous
+face a tie; with five corners inside and three tied faces around the sixth (the
+complement of case 7) the interior test finds a tunnel of inside (``P(t*) > 0``, no
+tie), as ``v - epsilon`` has it.
 
 Interior test ``k`` (``interior_value``), 6 kinds: ``k = 2 * axis + diagonal``
 --------------------------------------------------------------------------------
@@ -42,13 +68,15 @@ coordinates (0, 0) and (1, 1); 1: (1, 0) and (0, 1)). In slice ``t`` the corner 
 The result is 1 ("A and C are connected through the inside of a slice"), 2 ("connected
 through the outside") or 0, with ``t* = -beta / (2 alpha)``::
 
-    hit = alpha < 0 and 0 < beta < -2 alpha and beta^2 - 4 alpha gamma > 0
+    vertex = alpha < 0 and 0 < beta < -2 alpha
+    disc = beta^2 - 4 alpha gamma                     # sign of P(t*)
     sa  = -2 alpha v[a0] + (v[a1] - v[a0]) beta      # sign of A(t*)
     sc  = -2 alpha v[c0] + (v[c1] - v[c0]) beta      # sign of C(t*)
-    value = 1 if hit and sa > 0 and sc > 0 else 2 if hit and sa < 0 and sc < 0 else 0
+    value = 1 if vertex and disc > 0 and sa > 0 and sc > 0
+       else 2 if vertex and disc >= 0 and sa <= 0 and sc <= 0 else 0
 
-(a few multiplies, no division, no square root). ``hit`` says that the concave
-quadratic ``P`` has its vertex ``t*`` in (0, 1) with ``P(t*) > 0``.
+(a few multiplies, no division, no square root): the concave quadratic ``P`` has its
+vertex ``t*`` in (0, 1) with ``P(t*) > 0`` (``>= 0`` for the outside: see "Ties").
 
 Why this is exact. Each connected piece of ``{F > 0}`` in a slice holds a corner of the
 slice (the bilinear interpolant is harmonic), so a component of ``{F > 0}`` in the cell
@@ -68,7 +96,10 @@ for the outside with ``A, C < 0``. The two intervals are disjoint, so at most on
 the two connections exists. ``value`` picks the row: 0 no connection, 1 the inside
 patches of ``A`` and ``C`` merge (a tube of inside), 2 the outside ones do. When a
 connection cannot change the topology (its two parts already lie in one patch) the
-row for that value is the same as for 0. Ties (``P(t*) = 0``, a singular surface) give 0.
+row for that value is the same as for 0. A tie (``P(t*) = 0``, a singular surface: the
+slice saddle on the level) joins the outside corners, not the inside ones (see "Ties").
+When the value is not 0, the slice ``t* = -beta / (2 alpha)`` is in ``(0, 1)`` and its
+bilinear saddle has the sign of ``A`` and ``C``: ``hub_point``.
 Tested entries: 188 of the 16384, in 13 orbits: 11 where the merge occurs (cases 4.1,
 6.1, 7.4, 10.1, 12.1, 13.5 and their complements) and 2 of case 13.3 (config 105 with
 bits 5 or 23) where the faces allow a merge that neither sampling nor an optimiser ever
@@ -81,17 +112,41 @@ the cell, holds a corner. The loops (traced as in mc_tables, with the decided fa
 segments) are the edges of the tree of patches. Merging patches into regions (the
 interior connection of a test, or none), the loops with the same (inside region,
 outside region) pair bound one surface component: one loop is a disk, two loops a tube
-(an annulus; never more in a trilinear cell). Triangulations maximise the minimum
-angle (vertices at edge midpoints) with the dynamic programme of
-``mc_tables.triangulate`` and one more rule: a triangle edge lying in a cube face that
-is not a face segment (a *chord*) is avoided, as the neighbouring cell could use the
-same edge. A disk without a chord-free triangulation becomes a fan around vertex 12. A
-tube is cut open along a rung between its loops, or along a path through vertex 12,
-and triangulated as a polygon. The tubes of cases 7.4.2, 10.1.2, 12.1.2 and 13.5.2 have
-no chord-free triangulation even with vertex 12 (each loop edge needs a third vertex
-off its faces); they use the chords allowed by ``face_chords``, a rule that keeps the
-two cells of a face from ever sharing one. At most one component of a row uses
-vertex 12 (two fans on one vertex would pinch).
+(an annulus; never more in a trilinear cell). No triangle edge lies in a cube face
+except the face segments (a *chord* could be the neighbouring cell's edge too, and its
+triangles would meet the neighbour's off the segments).
+
+Disks (rows without a tube): the triangulation of each loop that maximises the minimum
+angle (vertices at edge midpoints; the dynamic programme of ``mc_tables.triangulate``)
+without chords, or, where none exists, a fan around vertex 12; at most one fan per row
+(two fans on one vertex would pinch).
+
+Tubes: the *hub construction*. A tube joins the two patches of one side (two inside
+patches for interior value 1, two outside ones for 2; in every tested entry that side
+has exactly two patches). Take a point, the hub, strictly inside the cube, and the
+*spokes* from it to the 8 corners; the spoke of each corner on the other side carries a
+vertex. The cube is the union of 6 pyramids from the hub over its faces. In the pyramid
+over a face the surface is bounded by the face's segments and by one segment on each
+side triangle (hub, p, r) of the pyramid: from the vertex of the cube edge ``pr`` to the
+spoke vertex of its corner on the other side, or between the spoke vertices of ``p`` and
+``r`` when both are on the other side. These close into polygons: a triangle, a
+quadrilateral, a pentagon (three corners on the other side) or a hexagon (an ambiguous
+face whose hub-side corners are apart); a pentagon or hexagon is cut along the segment
+between the spoke vertices of two diagonal corners of the face (it lies in the plane
+through the hub and that diagonal, which halves the pyramid into two tetrahedra), the
+rest are triangles and quadrilaterals (either diagonal). This is the surface of a
+function that is "on the hub's side" along the hub's spokes to that side: every corner
+of the hub's side joins the hub's region, every patch of the other side stays apart,
+which is the tube's topology exactly (checked against ``surfaces`` for every row). It is
+embedded for *any* hub inside the cube, edge vertices inside their edges and spoke
+vertices inside their spokes: each piece lies in its pyramid (or tetrahedron); two
+pyramids meet in a side triangle, where each piece has only the segment it shares with
+the other; the pieces of one pyramid are apart. So the triangles of a tube never cross,
+whatever the values, their ties, or a root finder's later moves of the edge vertices.
+(Triangulating the annulus between the two loops alone, as the first tables did, is
+not: with the vertices where linear interpolation puts them, 483 of the 569 tube cells
+among 100000 cells of uniform random values crossed themselves, and 6 of the 8 of 0/1
+values, issue 18.)
 
 Generation
 ----------
@@ -100,9 +155,8 @@ orbit representatives under the 48 cube symmetries are solved (``BASE_CASES``); 
 entry is then filled by mapping edges, faces and the test's corners through a symmetry
 (winding reversed for a reflection), asserting that all symmetries reaching an entry
 agree on its loops, components and test outcomes, and that the mapped loops are those
-traced directly. Rows with chords depend on which faces are lower ones: they are
-triangulated again for each of the 8 reflections and mapped by axis permutations,
-which keep the chord rule. Complementation (inside <-> outside, face bits flipped, values 1 <-> 2)
+traced directly; a spoke vertex maps with its corner. Complementation (inside <-> outside,
+face bits flipped, values 1 <-> 2)
 is also a symmetry of the trilinear topology; it is not used to generate, the tests
 check it. Some bit patterns cannot occur: face bits compare sums of ``log|v|`` (linear
 functionals), and e.g. for the checkerboard configurations the three pairs of opposite
@@ -118,8 +172,8 @@ Examples
 (0, 0)
 >>> interior_value(v, 0)  # a tube of inside joins the corners
 1
->>> len(polygonize(v)), len(polygonize(np.where(v > 0, 0.2, -1.0)))  # tube, two triangles
-(6, 2)
+>>> len(polygonize(v)), len(polygonize(np.where(v > 0, 0.2, -1.0)))  # tube on the hub, two triangles
+(18, 2)
 """
 
 from __future__ import annotations
@@ -130,6 +184,7 @@ from functools import lru_cache
 import numpy as np
 
 from warpmesh.kernels.mc_tables import (
+    CORNERS,
     EDGE_MIDPOINTS,
     EDGE_OF,
     EDGE_ORIGIN,
@@ -147,7 +202,9 @@ from warpmesh.kernels.mc_tables import (
 
 __all__ = [
     "CENTER_VERTEX",
+    "SPOKE_VERTEX",
     "CENTER_TYPE",
+    "HUB_MARGIN",
     "VERTEX_ORIGIN",
     "FACE_CORNERS",
     "AMBIGUOUS_FACES",
@@ -157,7 +214,7 @@ __all__ = [
     "CASE_FEASIBLE",
     "CASE_TRI_COUNT",
     "CASE_TRIS",
-    "CASE_NEEDS_CENTER",
+    "CASE_INTERIOR",
     "MAX33",
     "BASE_CASES",
     "config_of",
@@ -165,18 +222,30 @@ __all__ = [
     "interior_value",
     "case_row",
     "polygonize",
+    "trilinear",
+    "hub_point",
+    "vertex_positions",
     "kernel_tables",
     "trace_loops",
     "patch_labels",
     "case_surfaces",
+    "hub_triangulation",
+    "triangulate_case",
 ]
 
-#: local id of the optional vertex inside the cell
+#: local id of the optional vertex inside the cell (a disk's fan)
 CENTER_VERTEX = 12
-#: vertex type of that vertex in the emit kernels (``warpmesh.kernels.emit.CENTER``)
+#: local id of the vertex on the spoke from the hub to corner 0 (corner k: ``SPOKE_VERTEX + k``)
+SPOKE_VERTEX = 13
+#: vertex type of the interior vertices in the emit kernels (``warpmesh.kernels.emit.CENTER``)
 CENTER_TYPE = 7
-#: (13, 4) local vertex -> (dx, dy, dz, type): the 12 cube edges, then the cell centre
-VERTEX_ORIGIN = np.ascontiguousarray(np.vstack([EDGE_ORIGIN, [[0, 0, 0, CENTER_TYPE]]]), dtype=np.int32)
+#: (21, 4) local vertex -> (dx, dy, dz, type): the 12 cube edges, the cell centre, then
+#: the spokes, with the offset of their corner
+VERTEX_ORIGIN = np.ascontiguousarray(
+    np.vstack([EDGE_ORIGIN, [[0, 0, 0, CENTER_TYPE]], np.column_stack([CORNERS, np.full(8, CENTER_TYPE)])]),
+    dtype=np.int32)
+#: the hub stays this far (in cell sizes) from the cube faces
+HUB_MARGIN = 0.05
 #: (6, 4) corners of each face, counter-clockwise seen from outside (mc_tables.FACES)
 FACE_CORNERS = np.array(FACES, dtype=np.int32)
 
@@ -409,97 +478,53 @@ _SHARE_FACE = np.array([[a != b and on_one_face((a, b)) for b in range(12)] for 
 
 
 def _in_face(a: int, b: int) -> bool:
-    """Whether the segment between the vertices of edges a and b lies in a cube face."""
-    return a != CENTER_VERTEX and b != CENTER_VERTEX and bool(_SHARE_FACE[a, b])
+    """Whether the segment between local vertices a and b lies in a cube face (both on edges)."""
+    return a < 12 and b < 12 and bool(_SHARE_FACE[a, b])
 
 
-def face_chords(config: int, bits: int) -> tuple[frozenset, list[tuple[frozenset, frozenset]]]:
-    """Chords (edges lying in a cube face) a row of this entry may use, when it must.
+def triangulate_polygon(poly: list[int], angles, forbidden=frozenset()):
+    """Max-min-angle triangulation of a polygon of vertex ids, or None.
 
-    On an ambiguous face the two face segments cut off two corners; the other two
-    (*band*) corners are joined across the face. Four chords join the two segments: a
-    *short* one at each band corner (its two face edges) and two *long* ones (two
-    opposite face edges), which cross. The cell above a face (for which it is a lower
-    face, ``x, y`` or ``z = 0``) may use the short chords, the cell below it the long
-    ones, one per face: the two cells never share a chord (so the global surface stays
-    a 2-manifold) and their chords meet only at mesh vertices.
-
-    Returns the short chords and, per upper ambiguous face, its two long chords.
-    """
-    shorts, longs = set(), []
-    for q, face in enumerate(FACES):
-        if not (AMBIGUOUS_FACES[config] >> q) & 1:
-            continue
-        band = _inside(config, face[0]) == (bits >> q) & 1  # face[0], face[2] are joined
-        m1, k1, m2, k2 = face if band else face[1:] + face[:1]
-        e = {(x, y): EDGE_OF[x, y] for x, y in ((m1, k1), (k1, m2), (m2, k2), (k2, m1))}
-        if q % 2 == 0:
-            shorts |= {frozenset((e[k2, m1], e[m1, k1])), frozenset((e[k1, m2], e[m2, k2]))}
-        else:
-            longs.append((frozenset((e[m1, k1], e[m2, k2])), frozenset((e[k1, m2], e[k2, m1]))))
-    return frozenset(shorts), longs
-
-
-def triangulate_polygon(poly: list[int], angles, forbidden=frozenset(), allowed=frozenset(),
-                        forbidden_pos=frozenset()):
-    """Best triangulation of a polygon of vertex ids, or None.
-
-    Returns ``((-chords, min angle), triangles as ids, triangles as positions)``;
-    ``angles`` is ``_angles(config)``.
-
-    ``poly`` runs counter-clockwise seen from outside (a loop, or a tube cut open, in
-    which some ids appear twice). The same dynamic programme as
-    ``mc_tables.triangulate``, maximising first minus the number of diagonals lying in
-    a cube face (only those of ``allowed`` may), then the minimum angle (vertices at
-    edge midpoints). A diagonal must join two different ids and not be an edge of
-    ``forbidden`` (frozensets of 2 ids: the loop segments and the cut) nor a pair of
-    positions in ``forbidden_pos``. With repeated ids the result may use one edge
-    twice; ``triangulate_tube`` checks and searches on.
+    Returns ``(min angle, triangles)``; ``angles`` is ``_angles(config)``. ``poly`` runs
+    counter-clockwise seen from outside. The dynamic programme of
+    ``mc_tables.triangulate`` (vertices at edge midpoints, ties to the first candidate);
+    a diagonal must not lie in a cube face (a *chord*: the neighbouring cell could use the
+    same edge) nor be an edge of ``forbidden`` (frozensets of 2 ids: the loop segments).
     """
     n = len(poly)
-    cost = [[0] * n for _ in range(n)]  # per position pair: chords added, or None
+    ok = [[True] * n for _ in range(n)]  # per position pair: may it be a side of a triangle
     for i in range(n):
         for j in range(i + 2, n):
             a, b = poly[i], poly[j]
-            if a == b or frozenset((a, b)) in forbidden or (i, j) in forbidden_pos:
-                cost[i][j] = None
-            elif _in_face(a, b):
-                cost[i][j] = 1 if frozenset((a, b)) in allowed else None
-    # best sub-polygon i..j: chords used, minimum angle, split vertex (None: impossible)
-    chords = [[None] * n for _ in range(n)]
-    angle = [[0.0] * n for _ in range(n)]
+            ok[i][j] = not (a == b or frozenset((a, b)) in forbidden or _in_face(a, b))
+    # best sub-polygon i..j: minimum angle and split vertex (-1: impossible)
+    angle = [[-1.0] * n for _ in range(n)]
     split = [[-1] * n for _ in range(n)]
     for i in range(n - 1):
-        chords[i][i + 1], angle[i][i + 1] = 0, np.inf
+        angle[i][i + 1] = np.inf
     for length in range(2, n):
         for i in range(n - length):
             j = i + length
             a, c = poly[i], poly[j]
             row_a = angles[a]
-            best_c, best_a, best_k = None, -1.0, -1
+            best_a, best_k = -1.0, -1
             for k in range(i + 1, j):
-                cl, cr, ci, cj = chords[i][k], chords[k][j], cost[i][k], cost[k][j]
-                if cl is None or cr is None or ci is None or cj is None:
+                if angle[i][k] < 0 or angle[k][j] < 0 or not ok[i][k] or not ok[k][j]:
                     continue
-                b = poly[k]
-                if a == b or b == c or a == c:
-                    continue
-                total = cl + cr + ci + cj
-                worst = min(angle[i][k], angle[k][j], row_a[b][c])
-                if best_c is None or total < best_c or (total == best_c and worst > best_a):
-                    best_c, best_a, best_k = total, worst, k
-            chords[i][j], angle[i][j], split[i][j] = best_c, best_a, best_k
-    if chords[0][n - 1] is None or angle[0][n - 1] <= 0:
+                worst = min(angle[i][k], angle[k][j], row_a[poly[k]][c])
+                if best_k < 0 or worst > best_a:
+                    best_a, best_k = worst, k
+            angle[i][j], split[i][j] = (best_a, best_k) if best_k >= 0 else (-1.0, -1)
+    if split[0][n - 1] < 0 or angle[0][n - 1] <= 0:
         return None
     tris, stack = [], [(0, n - 1)]
     while stack:
         i, j = stack.pop()
         if j - i >= 2:
             k = split[i][j]
-            tris.append((i, k, j))
+            tris.append((poly[i], poly[k], poly[j]))
             stack += [(k, j), (i, k)]
-    score = (-chords[0][n - 1], angle[0][n - 1])
-    return score, [(poly[i], poly[k], poly[j]) for i, k, j in tris], tris
+    return angle[0][n - 1], tris
 
 
 def _segments(loops) -> frozenset:
@@ -537,130 +562,169 @@ def is_surface(tris, loops) -> bool:
     return True
 
 
+def surface_signature(tris) -> frozenset:
+    """The components of a row's triangles, each as the set of its canonical boundary loops."""
+    parent: dict[int, int] = {}
+
+    def find(x):
+        while parent.setdefault(x, x) != x:
+            x = parent[x]
+        return x
+
+    for t in tris:
+        for v in t[1:]:
+            parent[find(v)] = find(t[0])
+    directed = {(t[k], t[(k + 1) % 3]) for t in tris for k in range(3)}
+    groups: dict[int, list[list[int]]] = {}
+    for loop in chain_loops({a: b for a, b in directed if (b, a) not in directed}):
+        groups.setdefault(find(loop[0]), []).append(loop)
+    return frozenset(canonical_loops(g) for g in groups.values())
+
+
 def fan(loop: list[int]) -> list[tuple[int, int, int]]:
     """Triangles joining each segment of a loop to vertex 12."""
     return [(loop[k], loop[(k + 1) % len(loop)], CENTER_VERTEX) for k in range(len(loop))]
 
 
-def _tube_polygons(a: list[int], b: list[int], center: bool):
-    """The annulus between loops a and b cut open: (polygon, cut edges) per cut.
-
-    The cut is a rung ``a_i - b_j`` or, with ``center``, the path ``a_i - 12 - b_j``
-    (vertex 12 then lies inside the tube); the polygon runs along ``a``, down the cut,
-    along ``b`` (both in their own direction) and back up the cut. Shortest rungs
-    first (vertices at edge midpoints), so that good tubes are found early.
-    """
-    cuts = sorted(itertools.product(range(len(a)), range(len(b))),
-                  key=lambda ij: (round(float(np.sum((EDGE_MIDPOINTS[a[ij[0]]] - EDGE_MIDPOINTS[b[ij[1]]]) ** 2)), 9), ij))
-    for i, j in cuts:
-        ra, rb = a[i:] + a[:i] + a[i:i + 1], b[j:] + b[:j] + b[j:j + 1]
-        if center:
-            yield ra + [CENTER_VERTEX] + rb + [CENTER_VERTEX], {(a[i], CENTER_VERTEX), (CENTER_VERTEX, b[j])}
-        else:
-            yield ra + rb, {(a[i], b[j])}
-
-
-def _crosses(tris, longs) -> bool:
-    """Whether triangles use both (crossing) long chords of some face."""
-    edges = {frozenset((t[k], t[(k + 1) % 3])) for t in tris for k in range(3)}
-    return any(la in edges and lb in edges for la, lb in longs)
-
-
-def _repeated_diagonals(poly, tris_pos):
-    """Position pairs of diagonals that join the same two ids as another diagonal."""
-    seen = {}
-    for t in tris_pos:
-        for k in range(3):
-            i, j = sorted((t[k], t[(k + 1) % 3]))
-            if (j - i) % len(poly) not in (1, len(poly) - 1):  # a diagonal, not a side
-                seen.setdefault(frozenset((poly[i], poly[j])), set()).add((i, j))
-    return [pairs for pairs in seen.values() if len(pairs) > 1]
-
-
-def triangulate_tube(a: list[int], b: list[int], angles, *, center: bool,
-                     allowed=frozenset(), longs=(), max_runs: int = 8):
-    """Best ``(score, triangles)`` of the annulus between loops a and b, or None.
-
-    Every cut of ``_tube_polygons`` is triangulated by ``triangulate_polygon`` (a cut
-    rung lying in a face counts as a chord). When the result joins two ids twice (an
-    id repeated in the polygon), the search branches, forbidding in turn each position
-    pair of that diagonal (at most ``max_runs`` runs per cut). The best result that
-    forms an annulus and uses at most one long chord per face wins.
-    """
-    best = None
-    for poly, cut in _tube_polygons(a, b, center):
-        if any(_in_face(*c) and frozenset(c) not in allowed for c in cut):
-            continue
-        chords = sum(_in_face(*c) for c in cut)
-        forbidden = _segments([a, b]) | {frozenset(c) for c in cut}
-        todo, runs = [frozenset()], 0
-        while todo and runs < max_runs:
-            pos, runs = todo.pop(), runs + 1
-            found = triangulate_polygon(poly, angles, forbidden, allowed, pos)
-            if found is None:
-                continue
-            score = (found[0][0] - chords, found[0][1])
-            if best is not None and score <= best[0]:
-                continue  # branching only removes options: no better result down here
-            repeated = _repeated_diagonals(poly, found[2])
-            if repeated:
-                todo += [pos | {pair} for pair in sorted(repeated[0])]
-            elif is_surface(found[1], [a, b]) and not _crosses(found[1], longs):
-                best = (score, found[1])
-    return best
-
-
-def _component_options(loops, angles, allowed=frozenset(), longs=()):
-    """Ways to triangulate one component: [(chords, uses 12, min angle, triangles)]."""
+def _disk_options(loop: list[int], angles) -> list[tuple[bool, float, list]]:
+    """Ways to triangulate a disk: [(uses 12, min angle, triangles)]: chord-free, or a fan."""
     options = []
-    if len(loops) == 1:
-        found = triangulate_polygon(loops[0], angles, _segments(loops), allowed)
-        if found:
-            options.append((-found[0][0], False, found[0][1], found[1]))
-        if not allowed:
-            options.append((0, True, min(angles[a][b][c] for a, b, c in fan(loops[0])), fan(loops[0])))
-        return options
-    for center in (False, True):  # through 12 only when it may win (fewer chords)
-        if center and options and (not allowed or options[0][0] <= 1):
-            break
-        found = triangulate_tube(*loops, angles, center=center, allowed=allowed, longs=longs)
-        if found:
-            options.append((-found[0][0], center, found[0][1], found[1]))
+    found = triangulate_polygon(loop, angles, _segments([loop]))
+    if found:
+        options.append((False, found[0], found[1]))
+    options.append((True, min(angles[a][b][c] for a, b, c in fan(loop)), fan(loop)))
     return options
 
 
-def triangulate_case(config: int, bits: int, surfaces, *, chord_free_tubes: bool = True
-                     ) -> tuple[list[tuple[int, int, int]], bool, int]:
-    """Triangles of one row, whether they use vertex 12, and how many chords.
-
-    Each component gets its options (a disk or tube without chords, through vertex 12
-    or not; only if that fails, with the chords of ``face_chords``); the combination
-    with at most one component on vertex 12 wins by fewest chords, then fewest uses of
-    12, then largest minimum angle. ``chord_free_tubes=False`` skips the search for
-    tubes without chords (known to fail, e.g. in a symmetric image of a solved row).
-    """
-    angles = _angles(config)
-    options = [_component_options(loops, angles) if chord_free_tubes or len(loops) == 1 else []
-               for loops in surfaces]
-    if _pick(options) is None:
-        shorts, longs = face_chords(config, bits)
-        allowed = shorts | {c for pair in longs for c in pair}
-        options = [opts + _component_options(loops, angles, allowed, longs) for opts, loops in zip(options, surfaces)]
-    choice = _pick(options)
-    assert choice is not None, f"config {config} bits {bits}: no triangulation of {surfaces}"
-    return [t for opt in choice for t in opt[3]], any(opt[1] for opt in choice), sum(opt[0] for opt in choice)
-
-
 def _pick(options):
-    """Best combination of one option per component, at most one using vertex 12."""
+    """Best combination of one option per disk: at most one fan (two fans on vertex 12
+    would pinch), then fewest fans, then the largest minimum angle."""
     best, best_key = None, None
     for combo in itertools.product(*options):
-        if sum(opt[1] for opt in combo) > 1:
+        if sum(opt[0] for opt in combo) > 1:
             continue
-        key = (-sum(opt[0] for opt in combo), -sum(opt[1] for opt in combo), min([opt[2] for opt in combo] or [0]))
+        key = (-sum(opt[0] for opt in combo), min([opt[1] for opt in combo] or [0]))
         if best_key is None or key > best_key:
             best, best_key = combo, key
     return best
+
+
+# ----------------------------------------------------------------------------- tubes: the hub
+
+
+#: (21, 3) reference positions of the local vertices: edge midpoints, the cell centre,
+#: and the spoke vertices halfway from the centre to their corners
+_HUB_POINTS = np.vstack([EDGE_MIDPOINTS, np.full((1, 3), 0.5), 0.5 + 0.5 * (CORNERS - 0.5)])
+
+
+def _min_angle(p: np.ndarray) -> float:
+    """Smallest angle of the triangle with corners p (3, 3), rounded (ties by order)."""
+    cos = [(p[(k + 1) % 3] - p[k]) @ (p[(k + 2) % 3] - p[k])
+           / np.linalg.norm(p[(k + 1) % 3] - p[k]) / np.linalg.norm(p[(k + 2) % 3] - p[k]) for k in range(3)]
+    return round(float(np.arccos(np.clip(max(cos), -1.0, 1.0))), 9)
+
+
+def _hub_side(config: int, bits: int, tube) -> bool:
+    """Whether the two loops of a tube join two inside patches (else two outside ones)."""
+    patches = patch_labels(config, bits)
+    (in_a, out_a), (in_b, out_b) = (_loop_sides(config, patches, loop) for loop in tube)
+    assert (in_a != in_b) != (out_a != out_b), "a tube joins two patches of one side"
+    return in_a != in_b
+
+
+def _pyramid_polygons(config: int, bits: int, q: int, hub_inside: bool) -> list[list[int]]:
+    """Oriented polygons of the hub construction in the pyramid from the hub over face q."""
+    face = FACES[q]
+    segments = face_segments33(config, q, (bits >> q) & 1)
+    nbrs: dict[int, list[int]] = {}
+
+    def link(a, b):
+        nbrs.setdefault(a, []).append(b)
+        nbrs.setdefault(b, []).append(a)
+
+    for a, b in segments:
+        link(a, b)
+    for p, r in zip(face, face[1:] + face[:1]):  # the side triangle (hub, p, r)
+        ip, ir = _inside(config, p), _inside(config, r)
+        if ip != ir:  # its cube edge's vertex -> the spoke of the corner off the hub's side
+            link(EDGE_OF[p, r], SPOKE_VERTEX + (p if ip != hub_inside else r))
+        elif ip != hub_inside:
+            link(SPOKE_VERTEX + p, SPOKE_VERTEX + r)
+    assert all(len(v) == 2 for v in nbrs.values()), "every vertex of a pyramid lies on two of its segments"
+    spokes = [SPOKE_VERTEX + c for c in face]
+    polygons, seen = [], set()
+    for start in sorted(nbrs):
+        if start in seen:
+            continue
+        poly, prev, cur = [start], start, nbrs[start][0]
+        while cur != start:
+            poly.append(cur)
+            a, b = nbrs[cur]
+            prev, cur = cur, b if a == prev else a
+        seen.update(poly)
+        sides = set(zip(poly, poly[1:] + poly[:1]))
+        if sides & {(b, a) for a, b in segments}:  # face segments keep their direction
+            poly.reverse()
+        elif not sides & set(segments):  # 4 spokes: in the face's order (outwards) when the hub is inside
+            k = poly.index(spokes[0])
+            if (poly[k:] + poly[:k] == spokes) != hub_inside:
+                poly.reverse()
+        polygons.append(poly)
+    return polygons
+
+
+def _split_pyramid_polygon(poly: list[int], face) -> list[tuple[int, int, int]]:
+    """Triangles of one polygon of a pyramid: cut along the spokes of two diagonal corners
+    of the face (the plane through the hub and that diagonal) when both are on it, then
+    triangles and quadrilaterals (the better minimum angle of the two diagonals)."""
+    n = len(poly)
+    if n == 3:
+        return [tuple(poly)]
+    for x, y in ((face[0], face[2]), (face[1], face[3])):
+        if SPOKE_VERTEX + x in poly and SPOKE_VERTEX + y in poly:
+            i, j = sorted((poly.index(SPOKE_VERTEX + x), poly.index(SPOKE_VERTEX + y)))
+            if 1 < j - i < n - 1:
+                return (_split_pyramid_polygon(poly[i:j + 1], face)
+                        + _split_pyramid_polygon(poly[j:] + poly[:i + 1], face))
+    assert n == 4, f"pyramid polygon {poly} of face {face}"
+    options = []
+    for k in (0, 1):
+        assert not _in_face(poly[k], poly[k + 2]), "a quadrilateral diagonal would be a chord"
+        options.append([(poly[k], poly[k + 1], poly[(k + 2) % 4]), (poly[(k + 2) % 4], poly[(k + 3) % 4], poly[k])])
+    return max(options, key=lambda tris: min(_min_angle(_HUB_POINTS[list(t)]) for t in tris))
+
+
+def hub_triangulation(config: int, bits: int, hub_inside: bool) -> list[tuple[int, int, int]]:
+    """Triangles of a row with a tube: the hub construction (see the module docstring).
+
+    ``hub_inside``: the tube joins the two inside patches (interior value 1), else the
+    two outside ones (value 2); every corner on the other side gets a spoke vertex.
+
+    >>> len(hub_triangulation(0b10000001, 0, True))  # corners 0 and 7: 6 faces x 3 triangles
+    18
+    """
+    return [t for q in range(6) for poly in _pyramid_polygons(config, bits, q, hub_inside)
+            for t in _split_pyramid_polygon(poly, FACES[q])]
+
+
+def triangulate_case(config: int, bits: int, surfaces) -> list[tuple[int, int, int]]:
+    """Triangles of one row from its surface components (lists of loops).
+
+    A row with a tube is built by ``hub_triangulation`` (its topology is checked against
+    ``surfaces``). Otherwise every component is a disk: the max-min-angle triangulation
+    without chords, or a fan around vertex 12; at most one fan per row, then fewest fans,
+    then the largest minimum angle.
+    """
+    tubes = [loops for loops in surfaces if len(loops) == 2]
+    if tubes:
+        tris = hub_triangulation(config, bits, _hub_side(config, bits, tubes[0]))
+        assert is_surface(tris, [lp for loops in surfaces for lp in loops]), (config, bits)
+        assert surface_signature(tris) == frozenset(canonical_loops(lps) for lps in surfaces), (config, bits)
+        return tris
+    angles = _angles(config)
+    choice = _pick([_disk_options(loops[0], angles) for loops in surfaces])
+    assert choice is not None, f"config {config} bits {bits}: no triangulation of {surfaces}"
+    return [t for opt in choice for t in opt[2]]
 
 
 # ----------------------------------------------------------------------------- feasibility
@@ -729,8 +793,8 @@ def _map_bits(s: int, bits: int) -> int:
 
 
 def _map_tris(s: int, tris):
-    edge = list(SYM_EDGES[s].tolist()) + [CENTER_VERTEX]
-    out = [tuple(edge[v] for v in t) for t in tris]
+    vertex = SYM_EDGES[s].tolist() + [CENTER_VERTEX] + [SPOKE_VERTEX + int(c) for c in SYM_CORNERS[s]]
+    out = [tuple(vertex[v] for v in t) for t in tris]
     return [t[::-1] for t in out] if SYM_DET[s] < 0 else out
 
 
@@ -764,12 +828,7 @@ def _map_loops(s: int, loops):
 
 
 def _build():
-    """Solve the base entries, fill the others by symmetry (see the module docstring).
-
-    A row with chords in cube faces depends on which faces are upper ones
-    (``face_chords``), which a reflection changes: such rows are triangulated again in
-    each image by reflections, from the mapped surfaces, then permuted.
-    """
+    """Solve the base entries, fill the others by symmetry (see the module docstring)."""
     entries = [(c, b) for c in range(256) for b in range(64) if not b & ~int(AMBIGUOUS_FACES[c])]
     orbit_rep = {e: min((apply_symmetry_to_config(s, e[0]), _map_bits(s, e[1])) for s in range(48))
                  for e in entries}
@@ -778,7 +837,6 @@ def _build():
     for c, b in base:
         test, surfaces, ok = _solve_base(c, b)
         rows = [triangulate_case(c, b, surf) for surf in surfaces]
-        flipped = {}
         for s in range(48):
             key = (apply_symmetry_to_config(s, c), _map_bits(s, b))
             sig = tuple(_signature(s, surf) for surf in surfaces)
@@ -788,20 +846,7 @@ def _build():
                 continue
             traced = canonical_loops(trace_loops(*key))
             assert traced == frozenset().union(*sig[0]), f"mapped loops differ from tracing {key}"
-            mapped = []
-            for r, ((tris, center, chords), surf) in enumerate(zip(rows, surfaces)):
-                if chords:  # the chord rule is invariant under axis permutations only
-                    flip, perm = s % 8, s - s % 8  # s = (permutation of axes) o (flips)
-                    if (r, flip) not in flipped:
-                        image = (apply_symmetry_to_config(flip, c), _map_bits(flip, b))
-                        flipped[r, flip] = triangulate_case(*image, [_map_loops(flip, lp) for lp in surf],
-                                                            chord_free_tubes=False)
-                    tris, center, _ = flipped[r, flip]
-                    tris = _map_tris(perm, tris)
-                else:
-                    tris = _map_tris(s, tris)
-                mapped.append((tris, center))
-            filled[key] = (_map_test(s, test), sig, mapped, ok)
+            filled[key] = (_map_test(s, test), sig, [_map_tris(s, tris) for tris in rows], ok)
     assert len(filled) == len(entries), "some entries not reached"
 
     row_index, row_list = {}, []
@@ -809,29 +854,31 @@ def _build():
     interior = np.full(256 * 64, -1, dtype=np.int32)
     feasible_mask = np.zeros(256 * 64, dtype=np.int32)
     for (c, b), (test, _, mapped, ok) in sorted(filled.items()):
-        key = tuple(tuple(t) for t, _ in mapped)
+        key = tuple(tuple(t) for t in mapped)
         if key not in row_index:
             row_index[key] = len(row_list)
             row_list += mapped
         case_offset[c * 64 + b] = row_index[key]
         interior[c * 64 + b] = test
         feasible_mask[c * 64 + b] = int(ok)
-    counts = np.array([len(t) for t, _ in row_list], dtype=np.int32)
+    counts = np.array([len(t) for t in row_list], dtype=np.int32)
     max_tris = int(counts.max())
     tris = np.full((len(row_list), max_tris, 3), -1, dtype=np.int32)
-    for r, (t, _) in enumerate(row_list):
+    for r, t in enumerate(row_list):
         if t:
             tris[r, : len(t)] = t
-    center = np.array([int(cu) for _, cu in row_list], dtype=np.int32)
-    return np.array(base, dtype=np.int32), case_offset, interior, feasible_mask, counts, max_tris, tris, center
+    used = [{v for tri in t for v in tri if v >= CENTER_VERTEX} for t in row_list]
+    mask = np.array([sum(1 << (v - CENTER_VERTEX) for v in u) for u in used], dtype=np.int32)
+    return np.array(base, dtype=np.int32), case_offset, interior, feasible_mask, counts, max_tris, tris, mask
 
 
 #: (n, 2) orbit representatives (config, face bits) under the 48 cube symmetries
 #: (16384,) entry -> first row (-1: bits on a non-ambiguous face), test id or -1,
 #: 1 when the entry's face bits occur in exact arithmetic
-#: (rows,) triangles per row, (rows, MAX33, 3) triangles (-1 padded), uses of vertex 12
+#: (rows,) triangles per row, (rows, MAX33, 3) triangles (-1 padded), and the interior
+#: vertices each row uses (bit j: local vertex 12 + j)
 (BASE_CASES, CASE_OFFSET, INTERIOR_TEST, CASE_FEASIBLE, CASE_TRI_COUNT, MAX33, CASE_TRIS,
- CASE_NEEDS_CENTER) = _build()
+ CASE_INTERIOR) = _build()
 
 
 # ----------------------------------------------------------------------------- run time
@@ -864,7 +911,7 @@ def face_bits_of(values) -> np.ndarray | int:
 def interior_value(values, test: int) -> np.ndarray | int:
     """Interior test ``test`` on ``(..., 8)`` corner values: 0, 1 (inside) or 2 (outside).
 
-    See the module docstring for the formula and why it is exact.
+    See the module docstring for the formula, why it is exact, and its ties.
     """
     v = np.asarray(values, dtype=np.float64)
     a0, a1, c0, c1, b0, b1, d0, d1 = (v[..., k] for k in TEST_CORNERS[test])
@@ -872,10 +919,13 @@ def interior_value(values, test: int) -> np.ndarray | int:
     alpha = da * dc - db * dd
     beta = a0 * dc + c0 * da - b0 * dd - d0 * db
     gamma = a0 * c0 - b0 * d0
-    hit = (alpha < 0) & (beta > 0) & (beta < -2 * alpha) & (beta * beta - 4 * alpha * gamma > 0)
+    vertex = (alpha < 0) & (beta > 0) & (beta < -2 * alpha)  # t* inside (0, 1), P concave
+    disc = beta * beta - 4 * alpha * gamma  # the sign of P(t*)
     sa = -2 * alpha * a0 + da * beta
     sc = -2 * alpha * c0 + dc * beta
-    out = np.where(hit & (sa > 0) & (sc > 0), 1, np.where(hit & (sa < 0) & (sc < 0), 2, 0))
+    inside = vertex & (disc > 0) & (sa > 0) & (sc > 0)
+    outside = vertex & (disc >= 0) & (sa <= 0) & (sc <= 0)  # the level is outside: a tie joins
+    out = np.where(inside, 1, np.where(outside, 2, 0))
     return int(out) if out.ndim == 0 else out
 
 
@@ -890,7 +940,8 @@ def case_row(values) -> int:
 
 
 def polygonize(values) -> np.ndarray:
-    """Triangles of one cell as local vertex ids (0..11 edges, 12 the centre).
+    """Triangles of one cell as local vertex ids (0..11 edges, 12 the centre, 13 + k the
+    spoke to corner k; positions: ``vertex_positions``).
 
     Parameters
     ----------
@@ -911,6 +962,91 @@ def polygonize(values) -> np.ndarray:
     return CASE_TRIS[row, : CASE_TRI_COUNT[row]]
 
 
+def trilinear(values, point) -> float:
+    """The trilinear interpolant of 8 corner values at a point of the unit cube.
+
+    >>> trilinear([0, 1, 0, 1, 0, 1, 0, 1], (0.25, 0.5, 0.5))  # f = x
+    0.25
+    """
+    v = [float(a) for a in values]
+    x, y, z = (float(a) for a in point)
+    bottom = (v[0] + x * (v[1] - v[0])) * (1.0 - y) + (v[2] + x * (v[3] - v[2])) * y
+    top = (v[4] + x * (v[5] - v[4])) * (1.0 - y) + (v[6] + x * (v[7] - v[6])) * y
+    return bottom * (1.0 - z) + top * z
+
+
+def hub_point(values, test: int) -> np.ndarray:
+    """(3,) the hub of a cell whose interior test ``test`` found a connection.
+
+    The saddle of the slice ``t*`` along the test's axis (where ``P`` peaks): there the
+    trilinear interpolant has the sign of the connected corners ``A`` and ``C``. Each
+    coordinate is kept within ``HUB_MARGIN`` of the faces (then the sign may differ and
+    ``vertex_positions`` falls back to the spokes' midpoints).
+    """
+    v = np.asarray(values, dtype=np.float64)
+    a0, a1, c0, c1, b0, b1, d0, d1 = (v[k] for k in TEST_CORNERS[test])
+    da, dc, db, dd = a1 - a0, c1 - c0, b1 - b0, d1 - d0
+    alpha = da * dc - db * dd
+    beta = a0 * dc + c0 * da - b0 * dd - d0 * db
+    axis = test // 2
+    u, w = (x for x in range(3) if x != axis)
+    t = -beta / (2.0 * alpha)
+    s = [[v[(du << u) | (dw << w)] + t * (v[(du << u) | (dw << w) | (1 << axis)] - v[(du << u) | (dw << w)])
+          for dw in (0, 1)] for du in (0, 1)]  # s[du][dw]: the slice's corner values
+    e = s[1][1] - s[1][0] - s[0][1] + s[0][0]
+    hub = np.empty(3)
+    hub[axis], hub[u], hub[w] = t, (s[0][0] - s[0][1]) / e, (s[0][0] - s[1][0]) / e
+    return np.clip(hub, HUB_MARGIN, 1.0 - HUB_MARGIN)
+
+
+def vertex_positions(values, t_min: float = 1.0e-3, clearance: float = 0.0, *, row: int | None = None,
+                     iterations: int = 30) -> np.ndarray:
+    """(21, 3) positions in the unit cube of the local vertices of a cell's row (NaN unused).
+
+    The reference for the emit kernels (away from capped faces): an edge vertex by linear
+    interpolation, its parameter clamped to ``[gap, 1 - gap]``, ``gap = max(t_min,
+    clearance)``; vertex 12 at the mean of the edge vertices; spoke vertex ``13 + k`` at
+    the root of the trilinear interpolant on the segment from the hub (``hub_point``) to
+    corner ``k``, by bisection, its parameter clamped likewise (the midpoint when the
+    hub's value does not have the sign of the connection). ``row``: the cell's
+    ``case_row``, when known.
+
+    >>> p = vertex_positions([1.0, -1, -1, -1, -1, -1, -1, -1])
+    >>> p[[0, 4, 8]].tolist()
+    [[0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.5]]
+    """
+    v = [float(x) for x in values]
+    gap = max(t_min, clearance)
+    out = np.full((21, 3), np.nan)
+    cross = []
+    for e, (a, b) in enumerate(EDGES.tolist()):
+        if (v[a] > 0) != (v[b] > 0):
+            t = min(max(v[a] / (v[a] - v[b]), gap), 1.0 - gap)
+            out[e] = CORNERS[a] + t * (CORNERS[b] - CORNERS[a])
+            cross.append(e)
+    if cross:
+        out[CENTER_VERTEX] = out[cross].mean(axis=0)
+    row = case_row(v) if row is None else row
+    spokes = [k for k in range(8) if (CASE_INTERIOR[row] >> (1 + k)) & 1]
+    if spokes:
+        hub = hub_point(v, int(INTERIOR_TEST[config_of(v) * 64 + face_bits_of(v)]))
+        f_hub = trilinear(v, hub)
+        for k in spokes:
+            tau = 0.5
+            if (f_hub > 0) != (v[k] > 0):
+                lo, hi = 0.0, 1.0
+                d = [float(c) - h for c, h in zip(CORNERS[k], hub)]
+                for _ in range(iterations):
+                    mid = 0.5 * (lo + hi)
+                    if (trilinear(v, [h + mid * e for h, e in zip(hub, d)]) > 0) == (f_hub > 0):
+                        lo = mid
+                    else:
+                        hi = mid
+                tau = 0.5 * (lo + hi)
+            out[SPOKE_VERTEX + k] = hub + min(max(tau, gap), 1.0 - gap) * (CORNERS[k] - hub)
+    return out
+
+
 def kernel_tables() -> dict[str, np.ndarray]:
     """The int32 arrays of ``warpmesh.kernels.emit.Tables`` for method "mc33"."""
     rows = len(CASE_TRI_COUNT)
@@ -920,7 +1056,7 @@ def kernel_tables() -> dict[str, np.ndarray]:
         "tris": CASE_TRIS.reshape(rows, -1),
         "quad_count": np.zeros(rows, np.int32),
         "quads": np.zeros((rows, 4), np.int32),
-        "center": CASE_NEEDS_CENTER,
+        "center": CASE_INTERIOR,
         "case_offset": CASE_OFFSET,
         "interior_test": INTERIOR_TEST,
         "test_corners": TEST_CORNERS,

@@ -33,6 +33,10 @@ import warp as _wp
 if _wp.config.log_level < _wp.LOG_WARNING:  # Warp's banner and module-load lines would drown the results
     _wp.config.log_level = _wp.LOG_WARNING
 
+from warpmesh._util.warp_init import init_warp as _init_warp
+
+_init_warp()  # without the no-CUDA-driver warning on machines without a GPU
+
 from warpmesh.errors import MergeError as MergeError
 from warpmesh.errors import ReadError as ReadError
 from warpmesh.errors import TopologyError as TopologyError

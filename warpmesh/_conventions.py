@@ -35,6 +35,26 @@ ALPHA_TETRA = np.sqrt(6.0) / 12.0
 #: zero-area triangles ("dilating", [FG §16.4.2]). Fraction of the edge length.
 EDGE_T_MIN = 1.0e-3
 
+#: the clearance delta of linearly placed vertices: a root that linear interpolation puts
+#: closer than delta (a fraction of the edge) to a grid node is moved out to delta
+#: ("dilating" the surface off the node, [FG §16.4.2]). Connectivity is that of delta = 0
+#: (no classification changes); a vertex moves at most delta |edge| along its edge. Three
+#: points inside three distinct edges of a cube or a tetrahedron are never collinear, so
+#: with t in [delta, 1 - delta] no table triangle can flatten; maximising Q_K over the
+#: tables gives, for cubic cells (times h_max / h_min otherwise), worst Q about 0.82 / delta
+#: for "mc" and the edge triangles of "mc33" (16.4 at 0.05, 8.29 at 0.1) and 1.1 / delta for
+#: "mt" (23.5 at 0.05, 11.2 at 0.1); smallest angle about 48 delta degrees for "mc", "mc33"
+#: (2.37 at 0.05) and 29 delta for "mt" (1.4 at 0.05) (tests/surface/test_slivers.py).
+#: "mc" and "mc33" keep EDGE_T_MIN at an end where no triangle can have a second vertex
+#: next to the node: a capped node, and for shapes a node ending no other crossing edge
+#: that shares a cell with the vertex's edge (a plane through grid nodes stays on them;
+#: volumes, cut in slabs whose seams lack the neighbour plane, clamp there too). Roots
+#: refined by bisection or Newton keep EDGE_T_MIN: they stay on f = 0, without the bound.
+#: 0.05 trades a 50x better worst triangle than EDGE_T_MIN for at most 0.05 |edge| of
+#: distance to f = 0 (first order in h where linear interpolation is second order: a finer
+#: uniform grid must still reach the adaptive octree's chord error, test_adaptive.py).
+NODE_CLEARANCE = 0.05
+
 #: relative tolerance for geometric predicates on the host (area, volume tests)
 REL_TOL = 1.0e-12
 

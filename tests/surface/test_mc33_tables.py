@@ -1,10 +1,11 @@
 """Tests of the marching-cubes-33 tables (kernels/mc33_tables.py).
 
 The rows are checked combinatorially (every row a 2-manifold bounded by the decided face
-segments, chords only where a neighbour cannot use them), against the plain table, for
+segments, no triangle edge in a cube face besides them), against the plain table, for
 symmetry and complementation, on whole grids (closed oriented manifolds), and cell by
 cell against a topology oracle of the trilinear interpolant (tests/trilinear_oracle.py)
-that samples the function and knows nothing about tables.
+that samples the function and knows nothing about tables. Ties and self-intersections:
+tests/surface/test_mc33_ties.py.
 """
 
 from __future__ import annotations
@@ -178,8 +179,8 @@ def test_layout_and_dtypes():
     rows = len(m33.CASE_TRI_COUNT)
     expected = {
         "CASE_OFFSET": (16384,), "INTERIOR_TEST": (16384,), "CASE_FEASIBLE": (16384,),
-        "CASE_TRI_COUNT": (rows,), "CASE_TRIS": (rows, m33.MAX33, 3), "CASE_NEEDS_CENTER": (rows,),
-        "TEST_CORNERS": (6, 8), "FACE_CORNERS": (6, 4), "VERTEX_ORIGIN": (13, 4), "AMBIGUOUS_FACES": (256,),
+        "CASE_TRI_COUNT": (rows,), "CASE_TRIS": (rows, m33.MAX33, 3), "CASE_INTERIOR": (rows,),
+        "TEST_CORNERS": (6, 8), "FACE_CORNERS": (6, 4), "VERTEX_ORIGIN": (21, 4), "AMBIGUOUS_FACES": (256,),
     }  # fmt: skip
     for name, shape in expected.items():
         arr = getattr(m33, name)
@@ -187,11 +188,14 @@ def test_layout_and_dtypes():
     assert isinstance(m33.MAX33, int) and m33.MAX33 == m33.CASE_TRI_COUNT.max()
     assert m33.VERTEX_ORIGIN[:12].tolist() == mc.EDGE_ORIGIN.tolist()
     assert m33.VERTEX_ORIGIN[12].tolist() == [0, 0, 0, m33.CENTER_TYPE]
+    assert m33.VERTEX_ORIGIN[13:].tolist() == [[*c, m33.CENTER_TYPE] for c in mc.CORNERS.tolist()]
     for r in range(rows):
         n = m33.CASE_TRI_COUNT[r]
         assert np.all(m33.CASE_TRIS[r, n:] == -1)
-        assert np.all((m33.CASE_TRIS[r, :n] >= 0) & (m33.CASE_TRIS[r, :n] <= 12))
-        assert m33.CASE_NEEDS_CENTER[r] == int(np.any(m33.CASE_TRIS[r, :n] == 12))
+        assert np.all((m33.CASE_TRIS[r, :n] >= 0) & (m33.CASE_TRIS[r, :n] <= 20))
+        used = set(m33.CASE_TRIS[r, :n].ravel().tolist())
+        assert m33.CASE_INTERIOR[r] == sum(1 << (v - 12) for v in used if v >= 12)
+        assert not (12 in used and used & set(range(13, 21)))  # a fan or a hub, never both
     assert set(m33.kernel_tables()) >= {"origin", "tris", "tri_count", "center", "case_offset", "interior_test",
                                         "test_corners", "face_corners"}
 
@@ -333,12 +337,12 @@ def test_rows_are_surfaces_bounded_by_the_decided_face_segments():
         for row in entry_rows(c, b):
             tris = row_tris(row)
             used = {v for t in tris for v in t}
-            assert used - {12} == cross, (c, b, row)
+            assert {v for v in used if v < 12} == cross, (c, b, row)
             check_surface(tris)
             for t in tris:
-                assert not mc.on_one_face([v for v in t if v != 12]) or 12 in t, (c, b, t)
+                assert max(t) >= 12 or not mc.on_one_face(t), (c, b, t)  # no triangle lies in a face
             segments = {(lp[k], lp[(k + 1) % len(lp)]) for lp in boundary_loops(tris) for k in range(len(lp))}
-            assert 12 not in {v for s in segments for v in s}
+            assert all(v < 12 for s in segments for v in s)
             for q in range(6):
                 on_face = {(x, y) for x, y in segments if q in EDGE_FACES[x] & EDGE_FACES[y]}
                 assert on_face == expected_segments(c, b, q), (c, b, q)
@@ -369,32 +373,17 @@ def test_components_are_disks_and_tubes_of_genus_zero():
     assert n_tubes > 0
 
 
-def test_chords_only_where_the_neighbour_cannot_use_them():
-    """A triangle edge lying in a cube face that is not a face segment (a chord) joins
-    the two segments of an ambiguous face: at a band corner on a lower face, across the
-    face (one of the two crossing ones at most) on an upper face. So the two cells of a
-    face never emit the same chord and the global surface stays a 2-manifold."""
-    n_chords = 0
+def test_no_row_has_a_chord():
+    """No triangle edge lies in a cube face except the face segments: the cell across a
+    face never shares an edge with this one besides them, so the global surface is a
+    2-manifold, and the two cells' triangles meet only along the segments."""
     for c, b in valid_entries():
         for row in entry_rows(c, b):
             tris = row_tris(row)
             segments = {frozenset((lp[k], lp[(k + 1) % len(lp)])) for lp in boundary_loops(tris)
                         for k in range(len(lp))}
             edges = {frozenset((t[k], t[(k + 1) % 3])) for t in tris for k in range(3)} - segments
-            for q, face in enumerate(FACES):
-                chords = [tuple(e) for e in edges if 12 not in e and all(q in EDGE_FACES[x] for x in e)]
-                if not chords:
-                    continue
-                assert ambiguous(c, q), (c, b, q)
-                for x, y in chords:
-                    ex, ey = set(mc.EDGES[x].tolist()), set(mc.EDGES[y].tolist())
-                    if q % 2 == 0:  # lower face: the two face edges at one corner
-                        assert len(ex & ey) == 1, (c, b, q, x, y)
-                    else:  # upper face: two opposite face edges
-                        assert not ex & ey, (c, b, q, x, y)
-                assert q % 2 == 0 or len(chords) == 1, (c, b, q, chords)
-                n_chords += len(chords)
-    assert n_chords > 0
+            assert not [e for e in edges if max(e) < 12 and mc.on_one_face(list(e))], (c, b, row)
 
 
 def test_plain_entries_trace_the_loops_of_mc_tables():
@@ -443,6 +432,13 @@ def _topology(tris) -> frozenset:
     return frozenset(mc.canonical_loops(boundary_loops(comp)) for comp in components(tris))
 
 
+def _map_vertex(s: int, x: int) -> int:
+    """Local vertex x moved by symmetry s: an edge, the centre, or the spoke of a corner."""
+    if x < 12:
+        return int(mc.SYM_EDGES[s][x])
+    return x if x == 12 else 13 + int(mc.SYM_CORNERS[s][x - 13])
+
+
 def test_symmetric_values_give_symmetric_surfaces():
     rng = np.random.default_rng(11)
     for c in ALL_CONFIGS:
@@ -451,7 +447,7 @@ def test_symmetric_values_give_symmetric_surfaces():
             for s in rng.choice(48, 4, replace=False):
                 image = np.empty(8)
                 image[mc.SYM_CORNERS[s]] = v  # corner k moves to SYM_CORNERS[s][k]
-                mapped = [tuple(x if x == 12 else int(mc.SYM_EDGES[s][x]) for x in t) for t in tris]
+                mapped = [tuple(_map_vertex(s, x) for x in t) for t in tris]
                 if mc.SYM_DET[s] < 0:
                     mapped = [t[::-1] for t in mapped]
                 got = [tuple(t) for t in m33.polygonize(image).tolist()]
@@ -574,9 +570,9 @@ def test_plain_table_fails_the_oracle_where_mc33_does_not():
 # ----------------------------------------------------------------------------- grids
 
 
-def mesh_grid(values: np.ndarray):
-    """Global mesh of a node grid of values, vertices by linear interpolation on the
-    edges and at the mean of the cell's edge vertices for vertex 12."""
+def mesh_grid(values: np.ndarray, clearance: float = 0.0):
+    """Global mesh of a node grid of values, the vertices of each cell placed by
+    ``mc33_tables.vertex_positions`` (the emit kernels' rule), edge vertices shared."""
     nx, ny, nz = values.shape
     keys, points, faces = {}, [], []
 
@@ -588,18 +584,18 @@ def mesh_grid(values: np.ndarray):
 
     for i, j, k in itertools.product(range(nx - 1), range(ny - 1), range(nz - 1)):
         v = np.array([values[i + x, j + y, k + z] for x, y, z in mc.CORNERS.tolist()])
-        tris = m33.polygonize(v)
+        row = m33.case_row(v)
+        tris = m33.CASE_TRIS[row, : m33.CASE_TRI_COUNT[row]]
         if len(tris) == 0:
             continue
+        where = m33.vertex_positions(v, clearance=clearance, row=row) + np.array([i, j, k])
         local = {}
-        for e in set(tris.ravel().tolist()) - {12}:
-            a, b = mc.EDGES[e]
-            t = v[a] / (v[a] - v[b])
-            origin = tuple(int(o) for o in np.array([i, j, k]) + mc.EDGE_ORIGIN[e, :3])
-            local[e] = vertex(origin + (int(mc.EDGE_ORIGIN[e, 3]),),
-                              np.array([i, j, k]) + CORNERS_F[a] * (1 - t) + CORNERS_F[b] * t)
-        if 12 in tris:
-            local[12] = vertex((i, j, k, "centre"), np.mean([points[local[e]] for e in local], axis=0))
+        for x in set(tris.ravel().tolist()):
+            if x < 12:  # an edge vertex: keyed by its grid edge
+                key = tuple(int(o) for o in np.array([i, j, k]) + mc.EDGE_ORIGIN[x, :3]) + (int(mc.EDGE_ORIGIN[x, 3]),)
+            else:
+                key = (i, j, k, "interior", x)
+            local[x] = vertex(key, where[x])
         faces += [[local[x] for x in t] for t in tris.tolist()]
     return np.array(points), np.array(faces, dtype=np.int64)
 
@@ -628,8 +624,6 @@ def random_grids():
                     yield grid
 
 
-@pytest.mark.xfail(strict=True, reason="mc33 tunnel triangles cross in some cells: found by the new "
-                   "self-intersection check; the hub construction that fixes it is issue 18's pending work")
 def test_random_grids_are_closed_oriented_manifolds():
     """Random values (padded with -1), checkerboards, saddle-rich values and a cell of
     each tube row amid random cells: closed oriented 2-manifolds enclosing f > 0."""
@@ -645,32 +639,3 @@ def test_random_grids_are_closed_oriented_manifolds():
             v = np.array([values[i + x, j + y, k + z] for x, y, z in mc.CORNERS.tolist()])
             n_cells_with_tests += m33.INTERIOR_TEST[m33.config_of(v) * 64 + m33.face_bits_of(v)] >= 0
     assert n_cells_with_tests > 50
-
-
-
-def test_no_chord_is_shared_by_the_two_cells_of_a_face():
-    """Exhaustively: for each axis, every row of a cell below a face and every row of a
-    cell above it that agree on the face (corner signs and face bit) use disjoint chords
-    in it, so no edge of the global surface lies in more than two triangles."""
-    n_chords = 0
-    for axis in range(3):
-        below, above = {}, {}  # (signs of the face corners of the upper cell, bit) -> chords
-        for c, b in valid_entries():
-            for row in entry_rows(c, b):
-                tris = row_tris(row)
-                segments = {frozenset((lp[k], lp[(k + 1) % len(lp)])) for lp in boundary_loops(tris)
-                            for k in range(len(lp))}
-                edges = {frozenset((t[k], t[(k + 1) % 3])) for t in tris for k in range(3)} - segments
-                for side, store in ((1, below), (0, above)):
-                    q = 2 * axis + side
-                    chords = {e for e in edges if 12 not in e and all(q in EDGE_FACES[x] for x in e)}
-                    shift = 1 << axis if side else 0  # corners in the frame of the upper cell
-                    key = (tuple(sorted((k ^ shift, int(inside(c)[k])) for k in FACES[q])), (b >> q) & 1)
-                    moved = {frozenset(mc.EDGE_OF[int(mc.EDGES[x][0]) ^ shift, int(mc.EDGES[x][1]) ^ shift]
-                                       for x in e) for e in chords}
-                    store.setdefault(key, set()).update(moved)
-                    n_chords += len(chords)
-        for key in below.keys() & above.keys():
-            assert not below[key] & above[key], (axis, key, below[key] & above[key])
-    assert n_chords > 0
-

@@ -39,10 +39,7 @@ def _random_fields(count, seed=0):
         yield vol.astype(np.float32)
 
 
-@pytest.mark.parametrize("method", [pytest.param(k, marks=pytest.mark.xfail(
-    strict=True, reason="mc33 tunnel triangles cross on some of these fields: found by the new "
-    "self-intersection check; the hub construction that fixes it is issue 18's pending work"))
-    if k == "mc33" else k for k in METHODS])
+@pytest.mark.parametrize("method", METHODS)
 def test_random_fields_closed_and_outward(method):
     checked = 0
     for vol in _random_fields(90):

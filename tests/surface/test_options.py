@@ -175,7 +175,7 @@ def test_every_field_is_documented_with_its_default():
 # -- flat keywords: one group per pipeline, one error for the others' options ---------------------
 def test_a_keyword_of_another_pipeline_is_refused_once_with_what_this_one_takes():
     takes = ("GridOptions takes bounds, resolution, method, root, root_iterations, gradient, normals, cap, "
-             "evaluator, cull")
+             "evaluator, clearance, cull")
     with pytest.raises(ValueError) as err:
         wm.mesh_surface(wm.sphere(0.5), bounds=BOX, resolution=8, level=0.1, spacing=0.1, tolerance=0.02)
     assert str(err.value) == (

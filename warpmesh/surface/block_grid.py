@@ -90,6 +90,10 @@ class BlockGrid:
         self.wh = wp.vec3(*self.h.tolist())
         self.info = {"grid": tuple(int(v) for v in self.n), "cell_size": tuple(float(v) for v in self.h),
                      "blocks": self.n_blocks}
+        # the clearance's lonely-node exemption reads the neighbours of every node; a volume's
+        # grid may be one slab of several, whose seam planes lack them (cull_volume turns it off)
+        self.lonely_nodes = True
+        self.known = None  # continuation: which slot nodes hold evaluated values (load_cells)
 
     def _launch(self, kernel, dim, inputs, outputs=()):
         wp.launch(kernel, dim=dim, inputs=inputs, outputs=list(outputs), device=self.device)
@@ -176,6 +180,7 @@ class BlockGrid:
         raise), then the samples of the surviving blocks. Returns the range of
         sign * (vol - level) over the grid, which the caller checks against 0."""
         t0 = time.perf_counter()
+        self.lonely_nodes = False  # every slab size must give the same mesh: seams lack a neighbour plane
         host = np.ascontiguousarray(vol, dtype=np.float32)  # no copy for a C-order float32 volume
         # on the CPU Warp reads the numpy buffer in place; elsewhere it is uploaded once
         wvol = wp.array(host, dtype=wp.float32, device=self.device, copy=not self.device.is_cpu)
@@ -238,6 +243,7 @@ class BlockGrid:
         lk, lj, li = np.meshgrid(side, side, side, indexing="ij")  # local_index: i fastest
         local = np.stack([li.ravel(), lj.ravel(), lk.ravel()], axis=1)  # (NODES, 3)
         values = np.empty(len(blocks) * K.NODES, dtype=np.float32)
+        loaded = np.zeros(len(blocks) * K.NODES, dtype=np.uint8)
         for first in range(0, len(blocks), 1024):  # bounded temporaries: 1024 blocks at a time
             part = blocks[first:first + 1024]
             bc = np.stack([part % self.nb[0], part // self.nb[0] % self.nb[1], part // (self.nb[0] * self.nb[1])],
@@ -248,6 +254,7 @@ class BlockGrid:
             known = node_ids[pos] == gid if len(node_ids) else np.zeros(len(gid), bool)
             values[first * K.NODES:(first + len(part)) * K.NODES] = \
                 np.where(known, node_values[pos] if len(node_ids) else 0.0, -1.0)
+            loaded[first * K.NODES:(first + len(part)) * K.NODES] = known
         cb = ci // K.BLOCK
         slot = block_slot[cb[:, 0] + self.nb[0] * (cb[:, 1] + self.nb[1] * cb[:, 2])]
         lc = ci - cb * K.BLOCK
@@ -258,6 +265,7 @@ class BlockGrid:
         self.slot_block = wp.array(np.maximum(blocks, 0).astype(np.int32) if len(blocks) else np.zeros(1, np.int32),
                                    dtype=wp.int32, device=dev)
         self.block_slot = wp.array(block_slot, dtype=wp.int32, device=dev)
+        self.known = wp.array(loaded if len(loaded) else np.ones(2, np.uint8), dtype=wp.uint8, device=dev)
         self.info["active_blocks"] = self.n_slots
         self.info["inside_blocks"] = 0
         return wp.array(mask, dtype=wp.uint8, device=dev)
@@ -281,11 +289,20 @@ class BlockGrid:
                 for a, b in parallel_ranges(count, self.device, min_per_worker=32)]
         run_parallel(jobs)
 
-    def extract(self, method: str, cap: int, timings, cell_mask: wp.array | None = None):
+    def extract(self, method: str, cap: int, timings, cell_mask: wp.array | None = None,
+                clearance: float = C.NODE_CLEARANCE):
         """Emit the surface with ``method`` ("mc", "mc33" or "mt"); ``cell_mask`` (uint8 per
         slot cell, optional) restricts the triangles to the cells it marks (continuation).
-        Returns (vertices, triangles, edges): grid-local float32 positions, vec3i
-        triangles, and per vertex its edge (t, p0, p1, flags, key) for root refinement."""
+        ``clearance`` keeps every vertex at least that fraction of its edge off the grid
+        nodes (``_conventions.NODE_CLEARANCE``, which states the triangles' shape bound; 0
+        keeps only EDGE_T_MIN: slivers where the surface passes near nodes), except where no
+        triangle can have two vertices next to the node ("mc", "mc33": a capped node, and
+        on a shape's grid a node ending no other crossing edge that shares a cell with the
+        vertex's edge); it moves vertices along their edges, never changes the connectivity
+        (``info["clearance_moved"]`` counts them). Returns (vertices, triangles, edges):
+        grid-local float32 positions, vec3i triangles, and per vertex its edge (t, p0, p1,
+        flags, key) for root refinement."""
+        clearance = check_clearance(clearance)
         t0 = time.perf_counter()
         dev, ns = self.device, self.n_slots
         tab = method_tables(method, dev)
@@ -309,25 +326,46 @@ class BlockGrid:
                  "p1": wp.empty(nv, dtype=wp.vec3, device=dev), "flags": wp.empty(nv, dtype=wp.int32, device=dev),
                  "key": wp.empty(nv, dtype=wp.int64, device=dev)}
         slot_volume = wp.zeros(max(ns, 1), dtype=wp.float64, device=dev)
+        moved = wp.zeros(max(ns, 1), dtype=wp.int32, device=dev)
         if nv:
             eid = wp.full(ns * K.NODES * n_types, -1, dtype=wp.int32, device=dev)
             # positions relative to the grid origin: float32 keeps its precision far from 0;
             # the host adds the origin in float64
             local, t_min = wp.vec3(0.0), float(C.EDGE_T_MIN)
+            crowd = wp.zeros(1, dtype=wp.uint8, device=dev)  # one entry: no lonely-node exemption
+            if n_types == 3 and self.lonely_nodes and clearance > t_min:
+                crowd = wp.empty(ns * K.NODES, dtype=wp.uint8, device=dev)
+                known = self.known if self.known is not None else wp.zeros(1, dtype=wp.uint8, device=dev)
+                self._per_slot(KE.node_crowding_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn,
+                                                         self.values, known], [crowd])
             self._per_slot(KE.emit_vertices_kernel, [self.slot_block, self.wnb, self.wn, n_types, int(cap), local,
-                                                     self.wh, t_min, self.wgoff, self.wgn, tab, self.values, voff],
-                           [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"]])
+                                                     self.wh, t_min, clearance, self.wgoff, self.wgn, tab,
+                                                     self.values, crowd, voff],
+                           [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"], moved])
             if nc:  # interior vertices after the edge vertices
                 wp.launch(KE.add_offset_kernel, dim=ns, inputs=[nv_edges], outputs=[coff], device=dev)
             self._per_slot(KE.emit_triangles_kernel,
-                           [self.slot_block, self.block_slot, self.wnb, self.wn, n_types, local, self.wh, t_min,
-                            self.wgoff, self.wgn, tab, self.values, cases, toff, coff, eid],
+                           [self.slot_block, self.block_slot, self.wnb, self.wn, n_types, int(cap), local, self.wh,
+                            t_min, clearance, self.wgoff, self.wgn, tab, self.values, crowd, cases, toff, coff,
+                            eid],
                            [verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"], tris,
                             slot_volume])
         self.info["signed_volume"] = float(slot_volume.numpy().sum()) / 6.0  # linear placement
         self.info["interior_vertices"] = nc
+        self.info["clearance"] = clearance
+        self.info["clearance_moved"] = int(moved.numpy().sum())  # vertices moved off a node by it
         timings["extract"] = timings.get("extract", 0.0) + time.perf_counter() - t0
         return verts, tris, edges
+
+
+def check_clearance(clearance) -> float:
+    """The clearance of vertices off the grid nodes, as a float in [0, 0.5] (a fraction of
+    the edge; ``_conventions.NODE_CLEARANCE`` by default, 0 for the unclamped placement)."""
+    if isinstance(clearance, (bool, np.bool_)) or not isinstance(clearance, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= clearance <= 0.5:
+        raise ValueError(f"expected 0 <= 'clearance' <= 0.5 (a fraction of the edge; default "
+                         f"{C.NODE_CLEARANCE}, 0 to turn it off), got {clearance!r}")
+    return float(clearance)
 
 
 GRADIENTS = ("exact", "central", "forward")
@@ -354,7 +392,10 @@ def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluato
                  gradient: str = "exact", h=(1.0, 1.0, 1.0), fg_out=None) -> None:
     """Move each vertex to the root of f on its edge (bisection or safeguarded Newton, with
     the exact or a finite-difference gradient); f is evaluated at origin + the grid-local
-    positions. Interior vertices ("mc33", flagged as zero ends) stay where they are.
+    positions. Interior vertices ("mc33", flagged as zero ends) and cap vertices stay where
+    they are; an exact root at a node goes back to EDGE_T_MIN from it. Refined roots are
+    clamped to [EDGE_T_MIN, 1 - EDGE_T_MIN], not to the emission's clearance: they stay on
+    f = 0, so the clearance's shape bound holds for linear placement only.
     With Newton, ``fg_out`` (vec4 per vertex) receives (f, grad f) of the last step."""
     t0 = time.perf_counter()
     dev = verts.device
@@ -366,7 +407,8 @@ def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluato
     t_lo = wp.empty(nv, dtype=wp.float32, device=dev)
     t_hi = wp.empty(nv, dtype=wp.float32, device=dev)
     bisect = root == "bisection"
-    wp.launch(KE.bracket_init_kernel, dim=nv, inputs=[flags, int(bisect)], outputs=[t_lo, t_hi, t], device=dev)
+    wp.launch(KE.bracket_init_kernel, dim=nv, inputs=[flags, int(bisect), float(C.EDGE_T_MIN)],
+              outputs=[t_lo, t_hi, t], device=dev)
     if bisect:
         f_mid = wp.empty(nv, dtype=wp.float32, device=dev)
         for _ in range(iterations or 12):

@@ -295,7 +295,7 @@ def _mesh_grid(source, opts: GridOptions | ContinuationOptions, device, t_start:
     info["tape_length"] = len(tape)
 
     grid.finish_values(cap_mask, timings)
-    verts, tris, edges = grid.extract(opts.method, cap_mask, timings, cell_mask)
+    verts, tris, edges = grid.extract(opts.method, cap_mask, timings, cell_mask, clearance=opts.clearance)
     if cell_mask is not None:  # continuation: drop the vertices of edges on no grown cell first
         verts, tris, edges = _drop_unused(verts, tris, edges)
     if opts.root != "linear" and len(verts):
@@ -382,7 +382,8 @@ def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
     for label in fields:
         points, faces, flags, (vmin, vmax) = extract_volume(
             vol, org, sp, level=level, sign=sign, method=opts.method, cap=cap, cull=opts.cull, device=device,
-            slab_voxels=opts.slab_voxels, label=label, timings=timings, info=info)
+            slab_voxels=opts.slab_voxels, label=label, timings=timings, info=info,
+            clearance=opts.clearance)
         if label is None and vmin == vmax:
             raise ValueError(f"expected a non-constant 'volume', got every value equal to {sign * vmin + level}")
         if label is None and not vmin <= 0.0 <= vmax:

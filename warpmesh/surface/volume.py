@@ -96,9 +96,11 @@ def check_label_range(values: np.ndarray) -> None:
 
 
 def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool,
-                   cull: bool, device, slab_voxels: int, label=None, timings: dict, info: dict):
+                   cull: bool, device, slab_voxels: int, label=None, timings: dict, info: dict,
+                   clearance: float = C.NODE_CLEARANCE):
     """Points (float64), triangles, per-vertex edge flags and the value range of one
-    field of the volume (the indicator of ``label`` when given), slab by slab."""
+    field of the volume (the indicator of ``label`` when given), slab by slab;
+    ``clearance`` as :meth:`BlockGrid.extract`."""
     n = np.array(vol.shape, dtype=np.int64)
     origin = np.asarray(origin, dtype=np.float64)
     slabs = slab_ranges(int(n[0]), int(n[1] * n[2]), slab_voxels)
@@ -115,7 +117,7 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
         lo, hi = grid.cull_volume(part, level, sign, cull, mask, timings)
         vmin, vmax = min(vmin, lo), max(vmax, hi)
         grid.finish_values(mask, timings)
-        verts, faces, edges = grid.extract(method, mask, timings)
+        verts, faces, edges = grid.extract(method, mask, timings, clearance=clearance)
         t0 = time.perf_counter()
         # sync point: copies (a CPU array's .numpy() is a view of memory freed with the slab);
         # float32 grid-local points and int32 slab-local ids: half the memory of the result's
@@ -124,7 +126,8 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
         keys.append(edges["key"].numpy().copy())
         flags.append(edges["flags"].numpy().copy())
         n_verts += len(pts[-1][0])
-        for k in ("active_blocks", "interior_vertices"):  # summed over slabs and labels
+        # summed over slabs and labels (a seam vertex moved off a node counts in both slabs)
+        for k in ("active_blocks", "interior_vertices", "clearance_moved"):
             info[k] = info.get(k, 0) + grid.info[k]
         n_blocks += grid.info["blocks"]
         timings["host"] = timings.get("host", 0.0) + time.perf_counter() - t0
@@ -135,7 +138,7 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
     key, flag = _concatenate(keys), _concatenate(flags)
     if len(slabs) > 1 and len(points):
         points, faces, flag = _weld_seams(points, faces, flag, key, [b for _, b in slabs[:-1]], int(n[0]))
-    info["slabs"], info["blocks"] = len(slabs), n_blocks  # of the grid (the same for every label)
+    info["slabs"], info["blocks"], info["clearance"] = len(slabs), n_blocks, float(clearance)  # of the grid (the same for every label)
     timings["weld"] = timings.get("weld", 0.0) + time.perf_counter() - t0
     return points, faces, flag, (vmin, vmax)
 

@@ -33,6 +33,10 @@ rule that makes every face agree from both sides:
    leaf, or whose fan would fold against the normals, falls back to the loop's mass point.
    Every vertex off the caps then takes Newton steps onto f = 0 (a feature vertex made
    from the tangent planes of a curved face, a hole's rim, lies just off it).
+   Two sheets of the surface within one leaf (a thin wall, a narrow gap) can still
+   cross after the projection: :func:`untangle` finds the crossing triangles with the
+   global check and puts their loop vertices back at the mass point (and undoes the
+   feature flips among them) until none cross; ``info["untangled"]`` counts them.
 6. **Feature edges.** Where a segment lies between two feature vertices (QEF rank >= 2),
    the two fan triangles on it are flipped to join the feature vertices when the new
    edge is closer to the surface than the segment (after extended marching cubes,
@@ -399,7 +403,8 @@ def _disjoint(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def flip_feature_edges(tree: Octree, tris, tri_half, half, loop_of, loop_size, feature, all_points):
     """Flip the two fan triangles on a segment between two feature vertices when the
     new edge (joining them) lies closer to the surface than the segment (with caps, to
-    the surface or the bounds, whichever is nearer)."""
+    the surface or the bounds, whichever is nearer). Returns the new triangles and the
+    (k, 2) pairs of triangles flipped together."""
     n_half = len(half)
     n_seg = n_half // 2
     tri_of_half = np.full(n_half, -1, np.int64)
@@ -409,7 +414,7 @@ def flip_feature_edges(tree: Octree, tris, tri_half, half, loop_of, loop_size, f
     l1, l2 = loop_of[:n_seg], loop_of[n_seg:]
     cand = np.flatnonzero((t1 >= 0) & (t2 >= 0) & feature[l1] & feature[l2])
     if not len(cand):
-        return tris, 0
+        return tris, np.zeros((0, 2), np.int64)
     c1 = tris[t1[cand], 0]
     c2 = tris[t2[cand], 0]
     a, b = half[cand, 1], half[cand, 2]
@@ -432,7 +437,55 @@ def flip_feature_edges(tree: Octree, tris, tri_half, half, loop_of, loop_size, f
     tris = tris.copy()
     tris[t1[cand]] = np.stack([c1, b, c2], axis=1)
     tris[t2[cand]] = np.stack([c1, c2, a], axis=1)
-    return tris, len(cand)
+    return tris, np.stack([t1[cand], t2[cand]], axis=1)
+
+
+#: rounds of :func:`untangle` (each moves the loop vertices of the faces still crossing)
+UNTANGLE_ROUNDS = 4
+
+
+def untangle(half, loop_of, n_loops, x, rank, points, tris, flipped, fan_tris):
+    """Move loop vertices and undo feature flips until no two triangles cross.
+
+    Projection onto f = 0 and QEF placement can take a loop vertex past a nearby sheet of
+    the surface (two sheets within one leaf, a thin wall), and a feature flip can fold a
+    quad. Each round finds the crossing pairs (the global check,
+    :func:`warpmesh.cells.intersections.find_self_intersections`); the loop vertices of
+    their triangles go back to the loop's mass point (inside the hull of its crossings,
+    off the surface by O(h^2)), and the flipped pairs (``flipped``, (k, 2) triangle ids,
+    whose fan triangles are in ``fan_tris``) among them get their fan triangles back.
+    A vertex is moved once; rounds stop when nothing crosses or nothing is left to undo.
+    Returns (x, rank, tris, vertices moved, crossing pairs left)."""
+    from warpmesh.cells.intersections import find_self_intersections
+    nv = len(points)
+    mass = None
+    moved = np.zeros(n_loops, bool)
+    live = np.ones(len(flipped), bool)
+    pairs = find_self_intersections(np.concatenate([points, x]), tris)
+    for _ in range(UNTANGLE_ROUNDS):
+        if not len(pairs):
+            break
+        bad = np.zeros(len(tris), bool)
+        bad[pairs.ravel()] = True
+        verts = np.unique(tris[bad])
+        loops = verts[verts >= nv] - nv
+        todo = loops[~moved[loops]]
+        back = live & bad[flipped].any(axis=1)
+        if not len(todo) and not back.any():
+            break
+        if back.any():
+            tris = tris.copy()
+            undo = flipped[back].ravel()
+            tris[undo] = fan_tris[undo]
+            live &= ~back
+        if len(todo):
+            if mass is None:
+                mass = mass_points(loop_of, points[half[:, 1]], n_loops)
+            x, rank = x.copy(), rank.copy()
+            x[todo], rank[todo] = mass[todo], 1
+            moved[todo] = True
+        pairs = find_self_intersections(np.concatenate([points, x]), tris)
+    return x, rank, tris, int(moved.sum()), pairs
 
 
 def check_closed(tris: np.ndarray) -> None:
@@ -463,4 +516,4 @@ def edge_points(tree: Octree, vertex_nodes, node_keys, values):
 
 
 __all__ = ["face_units", "boundary_cycles", "unit_segments", "leaf_loops", "vertex_normals",
-           "loop_vertices", "fan_triangles", "flip_feature_edges", "check_closed", "edge_points"]
+           "loop_vertices", "fan_triangles", "flip_feature_edges", "untangle", "check_closed", "edge_points"]

@@ -88,9 +88,17 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
                                        fanned)
     feature = (rank >= 2) & features
     all_points = np.concatenate([points, centres])
-    flips = 0
+    fan_tris, flipped = tris, np.zeros((0, 2), np.int64)
     if features:
-        tris, flips = OC.flip_feature_edges(tree, tris, tri_half, half, loop_of, loop_size, feature, all_points)
+        tris, flipped = OC.flip_feature_edges(tree, tris, tri_half, half, loop_of, loop_size, feature, all_points)
+    t1 = time.perf_counter()
+    centres, rank, tris, moved, pairs = OC.untangle(half, loop_of, n_loops, centres, rank, points, tris, flipped,
+                                                    fan_tris)
+    timings["untangle"] = time.perf_counter() - t1
+    flips = int(np.any(tris != fan_tris, axis=1).sum()) // 2
+    feature = (rank >= 2) & features
+    all_points = np.concatenate([points, centres])
+    info.update(untangled=moved, crossing_pairs=int(len(pairs)))
     OC.check_closed(tris)
     refs = None
     if cap and cap_vertex.any():  # a cap triangle has its three vertices on one face of the bounds
@@ -99,7 +107,7 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     used[tris.ravel()] = True
     renumber = np.cumsum(used) - 1
     all_points, tris = all_points[used], renumber[tris]
-    timings["fans"] = time.perf_counter() - t0
+    timings["fans"] = time.perf_counter() - t0 - timings["untangle"]
     info.update(loops=int(n_loops), feature_vertices=int(feature.sum()), feature_flips=int(flips))
     _finish_info(tree, info, len(all_points), len(tris), n_loops)
     return all_points, tris, refs
