@@ -14,6 +14,7 @@ pipeline (see ``docs/architecture.md``):
 ``numbering``  renumbering, colouring, node graphs, higher-order nodes
 ``cells``      the cell vocabulary: types, reference cells, topology, quality, validity checks
 ``io``         conversions (meshio, trimesh, pyvista) and files
+``preview``    parameter edits re-meshed live: Preview, off-screen pictures, WebGL pages, widgets
 ``cli``        the ``warpmesh`` command line
 ``kernels``    the Warp device code
 
@@ -50,6 +51,7 @@ from warpmesh.frep.expr import cos as cos
 from warpmesh.frep.expr import exp as exp
 from warpmesh.frep.expr import log as log
 from warpmesh.frep.expr import max as max  # noqa: A004
+from warpmesh.frep.expr import param as param
 from warpmesh.frep.expr import min as min  # noqa: A004
 from warpmesh.frep.expr import sin as sin
 from warpmesh.frep.expr import sqrt as sqrt
@@ -102,11 +104,12 @@ from warpmesh.surface.options import ContinuationOptions as ContinuationOptions
 from warpmesh.surface.options import GridOptions as GridOptions
 from warpmesh.surface.options import VolumeOptions as VolumeOptions
 from warpmesh.surface.pipeline import mesh_surface as mesh_surface
+from warpmesh.preview.session import Preview as Preview
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Mesh", "load", "to_order", "renumber", "mesh_surface", "GridOptions", "ContinuationOptions",
+    "Mesh", "load", "to_order", "renumber", "mesh_surface", "param", "Preview", "GridOptions", "ContinuationOptions",
     "AdaptiveOptions", "VolumeOptions", "mesh_curve", "mesh_domain", "optimize",
     "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
     "triangle_quality", "tetra_quality", "quality_summary", "check",

@@ -636,6 +636,34 @@ class Mesh:
         """
         return _convert.from_pyvista(obj, mesh_type=cls, triangulate=triangulate, dim=dim, info=info)
 
+    # ---------------------------------------------------------------- pictures
+    def plot(self, path=None, *, window_size=(800, 600), show_edges: bool = False, camera=None):
+        """An off-screen picture (pyvista/VTK, no display needed): shows itself in notebooks.
+
+        See :func:`warpmesh.preview.render.render_png`; ``path`` (a .png) also writes it.
+
+        Examples
+        --------
+        >>> import warpmesh as wm
+        >>> img = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=16).plot(window_size=(64, 48))
+        >>> img.array.shape, bool((img.array < 200).any())   # the ball is drawn on a white background
+        ((48, 64, 3), True)
+        """
+        from warpmesh.preview.render import render_png
+
+        return render_png(self, path, window_size=window_size, show_edges=show_edges, camera=camera)
+
+    def _repr_mimebundle_(self, include=None, exclude=None):
+        """Jupyter: an interactive WebGL view (:func:`warpmesh.preview.render.mesh_mimebundle`)."""
+        from warpmesh.preview.render import mesh_mimebundle
+
+        return mesh_mimebundle(self)
+
+    def _repr_html_(self):
+        from warpmesh.preview.render import mesh_mimebundle
+
+        return mesh_mimebundle(self).get("text/html")
+
     # ---------------------------------------------------------------- files
     def save(self, path, *, file_format: FileFormat | None = None) -> Path:
         """Write the mesh through meshio, atomically, and return ``path``.

@@ -67,7 +67,7 @@ def _node(op: int, args: tuple = (), imm: float = 0.0) -> "Expr":
     imm = float(imm)
     if not math.isfinite(imm) or math.fabs(imm) > FLOAT32_MAX:
         raise ValueError(f"expected a finite constant within float32 range, got {imm!r}")
-    if op in _NUMPY and args and all(a.op == O.CONST for a in args):
+    if op in _NUMPY and args and all(is_literal(a) for a in args):
         with np.errstate(all="ignore"):
             value = float(_NUMPY[op](*(np.float64(a.imm) for a in args), *([None] * (2 - len(args))), imm))
         if math.isfinite(value):
@@ -79,6 +79,13 @@ def _node(op: int, args: tuple = (), imm: float = 0.0) -> "Expr":
         node.op, node.args, node.imm = op, args, imm
         _TABLE[key] = node
     return node
+
+
+def is_literal(node: "Expr") -> bool:
+    """A plain constant: folded into its readers' immediates. A :class:`Param` is a
+    constant of the tape too (op CONST), but never folded: its value must stay a datum
+    of the tape's constant array that an edit can change."""
+    return node.op == O.CONST and type(node) is Expr
 
 
 def as_expr(value) -> "Expr":
@@ -130,9 +137,9 @@ class Expr:
         if _shape_like(other):
             return NotImplemented
         o = as_expr(other)
-        if o.op == O.CONST:
+        if is_literal(o):
             return self if o.imm == 0.0 else _node(O.ADDC, (self,), o.imm)
-        if self.op == O.CONST:
+        if is_literal(self):
             return o + self
         return _node(O.ADD, (self, o))
 
@@ -142,9 +149,9 @@ class Expr:
         if _shape_like(other):
             return NotImplemented
         o = as_expr(other)
-        if o.op == O.CONST:
+        if is_literal(o):
             return self + (-o.imm)
-        if self.op == O.CONST:
+        if is_literal(self):
             return _node(O.RSUBC, (o,), self.imm)
         return _node(O.SUB, (self, o))
 
@@ -157,11 +164,11 @@ class Expr:
         if _shape_like(other):
             return NotImplemented
         o = as_expr(other)
-        if o.op == O.CONST:
+        if is_literal(o):
             if o.imm == 1.0:
                 return self
             return _node(O.MULC, (self,), o.imm)
-        if self.op == O.CONST:
+        if is_literal(self):
             return o * self
         if o is self:
             return _node(O.SQUARE, (self,))
@@ -173,11 +180,11 @@ class Expr:
         if _shape_like(other):
             return NotImplemented
         o = as_expr(other)
-        if o.op == O.CONST:
+        if is_literal(o):
             if o.imm == 0.0:
                 raise ZeroDivisionError("division of an expression by the constant 0")
             return self * (1.0 / o.imm)
-        if self.op == O.CONST:
+        if is_literal(self):
             return _node(O.RDIVC, (o,), self.imm)
         return _node(O.DIV, (self, o))
 
@@ -220,6 +227,9 @@ class Expr:
         """``a ** c`` for a constant c: an integer c is an exact power (|c| <= 2**24, negative
         allowed); any other c means ``|a| ** c`` (the sign of a is dropped, as real powers of
         negatives are undefined): use it on non-negative quantities."""
+        if isinstance(exponent, Param):
+            raise TypeError(f"expected a number for the exponent, got the parameter {exponent.name!r}: "
+                            "exponents are immediates of the tape's instructions, not editable data")
         if isinstance(exponent, Expr):
             if exponent.op != O.CONST:
                 raise TypeError("expected a constant exponent, got an expression of the coordinates")
@@ -309,8 +319,196 @@ class Expr:
     def __repr__(self):
         return f"<Expr {O.NAMES.get(self.op, self.op)} with {len(self.nodes())} nodes>"
 
+    # -- parameters -----------------------------------------------------------------
+    @property
+    def params(self) -> dict[str, "Param"]:
+        """The parameters (:func:`param`) the expression reads, by name, in the order the
+        tape meets them; each with its current value."""
+        return collect_params(self)
+
+    def with_params(self, values=None, /, **more) -> "Expr":
+        """The same expression with new parameter values (a mapping, or keywords).
+
+        The structure is unchanged, so its tape is the original's with other numbers
+        in the constant array (:func:`warpmesh.frep.tape.tape_of` derives it without
+        compiling). Raises ValueError for an unknown name or a value outside [lo, hi].
+        """
+        return bind(self, values, **more)
+
     def __bool__(self):
         raise TypeError("an expression has no truth value; compare values after evaluating it")
+
+
+class Param(Expr):
+    """A named constant of the tape: build with :func:`param`.
+
+    It is an expression leaf (opcode CONST) whose value sits in the tape's constant
+    array; operators never fold it into their immediates, so a new value is a new datum,
+    never a new tape structure. Immutable: :meth:`Expr.with_params` binds new values.
+    """
+
+    __slots__ = ("name", "lo", "hi")
+
+    @property
+    def value(self) -> float:
+        """The current value (the tape's constant)."""
+        return self.imm
+
+    def check(self, value, argument: str = "params") -> float:
+        """``value`` as a float if it is finite and within [lo, hi], else ValueError."""
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise TypeError(f"expected a number for parameter {self.name!r} in {argument!r}, "
+                            f"got {type(value).__name__}")
+        v = float(value)
+        if not (math.isfinite(v) and self.lo <= v <= self.hi):
+            raise ValueError(f"expected a value in [{self.lo:g}, {self.hi:g}] for parameter {self.name!r} "
+                             f"in {argument!r}, got {value!r}")
+        return v
+
+    def __repr__(self):
+        return f"<Param {self.name} = {self.imm:g} in [{self.lo:g}, {self.hi:g}]>"
+
+
+def param(name: str, value: float, *, lo: float | None = None, hi: float | None = None) -> Param:
+    """A named shape parameter: a constant usable wherever a shape or expression takes a number.
+
+    Its value lives in the compiled tape's constant array (:class:`~warpmesh.frep.tape.Tape`),
+    so editing it (``shape.with_params(r=0.15)``, ``mesh_surface(..., params={"r": 0.15})``,
+    :class:`warpmesh.Preview`) changes data only: no new tape, no Warp compile, the
+    compiled evaluator of the structure reused. Interval evaluation and pruning read the
+    same array, so they are sound for the current values. Constructors that need a number
+    on the host check the whole range [lo, hi] (a radius parameter needs lo > 0) or, where
+    the docstring says so, use the current value.
+
+    Parameters
+    ----------
+    name : str
+        A Python identifier (it becomes a keyword of ``Preview.update``).
+    value : float
+        The current (initial) value, finite, within [lo, hi].
+    lo, hi : float, optional
+        The allowed range (sliders span it); unbounded when omitted.
+
+    Returns
+    -------
+    Param
+
+    Examples
+    --------
+    >>> import warpmesh as wm
+    >>> r = wm.param("r", 0.5, lo=0.1, hi=1.0)
+    >>> ball = wm.sphere(r)
+    >>> list(ball.params), float(ball(0, 0, 0))
+    (['r'], 0.5)
+    >>> float(ball.with_params(r=0.8)(0, 0, 0))
+    0.8
+    >>> ball.with_params(r=2.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: expected a value in [0.1, 1] for parameter 'r' in 'params', got 2.0
+    """
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ValueError(f"expected a Python identifier for 'name', got {name!r}")
+    bounds = []
+    for arg, v, default in (("lo", lo, -math.inf), ("hi", hi, math.inf)):
+        if v is None:
+            bounds.append(default)
+            continue
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or math.isnan(float(v)):
+            raise ValueError(f"expected a number for {arg!r}, got {v!r}")
+        bounds.append(float(v))
+    lo_, hi_ = bounds
+    if lo_ > hi_:
+        raise ValueError(f"expected lo <= hi, got lo={lo_:g}, hi={hi_:g}")
+    return _param_node(name, _check_value(name, value, lo_, hi_, "value"), lo_, hi_)
+
+
+def _check_value(name, value, lo, hi, argument) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"expected a number for {argument!r} of parameter {name!r}, got {type(value).__name__}")
+    v = float(value)
+    if not (math.isfinite(v) and lo <= v <= hi and math.fabs(v) <= FLOAT32_MAX):
+        raise ValueError(f"expected a finite value in [{lo:g}, {hi:g}] for {argument!r} of parameter "
+                         f"{name!r}, got {value!r}")
+    return v
+
+
+def _param_node(name: str, value: float, lo: float, hi: float) -> Param:
+    key = ("param", name, value + 0.0, lo, hi)
+    node = _TABLE.get(key)
+    if node is None:
+        node = Param.__new__(Param)
+        node.op, node.args, node.imm = O.CONST, (), value
+        node.name, node.lo, node.hi = name, lo, hi
+        _TABLE[key] = node
+    return node
+
+
+def collect_params(expr) -> dict[str, Param]:
+    """The parameters of an expression (or shape) by name, in topological order.
+
+    Raises ValueError when two different parameters share a name (built by two
+    :func:`param` calls with other values or ranges)."""
+    out: dict[str, Param] = {}
+    for node in as_expr(expr).nodes():
+        if isinstance(node, Param):
+            seen = out.setdefault(node.name, node)
+            if seen is not node:
+                raise ValueError(f"two different parameters are named {node.name!r} ({seen!r} and {node!r}); "
+                                 "give each parameter one wm.param(...) and reuse it")
+    return out
+
+
+#: bound expression -> (the expression it was bound from, the values): lets the tape
+#: compiler derive the bound tape from the original's (same code, other constants)
+_ORIGIN: "weakref.WeakKeyDictionary[Expr, tuple[Expr, dict]]" = weakref.WeakKeyDictionary()
+
+
+def check_values(params: dict[str, Param], values, argument: str = "params") -> dict[str, float]:
+    """Validate new values for ``params``: known names, numbers within [lo, hi]."""
+    if values is None:
+        return {}
+    if not hasattr(values, "items"):
+        raise TypeError(f"expected a mapping of parameter names to numbers for {argument!r}, "
+                        f"got {type(values).__name__}")
+    out = {}
+    for name, v in values.items():
+        if name not in params:
+            known = list(params) if params else "none: the shape has no wm.param"
+            raise ValueError(f"Unknown parameter {name!r} in {argument!r}. Pick one of {known}")
+        out[name] = params[name].check(v, argument)
+    return out
+
+
+def bind(expr, values=None, /, **more) -> Expr:
+    """``expr`` with new parameter values (see :meth:`Expr.with_params`)."""
+    root = as_expr(expr)
+    params = collect_params(root)
+    if values is not None and not hasattr(values, "items"):
+        check_values(params, values)  # raises the TypeError
+    new_values = check_values(params, {**(values or {}), **more})
+    if all(params[n].imm == v for n, v in new_values.items()):
+        return root
+    repl = {id(p): _param_node(n, new_values.get(n, p.imm), p.lo, p.hi) for n, p in params.items()}
+    new: dict[int, Expr] = {}
+    for node in root.nodes():
+        if id(node) in repl:
+            r = repl[id(node)]
+        elif not node.args:
+            r = node
+        else:
+            r = _node(node.op, tuple(new[id(a)] for a in node.args), node.imm)
+        new[id(node)] = r
+    out = new[id(root)]
+    base = _ORIGIN.get(root, (root, None))[0]
+    if out is not base:  # (bound back to the original values: the original itself)
+        _ORIGIN[out] = (base, {n: repl[id(p)].imm for n, p in params.items()})
+    return out
+
+
+def origin(expr: Expr) -> tuple[Expr, dict[str, float]] | None:
+    """(the expression ``expr`` was bound from, every parameter value), or None."""
+    return _ORIGIN.get(expr)
 
 
 def coords(dim: int = 3) -> tuple[Expr, ...]:
@@ -364,9 +562,9 @@ def abs(a) -> Expr:  # noqa: A001 - mirrors numpy's name on purpose
 
 def _fold2(op: int, opc: int, a, b) -> Expr:
     ea, eb = as_expr(a), as_expr(b)
-    if ea.op == O.CONST and eb.op != O.CONST:
+    if is_literal(ea) and not is_literal(eb):
         ea, eb = eb, ea
-    if eb.op == O.CONST:
+    if is_literal(eb):
         return _node(opc, (ea,), eb.imm)
     return _node(op, (ea, eb))
 

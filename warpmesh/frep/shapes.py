@@ -10,6 +10,12 @@ through :func:`union`, :func:`intersection`, :func:`difference`. Transforms chai
 Each primitive says whether its field is a true signed distance ("exact") or only has
 the right sign and a gradient norm at most 1 ("bound").
 
+Parameters (:func:`warpmesh.param`) go wherever a primitive, boolean or transform takes
+a number, except the exponents of :func:`superquadric` / :func:`supertorus`, the axis and
+matrix arguments of ``rotate``, ``mirror`` and ``affine``, and a halfspace's normal
+(constants of the structure). A positive argument (radius, size, scale factor, blend
+``k``) needs a parameter range with lo > 0; torus radii need hi(minor) < lo(major).
+
 Example
 -------
 >>> import warpmesh as wm
@@ -27,17 +33,32 @@ from typing import Literal
 import numpy as np
 
 from warpmesh.frep import expr as E
-from warpmesh.frep.expr import Expr, as_expr
+from warpmesh.frep.expr import Expr, Param, as_expr
 
 BooleanMethod = Literal["rfunction", "minmax", "smooth"]
 _METHODS = ("rfunction", "minmax", "smooth")
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
-def _vector(value, name: str, n: int, *, positive: bool = False, fill: float | str | None = None) -> np.ndarray:
+def _has_param(value) -> bool:
+    if isinstance(value, Param):
+        return True
+    return isinstance(value, (list, tuple, np.ndarray)) and any(isinstance(v, Param) for v in np.ravel(
+        np.asarray(value, dtype=object)))
+
+
+def _vector(value, name: str, n: int, *, positive: bool = False, fill: float | str | None = None,
+            params: bool = True) -> np.ndarray:
     """n floats from a number or n values; for n = 3 with a ``fill``, also from 2 values (a
     planar shape's x, y) completed with it ("min": the smaller of the two, so a 2D scale
-    stays isotropic)."""
+    stays isotropic). With parameters among the values (``params=True``), an object array
+    of floats and :class:`~warpmesh.frep.expr.Param` ("min" fill: the smallest
+    expression)."""
+    if _has_param(value):
+        if not params:
+            raise TypeError(f"expected numbers for {name!r}, got a parameter: {name!r} is a constant of "
+                            "the shape's structure (use parameters for sizes, positions and angles)")
+        return _param_vector(value, name, n, positive=positive, fill=fill)
     arr = np.asarray(value, dtype=np.float64)
     if arr.ndim == 0:
         arr = np.full(n, float(arr))
@@ -53,15 +74,79 @@ def _vector(value, name: str, n: int, *, positive: bool = False, fill: float | s
     return arr
 
 
-def _vec3(value, name: str, *, positive: bool = False, fill: float | str | None = None) -> np.ndarray:
-    return _vector(value, name, 3, positive=positive, fill=fill)
+def _param_vector(value, name: str, n: int, *, positive: bool, fill) -> np.ndarray:
+    items = [value] * n if isinstance(value, Param) else list(value)
+    if n == 3 and len(items) == 2 and fill is not None:
+        items.append(_min_of(items) if fill == "min" else float(fill))
+    if len(items) != n:
+        count = "2 or 3" if n == 3 and fill is not None else str(n)
+        raise ValueError(f"expected {count} values for '{name}', got {len(items)}")
+    out = np.empty(n, dtype=object)
+    for i, v in enumerate(items):
+        if isinstance(v, Expr) and not isinstance(v, Param):
+            raise TypeError(f"expected numbers or parameters (wm.param) for {name!r}, got an expression")
+        out[i] = _positive(v, name) if positive else _number(v, name)
+    return out
 
 
-def _positive(value, name: str) -> float:
+def _number(value, name: str):
+    """A finite float, or a parameter (kept as an expression leaf)."""
+    if isinstance(value, Param):
+        return value
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"expected a finite '{name}', got {value!r}")
+    return v
+
+
+def _min_of(items):
+    """The smallest of numbers and parameters: a float, or an expression."""
+    if not any(isinstance(v, Expr) for v in items):
+        return float(min(items))
+    return E.min(*items) if len(items) > 1 else items[0]
+
+
+def _vec3(value, name: str, *, positive: bool = False, fill: float | str | None = None,
+          params: bool = True) -> np.ndarray:
+    return _vector(value, name, 3, positive=positive, fill=fill, params=params)
+
+
+def _positive(value, name: str):
+    """A positive finite float; a parameter whose whole range [lo, hi] is positive."""
+    if isinstance(value, Param):
+        if not value.lo > 0:
+            raise ValueError(f"expected a parameter with lo > 0 for '{name}', got {value!r}: give "
+                             f"wm.param({value.name!r}, ...) a positive lower bound")
+        return value
     v = float(value)
     if not math.isfinite(v) or v <= 0:
         raise ValueError(f"expected a positive finite '{name}', got {value!r}")
     return v
+
+
+def _literal(value, name: str) -> float:
+    """A number that must stay one (an exponent, a count): parameters refused by name."""
+    if isinstance(value, Expr):
+        what = f"the parameter {value.name!r}" if isinstance(value, Param) else "an expression"
+        raise TypeError(f"expected a number for {name!r}, got {what}: {name!r} is a constant of the "
+                        "shape's structure")
+    return value
+
+
+def _zero(v) -> bool:
+    return not isinstance(v, Expr) and v == 0.0
+
+
+def _lin(terms, const=0.0):
+    """const + sum(coef * value) over numbers and expressions, skipping literal zeros."""
+    out = const
+    for coef, value in terms:
+        if _zero(coef) or _zero(value):
+            continue
+        prod = value if (not isinstance(coef, Expr) and coef == 1.0) else (
+            coef if (not isinstance(value, Expr) and value == 1.0) else coef * value)
+        out = prod if _zero(out) else out + prod
+    return out
 
 
 def _axis_index(axis) -> int:
@@ -101,6 +186,37 @@ class Shape:
     def _fill(self, value):
         """How a planar shape completes 2-value transform arguments (3D shapes take 3)."""
         return value if self.dim == 2 else None
+
+    # -- parameters -----------------------------------------------------------------
+    @property
+    def params(self) -> dict:
+        """The parameters (:func:`warpmesh.param`) of the shape by name, with their current values.
+
+        Example
+        -------
+        >>> import warpmesh as wm
+        >>> r = wm.param("r", 0.2, lo=0.05, hi=0.28)
+        >>> plate = wm.box((2, 2, 0.6)) - wm.cylinder(r)
+        >>> plate.params
+        {'r': <Param r = 0.2 in [0.05, 0.28]>}
+        """
+        return self.field.params
+
+    def with_params(self, values=None, /, **more) -> "Shape":
+        """The shape with new parameter values (a mapping and/or keywords).
+
+        Same structure, other constants: its tape is the original's with a new constant
+        array (no compile). Raises ValueError for an unknown name or a value outside the
+        parameter's [lo, hi].
+
+        Example
+        -------
+        >>> import warpmesh as wm
+        >>> ball = wm.sphere(wm.param("r", 0.5, lo=0.1, hi=1.0))
+        >>> round(float(ball.with_params(r=0.25)(0, 0, 0)), 6), round(float(ball(0, 0, 0)), 6)
+        (0.25, 0.5)
+        """
+        return Shape(self.field.with_params(values, **more), self.exact)
 
     @property
     def dim(self) -> int:
@@ -163,31 +279,41 @@ class Shape:
         return Shape((float(other) if _is_number(other) else _field_operand(other, "/")) / self.field)
 
     # -- transforms (substitute the inverse map into the field) --------------------
-    def _mapped(self, lin: np.ndarray, off: np.ndarray, scale: float, exact: bool) -> "Shape":
-        """Shape whose field at p is ``scale * f(lin @ p + off)``."""
+    def _mapped(self, lin: np.ndarray, off: np.ndarray, scale, exact: bool) -> "Shape":
+        """Shape whose field at p is ``scale * f(lin @ p + off)`` (entries numbers, or
+        expressions of parameters)."""
         x, y, z = E.coords()
         c = (x, y, z)
         new = []
         for row, o in zip(lin, off):
+            if isinstance(o, Expr) or any(isinstance(v, Expr) for v in row):
+                new.append(as_expr(_lin([(v, var) for v, var in zip(row, c)], o)))
+                continue
             term = as_expr(float(o))
             for coef, var in zip(row, c):
                 if coef != 0.0:
                     term = term + var * float(coef)
             new.append(term)
         field = self.field.substitute(*new)
+        if isinstance(scale, Expr):
+            return Shape(field * scale, exact)
         return Shape(field * scale if scale != 1.0 else field, exact)
 
     def translate(self, offset) -> "Shape":
-        """Move by ``offset`` (3 values, or 2 for a planar shape). Keeps a signed distance exact."""
+        """Move by ``offset`` (3 values, or 2 for a planar shape; numbers or parameters).
+        Keeps a signed distance exact."""
         t = _vec3(offset, "offset", fill=self._fill(0.0))
         return self._mapped(np.eye(3), -t, 1.0, self.exact)
 
     def rotate(self, angle: float, axis=(0.0, 0.0, 1.0), about=(0.0, 0.0, 0.0)) -> "Shape":
-        """Rotate by ``angle`` radians about the line through ``about`` along ``axis``."""
+        """Rotate by ``angle`` radians (a number or a parameter) about the line through
+        ``about`` along ``axis``."""
+        if isinstance(angle, Param) or _has_param(about):
+            return self._rotate_param(angle, axis, about)
         angle = float(angle)
         if not math.isfinite(angle):
             raise ValueError(f"expected a finite 'angle' (radians), got {angle!r}")
-        a = _vec3(axis, "axis") if not isinstance(axis, str) else np.eye(3)[_axis_index(axis)]
+        a = _vec3(axis, "axis", params=False) if not isinstance(axis, str) else np.eye(3)[_axis_index(axis)]
         n = np.linalg.norm(a)
         if n == 0:
             raise ValueError("expected a non-zero 'axis', got (0, 0, 0)")
@@ -198,8 +324,37 @@ class Shape:
         inv = rot.T  # p -> R^T (p - c) + c
         return self._mapped(inv, c - inv @ c, 1.0, self.exact)
 
+    def _rotate_param(self, angle, axis, about) -> "Shape":
+        """``rotate`` with parameters: R = I + sin(t) K + (1 - cos(t)) K² as expressions."""
+        angle = _number(angle, "angle")
+        a = _vec3(axis, "axis", params=False) if not isinstance(axis, str) else np.eye(3)[_axis_index(axis)]
+        n = np.linalg.norm(a)
+        if n == 0:
+            raise ValueError("expected a non-zero 'axis', got (0, 0, 0)")
+        a = a / n
+        c = _vec3(about, "about", fill=self._fill(0.0))
+        k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+        kk = k @ k
+        if isinstance(angle, Expr):
+            sin_t, one_cos = E.sin(angle), 1.0 - E.cos(angle)
+        else:
+            sin_t, one_cos = math.sin(angle), 1.0 - math.cos(angle)
+        # inv = R^T: entry (i, j) = I[j, i] + sin K[j, i] + (1 - cos) KK[j, i]
+        inv = [[_lin([(float(k[j, i]), sin_t), (float(kk[j, i]), one_cos)], float(i == j)) for j in range(3)]
+               for i in range(3)]
+        off = [_lin([(-1.0, _lin([(inv[i][j], c[j]) for j in range(3)]))], c[i]) for i in range(3)]
+        return self._mapped(inv, off, 1.0, self.exact)
+
     def scale(self, factor, about=(0.0, 0.0, 0.0)) -> "Shape":
-        """Scale by a number (keeps a distance exact) or by 3 factors (a bound only)."""
+        """Scale by a number (keeps a distance exact) or by 3 factors (a bound only);
+        numbers or parameters (a parameter factor needs lo > 0)."""
+        if _has_param(factor) or _has_param(about):
+            s = _vec3(factor, "factor", positive=True, fill=self._fill("min"))
+            c = _vec3(about, "about", fill=self._fill(0.0))
+            inv = [[(1.0 / s[i] if i == j else 0.0) for j in range(3)] for i in range(3)]
+            off = [_lin([(-1.0, inv[i][i] * c[i] if not (_zero(c[i])) else 0.0)], c[i]) for i in range(3)]
+            iso = all(v is s[0] for v in s)
+            return self._mapped(inv, off, _min_of(list(s)) if not iso else s[0], self.exact and iso)
         s = _vec3(factor, "factor", positive=True, fill=self._fill("min"))
         c = _vec3(about, "about", fill=self._fill(0.0))
         inv = np.diag(1.0 / s)
@@ -208,12 +363,15 @@ class Shape:
 
     def mirror(self, normal=(1.0, 0.0, 0.0), point=(0.0, 0.0, 0.0)) -> "Shape":
         """Reflect through the plane with ``normal`` through ``point``."""
-        nrm = _vec3(normal, "normal", fill=self._fill(0.0))
+        nrm = _vec3(normal, "normal", fill=self._fill(0.0), params=False)
         if not np.any(nrm):
             raise ValueError("expected a non-zero 'normal', got (0, 0, 0)")
         nrm = nrm / np.linalg.norm(nrm)
         h = np.eye(3) - 2.0 * np.outer(nrm, nrm)
         c = _vec3(point, "point", fill=self._fill(0.0))
+        if c.dtype == object:
+            off = [_lin([(-float(h[i, j]), c[j]) for j in range(3)], c[i]) for i in range(3)]
+            return self._mapped(h, off, 1.0, self.exact)
         return self._mapped(h, c - h @ c, 1.0, self.exact)
 
     def affine(self, matrix, offset=(0.0, 0.0, 0.0)) -> "Shape":
@@ -234,7 +392,7 @@ class Shape:
         sv = np.linalg.svd(m, compute_uv=False)
         if sv.min() <= 1e-12 * max(sv.max(), 1e-300):
             raise ValueError("expected an invertible 'matrix', got a singular one")
-        t = _vec3(offset, "offset")
+        t = _vec3(offset, "offset", params=False)
         inv = np.linalg.inv(m)
         similar = bool(np.isclose(sv.min(), sv.max()))
         return self._mapped(inv, -inv @ t, float(sv.min()), self.exact and similar)
@@ -336,7 +494,7 @@ def _frame(axis: str):
 
 def _centered(shape: Shape, center) -> Shape:
     c = _vec3(center, "center")
-    return shape.translate(c) if np.any(c) else shape
+    return shape.translate(c) if any(not _zero(v) for v in c) else shape
 
 
 def sphere(radius: float = 1.0, center=(0.0, 0.0, 0.0)) -> Shape:
@@ -375,16 +533,26 @@ def cone(radius: float = 1.0, height: float = 1.0, axis: str = "z", center=(0.0,
     the distance to the side and to the base plane, combined with min)."""
     r, hgt = _positive(radius, "radius"), _positive(height, "height")
     u, v, w = _frame(axis)
-    cos_t = hgt / math.hypot(r, hgt)
+    if isinstance(r, Expr) or isinstance(hgt, Expr):
+        cos_t = hgt / E.sqrt(as_expr(r) * r + as_expr(hgt) * hgt)
+    else:
+        cos_t = hgt / math.hypot(r, hgt)
     side = ((hgt - w) * (r / hgt) - E.sqrt(u * u + v * v)) * cos_t
     return _centered(Shape(E.min(side, w), False), center)
+
+
+def _check_radii(small, big) -> None:
+    """minor < major, over the whole ranges of parameters."""
+    hi_small = small.hi if isinstance(small, Param) else small
+    lo_big = big.lo if isinstance(big, Param) else big
+    if hi_small >= lo_big:
+        raise ValueError(f"expected minor < major (for every parameter value), got minor={small!r}, major={big!r}")
 
 
 def torus(major: float = 1.0, minor: float = 0.25, axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
     """Torus around ``axis`` with radii ``major`` > ``minor`` (exact)."""
     big, small = _positive(major, "major"), _positive(minor, "minor")
-    if small >= big:
-        raise ValueError(f"expected minor < major, got minor={small}, major={big}")
+    _check_radii(small, big)
     u, v, w = _frame(axis)
     q = E.sqrt(u * u + v * v) - big
     return _centered(Shape(small - E.sqrt(q * q + w * w), True), center)
@@ -395,18 +563,21 @@ def ellipsoid(semi_axes=(1.0, 0.5, 0.25), center=(0.0, 0.0, 0.0)) -> Shape:
     a = _vec3(semi_axes, "semi_axes", positive=True)
     x, y, z = E.coords()
     rho = E.sqrt((x * (1 / a[0])) ** 2 + (y * (1 / a[1])) ** 2 + (z * (1 / a[2])) ** 2)
+    if a.dtype == object:  # parameters: the smallest axis and exactness as expressions / structure
+        return _centered(Shape((1.0 - rho) * _min_of(list(a)), all(v is a[0] for v in a)), center)
     return _centered(Shape((1.0 - rho) * float(a.min()), bool(np.all(a == a[0]))), center)
 
 
 def halfspace(normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0)) -> Shape:
     """Half-space behind the plane through ``point`` with outward ``normal`` (exact)."""
-    n = _vec3(normal, "normal")
+    n = _vec3(normal, "normal", params=False)
     if not np.any(n):
         raise ValueError("expected a non-zero 'normal', got (0, 0, 0)")
     n = n / np.linalg.norm(n)
     p = _vec3(point, "point")
     x, y, z = E.coords()
-    return Shape(float(n @ p) - (x * n[0] + y * n[1] + z * n[2]), True)
+    level = _lin([(float(n[i]), p[i]) for i in range(3)]) if p.dtype == object else float(n @ p)
+    return Shape(level - (x * n[0] + y * n[1] + z * n[2]), True)
 
 
 def capsule(a=(0.0, 0.0, -0.5), b=(0.0, 0.0, 0.5), radius: float = 0.25) -> Shape:
@@ -414,6 +585,15 @@ def capsule(a=(0.0, 0.0, -0.5), b=(0.0, 0.0, 0.5), radius: float = 0.25) -> Shap
     pa, pb = _vec3(a, "a"), _vec3(b, "b")
     r = _positive(radius, "radius")
     ba = pb - pa
+    if pa.dtype == object or pb.dtype == object:  # parameters: ba and |ba|² as expressions
+        ll = _lin([(v, v) for v in ba])
+        if not isinstance(ll, Expr) and ll == 0:
+            raise ValueError("expected distinct end points 'a' and 'b'")
+        x, y, z = E.coords()
+        d = [x - pa[0], y - pa[1], z - pa[2]]
+        t = E.min(E.max(_lin([(d[i], ba[i]) for i in range(3)]) * (1.0 / ll), 0.0), 1.0)
+        q = [d[i] - _lin([(t, ba[i])]) for i in range(3)]
+        return Shape(r - E.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2), True)
     ll = float(ba @ ba)
     if ll == 0:
         raise ValueError("expected distinct end points 'a' and 'b'")
@@ -434,11 +614,11 @@ def superquadric(semi_axes=(1.0, 1.0, 1.0), e1: float = 0.5, e2: float = 0.5,
     gradient grows towards sqrt(3) at e = 2 and is unbounded near the axes for e > 2).
     """
     a = _vec3(semi_axes, "semi_axes", positive=True)
-    e1, e2 = _positive(e1, "e1"), _positive(e2, "e2")
+    e1, e2 = _positive(_literal(e1, "e1"), "e1"), _positive(_literal(e2, "e2"), "e2")
     x, y, z = E.coords()
     xy = (abs(x * (1 / a[0])) ** (2 / e2) + abs(y * (1 / a[1])) ** (2 / e2)) ** (e2 / e1)
     big_f = xy + abs(z * (1 / a[2])) ** (2 / e1)
-    return _centered(Shape((1.0 - big_f ** (e1 / 2)) * float(a.min())), center)
+    return _centered(Shape((1.0 - big_f ** (e1 / 2)) * _min_of(list(a))), center)
 
 
 def supertorus(major: float = 1.0, minor: float = 0.3, e1: float = 0.5, e2: float = 0.5,
@@ -447,9 +627,8 @@ def supertorus(major: float = 1.0, minor: float = 0.3, e1: float = 0.5, e2: floa
     are superellipses. e1 = e2 = 1 gives the exact torus; a bound (|∇f| ≤ 1) for
     e1, e2 ≤ 1; for larger exponents only the sign is meaningful."""
     big, small = _positive(major, "major"), _positive(minor, "minor")
-    if small >= big:
-        raise ValueError(f"expected minor < major, got minor={small}, major={big}")
-    e1, e2 = _positive(e1, "e1"), _positive(e2, "e2")
+    _check_radii(small, big)
+    e1, e2 = _positive(_literal(e1, "e1"), "e1"), _positive(_literal(e2, "e2"), "e2")
     u, v, w = _frame(axis)
     rho = (abs(u) ** (2 / e2) + abs(v) ** (2 / e2)) ** (e2 / 2)
     big_f = abs((rho - big) * (1 / small)) ** (2 / e1) + abs(w * (1 / small)) ** (2 / e1)

@@ -22,18 +22,18 @@ import math
 import numpy as np
 
 from warpmesh.frep import expr as E
-from warpmesh.frep.shapes import Shape, _positive, _vector
+from warpmesh.frep.shapes import Shape, _lin, _min_of, _positive, _vector, _zero
 
 __all__ = ["circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "cassini"]
 
 
-def _vec2(value, name: str, *, positive: bool = False) -> np.ndarray:
-    return _vector(value, name, 2, positive=positive)
+def _vec2(value, name: str, *, positive: bool = False, params: bool = True) -> np.ndarray:
+    return _vector(value, name, 2, positive=positive, params=params)
 
 
 def _placed(shape: Shape, center) -> Shape:
     c = _vec2(center, "center")
-    return shape.translate((c[0], c[1], 0.0)) if np.any(c) else shape
+    return shape.translate((c[0], c[1], 0.0)) if any(not _zero(v) for v in c) else shape
 
 
 def circle(radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
@@ -49,6 +49,8 @@ def ellipse(semi_axes=(1.0, 0.5), center=(0.0, 0.0)) -> Shape:
     a = _vec2(semi_axes, "semi_axes", positive=True)
     x, y = E.coords(2)
     rho = E.sqrt((x * (1 / a[0])) ** 2 + (y * (1 / a[1])) ** 2)
+    if a.dtype == object:  # parameters (wm.param)
+        return _placed(Shape((1.0 - rho) * _min_of(list(a)), a[0] is a[1]), center)
     return _placed(Shape((1.0 - rho) * float(a.min()), bool(a[0] == a[1])), center)
 
 
@@ -64,13 +66,14 @@ def rectangle(size=(1.0, 1.0), center=(0.0, 0.0)) -> Shape:
 
 def halfplane(normal=(0.0, 1.0), point=(0.0, 0.0)) -> Shape:
     """Half-plane behind the line through ``point`` with outward ``normal`` (exact)."""
-    n = _vec2(normal, "normal")
+    n = _vec2(normal, "normal", params=False)
     if not np.any(n):
         raise ValueError("expected a non-zero 'normal', got (0, 0)")
     n = n / np.linalg.norm(n)
     p = _vec2(point, "point")
     x, y = E.coords(2)
-    return Shape(float(n @ p) - (x * n[0] + y * n[1]), True)
+    level = _lin([(float(n[0]), p[0]), (float(n[1]), p[1])]) if p.dtype == object else float(n @ p)
+    return Shape(level - (x * n[0] + y * n[1]), True)
 
 
 def regular_polygon(n: int, radius: float = 1.0, center=(0.0, 0.0)) -> Shape:

@@ -23,7 +23,7 @@ import warp as wp
 
 from warpmesh.frep.codegen import EVALUATORS, Evaluator, generated_kernel
 from warpmesh._util.parallel import parallel_ranges, run_parallel
-from warpmesh.frep.expr import Expr, last_uses
+from warpmesh.frep.expr import Expr, Param, check_values, last_uses, origin
 from warpmesh.frep.shapes import as_shape
 from warpmesh.kernels import opcodes as O
 from warpmesh.kernels import tape as K
@@ -34,16 +34,55 @@ CHUNK_POINTS = {True: 1 << 18, False: 1 << 20}  # points per launch, CPU / GPU (
 
 @dataclass
 class Tape:
-    """A compiled shape: ``code`` (n, 4) int32 rows (op, dst, a, b), ``imm`` (n,) float32."""
+    """A compiled shape: ``code`` (n, 4) int32 rows (op, dst, a, b), ``imm`` (n,) float32.
+
+    ``params`` maps each parameter's name (:func:`warpmesh.param`) to its CONST row: its
+    value is ``imm[row]``. :meth:`with_values` makes the tape of other values, sharing
+    ``code`` (so the interpreter and a generated kernel of the structure both run it at once).
+
+    Example
+    -------
+    >>> import warpmesh as wm
+    >>> tape = wm.compile_tape(wm.sphere(wm.param("r", 0.5, lo=0.1, hi=1.0)))
+    >>> edited = tape.with_values({"r": 0.75})
+    >>> edited.code is tape.code, float(edited.imm[edited.params["r"]]), float(tape.imm[tape.params["r"]])
+    (True, 0.75, 0.5)
+    """
 
     code: np.ndarray
     imm: np.ndarray
     n_registers: int
     output: int
     _device_cache: dict = field(default_factory=dict, repr=False)
+    params: dict = field(default_factory=dict)  # name -> row of its CONST instruction
+    param_nodes: dict = field(default_factory=dict, repr=False)  # name -> Param: its [lo, hi]
 
     def __len__(self) -> int:
         return len(self.code)
+
+    def values(self) -> dict[str, float]:
+        """The current parameter values, by name (float32, as the kernels read them)."""
+        return {name: float(self.imm[row]) for name, row in self.params.items()}
+
+    def with_values(self, values) -> "Tape":
+        """The same tape with new parameter values: ``code`` shared, ``imm`` copied.
+
+        Parameters
+        ----------
+        values : mapping of str to float
+            New values of some parameters; each within its [lo, hi].
+
+        Raises
+        ------
+        ValueError
+            An unknown name or a value outside the parameter's range.
+        """
+        checked = check_values(self.param_nodes, values)
+        imm = self.imm.copy()
+        for name, v in checked.items():
+            imm[self.params[name]] = v
+        return Tape(self.code, imm, self.n_registers, self.output, params=self.params,
+                    param_nodes=self.param_nodes)
 
     def arrays(self, device="cpu"):
         """(code, imm) as Warp arrays on ``device``, uploaded once per device."""
@@ -83,6 +122,8 @@ def compile_tape(shape) -> Tape:
     index, last_use = last_uses(nodes)
     last_use[-1] = len(nodes)  # the output lives to the end
 
+    params: dict[str, int] = {}
+    param_nodes: dict[str, Param] = {}
     reg_of: dict[int, int] = {}
     free: list[int] = []
     n_regs = 0
@@ -100,19 +141,32 @@ def compile_tape(shape) -> Tape:
         reg_of[id(n)] = dst
         code[i] = (n.op, dst, srcs[0], srcs[1])
         imm[i] = n.imm
-    return Tape(code, imm, max(n_regs, 1), reg_of[id(root)])
+        if isinstance(n, Param):
+            if n.name in params:
+                raise ValueError(f"two different parameters are named {n.name!r} ({param_nodes[n.name]!r} "
+                                 f"and {n!r}); give each parameter one wm.param(...) and reuse it")
+            params[n.name], param_nodes[n.name] = i, n
+    return Tape(code, imm, max(n_regs, 1), reg_of[id(root)], params=params, param_nodes=param_nodes)
 
 
 _TAPE_CACHE: dict[int, tuple] = {}
 
 
 def tape_of(shape) -> Tape:
-    """Compile once per expression object (expressions are immutable and hash-consed)."""
+    """Compile once per expression object (expressions are immutable and hash-consed).
+
+    An expression bound to new parameter values (:meth:`Expr.with_params`) gets the tape
+    of the expression it was bound from with other constants: ``code`` shared, no compile.
+    """
     root = shape if isinstance(shape, Expr) else as_shape(shape).field
     hit = _TAPE_CACHE.get(id(root))
     if hit is not None and hit[0] is root:
         return hit[1]
-    tape = compile_tape(root)
+    bound = origin(root)
+    if bound is not None:  # new parameter values of a known structure: data only, no compile
+        tape = tape_of(bound[0]).with_values(bound[1])
+    else:
+        tape = compile_tape(root)
     if len(_TAPE_CACHE) > 64:
         _TAPE_CACHE.clear()
     _TAPE_CACHE[id(root)] = (root, tape)

@@ -68,6 +68,7 @@ def mesh_surface(
     covering: Literal["grid", "continuation"] | None = None,
     adaptive: bool = False,
     device: str = C.DEFAULT_DEVICE,
+    params: dict | None = None,
     **keywords,
 ) -> Mesh:
     """Triangulate the surface f = 0 of a shape, or an iso-surface of a sampled volume.
@@ -107,6 +108,10 @@ def mesh_surface(
         edges and corners.
     device : str
         Warp device ("cpu" or "cuda").
+    params : dict of str to float, optional
+        For a shape: values of its parameters (:func:`warpmesh.param`) for this run;
+        the tape's constants change, not its structure (no compile). An unknown name
+        or a value outside the parameter's [lo, hi] raises ValueError.
     **keywords
         The fields of the chosen pipeline's group, by name. A keyword given as None
         takes its default. A keyword of another pipeline raises one ValueError that
@@ -160,6 +165,10 @@ def mesh_surface(
     ValueError: 'level' does not apply to a shape on a grid ('level' is an option of a volume); GridOptions ...
     """
     t_start = time.perf_counter()
+    if params is not None:
+        if not isinstance(source, (Shape, Expr)):
+            raise TypeError(f"'params' sets the parameters of a shape, got {type(source).__name__} for 'source'")
+        source = source.with_params(params)
     if options is None:
         options = _options_from_keywords(source, covering, adaptive, keywords)
     else:

@@ -1,0 +1,67 @@
+"""Preview: the edit loop pays its set-up once; each update is a fresh mesh_surface's mesh."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from warpmesh.preview.instrument import count_module_loads
+from tests.preview.test_params import BOUNDS, part_of
+
+
+@pytest.fixture(scope="module")
+def preview():
+    r, boss = wm.param("r", 0.2, lo=0.05, hi=0.28), wm.param("boss", 0.5, lo=0.3, hi=0.7)
+    return wm.Preview(part_of(r, boss), bounds=BOUNDS, resolution=48)
+
+
+def test_fifty_edits_load_no_warp_module(preview):
+    rng = np.random.default_rng(7)
+    with count_module_loads() as counts:
+        for _ in range(50):
+            preview.update(r=float(rng.uniform(0.05, 0.28)), boss=float(rng.uniform(0.3, 0.7)))
+    assert (counts.loads, counts.compiles) == (0, 0), counts.modules
+    assert len(preview.timings) >= 50
+
+
+def test_the_counter_sees_a_load():
+    import warp as wp
+
+    from tests.preview import _counted_kernels as K
+
+    with count_module_loads() as counts:
+        out = wp.zeros(4, dtype=wp.float32, device="cpu")
+        wp.launch(K.fill_kernel, dim=4, inputs=[2.5], outputs=[out], device="cpu")
+    assert counts.loads == 1 and counts.modules == [K.__name__], counts
+    assert out.numpy().tolist() == [2.5] * 4
+
+
+@pytest.mark.parametrize("values", [{"r": 0.09, "boss": 0.66}, {"r": 0.27}, {"boss": 0.31}])
+def test_update_equals_a_fresh_mesh_of_plain_numbers(preview, values):
+    mesh = preview.update(**values)
+    current = dict(preview.values)
+    fresh = wm.mesh_surface(part_of(current["r"], current["boss"]), bounds=BOUNDS, resolution=48,
+                            evaluator="interpreter")
+    np.testing.assert_array_equal(mesh.triangles, fresh.triangles)
+    np.testing.assert_array_equal(mesh.points, fresh.points)
+    assert mesh is preview.mesh and mesh.stats()["euler"] == -6
+
+
+def test_update_changes_the_mesh_where_the_shape_changed(preview):
+    small = preview.update(r=0.06, boss=0.35)
+    big = preview.update(r=0.27, boss=0.69)
+    # the boss top moves from z = 0.35 to z = 0.69
+    assert small.points[:, 2].max() == pytest.approx(0.35, abs=0.06)
+    assert big.points[:, 2].max() == pytest.approx(0.69, abs=0.06)
+
+
+def test_bad_updates_are_named(preview):
+    before = dict(preview.values)
+    with pytest.raises(ValueError, match="Unknown parameter 'radius' in 'values'"):
+        preview.update(radius=0.1)
+    with pytest.raises(ValueError, match=r"expected a value in \[0.3, 0.7\] for parameter 'boss'"):
+        preview.update(boss=0.8)
+    assert preview.values == before
+    with pytest.raises(ValueError, match="Unknown evaluator 'auto'"):
+        wm.Preview(wm.sphere(1.0), bounds=BOUNDS, resolution=8, evaluator="auto")

@@ -1,0 +1,234 @@
+"""Showing a mesh: an off-screen PNG (pyvista), a self-contained WebGL page, notebook output.
+
+- :func:`render_png`: pyvista/VTK off-screen (EGL or OSMesa where there is no display;
+  ``pyvista.OFF_SCREEN`` is set), returned as a :class:`RenderedImage` (PNG bytes, an
+  RGB array, ``_repr_png_`` for notebooks).
+- :func:`mesh_html` / :func:`write_html`: one HTML file holding the mesh (base64 float32
+  points, uint32 triangles) and the WebGL viewer of :mod:`warpmesh.preview.viewer`; it
+  fetches nothing, so it opens offline and in a headless browser. Why this route rather
+  than pyvista's ``export_html`` (trame, vtk.js) is argued in that module's docstring.
+- :func:`mesh_mimebundle`: what ``Mesh._repr_mimebundle_`` shows in Jupyter (the page in
+  an iframe, so its script runs isolated), with a text fallback.
+
+Example
+-------
+>>> import warpmesh as wm
+>>> from warpmesh.preview.render import mesh_html
+>>> page = mesh_html(wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8))
+>>> page.startswith("<!DOCTYPE html>"), "createWarpmeshViewer" in page, "http" in page.split("<script>")[1]
+(True, True, False)
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from warpmesh.cells.types import require_mesh
+from warpmesh.preview.viewer import VIEWER_JS
+
+#: above this many triangles the notebook shows text, not the page (it would be megabytes)
+MAX_INLINE_TRIANGLES = 2_000_000
+DEFAULT_COLOR = (0.55, 0.72, 0.9)
+
+
+def surface_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """(points (n, 3) float32, triangles (m, 3) uint32) to draw: the triangle cells, or
+    the boundary surface of any other cells (through pyvista)."""
+    require_mesh(mesh)
+    pts = np.asarray(mesh.points, dtype=np.float64)
+    if pts.shape[1] == 2:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    if "triangle" in mesh.cells:
+        tri = np.asarray(mesh.cells["triangle"])
+    else:
+        surf = mesh.to_pyvista().extract_surface().triangulate()
+        pts, tri = np.asarray(surf.points, np.float64), np.asarray(surf.faces).reshape(-1, 4)[:, 1:]
+    return np.ascontiguousarray(pts, np.float32), np.ascontiguousarray(tri, np.uint32)
+
+
+def _b64(arr: np.ndarray) -> str:
+    return base64.b64encode(np.ascontiguousarray(arr).astype(arr.dtype.newbyteorder("<")).tobytes()).decode()
+
+
+def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str = "100vh") -> str:
+    """A self-contained HTML page drawing ``mesh`` with WebGL.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Triangles are drawn as they are; other cells by their boundary surface.
+    title : str
+        The page title, also shown in its corner.
+    color : 3 floats in [0, 1]
+        Surface colour.
+    height : str
+        CSS height of the view.
+
+    Returns
+    -------
+    str
+        The page (about 16 bytes per triangle plus 7 KB).
+    """
+    pts, tri = surface_arrays(mesh)
+    col = [float(c) for c in color]
+    if len(col) != 3 or not all(0.0 <= c <= 1.0 for c in col):
+        raise ValueError(f"expected 3 values in [0, 1] for 'color', got {color!r}")
+    esc = html.escape(title)
+    return f"""<!DOCTYPE html>
+<html><head><meta charset="utf-8"><title>{esc}</title>
+<style>html,body{{margin:0;height:100%;background:#fff;overflow:hidden}}
+#view{{width:100%;height:{html.escape(height)};display:block}}
+#label{{position:absolute;left:8px;top:6px;font:12px sans-serif;color:#555}}</style></head>
+<body><canvas id="view"></canvas><div id="label">{esc} &middot; {len(pts)} points, {len(tri)} triangles</div>
+<script>{VIEWER_JS}
+(function () {{
+  function decode(s, T) {{ const b = atob(s), u = new Uint8Array(b.length);
+    for (let i = 0; i < b.length; i++) u[i] = b.charCodeAt(i); return new T(u.buffer); }}
+  const viewer = createWarpmeshViewer(document.getElementById("view"), {{color: {col}}});
+  viewer.setMesh(decode("{_b64(pts)}", Float32Array), decode("{_b64(tri)}", Uint32Array));
+  window.warpmeshViewer = viewer;
+}})();
+</script></body></html>
+"""
+
+
+def write_html(mesh, path, *, title: str = "warpmesh", color=DEFAULT_COLOR) -> str:
+    """Write :func:`mesh_html` to ``path`` atomically (a temporary file, then a rename).
+
+    Example
+    -------
+    >>> import os, tempfile, warpmesh as wm
+    >>> mesh = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8)
+    >>> path = write_html(mesh, os.path.join(tempfile.mkdtemp(), "ball.html"))
+    >>> os.path.getsize(path) > 1000
+    True
+    """
+    path = Path(path)
+    if path.suffix.lower() not in (".html", ".htm"):
+        raise ValueError(f"expected a .html path for 'path', got {str(path)!r}")
+    text = mesh_html(mesh, title=title, color=color)
+    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return str(path)
+
+
+class RenderedImage:
+    """An off-screen picture: ``png`` (bytes), ``array`` ((h, w, 3) uint8); shows itself in
+    notebooks (``_repr_png_``); ``save(path)`` writes the PNG."""
+
+    def __init__(self, array: np.ndarray):
+        from PIL import Image
+
+        self.array = np.ascontiguousarray(array[..., :3], dtype=np.uint8)
+        buf = io.BytesIO()
+        Image.fromarray(self.array).save(buf, format="PNG")
+        self.png = buf.getvalue()
+
+    def save(self, path) -> str:
+        path = Path(path)
+        if path.suffix.lower() != ".png":
+            raise ValueError(f"expected a .png path for 'path', got {str(path)!r}")
+        fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.")
+        with os.fdopen(fd, "wb") as f:
+            f.write(self.png)
+        os.replace(tmp, path)
+        return str(path)
+
+    def _repr_png_(self) -> bytes:
+        return self.png
+
+    def __repr__(self):
+        h, w = self.array.shape[:2]
+        return f"<RenderedImage {w}x{h} PNG, {len(self.png)} bytes>"
+
+
+def _headless_vtk() -> None:
+    """Off-screen rendering without an X display: VTK's EGL window (falls back to OSMesa)."""
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, show_edges: bool = False,
+               camera=None) -> RenderedImage:
+    """Render ``mesh`` off-screen with pyvista; write a PNG when ``path`` is given.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    path : str or Path, optional
+        A .png file to write (atomically).
+    window_size : (int, int)
+        Width and height in pixels.
+    color : 3 floats in [0, 1]
+    show_edges : bool
+        Draw the triangle edges.
+    camera : str or list, optional
+        A pyvista camera position ("iso", "xy", ... or [(pos), (focus), (up)]); default: an
+        isometric view of the mesh.
+
+    Returns
+    -------
+    RenderedImage
+    """
+    w, h = (int(v) for v in window_size)
+    if w <= 0 or h <= 0:
+        raise ValueError(f"expected a positive 'window_size', got {window_size!r}")
+    pts, tri = surface_arrays(mesh)
+    _headless_vtk()
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    surf = pv.PolyData(pts.astype(np.float64), np.column_stack([np.full(len(tri), 3), tri]).ravel())
+    plotter = pv.Plotter(off_screen=True, window_size=(w, h))
+    try:
+        plotter.set_background("white")
+        plotter.add_mesh(surf, color=tuple(color), show_edges=show_edges, smooth_shading=True)
+        plotter.camera_position = camera or "iso"
+        image = RenderedImage(plotter.screenshot(return_img=True))
+    finally:
+        plotter.close()
+    if path is not None:
+        image.save(path)
+    return image
+
+
+def _iframe(page: str, height: int = 420) -> str:
+    return (f'<iframe srcdoc="{html.escape(page, quote=True)}" style="width:100%;height:{height}px;border:0" '
+            'sandbox="allow-scripts"></iframe>')
+
+
+def mesh_mimebundle(mesh) -> dict:
+    """Jupyter's view of a mesh: the WebGL page in an iframe, and ``repr`` as text."""
+    bundle = {"text/plain": repr(mesh)}
+    n_tri = len(mesh.cells["triangle"]) if "triangle" in mesh.cells else 0
+    if 0 < n_tri <= MAX_INLINE_TRIANGLES or (n_tri == 0 and mesh.n_cells):
+        bundle["text/html"] = _iframe(mesh_html(mesh, height="400px"))
+    return bundle
+
+
+def preview_mimebundle(preview) -> dict:
+    """Jupyter's view of a :class:`~warpmesh.preview.session.Preview`: the widget (sliders
+    and the live view) when ipywidgets and anywidget are installed, else the current
+    mesh's page."""
+    try:
+        widget = preview.widget()
+    except ImportError:
+        bundle = mesh_mimebundle(preview.mesh)
+        bundle["text/plain"] = repr(preview)
+        return bundle
+    data = widget._repr_mimebundle_()
+    return data[0] if isinstance(data, tuple) else data

@@ -1,0 +1,93 @@
+"""The Jupyter widget of a :class:`~warpmesh.preview.session.Preview`: sliders and a live 3D view.
+
+:class:`MeshView` is an anywidget: its JavaScript (the WebGL viewer of
+:mod:`warpmesh.preview.viewer`) is sent once; afterwards a new mesh travels as two binary
+buffers (float32 points, uint32 triangles) that replace the GPU buffers in place, so the
+camera stays where the user left it. :func:`preview_widget` puts one ipywidgets slider
+per parameter (its [lo, hi]; unbounded parameters get a range around their value) above
+the view; moving a slider calls ``Preview.update`` and the view follows.
+
+Needs ``ipywidgets`` and ``anywidget`` (the ``notebooks`` extra).
+
+Example
+-------
+>>> import warpmesh as wm
+>>> r = wm.param("r", 0.2, lo=0.05, hi=0.28)
+>>> view = wm.Preview(wm.box((2, 2, 0.6)) - wm.cylinder(r), bounds=((-1.2,) * 3, (1.2,) * 3),
+...                   resolution=16, evaluator="interpreter")
+>>> box = view.widget()                  # the slider of r, the view, a status line
+>>> box.children[0].value = 0.1          # what a drag does: update(r=0.1), new buffers sent
+>>> view.values, box.children[1].version
+({'r': 0.1}, 2)
+"""
+
+from __future__ import annotations
+
+import math
+
+import anywidget
+import ipywidgets
+import traitlets
+
+from warpmesh.preview.render import surface_arrays
+from warpmesh.preview.viewer import WIDGET_ESM
+
+
+class MeshView(anywidget.AnyWidget):
+    """A WebGL view of a triangle mesh; :meth:`show_mesh` swaps its buffers, keeping the camera."""
+
+    _esm = WIDGET_ESM
+    positions = traitlets.Bytes(b"").tag(sync=True)
+    indices = traitlets.Bytes(b"").tag(sync=True)
+    version = traitlets.Int(0).tag(sync=True)
+    height = traitlets.Int(420).tag(sync=True)
+
+    def show_mesh(self, mesh) -> None:
+        """Send ``mesh``'s points and triangles (one message, then ``version`` bumped)."""
+        pts, tri = surface_arrays(mesh)
+        with self.hold_sync():
+            self.positions = pts.astype("<f4").tobytes()
+            self.indices = tri.astype("<u4").tobytes()
+            self.version += 1
+
+
+def _slider_range(p) -> tuple[float, float]:
+    lo, hi = p.lo, p.hi
+    span = max(abs(p.value), 1.0)
+    if not math.isfinite(lo):
+        lo = p.value - span if not math.isfinite(hi) else min(p.value, hi) - span
+    if not math.isfinite(hi):
+        hi = p.value + span
+    return lo, hi
+
+
+def preview_widget(preview, *, height: int = 420):
+    """A VBox: one FloatSlider per parameter, then the :class:`MeshView` of ``preview``.
+
+    The view is registered with the preview, so ``preview.update(...)`` from code also
+    refreshes it.
+    """
+    view = MeshView(height=height)
+    view.show_mesh(preview.mesh)
+    preview._views.append(view)
+    status = ipywidgets.HTML()
+
+    def show_status():
+        last = f", last update {1000 * preview.timings[-1]:.0f} ms" if preview.timings else ""
+        status.value = (f"<small>{preview.mesh.n_points} points, {preview.mesh.n_cells} triangles"
+                        f"{last}</small>")
+
+    sliders = []
+    for name, p in preview.params.items():
+        lo, hi = _slider_range(p)
+        s = ipywidgets.FloatSlider(value=preview.values[name], min=lo, max=hi, step=(hi - lo) / 200,
+                                   description=name, continuous_update=True, readout_format=".3g")
+
+        def changed(change, name=name):
+            preview.update(**{name: change["new"]})
+            show_status()
+
+        s.observe(changed, names="value")
+        sliders.append(s)
+    show_status()
+    return ipywidgets.VBox([*sliders, view, status])
