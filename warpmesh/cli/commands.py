@@ -12,6 +12,8 @@ Examples
     modify a mesh file [FG ch. 17]: see :mod:`warpmesh.cli.modify`.
 ``warpmesh curve | domain --example gear ...``
     mesh a planar curve or domain ([FG §16.3, 16.5.2]): see :mod:`warpmesh.cli.curves`.
+``warpmesh view --example part -o part.png | part.html``
+    an off-screen picture or a WebGL page of a mesh file or example: see :mod:`warpmesh.cli.view`.
 ``warpmesh info part.ply``
     prints the statistics of a mesh file.
 ``warpmesh renumber in.msh out.msh --method gibbs``
@@ -87,9 +89,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--json", action="store_true", help="print the statistics as JSON")
     from warpmesh.cli import curves as cli_curves
     from warpmesh.cli import modify as cli_modify
+    from warpmesh.cli import view as cli_view
 
     cli_modify.add_parsers(sub)
     cli_curves.add_parsers(sub)
+    cli_view.add_parsers(sub)
     i = sub.add_parser("info", help="print statistics of a mesh file")
     i.add_argument("path")
     i.add_argument("--json", action="store_true", help="print statistics as JSON")
@@ -191,6 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     import warpmesh as wm
     from warpmesh.cli import curves as cli_curves
     from warpmesh.cli import modify as cli_modify
+    from warpmesh.cli import view as cli_view
     from warpmesh.io.files import check_path
 
     try:
@@ -203,6 +208,8 @@ def main(argv: list[str] | None = None) -> int:
             return cli_modify.run(wm, args)
         if args.command in cli_curves.COMMANDS:
             return cli_curves.run(wm, args)
+        if args.command in cli_view.COMMANDS:
+            return cli_view.run(wm, args)
         if args.output:
             check_path(args.output)  # before meshing: a bad extension fails at once
         common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,

@@ -24,6 +24,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -53,11 +54,18 @@ def surface_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(pts, np.float32), np.ascontiguousarray(tri, np.uint32)
 
 
+def _umask_mode() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def _b64(arr: np.ndarray) -> str:
     return base64.b64encode(np.ascontiguousarray(arr).astype(arr.dtype.newbyteorder("<")).tobytes()).decode()
 
 
-def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str = "100vh") -> str:
+def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str = "100vh", box=None,
+              label: bool = True) -> str:
     """A self-contained HTML page drawing ``mesh`` with WebGL.
 
     Parameters
@@ -70,6 +78,11 @@ def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str
         Surface colour.
     height : str
         CSS height of the view.
+    box : ((x0, y0, z0), (x1, y1, z1)), optional
+        The box the camera frames (default: the mesh's bounding box); pages of several
+        edits of one preview framed by its bounds overlay exactly.
+    label : bool
+        Show the title and counts in the corner.
 
     Returns
     -------
@@ -81,17 +94,24 @@ def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str
     if len(col) != 3 or not all(0.0 <= c <= 1.0 for c in col):
         raise ValueError(f"expected 3 values in [0, 1] for 'color', got {color!r}")
     esc = html.escape(title)
+    opts = {"color": col}
+    if box is not None:
+        b = np.asarray(box, dtype=np.float64)
+        if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[0] >= b[1]):
+            raise ValueError(f"expected ((x0, y0, z0), (x1, y1, z1)) with lo < hi for 'box', got {box!r}")
+        opts["box"] = b.tolist()
+    text = f"{esc} &middot; {len(pts)} points, {len(tri)} triangles" if label else ""
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>{esc}</title>
 <style>html,body{{margin:0;height:100%;background:#fff;overflow:hidden}}
 #view{{width:100%;height:{html.escape(height)};display:block}}
 #label{{position:absolute;left:8px;top:6px;font:12px sans-serif;color:#555}}</style></head>
-<body><canvas id="view"></canvas><div id="label">{esc} &middot; {len(pts)} points, {len(tri)} triangles</div>
+<body><canvas id="view"></canvas><div id="label">{text}</div>
 <script>{VIEWER_JS}
 (function () {{
   function decode(s, T) {{ const b = atob(s), u = new Uint8Array(b.length);
     for (let i = 0; i < b.length; i++) u[i] = b.charCodeAt(i); return new T(u.buffer); }}
-  const viewer = createWarpmeshViewer(document.getElementById("view"), {{color: {col}}});
+  const viewer = createWarpmeshViewer(document.getElementById("view"), {json.dumps(opts)});
   viewer.setMesh(decode("{_b64(pts)}", Float32Array), decode("{_b64(tri)}", Uint32Array));
   window.warpmeshViewer = viewer;
 }})();
@@ -99,7 +119,7 @@ def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str
 """
 
 
-def write_html(mesh, path, *, title: str = "warpmesh", color=DEFAULT_COLOR) -> str:
+def write_html(mesh, path, *, title: str = "warpmesh", color=DEFAULT_COLOR, box=None, label: bool = True) -> str:
     """Write :func:`mesh_html` to ``path`` atomically (a temporary file, then a rename).
 
     Example
@@ -113,11 +133,12 @@ def write_html(mesh, path, *, title: str = "warpmesh", color=DEFAULT_COLOR) -> s
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):
         raise ValueError(f"expected a .html path for 'path', got {str(path)!r}")
-    text = mesh_html(mesh, title=title, color=color)
+    text = mesh_html(mesh, title=title, color=color, box=box, label=label)
     fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
+        os.chmod(tmp, _umask_mode())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -145,6 +166,7 @@ class RenderedImage:
         fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.")
         with os.fdopen(fd, "wb") as f:
             f.write(self.png)
+        os.chmod(tmp, _umask_mode())
         os.replace(tmp, path)
         return str(path)
 

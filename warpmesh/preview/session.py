@@ -136,12 +136,13 @@ class Preview:
 
         return preview_widget(self)
 
-    def export_html(self, path) -> str:
-        """Write the current mesh as a self-contained WebGL page (see
-        :func:`warpmesh.preview.render.write_html`); returns the path."""
+    def export_html(self, path, *, label: bool = True) -> str:
+        """Write the current mesh as a self-contained WebGL page framed by the preview's
+        bounds (pages of several edits overlay), see :func:`warpmesh.preview.render.write_html`;
+        returns the path."""
         from warpmesh.preview.render import write_html
 
-        return write_html(self.mesh, path, title=self._title())
+        return write_html(self.mesh, path, title=self._title(), box=self.bounds, label=label)
 
     def plot(self, path=None, **kwargs):
         """An off-screen picture of the current mesh (see :meth:`warpmesh.Mesh.plot`)."""

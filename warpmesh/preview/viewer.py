@@ -14,9 +14,10 @@ inlines it with the mesh as base64 float32/uint32 buffers (about 16 bytes per tr
 the widget ships it once as an anywidget module and then sends only the buffers, so a
 new mesh replaces the buffers in place and the camera stays where the user left it.
 
-``VIEWER_JS`` defines ``createWarpmeshViewer(canvas, options)``, which returns an
-object with ``setMesh(positions: Float32Array, indices: Uint32Array)``, ``fit()`` and
-``draw()``.
+``VIEWER_JS`` defines ``createWarpmeshViewer(canvas, options)`` (options: ``color``,
+``background``, ``box`` = [lo, hi] to frame instead of the first mesh's bounding box),
+which returns an object with ``setMesh(positions: Float32Array, indices: Uint32Array)``,
+``fit()`` and ``draw()``.
 
 Example
 -------
@@ -61,6 +62,12 @@ function createWarpmeshViewer(canvas, options) {
                color: gl.getUniformLocation(prog, "color")};
   const buf = {pos: gl.createBuffer(), nrm: gl.createBuffer(), idx: gl.createBuffer()};
   let count = 0, center = [0, 0, 0], radius = 1, fitted = false;
+  if (options.box) {  // a fixed box to frame (a preview's bounds): the camera does not follow the mesh
+    const lo = options.box[0], hi = options.box[1];
+    center = [0, 1, 2].map(j => 0.5 * (lo[j] + hi[j]));
+    radius = 0.5 * Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+    fitted = true;
+  }
   // camera: orbit angles around the centre, distance in units of the radius
   const cam = {yaw: -0.6, pitch: 0.45, dist: 2.6};
 
@@ -148,7 +155,8 @@ function render({ model, el }) {
   canvas.style.width = "100%"; canvas.style.height = (model.get("height") || 420) + "px";
   canvas.style.display = "block";
   el.appendChild(canvas);
-  const viewer = createWarpmeshViewer(canvas, {});
+  const box = model.get("box");
+  const viewer = createWarpmeshViewer(canvas, box && box.length ? {box} : {});
   // bytes arrive as DataViews; copied so the typed arrays are aligned
   const copy = v => v.buffer.slice(v.byteOffset, v.byteOffset + v.byteLength);
   function update() {

@@ -41,6 +41,7 @@ class MeshView(anywidget.AnyWidget):
     indices = traitlets.Bytes(b"").tag(sync=True)
     version = traitlets.Int(0).tag(sync=True)
     height = traitlets.Int(420).tag(sync=True)
+    box = traitlets.List([]).tag(sync=True)  # [lo, hi] framed by the camera; empty: the first mesh
 
     def show_mesh(self, mesh) -> None:
         """Send ``mesh``'s points and triangles (one message, then ``version`` bumped)."""
@@ -67,7 +68,7 @@ def preview_widget(preview, *, height: int = 420):
     The view is registered with the preview, so ``preview.update(...)`` from code also
     refreshes it.
     """
-    view = MeshView(height=height)
+    view = MeshView(height=height, box=[list(map(float, preview.bounds[0])), list(map(float, preview.bounds[1]))])
     view.show_mesh(preview.mesh)
     preview._views.append(view)
     status = ipywidgets.HTML()

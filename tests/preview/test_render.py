@@ -1,0 +1,85 @@
+"""Pictures and pages: Mesh.plot off-screen, the HTML export, the notebook bundle, ``warpmesh view``."""
+
+from __future__ import annotations
+
+import base64
+import re
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from warpmesh.cli import main
+from warpmesh.preview.render import mesh_html, mesh_mimebundle, surface_arrays
+
+BOUNDS = ((-1.2,) * 3, (1.2,) * 3)
+
+
+@pytest.fixture(scope="module")
+def ball():
+    return wm.mesh_surface(wm.sphere(1.0), bounds=BOUNDS, resolution=16)
+
+
+def test_plot_draws_the_mesh_off_screen(ball, tmp_path):
+    img = ball.plot(tmp_path / "ball.png", window_size=(160, 120))
+    assert img.array.shape == (120, 160, 3)
+    mask = np.abs(img.array.astype(int) - 255).sum(axis=2) > 30
+    assert mask[40:80, 60:100].all() and not mask[:5].any()  # the ball in the middle, white around
+    assert (tmp_path / "ball.png").read_bytes() == img.png and img._repr_png_().startswith(b"\x89PNG")
+    with pytest.raises(ValueError, match="'window_size'"):
+        ball.plot(window_size=(0, 10))
+    with pytest.raises(ValueError, match=".png"):
+        img.save(tmp_path / "ball.jpg")
+
+
+def test_html_holds_the_exact_buffers(ball):
+    page = mesh_html(ball, title="a <ball>")
+    pts, tri = surface_arrays(ball)
+    blobs = re.findall(r'decode\("([A-Za-z0-9+/=]+)"', page)
+    assert len(blobs) == 2
+    np.testing.assert_array_equal(np.frombuffer(base64.b64decode(blobs[0]), "<f4").reshape(-1, 3), pts)
+    np.testing.assert_array_equal(np.frombuffer(base64.b64decode(blobs[1]), "<u4").reshape(-1, 3), tri)
+    assert "a &lt;ball&gt;" in page and "<ball>" not in page  # the title is escaped
+    assert "src=" not in page and "http" not in page.split("<script>")[1]  # nothing fetched
+    with pytest.raises(ValueError, match="'box'"):
+        mesh_html(ball, box=((1, 1, 1), (0, 0, 0)))
+    with pytest.raises(ValueError, match="'color'"):
+        mesh_html(ball, color=(2, 0, 0))
+
+
+def test_notebook_bundles(ball):
+    bundle = ball._repr_mimebundle_()
+    assert bundle["text/plain"] == repr(ball) and "<iframe srcdoc=" in bundle["text/html"]
+    assert ball._repr_html_() == bundle["text/html"]
+    r = wm.param("r", 0.3, lo=0.1, hi=0.5)
+    view = wm.Preview(wm.sphere(r), bounds=BOUNDS, resolution=12, evaluator="interpreter")
+    data = view._repr_mimebundle_()
+    assert "application/vnd.jupyter.widget-view+json" in data
+    assert mesh_mimebundle(wm.Mesh(np.zeros((0, 3)), {"triangle": np.zeros((0, 3), int)})).keys() == {"text/plain"}
+
+
+def test_widget_follows_updates():
+    r = wm.param("r", 0.3, lo=0.1, hi=0.5)
+    view = wm.Preview(wm.sphere(r), bounds=BOUNDS, resolution=12, evaluator="interpreter")
+    box = view.widget()
+    slider, mesh_view = box.children[0], box.children[1]
+    assert (slider.min, slider.max, slider.value, slider.description) == (0.1, 0.5, 0.3, "r")
+    slider.value = 0.45
+    assert view.values == {"r": 0.45}
+    view.update(r=0.2)  # from code: the view follows too
+    assert mesh_view.version == 3
+    pts = np.frombuffer(mesh_view.positions, "<f4").reshape(-1, 3)
+    np.testing.assert_array_equal(pts, view.mesh.points.astype(np.float32))
+    assert np.linalg.norm(pts, axis=1).max() == pytest.approx(0.2, abs=0.03)
+
+
+def test_cli_view(tmp_path, capsys):
+    assert main(["view", "--example", "sphere", "--resolution", "16", "-o", str(tmp_path / "s.html")]) == 0
+    assert "createWarpmeshViewer" in (tmp_path / "s.html").read_text()
+    mesh = wm.mesh_surface(wm.sphere(1.0), bounds=BOUNDS, resolution=12)
+    mesh.save(tmp_path / "s.ply")
+    assert main(["view", str(tmp_path / "s.ply"), "-o", str(tmp_path / "s.png"), "--window-size", "64", "48"]) == 0
+    assert (tmp_path / "s.png").read_bytes().startswith(b"\x89PNG")
+    assert "s.ply" in capsys.readouterr().out
+    assert main(["view", "--example", "sphere", "-o", str(tmp_path / "s.stl")]) == 2
+    assert "'--output'" in capsys.readouterr().err

@@ -1,0 +1,69 @@
+"""The ``view`` sub-command of ``warpmesh``: a picture or a WebGL page of a mesh file or example.
+
+``-o out.png`` renders off-screen (pyvista/VTK, no display needed); ``-o out.html`` writes
+the self-contained WebGL page (:mod:`warpmesh.preview.render`); without ``-o`` the page
+goes to a temporary file whose path is printed (``--open`` opens it in the browser).
+
+Examples
+--------
+``warpmesh view --example part --resolution 96 -o part.png``
+``warpmesh view part.ply -o part.html``
+``warpmesh view --example torus --open``
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+
+COMMANDS = ("view",)
+_OUTPUTS = (".png", ".html", ".htm")
+
+
+def add_parsers(sub) -> None:
+    """Add the sub-command to the ``warpmesh`` parser's sub-parsers."""
+    from warpmesh.frep.examples import EXAMPLES
+
+    v = sub.add_parser("view", help="a picture (.png, off-screen) or a WebGL page (.html) of a mesh or example")
+    src = v.add_mutually_exclusive_group(required=True)
+    src.add_argument("path", nargs="?", help="a mesh file (any format warpmesh.load reads)")
+    src.add_argument("--example", choices=list(EXAMPLES), help="a bundled example shape, meshed first")
+    v.add_argument("--resolution", type=int, default=128, help="--example: cells along the longest side (128)")
+    v.add_argument("-o", "--output", help="out.png (off-screen picture) or out.html (WebGL page)")
+    v.add_argument("--window-size", type=int, nargs=2, default=(800, 600), metavar=("W", "H"),
+                   help="picture size in pixels (.png)")
+    v.add_argument("--edges", action="store_true", help="draw the triangle edges (.png)")
+    v.add_argument("--open", action="store_true", help="open the page in the web browser")
+    v.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
+
+
+def run(wm, args) -> int:
+    """Run ``view`` (errors propagate to the caller, which prints them)."""
+    from warpmesh.preview.render import render_png, write_html
+
+    out = args.output
+    if out is not None and os.path.splitext(out)[1].lower() not in _OUTPUTS:
+        raise ValueError(f"expected an output ending in {list(_OUTPUTS)} for '--output', got {out!r}")
+    if args.example:
+        shape, bounds = wm.example(args.example)
+        mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, device=args.device,
+                               evaluator="interpreter")
+        title = f"warpmesh {args.example} ({args.resolution})"
+    else:
+        mesh = wm.load(args.path)
+        title = os.path.basename(args.path)
+    if out is None:
+        fd, out = tempfile.mkstemp(prefix="warpmesh-view-", suffix=".html")
+        os.close(fd)
+    if out.lower().endswith(".png"):
+        render_png(mesh, out, window_size=tuple(args.window_size), show_edges=args.edges)
+    else:
+        write_html(mesh, out, title=title)
+    print(f"{title}: {mesh.n_points} points, {mesh.n_cells} cells -> {out}")
+    if args.open:
+        import webbrowser
+
+        if not webbrowser.open("file://" + os.path.abspath(out)):
+            print("warpmesh: no web browser to open; the page is at the path above", file=sys.stderr)
+    return 0
