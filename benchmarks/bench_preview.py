@@ -1,0 +1,132 @@
+#!/usr/bin/env python3
+"""Edit latency of a real-time preview: warpmesh's Preview against numpy + scikit-image.
+
+The CSG part of issue 21 (a plate with four through-holes of radius ``r`` and a boss of
+radius ``boss``, R-function booleans) is edited 50 times: both parameters drawn at random
+in their ranges (one seeded sequence, the same for every tool). For each resolution:
+
+- warpmesh: ``wm.Preview(part, bounds, resolution)`` set up once (timed apart), then
+  ``update(r=..., boss=...)``: the tape's constants change, the compiled evaluator is
+  reused; Warp module loads and compiles during the edits are counted
+  (:func:`warpmesh.preview.instrument.count_module_loads`; must be 0).
+- numpy + scikit-image: the edited shape evaluated with numpy on the same nodes
+  (float64, broadcast open axes, cast to float32) and ``skimage.measure.marching_cubes``
+  (Lewiner) on the volume: what a preview without warpmesh would do per edit.
+
+Printed per resolution: set-up time, p50 / p95 / max edit latency, triangles, and the
+ratio of the peer's p50 to warpmesh's. Acceptance (issue 21): p95 < 100 ms at 128³ on two
+cores; the banner prints the load average, since other processes skew every figure.
+
+Run:  python benchmarks/bench_preview.py [--resolutions 64,128,256] [--edits 50]
+                                          [--evaluator compiled] [--no-peer] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import _report  # noqa: E402
+
+if __name__ == "__main__":
+    _report.keep_freed_memory()
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+BOUNDS = ((-1.2,) * 3, (1.2,) * 3)
+RANGES = {"r": (0.05, 0.28), "boss": (0.3, 0.7)}
+
+
+def make_part(wm, r, boss):
+    holes = [wm.cylinder(r, axis="z").translate((sx * 0.6, sy * 0.6, 0)) for sx in (-1, 1) for sy in (-1, 1)]
+    return (wm.box((2, 2, 0.6)) - wm.union(*holes)) | wm.sphere(boss)
+
+
+def edits(n: int, seed: int = 21) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    return [{k: float(rng.uniform(*RANGES[k])) for k in RANGES} for _ in range(n)]
+
+
+def percentiles(times) -> dict:
+    t = np.asarray(times) * 1000.0
+    return {"p50_ms": float(np.percentile(t, 50)), "p95_ms": float(np.percentile(t, 95)), "max_ms": float(t.max())}
+
+
+def bench_warpmesh(wm, part, res, values, evaluator) -> dict:
+    from warpmesh.preview.instrument import count_module_loads
+
+    t0 = time.perf_counter()
+    view = wm.Preview(part, bounds=BOUNDS, resolution=res, evaluator=evaluator)
+    setup = time.perf_counter() - t0
+    times, tris = [], []
+    with count_module_loads() as counts:
+        for v in values:
+            t = time.perf_counter()
+            mesh = view.update(**v)
+            times.append(time.perf_counter() - t)
+            tris.append(mesh.n_cells)
+    return {"setup_s": setup, **percentiles(times), "triangles_mean": float(np.mean(tris)),
+            "warp_module_loads": counts.loads, "warp_compiles": counts.compiles}
+
+
+def bench_skimage(wm, part, res, values) -> dict:
+    from skimage.measure import marching_cubes
+
+    n = res + 1
+    axes = [np.linspace(BOUNDS[0][i], BOUNDS[1][i], n) for i in range(3)]
+    spacing = tuple(float(a[1] - a[0]) for a in axes)
+    times, tris = [], []
+    for v in values:
+        t = time.perf_counter()
+        shape = part.with_params(v)
+        f = shape.eval_numpy(axes[0][:, None, None], axes[1][None, :, None], axes[2][None, None, :])
+        vol = np.ascontiguousarray(np.broadcast_to(f, (n, n, n)), dtype=np.float32)
+        _, faces, _, _ = marching_cubes(vol, level=0.0, spacing=spacing)
+        times.append(time.perf_counter() - t)
+        tris.append(len(faces))
+    return {**percentiles(times), "triangles_mean": float(np.mean(tris))}
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--resolutions", default="64,128,256")
+    p.add_argument("--edits", type=int, default=50)
+    p.add_argument("--evaluator", choices=["compiled", "interpreter"], default="compiled")
+    p.add_argument("--no-peer", action="store_true", help="skip numpy + scikit-image")
+    p.add_argument("--json", help="write the results to this file")
+    p.add_argument("--default-malloc", action="store_true", help="measure with glibc's stock allocator")
+    args = p.parse_args(argv)
+    t_start = time.perf_counter()
+    load0 = _report.load_banner(f"bench_preview: {args.edits} edits of r and boss, CPU count {os.cpu_count()}")
+    import warpmesh as wm
+
+    part = make_part(wm, wm.param("r", 0.2, lo=RANGES["r"][0], hi=RANGES["r"][1]),
+                     wm.param("boss", 0.5, lo=RANGES["boss"][0], hi=RANGES["boss"][1]))
+    values = edits(args.edits)
+    rows = []
+    print(f"\n{'res':>5} | {'tool':<26} | {'set-up':>7} | {'p50':>8} | {'p95':>8} | {'max':>8} | "
+          f"{'triangles':>9} | loads | p50 ratio")
+    for res in (int(r) for r in args.resolutions.split(",")):
+        w = bench_warpmesh(wm, part, res, values, args.evaluator)
+        rows.append({"resolution": res, "tool": f"warpmesh Preview ({args.evaluator})", **w})
+        print(f"{res:>5} | {rows[-1]['tool']:<26} | {w['setup_s']:6.2f}s | {w['p50_ms']:6.1f}ms | "
+              f"{w['p95_ms']:6.1f}ms | {w['max_ms']:6.1f}ms | {w['triangles_mean']:9.0f} | "
+              f"{w['warp_module_loads']:>5} |")
+        if not args.no_peer:
+            s = bench_skimage(wm, part, res, values)
+            rows.append({"resolution": res, "tool": "numpy + scikit-image", **s})
+            print(f"{res:>5} | {'numpy + scikit-image':<26} | {'-':>7} | {s['p50_ms']:6.1f}ms | "
+                  f"{s['p95_ms']:6.1f}ms | {s['max_ms']:6.1f}ms | {s['triangles_mean']:9.0f} |     - | "
+                  f"{s['p50_ms'] / w['p50_ms']:.1f}x")
+    _report.finish(t_start, load0, args.json, {"rows": rows, "edits": args.edits, "evaluator": args.evaluator,
+                                               "versions": {k: _report.version(k) for k in
+                                                            ("warp-lang", "scikit-image", "numpy")}})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
