@@ -175,3 +175,14 @@ def test_bad_input_names_the_argument(kwargs, match):
 def test_not_a_shape():
     with pytest.raises(TypeError, match="shape"):
         wm.mesh_domain("sphere", bounds=((-1,) * 3, (1,) * 3), size=0.2)
+
+
+def test_command_line_domain_3d(tmp_path, capsys):
+    from warpmesh.cli.commands import main
+
+    out = tmp_path / "sphere.msh"
+    assert main(["domain", "--example", "sphere", "--size", "0.2", "--smooth", "1", "-o", str(out), "--json"]) == 0
+    facts = __import__("json").loads(capsys.readouterr().out)
+    assert facts["euler"] == 2 and facts["dihedral_min"] >= LO and facts["written"] == str(out)
+    back = meshio.read(out)
+    assert {c.type for c in back.cells} == {"tetra", "triangle"}
