@@ -46,6 +46,11 @@ def test_edit_changes_data_only(params):
     # a second edit of the edited shape still derives from the same code
     assert tape_of(edited.with_params(r=0.12)).code is tape.code
     assert edited.params["r"].value == 0.1 and part.params["r"].value == 0.2
+    # the kernel generated for the structure serves every edit (its source holds no constant)
+    from warpmesh.frep.codegen import source, structure_key
+
+    assert structure_key(t2) == structure_key(tape) and source(t2) == source(tape)
+    assert "0.2" not in source(tape) and "0.5" not in source(tape)
 
 
 @pytest.mark.parametrize("values", [{"r": 0.1, "boss": 0.35}, {"r": 0.27, "boss": 0.69}, {"r": 0.05}])

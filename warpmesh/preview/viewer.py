@@ -14,6 +14,16 @@ inlines it with the mesh as base64 float32/uint32 buffers (about 16 bytes per tr
 the widget ships it once as an anywidget module and then sends only the buffers, so a
 new mesh replaces the buffers in place and the camera stays where the user left it.
 
+Measured here (2026-12-02, CPython 3.11, 2 cores): the trame route's wheels are 8.0 MB
+(trame 28 KB, trame-client 556 KB, trame-server 48 KB, trame-vtk 836 KB, trame-vuetify
+6.5 MB, wslink 40 KB; aiohttp and the rest of wslink's dependencies on top), and its static
+page template alone is 1.05 MB of vtk.js. This route: the HTML export needs no package at
+all (6.8 KB of script); the widget needs anywidget and ipywidgets (wheels 3.4 MB with
+psygnal, widgetsnbextension and jupyterlab_widgets; 7.5 MB installed), which a notebook
+user mostly has already. For the part at 128³ (94 k triangles) the page is 2.3 MB and is
+written in about 4 ms; sending new buffers to the widget takes about 5 ms; headless
+Chromium (SwiftShader WebGL) draws the page in under 3 s from a cold start.
+
 ``VIEWER_JS`` defines ``createWarpmeshViewer(canvas, options)`` (options: ``color``,
 ``background``, ``box`` = [lo, hi] to frame instead of the first mesh's bounding box),
 which returns an object with ``setMesh(positions: Float32Array, indices: Uint32Array)``,
