@@ -393,3 +393,51 @@ def gather_vertices_kernel(n_nodes: int, used: wp.array(dtype=wp.int32), ids: wp
     else:
         points[v] = cut_pos[key - n_nodes]
         on_surface[v] = wp.uint8(1)
+
+
+@wp.func
+def _cos_between(a: wp.vec3d, b: wp.vec3d):
+    d = wp.length(a) * wp.length(b)
+    c = wp.float64(1.0)
+    if d > wp.float64(0.0):
+        c = wp.dot(a, b) / d
+    return wp.clamp(c, wp.float64(-1.0), wp.float64(1.0))
+
+
+@wp.kernel
+def tet_quality_kernel(points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.vec4i),
+                       out: wp.array(dtype=wp.vec4d)):
+    """One thread per tetrahedron, in float64: (smallest dihedral angle, largest (radians),
+    circumradius / shortest edge, signed volume). The angle at edge ij is pi minus the angle
+    between the outward normals of the two faces holding it."""
+    i = wp.tid()
+    t = tets[i]
+    p0 = points[t[0]]
+    p1 = points[t[1]]
+    p2 = points[t[2]]
+    p3 = points[t[3]]
+    n0 = wp.cross(p2 - p1, p3 - p1)  # outward normals of the faces opposite each vertex
+    n1 = wp.cross(p3 - p0, p2 - p0)
+    n2 = wp.cross(p1 - p0, p3 - p0)
+    n3 = wp.cross(p2 - p0, p1 - p0)
+    pi = wp.float64(3.141592653589793)
+    # edges (01, 02, 03, 12, 13, 23) are held by the faces opposite (23, 13, 12, 03, 02, 01)
+    a01 = pi - wp.acos(_cos_between(n2, n3))
+    a02 = pi - wp.acos(_cos_between(n1, n3))
+    a03 = pi - wp.acos(_cos_between(n1, n2))
+    a12 = pi - wp.acos(_cos_between(n0, n3))
+    a13 = pi - wp.acos(_cos_between(n0, n2))
+    a23 = pi - wp.acos(_cos_between(n0, n1))
+    lo = wp.min(wp.min(wp.min(a01, a02), wp.min(a03, a12)), wp.min(a13, a23))
+    hi = wp.max(wp.max(wp.max(a01, a02), wp.max(a03, a12)), wp.max(a13, a23))
+    a = p1 - p0
+    b = p2 - p0
+    c = p3 - p0
+    det = wp.dot(a, wp.cross(b, c))
+    num = wp.dot(a, a) * wp.cross(b, c) + wp.dot(b, b) * wp.cross(c, a) + wp.dot(c, c) * wp.cross(a, b)
+    short = wp.min(wp.min(wp.min(wp.length(a), wp.length(b)), wp.min(wp.length(c), wp.length(p2 - p1))),
+                   wp.min(wp.length(p3 - p1), wp.length(p3 - p2)))
+    ratio = wp.float64(1.0e300)
+    if det != wp.float64(0.0) and short > wp.float64(0.0):
+        ratio = wp.length(num) / wp.abs(wp.float64(2.0) * det) / short
+    out[i] = wp.vec4d(lo, hi, ratio, det / wp.float64(6.0))

@@ -154,6 +154,8 @@ def boundary_faces(tets: np.ndarray) -> np.ndarray:
     -------
     >>> boundary_faces(np.array([[0, 1, 2, 3]])).tolist()
     [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]
+    >>> boundary_faces(np.array([[0, 1, 2, 3], [1, 2, 3, 4]])).shape  # the shared face drops out
+    (6, 3)
     """
     tets = np.asarray(tets, dtype=np.int64)
     faces = np.concatenate([tets[:, list(f)] for f in _FACES])
@@ -164,9 +166,7 @@ def boundary_faces(tets: np.ndarray) -> np.ndarray:
         _, inv, counts = np.unique(code, return_inverse=True, return_counts=True)
     else:
         _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    once = counts[inv.ravel()] == 1
-    order = np.argsort(np.flatnonzero(once) % max(len(tets), 1), kind="stable")  # grouped by tetrahedron
-    return faces[once][order]
+    return faces[counts[inv.ravel()] == 1]
 
 
 def _face_refs(points: np.ndarray, tris: np.ndarray, box: np.ndarray, h: float) -> np.ndarray:
@@ -214,12 +214,12 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, device, optio
     info["time_boundary"] = time.perf_counter() - t0
     if smooth:
         t0 = time.perf_counter()
-        before = tet_quality_summary(points, tets)
+        before = tet_quality_summary(points, tets, device)
         points, moved = smooth_tets(points, tets, tris, on_f, on_cap, tape, sweeps=int(smooth), device=device)
         info.update(smooth_sweeps=int(smooth), smooth_moved=moved,
                     dihedral_min_before=before["dihedral_min"], dihedral_max_before=before["dihedral_max"],
                     radius_edge_max_before=before["radius_edge_max"], time_smooth=time.perf_counter() - t0)
-    info.update(tet_quality_summary(points, tets))
+    info.update(tet_quality_summary(points, tets, device))
     info["boundary_distance"] = _boundary_distance(tape, points, on_f, h, device)
     info["method"] = method
     return Mesh(points, {"tetra": tets, "triangle": tris},
