@@ -186,3 +186,31 @@ def test_command_line_domain_3d(tmp_path, capsys):
     assert facts["euler"] == 2 and facts["dihedral_min"] >= LO and facts["written"] == str(out)
     back = meshio.read(out)
     assert {c.type for c in back.cells} == {"tetra", "triangle"}
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_dihedral_bounds_on_random_placements(seed):
+    """Spheres, ellipsoids and tori of random sizes, offsets and rotations against the lattice."""
+    rng = np.random.default_rng(seed)
+    c = tuple(rng.uniform(-0.1, 0.1, 3))
+    axis, angle = tuple(rng.normal(size=3)), rng.uniform(0, math.pi)
+    shape = [wm.sphere(rng.uniform(0.5, 1.0), center=c),
+             wm.ellipsoid(tuple(rng.uniform(0.4, 1.0, 3))).rotate(angle, axis).translate(c),
+             wm.torus(rng.uniform(0.6, 0.8), rng.uniform(0.25, 0.35)).rotate(angle, axis).translate(c)][seed % 3]
+    vol = wm.mesh_domain(shape, bounds=((-1.3,) * 3, (1.3,) * 3), size=rng.uniform(0.05, 0.1))
+    ang = np.degrees(dihedral_angles(vol.points, vol.cells["tetra"]))
+    assert ang.min() >= LO - ANGLE_TOL and ang.max() <= HI + ANGLE_TOL, (ang.min(), ang.max())
+    assert vol.stats()["euler"] == (0 if seed % 3 == 2 else 2)
+
+
+def test_complement_fills_the_box_around_a_hole():
+    vol = wm.mesh_domain(wm.complement(wm.sphere(0.5)), bounds=((-1,) * 3, (1,) * 3), size=0.1)
+    s = _check_volume_mesh(vol, 4)  # two boundary spheres: the box and the hole
+    assert s["components"] == 2
+    assert s["volume"] == pytest.approx(8 - 4 / 3 * math.pi * 0.125, rel=0.01)
+    assert (vol.cell_refs["triangle"] == wm._conventions.CAP_REF).sum() > 0
+
+
+def test_a_size_function_is_refused_with_a_clear_message():
+    with pytest.raises(ValueError, match="size"):
+        wm.mesh_domain(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), size=lambda p: 0.1)

@@ -120,6 +120,9 @@ def _check_size(size, box: np.ndarray) -> float:
     extent = float(np.min(box[1] - box[0]))
     if size is None:
         return extent / 20.0
+    if callable(size):
+        raise ValueError("expected a number for 'size' in 3D: graded sizes (a callable) are not supported by "
+                         "the uniform BCC lattice yet; pass the smallest size you need")
     ok = isinstance(size, (int, float, np.integer, np.floating)) and not isinstance(size, bool) \
         and math.isfinite(size) and size > 0
     if not ok:
