@@ -66,3 +66,18 @@ def test_bad_updates_are_named(preview):
     assert preview.values == before
     with pytest.raises(ValueError, match="Unknown evaluator 'auto'"):
         wm.Preview(wm.sphere(1.0), bounds=BOUNDS, resolution=8, evaluator="auto")
+
+
+def test_other_pipelines_and_no_parameters():
+    r = wm.param("r", 0.2, lo=0.05, hi=0.28)
+    plate = wm.box((2, 2, 0.6)) - wm.cylinder(r)
+    octree = wm.Preview(plate, bounds=BOUNDS, resolution=None, adaptive=True, max_level=5, tolerance=0.05)
+    assert octree.update(r=0.1).stats()["euler"] == 0
+    grown = wm.Preview(plate, bounds=BOUNDS, resolution=24, covering="continuation", evaluator="interpreter")
+    fresh = wm.mesh_surface(wm.box((2, 2, 0.6)) - wm.cylinder(0.1), bounds=BOUNDS, resolution=24,
+                            covering="continuation")
+    np.testing.assert_array_equal(grown.update(r=0.1).triangles, fresh.triangles)
+    still = wm.Preview(wm.sphere(1.0), bounds=BOUNDS, resolution=16, evaluator="interpreter")
+    assert still.params == {} and still.update().stats()["euler"] == 2
+    with pytest.raises(ValueError, match="Unknown parameter 'r' in 'values'. Pick one of none"):
+        still.update(r=0.1)

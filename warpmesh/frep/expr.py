@@ -377,8 +377,11 @@ def param(name: str, value: float, *, lo: float | None = None, hi: float | None 
     :class:`warpmesh.Preview`) changes data only: no new tape, no Warp compile, the
     compiled evaluator of the structure reused. Interval evaluation and pruning read the
     same array, so they are sound for the current values. Constructors that need a number
-    on the host check the whole range [lo, hi] (a radius parameter needs lo > 0) or, where
-    the docstring says so, use the current value.
+    on the host check the whole range [lo, hi] (a radius parameter needs lo > 0, a torus
+    needs hi(minor) < lo(major)); exponents, rotation axes, matrices and normals stay
+    numbers. Host-side analyses (the rigorous Lipschitz bound of
+    :mod:`warpmesh.frep.lipschitz`, :mod:`warpmesh.frep.geometry`, ``shape.exact``) see the
+    values bound on the shape they are given: the current ones, not the range.
 
     Parameters
     ----------

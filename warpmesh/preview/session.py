@@ -43,7 +43,7 @@ class Preview:
     resolution : int
         Cells along the longest side of the box.
     method : {'mc33', 'mt', 'mc'}
-        Cell triangulation (see :func:`warpmesh.mesh_surface`).
+        Cell triangulation (see :func:`warpmesh.mesh_surface`; not with ``adaptive=True``).
     evaluator : {'compiled', 'interpreter'}
         "compiled" (default) compiles the kernel generated for the shape's structure at
         set-up (about 1.5 s the first time, then read from Warp's cache) and evaluates
@@ -52,7 +52,8 @@ class Preview:
     device : str
         Warp device.
     **options
-        Other keywords of :func:`warpmesh.mesh_surface` (``cap``, ``root``, ...).
+        Other keywords of :func:`warpmesh.mesh_surface` (``cap``, ``root``, ``covering``,
+        ``adaptive=True`` with its ``max_level``, ``tolerance``, ...).
 
     Attributes
     ----------
@@ -86,7 +87,9 @@ class Preview:
         self.params = dict(self.shape.params)
         self.values = {name: p.value for name, p in self.params.items()}
         self.device = device
-        self._options = dict(bounds=bounds, resolution=resolution, method=method, evaluator=evaluator, **options)
+        self._options = dict(bounds=bounds, resolution=resolution, **options)
+        if not options.get("adaptive"):  # the octree evaluates pruned tapes: no method, no evaluator
+            self._options.update(method=method, evaluator=evaluator)
         self.timings: list[float] = []
         self._views: list = []
         self.mesh = self._mesh(self.values)  # set-up: tape, module loads, the generated kernel
