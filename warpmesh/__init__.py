@@ -13,7 +13,7 @@ pipeline (see ``docs/architecture.md``):
 ``modify``     transforms, refinement, cell-type conversion, merge, periodic meshes, cracks
 ``numbering``  renumbering, colouring, node graphs, higher-order nodes
 ``cells``      the cell vocabulary: types, reference cells, topology, quality, validity checks
-``io``         conversions (meshio, trimesh, pyvista) and files
+``io``         conversions (meshio, trimesh, pyvista), mesh files, image volumes in
 ``preview``    parameter edits re-meshed live: Preview, off-screen pictures, WebGL pages, widgets
 ``cli``        the ``warpmesh`` command line
 ``kernels``    the Warp device code
@@ -89,6 +89,8 @@ from warpmesh.cells.intersections import check as check
 from warpmesh.cells.quality import quality_summary as quality_summary
 from warpmesh.cells.quality import tetra_quality as tetra_quality
 from warpmesh.cells.quality import triangle_quality as triangle_quality
+from warpmesh.io.images import Volume as Volume
+from warpmesh.io.images import load_volume as load_volume
 from warpmesh.mesh import Mesh as Mesh
 from warpmesh.mesh import load as load
 from warpmesh.numbering.high_order import to_order as to_order
@@ -110,6 +112,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Mesh", "load", "to_order", "renumber", "mesh_surface", "param", "Preview", "GridOptions", "ContinuationOptions",
+    "load_volume", "Volume",
     "AdaptiveOptions", "VolumeOptions", "mesh_curve", "mesh_domain", "optimize",
     "simplify", "surface_error", "VolumeField", "orient", "orient_faces",
     "triangle_quality", "tetra_quality", "quality_summary", "check",
