@@ -6,8 +6,10 @@ Examples
     meshes the bundled CSG part and prints its statistics.
 ``warpmesh mesh --volume ct.npy --level 300 --spacing 0.5 -o bone.stl``
     extracts an iso-surface of a volume saved with ``numpy.save``.
-``warpmesh mesh --volume seg.npy --labels all --method mt -o organs.vtu``
-    meshes every label of a segmentation (triangle refs = labels).
+``warpmesh mesh --volume seg.nii.gz --labels all --method mt -o organs.vtu``
+    meshes every label of a segmentation (triangle refs = labels) in the image's world
+    coordinates; ``--volume`` takes any image :func:`warpmesh.load_volume` reads (.vti .vtk
+    .nii .nii.gz .nrrd .nhdr .mha .mhd .npy .npz, a DICOM series folder).
 ``warpmesh transform | refine | convert | merge | crack | periodic ...``
     modify a mesh file [FG ch. 17]: see :mod:`warpmesh.cli.modify`.
 ``warpmesh curve | domain --example gear ...``
@@ -35,15 +37,21 @@ def _parser() -> argparse.ArgumentParser:
 
     p = argparse.ArgumentParser(prog="warpmesh", description="Meshes from implicit geometry.")
     sub = p.add_subparsers(dest="command", required=True)
-    m = sub.add_parser("mesh", help="mesh a bundled example shape or a volume (.npy) and print statistics")
+    m = sub.add_parser("mesh", help="mesh a bundled example shape or a volume image and print statistics")
     src = m.add_mutually_exclusive_group(required=True)
     src.add_argument("--example", choices=list(EXAMPLES), help="a bundled example shape")
-    src.add_argument("--volume", metavar="FILE.npy", help="a 3D array saved with numpy.save")
+    src.add_argument("--volume", metavar="FILE",
+                     help="a 3D image: .vti .vtk .nii .nii.gz .nrrd .nhdr .mha .mhd .npy .npz, or a DICOM series "
+                          "folder (the medical formats need pip install 'warpmesh[images]')")
+    m.add_argument("--array", metavar="NAME",
+                   help="--volume: the array (VTK point/cell array, .npz key) or DICOM series ID to read")
     m.add_argument("--resolution", type=int, help="cells along the longest side (shapes; default 128)")
     m.add_argument("--level", type=float, help="iso-level (volumes; default 0)")
     m.add_argument("--inside", choices=["above", "below"], help="inside side of the level (volumes)")
-    m.add_argument("--spacing", type=float, nargs="+", help="sample spacing, 1 or 3 values (volumes)")
-    m.add_argument("--origin", type=float, nargs=3, help="position of sample [0, 0, 0] (volumes)")
+    m.add_argument("--spacing", type=float, nargs="+",
+                   help="sample spacing, 1 or 3 values (volumes; replaces the image's own)")
+    m.add_argument("--origin", type=float, nargs=3,
+                   help="position of sample [0, 0, 0] (volumes; replaces the image's own)")
     m.add_argument("--method", choices=["mc33", "mt", "mc"], default=None,
                    help="cell triangulation: marching cubes 33 (default), marching tetrahedra, plain mc")
     m.add_argument("--covering", choices=["grid", "continuation"], default=None,
@@ -131,15 +139,31 @@ def _labels(values):
         raise ValueError(f"expected --labels all or integer labels, got {' '.join(values)}") from None
 
 
-def _volume_target(wm, args, volume, spacing):
+def _volume_target(wm, args, volume):
+    if not volume.axis_aligned:
+        raise ValueError("--optimize and --simplify take images whose axes are the world axes; this one's "
+                         f"direction is {volume.direction.tolist()}")
     labels = _labels(args.labels)
     if labels is not None:
         if labels == "all" or len(labels) != 1:
             raise ValueError("expected one label with --labels when optimising (one surface per run)")
-        return wm.VolumeField(np.asarray(volume) == labels[0], spacing=spacing or 1.0,
-                              origin=args.origin or 0.0, level=0.5)
-    return wm.VolumeField(volume, spacing=spacing or 1.0, origin=args.origin or 0.0,
+        return wm.VolumeField(np.asarray(volume.values) == labels[0], spacing=volume.spacing,
+                              origin=volume.origin, level=0.5)
+    return wm.VolumeField(volume.values, spacing=volume.spacing, origin=volume.origin,
                           level=args.level or 0.0, inside=args.inside or "above")
+
+
+def _load_volume(wm, args):
+    """--volume as a Volume, with --spacing / --origin in place of the file's own."""
+    try:
+        volume = wm.load_volume(args.volume, name=args.array)
+    except (OSError, ValueError, ImportError) as exc:
+        raise ValueError(f"cannot read --volume {args.volume!r}: {exc}") from None
+    if args.spacing is not None:
+        volume = volume.replace(spacing=args.spacing if len(args.spacing) > 1 else args.spacing[0])
+    if args.origin is not None:
+        volume = volume.replace(origin=args.origin)
+    return volume
 
 
 def _improve(wm, args, mesh, bounds, target):
@@ -221,6 +245,8 @@ def main(argv: list[str] | None = None) -> int:
             common["covering"] = args.covering
         if args.adaptive or args.tolerance is not None:
             common.update(adaptive=args.adaptive, tolerance=args.tolerance)
+        if args.example and args.array is not None:
+            raise ValueError("--array names an array of --volume; it does not apply to --example")
         if args.example:
             shape, bounds = wm.example(args.example)
             mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
@@ -228,18 +254,13 @@ def main(argv: list[str] | None = None) -> int:
                                    inside=args.inside, origin=args.origin,
                                    spacing=None if args.spacing is None else args.spacing[0], **common)
         else:
-            try:
-                volume = np.load(args.volume, allow_pickle=False)
-            except (OSError, ValueError) as exc:
-                raise ValueError(f"cannot read --volume {args.volume!r}: {exc}") from None
-            spacing = args.spacing if args.spacing is None or len(args.spacing) > 1 else args.spacing[0]
+            volume = _load_volume(wm, args)
             bounds = None
             mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,
-                                   evaluator=args.evaluator,
-                                   spacing=spacing, origin=args.origin, **common)
+                                   evaluator=args.evaluator, **common)
         if args.optimize or args.simplify is not None:
             mesh = _improve(wm, args, mesh, bounds if args.example else None,
-                            shape if args.example else _volume_target(wm, args, volume, spacing))
+                            shape if args.example else _volume_target(wm, args, volume))
         if args.output:
             mesh.save(args.output)
         stats = mesh.stats()

@@ -30,6 +30,7 @@ from warpmesh.errors import WarpMeshError
 from warpmesh.frep.expr import Expr
 from warpmesh.frep.shapes import Shape
 from warpmesh.frep.tape import tape_of
+from warpmesh.io.images import Volume, as_volume
 from warpmesh.kernels import block_grid as KB
 from warpmesh.kernels import emit as KE
 from warpmesh.mesh import Mesh
@@ -92,9 +93,12 @@ def mesh_surface(
 
     Parameters
     ----------
-    source : Shape, Expr or (nx, ny, nz) array
+    source : Shape, Expr, (nx, ny, nz) array, Volume, pyvista ImageData, str or os.PathLike
         A shape (f > 0 inside), or sampled values ``volume[i, j, k]`` at
-        ``origin + (i, j, k) * spacing`` (trilinear in between).
+        ``origin + (i, j, k) * spacing`` (trilinear in between), or an image that carries
+        its spacing, origin and direction: a :class:`~warpmesh.io.images.Volume`, a
+        pyvista ``ImageData`` or an image file (:func:`warpmesh.load_volume`); its mesh is
+        in the image's world coordinates (``info["space"]``: 'RAS', 'LPS' or None).
     options : GridOptions, ContinuationOptions, AdaptiveOptions or VolumeOptions, optional
         All the options of one pipeline; the group's type chooses the pipeline.
     covering : {'grid', 'continuation'}, optional
@@ -169,6 +173,9 @@ def mesh_surface(
         if not isinstance(source, (Shape, Expr)):
             raise TypeError(f"'params' sets the parameters of a shape, got {type(source).__name__} for 'source'")
         source = source.with_params(params)
+    image = as_volume(source)  # a Volume, an image file or a pyvista ImageData; None for arrays and shapes
+    if image is not None:
+        return _mesh_image(image, options, covering, adaptive, device, keywords)
     if options is None:
         options = _options_from_keywords(source, covering, adaptive, keywords)
     else:
@@ -179,6 +186,34 @@ def mesh_surface(
     if isinstance(options, AdaptiveOptions):
         return _mesh_adaptive(source, options, device, t_start)
     return _mesh_grid(source, options, device, t_start)
+
+
+def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: dict) -> Mesh:
+    """An image's values meshed with its spacing, then placed by its direction and origin.
+
+    With a rotated (or reflected) ``direction`` the array pipeline runs at origin 0 and
+    the mesh is mapped by ``image.placement`` (``Mesh.transform``, which keeps triangles
+    outward under a reflection); ``info["space"]`` is the image's world frame.
+    """
+    labels = keywords.get("labels") if options is None else getattr(options, "labels", None)
+    given = [n for n in ("spacing", "origin") if keywords.get(n) is not None or
+             (isinstance(options, VolumeOptions) and getattr(options, n) != getattr(VolumeOptions(), n))]
+    if given:
+        raise ValueError(f"{' and '.join(map(repr, given))} come with the image given as 'source' (spacing "
+                         f"{image.spacing}, origin {image.origin}); to change them pass "
+                         f"source=volume.replace({given[0]}=...)")
+    if labels is not None:
+        image = image.as_labels()
+    place = {"spacing": image.spacing, "origin": image.origin if image.axis_aligned else (0.0, 0.0, 0.0)}
+    if isinstance(options, VolumeOptions):
+        options = dataclasses.replace(options, **place)
+    else:
+        keywords = {**keywords, **place} if options is None else keywords
+    mesh = mesh_surface(image.values, options=options, covering=covering, adaptive=adaptive, device=device,
+                        **keywords)
+    if not image.axis_aligned and mesh.n_points:
+        mesh = mesh.transform(image.placement)
+    return mesh.replace(info={**mesh.info, "space": image.space})
 
 
 # -- keywords -> the options group ---------------------------------------------------------------
