@@ -144,11 +144,13 @@ def count_cuts_kernel(first: int, dims: wp.vec3i, signs: wp.array(dtype=wp.int8)
 
 @wp.kernel
 def write_cuts_kernel(first: int, dims: wp.vec3i, h: float, signs: wp.array(dtype=wp.int8),
-                      offsets: wp.array(dtype=wp.int32), edge_cut: wp.array(dtype=wp.int32),
-                      cut_slot: wp.array(dtype=wp.int32), p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
-                      inside0: wp.array(dtype=wp.int32)):
-    """One thread per cell: the cut edges' slots, end positions (local) and which end is
-    inside; ``edge_cut`` maps a slot to its cut index (-1 elsewhere)."""
+                      values: wp.array(dtype=wp.float32), offsets: wp.array(dtype=wp.int32),
+                      edge_cut: wp.array(dtype=wp.int32), cut_slot: wp.array(dtype=wp.int32),
+                      p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3), inside0: wp.array(dtype=wp.int32),
+                      f_lo: wp.array(dtype=wp.float32), f_hi: wp.array(dtype=wp.float32)):
+    """One thread per cell: the cut edges' slots, end positions (local), which end is inside
+    and the field at both ends (the bracket of the root); ``edge_cut`` maps a slot to its cut
+    index (-1 elsewhere)."""
     cell = first + wp.tid()
     k = offsets[cell]
     for d in range(_SLOTS):
@@ -161,6 +163,8 @@ def write_cuts_kernel(first: int, dims: wp.vec3i, h: float, signs: wp.array(dtyp
             p0[k] = node_local(a, dims, h)
             p1[k] = node_local(b, dims, h)
             inside0[k] = wp.where(int(signs[a]) > 0, 1, 0)
+            f_lo[k] = values[a]
+            f_hi[k] = values[b]
             k += 1
         else:
             edge_cut[slot] = -1
@@ -191,6 +195,50 @@ def bisection_step_kernel(inside0: wp.array(dtype=wp.int32), values: wp.array(dt
     else:
         t_hi[i] = t[i]
     t[i] = 0.5 * (t_lo[i] + t_hi[i])
+
+
+@wp.kernel
+def false_position_init_kernel(f_lo: wp.array(dtype=wp.float32), f_hi: wp.array(dtype=wp.float32),
+                               t: wp.array(dtype=wp.float32)):
+    """One thread per cut edge: the first secant point of the bracket [0, 1]."""
+    i = wp.tid()
+    t[i] = wp.clamp(f_lo[i] / (f_lo[i] - f_hi[i]), 0.0, 1.0)
+
+
+@wp.kernel
+def false_position_step_kernel(values: wp.array(dtype=wp.float32), t_lo: wp.array(dtype=wp.float32),
+                               t_hi: wp.array(dtype=wp.float32), f_lo: wp.array(dtype=wp.float32),
+                               f_hi: wp.array(dtype=wp.float32), side: wp.array(dtype=wp.int32),
+                               t: wp.array(dtype=wp.float32)):
+    """One thread per cut edge: the Illinois variant of regula falsi. The new value replaces
+    the bracket end of its sign; when the same end is replaced twice in a row, the other
+    end's value is halved (superlinear, and the bracket always holds the root). An exact
+    zero, or a bracket at float32 resolution, ends the search there."""
+    i = wp.tid()
+    v = values[i]
+    if v == 0.0 or t_hi[i] - t_lo[i] <= 1.0e-7:
+        t_lo[i] = t[i]
+        t_hi[i] = t[i]
+        f_lo[i] = 0.0
+        f_hi[i] = 0.0
+        return
+    if (v > 0.0) == (f_lo[i] > 0.0):
+        t_lo[i] = t[i]
+        f_lo[i] = v
+        if side[i] == -1:
+            f_hi[i] = 0.5 * f_hi[i]
+        side[i] = -1
+    else:
+        t_hi[i] = t[i]
+        f_hi[i] = v
+        if side[i] == 1:
+            f_lo[i] = 0.5 * f_lo[i]
+        side[i] = 1
+    d = f_lo[i] - f_hi[i]
+    nt = 0.5 * (t_lo[i] + t_hi[i])
+    if d != 0.0:
+        nt = t_lo[i] + f_lo[i] / d * (t_hi[i] - t_lo[i])
+    t[i] = wp.clamp(nt, t_lo[i], t_hi[i])
 
 
 @wp.kernel

@@ -72,7 +72,7 @@ def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: 
     **options
         3D: ``alpha_long``, ``alpha_short`` (the violation thresholds, default the paper's
         0.24776 and 0.40630 that prove dihedral angles in [10.7°, 164.8°]) and
-        ``root_iterations`` (bisection steps of the cut points, default 22).
+        ``root_iterations`` (steps of the cut points' bracketed root search, default 12).
 
     Returns
     -------

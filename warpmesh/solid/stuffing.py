@@ -1,7 +1,8 @@
 """Isosurface stuffing (Labelle & Shewchuk 2007): the host driver of one run.
 
 Lattice -> f at every node (the shape's tape) clipped by the box -> signs -> cut points on
-the sign-changing edges by bisection of the exact field (not a linear interpolant) -> warp
+the sign-changing edges by a bracketed root search (Illinois regula falsi) of the exact
+field (not a linear interpolant) -> warp
 the violated nodes onto their nearest violating cut point -> stencils of every background
 tetrahedron -> compact vertex ids. Every stage is a kernel of :mod:`warpmesh.kernels.stuffing`
 launched by :class:`warpmesh.solid.lattice.Lattice`.
@@ -34,8 +35,9 @@ __all__ = ["ALPHA_LONG", "ALPHA_SHORT", "stuff"]
 #: [10.7°, 164.8°]: a node is violated by a cut point closer than alpha times the edge
 ALPHA_LONG = 0.24776
 ALPHA_SHORT = 0.40630
-#: bisection steps: the bracket shrinks to 2^-22 of the edge (float32 positions)
-ROOT_ITERATIONS = 22
+#: steps of the bracketed root search (Illinois regula falsi: superlinear on smooth fields,
+#: never leaving the bracket on kinks)
+ROOT_ITERATIONS = 12
 
 
 def lattice_for(bounds: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -79,7 +81,7 @@ def stuff(shape, bounds, h: float, *, alpha_long: float = ALPHA_LONG, alpha_shor
                          "of a negative or a division by zero); change the expression or the bounds")
     timings["evaluate"] = time.perf_counter() - t0
     t1 = time.perf_counter()
-    n_cuts = lat.cut_edges()
+    n_cuts = lat.cut_edges(values)
     lat.roots(field, iterations)
     timings["roots"] = time.perf_counter() - t1
     t1 = time.perf_counter()
