@@ -167,3 +167,15 @@ def test_every_constructor_takes_parameters(k):
         np.testing.assert_allclose(bound.eval_numpy(*pts.T), plain.eval_numpy(*pts.T), rtol=1e-12, atol=1e-12)
         assert bound.exact == plain.exact and bound.dim == plain.dim
     assert shaped.params, "the shape reads no parameter"
+
+
+def test_tape_with_values_checks_names_and_ranges(params):
+    tape = compile_tape(part_of(*params))
+    with pytest.raises(ValueError, match="Unknown parameter 'x'"):
+        tape.with_values({"x": 1.0})
+    with pytest.raises(ValueError, match="parameter 'boss'"):
+        tape.with_values({"boss": 0.1})
+    with pytest.raises(TypeError, match="mapping"):
+        tape.with_values([0.1])
+    plain = compile_tape(wm.sphere(1.0))
+    assert plain.params == {} and plain.with_values({}).code is plain.code
