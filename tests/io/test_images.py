@@ -89,9 +89,16 @@ def test_mesh_surface_takes_an_image_a_path_and_a_volume(tmp_path):
     path = tmp_path / "ball.vti"
     img.save(path)
     by_array = wm.mesh_surface(f, spacing=(0.1, 0.2, 0.3), origin=(1, 2, 3))
-    for source in (img, path, str(path), wm.load_volume(path)):
+    expected = by_array.stats()
+    for source in (img, path, str(path), wm.load_volume(path)):  # x fastest: meshed as the transpose
         m = wm.mesh_surface(source)
-        assert np.array_equal(m.points, by_array.points) and np.array_equal(m.triangles, by_array.triangles)
+        assert m.n_cells == by_array.n_cells and m.info["space"] is None
+        assert np.allclose(np.sort(m.points, axis=0), np.sort(by_array.points, axis=0), atol=1e-6)
+        s = m.stats()
+        assert s["watertight"] and np.isclose(s["volume"], expected["volume"], rtol=1e-6)
+        assert np.isclose(s["area"], expected["area"], rtol=1e-6)
+    same = wm.mesh_surface(wm.Volume(f, spacing=(0.1, 0.2, 0.3), origin=(1, 2, 3)))  # C order: the same run
+    assert np.array_equal(same.points, by_array.points) and np.array_equal(same.triangles, by_array.triangles)
     from warpmesh.surface.options import VolumeOptions
 
     m = wm.mesh_surface(img, options=VolumeOptions(level=1.0))
@@ -323,11 +330,15 @@ def test_a_2d_image(tmp_path):
 
 
 @pytest.mark.parametrize("module, name", [("nibabel", "v.nii"), ("SimpleITK", "v.nrrd")])
-def test_a_missing_reader_names_the_extra(tmp_path, monkeypatch, module, name):
+def test_a_missing_reader_names_the_extra(tmp_path, monkeypatch, capsys, module, name):
     (tmp_path / name).write_bytes(b"\0" * 64)
     monkeypatch.setitem(sys.modules, module, None)  # import fails as if not installed
     with pytest.raises(ImportError, match=rf"{module}.*warpmesh\[images\]"):
         wm.load_volume(tmp_path / name)
+    with pytest.raises(ImportError, match=r"warpmesh\[images\]"):
+        wm.mesh_surface(tmp_path / name)
+    assert main(["mesh", "--volume", str(tmp_path / name)]) == 2
+    assert "pip install 'warpmesh[images]'" in capsys.readouterr().err
 
 
 def test_paths_and_arguments(tmp_path):
@@ -340,6 +351,9 @@ def test_paths_and_arguments(tmp_path):
         wm.load_volume(tmp_path / "v.tiff")
     with pytest.raises(TypeError, match="'path'"):
         wm.load_volume(3)
+    (tmp_path / "slice.dcm").write_bytes(b"\0")
+    with pytest.raises(ValueError, match="'path'.*folder"):
+        wm.load_volume(tmp_path / "slice.dcm")
     vol = Volume(np.random.default_rng(0).random((4, 4, 4)), spacing=2.0)
     with pytest.raises(ValueError, match="'spacing'.*replace"):
         wm.mesh_surface(vol, spacing=1.0, level=0.5)

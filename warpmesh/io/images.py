@@ -56,9 +56,10 @@ import errno
 import importlib
 import os
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Literal
 
 import numpy as np
@@ -237,20 +238,20 @@ def _floats(value, name: str) -> np.ndarray:
 @dataclass(frozen=True)
 class _Reader:
     name: str  # as messages name the format
-    read: Callable[..., Volume]  # (path, name) -> Volume
-    module: str | None  # the optional package the reader needs, or None
+    read: Callable[[Path, str | None], Volume]  # (path, name) -> Volume; imports its package with _need
 
 
 _READERS: dict[str, _Reader] = {}  # extension -> reader
-#: file extension -> format name (a DICOM series is a folder)
-IMAGE_FORMATS: dict[str, str] = {}
+_EXTENSIONS: dict[str, str] = {}
+#: file extension -> format name, as :func:`load_volume` chooses the reader (a DICOM series is a folder)
+IMAGE_FORMATS: Mapping[str, str] = MappingProxyType(_EXTENSIONS)
 
 
-def _register_reader(name: str, exts: tuple[str, ...], read, module: str | None = None) -> None:
+def _register_reader(name: str, exts: tuple[str, ...], read) -> None:
     """Make files ending in ``exts`` known to :func:`load_volume`."""
     for ext in exts:
-        _READERS[ext] = _Reader(name, read, module)
-        IMAGE_FORMATS[ext] = name
+        _READERS[ext] = _Reader(name, read)
+        _EXTENSIONS[ext] = name
 
 
 def _need(module: str, what: str):
@@ -447,9 +448,9 @@ def _check_3d(values: np.ndarray, path: Path) -> np.ndarray:
 
 
 _register_reader("VTK image", (".vti", ".vtk"), _read_vtk)
-_register_reader("NIfTI", (".nii", ".nii.gz"), _read_nifti, "nibabel")
-_register_reader("NRRD", (".nrrd", ".nhdr"), _read_itk, "SimpleITK")
-_register_reader("MetaImage", (".mha", ".mhd"), _read_itk, "SimpleITK")
+_register_reader("NIfTI", (".nii", ".nii.gz"), _read_nifti)
+_register_reader("NRRD", (".nrrd", ".nhdr"), _read_itk)
+_register_reader("MetaImage", (".mha", ".mhd"), _read_itk)
 _register_reader("numpy", (".npy",), _read_npy)
 _register_reader("numpy archive", (".npz",), _read_npz)
 
@@ -514,6 +515,9 @@ def load_volume(path, *, name: str | None = None) -> Volume:
     if path.is_dir():
         return _read_dicom(path, name)
     ext = _extension(path)
+    if ext == ".dcm":
+        raise ValueError(f"expected for 'path' the folder holding the DICOM series, got the file {str(path)!r}: "
+                         f"pass {str(path.parent)!r}")
     if ext not in _READERS:
         raise ValueError(f"expected for 'path' an image file or a DICOM folder, got {str(path)!r} with the unknown "
                          f"extension {ext!r}; known: "

@@ -193,7 +193,8 @@ def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: di
 
     With a rotated (or reflected) ``direction`` the array pipeline runs at origin 0 and
     the mesh is mapped by ``image.placement`` (``Mesh.transform``, which keeps triangles
-    outward under a reflection); ``info["space"]`` is the image's world frame.
+    outward under a reflection); an x-fastest array is meshed as its transpose (no copy)
+    and mapped back the same way. ``info["space"]`` is the image's world frame.
     """
     labels = keywords.get("labels") if options is None else getattr(options, "labels", None)
     given = [n for n in ("spacing", "origin") if keywords.get(n) is not None or
@@ -204,16 +205,25 @@ def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: di
                          f"source=volume.replace({given[0]}=...)")
     if labels is not None:
         image = image.as_labels()
-    place = {"spacing": image.spacing, "origin": image.origin if image.axis_aligned else (0.0, 0.0, 0.0)}
+    values, spacing, placement = image.values, image.spacing, image.placement
+    if values.flags.f_contiguous and not values.flags.c_contiguous:
+        # x fastest (VTK, NIfTI, ITK): mesh the C-order view values.T, whose slabs along the first axis are
+        # contiguous (frog, 25 labels: 2.5 s of slab uploads instead of 10.9 s), then swap the axes back
+        values, spacing = values.T, spacing[::-1]
+        placement = placement @ _REVERSE_AXES
+    moved = not np.array_equal(placement[:3, :3], np.eye(3))
+    place = {"spacing": spacing, "origin": (0.0, 0.0, 0.0) if moved else image.origin}
     if isinstance(options, VolumeOptions):
         options = dataclasses.replace(options, **place)
     else:
         keywords = {**keywords, **place} if options is None else keywords
-    mesh = mesh_surface(image.values, options=options, covering=covering, adaptive=adaptive, device=device,
-                        **keywords)
-    if not image.axis_aligned and mesh.n_points:
-        mesh = mesh.transform(image.placement)
+    mesh = mesh_surface(values, options=options, covering=covering, adaptive=adaptive, device=device, **keywords)
+    if moved and mesh.n_points:
+        mesh = mesh.transform(placement)
     return mesh.replace(info={**mesh.info, "space": image.space})
+
+
+_REVERSE_AXES = np.array([[0.0, 0, 1, 0], [0, 1, 0, 0], [1, 0, 0, 0], [0, 0, 0, 1]])  # (k, j, i) -> (i, j, k)
 
 
 # -- keywords -> the options group ---------------------------------------------------------------
