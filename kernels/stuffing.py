@@ -146,11 +146,10 @@ def count_cuts_kernel(first: int, dims: wp.vec3i, signs: wp.array(dtype=wp.int8)
 def write_cuts_kernel(first: int, dims: wp.vec3i, h: float, signs: wp.array(dtype=wp.int8),
                       values: wp.array(dtype=wp.float32), offsets: wp.array(dtype=wp.int32),
                       edge_cut: wp.array(dtype=wp.int32), cut_slot: wp.array(dtype=wp.int32),
-                      p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3), inside0: wp.array(dtype=wp.int32),
-                      f_lo: wp.array(dtype=wp.float32), f_hi: wp.array(dtype=wp.float32)):
-    """One thread per cell: the cut edges' slots, end positions (local), which end is inside
-    and the field at both ends (the bracket of the root); ``edge_cut`` maps a slot to its cut
-    index (-1 elsewhere)."""
+                      p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3), f_lo: wp.array(dtype=wp.float32),
+                      f_hi: wp.array(dtype=wp.float32)):
+    """One thread per cell: the cut edges' slots, end positions (local) and the field at both
+    ends (the bracket of the root); ``edge_cut`` maps a slot to its cut index (-1 elsewhere)."""
     cell = first + wp.tid()
     k = offsets[cell]
     for d in range(_SLOTS):
@@ -162,7 +161,6 @@ def write_cuts_kernel(first: int, dims: wp.vec3i, h: float, signs: wp.array(dtyp
             cut_slot[k] = slot
             p0[k] = node_local(a, dims, h)
             p1[k] = node_local(b, dims, h)
-            inside0[k] = wp.where(int(signs[a]) > 0, 1, 0)
             f_lo[k] = values[a]
             f_hi[k] = values[b]
             k += 1
@@ -176,25 +174,6 @@ def edge_points_kernel(t: wp.array(dtype=wp.float32), p0: wp.array(dtype=wp.vec3
     """One thread per cut edge: origin + p0 + t (p1 - p0)."""
     i = wp.tid()
     out[i] = origin + p0[i] + t[i] * (p1[i] - p0[i])
-
-
-@wp.kernel
-def bisection_step_kernel(inside0: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.float32),
-                          t_lo: wp.array(dtype=wp.float32), t_hi: wp.array(dtype=wp.float32),
-                          t: wp.array(dtype=wp.float32)):
-    """One thread per cut edge: keep the half of [t_lo, t_hi] where the clipped field changes
-    sign (an exact zero collapses the bracket onto it)."""
-    i = wp.tid()
-    v = values[i]
-    if v == 0.0 or t_hi[i] - t_lo[i] <= 0.0:
-        t_lo[i] = t[i]
-        t_hi[i] = t[i]
-        return
-    if (v > 0.0) == (inside0[i] == 1):
-        t_lo[i] = t[i]
-    else:
-        t_hi[i] = t[i]
-    t[i] = 0.5 * (t_lo[i] + t_hi[i])
 
 
 @wp.kernel

@@ -157,8 +157,8 @@ class Lattice:
         return int(bad.numpy()[0])  # sync point: validation
 
     def cut_edges(self, values: wp.array) -> int:
-        """The edges joining a + and a - node: their bracket (p0, p1 local, which end is inside,
-        the clipped field at both ends)."""
+        """The edges joining a + and a - node: their bracket (p0, p1 local, the clipped field at
+        both ends)."""
         counts = wp.empty(self.n_cells, dtype=wp.int32, device=self.device)
         self._per_cell(K.count_cuts_kernel, [self.dims, self.signs], [counts])
         offsets, n = self._scan(counts)
@@ -168,35 +168,28 @@ class Lattice:
         self.cut_slot = wp.empty(max(n, 1), dtype=wp.int32, device=dev)
         self.p0 = wp.empty(max(n, 1), dtype=wp.vec3, device=dev)
         self.p1 = wp.empty(max(n, 1), dtype=wp.vec3, device=dev)
-        self.inside0 = wp.empty(max(n, 1), dtype=wp.int32, device=dev)
         self.f_lo = wp.empty(max(n, 1), dtype=wp.float32, device=dev)
         self.f_hi = wp.empty(max(n, 1), dtype=wp.float32, device=dev)
         self._per_cell(K.write_cuts_kernel, [self.dims, self.h, self.signs, values, offsets],
-                       [self.edge_cut, self.cut_slot, self.p0, self.p1, self.inside0, self.f_lo, self.f_hi])
+                       [self.edge_cut, self.cut_slot, self.p0, self.p1, self.f_lo, self.f_hi])
         return n
 
-    def roots(self, field, iterations: int, method: str = "illinois") -> None:
+    def roots(self, field, iterations: int) -> None:
         """Cut points on every cut edge by a bracketed root search of the exact (clipped)
-        field: "illinois" (regula falsi with the Illinois modification, superlinear) or
-        "bisection". ``field`` maps world points (wp.array of vec3) to values (float32)."""
+        field: regula falsi with the Illinois modification (superlinear, never leaves the
+        bracket). ``field`` maps world points (wp.array of vec3) to values (float32)."""
         n, dev = self.n_cuts, self.device
         t = wp.full(max(n, 1), 0.5, dtype=wp.float32, device=dev)
         t_lo = wp.zeros(max(n, 1), dtype=wp.float32, device=dev)
         t_hi = wp.ones(max(n, 1), dtype=wp.float32, device=dev)
         side = wp.zeros(max(n, 1), dtype=wp.int32, device=dev)
         world = wp.empty(max(n, 1), dtype=wp.vec3, device=dev)
-        illinois = method == "illinois"
         if n:
-            if illinois:
-                self._launch(K.false_position_init_kernel, n, [self.f_lo, self.f_hi], [t])
+            self._launch(K.false_position_init_kernel, n, [self.f_lo, self.f_hi], [t])
             for _ in range(iterations):
                 self._launch(K.edge_points_kernel, n, [t, self.p0, self.p1, self.worigin], [world])
                 values = field(world[:n])
-                if illinois:
-                    self._launch(K.false_position_step_kernel, n, [values], [t_lo, t_hi, self.f_lo, self.f_hi,
-                                                                                side, t])
-                else:
-                    self._launch(K.bisection_step_kernel, n, [self.inside0, values], [t_lo, t_hi, t])
+                self._launch(K.false_position_step_kernel, n, [values], [t_lo, t_hi, self.f_lo, self.f_hi, side, t])
         self.cut_t = t
         self.cut_pos = wp.empty(max(n, 1), dtype=wp.vec3, device=dev)
         if n:
