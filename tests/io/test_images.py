@@ -210,7 +210,8 @@ def test_dicom_series_folder(tmp_path):
     pydicom = pytest.importorskip("pydicom")
     rng = np.random.default_rng(7)
     values = rng.integers(-500, 1500, size=(16, 12, 6)).astype(np.int16)
-    img = _itk_image(values, (0.6, 0.6, 2.0), (-40.0, 25.0, 100.0), np.eye(3))
+    direction = _rotation((0.3, -0.2, 1.0), 0.5)  # columns: row, column and slice directions
+    img = _itk_image(values, (0.6, 0.6, 2.0), (-40.0, 25.0, 100.0), direction)
     folder = tmp_path / "series"
     folder.mkdir()
     writer = sitk.ImageFileWriter()
@@ -220,7 +221,7 @@ def test_dicom_series_folder(tmp_path):
         s = img[:, :, k]
         for tag, value in (("0020|000e", series), ("0008|0060", "CT"), ("0020|0013", str(k + 1)),
                            ("0020|0032", "\\".join(map(str, img.TransformIndexToPhysicalPoint((0, 0, k))))),
-                           ("0020|0037", "1\\0\\0\\0\\1\\0"), ("0018|0050", "2.0")):
+                           ("0020|0037", "\\".join(map(str, direction.T[:2].ravel()))), ("0018|0050", "2.0")):
             s.SetMetaData(tag, value)
         writer.SetFileName(str(folder / f"slice{k:03d}.dcm"))
         writer.Execute(s)
@@ -232,6 +233,8 @@ def test_dicom_series_folder(tmp_path):
     assert np.array_equal(vol.values, sitk.GetArrayFromImage(ref).T) and np.array_equal(vol.values, values)
     assert np.allclose(vol.spacing, ref.GetSpacing()) and np.allclose(vol.spacing, (0.6, 0.6, 2.0))
     assert np.allclose(vol.origin, ref.GetOrigin()) and np.allclose(vol.origin, (-40, 25, 100))
+    assert np.allclose(vol.direction, np.reshape(ref.GetDirection(), (3, 3))) and np.allclose(vol.direction, direction)
+    assert np.allclose(vol.world([[0, 0, 5]])[0], ref.TransformIndexToPhysicalPoint((0, 0, 5)))
     first = pydicom.dcmread(folder / "slice000.dcm")  # rows are j, columns i
     assert np.allclose(first.ImagePositionPatient, vol.origin)
     assert np.array_equal(first.pixel_array.T, values[:, :, 0])
