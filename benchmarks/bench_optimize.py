@@ -40,6 +40,19 @@ capped on the box on g = min(f, distance to the box faces) (``exact_surface_dist
 For the frog label the reference is the original MC mesh (pyvista ``find_closest_cell``).
 ``wm.surface_error``'s figures are printed next to these as a cross-check.
 
+(3) ``--sections embedding`` (issue 18, item 4: optimisation and simplification never
+fold): warpmesh alone, one run per case, on the default-method surfaces: the part at
+``--embedding-resolutions`` (default 64,96,128,256) optimised to h = one cell (2.4 / R)
+with tolerance h / 4; frog label ``--label`` (the 0/1 indicator of the cropped label as a
+``wm.VolumeField`` at level 0.5, its surface from ``wm.mesh_surface(indicator, level=0.5)``)
+optimised with size 1.5, tolerance 0.3; simplified to 10 %: the part at 96, the sphere
+and the degree-six surface at 64 (tolerance a quarter cell; degree6 capped on its box),
+the frog label (default tolerance, one spacing). Columns: triangles, worst Q and smallest
+angle before -> after, crossing faces (``count_self_intersecting_faces``, warpmesh's
+global check), inward faces (normal against the target's outward normal -grad f at the
+centroid, the box's where capped; not counted where a sampled gradient vanishes), which
+state was returned (``info["optimize"]["kept"]``, with the worst Q of the last pass), time.
+
 Times are the best of ``--repeat`` runs (tools round-robin after ``--warmup`` untimed
 rounds; a tool stops once its timed runs pass ``--budget`` s, and a warm-up call longer
 than that is its only, cold, run); ratio = tool time / warpmesh time (> 1: warpmesh
@@ -48,6 +61,7 @@ faster). ``--peers-only`` skips warpmesh's optimize / simplify (its rows print "
 Run:  python benchmarks/bench_optimize.py [--quick] [--repeat 3] [--shapes sphere,degree6,part]
                                           [--size 1.0] [--tolerance 0.25] [--iterations 10]
                                           [--featuredeg 30,60] [--no-frog] [--peers-only] [--json out.json]
+      python benchmarks/bench_optimize.py --sections embedding [--embedding-resolutions 64,96,128,256]
 """
 
 from __future__ import annotations
@@ -556,6 +570,82 @@ def simplify_case(args, name, frog=None) -> dict:
 # =============================================================================================
 # printing
 # =============================================================================================
+# =============================================================================================
+# (3) embedding: no crossing, no inward face, never worse (issue 18 item 4)
+# =============================================================================================
+def inward_faces(points, tris, target) -> int:
+    """Faces whose normal points against the target's outward normal at the centroid
+    (where a sampled field's gradient vanishes nothing is known: not counted)."""
+    p, t = np.asarray(points, np.float64), np.asarray(tris)
+    nrm = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
+    out = target.normals(p[t].mean(axis=1))
+    known = np.einsum("ij,ij->i", out, out) > 0.25
+    return int(((np.einsum("ij,ij->i", nrm, out) <= 0) & known).sum())
+
+
+def embedding_row(name, raw, out, target, seconds) -> dict:
+    from warpmesh.cells.intersections import count_self_intersecting_faces
+
+    before, after = mesh_measures(raw.points, raw.triangles), mesh_measures(out.points, out.triangles)
+    info = out.info.get("optimize", {})
+    s = out.stats()
+    row = {"case": name, "ne": (before["ne"], after["ne"]), "worst_q": (before["worst_q"], after["worst_q"]),
+           "min_angle": (before["min_angle"], after["min_angle"]),
+           "crossing": (count_self_intersecting_faces(raw.points, raw.triangles),
+                        count_self_intersecting_faces(out.points, out.triangles)),
+           "inward": (inward_faces(raw.points, raw.triangles, target), inward_faces(out.points, out.triangles, target)),
+           "closed": bool(s["watertight"] and s["manifold"] and s["oriented"]), "euler": int(s["euler"]),
+           "kept": info.get("kept"), "q_last": info.get("q_worst_reached"), "seconds": seconds}
+    print(f"| {name} | {row['ne'][0]} -> {row['ne'][1]} | {row['worst_q'][0]:.3f} -> {row['worst_q'][1]:.3f} | "
+          f"{row['min_angle'][0]:.2f} -> {row['min_angle'][1]:.2f} | {row['crossing'][0]} -> {row['crossing'][1]} | "
+          f"{row['inward'][0]} -> {row['inward'][1]} | {'closed' if row['closed'] else 'NOT CLOSED'}, euler "
+          f"{row['euler']} | {row['kept']} ({row['q_last']:.3f}) | {seconds:.1f} |", flush=True)
+    return row
+
+
+def embedding_section(args) -> dict:
+    from warpmesh.frep.projection import as_target
+
+    print("\n(3) embedding (issue 18 item 4): default-method surfaces, one run each")
+    print("| case | triangles | worst Q | min angle (deg) | crossing faces | inward faces | mesh "
+          "| kept (worst Q of the last pass) | time (s) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    shape, bounds = wm.example("part")
+    part = as_target(shape)
+    for r in args.embedding_resolution_list:
+        raw = wm.mesh_surface(shape, bounds=bounds, resolution=r)
+        h = 2.4 / r
+        t0 = time.perf_counter()
+        out = raw.optimize(shape, size=h, tolerance=h / 4)
+        rows.append(embedding_row(f"part {r} optimize", raw, out, part, time.perf_counter() - t0))
+    frog_raw = frog_field = None
+    if not args.no_frog:
+        vol, spacing, origin, _ = load_frog(args.label)
+        ind = (vol == args.label).astype(np.float32)
+        frog_field = wm.VolumeField(ind, spacing=spacing, origin=origin, level=0.5)
+        frog_raw = wm.mesh_surface(ind, level=0.5, spacing=spacing, origin=origin)
+        t0 = time.perf_counter()
+        out = frog_raw.optimize(frog_field, size=1.5, tolerance=0.3)
+        rows.append(embedding_row(f"frog label {args.label} optimize", frog_raw, out, frog_field,
+                                  time.perf_counter() - t0))
+    for name, r in (("part", 96), ("sphere", 64), ("degree6", 64)):
+        shp, bnd = wm.example(name)
+        capped = bnd if name == "degree6" else None  # the degree-six surface is unbounded
+        raw = wm.mesh_surface(shp, bounds=bnd, resolution=r)
+        h = (bnd[1][0] - bnd[0][0]) / r
+        t0 = time.perf_counter()
+        out = raw.simplify(shp, tolerance=h / 4, fraction=0.1, bounds=capped)
+        rows.append(embedding_row(f"{name} {r} simplify 10 %", raw, out, as_target(shp, bounds=capped),
+                                  time.perf_counter() - t0))
+    if frog_raw is not None:
+        t0 = time.perf_counter()
+        out = frog_raw.simplify(frog_field, fraction=0.1)
+        rows.append(embedding_row(f"frog label {args.label} simplify 10 %", frog_raw, out, frog_field,
+                                  time.perf_counter() - t0))
+    return {"section": "embedding", "rows": rows}
+
+
 def _g(v, fmt="{:.3g}"):
     return "-" if v is None else ("inf" if v == np.inf else fmt.format(v))
 
@@ -658,7 +748,10 @@ def parse_args(argv=None):
                    help="warpmesh simplify tolerance for the frog, in its smallest spacing (default 1.0)")
     p.add_argument("--label", type=int, default=10, help="frog_tissues label to simplify (default 10)")
     p.add_argument("--no-frog", action="store_true", help="skip the frog volume")
-    p.add_argument("--sections", default="optimize,simplify", help="comma-separated subset of optimize,simplify")
+    p.add_argument("--sections", default="optimize,simplify",
+                   help="comma-separated subset of optimize,simplify,embedding (default optimize,simplify)")
+    p.add_argument("--embedding-resolutions", default="64,96,128,256",
+                   help="resolutions of the part in the embedding section (default 64,96,128,256)")
     p.add_argument("--peers-only", action="store_true", help="run no warpmesh optimize / simplify (the peers' figures)")
     p.add_argument("--default-malloc", action="store_true", help="keep glibc's default allocator")
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
@@ -685,8 +778,9 @@ def parse_args(argv=None):
     if bad:
         p.error(f"unknown shape(s) {bad}; pick from {list(SHAPES)}")
     args.section_list = [s.strip() for s in args.sections.split(",") if s.strip()]
-    if any(s not in ("optimize", "simplify") for s in args.section_list):
-        p.error("--sections takes optimize and/or simplify")
+    if any(s not in ("optimize", "simplify", "embedding") for s in args.section_list):
+        p.error("--sections takes optimize, simplify and/or embedding")
+    args.embedding_resolution_list = [int(x) for x in args.embedding_resolutions.split(",") if x.strip()]
     return args
 
 
@@ -736,13 +830,14 @@ def main(argv=None):
             c = simplify_case(args, "frog", frog)
             print_case(c)
             cases.append(c)
+    embedding = embedding_section(args) if "embedding" in args.section_list else None
     summary(cases)
     elapsed = time.perf_counter() - t_start
     load1 = os.getloadavg()[0]
     print(f"\nbenchmark wall time {elapsed:.0f} s; load average (1 min) at the end: {load1:.2f}")
     if args.json:
         doc = {"environment": env, "args": vars(args), "load_average_start_end": [load0, load1], "wall_s": elapsed,
-               "frog": frog_info, "cases": cases}
+               "frog": frog_info, "cases": cases, "embedding": embedding}
         tmp = args.json + ".tmp"
         with open(tmp, "w") as fh:
             json.dump(doc, fh, indent=1, default=str)

@@ -9,10 +9,16 @@ import warpmesh as wm
 
 
 @functools.cache
+def part_raw(resolution: int, method: str | None = None):
+    """(shape, raw mesh) of the part marched at ``resolution``."""
+    shape, bounds = wm.example("part")
+    return shape, wm.mesh_surface(shape, bounds=bounds, resolution=resolution, method=method)
+
+
+@functools.cache
 def part_surfaces(resolution: int, method: str | None = None):
     """(shape, raw mesh, optimised mesh) of the part marched at ``resolution``."""
-    shape, bounds = wm.example("part")
-    raw = wm.mesh_surface(shape, bounds=bounds, resolution=resolution, method=method)
+    shape, raw = part_raw(resolution, method)
     h = 2.4 / resolution
     return shape, raw, raw.optimize(shape, size=h, tolerance=h / 4)
 

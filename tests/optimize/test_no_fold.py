@@ -1,8 +1,10 @@
-"""optimize and simplify keep the surface embedded and never make it worse (issue 18, items 2-4).
+"""optimize and simplify keep the surface embedded and never make it worse (issue 18, item 4).
 
 Every split, collapse, flip and move is checked locally (warpmesh.optimize.embedding) for
 crossing, folded and inverted faces; here the results are checked globally
-(find_self_intersections, through check_mesh), against the exact normals, and by TetGen.
+(find_self_intersections, through check_mesh; once by pymeshlab too), against the exact
+normals, and by TetGen. The issue's larger cases (the part's default-method surfaces at
+64-256, frog label 10) are measured by benchmarks/bench_optimize.py --sections embedding.
 """
 
 import subprocess
@@ -14,34 +16,33 @@ import pytest
 import trimesh
 
 import warpmesh as wm
-from tests.optimize.conftest import part_surfaces
+from tests.optimize.conftest import part_raw
 from warpmesh.cells.intersections import find_self_intersections
 from warpmesh.cells.quality import triangle_quality
 from warpmesh.optimize.embedding import face_violations, revert_violations, verified_flip, verified_split
 from warpmesh.optimize.local_ops import Surface
+from warpmesh.optimize.remesh import SIMPLIFY_Q
 
 
 def _worst_q(mesh) -> float:
     return float(triangle_quality(mesh.points, mesh.triangles).max())
 
 
-def _inward_faces(mesh, shape, bounds=None) -> int:
-    """Faces whose normal points against the exact outward normal -grad f at the centroid
-    (on a capped surface: the box face's normal where the box is nearer than f = 0)."""
+def _inward_faces(mesh, target) -> int:
+    """Faces whose normal points against the target's outward normal at the centroid
+    (-grad f; on a capped surface the box face's normal where the box is nearer); where a
+    sampled field's gradient vanishes nothing is known and the face is not counted."""
     p, t = mesh.points, mesh.triangles
-    cen = p[t].mean(axis=1)
     nrm = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
-    grad = wm.geometry.gradient(shape, cen)
-    outward = -grad
-    if bounds is not None:
-        lo, hi = np.asarray(bounds, float)
-        f = np.asarray(shape.eval_numpy(*cen.T), float) / np.linalg.norm(grad, axis=1)
-        d = np.concatenate([cen - lo, hi - cen], axis=1)
-        j = d.argmin(axis=1)
-        box = np.zeros_like(cen)
-        box[np.arange(len(j)), j % 3] = np.where(j < 3, -1.0, 1.0)
-        outward = np.where((d.min(axis=1) < f)[:, None], box, outward)
-    return int((np.einsum("ij,ij->i", nrm, outward) <= 0).sum())
+    outward = target.normals(p[t].mean(axis=1))
+    known = np.einsum("ij,ij->i", outward, outward) > 0.25
+    return int(((np.einsum("ij,ij->i", nrm, outward) <= 0) & known).sum())
+
+
+def _target(shape, bounds=None):
+    from warpmesh.frep.projection import as_target
+
+    return as_target(shape, bounds=bounds)
 
 
 def _embedded(mesh, check_mesh):
@@ -77,6 +78,16 @@ def test_local_check_finds_folds_and_inverted_faces():
     up = lambda x: np.tile([0.0, 0.0, 1.0], (len(x), 1))  # noqa: E731
     assert not face_violations(square, flat, np.array([0, 1]), up).any()
     assert face_violations(square, flat[:, ::-1], np.array([0, 1]), up).all()
+    # a sampled field's normals turn within a face: with average=True a face must agree
+    # with the mean of the centroid's and corners' normals and with the centroid's alone
+    tri = np.array([[0, 1, 2]])
+
+    def turning(x):  # -z at the centroid of face 0, +z elsewhere
+        at_centroid = np.isclose(x[:, 0], 2 / 3) & np.isclose(x[:, 1], 1 / 3)
+        return np.where(at_centroid[:, None], [0.0, 0.0, -1.0], [0.0, 0.0, 1.0])
+
+    assert face_violations(square, tri, np.array([0]), turning, average=True).all()
+    assert not face_violations(square, tri, np.array([0]), up, average=True).any()
     # a repeated face
     assert face_violations(square, np.array([[0, 1, 2], [2, 0, 1]]), np.array([1])).all()
 
@@ -112,11 +123,12 @@ def test_moves_and_batches_drop_only_the_offending_operations():
 
 
 # ----------------------------------------------------------------------------- optimize
-@pytest.mark.parametrize("resolution, method", [(64, "mc"), (96, None)])
-def test_optimize_part_is_embedded_and_never_worse(resolution, method, check_mesh):
-    shape, raw, opt = part_surfaces(resolution, method)
+def test_optimize_part_is_embedded_and_never_worse(part_opt, check_mesh):
+    # without the embedding checks, 21 faces of this surface crossed others at the concave
+    # crease where the boss meets the plate, and the worst Q was 2.85
+    shape, raw, opt = part_opt
     _embedded(opt, check_mesh)
-    assert _inward_faces(opt, shape) == 0
+    assert _inward_faces(opt, _target(shape)) == 0
     q = _worst_q(opt)
     assert q <= 2.0 and q <= _worst_q(raw)
     info = opt.info["optimize"]
@@ -124,11 +136,21 @@ def test_optimize_part_is_embedded_and_never_worse(resolution, method, check_mes
     assert info["after"]["angle_min"] > info["before"]["angle_min"] and info["kept"] == "final"
 
 
-@pytest.mark.slow
-def test_optimize_part_128_is_embedded(check_mesh):
-    shape, raw, opt = part_surfaces(128)
-    _embedded(opt, check_mesh)
-    assert _inward_faces(opt, shape) == 0 and _worst_q(opt) <= 2.0
+def test_pymeshlab_finds_no_crossing_in_the_optimised_part(part_opt):
+    pymeshlab = pytest.importorskip("pymeshlab")
+    _, _, opt = part_opt
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(np.asarray(opt.points, np.float64), np.asarray(opt.triangles, np.int32)))
+    ms.compute_selection_by_self_intersections_per_face()
+    assert ms.current_mesh().selected_face_number() == 0
+    # and it does find them where there are: the same mesh, one vertex pushed through
+    # the plate from the boss side
+    p = np.array(opt.points, np.float64)
+    p[np.argmax(p[:, 2])] *= np.array([1.0, 1.0, -1.0])
+    ms.add_mesh(pymeshlab.Mesh(p, np.asarray(opt.triangles, np.int32)))
+    ms.compute_selection_by_self_intersections_per_face()
+    assert ms.current_mesh().selected_face_number() > 0
+    assert len(find_self_intersections(p, opt.triangles)) > 0
 
 
 def test_optimize_voxel_staircase_is_embedded_and_never_worse(check_mesh):
@@ -136,8 +158,10 @@ def test_optimize_voxel_staircase_is_embedded_and_never_worse(check_mesh):
     x, y, z = np.meshgrid(g, g, g, indexing="ij")
     ball = (np.sqrt(x**2 + y**2 + z**2) < 15).astype(float)
     raw = wm.mesh_surface(ball, level=0.5)
-    opt = raw.optimize(wm.VolumeField(ball, level=0.5), size=1.5, tolerance=0.3)
+    field = wm.VolumeField(ball, level=0.5)
+    opt = raw.optimize(field, size=1.5, tolerance=0.3)
     _embedded(opt, check_mesh)
+    assert _inward_faces(opt, field) == 0
     assert _worst_q(opt) <= _worst_q(raw)
     assert opt.stats()["euler"] == 2 and opt.n_cells < raw.n_cells
 
@@ -149,8 +173,9 @@ def test_never_worse_than_a_good_input():
     mesh = wm.Mesh(ico.vertices, {"triangle": ico.faces})
     opt = mesh.optimize(wm.sphere(1.0), size=0.2, iterations=2)
     assert _worst_q(opt) <= _worst_q(mesh)
-    assert opt.info["optimize"]["kept"] == "input" and opt.n_cells == mesh.n_cells
-    assert opt.info["optimize"]["after"]["q_worst"] == opt.info["optimize"]["before"]["q_worst"]
+    info = opt.info["optimize"]
+    assert info["kept"] == "input" and opt.n_cells == mesh.n_cells and info["q_worst_reached"] > _worst_q(mesh)
+    assert info["after"]["q_worst"] == info["before"]["q_worst"]
 
 
 def test_tetgen_accepts_the_optimised_part(part_opt, tmp_path):
@@ -168,15 +193,54 @@ def test_tetgen_accepts_the_optimised_part(part_opt, tmp_path):
 
 
 # ----------------------------------------------------------------------------- simplify
-@pytest.mark.parametrize("name, resolution", [("part", 96), ("sphere", 64), ("degree6", 64)])
+def _check_simplified(raw, small, target, check_mesh):
+    _embedded(small, check_mesh)
+    assert _inward_faces(small, target) == 0
+    q, q_raw = _worst_q(small), _worst_q(raw)
+    assert q <= 10.0 and q <= max(q_raw, SIMPLIFY_Q)
+    assert small.info["optimize"]["after"]["q_worst"] == pytest.approx(q)
+    assert small.n_cells < 0.15 * raw.n_cells  # 10 % asked
+    assert small.stats()["euler"] == raw.stats()["euler"]
+
+
+@pytest.mark.parametrize("name, resolution", [("part", 64), ("sphere", 48), ("degree6", 48)])
 def test_simplify_is_embedded_and_outward(name, resolution, check_mesh):
     shape, bounds = wm.example(name)
     capped = bounds if name == "degree6" else None  # the degree-six surface is unbounded
-    raw = wm.mesh_surface(shape, bounds=bounds, resolution=resolution)
+    if name == "part":
+        raw = part_raw(64, "mc")[1]
+    else:
+        raw = wm.mesh_surface(shape, bounds=bounds, resolution=resolution)
     h = (bounds[1][0] - bounds[0][0]) / resolution
     small = raw.simplify(shape, tolerance=h / 4, fraction=0.1, bounds=capped)
-    _embedded(small, check_mesh)
-    assert _inward_faces(small, shape, capped) == 0
-    assert _worst_q(small) <= 10.0 and _worst_q(small) <= _worst_q(raw)
-    assert small.n_cells < 0.2 * raw.n_cells
-    assert small.stats()["euler"] == raw.stats()["euler"]
+    _check_simplified(raw, small, _target(shape, capped), check_mesh)
+    assert _worst_q(small) <= _worst_q(raw)  # marching cubes' slivers are worse than anything left
+
+
+@pytest.fixture(scope="module")
+def frog_label():
+    """Label 14 of pyvista's bundled frog segmentation (a small organ, 3891 voxels,
+    several handles), cropped, as a 0/1 volume: (VolumeField at level 0.5, its surface)."""
+    pv = pytest.importorskip("pyvista")
+    try:
+        img = pv.examples.load_frog_tissues()
+    except Exception as exc:  # no copy in the package and no network
+        pytest.skip(f"pyvista's frog_tissues cannot be loaded here: {exc!r}")
+    vol = np.asarray(img.point_data[img.point_data.keys()[0]]).reshape(img.dimensions, order="F")
+    idx = np.argwhere(vol == 14)
+    a, b = np.maximum(idx.min(0) - 2, 0), np.minimum(idx.max(0) + 3, vol.shape)
+    ind = (vol[a[0]:b[0], a[1]:b[1], a[2]:b[2]] == 14).astype(np.float32)
+    spacing = tuple(float(s) for s in img.spacing)
+    origin = tuple(float(o) + i * s for o, i, s in zip(img.origin, a, spacing))
+    return wm.VolumeField(ind, spacing=spacing, origin=origin, level=0.5), wm.mesh_surface(
+        ind, level=0.5, spacing=spacing, origin=origin)
+
+
+def test_frog_label_simplify_and_optimize(frog_label, check_mesh):
+    field, raw = frog_label
+    small = raw.simplify(field, fraction=0.1)  # tolerance: one spacing
+    _check_simplified(raw, small, field, check_mesh)
+    opt = raw.optimize(field, size=1.5, tolerance=0.3)
+    _embedded(opt, check_mesh)
+    assert _inward_faces(opt, field) == 0 and _worst_q(opt) <= _worst_q(raw)
+    assert opt.stats()["euler"] == raw.stats()["euler"] and opt.n_cells < raw.n_cells

@@ -8,8 +8,8 @@ module decides, for the faces a batch of operations creates, whether they do, lo
 only at the faces nearby:
 
 * **inverted**: the face normal against the exact outward normal at the centroid
-  (``normals(centroid)``, -grad f of the target; or the mean of the normals at the
-  centroid and the corners, ``average=True``) by more than ``NORMAL_COS`` allows;
+  (``normals(centroid)``, -grad f of the target; with ``average=True`` also against the
+  mean of the normals at the centroid and the corners) by more than ``NORMAL_COS`` allows;
 * **folded**: two faces sharing an edge, the surface turning by more than
   ``FOLD_COS`` allows across it (a coplanar fold, which the self-intersection check
   counts as a crossing, is the extreme case);
@@ -308,9 +308,9 @@ def face_violations(points, triangles, faces, normals=None, *, fold_cos: float =
     fold_cos, normal_cos : float
         The thresholds of the fold and inversion tests (module constants by default).
     average : bool
-        Compare with the mean of the normals at the centroid and the corners instead of
-        the centroid's alone: for surfaces the faces do not resolve (a voxel staircase,
-        whose normals turn within a face).
+        Compare with the mean of the normals at the centroid and the corners too, not
+        only with the centroid's: for surfaces the faces do not resolve (a voxel
+        staircase, whose normals turn within a face).
     partners : bool
         Also return the faces not in ``faces`` that a failing face crosses or folds onto.
 
@@ -342,14 +342,14 @@ def _violations(p, t_all, faces, normals, fold_cos, normal_cos, average):
     bad |= degenerate[faces]
     n_hat = nrm / np.maximum(area2, 1e-300)[:, None]
     if normals is not None:
-        if average:  # the centroid's and the corners' normals, averaged
-            k = len(faces)
-            exact = normals(np.concatenate([cen[faces], corners[faces].reshape(-1, 3)]))
-            exact = _unit(exact[:k] + exact[k:].reshape(k, 3, 3).sum(axis=1))
-        else:
-            exact = normals(cen[faces])
-        known = _dot(exact, exact) > 0.25  # where the gradient vanishes nothing is known
-        bad |= known & (_dot(n_hat[faces], exact) <= normal_cos)
+        k = len(faces)
+        exact = normals(np.concatenate([cen[faces], corners[faces].reshape(-1, 3)]) if average else cen[faces])
+        at_centroid = exact[:k]
+        known = _dot(at_centroid, at_centroid) > 0.25  # where the gradient vanishes nothing is known
+        bad |= known & (_dot(n_hat[faces], at_centroid) <= normal_cos)
+        if average:  # the centroid's and the corners' normals, averaged, must agree too
+            mean = _unit(at_centroid + exact[k:].reshape(k, 3, 3).sum(axis=1))
+            bad |= (_dot(mean, mean) > 0.25) & (_dot(n_hat[faces], mean) <= normal_cos)
     new = np.zeros(len(t), bool)
     new[faces] = True
     a, b = _near_pairs(cen, rad, new, 2 * ulp)

@@ -26,7 +26,8 @@ was is returned, else the input itself (``info["optimize"]["kept"]`` says which)
 
 :func:`simplify` is the same driver with a size field from the curvature (h = sqrt(8
 tolerance / κ), so the density follows the curvature as in Fig. 16.20) that never asks
-for more vertices than the input has; ``fraction`` scales it to a target count.
+for more vertices than the input has; ``fraction`` scales it to a target count. Its
+result may be worse than a well-shaped input, up to worst Q_K = ``SIMPLIFY_Q``.
 
 Examples
 --------
@@ -67,6 +68,9 @@ COLLAPSE_BELOW = 4.0 / 5.0
 COLLAPSE_Q = 3.0
 #: the same while decimating (flips and relocation even the triangles out afterwards)
 SIMPLIFY_COLLAPSE_Q = 6.0
+#: the worst Q_K a decimation may end with when its input was better (a tenth of the
+#: triangles of a well-shaped voxel surface cannot all stay as good within the tolerance)
+SIMPLIFY_Q = SIMPLIFY_COLLAPSE_Q
 #: above this a relocation may not make a face worse at all
 SMOOTH_Q_CAP = 6.0
 #: largest normal turn (degrees) accepted for a triangle moved by any operator
@@ -661,6 +665,8 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     counts = {"creases": 0, "splits": 0, "collapses": 0, "flips": 0, "moves": 0, "rejected": 0}
     start = s.copy()  # the input, kept if nothing better comes out
     q_input = _worst_q(s)
+    # the worst Q_K the result may have: the input's (a decimation: up to SIMPLIFY_Q)
+    allowed = max(q_input, SIMPLIFY_Q) if simplifying else q_input
     exact = isinstance(target, FunctionTarget)
     if exact:
         # onto the surface, except where a face would turn, fold or cross (later moves retry)
@@ -684,11 +690,11 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         detect_features(s, 180.0 - 1e-9)  # boundaries and ref interfaces only
     run = _Run(s, target, hfield, tol, angle, FeatureLines(s), counts=counts, half_edge=simplifying)
     bar = _progress(iterations + POLISH_PASSES, progress)
-    fallback = None  # (label, state): the latest state no worse than the input
+    fallback = None  # (label, state): the latest state within the allowed worst Q_K
 
     def keep_if_no_worse(label):
         nonlocal fallback
-        if _worst_q(s) <= q_input:
+        if _worst_q(s) <= allowed:
             fallback = (label, s.copy())
     def refresh_creases():
         # close gaps in the crease chains, then re-detect
@@ -774,16 +780,17 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         s = best
     bar.close()
     s.compact()
-    # never worse than the input: else the latest state that was not, else the input
-    kept = "final"
-    if _worst_q(s) > q_input:
+    # never worse than allowed: else the latest state that was not, else the input
+    kept, reached = "final", _worst_q(s)
+    if reached > allowed:
         kept, s = fallback if fallback is not None else ("input", start)
         s.compact()
     before = quality_table(mesh.points, mesh.triangles)
     after = quality_table(s.points, s.triangles)
     info = dict(mesh.info)
     info.update({
-        "optimize": {"before": before, "after": after, **counts, "kept": kept, "tolerance": tol,
+        "optimize": {"before": before, "after": after, **counts, "kept": kept,
+                     "q_worst_reached": reached, "tolerance": tol,
                      "iterations": iterations, "seconds": time.perf_counter() - t0,
                      "feature_edges": int(len(s.feature_keys)),
                      "corners": int((s.vclass == CORNER).sum())},
@@ -901,9 +908,10 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
     Mesh
         ``info["optimize"]`` holds the before/after statistics (Table 16.1 style: ``np``,
         ``ne``, ``q_mean``, ``q_worst``, ``angle_min``, ...), the operator counts,
-        ``rejected`` (operations undone by the embedding checks) and ``kept`` ("final",
+        ``rejected`` (operations undone by the embedding checks), ``kept`` ("final",
         the pass returned because the final worst Q_K was above the input's, or
-        "input"); ``stats()`` gives ``q_mean``, ``q_worst``.
+        "input") and ``q_worst_reached`` (the final worst Q_K, returned or not);
+        ``stats()`` gives ``q_mean``, ``q_worst``.
 
     Examples
     --------
@@ -934,7 +942,8 @@ def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, frac
     tolerance may stop it earlier). With ``shape=None`` the error is measured to the
     input mesh. Default tolerance: 0.05 x the mean input edge, one sample spacing for a
     :class:`VolumeField`. As in :func:`optimize`, no operation may make faces cross,
-    fold or face inwards, and the result is never of worse worst Q_K than the input.
+    fold or face inwards; the result's worst Q_K is at most the input's or ``SIMPLIFY_Q``
+    (6), whichever is larger (else the latest pass that was, else the input).
 
     Examples
     --------
