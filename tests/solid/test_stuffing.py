@@ -214,3 +214,11 @@ def test_complement_fills_the_box_around_a_hole():
 def test_a_size_function_is_refused_with_a_clear_message():
     with pytest.raises(ValueError, match="size"):
         wm.mesh_domain(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), size=lambda p: 0.1)
+
+
+def test_boundary_faces_from_surface_vertices_only_are_all_of_them():
+    vol = wm.mesh_domain(wm.example("part")[0], bounds=wm.example("part")[1], size=0.12)
+    tets = vol.cells["tetra"]
+    full = boundary_faces(tets)  # every face sorted, not only those of surface vertices
+    assert set(map(tuple, full.tolist())) == set(map(tuple, vol.cells["triangle"].tolist()))
+    assert len(full) == len(vol.cells["triangle"])

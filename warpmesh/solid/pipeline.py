@@ -150,8 +150,11 @@ def _check_options(options: dict) -> dict:
     return out
 
 
-def boundary_faces(tets: np.ndarray) -> np.ndarray:
+def boundary_faces(tets: np.ndarray, on_surface: np.ndarray | None = None) -> np.ndarray:
     """(k, 3) the faces of exactly one tetrahedron, outward (the tetrahedra positive).
+
+    ``on_surface`` (n,) bool, optional: the vertices that can lie on the boundary (a face
+    with another vertex is interior); only the faces with three such vertices are sorted.
 
     Example
     -------
@@ -162,11 +165,13 @@ def boundary_faces(tets: np.ndarray) -> np.ndarray:
     """
     tets = np.asarray(tets, dtype=np.int64)
     faces = np.concatenate([tets[:, list(f)] for f in _FACES])
+    if on_surface is not None:
+        faces = faces[np.asarray(on_surface)[faces].all(axis=1)]
     key = np.sort(faces, axis=1)
     n = int(tets.max()) + 1 if len(tets) else 1
-    code = (key[:, 0] * n + key[:, 1]) * n + key[:, 2] if n < 2**20 else None
-    if code is not None:
-        _, inv, counts = np.unique(code, return_inverse=True, return_counts=True)
+    if n < 2**20:
+        _, inv, counts = np.unique((key[:, 0] * n + key[:, 1]) * n + key[:, 2], return_inverse=True,
+                                   return_counts=True)
     else:
         _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     return faces[counts[inv.ravel()] == 1]
@@ -206,7 +211,7 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, device, optio
         raise ValueError("expected a 'shape' with an inside (f > 0) in 'bounds', found no lattice node "
                          f"inside at size {h:g}; check the shape, move 'bounds' or lower 'size'")
     t0 = time.perf_counter()
-    tris = boundary_faces(tets)
+    tris = boundary_faces(tets, on_surface)
     refs = _face_refs(points, tris, box, h)
     on_cap = np.zeros(len(points), bool)
     on_cap[tris[refs == C.CAP_REF].ravel()] = True
