@@ -1,9 +1,11 @@
 """Smoothing of tetrahedral meshes that never lowers the smallest dihedral angle [FG §16.4.3,
 "metric modifications": points move, connections stay].
 
-A sweep moves every free vertex once: an interior vertex to the centroid of its neighbours, a
-boundary vertex on f = 0 to the centroid of its boundary neighbours projected back onto
-f = 0 (Newton steps on the exact field); vertices on the caps of the bounds stay. Vertices
+A sweep moves every free vertex once: an interior vertex towards the centroid of its
+neighbours, a boundary vertex on f = 0 towards the centroid of its boundary neighbours,
+projected back onto f = 0 (Newton steps on the exact field); vertices on the caps of the
+bounds stay. The full move and shorter ones (``STEPS``) are tried; the one that raises the
+vertex's smallest dihedral angle most is kept. Vertices
 move in rounds of an independent set (random priorities, local maxima: no two share a
 tetrahedron), so each move is judged alone: it is kept only when the smallest dihedral
 angle of the tetrahedra around the vertex does not drop, the largest stays below the mesh's
@@ -30,6 +32,8 @@ __all__ = ["smooth_tets"]
 
 PROJECTION_STEPS = 3
 MAX_ROUNDS = 12
+#: fractions of the move to the neighbours' centroid tried for each vertex (the best kept)
+STEPS = (1.0, 0.5, 0.25)
 
 
 def _unique_edges(cells: np.ndarray, pairs) -> np.ndarray:
@@ -98,36 +102,51 @@ def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, devi
             np.maximum.at(best, edges[:, 1], prio[edges[:, 0]])
             sel = todo & (prio >= best) & (prio >= 0)
             todo &= ~sel
-            target = pts.copy()
             cin = _centroids(pts, edges)
-            target[sel & free_in] = cin[sel & free_in]
+            csurf = _centroids(pts, surf_edges)
             sf = np.flatnonzero(sel & free_f)
-            if len(sf):
-                csurf = _centroids(pts, surf_edges)
-                target[sf] = _project(tape, csurf[sf], device)
             # the tetrahedra around selected vertices: one selected vertex each (independent set)
             hit = sel[tets]
             around = np.flatnonzero(hit.any(axis=1))
             if not len(around):
                 continue
             owner = tets[around, np.argmax(hit[around], axis=1)]
-            trial = pts.copy()
-            trial[owner] = target[owner]
-            a_new = np.degrees(dihedral_angles(trial, tets[around]))
-            vol = signed_volumes(trial, tets[around])
-            new_min, new_max = a_new.min(axis=1), a_new.max(axis=1)
             before = np.full(n, np.inf)
-            after = np.full(n, np.inf)
-            worst = np.zeros(n)
             np.minimum.at(before, owner, t_min[around])
-            np.minimum.at(after, owner, np.where(vol > 0, new_min, -np.inf))
-            np.maximum.at(worst, owner, new_max)
-            ok = sel & (after >= before) & (worst <= ceiling) & np.isfinite(after)
+            best_gain = np.full(n, -np.inf)
+            best_pos = pts.copy()
+            best_min = best_max = None
+            for step in STEPS:  # the full move to the centroid, then shorter ones
+                target = pts.copy()
+                target[sel & free_in] = pts[sel & free_in] + step * (cin[sel & free_in] - pts[sel & free_in])
+                if len(sf):
+                    target[sf] = _project(tape, pts[sf] + step * (csurf[sf] - pts[sf]), device)
+                trial = pts.copy()
+                trial[owner] = target[owner]
+                a_new = np.degrees(dihedral_angles(trial, tets[around]))
+                vol = signed_volumes(trial, tets[around])
+                new_min, new_max = a_new.min(axis=1), a_new.max(axis=1)
+                after = np.full(n, np.inf)
+                worst = np.zeros(n)
+                np.minimum.at(after, owner, np.where(vol > 0, new_min, -np.inf))
+                np.maximum.at(worst, owner, new_max)
+                fine = sel & (after >= before) & (worst <= ceiling) & np.isfinite(after)
+                gain = np.full(n, -np.inf)
+                gain[fine] = after[fine] - before[fine]
+                better = gain > best_gain
+                best_gain[better] = gain[better]
+                best_pos[better] = target[better]
+                take = better[owner]
+                if best_min is None:
+                    best_min, best_max = new_min.copy(), new_max.copy()
+                best_min[take] = new_min[take]
+                best_max[take] = new_max[take]
+            ok = np.isfinite(best_gain)
             if not ok.any():
                 continue
-            pts[ok] = target[ok]
+            pts[ok] = best_pos[ok]
             keep = ok[owner]
-            t_min[around[keep]] = new_min[keep]
-            t_max[around[keep]] = new_max[keep]
+            t_min[around[keep]] = best_min[keep]
+            t_max[around[keep]] = best_max[keep]
             moved += int(ok.sum())
     return pts, moved
