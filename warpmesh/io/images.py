@@ -76,7 +76,7 @@ _FLIP_XY = np.diag([-1.0, -1.0, 1.0])  # RAS <-> LPS
 
 
 # ----------------------------------------------------------------------------- the volume
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Volume:
     """Sampled values on a regular grid, placed in the world (returned by :func:`load_volume`).
 
@@ -147,6 +147,16 @@ class Volume:
         set_(self, "direction", d)
         if self.space not in (None, *_SPACES):
             raise ValueError(f"expected 'space' one of {[*_SPACES, None]}, got {self.space!r}")
+
+    def __repr__(self) -> str:
+        """One line: the shape and dtype, never the samples.
+
+        >>> import numpy as np
+        >>> Volume(np.zeros((2, 3, 4), dtype=np.int16), spacing=(1, 1, 2.5))
+        Volume(shape=(2, 3, 4), dtype=int16, spacing=(1.0, 1.0, 2.5), origin=(0.0, 0.0, 0.0), axis_aligned=True, space=None)
+        """
+        return (f"Volume(shape={self.shape}, dtype={self.values.dtype}, spacing={self.spacing}, origin={self.origin}, "
+                f"axis_aligned={self.axis_aligned}, space={self.space!r})")
 
     # -- derived ------------------------------------------------------------------------------
     @property
