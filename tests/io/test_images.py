@@ -280,6 +280,22 @@ def test_cli_meshes_the_frog_labels(tmp_path, capsys):
     assert "--volume" in capsys.readouterr().err
 
 
+def test_cli_places_a_nifti_in_its_world_frame(tmp_path, capsys):
+    affine = np.eye(4)
+    affine[:3, :3] = _rotation((0, 0, 1), 0.5) * 1.5
+    affine[:3, 3] = (10, 20, 30)
+    centre = affine[:3, :3] @ [8, 8, 8] + affine[:3, 3]
+    path = tmp_path / "ball.nii.gz"
+    nib.save(nib.Nifti1Image(_sphere_image(affine, (17, 17, 17), centre, 7.0), affine), path)
+    out = tmp_path / "ball.ply"
+    assert main(["mesh", "--volume", str(path), "-o", str(out), "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    assert stats["space"] == "RAS" and stats["euler"] == 2
+    assert np.abs(np.linalg.norm(wm.load(out).points - centre, axis=1) - 7.0).max() < 0.75
+    assert main(["mesh", "--volume", str(path), "--simplify", "0.5"]) == 2  # the target field is axis-aligned only
+    assert "direction" in capsys.readouterr().err
+
+
 # ----------------------------------------------------------------------------- bad input
 def test_labels_of_floats_must_be_whole_numbers(tmp_path):
     lab = np.zeros((8, 8, 8), dtype=np.float32)
@@ -311,6 +327,12 @@ def test_a_file_that_does_not_parse(tmp_path, name):
     path.write_bytes(b"this is not an image\n" * 8)
     with pytest.raises(ReadError, match="bad"):
         wm.load_volume(path)
+
+
+def test_a_mesh_file_is_not_an_image(tmp_path):
+    pv.Sphere().save(tmp_path / "ball.vtk")
+    with pytest.raises(ValueError, match="expected an image.*PolyData.*warpmesh.load"):
+        wm.load_volume(tmp_path / "ball.vtk")
 
 
 def test_a_folder_without_dicom(tmp_path):
