@@ -7,7 +7,7 @@ holes and a boss: sharp edges), each at about ``--tets`` tetrahedra (default 100
 ``--large`` for about 1 M too).
 
 - warpmesh: ``wm.mesh_domain(shape, bounds, size=h)`` from the shape (lattice, cut points
-  by bisection of the exact f, warp, stencils; boundary faces and statistics included).
+  by a bracketed root search (Illinois) of the exact f, warp, stencils; boundary faces and statistics included).
 - gmsh: the same solids built with OpenCASCADE (``addSphere``, ``addTorus``, box minus
   cylinders fused with a sphere), ``Mesh.MeshSizeMin/Max`` set so the count is close, 3D
   Delaunay (``Mesh.Algorithm3D = 1``) with gmsh's default optimisation; timed from the

@@ -34,8 +34,9 @@ Layout (all int32, uploaded by :mod:`warpmesh.solid.lattice`)
     references, ``case = sign_code * 16 + face_bits`` with ``sign_code = sum (s_i + 1) 3^i``
     (``s_i`` in {-1, 0, 1}) and ``face_bits`` bit ``f`` set when the diagonal of long-edge face
     ``f`` (``LONG_FACES``) leaves the *second* end of its long edge. A reference ``r < 4`` is
-    a local vertex, ``4 + e`` the cut point on local edge ``e`` (``EDGES``). A count of
-    ``ZERO_CASE`` marks the all-zero tetrahedron, kept when f > 0 at its centroid.
+    a local vertex, ``4 + e`` the cut point on local edge ``e`` (``EDGES``). A tetrahedron with
+    no ``+`` vertex is left out, four zero vertices included: warped onto a flat stretch of the
+    surface they can be coplanar (a sliver), and the tetrahedra around it close the mesh.
 
 Example
 -------
