@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from warpmesh.frep.tape import value_gradient_at
-from warpmesh.solid.dihedral import dihedral_angles, signed_volumes
+from warpmesh.solid.dihedral import tet_quality
 
 __all__ = ["smooth_tets"]
 
@@ -86,8 +86,8 @@ def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, devi
     free_f = boundary & np.asarray(on_f) & ~np.asarray(on_cap)
     edges = _unique_edges(tets, ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)))
     surf_edges = _unique_edges(np.asarray(tris, dtype=np.int64), ((0, 1), (1, 2), (0, 2)))
-    ang = np.degrees(dihedral_angles(pts, tets))
-    t_min, t_max = ang.min(axis=1), ang.max(axis=1)
+    q = tet_quality(pts, tets, device)
+    t_min, t_max = q[:, 0].copy(), q[:, 1].copy()
     ceiling = float(t_max.max()) if len(t_max) else 180.0
     rng = np.random.default_rng(seed)
     moved = 0
@@ -123,9 +123,8 @@ def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, devi
                     target[sf] = _project(tape, pts[sf] + step * (csurf[sf] - pts[sf]), device)
                 trial = pts.copy()
                 trial[owner] = target[owner]
-                a_new = np.degrees(dihedral_angles(trial, tets[around]))
-                vol = signed_volumes(trial, tets[around])
-                new_min, new_max = a_new.min(axis=1), a_new.max(axis=1)
+                q = tet_quality(trial, tets[around], device)  # a Warp kernel, float64
+                new_min, new_max, vol = q[:, 0], q[:, 1], q[:, 3]
                 after = np.full(n, np.inf)
                 worst = np.zeros(n)
                 np.minimum.at(after, owner, np.where(vol > 0, new_min, -np.inf))
