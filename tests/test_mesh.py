@@ -439,8 +439,10 @@ def test_save_unknown_extension(surface, tmp_path):
 
 
 def test_save_unknown_format(surface, tmp_path):
-    with pytest.raises(ValueError, match=r"unknown file_format 'abaqus'; expected one of \['vtu'"):
-        surface.save(tmp_path / "sphere.vtu", file_format="abaqus")
+    with pytest.raises(ValueError, match=r"unknown file_format 'acad'; expected one of \[.*'abaqus'"):
+        surface.save(tmp_path / "sphere.vtu", file_format="acad")
+    back = load(surface.save(tmp_path / "sphere.vtu", file_format="abaqus"), file_format="abaqus")
+    assert back.n_cells == surface.n_cells  # meshio's other formats by name too (an .inp in a .vtu)
 
 
 def test_save_cells_the_format_cannot_store(cube, tmp_path):

@@ -20,6 +20,14 @@ ext     format   cells                          besides points (precision) and c
                                                 points are merged and renumbered)
 ======  =======  =============================  ====================================
 
+Every other format meshio reads and writes (Abaqus ``.inp``, Nastran ``.nas``/``.bdf``,
+SU2, XDMF, MED, Exodus, Netgen ``.vol``, OFF, Permas, Tecplot, TetGen ``.node``/``.ele``,
+...) works too, with what a probe of this installation found it round-trips
+(:mod:`warpmesh.io.formats`): its cell types, its cell refs when they come back, no
+other data (dropped with a warning). :func:`file_formats` lists every extension that
+works here; XDMF, MED, CGNS and HMF need h5py and Exodus netCDF4 (the ``[formats]``
+extra). Legacy ``.vtk`` files meshio cannot parse (64-bit ids) are read by VTK.
+
 The gmsh-only types are line4, line5, triangle10, triangle15, tetra20 and tetra35: meshio's
 vtu/vtk writers have no VTK type for them. Every format but Medit stores 3D points; 2D
 meshes get z = 0 and come back 3D unless ``load(..., dim=2)``. Refs are written as
@@ -54,11 +62,14 @@ import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.cells.types import CELL_TYPES, REF_KEY, MeshLike, block_refs, points3
+from meshio._helpers import reader_map
+
 from warpmesh.io.convert import GMSH_GEO, GMSH_REF, from_meshio, set_dim, to_meshio
+from warpmesh.io.formats import format_support, meshio_extensions
 from warpmesh.errors import ReadError
 
 
-__all__ = ["save", "load", "FILE_FORMATS", "FileFormat"]
+__all__ = ["save", "load", "file_formats", "FILE_FORMATS", "FileFormat"]
 
 #: what a format keeps of the point data and cell data ({name: [array per block]}):
 #: ``(mesh, point_data, cell_data) -> (point_data, cell_data, names dropped)``
@@ -88,6 +99,7 @@ class _Format:
     index_dtype: type = INDEX_DTYPE  # of the cells written
     keep_data: _DataFilter = _keep_all  # on save: which arrays the file gets
     tidy: Callable[[meshio.Mesh], None] = _no_tidy  # on load: drop what meshio invents
+    folder: bool = False  # written in a temporary folder (writers that add side files: .h5, .ele)
 
 
 _FORMATS: dict[str, _Format] = {}  # name -> format, in registration order
@@ -108,16 +120,53 @@ def check_path(path, file_format: str | None = None) -> None:
     _find_format(Path(path), file_format)
 
 
+def file_formats() -> dict[str, str]:
+    """Every extension :func:`save` and :func:`load` take here -> its format: the curated
+    :data:`FILE_FORMATS`, then meshio's other formats that round-trip at least one cell
+    type on this installation (:func:`warpmesh.io.formats.format_support`, probed once
+    per installation and cached).
+
+    Example
+    -------
+    >>> from warpmesh.io.files import file_formats
+    >>> file_formats()[".vtu"], file_formats()[".inp"]
+    ('vtu', 'abaqus')
+    """
+    support = format_support()
+    more = {ext: name for ext, name in meshio_extensions(exclude=tuple(FILE_FORMATS)).items()
+            if name in support and support[name].cells}
+    return {**FILE_FORMATS, **more}
+
+
+def _meshio_format(name: str, ext: str) -> _Format:
+    """A format of meshio's that warpmesh does not curate, as this installation's probe
+    found it: the cell types that round-trip, refs if they come back, nothing else."""
+    sup = format_support().get(name)
+    if sup is None or not sup.cells:
+        why = "meshio has no such format" if sup is None else sup.error
+        raise ValueError(f"meshio's {name!r} format ({ext}) does not round-trip any mesh on this installation "
+                         f"({why}); use one of {list(file_formats())}")
+    return _Format(name, ext, name, cell_types=sup.cells, keep_data=_refs_as(sup.refs),
+                   tidy=_refs_back(sup.refs), folder=True)
+
+
 def _find_format(path: Path, file_format: str | None) -> _Format:
     if file_format is not None:
         if file_format in _FORMATS:
             return _FORMATS[file_format]
-        raise ValueError(f"unknown file_format {file_format!r}; expected one of {list(_FORMATS)}")
-    if path.suffix.lower() in _EXTENSIONS:
-        return _FORMATS[_EXTENSIONS[path.suffix.lower()]]
+        if file_format in format_support():
+            sup = format_support()[file_format]
+            return _meshio_format(file_format, sup.extensions[0])
+        raise ValueError(f"unknown file_format {file_format!r}; expected one of "
+                         f"{sorted(set(_FORMATS) | set(format_support()))}")
+    ext = path.suffix.lower()
+    if ext in _EXTENSIONS:
+        return _FORMATS[_EXTENSIONS[ext]]
+    other = meshio_extensions(exclude=tuple(FILE_FORMATS))
+    if ext in other:
+        return _meshio_format(other[ext], ext)
     raise ValueError(
-        f"unknown mesh file extension {path.suffix!r} in {str(path)!r}; expected one of "
-        f"{list(FILE_FORMATS)} or pass file_format= one of {list(_FORMATS)}"
+        f"unknown mesh file extension {ext!r} in {str(path)!r}; expected one of {list(file_formats())}"
     )
 
 
@@ -155,6 +204,29 @@ def _ply_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
 
 def _tidy_stl(m: meshio.Mesh) -> None:
     m.cell_data.pop("facet_normals", None)  # derived by meshio, not data
+
+
+def _refs_as(name: str | None) -> _DataFilter:
+    """What a probed meshio format gets: the cell refs when they come back, nothing else."""
+    def keep(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
+        if name is None:
+            return {}, {}, [*pd, *cd]
+        return {}, {REF_KEY: [block_refs(mesh, t) for t in mesh.cells]}, [*pd, *(k for k in cd if k != REF_KEY)]
+    return keep
+
+
+def _refs_back(name: str | None) -> Callable[[meshio.Mesh], None]:
+    """On load: the refs under the name the format gives them; other cell data dropped
+    only when it is the refs' copy."""
+    def tidy(m: meshio.Mesh) -> None:
+        if name is None or name not in m.cell_data:
+            return
+        refs = m.cell_data.pop(name)
+        # some formats store every array as floats (tecplot): whole numbers come back as refs
+        if all(np.asarray(r).dtype.kind == "f" and np.all(np.asarray(r) == np.round(r)) for r in refs):
+            refs = [np.asarray(r).astype(INDEX_DTYPE) for r in refs]
+        m.cell_data[REF_KEY] = refs
+    return tidy
 
 
 def _tidy_obj(m: meshio.Mesh) -> None:
@@ -234,6 +306,9 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         raise ValueError(f"expected a mesh with points and cells to save to {str(path)!r}, got an empty "
                          f"mesh ({mesh.n_points} points, {mesh.n_cells} cells): mesh files cannot hold it")
     data = _meshio_for(mesh, fmt, stacklevel + 1)
+    if fmt.folder:
+        _write_in_folder(data, path, fmt)
+        return path
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
     try:
         meshio.write(tmp, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
@@ -242,6 +317,22 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         tmp.unlink(missing_ok=True)
         raise
     return path
+
+
+def _write_in_folder(data: meshio.Mesh, path: Path, fmt: _Format) -> None:
+    """Write with the final name inside a temporary folder next to ``path`` (side files,
+    such as XDMF's .h5 or TetGen's .ele, keep the names the main file refers to), then
+    move every file out; on failure nothing is left."""
+    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmpdir"
+    tmp.mkdir()
+    try:
+        meshio.write(tmp / path.name, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
+        for f in sorted(tmp.iterdir(), key=lambda f: f.name == path.name):  # the main file last
+            os.replace(f, path.parent / f.name)
+    finally:
+        for f in tmp.iterdir():
+            f.unlink()
+        tmp.rmdir()
 
 
 def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path:
@@ -322,13 +413,16 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     set_dim(np.zeros((0, 3)), dim)  # check the argument before reading
     if not path.exists():
         raise FileNotFoundError(errno.ENOENT, "no such mesh file", str(path))
-    reader = getattr(meshio, fmt.name).read  # the format's own: meshio.read calls sys.exit
+    reader = reader_map[fmt.name]  # the format's own: meshio.read calls sys.exit
     try:
         with warnings.catch_warnings():
             # meshio's binary-STL probe overflows on ascii files
             warnings.simplefilter("ignore", RuntimeWarning)
             m = reader(str(path))
     except Exception as exc:  # meshio raises ReadError, ValueError, UnicodeError, IndexError, ...
+        if fmt.name in ("vtk", "vtu"):  # VTK's own reader knows what meshio's does not (64-bit ids)
+            mesh = _read_with_vtk(path, mesh_type, exc)
+            return mesh if dim in (None, mesh.dim) else mesh.replace(points=set_dim(np.asarray(mesh.points), dim))
         raise ReadError(
             f"could not read {str(path)!r} as {fmt.name}: {type(exc).__name__}: {exc}"
         ) from exc
@@ -342,3 +436,20 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     if dim in (None, mesh.dim):
         return mesh
     return mesh.replace(points=set_dim(np.asarray(mesh.points), dim))
+
+
+def _read_with_vtk(path: Path, mesh_type, first: Exception) -> MeshLike:
+    """A VTK file meshio cannot read (legacy files with 64-bit ids: 'vtktypeint64'), read
+    by VTK through pyvista; the ReadError names both failures."""
+    try:
+        import pyvista
+
+        from warpmesh.io.convert import from_pyvista
+
+        data = pyvista.read(str(path))
+        if data.n_points == 0:
+            raise ValueError("the file holds no points")
+        return from_pyvista(data, mesh_type=mesh_type)
+    except Exception as exc:
+        raise ReadError(f"could not read {str(path)!r} as {path.suffix[1:]}: meshio: {type(first).__name__}: "
+                        f"{first}; VTK: {type(exc).__name__}: {exc}") from exc

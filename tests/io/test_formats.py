@@ -1,0 +1,116 @@
+"""Every meshio format that works here, round-tripped through ``save``/``load``; the list
+of what works is measured (:mod:`warpmesh.io.formats`), and checked not to be empty of
+the formats solvers read."""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from warpmesh.io.files import FILE_FORMATS, file_formats
+from warpmesh.io.formats import PROBE_CELLS, format_support, meshio_extensions
+
+
+def _mesh_of(cell_type: str) -> wm.Mesh:
+    """Two cells of one type side by side (refs 3 and 5), with a point array the generic
+    formats drop."""
+    from warpmesh.cells.reference import reference_cell
+
+    base = {"triangle6": ("triangle", ((0, 1), (1, 2), (2, 0))),
+            "tetra10": ("tetra", ((0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)))}
+    linear, mids = base.get(cell_type, (cell_type, ()))
+    p = np.asarray(reference_cell(linear).vertices, dtype=np.float64)
+    p = np.column_stack([p, np.zeros((len(p), 3 - p.shape[1]))])
+    if mids:
+        p = np.concatenate([p, [0.5 * (p[a] + p[b]) for a, b in mids]])
+    n = len(p)
+    pts = np.concatenate([p, p * 0.5 + [3.0, 1.25, -0.5]])  # a second cell, scaled: same orientation
+    return wm.Mesh(pts, {cell_type: [list(range(n)), list(range(n, 2 * n))]}, cell_refs={cell_type: [3, 5]},
+                   point_data={"temperature": np.linspace(0, 1, 2 * n)})
+
+
+def _generic():
+    """(extension, format, cell type) for every meshio format warpmesh does not curate and
+    every cell type it round-trips here."""
+    support = format_support()
+    out = []
+    for ext, name in sorted(meshio_extensions(exclude=tuple(FILE_FORMATS)).items()):
+        if name in support:
+            out += [(ext, name, c) for c in support[name].cells]
+    return out
+
+
+def test_the_formats_solvers_read_are_there():
+    """Not an empty probe: these round-trip a tetrahedral mesh with this project's test
+    dependencies (h5py for XDMF and MED, netCDF4 for Exodus)."""
+    works = {name for name, s in format_support().items() if "tetra" in s.cells}
+    assert {"abaqus", "nastran", "su2", "xdmf", "med", "exodus", "netgen", "avsucd", "permas", "tetgen"} <= works
+    assert {".inp", ".nas", ".su2", ".xdmf", ".med", ".e", ".vol", ".off"} <= set(file_formats())
+    assert all(format_support()[name].cells for name in file_formats().values() if name in format_support()
+               and name not in FILE_FORMATS.values())
+
+
+@pytest.mark.parametrize("ext, name, cell_type", _generic())
+def test_round_trip(ext, name, cell_type, tmp_path):
+    mesh = _mesh_of(cell_type)
+    path = tmp_path / f"m{ext}"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        wm.Mesh.save(mesh, path)
+    assert any("temperature" in str(w.message) for w in caught)  # dropped, and said so
+    back = wm.load(path)
+    assert list(back.cells) == [cell_type]
+    np.testing.assert_array_equal(back.cells[cell_type], mesh.cells[cell_type])
+    np.testing.assert_allclose(back.points[:mesh.n_points], mesh.points, atol=1e-6)
+    if format_support()[name].refs is not None:
+        assert back.cell_refs[cell_type].tolist() == [3, 5]
+    assert not [f for f in os.listdir(tmp_path) if f.startswith(".")]  # no temporary left
+
+
+def test_side_files_keep_their_names(tmp_path):
+    """XDMF writes its arrays to an .h5 file that the .xdmf names; TetGen a .node and an
+    .ele: written in a temporary folder under the final names, then moved out."""
+    mesh = _mesh_of("tetra")
+    wm.Mesh.save(mesh.replace(point_data={}), tmp_path / "a.xdmf")
+    wm.Mesh.save(mesh.replace(point_data={}), tmp_path / "b.node")
+    assert sorted(os.listdir(tmp_path)) == ["a.h5", "a.xdmf", "b.ele", "b.node"]
+    for name in ("a.xdmf", "b.node", "b.ele"):
+        assert wm.load(tmp_path / name).n_cells == 2
+
+
+def test_a_cell_type_the_format_cannot_hold(tmp_path):
+    with pytest.raises(ValueError, match=r"off \(\.off\) files store only \['triangle'\] cells, got \['tetra'\]"):
+        wm.Mesh.save(_mesh_of("tetra"), tmp_path / "t.off")
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_format_that_works_for_nothing_says_why(tmp_path):
+    broken = [(s.extensions[0], s) for s in format_support().values() if not s.cells]
+    if not broken:
+        pytest.skip("every meshio format round-trips some cell type with this meshio")
+    ext, sup = broken[0]
+    with pytest.raises(ValueError, match="does not round-trip any mesh on this installation"):
+        wm.Mesh.save(_mesh_of("triangle"), tmp_path / f"t{ext}")
+
+
+def test_unknown_extension_lists_what_works():
+    with pytest.raises(ValueError, match=r"unknown mesh file extension '\.xyz'.*'\.inp'"):
+        wm.load("mesh.xyz")
+
+
+def test_the_probe_tried_every_cell_type():
+    """A format that keeps all of them keeps the second-order ones too (the probe builds
+    triangle6/tetra10, not only linear cells)."""
+    assert set(PROBE_CELLS) <= set(format_support()["xdmf"].cells)
+
+
+def test_legacy_vtk_with_64_bit_ids():
+    """pyvista's own hexbeam.vtk ('vtktypeint64' offsets), which meshio cannot read."""
+    examples = pytest.importorskip("pyvista.examples")
+    m = wm.load(examples.hexbeamfile)
+    assert list(m.cells) == ["hexahedron"] and m.n_cells == 40
+    assert np.all(wm.Mesh(m.points, {"hexahedron": m.cells["hexahedron"]}).stats()["volume"] > 0)
