@@ -4,6 +4,10 @@ Examples
 --------
 ``warpmesh mesh --example part --resolution 256 -o part.ply``
     meshes the bundled CSG part and prints its statistics.
+``warpmesh mesh torus.py:ring --resolution 128 -o ring.stl``
+    meshes the shape ``ring`` that the Python file ``torus.py`` defines (with its ``bounds``
+    or ``--bounds``); ``warpmesh mesh --expr "1 - x**2 - y**2 - z**2" --bounds -2 -2 -2 2 2 2``
+    meshes an expression of x, y, z (see :mod:`warpmesh.cli.sources`).
 ``warpmesh mesh --volume ct.npy --level 300 --spacing 0.5 -o bone.stl``
     extracts an iso-surface of a volume saved with ``numpy.save``.
 ``warpmesh mesh --volume seg.nii.gz --labels all --method mt -o organs.vtu``
@@ -18,6 +22,11 @@ Examples
     an off-screen picture or a WebGL page of a mesh file or example: see :mod:`warpmesh.cli.view`.
 ``warpmesh info part.ply``
     prints the statistics of a mesh file.
+
+Every command prints one line per figure (``--json``: the whole statistics as JSON and
+nothing else on stdout), checks its output path before any work, names the user's paths
+and flags in its errors (exit status 2), and ends on Ctrl-C with one line and status 130
+(files are written atomically, so nothing is left half-written).
 ``warpmesh renumber in.msh out.msh --method gibbs``
     renumbers nodes and elements for a small bandwidth and profile ([FG §17.4]) and prints
     the statistics table (Table 17.1).
@@ -27,19 +36,24 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 import numpy as np
 
 
 def _parser() -> argparse.ArgumentParser:
-    from warpmesh.frep.examples import EXAMPLES
+    import warpmesh
+    from warpmesh.cli.output import extensions_text
+    from warpmesh.cli.sources import add_shape_arguments
 
     p = argparse.ArgumentParser(prog="warpmesh", description="Meshes from implicit geometry.")
+    p.add_argument("--version", action="version", version=f"warpmesh {warpmesh.__version__}")
     sub = p.add_subparsers(dest="command", required=True)
-    m = sub.add_parser("mesh", help="mesh a bundled example shape or a volume image and print statistics")
+    m = sub.add_parser("mesh", help="mesh a shape (example, Python file, expression) or a volume image and "
+                                    "print statistics")
     src = m.add_mutually_exclusive_group(required=True)
-    src.add_argument("--example", choices=list(EXAMPLES), help="a bundled example shape")
+    add_shape_arguments(m, src, dims=(3,))
     src.add_argument("--volume", metavar="FILE",
                      help="a 3D image: .vti .vtk .nii .nii.gz .nrrd .nhdr .mha .mhd .npy .npz, or a DICOM series "
                           "folder (the medical formats need pip install 'warpmesh[images]')")
@@ -68,12 +82,12 @@ def _parser() -> argparse.ArgumentParser:
                    help="gradient for Newton roots: exact (default) or finite differences")
     m.add_argument("--no-cap", action="store_true", help="leave the surface open at the bounds")
     m.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
-    m.add_argument("-o", "--output", help="mesh file to write (.ply .obj .stl .vtk .vtu .msh .mesh)")
+    m.add_argument("-o", "--output", help=f"mesh file to write ({extensions_text(('triangle',))})")
     m.add_argument("--root-iterations", type=int, help="iterations of bisection / Newton")
     m.add_argument("--evaluator", choices=["interpreter", "compiled"],
                    help="shapes: the tape interpreter (default, no compile) or a kernel generated for "
                         "the shape (about 1.5 s to compile once per structure, cached)")
-    m.add_argument("--json", action="store_true", help="print statistics as JSON")
+    m.add_argument("--json", action="store_true", help="print the whole statistics as JSON (nothing else on stdout)")
     m.add_argument("--optimize", action="store_true",
                    help="optimise the mesh for finite elements on the exact surface ([FG §16.4.3]) and "
                         "print the before/after quality table")
@@ -83,8 +97,8 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--max-error", type=float,
                    help="--optimize/--simplify: largest distance to the surface accepted (absolute)")
     r = sub.add_parser("renumber", help="renumber a mesh file's nodes and elements (bandwidth, profile)")
-    r.add_argument("input", help="mesh file to read (any format meshio reads)")
-    r.add_argument("output", help="mesh file to write")
+    r.add_argument("input", help=f"mesh file to read ({extensions_text(())})")
+    r.add_argument("output", help=f"mesh file to write ({extensions_text(())})")
     r.add_argument("--method", choices=["gibbs", "rcm", "frontal", "frontal-diameter"], default="gibbs")
     r.add_argument("--higher-order", choices=["ball", "graph"], default="ball",
                    help="nodes other than vertices: by the book's ball rule (default) or the full graph")
@@ -103,29 +117,9 @@ def _parser() -> argparse.ArgumentParser:
     cli_curves.add_parsers(sub)
     cli_view.add_parsers(sub)
     i = sub.add_parser("info", help="print statistics of a mesh file")
-    i.add_argument("path")
-    i.add_argument("--json", action="store_true", help="print statistics as JSON")
+    i.add_argument("path", help=f"mesh file to read ({extensions_text(())})")
+    i.add_argument("--json", action="store_true", help="print the whole statistics as JSON")
     return p
-
-
-def _print_stats(stats: dict, as_json: bool) -> None:
-    if as_json:
-        print(json.dumps(stats, indent=2, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
-        return
-    for key, value in stats.items():
-        if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):  # a table
-            cols = list(value[0])
-            print(f"{key:>22}:")
-            print(" " * 24 + " ".join(f"{c:>15}" for c in cols))
-            for row in value:
-                print(" " * 24 + " ".join(f"{row.get(c, ''):>15.4g}" if isinstance(row.get(c), float)
-                                          else f"{row.get(c, ''):>15}" for c in cols))
-            continue
-        if isinstance(value, dict):
-            value = ", ".join(f"{k} {v:.3f}s" if isinstance(v, float) else f"{k} {v}" for k, v in value.items())
-        elif isinstance(value, float):
-            value = f"{value:.6g}"
-        print(f"{key:>22}: {value}")
 
 
 def _labels(values):
@@ -166,39 +160,35 @@ def _load_volume(wm, args):
     return volume
 
 
-def _improve(wm, args, mesh, bounds, target):
-    from warpmesh.cells.quality import format_table
-
+def _improve(wm, args, mesh, bounds, target, clock):
+    """--optimize / --simplify, and the largest distance of the result to the surface."""
     if args.optimize and args.simplify is not None:
         raise ValueError("expected one of --optimize and --simplify, got both")
     capped = bounds is not None and not args.no_cap
-    if args.optimize:
-        out = wm.optimize(mesh, target, bounds=bounds if capped else None, size=args.size,
-                          tolerance=args.max_error, progress=True)
-    else:
-        out = wm.simplify(mesh, target, bounds=bounds if capped else None, fraction=args.simplify,
-                          tolerance=args.max_error, progress=True)
-    info = out.info["optimize"]
-    rows = {"before": dict(info["before"]), "after": dict(info["after"])}
-    rows["after"]["distance_max"] = wm.surface_error(out, target, bounds=bounds if capped else None)["max"]
-    print(format_table(rows))
-    print(f"{info['seconds']:.2f} s; splits {info['splits']}, collapses {info['collapses']}, "
-          f"flips {info['flips']}, moves {info['moves']}, crease points {info['creases']}")
-    return out
+    with clock.stage("optimize" if args.optimize else "simplify"):
+        if args.optimize:
+            out = wm.optimize(mesh, target, bounds=bounds if capped else None, size=args.size,
+                              tolerance=args.max_error, progress=True)
+        else:
+            out = wm.simplify(mesh, target, bounds=bounds if capped else None, fraction=args.simplify,
+                              tolerance=args.max_error, progress=True)
+    with clock.stage("distance check"):
+        distance = wm.surface_error(out, target, bounds=bounds if capped else None)["max"]
+    return out, distance
 
 
 def _renumber(wm, args) -> int:
-    from warpmesh.io.files import check_path
+    from warpmesh.cli.output import check_output, read_mesh, save_output
     from warpmesh.numbering.renumber import format_table
 
-    check_path(args.output)  # a bad extension fails before any work
-    mesh = wm.load(args.input)
+    check_output(args.output, flag="output")  # before any work
+    mesh = read_mesh(args.input, "input")
     reverse = {"auto": "auto", "yes": True, "no": False}[args.reverse]
     out = mesh.renumber(args.method, reverse=reverse, higher_order=args.higher_order,
                         reduced=args.reduced, elements=not args.keep_elements)
     if args.color:
         out = out.color_elements(adjacency=args.color)
-    out.save(args.output)
+    save_output(out, args.output, "output")
     s = out.stats()
     keys = ["np", "ne", "bandwidth_before", "profile_before", "profile_mean_before", "bandwidth",
             "profile", "profile_mean", "profile_ratio", "nodes_per_second", "renumber_time",
@@ -214,63 +204,122 @@ def _renumber(wm, args) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+def _mesh(wm, args, clock) -> int:
+    from warpmesh.cli.output import check_output, save_output
+    from warpmesh.cli.report import print_report
+    from warpmesh.cli.sources import shape_source
+
+    if args.output:
+        check_output(args.output, cells=("triangle",))  # before any work
+    common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
+                  device=args.device, gradient=args.gradient, labels=_labels(args.labels),
+                  slab_voxels=args.slab_voxels)
+    if args.method:
+        common["method"] = args.method
+    if args.covering:
+        common["covering"] = args.covering
+    if args.adaptive or args.tolerance is not None:
+        common.update(adaptive=args.adaptive, tolerance=args.tolerance)
+    if args.volume is None:
+        if args.array is not None:
+            raise ValueError("--array names an array of --volume; shapes have none")
+        with clock.stage("read input"):
+            source = shape_source(args, dims=(3,))
+        shape, bounds = source.shape, source.bounds
+        with clock.stage("mesh"):
+            mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
+                                   evaluator=args.evaluator or (None if args.adaptive else "interpreter"),
+                                   inside=args.inside, origin=args.origin,
+                                   spacing=None if args.spacing is None else args.spacing[0], **common)
+    else:
+        if args.bounds is not None:
+            raise ValueError("--bounds sets the box of a shape; a --volume's box is its grid (see --spacing, "
+                             "--origin)")
+        with clock.stage("read input"):
+            volume = _load_volume(wm, args)
+        bounds = None
+        with clock.stage("mesh"):
+            mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,
+                                   evaluator=args.evaluator, **common)
+    clock.split("mesh", mesh.info.get("time"))
+    distance = None
+    if args.optimize or args.simplify is not None:
+        target = shape if args.volume is None else _volume_target(wm, args, volume)
+        mesh, distance = _improve(wm, args, mesh, bounds, target, clock)
+    if args.output:
+        with clock.stage("save"):
+            save_output(mesh, args.output)
+    with clock.stage("statistics"):
+        stats = mesh.stats()
+    if distance is not None:
+        opt = dict(stats["optimize"])
+        opt["after"] = {**opt["after"], "distance_max": distance}
+        stats["optimize"] = opt
+    if args.output:
+        stats["written"] = args.output
+    print_report(mesh, stats, clock, args.json)
+    return 0
+
+
+def _info(wm, args, clock) -> int:
+    from warpmesh.cli.output import read_mesh
+    from warpmesh.cli.report import print_report
+
+    with clock.stage("read"):
+        mesh = read_mesh(args.path, "the mesh file")
+    with clock.stage("statistics"):
+        stats = mesh.stats()
+    print_report(mesh, stats, clock, args.json)
+    return 0
+
+
+def _run(args) -> int:
     import warpmesh as wm
     from warpmesh.cli import curves as cli_curves
     from warpmesh.cli import modify as cli_modify
     from warpmesh.cli import view as cli_view
-    from warpmesh.io.files import check_path
+    from warpmesh.cli.report import Clock
 
+    clock = Clock()
     try:
         if args.command == "info":
-            _print_stats(wm.load(args.path).stats(), args.json)
-            return 0
+            return _info(wm, args, clock)
         if args.command == "renumber":
             return _renumber(wm, args)
         if args.command in cli_modify.COMMANDS:
             return cli_modify.run(wm, args)
         if args.command in cli_curves.COMMANDS:
-            return cli_curves.run(wm, args)
+            return cli_curves.run(wm, args, clock)
         if args.command in cli_view.COMMANDS:
             return cli_view.run(wm, args)
-        if args.output:
-            check_path(args.output)  # before meshing: a bad extension fails at once
-        common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
-                      device=args.device, gradient=args.gradient, labels=_labels(args.labels),
-                      slab_voxels=args.slab_voxels)
-        if args.method:
-            common["method"] = args.method
-        if args.covering:
-            common["covering"] = args.covering
-        if args.adaptive or args.tolerance is not None:
-            common.update(adaptive=args.adaptive, tolerance=args.tolerance)
-        if args.example and args.array is not None:
-            raise ValueError("--array names an array of --volume; it does not apply to --example")
-        if args.example:
-            shape, bounds = wm.example(args.example)
-            mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
-                                   evaluator=args.evaluator or (None if args.adaptive else "interpreter"),
-                                   inside=args.inside, origin=args.origin,
-                                   spacing=None if args.spacing is None else args.spacing[0], **common)
-        else:
-            volume = _load_volume(wm, args)
-            bounds = None
-            mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,
-                                   evaluator=args.evaluator, **common)
-        if args.optimize or args.simplify is not None:
-            mesh = _improve(wm, args, mesh, bounds if args.example else None,
-                            shape if args.example else _volume_target(wm, args, volume))
-        if args.output:
-            mesh.save(args.output)
-        stats = mesh.stats()
-        if args.output:
-            stats["written"] = args.output
-        _print_stats(stats, args.json)
-        return 0
+        return _mesh(wm, args, clock)
+    except BrokenPipeError:
+        raise
     except (ValueError, TypeError, OSError, wm.WarpMeshError) as exc:
         print(f"warpmesh: error: {exc}", file=sys.stderr)
         return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the ``warpmesh`` command with ``argv`` (default ``sys.argv[1:]``); the exit status.
+
+    0 on success, 2 on bad input (one line on stderr: ``warpmesh: error: ...``), 130 when
+    interrupted (Ctrl-C: one line on stderr, no file written).
+
+    Examples
+    --------
+    >>> main(["mesh", "--example", "sphere", "--resolution", "16", "-o", "no/such/folder/s.ply"])
+    2
+    """
+    try:
+        return _run(_parser().parse_args(argv))
+    except BrokenPipeError:  # the reader left (| head): no traceback, no error line
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    except KeyboardInterrupt:
+        lead = "\n" if sys.stderr.isatty() else ""  # past the terminal's ^C or a progress bar
+        print(f"{lead}warpmesh: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

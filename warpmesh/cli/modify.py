@@ -25,9 +25,12 @@ _SHOWN = ("np", "ne", "n_cells", "volume", "area", "worst_q", "mean_q")
 
 
 def _io(p: argparse.ArgumentParser, *inputs: str) -> None:
+    from warpmesh.cli.output import extensions_text
+
     for name in inputs:
-        p.add_argument(name, help="mesh file to read (any format meshio reads)")
-    p.add_argument("output", help="mesh file to write (.msh .vtu .vtk .mesh .xdmf ...)")
+        p.add_argument(name, help=f"mesh file to read ({extensions_text(())})")
+    p.add_argument("output", help=f"mesh file to write ({extensions_text(())}; the format must store the "
+                                  "result's cells)")
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
 
 
@@ -141,10 +144,10 @@ def _report(before: dict, mesh, args) -> None:
 
 def run(wm, args) -> int:
     """Run one of :data:`COMMANDS` (errors propagate to the caller, which prints them)."""
-    from warpmesh.io.files import check_path
+    from warpmesh.cli.output import check_output, read_mesh, save_output
 
-    check_path(args.output)  # a bad extension fails before any work
-    mesh = wm.load(args.first if args.command == "merge" else args.input)
+    check_output(args.output, flag="output")  # a bad extension or folder fails before any work
+    mesh = read_mesh(args.first if args.command == "merge" else args.input, "input")
     before = mesh.stats()
     if args.command == "transform":
         out = mesh.transform(_matrix(wm, args, mesh.dim))
@@ -165,7 +168,7 @@ def run(wm, args) -> int:
             options["hexes"] = args.hexes if args.hexes == "auto" else int(args.hexes)
         out = mesh.convert(args.to, **options)
     elif args.command == "merge":
-        out = mesh.merge(wm.load(args.second), args.tolerance, refs=args.refs, duplicates=args.duplicates)
+        out = mesh.merge(read_mesh(args.second, "input"), args.tolerance, refs=args.refs, duplicates=args.duplicates)
     elif args.command == "crack":
         side = None if args.side_refs is None else tuple(args.side_refs)
         if args.ref is not None:
@@ -174,6 +177,6 @@ def run(wm, args) -> int:
             out = mesh.crack(_array(args.facets, "--facets", np.int64), side_refs=side)
     else:
         out = mesh.periodic(_matrix(wm, args, mesh.dim), args.copies, tolerance=args.tolerance)
-    out.save(args.output)
+    save_output(out, args.output, "output")
     _report(before, out, args)
     return 0

@@ -9,6 +9,7 @@ Examples
 ``warpmesh view --example part --resolution 96 -o part.png``
 ``warpmesh view part.ply -o part.html``
 ``warpmesh view --example torus --open``
+``warpmesh view shapes.py:bracket -o bracket.png``; ``warpmesh view --expr "1 - x**4 - y**4 - z**4" --bounds -1.2 -1.2 -1.2 1.2 1.2 1.2``
 """
 
 from __future__ import annotations
@@ -23,13 +24,15 @@ _OUTPUTS = (".png", ".html", ".htm")
 
 def add_parsers(sub) -> None:
     """Add the sub-command to the ``warpmesh`` parser's sub-parsers."""
-    from warpmesh.frep.examples import EXAMPLES
+    from warpmesh.cli.output import extensions_text
+    from warpmesh.cli.sources import add_shape_arguments
 
-    v = sub.add_parser("view", help="a picture (.png, off-screen) or a WebGL page (.html) of a mesh or example")
+    v = sub.add_parser("view", help="a picture (.png, off-screen) or a WebGL page (.html) of a mesh or shape")
     src = v.add_mutually_exclusive_group(required=True)
-    src.add_argument("path", nargs="?", help="a mesh file (any format warpmesh.load reads)")
-    src.add_argument("--example", choices=list(EXAMPLES), help="a bundled example shape, meshed first")
-    v.add_argument("--resolution", type=int, default=128, help="--example: cells along the longest side (128)")
+    src.add_argument("path", nargs="?", metavar="FILE",
+                     help=f"a mesh file ({extensions_text(())}) or a shape file FILE.py[:NAME] (run as Python)")
+    add_shape_arguments(v, src, dims=(3,), file_argument=False)
+    v.add_argument("--resolution", type=int, default=128, help="shapes: cells along the longest side (128)")
     v.add_argument("-o", "--output", help="out.png (off-screen picture) or out.html (WebGL page)")
     v.add_argument("--window-size", type=int, nargs=2, default=(800, 600), metavar=("W", "H"),
                    help="picture size in pixels (.png)")
@@ -40,19 +43,25 @@ def add_parsers(sub) -> None:
 
 def run(wm, args) -> int:
     """Run ``view`` (errors propagate to the caller, which prints them)."""
+    from warpmesh.cli.output import check_folder, read_mesh
+    from warpmesh.cli.sources import is_shape_file, shape_source
     from warpmesh.preview.render import render_png, write_html
 
     out = args.output
-    if out is not None and os.path.splitext(out)[1].lower() not in _OUTPUTS:
-        raise ValueError(f"expected an output ending in {list(_OUTPUTS)} for '--output', got {out!r}")
-    if args.example:
-        shape, bounds = wm.example(args.example)
-        mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, device=args.device,
-                               evaluator="interpreter")
-        title = f"warpmesh {args.example} ({args.resolution})"
-    else:
-        mesh = wm.load(args.path)
+    if out is not None:
+        if os.path.splitext(out)[1].lower() not in _OUTPUTS:
+            raise ValueError(f"expected an output ending in {' '.join(_OUTPUTS)} for -o/--output, got {out!r}")
+        check_folder(out, "-o/--output")
+    if args.path is not None and not is_shape_file(args.path):
+        if args.bounds is not None:
+            raise ValueError("--bounds sets the box of a shape; a mesh file has its own")
+        mesh = read_mesh(args.path, "the mesh file")
         title = os.path.basename(args.path)
+    else:
+        source = shape_source(args, dims=(3,), file_text=args.path)
+        mesh = wm.mesh_surface(source.shape, bounds=source.bounds, resolution=args.resolution, device=args.device,
+                               evaluator="interpreter")
+        title = f"warpmesh {source.label} ({args.resolution})"
     if out is None:
         fd, out = tempfile.mkstemp(prefix="warpmesh-view-", suffix=".html")
         os.close(fd)

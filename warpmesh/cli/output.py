@@ -1,0 +1,137 @@
+"""Mesh files named on the command line: checked before any work, read and written with
+messages that name the user's path and the CLI flag (never a temporary file or a Python
+argument).
+
+The extensions come from :data:`warpmesh.io.files.FILE_FORMATS`; which of them store a
+given cell type is asked of the writers themselves (a one-cell mesh saved per format into
+a temporary folder, once per process), so the help and the checks follow the formats
+:mod:`warpmesh.io.files` registers.
+
+Examples
+--------
+>>> from warpmesh.cli.output import output_extensions
+>>> ".stl" in output_extensions(("triangle",)), ".stl" in output_extensions(("line",))
+(True, False)
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import warnings
+from functools import lru_cache
+from pathlib import Path
+
+__all__ = ["output_extensions", "check_output", "check_folder", "save_output", "read_mesh"]
+
+#: a one-cell mesh of each probed type, on the corners of the unit tetrahedron
+_PROBE_POINTS = ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+_PROBE_CELLS = {"line": (0, 1), "triangle": (0, 1, 2), "tetra": (0, 1, 2, 3)}
+
+
+@lru_cache(maxsize=None)
+def output_extensions(cells: tuple[str, ...]) -> tuple[str, ...]:
+    """The extensions of :data:`~warpmesh.io.files.FILE_FORMATS` whose writer stores all of ``cells``.
+
+    Parameters
+    ----------
+    cells : tuple of str
+        Cell types among 'line', 'triangle', 'tetra'; ``()`` gives every extension.
+    """
+    from warpmesh.io.files import FILE_FORMATS, save
+    from warpmesh.mesh import Mesh
+
+    if not cells:
+        return tuple(FILE_FORMATS)
+    probe = Mesh(_PROBE_POINTS, {t: [_PROBE_CELLS[t]] for t in cells})
+    found = []
+    with tempfile.TemporaryDirectory(prefix="warpmesh-formats-") as folder, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for ext in FILE_FORMATS:
+            try:
+                save(probe, Path(folder) / f"probe{ext}")
+            except ValueError:  # the format does not store these cells
+                continue
+            found.append(ext)
+    return tuple(found)
+
+
+def extensions_text(cells: tuple[str, ...]) -> str:
+    """``".vtu .vtk ..."`` for a help string.
+
+    Examples
+    --------
+    >>> extensions_text(("tetra",))
+    '.vtu .vtk .msh .mesh'
+    """
+    return " ".join(output_extensions(cells))
+
+
+def check_folder(path, flag: str) -> Path:
+    """Raise ValueError unless a file can be created at ``path`` (its folder exists and takes a new file).
+
+    A probe file is created in the folder and removed at once: the only test that holds
+    for every user, root included, and for read-only file systems.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise ValueError(f"expected a file name for {flag}, got the folder {str(path)!r}")
+    if not folder.exists():
+        raise ValueError(f"cannot write {flag} {str(path)!r}: the folder {str(folder)!r} does not exist")
+    if not folder.is_dir():
+        raise ValueError(f"cannot write {flag} {str(path)!r}: {str(folder)!r} is not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".check", dir=folder)
+    except OSError as exc:
+        raise ValueError(f"cannot write {flag} {str(path)!r}: no new file can be made in the folder "
+                         f"{str(folder)!r} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
+    return path
+
+
+def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output") -> Path:
+    """Raise ValueError now, before any work, if the mesh cannot be written to ``path``.
+
+    Checks the extension (known, and storing ``cells``), that the folder exists and that a
+    file can be created in it.
+
+    Examples
+    --------
+    >>> check_output("part.xyz", cells=("triangle",))
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown extension '.xyz' for -o/--output 'part.xyz'; expected one of .vtu .vtk .msh .mesh .ply .obj .stl
+    """
+    from warpmesh.io.files import FILE_FORMATS
+
+    path = Path(path)
+    ext = path.suffix.lower()
+    able = output_extensions(tuple(cells))
+    if ext not in FILE_FORMATS:
+        raise ValueError(f"unknown extension {ext!r} for {flag} {str(path)!r}; expected one of {' '.join(able)}")
+    if ext not in able:
+        raise ValueError(f"{ext} files cannot store {' and '.join(cells)} cells ({flag} {str(path)!r}); "
+                         f"expected one of {' '.join(able)}")
+    return check_folder(path, flag)
+
+
+def save_output(mesh, path, flag: str = "-o/--output") -> Path:
+    """``mesh.save(path)`` (atomic), with OS errors reported for ``path`` and ``flag``."""
+    try:
+        return mesh.save(path)
+    except OSError as exc:
+        raise ValueError(f"cannot write {flag} {str(path)!r}: {exc.strerror or exc}") from None
+
+
+def read_mesh(path, flag: str = "input"):
+    """``warpmesh.load(path)`` with an unknown extension reported for ``flag`` and ``path``."""
+    import warpmesh as wm
+    from warpmesh.io.files import FILE_FORMATS
+
+    ext = Path(path).suffix.lower()
+    if ext not in FILE_FORMATS:
+        raise ValueError(f"unknown extension {ext!r} for {flag} {str(path)!r}; expected one of "
+                         f"{' '.join(FILE_FORMATS)}")
+    return wm.load(path)

@@ -1,0 +1,223 @@
+"""What the command line prints about a mesh: one line per figure, each once, with units.
+
+A person gets ``label  value`` lines (counts per cell block, topology, measures, quality
+[FG eq. 16.15], the mesher's own facts), the optimisation's before/after table, and the
+time of each stage in seconds with an ``other`` line, so that the stages add up to the
+total. ``--json`` prints the whole statistics as one JSON object and nothing else.
+
+Figures that :meth:`warpmesh.mesh.Mesh.stats` gives under two names (``q_mean`` and
+``mean_q``, ``n_triangles`` and ``ne``, ...) or that describe the mesh before a later stage
+changed it (the mesher's ``vertices`` and ``triangles`` after ``--optimize``) are printed
+once, or not at all.
+
+Examples
+--------
+>>> import warpmesh as wm
+>>> from warpmesh.cli.report import Clock, human_lines
+>>> clock = Clock()
+>>> mesh = wm.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 2]]})
+>>> stats = mesh.stats()
+>>> [line.split()[0] for line in human_lines(mesh, stats, clock.times())][:3]
+['points', 'triangles', 'watertight']
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from contextlib import contextmanager
+
+import numpy as np
+
+__all__ = ["Clock", "human_lines", "print_report"]
+
+_WIDTH = 24
+#: stats keys said twice (another key holds the same figure) or stale after a later stage
+_HIDDEN = {"ne", "n_cells", "n_triangles", "n_tetra", "q_mean", "q_worst", "vertices", "triangles", "edges",
+           "signed_volume", "enclosed_volume", "written", "time", "optimize"}
+#: the leading figures, in this order: key -> label
+_LEADING = {"watertight": "watertight", "manifold": "manifold", "oriented": "oriented",
+            "orientation": "orientation", "euler": "Euler characteristic", "components": "components",
+            "genus": "genus", "area": "area", "volume": "volume", "self_intersections": "self-intersections",
+            "mean_q": "Q_K mean", "worst_q": "Q_K worst", "bounds": "bounds"}
+_PLURAL = {"line": "segments", "triangle": "triangles", "quad": "quads", "tetra": "tetrahedra",
+           "hexahedron": "hexahedra", "wedge": "wedges", "pyramid": "pyramids"}
+#: optimisation facts printed under the table: key -> label
+_OPTIMIZE = {"iterations": "iterations", "kept": "kept", "tolerance": "max error (absolute)", "creases": "crease points",
+             "feature_edges": "feature edges", "corners": "corners", "splits": "splits", "collapses": "collapses",
+             "flips": "flips", "moves": "moves", "rejected": "rejected moves"}
+
+
+class Clock:
+    """Wall time of the command's stages, from its creation to :meth:`times`.
+
+    Examples
+    --------
+    >>> clock = Clock()
+    >>> with clock.stage("mesh"):
+    ...     pass
+    >>> t = clock.times()
+    >>> list(t), abs(sum(v for k, v in t.items() if k != "total") - t["total"]) < 1e-12
+    (['mesh', 'other', 'total'], True)
+    """
+
+    def __init__(self) -> None:
+        self.start = time.perf_counter()
+        self.stages: dict[str, float] = {}
+        self.parts: dict[str, dict[str, float]] = {}
+
+    @contextmanager
+    def stage(self, name: str):
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.stages[name] = self.stages.get(name, 0.0) + time.perf_counter() - t0
+
+    def split(self, name: str, parts) -> None:
+        """Show stage ``name`` as ``parts`` (a ``{stage: seconds}`` reported by the mesher).
+
+        Used only when the parts are sequential (their sum is within the stage's time);
+        otherwise the stage stays one line. A part named like a stage of the command is
+        shown as ``"<name> <part>"``.
+        """
+        if not isinstance(parts, dict):
+            return
+        flat = {k: float(v) for k, v in parts.items() if k != "total" and isinstance(v, (int, float))}
+        if flat and sum(flat.values()) <= self.stages.get(name, 0.0):
+            self.parts[name] = {(f"{name} {k}" if k in self.stages else k): v for k, v in flat.items()}
+
+    def times(self) -> dict[str, float]:
+        """``{stage: seconds}``, the mesher's parts in place of their stage, then ``other`` and ``total``."""
+        total = time.perf_counter() - self.start
+        out: dict[str, float] = {}
+        for name, seconds in self.stages.items():
+            out.update(self.parts.get(name, {name: seconds}))
+        out["other"] = total - sum(out.values())
+        out["total"] = total
+        return out
+
+
+def _number(v) -> str:
+    if isinstance(v, (bool, np.bool_)):
+        return "yes" if v else "no"
+    if isinstance(v, (int, np.integer)):
+        return f"{int(v):,}"
+    if isinstance(v, (float, np.floating)):
+        return f"{float(v):.5g}"
+    return str(v)
+
+
+def _value(key: str, v) -> str | None:
+    """One line's value, or None for a figure the mesh does not have."""
+    seconds = key.startswith("time") or key.endswith("seconds") or key.endswith("_time")
+    unit = " s" if seconds else " MB" if key.endswith("_mb") else ""
+    if v is None:
+        return None
+    if isinstance(v, dict):
+        if not v:
+            return None
+        return ", ".join(f"{k} {_number(x)}{unit}" for k, x in v.items())
+    if isinstance(v, np.ndarray) and v.ndim == 2:
+        if key == "bounds":
+            return f"({', '.join(_number(float(a)) for a in v[0])}) to ({', '.join(_number(float(b)) for b in v[1])})"
+        rows = [f"({', '.join(_number(float(a)) for a in r)})" for r in v[:4]]
+        return f"{len(v)}" + (": " + " ".join(rows) if len(v) else "") + (" ..." if len(v) > 4 else "")
+    if isinstance(v, (tuple, list, np.ndarray)):
+        items = list(v)
+        if not items:
+            return "none"
+        if all(isinstance(x, (tuple, list, np.ndarray)) for x in items):  # points
+            return " ".join(f"({', '.join(_number(a) for a in x)})" for x in items)
+        sep = " x " if key in ("grid", "lattice") else ", "
+        return sep.join(_number(x) for x in items)
+    return _number(v) + unit
+
+
+def _table(rows: list[dict]) -> list[str]:
+    cols = list(rows[0])
+    out = ["  " + " ".join(f"{c:>15}" for c in cols)]
+    for row in rows:
+        out.append("  " + " ".join(f"{row.get(c, ''):>15.4g}" if isinstance(row.get(c), float)
+                                   else f"{str(row.get(c, '')):>15}" for c in cols))
+    return out
+
+
+def _line(label: str, value: str) -> str:
+    return f"{label:<{_WIDTH}}{value}"
+
+
+def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
+    """The lines a person reads: figures, the optimisation table, the written file, the stage times."""
+    from warpmesh.cells.quality import format_table
+
+    lines = []
+    opt = stats.get("optimize") if isinstance(stats.get("optimize"), dict) else None
+    shown_in_table = {"np", "mean_q", "worst_q"} if opt else set()  # the table's "after" row
+    if "np" not in shown_in_table:
+        lines.append(_line("points", _number(stats["np"])))
+    for cell_type, block in mesh.cells.items():
+        if not (opt and len(block) == opt["after"].get("ne")):
+            lines.append(_line(_PLURAL.get(cell_type, f"{cell_type} cells"), _number(len(block))))
+    for key, label in _LEADING.items():
+        if key in shown_in_table or key not in stats:
+            continue
+        value = _value(key, stats[key])
+        if value is not None:
+            lines.append(_line(label, value))
+    tables = []
+    for key, v in stats.items():
+        if key in _HIDDEN or key in _LEADING or key == "np":
+            continue
+        if isinstance(v, list) and v and all(isinstance(r, dict) for r in v):
+            tables.append((key, v))
+            continue
+        value = _value(key, v)
+        if value is not None:
+            lines.append(_line(key.replace("_", " "), value))
+    for key, rows in tables:
+        lines.append(f"{key}:")
+        lines += _table(rows)
+    if opt:
+        lines.append("optimisation (before / after):")
+        lines += format_table({"before": opt["before"], "after": opt["after"]}).splitlines()
+        for key, label in _OPTIMIZE.items():
+            if key in opt and opt[key] is not None:
+                lines.append(_line(label, _number(opt[key])))
+    if stats.get("written"):
+        path = stats["written"]
+        try:
+            import os
+
+            size = f" ({os.path.getsize(path) / 1e6:.3g} MB)"
+        except OSError:
+            size = ""
+        lines.append(_line("written", f"{path}{size}"))
+    if times:
+        lines.append("time:")
+        lines += [_line(f"  {k}", f"{v:.3f} s") for k, v in times.items()]
+    return lines
+
+
+def _jsonable(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if hasattr(o, "tolist"):
+        return o.tolist()
+    return str(o)
+
+
+def print_report(mesh, stats: dict, clock: Clock | None, as_json: bool) -> None:
+    """Print ``stats`` of ``mesh`` for a person, or as JSON (``as_json``: stdout gets that object only).
+
+    With a ``clock``, ``stats["time"]`` becomes the command's stage times (the mesher's own
+    parts, ``other`` and ``total``, in seconds).
+    """
+    stats = dict(stats)
+    times = clock.times() if clock is not None else None
+    if times is not None:
+        stats["time"] = times
+    if as_json:
+        print(json.dumps(stats, indent=2, default=_jsonable, sort_keys=False))
+        return
+    print("\n".join(human_lines(mesh, stats, times)))
