@@ -372,25 +372,7 @@ class _Run:
         bad |= elen > SPLIT_ABOVE * np.maximum(hk, self.h[newtri].max(1))
         # geometric error of the new faces, unless the face was that far already
         check = np.flatnonzero(~bad)
-        far = check[self.too_far(old[check], new[check])]
-        other = np.bincount(own[bad], minlength=len(cand))  # failures other than the tolerance
-        bad[far] = True
-        if len(far):
-            # or the faces of the edge, which go, were: a needle out of the tolerance may
-            # go when the faces that take its place are no farther
-            coll = np.unique(own[far])
-            coll = coll[other[coll] == 0]
-            if len(coll):
-                gone = np.stack([topo.face0[cand[coll]], topo.face1[cand[coll]]], axis=1)
-                d_gone = self._distance(_face_samples(p[s.triangles[np.maximum(gone, 0)].reshape(-1, 3)].reshape(
-                    -1, 3, 3)).reshape(-1, 3)).reshape(len(coll), -1)
-                d_gone = np.where(np.repeat(gone >= 0, 4, axis=1), d_gone, 0.0).max(axis=1)
-                allowed = np.zeros(len(cand))
-                allowed[coll] = d_gone
-                rows = far[allowed[own[far]] > self.tolerance]
-                if len(rows):
-                    d_new = self._distance(_face_samples(new[rows]).reshape(-1, 3)).reshape(-1, 4).max(1)
-                    bad[rows[d_new <= allowed[own[rows]]]] = False
+        bad[check] = self.too_far(old[check], new[check])
         return np.bincount(own[bad], minlength=len(cand)) > 0, pos
 
     # --------------------------------------------------------------- flips
