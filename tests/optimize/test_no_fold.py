@@ -19,6 +19,7 @@ import warpmesh as wm
 from tests.optimize.conftest import part_raw
 from warpmesh.cells.intersections import find_self_intersections
 from warpmesh.cells.quality import triangle_quality
+from warpmesh.frep.projection import as_target
 from warpmesh.optimize.embedding import face_violations, revert_violations, verified_flip, verified_split
 from warpmesh.optimize.local_ops import Surface
 from warpmesh.optimize.remesh import SIMPLIFY_Q
@@ -37,12 +38,6 @@ def _inward_faces(mesh, target) -> int:
     outward = target.normals(p[t].mean(axis=1))
     known = np.einsum("ij,ij->i", outward, outward) > 0.25
     return int(((np.einsum("ij,ij->i", nrm, outward) <= 0) & known).sum())
-
-
-def _target(shape, bounds=None):
-    from warpmesh.frep.projection import as_target
-
-    return as_target(shape, bounds=bounds)
 
 
 def _embedded(mesh, check_mesh):
@@ -128,7 +123,7 @@ def test_optimize_part_is_embedded_and_never_worse(part_opt, check_mesh):
     # crease where the boss meets the plate, and the worst Q was 2.85
     shape, raw, opt = part_opt
     _embedded(opt, check_mesh)
-    assert _inward_faces(opt, _target(shape)) == 0
+    assert _inward_faces(opt, as_target(shape)) == 0
     q = _worst_q(opt)
     assert q <= 2.0 and q <= _worst_q(raw)
     info = opt.info["optimize"]
@@ -213,7 +208,7 @@ def test_simplify_is_embedded_and_outward(name, resolution, check_mesh):
         raw = wm.mesh_surface(shape, bounds=bounds, resolution=resolution)
     h = (bounds[1][0] - bounds[0][0]) / resolution
     small = raw.simplify(shape, tolerance=h / 4, fraction=0.1, bounds=capped)
-    _check_simplified(raw, small, _target(shape, capped), check_mesh)
+    _check_simplified(raw, small, as_target(shape, bounds=capped), check_mesh)
     assert _worst_q(small) <= _worst_q(raw)  # marching cubes' slivers are worse than anything left
 
 
