@@ -434,15 +434,23 @@ class Mesh:
             raise ValueError(f"expected a 'triangle' or 'tetra' block, got {list(self._cells)}")
         return triangle_quality(self._points, self._cells["triangle"])
 
-    def optimize(self, shape=None, **options) -> Mesh:
-        """A new mesh optimised on the exact surface: :func:`warpmesh.optimize.remesh.optimize`."""
-        return optimize(self, shape, **options)
+    def optimize(self, shape=None, *, bounds=None, size=None, tolerance: float | None = None,
+                 features: bool | None = None, angle: float = 40.0, iterations: int = 8,
+                 progress: bool = False) -> Mesh:
+        """A new mesh optimised on the exact surface: :func:`warpmesh.optimize.remesh.optimize`
+        (the same parameters)."""
+        return optimize(self, shape, bounds=bounds, size=size, tolerance=tolerance, features=features, angle=angle,
+                        iterations=iterations, progress=progress)
 
-    def simplify(self, shape=None, **options) -> Mesh:
-        """A new, decimated mesh within a tolerance: :func:`warpmesh.optimize.remesh.simplify`."""
-        return simplify(self, shape, **options)
+    def simplify(self, shape=None, *, tolerance: float | None = None, fraction: float | None = None,
+                 bounds=None, features: bool | None = None, angle: float = 40.0, iterations: int = 8,
+                 progress: bool = False) -> Mesh:
+        """A new, decimated mesh within a tolerance: :func:`warpmesh.optimize.remesh.simplify`
+        (the same parameters)."""
+        return simplify(self, shape, tolerance=tolerance, fraction=fraction, bounds=bounds, features=features,
+                        angle=angle, iterations=iterations, progress=progress)
 
-    def to_order(self, order: int, shape=None, **options) -> Mesh:
+    def to_order(self, order: int, shape=None, *, bounds=None, check: bool = True) -> Mesh:
         """The order-k Lagrange mesh of this P1 mesh [FG §17.3]: :func:`warpmesh.numbering.high_order.to_order`.
 
         Examples
@@ -450,10 +458,12 @@ class Mesh:
         >>> Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_order(3).cells["triangle10"].shape
         (1, 10)
         """
-        return to_order(self, order, shape, stacklevel=3, **options)  # warnings name the caller
+        return to_order(self, order, shape, bounds=bounds, check=check, stacklevel=3)  # warnings name the caller
 
     # ---------------------------------------------------------------- numbering
-    def renumber(self, method: str = "gibbs", **options) -> Mesh:
+    def renumber(self, method: str = "gibbs", *, reverse: bool | Literal["auto"] = "auto",
+                 higher_order: Literal["ball", "graph"] = "ball", reduced: bool = False,
+                 elements: bool = True) -> Mesh:
         """A copy with nodes and elements renumbered [FG §17.4]:
         :func:`warpmesh.numbering.renumber.renumber`; ``stats()`` then include ``bandwidth`` and
         ``profile`` (and their ``_before`` values).
@@ -464,9 +474,9 @@ class Mesh:
         >>> m.renumber("rcm").stats()["bandwidth"]
         2
         """
-        return renumber(self, method, **options)
+        return renumber(self, method, reverse=reverse, higher_order=higher_order, reduced=reduced, elements=elements)
 
-    def color_elements(self, **options) -> Mesh:
+    def color_elements(self, *, adjacency: Literal["face", "node"] = "face") -> Mesh:
         """A copy with elements in packets of one colour each [FG §17.4.4]:
         :func:`warpmesh.numbering.coloring.color_mesh`; ``cell_data["color"]``, ``stats()["n_colors"]``.
 
@@ -476,10 +486,10 @@ class Mesh:
         >>> m.color_elements().cell_data["color"]["triangle"].tolist()
         [0, 1]
         """
-        return color_mesh(self, **options)
+        return color_mesh(self, adjacency=adjacency)
 
     # ---------------------------------------------------------------- modifications [FG ch. 17]
-    def transform(self, matrix, **options) -> Mesh:
+    def transform(self, matrix, *, vectors=()) -> Mesh:
         """The mesh mapped by a homogeneous matrix [FG §17.1.1]:
         :func:`warpmesh.modify.transforms.transform`; build matrices with ``wm.transforms``.
 
@@ -490,15 +500,17 @@ class Mesh:
         >>> m.transform(wm.transforms.symmetry((1, 0, 0))).cells["triangle"].tolist()
         [[0, 2, 1]]
         """
-        return transform(self, matrix, **options)
+        return transform(self, matrix, vectors=vectors)
 
-    def refine(self, n: int | None = None, shape=None, *, where=None, max_length=None,
-               **options) -> Mesh:
+    def refine(self, n: int | None = None, shape=None, *, where=None, max_length=None, bounds=None,
+               tetra_diagonal: Literal["shortest", "fixed"] = "shortest", max_rounds: int = 64) -> Mesh:
         """A refined mesh [FG §17.1.2]: every element split into n^d
         (:func:`warpmesh.modify.refine_uniform.refine_uniform`), or, with ``where`` (vertices or an element
         mask) or ``max_length`` (a size or a size function), longest-edge bisection of the
         elements concerned, kept conforming (:func:`warpmesh.modify.refine_local.refine_local`).
         With ``shape``, new boundary nodes are projected onto f = 0 (Remark 17.3).
+        ``bounds`` and ``tetra_diagonal`` are the uniform refinement's, ``max_rounds`` the
+        bisection's.
 
         Examples
         --------
@@ -510,10 +522,16 @@ class Mesh:
             if n is not None:
                 raise ValueError("expected either n (uniform refinement) or where/max_length (local "
                                  f"refinement), got n={n!r} and a local criterion")
-            return refine_local(self, where=where, max_length=max_length, shape=shape, **options)
-        return refine_uniform(self, 2 if n is None else n, shape, **options)
+            if bounds is not None or tetra_diagonal != "shortest":
+                raise ValueError("'bounds' and 'tetra_diagonal' apply to uniform refinement (n), not to "
+                                 "where/max_length")
+            return refine_local(self, where=where, max_length=max_length, shape=shape, max_rounds=max_rounds)
+        if max_rounds != 64:
+            raise ValueError("'max_rounds' applies to local refinement (where/max_length), not to n")
+        return refine_uniform(self, 2 if n is None else n, shape, bounds=bounds, tetra_diagonal=tetra_diagonal)
 
-    def convert(self, target: str, **options) -> Mesh:
+    def convert(self, target: str, *, quads: Literal["best", "min", 4] | None = None,
+                hexes: Literal["auto", 5, 6] | None = None) -> Mesh:
         """The mesh with its elements split into another type [FG §17.1.3]:
         :func:`warpmesh.modify.convert_cells.convert_cells`.
 
@@ -523,9 +541,11 @@ class Mesh:
         >>> m.convert("triangle").cells["triangle"].shape
         (2, 3)
         """
-        return convert_cells(self, target, **options)
+        return convert_cells(self, target, quads=quads, hexes=hexes)
 
-    def merge(self, other: Mesh, tolerance: float | None = None, **options) -> Mesh:
+    def merge(self, other: Mesh, tolerance: float | None = None, *, refs: bool = False,
+              duplicates: Literal["merge", "keep", "drop"] = "merge",
+              check: Literal["interface", "full", False] = "interface") -> Mesh:
         """This mesh and ``other`` merged along their common vertices, edges and faces
         [FG §17.2]: :func:`warpmesh.modify.merge.merge`.
 
@@ -536,9 +556,9 @@ class Mesh:
         >>> a.merge(b).n_points
         4
         """
-        return merge(self, other, tolerance, **options)
+        return merge(self, other, tolerance, refs=refs, duplicates=duplicates, check=check)
 
-    def crack(self, facets=None, **options) -> Mesh:
+    def crack(self, facets=None, *, ref: int | None = None, side_refs: tuple[int, int] | None = None) -> Mesh:
         """The mesh cut open along interior facets [FG §17.5]: :func:`warpmesh.modify.crack.crack`
         (``facets`` (k, 2|3|4) vertex indices, or ``ref=R`` for the facet cells with that ref;
         ``side_refs=(r1, r2)`` tags the two lips; ``info["crack_pairs"]`` lists the copies).
@@ -549,9 +569,11 @@ class Mesh:
         >>> m.crack([[0, 2]]).n_points  # the crack crosses the square: both ends split
         6
         """
-        return crack(self, facets, **options)
+        return crack(self, facets, ref=ref, side_refs=side_refs)
 
-    def periodic(self, matrix, copies: int, **options) -> Mesh:
+    def periodic(self, matrix, copies: int, tolerance: float | None = None, *, refs: bool = False,
+                 duplicates: Literal["merge", "keep", "drop"] = "merge",
+                 check: Literal["interface", "full", False] = "interface") -> Mesh:
         """A periodic mesh: this pattern and ``copies - 1`` images by ``matrix``, merged
         [FG §17.5]: :func:`warpmesh.modify.periodic.periodic`.
 
@@ -562,7 +584,7 @@ class Mesh:
         >>> m.periodic(wm.transforms.translation((1, 0)), 3).n_points
         8
         """
-        return periodic(self, matrix, copies, **options)
+        return periodic(self, matrix, copies, tolerance, refs=refs, duplicates=duplicates, check=check)
 
     # ---------------------------------------------------------------- meshio
     def to_meshio(self) -> meshio.Mesh:

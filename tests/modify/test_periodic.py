@@ -149,7 +149,7 @@ def test_bad_inputs():
         periodic(sq, translation(1.0, 0.0), 0)
     with pytest.raises(TypeError, match="copies"):
         periodic(sq, translation(1.0, 0.0), 2.5)
-    with pytest.raises(TypeError, match="options"):
+    with pytest.raises(TypeError, match="unexpected keyword argument .shuffle."):
         periodic(sq, translation(1.0, 0.0), 2, shuffle=True)
     with pytest.raises(ValueError, match="tolerance"):
         periodic(sq, translation(1.0, 0.0), 2, tolerance=-1.0)

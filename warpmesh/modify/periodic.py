@@ -22,6 +22,8 @@ Examples
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numbers
 
 import numpy as np
@@ -129,7 +131,9 @@ def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
     return pairs[pairs[:, 0] != pairs[:, 1]]
 
 
-def periodic(mesh, matrix, copies: int, tolerance: float | None = None, **options):
+def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs: bool = False,
+             duplicates: Literal["merge", "keep", "drop"] = "merge",
+             check: Literal["interface", "full", False] = "interface"):
     """The pattern ``mesh`` and its images by T, T², ..., T^(copies-1), merged one after
     the other [FG §17.5, "Periodic mesh"].
 
@@ -152,8 +156,8 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, **option
         Number of copies, the pattern included (>= 1).
     tolerance : float, optional
         Absolute; default ``1e-8 × Δ``, Δ the largest side of the box of all copies.
-    **options
-        ``refs``, ``duplicates``, ``check`` of :func:`warpmesh.modify.merge.merge`.
+    refs, duplicates, check
+        As :func:`warpmesh.modify.merge.merge`, for every merge of a copy.
 
     Returns
     -------
@@ -186,9 +190,7 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, **option
     require_mesh(mesh)
     t = _check_matrix(matrix, mesh.dim)
     n = _check_copies(copies)
-    unknown = set(options) - {"refs", "duplicates", "check"}
-    if unknown:
-        raise TypeError(f"expected options among ['check', 'duplicates', 'refs'], got {sorted(unknown)}")
+    options = {"refs": refs, "duplicates": duplicates, "check": check}
     powers = [np.eye(mesh.dim + 1)]
     for _ in range(n):
         powers.append(t @ powers[-1])
