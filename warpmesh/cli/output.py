@@ -107,6 +107,8 @@ def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output"
     from warpmesh.io.files import FILE_FORMATS
 
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"expected a file name for {flag}, got the folder {str(path)!r}")
     ext = path.suffix.lower()
     able = output_extensions(tuple(cells))
     if ext not in FILE_FORMATS:

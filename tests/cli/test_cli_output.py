@@ -1,0 +1,148 @@
+"""The command line's output paths and interruptions: an output that cannot be written is
+refused before any meshing, errors name the user's path and CLI flags, the help lists only
+extensions whose writer stores the command's cells, Ctrl-C ends with one line and status 130."""
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from warpmesh.cli.commands import main
+from warpmesh.cli.output import save_output
+from warpmesh.io.files import FILE_FORMATS
+
+
+@pytest.fixture
+def no_meshing(monkeypatch):
+    """Every mesher replaced by one that records its calls: the tests check nothing ran."""
+    calls = []
+
+    def fake(*args, **kwargs):
+        calls.append(args)
+        raise AssertionError("meshing ran")
+
+    for name in ("mesh_surface", "mesh_curve", "mesh_domain"):
+        monkeypatch.setattr(wm, name, fake)
+    return calls
+
+
+def _bad_outputs(tmp_path):
+    a_file = tmp_path / "plain.txt"
+    a_file.write_text("not a folder")
+    return {
+        "missing folder": (tmp_path / "no" / "such" / "part.ply", "does not exist"),
+        "a file as folder": (a_file / "part.ply", "is not a folder"),
+        "a folder that takes no file": ("/proc/part.ply", "no new file can be made"),
+        "a folder as the file": (tmp_path, "got the folder"),
+        "unknown extension": (tmp_path / "part.xyz", "unknown extension '.xyz'"),
+    }
+
+
+@pytest.mark.parametrize("case", ["missing folder", "a file as folder", "a folder that takes no file",
+                                  "a folder as the file", "unknown extension"])
+def test_an_output_that_cannot_be_written_is_refused_before_meshing(tmp_path, capsys, no_meshing, case):
+    out, reason = _bad_outputs(tmp_path)[case]
+    before = sorted(os.listdir(tmp_path))
+    assert main(["mesh", "--example", "part", "--resolution", "1024", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert no_meshing == [], "meshing ran before the output was checked"
+    assert err.count("\n") == 1 and reason in err and str(out) in err and "-o/--output" in err, err
+    assert "file_format" not in err and ".tmp" not in err
+    assert sorted(os.listdir(tmp_path)) == before  # the probe file is gone too
+
+
+def test_planar_outputs_are_checked_for_their_cells_before_meshing(tmp_path, capsys, no_meshing):
+    assert main(["curve", "--example", "gear", "-o", str(tmp_path / "gear.stl")]) == 2
+    assert "cannot store line cells" in capsys.readouterr().err
+    assert main(["domain", "--example", "part", "-o", str(tmp_path / "part.ply")]) == 2
+    assert "cannot store tetra and triangle cells" in capsys.readouterr().err
+    assert no_meshing == [] and not list(tmp_path.iterdir())
+
+
+def test_a_failed_save_names_the_users_path_not_the_temporary_file(tmp_path):
+    mesh = wm.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 2]]})
+    with pytest.raises(ValueError) as err:
+        save_output(mesh, "/proc/part.ply")  # the atomic save's temporary file cannot be made there
+    assert "'/proc/part.ply'" in str(err.value) and ".tmp" not in str(err.value) and "-o/--output" in str(err.value)
+
+
+def test_messages_name_flags_not_python_arguments(tmp_path, capsys):
+    src = tmp_path / "in.msh"
+    wm.Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).save(src)
+    for argv in (["info", str(tmp_path / "m.xyz")], ["renumber", str(tmp_path / "m.xyz"), str(tmp_path / "o.msh")],
+                 ["renumber", str(src), str(tmp_path / "o.xyz")],
+                 ["transform", str(src), str(tmp_path / "o.inp"), "--translate", "1", "0"]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "file_format" not in err and "unknown extension" in err, err
+
+
+def _help_extensions(command: str, capsys) -> set[str]:
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    text = capsys.readouterr().out
+    block = re.search(r"-o OUTPUT, --output OUTPUT(.*?)(?:\n  -|\Z)", text, re.S).group(1)
+    return set(re.findall(r"(?<![\w.])\.[a-z]+", block))
+
+
+@pytest.mark.parametrize("command, cells", [
+    ("mesh", {"triangle": [[0, 1, 2], [0, 2, 3]]}),
+    ("curve", {"line": [[0, 1], [1, 2]]}),
+    ("domain", {"triangle": [[0, 1, 2]], "line": [[0, 1]]}),   # its planar meshes: triangles and boundary lines
+])
+def test_the_help_lists_only_extensions_that_work(tmp_path, capsys, command, cells):
+    listed = _help_extensions(command, capsys)
+    mesh = wm.Mesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), cells)
+    for ext in FILE_FORMATS:
+        try:
+            mesh.save(tmp_path / f"m{ext}")
+            works = True
+        except ValueError:
+            works = False
+        assert (ext in listed) == works, (command, ext, listed)
+    assert listed <= set(FILE_FORMATS)
+
+
+def test_interrupted_in_process_one_line_and_status_130(tmp_path, capsys, monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(wm, "mesh_surface", interrupted)
+    assert main(["mesh", "--example", "sphere", "-o", str(tmp_path / "s.ply")]) == 130
+    captured = capsys.readouterr()
+    assert captured.err == "warpmesh: interrupted\n" and captured.out == "" and not list(tmp_path.iterdir())
+
+
+def _cpu_seconds(pid: int) -> float:
+    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/stat"), reason="reads the child's CPU time from /proc")
+def test_sigint_to_a_running_mesh_exits_130_with_one_line_and_no_file(tmp_path):
+    script = shutil.which("warpmesh")
+    command = [script] if script else [sys.executable, "-m", "warpmesh.cli"]
+    out = tmp_path / "big.ply"
+    child = subprocess.Popen([*command, "mesh", "--example", "part", "--resolution", "1024", "-o", str(out)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        # importing warpmesh and Warp costs about 2.5 s of CPU; meshing 1024^3 many times that: send
+        # the signal once the child has spent 4 s of its own CPU (wall time would depend on the load)
+        while child.poll() is None and _cpu_seconds(child.pid) < 4.0:
+            time.sleep(0.05)
+        assert child.poll() is None, "the child finished before it was interrupted"
+        child.send_signal(signal.SIGINT)
+        stdout, stderr = child.communicate(timeout=90)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert child.returncode == 130, stderr
+    assert stderr == "warpmesh: interrupted\n" and stdout == ""
+    assert list(tmp_path.iterdir()) == []  # no output, no temporary file
