@@ -34,6 +34,7 @@ def test_transform_mirror_keeps_volumes_positive(beam, tmp_path, capsys):
     out = tmp_path / "mirrored.vtu"
     code, report = run(capsys, "transform", path, out, "--mirror", 1, 0, 0, 0, "--translate", 2, 0, 0)
     assert code == 0 and report["orientation_reversed"] is True
+    assert set(mesh.stats()) <= set(report["before"]) and report["after"]["bounds"][1][0] == pytest.approx(2.0)
     got = wm.load(out)
     np.testing.assert_allclose(got.points[:, 0], 2 - mesh.points[:, 0])
     assert check_cells(got)["measure"] == pytest.approx(5.0)

@@ -128,10 +128,9 @@ def _report(before: dict, mesh, args) -> None:
     after = mesh.stats()
     facts = {k: v for k, v in mesh.info.items()
              if isinstance(v, (int, float, str, bool, np.integer, np.floating)) and k not in _SHOWN}
-    if args.json:
-        print(json.dumps({"before": {k: before.get(k) for k in _SHOWN},
-                          "after": {k: after.get(k) for k in _SHOWN}, **facts, "written": args.output},
-                         default=float))
+    if args.json:  # the whole statistics of both meshes
+        print(json.dumps({"before": before, "after": after, **facts, "written": args.output},
+                         default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v)))
         return
     print(f"{'':>14}" + "".join(f"{k:>12}" for k in _SHOWN))
     for name, s in (("before", before), ("after", after)):
