@@ -22,14 +22,14 @@ Examples
     an off-screen picture or a WebGL page of a mesh file or example: see :mod:`warpmesh.cli.view`.
 ``warpmesh info part.ply``
     prints the statistics of a mesh file.
+``warpmesh renumber in.msh out.msh --method gibbs``
+    renumbers nodes and elements for a small bandwidth and profile ([FG §17.4]) and prints
+    the statistics table (Table 17.1).
 
 Every command prints one line per figure (``--json``: the whole statistics as JSON and
 nothing else on stdout), checks its output path before any work, names the user's paths
 and flags in its errors (exit status 2), and ends on Ctrl-C with one line and status 130
 (files are written atomically, so nothing is left half-written).
-``warpmesh renumber in.msh out.msh --method gibbs``
-    renumbers nodes and elements for a small bandwidth and profile ([FG §17.4]) and prints
-    the statistics table (Table 17.1).
 """
 
 from __future__ import annotations
