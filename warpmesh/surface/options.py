@@ -45,6 +45,7 @@ import numpy as np
 from warpmesh.frep.codegen import EVALUATORS, Evaluator
 from warpmesh._conventions import NODE_CLEARANCE
 from warpmesh.surface.block_grid import check_clearance, GRADIENTS, METHODS
+from warpmesh.surface.multilabel import INTERFACES
 from warpmesh.surface.volume import SLAB_VOXELS, label_form
 
 __all__ = ["AdaptiveOptions", "ContinuationOptions", "GridOptions", "SurfaceOptions", "VolumeOptions"]
@@ -245,6 +246,15 @@ _FIELDS: dict[str, tuple[str, str]] = {
         surface is closed on its own (with ``cap``), interfaces between two labels appear
         once per label with opposite windings, and ``cell_refs["triangle"]`` holds the
         label of each triangle."""),
+    "interfaces": ("{'separate', 'shared'}, optional", """
+        With ``labels``: "separate" (default) gives each label its own closed surface;
+        "shared" gives one surface (surface nets, :mod:`warpmesh.surface.multilabel`) in
+        which each interface between two labels is meshed once, ``cell_refs["triangle"]``
+        holding the lower label and ``cell_data["label_above"]["triangle"]`` the higher,
+        each normal pointing from the lower label's side to the higher's; the samples not
+        meshed (and, with ``cap``, the outside) are the rest, id 0, or -1 when 0 is among
+        ``labels``. "shared" alone implies labels="all"; ``method`` and ``clearance`` are
+        for marching cubes and do not apply to it."""),
     "spacing": ("float or (3,) floats", """
         The sample spacing: ``volume[i, j, k]`` sits at ``origin + (i, j, k) * spacing``
         (trilinear in between)."""),
@@ -519,6 +529,7 @@ class VolumeOptions:
     level: float | None = None
     inside: Inside = "above"
     labels: Literal["all"] | tuple[int, ...] | None = None
+    interfaces: Literal["separate", "shared"] | None = None
     spacing: float | tuple[float, float, float] = 1.0
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
     method: Method = "mc33"
@@ -544,6 +555,17 @@ class VolumeOptions:
                 given = "'level'" if self.level is not None else f"inside={self.inside!r}"
                 raise ValueError(f"{given} does not apply with 'labels' (each label's surface bounds the "
                                  "samples equal to it)")
+        if self.interfaces is not None:
+            check_choice(self.interfaces, "interfaces", INTERFACES)
+            if self.labels is None and self.interfaces == "shared":
+                if self.level is not None or self.inside != "above":
+                    given = "'level'" if self.level is not None else f"inside={self.inside!r}"
+                    raise ValueError(f"{given} does not apply with interfaces='shared' (it meshes the regions of "
+                                     "a label volume)")
+                set_(self, "labels", "all")
+            elif self.labels is None:
+                raise ValueError(f"'interfaces' applies with 'labels', got interfaces={self.interfaces!r} "
+                                 "and no 'labels'")
         sp = _vector(self.spacing, "spacing", "a positive number or 3 positive numbers")
         sp = np.broadcast_to(sp, (3,)) if sp.ndim == 0 else sp
         if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):

@@ -38,6 +38,7 @@ from warpmesh.surface.block_grid import BlockGrid, gradients, refine_roots
 from warpmesh.surface.continuation import grow_cells
 from warpmesh.surface.options import (AdaptiveOptions, ContinuationOptions, GridOptions, SurfaceOptions,
                                       VolumeOptions, check_choice)
+from warpmesh.surface.multilabel import LABEL_ABOVE, shared_surface
 from warpmesh.surface.volume import check_closed_outward, check_labels, extract_volume
 
 RAY_LINES = 32  # continuation's automatic seeds: rays along 32 grid lines per axis (every 8th at least)
@@ -86,7 +87,9 @@ def mesh_surface(
       (bounds, max_level, resolution, min_level, tolerance, angles, chord, bound,
       lipschitz, root, root_iterations, gradient, cap, prune, features);
     - an array: :class:`~warpmesh.surface.options.VolumeOptions` (level, inside, labels,
-      spacing, origin, method, cap, cull, slab_voxels).
+      interfaces, spacing, origin, method, cap, cull, slab_voxels); ``interfaces="shared"``
+      gives one surface in which each interface between two labels is meshed once
+      (:mod:`warpmesh.surface.multilabel`).
 
     Give the options as keywords (the group is built from them), or as one group
     built beforehand with ``options=``; not both.
@@ -128,7 +131,8 @@ def mesh_surface(
         ``mesh.cells["triangle"]`` oriented outward (towards f < 0); where caps close
         the surface on the bounds, ``mesh.cell_refs["triangle"]`` is 2 on the caps and 1
         on the surface f = 0 (no refs when nothing was capped; the label of each
-        triangle with ``labels``); ``mesh.info`` holds timings per stage and counts
+        triangle with ``labels``; the lower of its two labels with interfaces="shared",
+        the higher in ``mesh.cell_data["label_above"]["triangle"]``); ``mesh.info`` holds timings per stage and counts
         (``mesh.stats()`` shows them).
 
     Raises
@@ -417,8 +421,11 @@ def _vertex_normals(tape, grid: BlockGrid, verts, edges: dict, cap: bool, gradie
 
 
 def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
-    """The volume pipeline: one extraction per label (or one at ``level``), slab by slab."""
+    """The volume pipeline: one extraction per label (or one at ``level``), slab by slab;
+    with interfaces='shared', one surface of every interface (:mod:`warpmesh.surface.multilabel`)."""
     vol = _check_volume(source)
+    if opts.interfaces == "shared":
+        return _mesh_shared(vol, opts, device, t_start)
     if opts.cap and min(vol.shape) < 3:
         raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
                          f"boundary samples are outside), got shape {vol.shape}")
@@ -470,6 +477,21 @@ def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
     info["time"] = timings
     return Mesh(points, {"triangle": faces}, cell_refs={"triangle": refs} if keep_refs else None, info=info)
 
+
+
+def _mesh_shared(vol: np.ndarray, opts: VolumeOptions, device, t_start: float) -> Mesh:
+    """One surface with each interface between two labels meshed once (surface nets, on the host)."""
+    timings: dict[str, float] = {}
+    points, faces, lower, upper, info = shared_surface(vol, opts.labels, origin=opts.origin, spacing=opts.spacing,
+                                                       cap=opts.cap, timings=timings)
+    info.update({"method": "surface nets", "interfaces": "shared", "device": str(device), "evaluations": 0,
+                 "vertices": len(points), "triangles": len(faces), "interface_pairs": info.pop("interfaces")})
+    if opts.cap:
+        info["orientation"] = "from the lower label to the higher (cell_refs: lower, cell_data['label_above'])"
+    timings["total"] = time.perf_counter() - t_start
+    info["time"] = timings
+    return Mesh(points, {"triangle": faces}, cell_refs={"triangle": lower},
+                cell_data={LABEL_ABOVE: {"triangle": upper}}, info=info)
 
 
 def _check_volume(source) -> np.ndarray:

@@ -1,0 +1,179 @@
+"""Multi-material surfaces (warpmesh.surface.multilabel, issue 23 part 2): one surface in
+which every interface between two labels is meshed once, each label's boundary closed,
+consistently oriented and embedded; checked against VTK's surface nets
+(``pyvista.ImageData.contour_labels``) on random label volumes and a block of the frog."""
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from warpmesh.cells.intersections import find_self_intersections
+from warpmesh.surface.multilabel import LABEL_ABOVE, label_boundary
+from warpmesh.surface.options import VolumeOptions
+
+
+def _labels(mesh):
+    return mesh.cell_refs["triangle"], mesh.cell_data[LABEL_ABOVE]["triangle"]
+
+
+def _coincident(tris: np.ndarray) -> int:
+    s = np.sort(tris, axis=1)
+    return len(s) - len(np.unique(s, axis=0))
+
+
+def _check_label_boundaries(mesh, expect_labels):
+    """Every region's boundary: every edge in an even number of its faces, each direction as
+    often as the other (closed, consistently oriented), enclosing a positive volume (outward);
+    the rest, which holds the outside of the box, encloses minus the others' volume."""
+    lower, upper = _labels(mesh)
+    assert np.all(lower < upper)
+    named = set(np.unique(np.concatenate([lower, upper])).tolist())
+    assert named == set(expect_labels)
+    n, volumes = len(mesh.points), {}
+    for label in sorted(named):
+        b = label_boundary(mesh, label)
+        f = b.cells["triangle"].astype(np.int64)
+        u, v = f.ravel(), np.roll(f, -1, axis=1).ravel()
+        _, counts = np.unique(np.minimum(u, v) * n + np.maximum(u, v), return_counts=True)
+        assert np.all(counts % 2 == 0), f"label {label}: an edge in an odd number of faces (open)"
+        fwd = np.unique(u * n + v, return_counts=True)
+        back = dict(zip(*np.unique(v * n + u, return_counts=True)))
+        assert all(back.get(k, 0) == c for k, c in zip(*fwd)), f"label {label}: inconsistent orientation"
+        p = b.points[f]
+        volumes[label] = np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0
+    rest = volumes.pop(mesh.info["rest"])
+    assert all(v > 0 for v in volumes.values()), f"not outward: {volumes}"
+    assert np.isclose(rest, -sum(volumes.values()), rtol=1e-9)
+
+
+def _peer(vol: np.ndarray, spacing=(1.0, 1.0, 1.0)):
+    """VTK's surface nets of the same volume, unsmoothed: the same quads."""
+    pv = pytest.importorskip("pyvista")
+    img = pv.ImageData(dimensions=vol.shape, spacing=spacing)
+    img.point_data["labels"] = vol.ravel(order="F")
+    return img.contour_labels("all", smoothing=False, output_mesh_type="triangles")
+
+
+def _random_tiles(seed=0, n_tiles=200, size=5):
+    """200 random 5^3 label volumes with 1 to 5 values (0 to 4 labels besides the
+    background), tiled edge to edge into one volume."""
+    rng = np.random.default_rng(seed)
+    tiles = []
+    for _ in range(n_tiles):
+        k = rng.integers(1, 6)
+        tiles.append(rng.integers(0, k, size=(size,) * 3))
+    rows = [np.concatenate(tiles[i:i + 20], axis=2) for i in range(0, n_tiles, 20)]
+    return np.concatenate(rows, axis=1).astype(np.uint8)  # (5, 50, 100)
+
+
+def test_random_label_volumes_closed_oriented_embedded():
+    vol = _random_tiles()
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    tris = m.cells["triangle"]
+    assert _coincident(tris) == 0
+    _check_label_boundaries(m, np.unique(vol).tolist())
+    assert len(find_self_intersections(m.points, tris)) == 0
+    assert m.info["junction_vertices"] > 0
+    assert len(tris) == _peer(vol).n_cells  # one quad per crossing edge, as VTK's surface nets
+
+
+def test_frog_block_shared_interfaces():
+    pv = pytest.importorskip("pyvista")
+    frog = pv.examples.load_frog_tissues()
+    full = frog.point_data.active_scalars.reshape(frog.dimensions, order="F")
+    vol = np.ascontiguousarray(full[150:280, 150:280, 40:100])
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared", spacing=frog.spacing)
+    tris = m.cells["triangle"]
+    assert len(np.unique(vol)) >= 5
+    assert _coincident(tris) == 0
+    _check_label_boundaries(m, np.unique(vol).tolist())
+    assert len(find_self_intersections(m.points, tris)) == 0
+    peer = _peer(vol, frog.spacing)
+    assert len(tris) == peer.n_cells
+    # the peer's staircase encloses the voxels; our vertices cut its corners, never adding area
+    area = m.to_trimesh().area
+    assert 0.55 * peer.area < area < peer.area
+    # the separate per-label surfaces mesh every interface between two labels twice
+    sep = wm.mesh_surface(vol, labels="all", spacing=frog.spacing)
+    assert _coincident(tris) == 0 and len(sep.cells["triangle"]) > len(tris)
+
+
+def test_each_interface_once_and_oriented_low_to_high():
+    vol = np.zeros((12, 10, 10), dtype=np.int16)
+    vol[2:6, 2:8, 2:8] = 7
+    vol[6:10, 2:8, 2:8] = 3
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared", spacing=(1, 1, 1))
+    lower, upper = _labels(m)
+    assert set(zip(lower.tolist(), upper.tolist())) == {(0, 3), (0, 7), (3, 7)}
+    mid = (lower == 3) & (upper == 7)
+    p = m.points[m.cells["triangle"][mid]]
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]).sum(axis=0)
+    # 3 is at larger x: from 3 towards 7 is -x; the interface sits at x = 5.5, 6 x 6 samples across
+    assert normal[0] < 0 and abs(normal[1]) < 1e-9 and abs(normal[2]) < 1e-9
+    assert np.allclose(p[..., 0], 5.5) and mid.sum() == 2 * 6 * 6  # a quad per crossing edge
+    _check_label_boundaries(m, [0, 3, 7])
+
+
+def test_label_zero_is_a_label_when_asked():
+    vol = np.zeros((10, 10, 10), dtype=np.uint8)
+    vol[2:8, 2:8, 2:8] = 3
+    vol[4:6, 4:6, 4:6] = 5  # not meshed: part of the rest
+    m = wm.mesh_surface(vol, labels=[0, 3], interfaces="shared")
+    assert m.info["rest"] == -1 and m.info["labels"] == [0, 3]
+    _check_label_boundaries(m, [-1, 0, 3])  # -1: the outside of the box and the samples of 5
+    lower, upper = _labels(m)
+    assert set(zip(lower.tolist(), upper.tolist())) == {(-1, 0), (0, 3), (-1, 3)}
+    only3 = wm.mesh_surface(vol, labels=[3], interfaces="shared")
+    assert set(zip(*(a.tolist() for a in _labels(only3)))) == {(0, 3)}  # 5 merged into the rest, 0
+
+
+def test_uncapped_surfaces_stay_open_on_the_box():
+    vol = np.zeros((8, 8, 8), dtype=np.uint8)
+    vol[:, :4] = 1
+    vol[:, 4:] = 2
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared", cap=False)
+    lower, upper = _labels(m)
+    assert set(zip(lower.tolist(), upper.tolist())) == {(1, 2)}  # no outside: the interface only
+    # 8 x 8 crossing edges; those on the box's faces have fewer than 4 cubes around them: 6 x 6 quads
+    assert len(m.cells["triangle"]) == 2 * 6 * 6 and np.allclose(m.points[:, 1], 3.5)
+
+
+def test_image_with_whole_float_labels():
+    vol = np.zeros((8, 8, 8), dtype=np.float32)
+    vol[2:6, 2:6, 2:6] = 2.0
+    img = wm.Volume(vol, spacing=(0.5, 0.5, 0.5), origin=(1, 0, 0))
+    m = wm.mesh_surface(img, labels="all", interfaces="shared")
+    assert m.points[:, 0].min() > 1.0 and set(_labels(m)[1].tolist()) == {2}
+    arr = wm.mesh_surface(vol, interfaces="shared")  # 'shared' alone means labels="all"
+    assert len(arr.cells["triangle"]) == len(m.cells["triangle"])
+
+
+def test_options_interfaces_field():
+    assert VolumeOptions(interfaces="shared").labels == "all"
+    assert VolumeOptions(labels=[1], interfaces="separate").interfaces == "separate"
+    with pytest.raises(ValueError, match="interfaces"):
+        VolumeOptions(interfaces="both", labels="all")
+    with pytest.raises(ValueError, match="'interfaces' applies with 'labels'"):
+        VolumeOptions(interfaces="separate")
+    with pytest.raises(ValueError, match="'level'.*interfaces"):
+        VolumeOptions(interfaces="shared", level=0.3)
+
+
+def test_bad_input_names_the_argument():
+    vol = np.zeros((6, 6, 6), dtype=np.uint8)
+    vol[2:4, 2:4, 2:4] = 3
+    with pytest.raises(ValueError, match="'labels'.*\\[7\\]"):
+        wm.mesh_surface(vol, labels=[3, 7], interfaces="shared")
+    with pytest.raises(ValueError, match="interfaces='shared'.*whole-number"):
+        wm.mesh_surface(vol + 0.25, labels="all", interfaces="shared")
+    with pytest.raises(ValueError, match="interfaces='shared'.*whole-number"):
+        wm.mesh_surface(np.random.default_rng(0).random((6, 6, 6)), interfaces="shared")
+    with pytest.raises(ValueError, match="Unknown interfaces 'one'"):
+        wm.mesh_surface(vol, labels="all", interfaces="one")
+    with pytest.raises(ValueError, match="'interfaces' applies with 'labels'"):
+        wm.mesh_surface(vol.astype(float), interfaces="separate")
+    with pytest.raises(ValueError, match='non-zero labels.*labels="all"'):
+        wm.mesh_surface(np.zeros((6, 6, 6), np.uint8), labels="all", interfaces="shared")
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    with pytest.raises(ValueError, match="'label'"):
+        label_boundary(m, 9)
