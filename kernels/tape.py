@@ -14,6 +14,33 @@ helpers ``value_step`` and ``interval_step``.
 
 Opcodes are defined in :mod:`warpmesh.kernels.opcodes`; the numpy semantics of each are
 in :mod:`warpmesh.frep.expr` (the test oracle). COPY (dst = a) appears only in pruned tapes.
+
+The NaN rule (one for points, gradients, intervals, the generated kernels and the numpy
+oracle): **NaN propagates**. MIN, MAX, MINC and MAXC return NaN when an operand is NaN
+(``numpy.minimum``, IEEE 754-2019 ``minimum``; not C's ``fmin``, which ``wp.min`` is),
+so ``SQRT`` = ``sqrt(max(a, 0))`` of NaN is NaN too; every other opcode follows IEEE
+arithmetic (``log`` of a negative, ``0 / 0``, ``inf - inf``, ``0 * inf``, ``sin(inf)``
+make NaN). Meshing raises on a NaN at a sampled node.
+
+Intervals ``(lo, hi)`` (float32, never clamped: bounds overflow to ±inf):
+
+- an interval other than the whole line promises that every value a point kernel
+  (``eval_tape_kernel``, the generated kernels) computes at a point of the box is a
+  number (not NaN) in ``[lo, hi]``; ±inf bounds mean the values may be ±inf;
+- ``(-inf, +inf)``, :func:`top`, promises nothing: f may be NaN somewhere in the box.
+  Every opcode maps TOP to TOP, and an opcode that can make NaN from numbers over the
+  box (``log`` of an interval reaching below 0, division by an interval holding 0,
+  ``0 * inf``, ``sin`` of an infinite bound, ...) gives TOP;
+- enclosure of the float32 point values is exact (no tolerance) for the opcodes whose
+  bounds are the point operation applied to the operands' bounds (+, -, *, /, sqrt,
+  abs, min, max, integer powers): float32 rounding to nearest is monotone. ``sin``,
+  ``cos``, ``exp``, ``log``, ``|a|**c`` (library functions, a few ulps off) and the
+  R-functions (not monotone after rounding) are widened outward by :data:`WIDEN` (16
+  ulps) relative plus a tiny absolute amount; R-functions of operands beyond
+  :data:`R_MAX` in magnitude give TOP.
+
+Culling (:mod:`warpmesh.surface.block_grid`, the octree) skips a box only when both bounds
+are finite and exclude 0, so it never hides a NaN or an infinite node value.
 """
 
 import warp as wp
@@ -53,7 +80,12 @@ OP_RUNION = wp.constant(O.RUNION)
 OP_RINTER = wp.constant(O.RINTER)
 OP_COPY = wp.constant(O.COPY)
 
-BIG = wp.constant(1.0e30)  # interval bounds are clamped to [-BIG, BIG]
+INF = wp.constant(wp.inf)
+WIDEN = wp.constant(1.9073486328125e-06)  # 2**-19: outward widening of library functions, relative
+TINY = wp.constant(1.0e-37)  # ... plus this absolute amount (subnormal results)
+R_MAX = wp.constant(1.0e30)  # R-function operands beyond this magnitude: TOP (float32 overflow)
+R_TINY = wp.constant(1.0e-18)  # absolute widening of R-functions: hypot underflows below ~1e-19
+TRIG_TOL = wp.constant(1.0e-6)  # relative: where sin / cos extrema may sit, float32 rounding counted
 TWO_PI = wp.constant(6.283185307179586)
 HALF_PI = wp.constant(1.5707963267948966)
 
@@ -73,6 +105,24 @@ def powi(a: float, n: int):
         m = m // 2
     if n < 0:
         r = 1.0 / r
+    return r
+
+
+@wp.func
+def nan_min(a: float, b: float):
+    """min(a, b), NaN when either is NaN (numpy.minimum; ``wp.min`` is C's fmin)."""
+    r = wp.min(a, b)
+    if wp.isnan(a) or wp.isnan(b):
+        r = a + b
+    return r
+
+
+@wp.func
+def nan_max(a: float, b: float):
+    """max(a, b), NaN when either is NaN (numpy.maximum; ``wp.max`` is C's fmax)."""
+    r = wp.max(a, b)
+    if wp.isnan(a) or wp.isnan(b):
+        r = a + b
     return r
 
 
@@ -152,10 +202,10 @@ def value_step(op: int, d: int, a: int, b: int, has_b: bool, c: float, cnt: int,
             scratch[d + p] = scratch[a + p] * scratch[b + p]
     elif op == OP_MIN:
         for p in range(cnt):
-            scratch[d + p] = wp.min(scratch[a + p], scratch[b + p])
+            scratch[d + p] = nan_min(scratch[a + p], scratch[b + p])
     elif op == OP_MAX:
         for p in range(cnt):
-            scratch[d + p] = wp.max(scratch[a + p], scratch[b + p])
+            scratch[d + p] = nan_max(scratch[a + p], scratch[b + p])
     elif op == OP_ADDC:
         for p in range(cnt):
             scratch[d + p] = scratch[a + p] + c
@@ -164,10 +214,10 @@ def value_step(op: int, d: int, a: int, b: int, has_b: bool, c: float, cnt: int,
             scratch[d + p] = scratch[a + p] * c
     elif op == OP_MINC:
         for p in range(cnt):
-            scratch[d + p] = wp.min(scratch[a + p], c)
+            scratch[d + p] = nan_min(scratch[a + p], c)
     elif op == OP_MAXC:
         for p in range(cnt):
-            scratch[d + p] = wp.max(scratch[a + p], c)
+            scratch[d + p] = nan_max(scratch[a + p], c)
     elif op == OP_NEG:
         for p in range(cnt):
             scratch[d + p] = -scratch[a + p]
@@ -180,7 +230,7 @@ def value_step(op: int, d: int, a: int, b: int, has_b: bool, c: float, cnt: int,
             scratch[d + p] = v * v
     elif op == OP_SQRT:
         for p in range(cnt):
-            scratch[d + p] = wp.sqrt(wp.max(scratch[a + p], 0.0))
+            scratch[d + p] = wp.sqrt(nan_max(scratch[a + p], 0.0))
     elif op == OP_RUNION:
         for p in range(cnt):
             u = scratch[a + p]
@@ -305,13 +355,13 @@ def apply_dual(op: int, a: wp.vec4, b: wp.vec4, c: float):
         q = a[0] / b[0]
         r = (a - q * b) / b[0]
         r[0] = q
-    elif op == OP_MIN:
+    elif op == OP_MIN:  # NaN propagates: a NaN b wins over a number a (a NaN a stays)
         r = a
-        if b[0] < a[0]:
+        if b[0] < a[0] or wp.isnan(b[0]):
             r = b
     elif op == OP_MAX:
         r = a
-        if b[0] > a[0]:
+        if b[0] > a[0] or wp.isnan(b[0]):
             r = b
     elif op == OP_ADDC:
         r = a
@@ -340,7 +390,7 @@ def apply_dual(op: int, a: wp.vec4, b: wp.vec4, c: float):
     elif op == OP_SQUARE:
         r = chain(a, a[0] * a[0], 2.0 * a[0])
     elif op == OP_SQRT:
-        s = wp.sqrt(wp.max(a[0], 0.0))
+        s = wp.sqrt(nan_max(a[0], 0.0))
         slope = float(0.0)
         if s > 0.0:
             slope = 0.5 / s
@@ -419,79 +469,127 @@ def eval_tape_dual_kernel(
 
 # -- interval arithmetic: (lo, hi) --------------------------------------------------------------
 @wp.func
+def top():
+    """TOP, the whole line (-inf, inf): "f may be NaN somewhere in the box"."""
+    return wp.vec2(-INF, INF)
+
+
+@wp.func
+def is_top(a: wp.vec2):
+    """Whether ``a`` is TOP, the whole line: f may be NaN in the box."""
+    return a[0] == -INF and a[1] == INF
+
+
+@wp.func
 def iv(lo: float, hi: float):
-    """An interval, clamped to [-BIG, BIG]; NaN bounds widen to the whole range."""
-    l = lo
-    h = hi
-    if not (l >= -BIG):
-        l = -BIG
-    if not (h <= BIG):
-        h = BIG
-    if l > BIG:
-        l = BIG
-    if h < -BIG:
-        h = -BIG
-    return wp.vec2(l, h)
+    """The interval [lo, hi]; TOP when a bound is NaN (or lo > hi). Never clamped."""
+    if not (lo <= hi):
+        return top()
+    return wp.vec2(lo, hi)
+
+
+@wp.func
+def down(v: float):
+    """A lower bound moved outward by WIDEN (relative) + TINY; ±inf stays."""
+    if wp.isfinite(v):
+        return v - (wp.abs(v) * WIDEN + TINY)
+    return v
+
+
+@wp.func
+def up(v: float):
+    """An upper bound moved outward by WIDEN (relative) + TINY; ±inf stays."""
+    if wp.isfinite(v):
+        return v + (wp.abs(v) * WIDEN + TINY)
+    return v
+
+
+@wp.func
+def iv_hull4(p: float, q: float, r: float, s: float):
+    """The hull of four products or quotients; TOP when one is NaN (0 * inf, inf / inf:
+    a point of the box can make that NaN)."""
+    if wp.isnan(p + q + r + s):  # (also inf - inf: then the hull is the whole line anyway)
+        return top()
+    return wp.vec2(wp.min(wp.min(p, q), wp.min(r, s)), wp.max(wp.max(p, q), wp.max(r, s)))
 
 
 @wp.func
 def iv_mul(a: wp.vec2, b: wp.vec2):
-    p = a[0] * b[0]
-    q = a[0] * b[1]
-    r = a[1] * b[0]
-    s = a[1] * b[1]
-    return iv(wp.min(wp.min(p, q), wp.min(r, s)), wp.max(wp.max(p, q), wp.max(r, s)))
+    return iv_hull4(a[0] * b[0], a[0] * b[1], a[1] * b[0], a[1] * b[1])
 
 
 @wp.func
 def iv_div(a: wp.vec2, b: wp.vec2):
     """a / b from the four quotients, each the same float division a point evaluation
-    does (so the interval holds every float value, not only the real ones)."""
+    does (so the interval holds every float value, not only the real ones); TOP when b
+    holds 0 (0 / 0 may be NaN, x / 0 is ±inf)."""
     if b[0] <= 0.0 and b[1] >= 0.0:
-        return wp.vec2(-BIG, BIG)
-    p = a[0] / b[0]
-    q = a[0] / b[1]
-    r = a[1] / b[0]
-    s = a[1] / b[1]
-    return iv(wp.min(wp.min(p, q), wp.min(r, s)), wp.max(wp.max(p, q), wp.max(r, s)))
+        return top()
+    return iv_hull4(a[0] / b[0], a[0] / b[1], a[1] / b[0], a[1] / b[1])
 
 
 @wp.func
 def iv_sin(a: wp.vec2):
-    """Range of sin over [lo, hi]: wp.sin at the ends (as points evaluate it), widened
-    where a maximum (pi/2 + 2k pi) or a minimum (-pi/2 + 2k pi) lies inside."""
+    """Range of sin over [lo, hi]: wp.sin at the ends widened by 8 ulps of 1, and ±1 where
+    a maximum (pi/2 + 2k pi) or a minimum (-pi/2 + 2k pi) may lie inside, the extremum's
+    float32 position counted with a tolerance TRIG_TOL * |a|; TOP with an infinite bound
+    (sin(inf) is NaN)."""
+    if not (wp.isfinite(a[0]) and wp.isfinite(a[1])):
+        return top()
     if a[1] - a[0] >= TWO_PI:
         return wp.vec2(-1.0, 1.0)
-    lo = wp.min(wp.sin(a[0]), wp.sin(a[1]))
-    hi = wp.max(wp.sin(a[0]), wp.sin(a[1]))
-    k = wp.ceil((a[0] - HALF_PI) / TWO_PI)
-    if k * TWO_PI + HALF_PI <= a[1]:
+    tol = TRIG_TOL * (wp.abs(a[0]) + wp.abs(a[1]) + 1.0)
+    lo = wp.min(wp.sin(a[0]), wp.sin(a[1])) - 4.76837158203125e-07
+    hi = wp.max(wp.sin(a[0]), wp.sin(a[1])) + 4.76837158203125e-07
+    k = wp.ceil((a[0] - tol - HALF_PI) / TWO_PI)
+    if k * TWO_PI + HALF_PI <= a[1] + tol:
         hi = 1.0
-    k = wp.ceil((a[0] + HALF_PI) / TWO_PI)
-    if k * TWO_PI - HALF_PI <= a[1]:
+    k = wp.ceil((a[0] - tol + HALF_PI) / TWO_PI)
+    if k * TWO_PI - HALF_PI <= a[1] + tol:
         lo = -1.0
-    return wp.vec2(lo, hi)
+    return wp.vec2(wp.max(lo, -1.0), wp.min(hi, 1.0))
+
+
+@wp.func
+def iv_cos(a: wp.vec2):
+    """Range of cos over [lo, hi]: as :func:`iv_sin`, with maxima at 2k pi and minima at
+    (2k + 1) pi."""
+    if not (wp.isfinite(a[0]) and wp.isfinite(a[1])):
+        return top()
+    if a[1] - a[0] >= TWO_PI:
+        return wp.vec2(-1.0, 1.0)
+    tol = TRIG_TOL * (wp.abs(a[0]) + wp.abs(a[1]) + 1.0)
+    lo = wp.min(wp.cos(a[0]), wp.cos(a[1])) - 4.76837158203125e-07
+    hi = wp.max(wp.cos(a[0]), wp.cos(a[1])) + 4.76837158203125e-07
+    k = wp.ceil((a[0] - tol) / TWO_PI)  # a maximum (cos = 1) at 2 k pi
+    if k * TWO_PI <= a[1] + tol:
+        hi = 1.0
+    k = wp.ceil((a[0] - tol - 3.141592653589793) / TWO_PI)  # a minimum at (2k + 1) pi
+    if k * TWO_PI + 3.141592653589793 <= a[1] + tol:
+        lo = -1.0
+    return wp.vec2(wp.max(lo, -1.0), wp.min(hi, 1.0))
 
 
 @wp.func
 def iv_recip(b: wp.vec2):
     if b[0] <= 0.0 and b[1] >= 0.0:
-        return wp.vec2(-BIG, BIG)
+        return top()
     return iv(1.0 / b[1], 1.0 / b[0])
 
 
 @wp.func
 def iv_even_pow(a: wp.vec2, n: int):
-    """a^n for even n >= 2 (also |a|^c when called with the magnitudes)."""
+    """a^n for even n >= 2 (a not TOP)."""
     lo = powi(a[0], n)
     hi = powi(a[1], n)
     if a[0] <= 0.0 and a[1] >= 0.0:
-        return iv(0.0, wp.max(lo, hi))
-    return iv(wp.min(lo, hi), wp.max(lo, hi))
+        return wp.vec2(0.0, wp.max(lo, hi))
+    return wp.vec2(wp.min(lo, hi), wp.max(lo, hi))
 
 
 @wp.func
 def iv_abs(a: wp.vec2):
+    """|a| (a not TOP)."""
     if a[0] >= 0.0:
         return a
     if a[1] <= 0.0:
@@ -500,37 +598,27 @@ def iv_abs(a: wp.vec2):
 
 
 @wp.func
-def iv_cos(a: wp.vec2):
-    """Range of cos over [lo, hi]: the end values, widened at multiples of pi inside."""
-    if a[1] - a[0] >= TWO_PI:
-        return wp.vec2(-1.0, 1.0)
-    lo = wp.min(wp.cos(a[0]), wp.cos(a[1]))
-    hi = wp.max(wp.cos(a[0]), wp.cos(a[1]))
-    k = wp.ceil(a[0] / TWO_PI)  # a maximum (cos = 1) at 2 k pi
-    if k * TWO_PI <= a[1]:
-        hi = 1.0
-    k = wp.ceil((a[0] - 3.141592653589793) / TWO_PI)  # a minimum at (2k + 1) pi
-    if k * TWO_PI + 3.141592653589793 <= a[1]:
-        lo = -1.0
-    return wp.vec2(lo, hi)
-
-
-@wp.func
 def iv_runion(a: wp.vec2, b: wp.vec2, s: float):
-    # a + b + s*sqrt(a^2 + b^2) is nondecreasing in a and b for s = +1 and s = -1
+    """a + b + s*sqrt(a^2 + b^2) is nondecreasing in a and b for s = +1 and s = -1; the
+    float32 rfunction is not quite (rounding, its two branches), so the end values are
+    widened. TOP for TOP or huge operands (the sum may overflow into inf - inf)."""
+    m = wp.max(wp.max(wp.abs(a[0]), wp.abs(a[1])), wp.max(wp.abs(b[0]), wp.abs(b[1])))
+    if not (m <= R_MAX):  # (also TOP: its bounds are infinite)
+        return top()
     lo = rfunction(a[0], b[0], s)
     hi = rfunction(a[1], b[1], s)
-    return iv(lo, hi)
+    return iv(lo - (wp.abs(lo) * WIDEN + R_TINY), hi + (wp.abs(hi) * WIDEN + R_TINY))
 
 
 @wp.func
 def apply_interval(op: int, a: wp.vec2, b: wp.vec2, c: float):
-    """An interval enclosing the instruction's value for operands in a and b."""
+    """An interval enclosing the instruction's value for operands in a and b (the rules
+    of the module docstring: TOP in, TOP out)."""
     r = wp.vec2(0.0)
     if op == OP_CONST:
         r = wp.vec2(c, c)
     elif op == OP_ADD:
-        r = iv(a[0] + b[0], a[1] + b[1])
+        r = iv(a[0] + b[0], a[1] + b[1])  # inf - inf: NaN, TOP
     elif op == OP_SUB:
         r = iv(a[0] - b[1], a[1] - b[0])
     elif op == OP_MUL:
@@ -538,62 +626,92 @@ def apply_interval(op: int, a: wp.vec2, b: wp.vec2, c: float):
     elif op == OP_DIV:
         r = iv_div(a, b)
     elif op == OP_MIN:
-        r = wp.vec2(wp.min(a[0], b[0]), wp.min(a[1], b[1]))
+        if is_top(a) or is_top(b):
+            r = top()
+        else:
+            r = wp.vec2(wp.min(a[0], b[0]), wp.min(a[1], b[1]))
     elif op == OP_MAX:
-        r = wp.vec2(wp.max(a[0], b[0]), wp.max(a[1], b[1]))
+        if is_top(a) or is_top(b):
+            r = top()
+        else:
+            r = wp.vec2(wp.max(a[0], b[0]), wp.max(a[1], b[1]))
     elif op == OP_ADDC:
-        r = iv(a[0] + c, a[1] + c)
+        r = wp.vec2(a[0] + c, a[1] + c)  # c finite: TOP stays TOP
     elif op == OP_MULC:
-        r = iv(wp.min(a[0] * c, a[1] * c), wp.max(a[0] * c, a[1] * c))
+        if c >= 0.0:
+            r = iv(a[0] * c, a[1] * c)  # 0 * inf: NaN, TOP
+        else:
+            r = iv(a[1] * c, a[0] * c)
     elif op == OP_RSUBC:
-        r = iv(c - a[1], c - a[0])
+        r = wp.vec2(c - a[1], c - a[0])
     elif op == OP_RDIVC:
         r = iv_div(wp.vec2(c, c), a)
     elif op == OP_MINC:
-        r = wp.vec2(wp.min(a[0], c), wp.min(a[1], c))
+        if is_top(a):
+            r = top()
+        else:
+            r = wp.vec2(wp.min(a[0], c), wp.min(a[1], c))
     elif op == OP_MAXC:
-        r = wp.vec2(wp.max(a[0], c), wp.max(a[1], c))
+        if is_top(a):
+            r = top()
+        else:
+            r = wp.vec2(wp.max(a[0], c), wp.max(a[1], c))
     elif op == OP_NEG:
         r = wp.vec2(-a[1], -a[0])
     elif op == OP_ABS:
-        r = iv_abs(a)
+        if is_top(a):
+            r = top()
+        else:
+            r = iv_abs(a)
     elif op == OP_SQUARE:
-        r = iv_even_pow(a, 2)
+        if is_top(a):
+            r = top()
+        else:
+            r = iv_even_pow(a, 2)
     elif op == OP_SQRT:
-        r = wp.vec2(wp.sqrt(wp.max(a[0], 0.0)), wp.sqrt(wp.max(a[1], 0.0)))
+        if is_top(a):
+            r = top()
+        else:
+            r = wp.vec2(wp.sqrt(wp.max(a[0], 0.0)), wp.sqrt(wp.max(a[1], 0.0)))
     elif op == OP_SIN:
         r = iv_sin(a)
     elif op == OP_COS:
         r = iv_cos(a)
     elif op == OP_EXP:
-        r = iv(wp.exp(a[0]), wp.exp(a[1]))
+        if is_top(a):
+            r = top()
+        else:
+            r = wp.vec2(wp.max(down(wp.exp(a[0])), 0.0), up(wp.exp(a[1])))
     elif op == OP_LOG:
-        lo = -BIG
-        hi = -BIG
-        if a[0] > 0.0:
-            lo = wp.log(a[0])
-        if a[1] > 0.0:
-            hi = wp.log(a[1])
-        r = iv(lo, hi)
+        if a[0] < 0.0:  # a point of the box may be negative: NaN (TOP included)
+            r = top()
+        else:
+            r = wp.vec2(down(wp.log(a[0])), up(wp.log(a[1])))  # log(0) = -inf
     elif op == OP_POWI:
         n = int(c)
         m = n
         if m < 0:
             m = -m
         if m % 2 == 0:
-            r = iv_even_pow(a, m)
+            if is_top(a):
+                r = top()
+            else:
+                r = iv_even_pow(a, m)
         else:
             r = iv(powi(a[0], m), powi(a[1], m))
         if n < 0:
             r = iv_recip(r)
     elif op == OP_POWF:
-        mag = iv_abs(a)
-        if c >= 0.0:
-            r = iv(wp.pow(mag[0], c), wp.pow(mag[1], c))
-        elif mag[0] > 0.0:
-            r = iv(wp.pow(mag[1], c), wp.pow(mag[0], c))
+        if is_top(a):
+            r = top()
         else:
-            r = iv(wp.pow(mag[1], c), BIG)
+            mag = iv_abs(a)
+            if c >= 0.0:
+                r = wp.vec2(wp.max(down(wp.pow(mag[0], c)), 0.0), up(wp.pow(mag[1], c)))
+            elif mag[0] > 0.0:
+                r = wp.vec2(wp.max(down(wp.pow(mag[1], c)), 0.0), up(wp.pow(mag[0], c)))
+            else:
+                r = wp.vec2(wp.max(down(wp.pow(mag[1], c)), 0.0), INF)  # 0 ** c = inf
     elif op == OP_RUNION:
         r = iv_runion(a, b, 1.0)
     elif op == OP_RINTER:
@@ -617,7 +735,10 @@ def interval_step(op: int, d: int, a: int, b: int, c: float, cnt: int, scratch: 
 def branch_choice(op: int, a: wp.vec2, b: wp.vec2):
     """Which operand alone decides a MIN/MAX/MINC/MAXC over a box: 1 the first, 2 the
     second (or the immediate, passed as the point interval ``b``), 0 neither. Exact
-    float comparisons of interval bounds; a tie of two equal points picks 1."""
+    float comparisons of interval bounds; a tie of two equal points picks 1. Never
+    decided when an operand is TOP: a NaN there would win (NaN propagates)."""
+    if is_top(a) or is_top(b):
+        return 0
     if op == OP_MIN or op == OP_MINC:
         if a[1] <= b[0]:
             return 1

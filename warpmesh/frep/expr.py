@@ -554,7 +554,7 @@ def depends_on(expr: "Expr", axis: int) -> bool:
 
 
 def sqrt(a) -> Expr:
-    """Square root (of max(a, 0))."""
+    """Square root (of max(a, 0)): 0 for a negative a, NaN for a NaN a."""
     return _node(O.SQRT, (as_expr(a),))
 
 
@@ -573,7 +573,8 @@ def _fold2(op: int, opc: int, a, b) -> Expr:
 
 
 def min(a, b, *more) -> Expr:  # noqa: A001
-    """Pointwise minimum of two or more expressions."""
+    """Pointwise minimum of two or more expressions; NaN where any of them is NaN (as
+    ``numpy.minimum``; every evaluator and interval follows this rule)."""
     out = _fold2(O.MIN, O.MINC, a, b)
     for m in more:
         out = _fold2(O.MIN, O.MINC, out, m)
@@ -581,7 +582,8 @@ def min(a, b, *more) -> Expr:  # noqa: A001
 
 
 def max(a, b, *more) -> Expr:  # noqa: A001
-    """Pointwise maximum of two or more expressions."""
+    """Pointwise maximum of two or more expressions; NaN where any of them is NaN (as
+    ``numpy.maximum``)."""
     out = _fold2(O.MAX, O.MAXC, a, b)
     for m in more:
         out = _fold2(O.MAX, O.MAXC, out, m)
@@ -604,7 +606,8 @@ def exp(a) -> Expr:
 
 
 def log(a) -> Expr:
-    """Natural logarithm (of a positive argument)."""
+    """Natural logarithm (of a positive argument; NaN for a negative one, which meshing
+    reports as an error)."""
     return _node(O.LOG, (as_expr(a),))
 
 

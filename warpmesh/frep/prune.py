@@ -25,10 +25,10 @@ The pieces, for one master :class:`~warpmesh.frep.tape.Tape`:
 
 A pruned tape keeps the master's registers and output register, so the interpreter
 needs no other change. On a box where a pruned tape is used, its value at every point
-equals the master tape's value, bit for bit where the interval bounds are computed
-with the float operations the points use (the interval of a decision holds the
-operands' float values); with sin, cos, exp, ... a bound may be a rounding off, and
-so may a value where the two operands are that close.
+equals the master tape's value, bit for bit: the intervals enclose the operands'
+float32 point values (:mod:`warpmesh.kernels.tape`), and an operand that may be NaN
+(the interval (-inf, inf)) never decides a branch, since NaN propagates through min
+and max.
 
 Example
 -------

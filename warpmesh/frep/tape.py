@@ -237,7 +237,13 @@ def eval_gradients(tape: Tape, points: wp.array, out: wp.array | None = None, de
 
 def eval_intervals(tape: Tape, boxes_lo: wp.array, boxes_hi: wp.array, out: wp.array | None = None,
                    device="cpu") -> wp.array:
-    """An interval (lo, hi) enclosing f over each box, as wp.array of vec2."""
+    """An interval (lo, hi) enclosing f over each box, as wp.array of vec2.
+
+    Every float32 value :func:`eval_values` gives at a point of the box lies in [lo, hi]
+    (bounds may be ±inf, never clamped); (-inf, inf) means f may be NaN in the box (NaN
+    propagates, through min and max too). The rules per opcode and what is exact are in
+    :mod:`warpmesh.kernels.tape`.
+    """
     n = boxes_lo.shape[0]
     if out is None:
         out = wp.empty(n, dtype=wp.vec2, device=device)
@@ -291,7 +297,20 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu",
 
 
 def evaluate_interval(shape, lo, hi, *, device: str = "cpu") -> np.ndarray:
-    """Intervals (m, 2) enclosing f over boxes [lo_i, hi_i] (each (m, 3))."""
+    """Intervals (m, 2) enclosing f over boxes [lo_i, hi_i] (each (m, 3)).
+
+    Each interval holds every value :func:`evaluate` gives in its box (float32, no
+    tolerance needed); a bound may be ±inf, and (-inf, inf) says that f may be NaN
+    somewhere in the box (``log`` of a negative, ``0 / 0``, ...: NaN propagates, through
+    ``wm.min`` and ``wm.max`` too).
+
+    Example
+    -------
+    >>> import numpy as np, warpmesh as wm
+    >>> x, y, z = wm.coords()
+    >>> wm.evaluate_interval(wm.log(x), np.array([[-1.0, 0, 0]]), np.array([[1.0, 0, 0]])).tolist()
+    [[-inf, inf]]
+    """
     tape = tape_of(shape)
     blo, bhi = points_array(lo, device), points_array(hi, device)
     if blo.shape != bhi.shape:
