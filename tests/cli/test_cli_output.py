@@ -146,3 +146,16 @@ def test_sigint_to_a_running_mesh_exits_130_with_one_line_and_no_file(tmp_path):
     assert child.returncode == 130, stderr
     assert stderr == "warpmesh: interrupted\n" and stdout == ""
     assert list(tmp_path.iterdir()) == []  # no output, no temporary file
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["mesh", "--example", "sphere", "--root", "bisection", "--root-iterations", "0"], "--root-iterations"),
+    (["mesh", "--example", "sphere", "--resolution", "16", "--level", "0.1"], "--level does not apply"),
+    (["mesh", "--example", "sphere", "--resolution", "16", "--simplify", "2"], "--simplify"),
+    (["mesh", "--example", "sphere", "--resolution", "16", "--simplify", "0.5", "--max-error", "-1"], "--max-error"),
+    (["domain", "--example", "part", "--size", "100"], "lower --size or enlarge --bounds"),
+])
+def test_library_errors_are_told_in_cli_flags(capsys, argv, flag):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert flag in err and not re.search(r"'(root_iterations|level|fraction|tolerance|size|bounds)'", err), err

@@ -37,7 +37,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -122,6 +124,69 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+#: ``mesh`` flags by the keyword of :func:`warpmesh.mesh_surface` they set
+_MESH_FLAGS = {"resolution": "--resolution", "level": "--level", "inside": "--inside", "spacing": "--spacing",
+               "origin": "--origin", "method": "--method", "labels": "--labels", "slab_voxels": "--slab-voxels",
+               "root": "--root", "root_iterations": "--root-iterations", "gradient": "--gradient",
+               "tolerance": "--tolerance", "evaluator": "--evaluator", "cap": "--no-cap", "bounds": "--bounds",
+               "device": "--device"}
+#: ``--optimize`` / ``--simplify`` flags by the keyword of :func:`warpmesh.optimize` / :func:`warpmesh.simplify`
+_IMPROVE_FLAGS = {"size": "--size", "tolerance": "--max-error", "fraction": "--simplify", "bounds": "--bounds"}
+
+
+@contextmanager
+def in_flags(flags: dict[str, str]):
+    """Library errors raised inside, with the Python keywords they quote ('name', name=) as CLI flags.
+
+    Examples
+    --------
+    >>> with in_flags({"root_iterations": "--root-iterations"}):
+    ...     raise ValueError("expected 1 <= 'root_iterations' <= 64, got -1")
+    Traceback (most recent call last):
+    ...
+    ValueError: expected 1 <= --root-iterations <= 64, got -1
+    """
+    try:
+        yield
+    except (ValueError, TypeError) as exc:
+        text = re.sub(r"'(\w+)'|\b(\w+)=(?!=)",
+                      lambda m: flags.get(m.group(1) or m.group(2), m.group(0)), str(exc))
+        if text == str(exc):
+            raise
+        try:
+            reworded = type(exc)(text)
+        except Exception:  # an exception class with another signature
+            reworded = ValueError(text)
+        raise reworded from None
+
+
+def _check_mesh_flags(args) -> None:
+    """Refuse, in one line, flags the chosen pipeline of ``mesh`` does not take (its option group's fields)."""
+    import dataclasses
+
+    from warpmesh.surface import options as O
+
+    if args.volume is not None:
+        group, what = O.VolumeOptions, "--volume"
+    elif args.adaptive:
+        group, what = O.AdaptiveOptions, "--adaptive"
+    elif args.covering == "continuation":
+        group, what = O.ContinuationOptions, "--covering continuation"
+    else:
+        group, what = O.GridOptions, "a shape on a grid"
+    given = {"resolution": args.resolution, "level": args.level, "inside": args.inside, "spacing": args.spacing,
+             "origin": args.origin, "method": args.method, "labels": args.labels, "slab_voxels": args.slab_voxels,
+             "root": args.root, "root_iterations": args.root_iterations, "gradient": args.gradient,
+             "tolerance": args.tolerance, "evaluator": args.evaluator, "cap": args.no_cap or None,
+             "bounds": args.bounds}
+    names = {f.name for f in dataclasses.fields(group)}
+    refused = [_MESH_FLAGS[k] for k, v in given.items() if v is not None and k not in names]
+    if refused:
+        takes = " ".join(_MESH_FLAGS[k] for k in _MESH_FLAGS if k in names and k != "bounds")
+        raise ValueError(f"{' '.join(refused)} {'does' if len(refused) == 1 else 'do'} not apply to {what}, "
+                         f"which takes {takes}")
+
+
 def _labels(values):
     if values is None:
         return None
@@ -165,14 +230,14 @@ def _improve(wm, args, mesh, bounds, target, clock):
     if args.optimize and args.simplify is not None:
         raise ValueError("expected one of --optimize and --simplify, got both")
     capped = bounds is not None and not args.no_cap
-    with clock.stage("optimize" if args.optimize else "simplify"):
+    with clock.stage("optimize" if args.optimize else "simplify"), in_flags(_IMPROVE_FLAGS):
         if args.optimize:
             out = wm.optimize(mesh, target, bounds=bounds if capped else None, size=args.size,
                               tolerance=args.max_error, progress=True)
         else:
             out = wm.simplify(mesh, target, bounds=bounds if capped else None, fraction=args.simplify,
                               tolerance=args.max_error, progress=True)
-    with clock.stage("distance check"):
+    with clock.stage("distance check"), in_flags(_IMPROVE_FLAGS):
         distance = wm.surface_error(out, target, bounds=bounds if capped else None)["max"]
     return out, distance
 
@@ -211,6 +276,7 @@ def _mesh(wm, args, clock) -> int:
 
     if args.output:
         check_output(args.output, cells=("triangle",))  # before any work
+    _check_mesh_flags(args)
     common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
                   device=args.device, gradient=args.gradient, labels=_labels(args.labels),
                   slab_voxels=args.slab_voxels)
@@ -226,7 +292,7 @@ def _mesh(wm, args, clock) -> int:
         with clock.stage("read input"):
             source = shape_source(args, dims=(3,))
         shape, bounds = source.shape, source.bounds
-        with clock.stage("mesh"):
+        with clock.stage("mesh"), in_flags(_MESH_FLAGS):
             mesh = wm.mesh_surface(shape, bounds=bounds, resolution=args.resolution, level=args.level,
                                    evaluator=args.evaluator or (None if args.adaptive else "interpreter"),
                                    inside=args.inside, origin=args.origin,
@@ -238,7 +304,7 @@ def _mesh(wm, args, clock) -> int:
         with clock.stage("read input"):
             volume = _load_volume(wm, args)
         bounds = None
-        with clock.stage("mesh"):
+        with clock.stage("mesh"), in_flags(_MESH_FLAGS):
             mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,
                                    evaluator=args.evaluator, **common)
     clock.split("mesh", mesh.info.get("time"))

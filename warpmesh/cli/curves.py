@@ -17,6 +17,9 @@ isosurface stuffing, :mod:`warpmesh.solid`)
 from __future__ import annotations
 
 COMMANDS = ("curve", "domain")
+#: flags by the keyword of :func:`warpmesh.mesh_curve` / :func:`warpmesh.mesh_domain` they set
+_FLAGS = {"size": "--size", "tolerance": "--tolerance", "min_angle": "--min-angle", "method": "--method",
+          "smooth": "--smooth", "bounds": "--bounds", "resolution": "--resolution", "device": "--device"}
 
 
 def add_parsers(sub) -> None:
@@ -53,6 +56,7 @@ def add_parsers(sub) -> None:
 
 def run(wm, args, clock) -> int:
     """Run one of :data:`COMMANDS` (errors propagate to the caller, which prints them)."""
+    from warpmesh.cli.commands import in_flags
     from warpmesh.cli.output import check_output, save_output
     from warpmesh.cli.report import print_report
     from warpmesh.cli.sources import shape_source
@@ -63,7 +67,7 @@ def run(wm, args, clock) -> int:
         with clock.stage("read input"):
             source = shape_source(args, dims=(2,))
         options = {} if args.resolution is None else {"resolution": args.resolution}
-        with clock.stage("mesh"):
+        with clock.stage("mesh"), in_flags(_FLAGS):
             mesh = wm.mesh_curve(source.shape, source.bounds, method=args.method, tolerance=args.tolerance,
                                  geometric=not args.raw, size=args.size, device=args.device, **options)
     else:
@@ -80,7 +84,7 @@ def run(wm, args, clock) -> int:
             raise ValueError("--smooth applies to 3D domains (3-value --bounds); planar domains are smoothed "
                              "by their own pipeline")
         planar = {k: v for k, v in (("tolerance", args.tolerance), ("min_angle", args.min_angle)) if v is not None}
-        with clock.stage("mesh"):
+        with clock.stage("mesh"), in_flags(_FLAGS):
             mesh = wm.mesh_domain(source.shape, source.bounds, size=args.size, method=args.method,
                                   smooth=args.smooth, device=args.device, **planar)
     if args.output:
