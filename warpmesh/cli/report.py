@@ -117,7 +117,7 @@ def _value(key: str, v) -> str | None:
     if isinstance(v, dict):
         if not v:
             return None
-        return ", ".join(f"{k} {_number(x)}{unit}" for k, x in v.items())
+        return ", ".join(f"{k}: {_number(x)}{unit}" for k, x in v.items())
     if isinstance(v, np.ndarray) and v.ndim == 2:
         if key == "bounds":
             return f"({', '.join(_number(float(a)) for a in v[0])}) to ({', '.join(_number(float(b)) for b in v[1])})"
