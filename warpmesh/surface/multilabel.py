@@ -89,6 +89,10 @@ REST = 0
 _AROUND = {0: ((0, -1, -1), (0, 0, -1), (0, 0, 0), (0, -1, 0)),
            1: ((-1, 0, -1), (-1, 0, 0), (0, 0, 0), (0, 0, -1)),
            2: ((-1, -1, 0), (0, -1, 0), (0, 0, 0), (-1, 0, 0))}
+#: a cube's 8 samples (offsets from its lowest), its 12 edges (pairs of those) and their midpoints
+_CORNERS = np.array([(c & 1, c >> 1 & 1, c >> 2 & 1) for c in range(8)])
+_CUBE_EDGES = [(i, j) for i in range(8) for j in range(i + 1, 8) if np.abs(_CORNERS[i] - _CORNERS[j]).sum() == 1]
+_EDGE_MIDPOINTS = np.array([0.5 * (_CORNERS[i] + _CORNERS[j]) for i, j in _CUBE_EDGES])
 
 
 def label_codes(vol: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
@@ -122,10 +126,17 @@ def label_codes(vol: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
     >>> codes.ravel().tolist(), ids.tolist(), rest
     ([1, 2, 0, 2], [-1, 0, 3], 0)
     """
-    from warpmesh.surface.volume import check_labels  # the label form and range checks, shared
+    from warpmesh.surface.volume import check_label_range, check_labels  # shared label checks
 
-    present = np.unique(np.concatenate([np.unique(vol[a:a + 64]) for a in range(0, len(vol), 64)]))
-    chosen = np.asarray(check_labels(labels, vol)).astype(np.int64)
+    present = _present(vol)
+    if isinstance(labels, str):
+        chosen = check_labels(labels, vol[:0]) if labels != "all" else present[present != 0]
+        if len(chosen) == 0:
+            raise ValueError("expected some non-zero labels in 'volume' with labels=\"all\", got only 0")
+        check_label_range(chosen)
+        chosen = chosen.astype(np.int64)
+    else:
+        chosen = np.asarray(check_labels(labels, vol[:0])).astype(np.int64)
     missing = chosen[~np.isin(chosen, present.astype(np.int64))]
     if len(missing):
         raise ValueError(f"expected 'labels' present in 'volume', got {missing.tolist()} with no sample "
@@ -146,6 +157,19 @@ def label_codes(vol: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
             pos = np.minimum(np.searchsorted(ids, part), len(ids) - 1)
             codes[a:a + 64] = np.where((ids[pos] == part) & np.isin(part, chosen), pos, rest)
     return codes, ids, rest
+
+
+def _present(vol: np.ndarray) -> np.ndarray:
+    """The distinct values of the volume, slab by slab (a histogram for 8- and 16-bit values)."""
+    small = vol.dtype.itemsize <= 2 and (vol.dtype == np.bool_ or np.issubdtype(vol.dtype, np.integer))
+    if not small:
+        return np.unique(np.concatenate([np.unique(vol[a:a + 64]) for a in range(0, len(vol), 64)]))
+    lo = 0 if vol.dtype == np.bool_ else int(np.iinfo(vol.dtype).min)
+    counts = np.zeros(1 << (8 * vol.dtype.itemsize), dtype=np.int64)
+    for a in range(0, len(vol), 64):
+        part = vol[a:a + 64].reshape(-1)
+        counts += np.bincount(part.astype(np.intp) - lo if lo else part, minlength=len(counts))
+    return (np.flatnonzero(counts) + lo).astype(vol.dtype)
 
 
 def _as_label_volume(vol: np.ndarray) -> np.ndarray:
@@ -211,89 +235,88 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     shape = np.array(codes.shape, dtype=np.int64)
     strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
     flat = codes.ravel()
-    edge_first, edge_axis = [], []
+    firsts, cubes = [], []
     for a in range(3):  # crossing edges: consecutive samples along axis a with different codes
         s = int(strides[a])
         first = np.flatnonzero(flat[:-s] != flat[s:])
-        if a > 0:  # drop the pairs that wrap to the next row
-            first = first[(first // s) % shape[a] < shape[a] - 1]
-        edge_first.append(first)
-        edge_axis.append(np.full(len(first), a, dtype=np.int8))
-    first, axis = np.concatenate(edge_first), np.concatenate(edge_axis)
-    del edge_first, edge_axis
-    code0, code1 = flat[first], flat[first + strides[axis]]
-    ijk = np.stack([first // strides[0], first // strides[1] % shape[1], first % shape[2]], axis=1)
-    # the 4 cubes around each edge (cube = its lowest sample), counter-clockwise about +axis
-    cubes = np.empty((len(first), 4), dtype=np.int64)
-    inside = np.ones(len(first), dtype=bool)
-    for a in range(3):
-        on = axis == a
-        for c, off in enumerate(_AROUND[a]):
-            cubes[on, c] = first[on] + np.dot(off, strides)
-        others = [b for b in range(3) if b != a]
-        inside[on] = np.all((ijk[on][:, others] >= 1) & (ijk[on][:, others] <= shape[others] - 2), axis=1)
+        if not cap:  # keep the edges with 4 cubes around them (off the faces of the box along the
+            # other axes), and drop the pairs that wrap to the next row; with cap, both samples of
+            # such a pair are in the padding layer of the rest, so no crossing edge is among them
+            keep = np.ones(len(first), dtype=bool)
+            for b in range(3):
+                at = first // strides[b] % shape[b]
+                keep &= (at <= shape[b] - 2) & ((at >= 1) | (b == a))
+            first = first[keep]
+        firsts.append(first)
+        # the 4 cubes around each edge (a cube is named by its lowest sample), counter-clockwise about +a
+        cubes.append(first[:, None] + np.array(_AROUND[a]) @ strides)
     timings["edges"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    # vertex of each cube: the mean of its crossing edges' midpoints (in sample units)
-    mid = ijk + 0.5 * np.eye(3)[axis]
-    cube_ok = np.ones(cubes.shape, dtype=bool)
-    if not cap:  # cubes off the grid (edges on the box's faces) do not exist
-        cube_ijk = ijk[:, None, :] + np.array([_AROUND[a] for a in range(3)])[axis]
-        cube_ok = np.all((cube_ijk >= 0) & (cube_ijk <= shape - 2), axis=2)
-    cube_ids, vertex_of = np.unique(cubes[cube_ok], return_inverse=True)
-    count = np.bincount(vertex_of, minlength=len(cube_ids))
-    mids = np.repeat(mid, cube_ok.sum(axis=1), axis=0)
-    points = np.stack([np.bincount(vertex_of, weights=mids[:, d], minlength=len(cube_ids)) for d in range(3)], axis=1)
-    points /= count[:, None]
+    mark = np.zeros(flat.size, dtype=bool)  # the cubes that get a vertex, in grid order
+    for c in cubes:
+        mark[c] = True
+    cube_ids = np.flatnonzero(mark)
+    del mark
+    corners = np.stack([flat[cube_ids + np.dot(corner, strides)] for corner in _CORNERS], axis=1)  # (n, 8)
+    points = _cube_vertices(corners, cube_ids, shape, strides)
     points = np.asarray(origin, dtype=np.float64) + points * np.asarray(spacing, dtype=np.float64)
-    vertex = np.full(cubes.shape, -1, dtype=np.int64)
-    vertex[cube_ok] = vertex_of
     timings["vertices"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    quads = vertex[inside]
-    lo_code, hi_code = np.minimum(code0, code1)[inside], np.maximum(code0, code1)[inside]
-    flip = (code0 > code1)[inside]  # lower -> higher runs along -axis: reverse the winding
-    quads[flip] = quads[flip][:, ::-1]
-    tris = _split_quads(points, quads, axis[inside], flip)
+    columns = [np.ascontiguousarray(points[:, d]) for d in range(3)]
+    tris, lo_codes, hi_codes = [], [], []
+    for a in range(3):
+        quads = np.searchsorted(cube_ids, cubes[a])
+        code0, code1 = flat[firsts[a]], flat[firsts[a] + strides[a]]
+        flip = code0 > code1  # lower -> higher runs along -a: reverse the winding
+        quads[flip] = quads[flip][:, ::-1]
+        tris.append(_split_quads(columns, quads, a, flip))
+        lo_codes.append(np.minimum(code0, code1))
+        hi_codes.append(np.maximum(code0, code1))
+    tris = np.concatenate(tris)
+    lo_code, hi_code = np.concatenate(lo_codes), np.concatenate(hi_codes)
     lower, upper = ids[np.repeat(lo_code, 2)], ids[np.repeat(hi_code, 2)]
     timings["triangles"] = time.perf_counter() - t0
 
-    labels_in_cube = _junction_count(vertex[inside], lo_code, hi_code, len(points))
+    corners.sort(axis=1)
+    labels_in_cube = 1 + np.count_nonzero(corners[:, 1:] != corners[:, :-1], axis=1)
     info = {"labels": [int(v) for v in ids if v != ids[rest]], "rest": int(ids[rest]),
             "interfaces": int(len(np.unique(lo_code.astype(np.int64) * len(ids) + hi_code))),
             "junction_vertices": int(np.count_nonzero(labels_in_cube >= 3)), "cubes": int(len(points))}
     return points.astype(C.REAL_DTYPE), tris.astype(C.INDEX_DTYPE), lower, upper, info
 
 
-def _split_quads(points: np.ndarray, quads: np.ndarray, axis: np.ndarray, flip: np.ndarray) -> np.ndarray:
-    """Two triangles per quad, along the diagonal whose triangles both face the quad's
-    direction (``+axis``, or ``-axis`` where ``flip``); the shorter one when both do."""
-    p = points[quads]  # (q, 4, 3)
-    direction = np.where(flip, -1.0, 1.0)
-    rows = np.arange(len(quads))
+def _cube_vertices(corners: np.ndarray, cube_ids: np.ndarray, shape: np.ndarray, strides: np.ndarray) -> np.ndarray:
+    """Each cube's vertex in sample units: its lowest sample plus the mean of the midpoints
+    of its crossing edges (edges whose two samples differ), from its 8 corner codes."""
+    crossing = np.stack([corners[:, i] != corners[:, j] for i, j in _CUBE_EDGES], axis=1).astype(np.float64)
+    offset = (crossing @ _EDGE_MIDPOINTS) / crossing.sum(axis=1, keepdims=True)
+    base = np.stack([cube_ids // strides[0], cube_ids // strides[1] % shape[1], cube_ids % shape[2]], axis=1)
+    return base + offset
 
-    def facing(i, j, k):
-        n = np.cross(p[:, j] - p[:, i], p[:, k] - p[:, i])
-        return n[rows, axis] * direction
+
+def _split_quads(columns: list, quads: np.ndarray, axis: int, flip: np.ndarray) -> np.ndarray:
+    """Two triangles per quad around edges along ``axis``, split along the diagonal whose
+    triangles both face the quad's direction (``+axis``, or ``-axis`` where ``flip``); the
+    shorter one when both do. ``columns`` are the points' x, y, z arrays."""
+    u, v = (axis + 1) % 3, (axis + 2) % 3  # the plane across the edge, (u, v, axis) right-handed
+    pu, pv = columns[u][quads], columns[v][quads]  # (q, 4) projected corners
+    sign = np.where(flip, -1.0, 1.0)
+
+    def facing(i, j, k):  # twice the projected area of triangle (i, j, k), along the quad's direction
+        return ((pu[:, j] - pu[:, i]) * (pv[:, k] - pv[:, i]) - (pv[:, j] - pv[:, i]) * (pu[:, k] - pu[:, i])) * sign
 
     good02 = np.minimum(facing(0, 1, 2), facing(0, 2, 3))
     good13 = np.minimum(facing(1, 2, 3), facing(1, 3, 0))
-    d02 = np.einsum("ij,ij->i", p[:, 2] - p[:, 0], p[:, 2] - p[:, 0])
-    d13 = np.einsum("ij,ij->i", p[:, 3] - p[:, 1], p[:, 3] - p[:, 1])
+    pa = columns[axis][quads]
+    d02 = (pu[:, 2] - pu[:, 0]) ** 2 + (pv[:, 2] - pv[:, 0]) ** 2 + (pa[:, 2] - pa[:, 0]) ** 2
+    d13 = (pu[:, 3] - pu[:, 1]) ** 2 + (pv[:, 3] - pv[:, 1]) ** 2 + (pa[:, 3] - pa[:, 1]) ** 2
     use02 = (good02 > 0) & ((good13 <= 0) | (d02 <= d13))
-    a = np.where(use02[:, None], quads[:, [0, 1, 2]], quads[:, [1, 2, 3]])
-    b = np.where(use02[:, None], quads[:, [0, 2, 3]], quads[:, [1, 3, 0]])
-    return np.stack([a, b], axis=1).reshape(-1, 3)
-
-
-def _junction_count(quads: np.ndarray, lo: np.ndarray, hi: np.ndarray, n: int) -> np.ndarray:
-    """How many labels meet at each vertex (from the quads around it)."""
-    v = np.repeat(quads.ravel(), 2)
-    lab = np.column_stack([np.repeat(lo, 4), np.repeat(hi, 4)]).ravel().astype(np.int64)
-    pairs = np.unique(v * (int(lab.max()) + 1 if len(lab) else 1) + lab)
-    return np.bincount(pairs // (int(lab.max()) + 1 if len(lab) else 1), minlength=n)
+    tris = np.empty((len(quads), 2, 3), dtype=C.INDEX_DTYPE)
+    tris[:, 0] = np.where(use02[:, None], quads[:, [0, 1, 2]], quads[:, [1, 2, 3]])
+    tris[:, 1] = np.where(use02[:, None], quads[:, [0, 2, 3]], quads[:, [1, 3, 0]])
+    return tris.reshape(-1, 3)
 
 
 def label_boundary(mesh, label: int):
