@@ -229,8 +229,8 @@ def test_selectors():
         wm.mesh_surface(np.zeros((4, 4, 4)), adaptive=True)
     with pytest.raises(TypeError, match="expected True or False for 'adaptive'"):
         wm.mesh_surface(wm.sphere(0.5), bounds=BOX, adaptive=1)
-    with pytest.raises(TypeError, match="'source'"):
-        wm.mesh_surface("sphere", bounds=BOX)
+    with pytest.raises(FileNotFoundError, match="no such image file or DICOM folder: 'sphere'"):
+        wm.mesh_surface("sphere", bounds=BOX)  # a string is an image's path
 
 
 # -- options=: the same meshes as the flat keywords ------------------------------------------------
@@ -276,8 +276,8 @@ def test_options_alone_and_matching_the_source():
         wm.mesh_surface(np.zeros((4, 4, 4)), options=opts)
     with pytest.raises(TypeError, match="VolumeOptions meshes a volume: expected a 3D array for 'source', got Shape"):
         wm.mesh_surface(wm.sphere(0.5), options=VolumeOptions())
-    with pytest.raises(TypeError, match="'source'"):
-        wm.mesh_surface("sphere", options=opts)
+    with pytest.raises(FileNotFoundError, match="'sphere'"):
+        wm.mesh_surface("sphere", options=opts)  # a string is an image's path
     m = wm.mesh_surface(wm.sphere(0.5), options=opts, device="cpu", level=None)  # None: not given
     assert m.info["device"] == "cpu"
 

@@ -27,6 +27,8 @@ Example
 
 from __future__ import annotations
 
+import functools
+
 import math
 from typing import Literal
 
@@ -166,11 +168,34 @@ class Shape:
         Whether ``field`` is a true signed distance.
     """
 
-    __slots__ = ("field", "exact")
+    __slots__ = ("field", "exact", "parts")
 
-    def __init__(self, field, exact: bool = False):
+    def __init__(self, field, exact: bool = False, parts: tuple = ()):
         self.field: Expr = as_expr(field)
         self.exact = bool(exact)
+        #: (name, field) of the primitives whose zero sets make up the boundary (booleans
+        #: concatenate them, transforms map them); empty: the shape is its own primitive
+        self.parts: tuple = tuple(parts)
+
+    @property
+    def primitives(self) -> list[tuple[str, "Shape"]]:
+        """The primitives whose zero sets make up the boundary, in the order the shape was
+        built: (name, shape) pairs. A shape made by arithmetic on fields (an offset, a
+        product with an expression) is its own single primitive "field".
+
+        Example
+        -------
+        >>> import warpmesh as wm
+        >>> part = (wm.box((2, 2, 0.6)) - wm.cylinder(0.2)) | wm.sphere(0.5)
+        >>> [name for name, _ in part.primitives]
+        ['box', 'cylinder', 'sphere']
+        """
+        parts = self.parts or (("field", self.field),)
+        return [(name, Shape(field)) for name, field in parts]
+
+    def _keeping(self, field, exact) -> "Shape":
+        """A shape with a new field whose zero set is made of the same primitives."""
+        return Shape(field, exact, self.parts)
 
     # -- evaluation ---------------------------------------------------------------
     def eval_numpy(self, x, y, z=0.0) -> np.ndarray:
@@ -216,7 +241,13 @@ class Shape:
         >>> round(float(ball.with_params(r=0.25)(0, 0, 0)), 6), round(float(ball(0, 0, 0)), 6)
         (0.25, 0.5)
         """
-        return Shape(self.field.with_params(values, **more), self.exact)
+        field = self.field.with_params(values, **more)  # checks the names and ranges
+        given = {**dict(values or {}), **more}
+
+        def rebound(f):  # a primitive takes the values of the parameters it holds
+            own = {k: v for k, v in given.items() if k in f.params}
+            return f.with_params(own) if own else f
+        return Shape(field, self.exact, tuple((n, rebound(f)) for n, f in self.parts))
 
     @property
     def dim(self) -> int:
@@ -249,7 +280,7 @@ class Shape:
         return difference(other, self)
 
     def __invert__(self):
-        return Shape(-self.field, self.exact)
+        return self._keeping(-self.field, self.exact)
 
     # -- arithmetic on the field (with numbers and expressions) ------------------------
     def _offset(self, c: float) -> "Shape":
@@ -267,7 +298,8 @@ class Shape:
     def __mul__(self, other):
         """The field times a number or an expression (a positive factor keeps the solid)."""
         if _is_number(other):
-            return Shape(self.field * float(other), self.exact and float(other) == 1.0)
+            out = Shape(self.field * float(other), self.exact and float(other) == 1.0)
+            return self._keeping(out.field, out.exact) if float(other) != 0.0 else out  # same zero set
         return Shape(self.field * _field_operand(other, "*"))
 
     __rmul__ = __mul__
@@ -295,9 +327,10 @@ class Shape:
                     term = term + var * float(coef)
             new.append(term)
         field = self.field.substitute(*new)
+        parts = tuple((name, f.substitute(*new)) for name, f in self.parts)
         if isinstance(scale, Expr):
-            return Shape(field * scale, exact)
-        return Shape(field * scale if scale != 1.0 else field, exact)
+            return Shape(field * scale, exact, parts)
+        return Shape(field * scale if scale != 1.0 else field, exact, parts)
 
     def translate(self, offset) -> "Shape":
         """Move by ``offset`` (3 values, or 2 for a planar shape; numbers or parameters).
@@ -448,7 +481,8 @@ def _combine(shapes, method, k, is_union: bool) -> Shape:
         else:
             out = _smooth_max(out, f, k) if is_union else -_smooth_max(-out, -f, k)
     exact = len(shapes) == 1 and as_shape(shapes[0]).exact
-    return Shape(out, exact)
+    parts = tuple(p for sh in shapes for p in (as_shape(sh).parts or (("field", as_shape(sh).field),)))
+    return Shape(out, exact, parts)
 
 
 def union(*shapes, method: BooleanMethod = "rfunction", k: float = 0.1) -> Shape:
@@ -485,6 +519,14 @@ def complement(a) -> Shape:
 
 
 # -- primitives ------------------------------------------------------------------------
+def _primitive(fn):
+    """Mark what ``fn`` returns as one primitive named after ``fn`` (``Shape.primitives``)."""
+    @functools.wraps(fn)
+    def make(*args, **kwargs) -> Shape:
+        shape = fn(*args, **kwargs)
+        return Shape(shape.field, shape.exact, ((fn.__name__, shape.field),))
+    return make
+
 def _frame(axis: str):
     """(u, v, w) coordinate expressions with w along ``axis``."""
     x, y, z = E.coords()
@@ -497,6 +539,7 @@ def _centered(shape: Shape, center) -> Shape:
     return shape.translate(c) if any(not _zero(v) for v in c) else shape
 
 
+@_primitive
 def sphere(radius: float = 1.0, center=(0.0, 0.0, 0.0)) -> Shape:
     """Ball of ``radius`` (exact): f = r - |p - c|."""
     r = _positive(radius, "radius")
@@ -504,6 +547,7 @@ def sphere(radius: float = 1.0, center=(0.0, 0.0, 0.0)) -> Shape:
     return _centered(Shape(r - E.sqrt(x * x + y * y + z * z), True), center)
 
 
+@_primitive
 def box(size=(1.0, 1.0, 1.0), center=(0.0, 0.0, 0.0)) -> Shape:
     """Axis-aligned box with edge lengths ``size`` (exact signed distance)."""
     h = _vec3(size, "size", positive=True) / 2.0
@@ -514,6 +558,7 @@ def box(size=(1.0, 1.0, 1.0), center=(0.0, 0.0, 0.0)) -> Shape:
     return _centered(Shape(-(outside + inside), True), center)
 
 
+@_primitive
 def cylinder(radius: float = 1.0, height: float | None = None, axis: str = "z",
              center=(0.0, 0.0, 0.0)) -> Shape:
     """Cylinder of ``radius`` along ``axis``; infinite when ``height`` is None (exact)."""
@@ -528,6 +573,7 @@ def cylinder(radius: float = 1.0, height: float | None = None, axis: str = "z",
     return _centered(Shape(f, True), center)
 
 
+@_primitive
 def cone(radius: float = 1.0, height: float = 1.0, axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
     """Solid cone: base disk of ``radius`` at w = 0, apex at w = ``height`` (a bound:
     the distance to the side and to the base plane, combined with min)."""
@@ -549,6 +595,7 @@ def _check_radii(small, big) -> None:
         raise ValueError(f"expected minor < major (for every parameter value), got minor={small!r}, major={big!r}")
 
 
+@_primitive
 def torus(major: float = 1.0, minor: float = 0.25, axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
     """Torus around ``axis`` with radii ``major`` > ``minor`` (exact)."""
     big, small = _positive(major, "major"), _positive(minor, "minor")
@@ -558,6 +605,7 @@ def torus(major: float = 1.0, minor: float = 0.25, axis: str = "z", center=(0.0,
     return _centered(Shape(small - E.sqrt(q * q + w * w), True), center)
 
 
+@_primitive
 def ellipsoid(semi_axes=(1.0, 0.5, 0.25), center=(0.0, 0.0, 0.0)) -> Shape:
     """Ellipsoid with ``semi_axes`` (a bound: min(a) * (1 - |p / a|), exact on a sphere)."""
     a = _vec3(semi_axes, "semi_axes", positive=True)
@@ -568,6 +616,7 @@ def ellipsoid(semi_axes=(1.0, 0.5, 0.25), center=(0.0, 0.0, 0.0)) -> Shape:
     return _centered(Shape((1.0 - rho) * float(a.min()), bool(np.all(a == a[0]))), center)
 
 
+@_primitive
 def halfspace(normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0)) -> Shape:
     """Half-space behind the plane through ``point`` with outward ``normal`` (exact)."""
     n = _vec3(normal, "normal", params=False)
@@ -580,6 +629,7 @@ def halfspace(normal=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0)) -> Shape:
     return Shape(level - (x * n[0] + y * n[1] + z * n[2]), True)
 
 
+@_primitive
 def capsule(a=(0.0, 0.0, -0.5), b=(0.0, 0.0, 0.5), radius: float = 0.25) -> Shape:
     """Points within ``radius`` of the segment ab (exact)."""
     pa, pb = _vec3(a, "a"), _vec3(b, "b")
@@ -604,6 +654,7 @@ def capsule(a=(0.0, 0.0, -0.5), b=(0.0, 0.0, 0.5), radius: float = 0.25) -> Shap
     return Shape(r - E.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2), True)
 
 
+@_primitive
 def superquadric(semi_axes=(1.0, 1.0, 1.0), e1: float = 0.5, e2: float = 0.5,
                  center=(0.0, 0.0, 0.0)) -> Shape:
     """Barr's superellipsoid with shape exponents ``e1`` (along z) and ``e2`` (in xy).
@@ -621,6 +672,7 @@ def superquadric(semi_axes=(1.0, 1.0, 1.0), e1: float = 0.5, e2: float = 0.5,
     return _centered(Shape((1.0 - big_f ** (e1 / 2)) * _min_of(list(a))), center)
 
 
+@_primitive
 def supertorus(major: float = 1.0, minor: float = 0.3, e1: float = 0.5, e2: float = 0.5,
                axis: str = "z", center=(0.0, 0.0, 0.0)) -> Shape:
     """Supertoroid [FG Fig. 16.22]: a torus whose section (``e1``) and sweep (``e2``)

@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from warpmesh.frep import expr as E
-from warpmesh.frep.shapes import Shape, _lin, _min_of, _positive, _vector, _zero
+from warpmesh.frep.shapes import Shape, _lin, _min_of, _positive, _primitive, _vector, _zero
 
 __all__ = ["circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "cassini"]
 
@@ -36,6 +36,7 @@ def _placed(shape: Shape, center) -> Shape:
     return shape.translate((c[0], c[1], 0.0)) if any(not _zero(v) for v in c) else shape
 
 
+@_primitive
 def circle(radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
     """Disc of ``radius`` (exact signed distance): f = r - |p - c|."""
     r = _positive(radius, "radius")
@@ -43,6 +44,7 @@ def circle(radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
     return _placed(Shape(r - E.sqrt(x * x + y * y), True), center)
 
 
+@_primitive
 def ellipse(semi_axes=(1.0, 0.5), center=(0.0, 0.0)) -> Shape:
     """Ellipse with semi-axes (a, b) along x and y (a bound: min(a, b) (1 - |p / (a, b)|);
     exact for a circle)."""
@@ -54,6 +56,7 @@ def ellipse(semi_axes=(1.0, 0.5), center=(0.0, 0.0)) -> Shape:
     return _placed(Shape((1.0 - rho) * float(a.min()), bool(a[0] == a[1])), center)
 
 
+@_primitive
 def rectangle(size=(1.0, 1.0), center=(0.0, 0.0)) -> Shape:
     """Axis-aligned rectangle with edge lengths ``size`` = (w, h) (exact signed distance)."""
     h = _vec2(size, "size", positive=True) / 2.0
@@ -64,6 +67,7 @@ def rectangle(size=(1.0, 1.0), center=(0.0, 0.0)) -> Shape:
     return _placed(Shape(-(outside + inside), True), center)
 
 
+@_primitive
 def halfplane(normal=(0.0, 1.0), point=(0.0, 0.0)) -> Shape:
     """Half-plane behind the line through ``point`` with outward ``normal`` (exact)."""
     n = _vec2(normal, "normal", params=False)
@@ -76,6 +80,7 @@ def halfplane(normal=(0.0, 1.0), point=(0.0, 0.0)) -> Shape:
     return Shape(level - (x * n[0] + y * n[1]), True)
 
 
+@_primitive
 def regular_polygon(n: int, radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
     """Convex regular polygon with ``n`` >= 3 vertices on the circle of ``radius``, one at
     angle 0 (a bound: the min of its edges' half-planes, exact inside)."""
@@ -89,6 +94,7 @@ def regular_polygon(n: int, radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
     return _placed(Shape(E.min(*sides), False), center)
 
 
+@_primitive
 def cassini(a: float = 1.0, b: float = 1.05) -> Shape:
     """Cassini ovals |p - (a, 0)| |p + (a, 0)| = b²: one oval for b > a, two for b < a,
     the lemniscate of Bernoulli (a singular point at the origin) for b = a. f > 0 inside,

@@ -28,12 +28,13 @@ import warp as wp
 from warpmesh import _conventions as C
 from warpmesh.errors import WarpMeshError
 from warpmesh.frep.expr import Expr
-from warpmesh.frep.shapes import Shape
+from warpmesh.frep.shapes import Shape, as_shape
 from warpmesh.frep.tape import tape_of
 from warpmesh.io.images import Volume, as_volume
 from warpmesh.kernels import block_grid as KB
 from warpmesh.kernels import emit as KE
 from warpmesh.mesh import Mesh
+from warpmesh.surface.primitive_refs import primitive_refs, REFS
 from warpmesh.surface.block_grid import BlockGrid, gradients, refine_roots
 from warpmesh.surface.continuation import grow_cells
 from warpmesh.surface.options import (AdaptiveOptions, ContinuationOptions, GridOptions, SurfaceOptions,
@@ -71,6 +72,7 @@ def mesh_surface(
     adaptive: bool = False,
     device: str = C.DEFAULT_DEVICE,
     params: dict | None = None,
+    refs: Literal["surface", "primitives"] = "surface",
     **keywords,
 ) -> Mesh:
     """Triangulate the surface f = 0 of a shape, or an iso-surface of a sampled volume.
@@ -115,6 +117,12 @@ def mesh_surface(
         edges and corners.
     device : str
         Warp device ("cpu" or "cuda").
+    refs : {'surface', 'primitives'}
+        For a shape: "surface" gives the caps ref 2 and the rest ref 1 (no refs when
+        nothing is capped); "primitives" gives each triangle on f = 0 the ref of the CSG
+        primitive it lies on, 11, 12, ... in the order of ``shape.primitives``
+        (``info["primitives"]`` names them; :mod:`warpmesh.surface.primitive_refs`), the
+        caps keeping ref 2.
     params : dict of str to float, optional
         For a shape: values of its parameters (:func:`warpmesh.param`) for this run;
         the tape's constants change, not its structure (no compile). An unknown name
@@ -185,11 +193,27 @@ def mesh_surface(
     else:
         _check_options(source, options, covering, adaptive, keywords)
     device = wp.get_device(device)
+    check_choice(refs, "refs", REFS)
     if isinstance(options, VolumeOptions):
+        if refs != "surface":
+            raise ValueError(f"refs={refs!r} tags the primitives of a shape; a volume's triangles carry its "
+                             "labels (labels=...)")
         return _mesh_volume(source, options, device, t_start)
     if isinstance(options, AdaptiveOptions):
-        return _mesh_adaptive(source, options, device, t_start)
-    return _mesh_grid(source, options, device, t_start)
+        mesh = _mesh_adaptive(source, options, device, t_start)
+    else:
+        mesh = _mesh_grid(source, options, device, t_start)
+    return _tag_primitives(as_shape(source), mesh) if refs == "primitives" and mesh.n_cells else mesh
+
+
+def _tag_primitives(shape: Shape, mesh: Mesh) -> Mesh:
+    """The mesh with each triangle's ref the primitive it lies on (caps kept)."""
+    t0 = time.perf_counter()
+    h = float(np.max(mesh.info.get("finest_cell", mesh.info.get("cell_size"))))
+    refs, extra = primitive_refs(shape, mesh.points, mesh.cells["triangle"],
+                                 mesh.cell_refs.get("triangle") if mesh.cell_refs else None, h)
+    timings = {**mesh.info.get("timings", {}), "primitive_refs": time.perf_counter() - t0}
+    return mesh.replace(cell_refs={"triangle": refs}, info={**mesh.info, **extra, "timings": timings})
 
 
 def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: dict) -> Mesh:
