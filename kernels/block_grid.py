@@ -78,12 +78,15 @@ def cull_blocks_kernel(
     """One thread per block, from an interval enclosing f over it: CULLED when no node can
     change sign; INSIDE when every node is inside but the block touches the capped grid
     boundary (its crossings are the cap's, whose vertices do not depend on the inside
-    values: no evaluation needed); EVALUATE otherwise."""
+    values: no evaluation needed); EVALUATE otherwise, and always when a bound is
+    infinite or NaN (a node may be inf or NaN, which sampling reports)."""
     b = wp.tid()
     lo = intervals[b][0]
     hi = intervals[b][1]
     keep = EVALUATE
-    if hi < -rounding_slack(hi):
+    if not (wp.isfinite(lo) and wp.isfinite(hi)):
+        keep = EVALUATE
+    elif hi < -rounding_slack(hi):
         keep = CULLED  # every node outside
     elif lo > rounding_slack(lo):
         keep = CULLED  # every node inside ...
@@ -178,9 +181,12 @@ def sub_boxes_kernel(
 
 @wp.func
 def sub_state(iv: wp.vec2):
-    """0: the sub-block may hold the surface; +1 / -1: every node inside / outside."""
+    """0: the sub-block may hold the surface (or an infinite or NaN value: an interval
+    with an infinite bound); +1 / -1: every node inside / outside."""
     r = int(0)
-    if iv[0] > rounding_slack(iv[0]):
+    if not (wp.isfinite(iv[0]) and wp.isfinite(iv[1])):
+        r = 0
+    elif iv[0] > rounding_slack(iv[0]):
         r = 1
     elif iv[1] < -rounding_slack(iv[1]):
         r = -1

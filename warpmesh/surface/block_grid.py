@@ -278,8 +278,8 @@ class BlockGrid:
                            [self.values, bad])
         if int(bad.numpy().sum()):  # sync point
             raise ValueError("the shape evaluates to NaN or infinity at grid nodes inside 'bounds' "
-                             "(e.g. sqrt/log of a negative or a division by zero); change the "
-                             "expression or the bounds")
+                             "(e.g. log of a negative or zero, a division by zero; NaN propagates "
+                             "through min and max); change the expression or the bounds")
         timings["cap"] = timings.get("cap", 0.0) + time.perf_counter() - t0
 
     def _per_slot(self, kernel, inputs, outputs, count: int | None = None) -> None:

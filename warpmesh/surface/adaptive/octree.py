@@ -2,7 +2,10 @@
 
 Each level's cells are classified in one batch: an interval of f over the cell (or a
 Lipschitz bound around its centre, §16.1.2 "Practical aspects") that excludes 0 culls
-the cell as wholly inside or outside; the other cells are refined while a criterion of
+the cell as wholly inside or outside (an interval with an infinite bound, or the whole
+line that says f may be NaN there, never culls: the cell's corners are evaluated, so a
+NaN or infinite value raises as it does without culling); the other cells are refined
+while a criterion of
 [FG §16.4.1] fails (after [Schmidt-1993]):
 
 - signs: the corner signs must form one connected inside set and one connected outside
@@ -52,8 +55,8 @@ from warpmesh.frep.tape import eval_gradients, eval_intervals, eval_values
 KEY_BITS = 21  # lattice coordinates per axis: up to 2^21 (1 M finest cells)
 SINGULAR = 0.1  # |grad f| below this fraction of the cell's largest counts as near-singular
 GRAZE = 1e-4  # an interval past 0 by less than this fraction of its width: the cell only grazes f = 0
-INTERVAL_SLACK = 1e-6
-PRUNE_WORTH = 0.75  # stop pruning below a level whose tapes average more than this of the whole tape  # intervals are rounded to nearest: cull only with this relative margin
+INTERVAL_SLACK = 1e-6  # cull only with this relative margin past 0
+PRUNE_WORTH = 0.75  # stop pruning below a level whose tapes average more than this of the whole tape
 CULLED, LEAF, INTERNAL = 0, 1, 2
 CORNERS = np.array([(k & 1, (k >> 1) & 1, (k >> 2) & 1) for k in range(8)], dtype=np.int64)
 CUBE_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
@@ -308,8 +311,9 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
         mean_tape = float(pool.length[tape_id].mean()) if (fld.prune and len(ijk)) else float(len(tape))
         if bound == "interval":
             iv = fld.intervals(box_lo, box_hi, pool, tape_id, choices)
+            finite = np.isfinite(iv).all(axis=1)  # else inf or NaN may sit at a corner: evaluate it
             slack = INTERVAL_SLACK * np.maximum(np.abs(iv[:, 0]), np.abs(iv[:, 1]))
-            inside, outside = iv[:, 0] > slack, iv[:, 1] < -slack
+            inside, outside = finite & (iv[:, 0] > slack), finite & (iv[:, 1] < -slack)
         else:  # Lipschitz: |f(M)| > L * half-diagonal excludes a zero from the cell
             fc = fld.values(0.5 * (box_lo + box_hi))
             radius = lipschitz * 0.5 * np.linalg.norm(box_hi - box_lo, axis=1) * (1 + 1e-6)
@@ -328,8 +332,8 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
             graze = np.zeros(len(ijk), np.int8)  # +1: may only touch f = 0 from inside, -1: from outside
             if bound == "interval":
                 width = GRAZE * (iv[:, 1] - iv[:, 0])
-                graze[iv[:, 1] < width] = -1
-                graze[iv[:, 0] > -width] = 1
+                graze[finite & (iv[:, 1] < width)] = -1
+                graze[finite & (iv[:, 0] > -width)] = 1
             refine[active] = _criteria_fail(tree, level, ijk[active], vals[active[need]], sin1, cos2,
                                             graze[active])
         leaf = cap_leaf | (active & ~refine)
@@ -388,7 +392,7 @@ def _level_corners(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id) -> 
     if not np.all(np.isfinite(vals)):
         bad = tree.world(unpack(keys[~np.isfinite(vals)][:1]))[0]
         raise ValueError(f"the shape evaluates to NaN or infinity at {bad.tolist()}: check the shape "
-                         "(e.g. sqrt or log of a negative value, division by zero)")
+                         "(e.g. log of a negative value, division by zero; NaN propagates through min and max)")
     tree.nodes.add(keys, vals)
     return vals[inverse].reshape(-1, 8)
 
