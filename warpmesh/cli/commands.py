@@ -37,9 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import sys
-from contextlib import contextmanager
 
 import numpy as np
 
@@ -134,32 +132,6 @@ _MESH_FLAGS = {"resolution": "--resolution", "level": "--level", "inside": "--in
 _IMPROVE_FLAGS = {"size": "--size", "tolerance": "--max-error", "fraction": "--simplify", "bounds": "--bounds"}
 
 
-@contextmanager
-def in_flags(flags: dict[str, str]):
-    """Library errors raised inside, with the Python keywords they quote ('name', name=) as CLI flags.
-
-    Examples
-    --------
-    >>> with in_flags({"root_iterations": "--root-iterations"}):
-    ...     raise ValueError("expected 1 <= 'root_iterations' <= 64, got -1")
-    Traceback (most recent call last):
-    ...
-    ValueError: expected 1 <= --root-iterations <= 64, got -1
-    """
-    try:
-        yield
-    except (ValueError, TypeError) as exc:
-        text = re.sub(r"'(\w+)'|\b(\w+)=(?!=)",
-                      lambda m: flags.get(m.group(1) or m.group(2), m.group(0)), str(exc))
-        if text == str(exc):
-            raise
-        try:
-            reworded = type(exc)(text)
-        except Exception:  # an exception class with another signature
-            reworded = ValueError(text)
-        raise reworded from None
-
-
 def _check_mesh_flags(args) -> None:
     """Refuse, in one line, flags the chosen pipeline of ``mesh`` does not take (its option group's fields)."""
     import dataclasses
@@ -227,6 +199,8 @@ def _load_volume(wm, args):
 
 def _improve(wm, args, mesh, bounds, target, clock):
     """--optimize / --simplify, and the largest distance of the result to the surface."""
+    from warpmesh.cli.flags import in_flags
+
     if args.optimize and args.simplify is not None:
         raise ValueError("expected one of --optimize and --simplify, got both")
     capped = bounds is not None and not args.no_cap
@@ -270,6 +244,7 @@ def _renumber(wm, args) -> int:
 
 
 def _mesh(wm, args, clock) -> int:
+    from warpmesh.cli.flags import in_flags
     from warpmesh.cli.output import check_output, save_output
     from warpmesh.cli.report import print_report
     from warpmesh.cli.sources import shape_source

@@ -56,7 +56,7 @@ def add_parsers(sub) -> None:
 
 def run(wm, args, clock) -> int:
     """Run one of :data:`COMMANDS` (errors propagate to the caller, which prints them)."""
-    from warpmesh.cli.commands import in_flags
+    from warpmesh.cli.flags import in_flags
     from warpmesh.cli.output import check_output, save_output
     from warpmesh.cli.report import print_report
     from warpmesh.cli.sources import shape_source
