@@ -148,6 +148,23 @@ def test_image_with_whole_float_labels():
     assert len(arr.cells["triangle"]) == len(m.cells["triangle"])
 
 
+def test_pyvista_image_x_fastest_keeps_the_convention():
+    """An x-fastest image is meshed as its transpose and mapped back (a reflection of the
+    axes): the winding must still run from the lower label to the higher."""
+    pv = pytest.importorskip("pyvista")
+    vol = np.zeros((9, 8, 7), dtype=np.uint8)
+    vol[1:5, 1:7, 1:6] = 4
+    vol[5:8, 1:7, 1:6] = 2
+    img = pv.ImageData(dimensions=vol.shape, spacing=(1.0, 2.0, 0.5), origin=(3, 0, 0))
+    img.point_data["labels"] = vol.ravel(order="F")
+    m = wm.mesh_surface(img, labels="all", interfaces="shared")
+    direct = wm.mesh_surface(vol, labels="all", interfaces="shared", spacing=(1.0, 2.0, 0.5), origin=(3, 0, 0))
+    assert len(m.cells["triangle"]) == len(direct.cells["triangle"])
+    _check_label_boundaries(m, [0, 2, 4])
+    assert np.isclose(m.to_trimesh().area, direct.to_trimesh().area)
+    assert np.allclose(m.points.min(axis=0), direct.points.min(axis=0))
+
+
 def test_options_interfaces_field():
     assert VolumeOptions(interfaces="shared").labels == "all"
     assert VolumeOptions(labels=[1], interfaces="separate").interfaces == "separate"
