@@ -38,6 +38,7 @@ import argparse
 import json
 import os
 import sys
+import threading
 
 import numpy as np
 
@@ -345,7 +346,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the ``warpmesh`` command with ``argv`` (default ``sys.argv[1:]``); the exit status.
 
     0 on success, 2 on bad input (one line on stderr: ``warpmesh: error: ...``), 130 when
-    interrupted (Ctrl-C: one line on stderr, no file written).
+    interrupted (Ctrl-C: one line on stderr, no file written; run as the program, with
+    ``argv=None``, the process ends at once rather than after the kernels of worker threads).
 
     Examples
     --------
@@ -360,6 +362,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         lead = "\n" if sys.stderr.isatty() else ""  # past the terminal's ^C or a progress bar
         print(f"{lead}warpmesh: interrupted", file=sys.stderr)
+        if argv is None and threading.active_count() > 1:
+            # the process itself (not a caller's main([...])): Warp launches still running in worker
+            # threads would hold the exit until they end; files are written atomically, so leave now
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(130)
         return 130
 
 
