@@ -139,13 +139,16 @@ def test_sigint_to_a_running_mesh_exits_130_with_one_line_and_no_file(tmp_path):
             time.sleep(0.05)
         assert child.poll() is None, "the child finished before it was interrupted"
         child.send_signal(signal.SIGINT)
+        sent = time.perf_counter()
         stdout, stderr = child.communicate(timeout=90)
+        waited = time.perf_counter() - sent
     finally:
         if child.poll() is None:
             child.kill()
     assert child.returncode == 130, stderr
     assert stderr == "warpmesh: interrupted\n" and stdout == ""
     assert list(tmp_path.iterdir()) == []  # no output, no temporary file
+    assert waited < 10.0, f"{waited:.1f} s from Ctrl-C to the exit"  # not after the worker threads' launches
 
 
 @pytest.mark.parametrize("argv, flag", [
