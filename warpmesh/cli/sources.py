@@ -112,10 +112,7 @@ def _shape_from_expr(text: str, dim: int):
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
         raise ValueError(f"expected a Python expression for --expr, got {text!r}: {exc.msg}") from None
-    for node in ast.walk(tree):
-        name = node.id if isinstance(node, ast.Name) else node.attr if isinstance(node, ast.Attribute) else ""
-        if name.startswith("_"):
-            raise ValueError(f"expected no names starting with '_' in --expr, got {name!r}")
+    _check_tree(tree, wm)
     names = expression_namespace(dim)
     try:
         value = eval(compile(tree, "--expr", "eval"), names)  # noqa: S307 - restricted namespace, documented
@@ -127,6 +124,25 @@ def _shape_from_expr(text: str, dim: int):
     if not isinstance(value, (wm.Shape, wm.Expr)):
         raise ValueError(f"expected --expr to depend on {', '.join('xyz'[:dim])}, got the constant {value!r}")
     return value
+
+
+def _check_tree(tree: ast.AST, wm) -> None:
+    """Refuse what an expression of a shape never needs: names starting with '_', lambdas,
+    ``wm`` other than as ``wm.<public function or shape>``, and the subpackages of ``wm``
+    (a way to the modules they import). Not a sandbox: the help says --expr runs Python."""
+    bare = {id(node.value) for node in ast.walk(tree) if isinstance(node, ast.Attribute)}
+    for node in ast.walk(tree):
+        name = node.id if isinstance(node, ast.Name) else node.attr if isinstance(node, ast.Attribute) else ""
+        if name.startswith("_"):
+            raise ValueError(f"expected no names starting with '_' in --expr, got {name!r}")
+        if isinstance(node, (ast.Lambda, ast.NamedExpr)):
+            raise ValueError("expected an expression of the coordinates in --expr, got a lambda or an assignment")
+        if isinstance(node, ast.Name) and node.id == "wm" and id(node) not in bare:
+            raise ValueError("expected wm.<name> in --expr, got wm alone")
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "wm":
+            value = getattr(wm, node.attr, None)
+            if node.attr not in wm.__all__ + ["min", "max", "abs"] or type(value) is type(ast):
+                raise ValueError(f"expected a function or shape of warpmesh in --expr, got wm.{node.attr}")
 
 
 def _run_file(text: str):
