@@ -128,6 +128,10 @@ def label_codes(vol: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
     """
     from warpmesh.surface.volume import check_label_range, check_labels  # shared label checks
 
+    if vol.flags.f_contiguous and not vol.flags.c_contiguous:  # x fastest: slabs of the C-order view
+        codes, ids, rest = label_codes(vol.T, labels)
+        return codes.T, ids, rest
+
     present = _present(vol)
     if isinstance(labels, str):
         chosen = check_labels(labels, vol[:0]) if labels != "all" else present[present != 0]
@@ -226,9 +230,13 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     t0 = time.perf_counter()
     vol = _as_label_volume(np.asarray(vol))
     codes, ids, rest = label_codes(vol, labels)
+    origin, spacing = np.asarray(origin, dtype=np.float64), np.asarray(spacing, dtype=np.float64)
+    reverse = codes.flags.f_contiguous and not codes.flags.c_contiguous
+    if reverse:  # x fastest (VTK, NIfTI): mesh the C-order view codes.T, then swap the axes back
+        codes, origin, spacing = codes.T, origin[::-1], spacing[::-1]
     if cap:  # one layer of the rest around the box: every region closes on it
         codes = np.pad(codes, 1, constant_values=rest)
-        origin = np.asarray(origin, dtype=np.float64) - np.asarray(spacing, dtype=np.float64)
+        origin = origin - spacing
     timings["codes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -249,7 +257,7 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
             first = first[keep]
         firsts.append(first)
         # the 4 cubes around each edge (a cube is named by its lowest sample), counter-clockwise about +a
-        cubes.append(first[:, None] + np.array(_AROUND[a]) @ strides)
+        cubes.append((np.array(_AROUND[a]) @ strides)[:, None] + first)  # (4, q): each row sorted
     timings["edges"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -258,16 +266,16 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
         mark[c] = True
     cube_ids = np.flatnonzero(mark)
     del mark
-    corners = np.stack([flat[cube_ids + np.dot(corner, strides)] for corner in _CORNERS], axis=1)  # (n, 8)
+    corners = np.stack([flat[cube_ids + np.dot(corner, strides)] for corner in _CORNERS])  # (8, n)
     points = _cube_vertices(corners, cube_ids, shape, strides)
-    points = np.asarray(origin, dtype=np.float64) + points * np.asarray(spacing, dtype=np.float64)
+    points = origin + points * spacing
     timings["vertices"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     columns = [np.ascontiguousarray(points[:, d]) for d in range(3)]
     tris, lo_codes, hi_codes = [], [], []
     for a in range(3):
-        quads = np.searchsorted(cube_ids, cubes[a])
+        quads = np.ascontiguousarray(np.searchsorted(cube_ids, cubes[a]).T)  # sorted keys: fast search
         code0, code1 = flat[firsts[a]], flat[firsts[a] + strides[a]]
         flip = code0 > code1  # lower -> higher runs along -a: reverse the winding
         quads[flip] = quads[flip][:, ::-1]
@@ -279,21 +287,26 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     lower, upper = ids[np.repeat(lo_code, 2)], ids[np.repeat(hi_code, 2)]
     timings["triangles"] = time.perf_counter() - t0
 
-    corners.sort(axis=1)
-    labels_in_cube = 1 + np.count_nonzero(corners[:, 1:] != corners[:, :-1], axis=1)
+    corners.sort(axis=0)
+    labels_in_cube = 1 + np.count_nonzero(corners[1:] != corners[:-1], axis=0)
     info = {"labels": [int(v) for v in ids if v != ids[rest]], "rest": int(ids[rest]),
             "interfaces": int(len(np.unique(lo_code.astype(np.int64) * len(ids) + hi_code))),
             "junction_vertices": int(np.count_nonzero(labels_in_cube >= 3)), "cubes": int(len(points))}
-    return points.astype(C.REAL_DTYPE), tris.astype(C.INDEX_DTYPE), lower, upper, info
+    if reverse:  # (k, j, i) -> (i, j, k) is a reflection: the windings turn over with it
+        points, tris = np.ascontiguousarray(points[:, ::-1]), np.ascontiguousarray(tris[:, ::-1])
+    return points.astype(C.REAL_DTYPE, copy=False), tris.astype(C.INDEX_DTYPE, copy=False), lower, upper, info
 
 
 def _cube_vertices(corners: np.ndarray, cube_ids: np.ndarray, shape: np.ndarray, strides: np.ndarray) -> np.ndarray:
     """Each cube's vertex in sample units: its lowest sample plus the mean of the midpoints
-    of its crossing edges (edges whose two samples differ), from its 8 corner codes."""
-    crossing = np.stack([corners[:, i] != corners[:, j] for i, j in _CUBE_EDGES], axis=1).astype(np.float64)
-    offset = (crossing @ _EDGE_MIDPOINTS) / crossing.sum(axis=1, keepdims=True)
+    of its crossing edges (edges whose two samples differ), from its (8, n) corner codes.
+    The sums are exact in float32 (at most 12 halves); the mean is taken in float64."""
+    crossing = np.empty((len(_CUBE_EDGES), corners.shape[1]), dtype=np.float32)
+    for e, (i, j) in enumerate(_CUBE_EDGES):
+        np.not_equal(corners[i], corners[j], out=crossing[e], casting="unsafe")
+    offset = (_EDGE_MIDPOINTS.T.astype(np.float32) @ crossing) / crossing.sum(axis=0, dtype=np.float64)  # (3, n)
     base = np.stack([cube_ids // strides[0], cube_ids // strides[1] % shape[1], cube_ids % shape[2]], axis=1)
-    return base + offset
+    return base + offset.T
 
 
 def _split_quads(columns: list, quads: np.ndarray, axis: int, flip: np.ndarray) -> np.ndarray:

@@ -234,7 +234,8 @@ def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: di
     if labels is not None:
         image = image.as_labels()
     values, spacing, placement = image.values, image.spacing, image.placement
-    if values.flags.f_contiguous and not values.flags.c_contiguous:
+    shared = (keywords.get("interfaces") if options is None else getattr(options, "interfaces", None)) == "shared"
+    if values.flags.f_contiguous and not values.flags.c_contiguous and not shared:  # (shared: swaps its own axes)
         # x fastest (VTK, NIfTI, ITK): mesh the C-order view values.T, whose slabs along the first axis are
         # contiguous (frog, 25 labels: 2.5 s of slab uploads instead of 10.9 s), then swap the axes back
         values, spacing = values.T, spacing[::-1]
