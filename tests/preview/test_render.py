@@ -82,4 +82,4 @@ def test_cli_view(tmp_path, capsys):
     assert (tmp_path / "s.png").read_bytes().startswith(b"\x89PNG")
     assert "s.ply" in capsys.readouterr().out
     assert main(["view", "--example", "sphere", "-o", str(tmp_path / "s.stl")]) == 2
-    assert "'--output'" in capsys.readouterr().err
+    assert "for -o/--output" in capsys.readouterr().err  # the flag named, before any rendering
