@@ -8,7 +8,7 @@ import pytest
 
 import warpmesh as wm
 from warpmesh.cells.intersections import find_self_intersections
-from warpmesh.surface.multilabel import LABEL_ABOVE, label_boundary
+from warpmesh.surface.multilabel import LABEL_ABOVE, interface_refs, label_boundary
 from warpmesh.surface.options import VolumeOptions
 
 
@@ -194,3 +194,26 @@ def test_bad_input_names_the_argument():
     m = wm.mesh_surface(vol, labels="all", interfaces="shared")
     with pytest.raises(ValueError, match="'label'"):
         label_boundary(m, 9)
+
+
+def test_files_keep_both_labels(tmp_path):
+    """.vtu keeps the lower label (refs) and the higher (cell data); .msh gets one physical
+    group per interface through interface_refs."""
+    meshio = pytest.importorskip("meshio")
+    vol = np.zeros((10, 10, 10), dtype=np.uint8)
+    vol[2:5, 2:8, 2:8] = 1
+    vol[5:8, 2:8, 2:8] = 2
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    m.save(tmp_path / "a.vtu")
+    back = wm.load(tmp_path / "a.vtu")
+    assert np.array_equal(back.cell_refs["triangle"], m.cell_refs["triangle"])
+    assert np.array_equal(back.cell_data[LABEL_ABOVE]["triangle"], m.cell_data[LABEL_ABOVE]["triangle"])
+    tagged = interface_refs(m)
+    assert tagged.info["interfaces"] == {1: (0, 1), 2: (0, 2), 3: (1, 2)}
+    tagged.save(tmp_path / "a.msh")
+    raw = meshio.read(tmp_path / "a.msh")
+    physical = np.concatenate(raw.cell_data["gmsh:physical"])
+    lower, upper = _labels(m)
+    pair_of = {v: k for k, v in tagged.info["interfaces"].items()}
+    assert np.array_equal(physical, [pair_of[(a, b)] for a, b in zip(lower.tolist(), upper.tolist())])
+

@@ -74,7 +74,7 @@ import numpy as np
 from warpmesh import _conventions as C
 from warpmesh.io.images import Volume
 
-__all__ = ["LABEL_ABOVE", "INTERFACES", "REST", "label_boundary", "label_codes", "shared_surface"]
+__all__ = ["LABEL_ABOVE", "INTERFACES", "REST", "interface_refs", "label_boundary", "label_codes", "shared_surface"]
 
 #: the cell-data array holding each triangle's higher label
 LABEL_ABOVE = "label_above"
@@ -378,3 +378,46 @@ def label_boundary(mesh, label: int):
     used, faces = np.unique(faces, return_inverse=True)
     return type(mesh)(mesh.points[used], {"triangle": faces.reshape(-1, 3)}, cell_refs={"triangle": other},
                       info={"label": int(label)})
+
+
+def interface_refs(mesh):
+    """The shared surface with one ref per interface (label pair), for formats that keep one
+    physical group per element (gmsh ``.msh``: one physical surface per interface).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        From ``mesh_surface(..., interfaces="shared")``.
+
+    Returns
+    -------
+    Mesh
+        The same points and triangles; ``cell_refs["triangle"]`` numbers the interfaces
+        1, 2, ... in the order of their (lower, upper) pairs, which
+        ``info["interfaces"]`` lists as ``{ref: (lower, upper)}``; the two label arrays
+        stay as ``cell_data["label_below"]`` and ``cell_data["label_above"]``.
+
+    Raises
+    ------
+    ValueError
+        ``mesh`` without the two label arrays.
+
+    Example
+    -------
+    >>> import numpy as np, warpmesh as wm
+    >>> vol = np.zeros((6, 6, 6), dtype=np.uint8); vol[1:5, 1:5, 1:3] = 1; vol[1:5, 1:5, 3:5] = 2
+    >>> m = interface_refs(wm.mesh_surface(vol, labels="all", interfaces="shared"))
+    >>> m.info["interfaces"], sorted(set(m.cell_refs["triangle"].tolist()))
+    ({1: (0, 1), 2: (0, 2), 3: (1, 2)}, [1, 2, 3])
+    """
+    refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
+    above = mesh.cell_data.get(LABEL_ABOVE, {}).get("triangle")
+    if refs is None or above is None:
+        raise ValueError(f"expected a mesh from interfaces='shared' (cell refs and cell_data[{LABEL_ABOVE!r}]), "
+                         "got a mesh without them")
+    pairs, which = np.unique(np.column_stack([refs, above]), axis=0, return_inverse=True)
+    table = {k + 1: (int(lo), int(hi)) for k, (lo, hi) in enumerate(pairs.tolist())}
+    data = {**{k: dict(v) for k, v in mesh.cell_data.items()}, "label_below": {"triangle": refs.copy()}}
+    return mesh.replace(cell_refs={"triangle": (which.ravel() + 1).astype(C.INDEX_DTYPE)}, cell_data=data,
+                        info={**mesh.info, "interfaces": table})
+
