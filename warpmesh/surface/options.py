@@ -252,8 +252,8 @@ _FIELDS: dict[str, tuple[str, str]] = {
         which each interface between two labels is meshed once, ``cell_refs["triangle"]``
         holding the lower label and ``cell_data["label_above"]["triangle"]`` the higher,
         each normal pointing from the lower label's side to the higher's; the samples not
-        meshed (and, with ``cap``, the outside) are the rest, id 0, or -1 when 0 is among
-        ``labels``. "shared" alone implies labels="all"; ``method`` and ``clearance`` are
+        meshed (and, with ``cap``, the outside) are the rest, id 0, or min(labels) - 1
+        when 0 is among ``labels`` (-1 for labels=[0, 3]). "shared" alone implies labels="all"; ``method`` and ``clearance`` are
         for marching cubes and do not apply to it."""),
     "spacing": ("float or (3,) floats", """
         The sample spacing: ``volume[i, j, k]`` sits at ``origin + (i, j, k) * spacing``
