@@ -6,7 +6,7 @@ through one of these *targets*:
 ===================  =========================================================  ==========================
 target               surface                                                    projection
 ===================  =========================================================  ==========================
-``ImplicitTarget``   f = 0 of a shape (Warp tape, exact gradient); with          safeguarded Newton steps
+``ImplicitTarget``   f = 0 of a shape (Warp tape, exact gradient); with         safeguarded Newton steps
                      ``bounds``, the boundary of {f > 0} clipped to the box     [FG Remark 16.1]
 ``VolumeField``      ``level`` iso-surface of the trilinear interpolant of a    the same Newton steps on
                      sampled volume                                             the trilinear function

@@ -379,7 +379,7 @@ def crack(mesh, facets=None, *, ref: int | None = None, side_refs: tuple[int, in
     >>> lines = [[3, 4], [4, 5]]                     # the mid-line, ref 5
     >>> m = Mesh(pts, {"triangle": tris, "line": lines}, cell_refs={"line": [5, 5]})
     >>> c = crack(m, ref=5, side_refs=(6, 7))        # cut from boundary to boundary:
->>> # the lower side keeps 3, 4, 5 (its lip runs right to left, ref 7), the upper uses 9, 10, 11
+    >>> # the lower side keeps 3, 4, 5 (its lip runs right to left, ref 7), the upper uses 9, 10, 11
     >>> c.info["n_duplicated"], c.cells["line"].tolist(), c.cell_refs["line"].tolist()
     (3, [[4, 3], [9, 10], [5, 4], [10, 11]], [7, 6, 7, 6])
     >>> lips = c.info["crack_lips"]                  # (2, 2, 2): two opened edges

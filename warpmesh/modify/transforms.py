@@ -18,7 +18,7 @@ rotation(t, ...)   angle t (radians, counter-clockwise / right-hand rule) about 
 symmetry(coefs)    reflection about the line Ax + By + C = 0 or the plane
                    Ax + By + Cz + D = 0
 matrix(m)          a general d x d linear or (d+1) x (d+1) homogeneous matrix, checked
-compose(*ms)       the product, first argument applied first
+``compose(*ms)``   the product, first argument applied first
 =================  ===================================================================
 
 Examples

@@ -7,16 +7,16 @@ curvature extrema as vertices, every component closed. :func:`mesh_domain` meshe
 {f > 0} with triangles (§16.5.2): the geometric boundary mesh, interior points from a
 graded covering-up, a boundary-conforming Delaunay triangulation and quality refinement.
 
-=================  ===========================================================  ============================
-method             covering-up [FG §16.3.1]                                     module
-=================  ===========================================================  ============================
+=================  =============================================================  ============================
+method             covering-up [FG §16.3.1]                                       module
+=================  =============================================================  ============================
 ``continuation``   prediction-correction along the tangent (eq. 16.11), Newton    :mod:`~warpmesh.planar.samplers.continuation`
 ``progression``    cell tracking from seed cells with a stack                     :mod:`~warpmesh.planar.samplers.continuation`
 ``grid``           exhaustive enumeration, marching squares + asymptotic decider  :mod:`~warpmesh.planar.samplers.grid`
 ``freudenthal``    exhaustive enumeration on a Coxeter-Freudenthal triangulation  :mod:`~warpmesh.planar.samplers.grid`
 ``quadtree``       adaptive subdivision (planarity, curvature, crossing count)    :mod:`~warpmesh.planar.samplers.quadtree`
 ``rays``           the naive method: a family of parallel lines                   :mod:`~warpmesh.planar.samplers.rays`
-=================  ===========================================================  ============================
+=================  =============================================================  ============================
 
 Example
 -------

@@ -66,8 +66,8 @@ def rotate_case(case, n: int, k: int = 1):
 
 
 def reflect_case(case, n: int):
-    """The mirror image fixing corner 0: corner c -> -c, edge e_k = (c_k, c_k+1) ->
-    (c_-k, c_-k-1) = e_(-k-1) (mod n). A reflection reverses the segments (the domain
+    """The mirror image fixing corner 0: corner ``c -> -c``, edge ``e_k = (c_k, c_k+1) ->
+    (c_-k, c_-k-1) = e_(-k-1)`` (mod n). A reflection reverses the segments (the domain
     moves to their right otherwise); the variant is kept."""
     config, variant, segs = case
     new = 0
