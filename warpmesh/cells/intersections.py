@@ -8,16 +8,18 @@ validity checks run this geometric one too. The pipeline (kernels in
    of the predicates over- or underflows), float32 copies in [-1, 1]^3 for the BVH,
    triangles int32;
 2. faces in Morton order of their centroids (radix sort), degenerate faces flagged;
-3. one ``wp.Mesh`` (float32 BVH) per worker over its range of that order, built
-   concurrently (a range is a compact region of space);
-4. one thread per face f: query every BVH with f's box (``wp.mesh_query_aabb``), test
-   each candidate g > f exactly in float64, count the hits; prefix sum
+3. one ``wp.Bvh`` (float32) over groups of ``GROUP`` = 8 consecutive faces of that order
+   (compact patches): m / 8 leaves, so the tree builds in a tenth of the time a tree
+   over the faces took (0.1 s against 0.7-1.5 s of CPU for 1.3 M triangles);
+4. one thread per face f: query the BVH with f's box (``wp.bvh_query_aabb``), screen the
+   faces of each group met by their own boxes, test each candidate g > f exactly in
+   float64, count the hits; prefix sum
    (``wp.utils.array_scan``); a second walk, only for the faces with hits, writes the
    pairs (f, g) at f's offset, sorted by g — so the output is sorted with no host sort.
 
 Warp's CPU backend runs a launch on one thread, so on the CPU launches are split into
 ranges run from Python threads (launches release the GIL); every face's result depends
-on the set of BVHs' faces only, so the answer does not depend on ``workers``.
+on the one BVH only, so the answer does not depend on ``workers``.
 
 The float32 BVH loses no candidate: the map float64 -> float32 behind both the BVH's
 boxes and the query boxes is monotone in each coordinate, so boxes that meet in float64
@@ -43,8 +45,6 @@ __all__ = ["check", "find_self_intersections", "count_self_intersecting_faces", 
 _QUERY_PAD = 4.0 * 2.0**-24
 #: faces per worker below which a CPU launch is not split
 _MIN_FACES_PER_WORKER = 1 << 13
-#: at most this many BVHs (one per worker, built concurrently): every face queries each
-_MAX_TREES = 4
 _INT32_MAX = np.iinfo(np.int32).max
 _TINY_LENGTH = 1.0e-30
 
@@ -321,11 +321,13 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int) -> np
     order, sorted_tris = _spatial_order(points32, tris32, device)
     degenerate = _degenerate_flags(points64, sorted_tris, device)
     ranges = _ranges(m, device, n_workers)
-    tree_ranges = ranges if len(ranges) <= _MAX_TREES else _ranges(m, device, _MAX_TREES)
-    meshes = _build_bvhs(points32, sorted_tris, tree_ranges)
-    walk = [wp.array([mesh.id for mesh in meshes], dtype=wp.uint64, device=device),
-            wp.array([a for a, _ in tree_ranges], dtype=wp.int32, device=device),
-            points64, points32, sorted_tris, order, degenerate, _QUERY_PAD]
+    n_groups = (m + K.GROUP - 1) // K.GROUP
+    lowers = wp.empty(n_groups, dtype=wp.vec3, device=device)
+    uppers = wp.empty(n_groups, dtype=wp.vec3, device=device)
+    wp.launch(K.group_boxes_kernel, dim=n_groups, inputs=[points32, sorted_tris, m], outputs=[lowers, uppers],
+              device=device)
+    bvh = wp.Bvh(lowers, uppers)
+    walk = [bvh.id, points64, points32, sorted_tris, order, degenerate, _QUERY_PAD]
 
     wp.load_module(K, device=device)  # compiled/loaded once here, not by two worker threads at once
     counts = wp.empty(m, dtype=wp.int64, device=device)
@@ -362,19 +364,6 @@ def _spatial_order(points32: wp.array, tris32: wp.array, device) -> tuple[wp.arr
     return order, sorted_tris
 
 
-def _build_bvhs(points32: wp.array, sorted_tris: wp.array, ranges: list[tuple[int, int]]) -> list[wp.Mesh]:
-    """One ``wp.Mesh`` (float32 BVH) per range of face positions, built concurrently
-    (a range of the Morton order is a compact region, so a face's query box meets
-    mostly its own range's tree)."""
-    meshes = [None] * len(ranges)
-
-    def build(k, a, b):
-        meshes[k] = wp.Mesh(points=points32, indices=sorted_tris[3 * a:3 * b])
-
-    run_parallel([lambda k=k, a=a, b=b: build(k, a, b) for k, (a, b) in enumerate(ranges)])
-    return meshes
-
-
 def _scaled(pts: np.ndarray) -> np.ndarray:
     """Points scaled by a power of two (exact) so that max |x| is in [0.5, 1): no product
     of the predicates over- or underflows, and the BVH map below cannot overflow."""
@@ -383,7 +372,7 @@ def _scaled(pts: np.ndarray) -> np.ndarray:
 
 
 def _device_arrays(scaled: np.ndarray, tris: np.ndarray, device) -> tuple[wp.array, wp.array]:
-    """The points as vec3d; the triangles as one flat int32 array (``wp.Mesh``'s layout)."""
+    """The points as vec3d; the triangles as one flat int32 array."""
     return (wp.array(scaled, dtype=wp.vec3d, device=device),
             wp.array(tris.astype(np.int32).ravel(), dtype=wp.int32, device=device))
 
