@@ -76,15 +76,6 @@ def test_volume_converges_with_size():
     assert errs[1] < errs[0] / 2.5  # second order: about 4x
 
 
-def test_part_sharp_edges_positive_and_reported(capsys):
-    part, bounds = wm.example("part")
-    vol = wm.mesh_domain(part, bounds=bounds, size=0.06)
-    s = _check_volume_mesh(vol, -6)
-    assert s["dihedral_min"] > 0 and s["dihedral_max"] < 180
-    with capsys.disabled():
-        print(f"\npart, size 0.06: {s['n_tetra']} tets, dihedral {s['dihedral_min']:.2f} .. {s['dihedral_max']:.2f} deg")
-
-
 def test_caps_where_the_bounds_clip_the_shape():
     box = ((-0.7, -0.7, -0.7), (0.7, 0.7, 0.6))
     vol = wm.mesh_domain(wm.sphere(1.0), bounds=box, size=0.07)

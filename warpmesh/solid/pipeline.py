@@ -31,7 +31,9 @@ from warpmesh.frep.shapes import Shape, as_shape
 from warpmesh.frep.tape import tape_of, value_gradient_at
 from warpmesh.mesh import Mesh
 from warpmesh.planar.curves import mesh_domain as planar_mesh_domain
+from warpmesh.frep.projection import ImplicitTarget
 from warpmesh.solid.dihedral import tet_quality_summary
+from warpmesh.solid.features import DIHEDRAL_CEILING, DIHEDRAL_FLOOR, FEATURE_ANGLE, recover_features
 from warpmesh.solid.smoothing import smooth_tets
 from warpmesh.solid.stuffing import ALPHA_LONG, ALPHA_SHORT, ROOT_ITERATIONS, stuff
 
@@ -47,7 +49,7 @@ _FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
 
 
 def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: int = 0,
-                device: str = C.DEFAULT_DEVICE, **options) -> Mesh:
+                features: bool = True, device: str = C.DEFAULT_DEVICE, **options) -> Mesh:
     """Mesh the domain {f > 0} inside ``bounds``: triangles in the plane, tetrahedra in 3D.
 
     Parameters
@@ -68,11 +70,18 @@ def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: 
         3D: sweeps of smoothing (interior vertices to the centroid of their neighbours,
         boundary vertices along f = 0), each move kept only when the smallest dihedral
         angle around the vertex does not drop (:func:`warpmesh.solid.smoothing.smooth_tets`).
+    features : bool
+        3D: move boundary vertices onto the creases and corners of the exact surface (where
+        primitives meet, and where the bounds cap the shape), each move kept only when every
+        dihedral angle around it stays in [``feature_floor``, ``feature_ceiling``]
+        (:func:`warpmesh.solid.features.recover_features`); crease vertices then stay put.
     device : str
     **options
         3D: ``alpha_long``, ``alpha_short`` (the violation thresholds, default the paper's
         0.24776 and 0.40630 that prove dihedral angles in [10.7°, 164.8°]) and
-        ``root_iterations`` (steps of the cut points' bracketed root search, default 12).
+        ``root_iterations`` (steps of the cut points' bracketed root search, default 12),
+        ``feature_floor``, ``feature_ceiling`` (degrees, default 10 and 165) and
+        ``feature_angle`` (degrees between the normals across a crease, default 35).
 
     Returns
     -------
@@ -108,12 +117,14 @@ def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: 
         if as_shape(shape).dim == 3:
             raise ValueError("expected 3-value 'bounds' ((x0, y0, z0), (x1, y1, z1)) for a 3D shape, "
                              f"got {box.tolist()}")
-        if smooth:
-            raise ValueError("'smooth' applies to 3D domains; planar domains are smoothed by their own pipeline")
+        if smooth or features is not True:
+            raise ValueError("'smooth' and 'features' apply to 3D domains; planar domains are smoothed by their own pipeline")
         if method is not None:
             options["method"] = method
         return planar_mesh_domain(shape, bounds, size=size, device=device, **options)
-    return _mesh_solid(shape, box, size, method or "stuffing", smooth, device, options)
+    if not isinstance(features, bool):
+        raise ValueError(f"expected True or False for 'features', got {features!r}")
+    return _mesh_solid(shape, box, size, method or "stuffing", smooth, features, device, options)
 
 
 def _check_size(size, box: np.ndarray) -> float:
@@ -134,7 +145,8 @@ def _check_size(size, box: np.ndarray) -> float:
 
 
 def _check_options(options: dict) -> dict:
-    known = {"alpha_long": ALPHA_LONG, "alpha_short": ALPHA_SHORT, "root_iterations": ROOT_ITERATIONS}
+    known = {"alpha_long": ALPHA_LONG, "alpha_short": ALPHA_SHORT, "root_iterations": ROOT_ITERATIONS,
+             "feature_floor": DIHEDRAL_FLOOR, "feature_ceiling": DIHEDRAL_CEILING, "feature_angle": FEATURE_ANGLE}
     unknown = sorted(set(options) - set(known))
     if unknown:
         raise ValueError(f"unknown option {unknown[0]!r} for a 3D domain; it takes {sorted(known)} "
@@ -144,6 +156,11 @@ def _check_options(options: dict) -> dict:
         a = out[name]
         if isinstance(a, bool) or not isinstance(a, (int, float, np.floating)) or not 0.0 <= a < 0.5:
             raise ValueError(f"expected 0 <= {name!r} < 0.5 (a fraction of the edge), got {a!r}")
+    for name, lo, hi in (("feature_floor", 0.0, 60.0), ("feature_ceiling", 120.0, 180.0),
+                         ("feature_angle", 5.0, 90.0)):
+        a = out[name]
+        if isinstance(a, bool) or not isinstance(a, (int, float, np.integer, np.floating)) or not lo <= a <= hi:
+            raise ValueError(f"expected {lo:g} <= {name!r} <= {hi:g} (degrees), got {a!r}")
     it = out["root_iterations"]
     if isinstance(it, bool) or not isinstance(it, (int, np.integer)) or not 1 <= it <= 60:
         raise ValueError(f"expected an integer 'root_iterations' in [1, 60], got {it!r}")
@@ -197,7 +214,7 @@ def _boundary_distance(tape, points: np.ndarray, on_f: np.ndarray, h: float, dev
     return float(np.max(np.abs(f) / np.where(gn > 0, gn, np.inf))) / h
 
 
-def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, device, options) -> Mesh:
+def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, features, device, options) -> Mesh:
     if method not in METHODS_3D:
         raise ValueError(f"unknown method {method!r} for a 3D domain. Pick one of {list(METHODS_3D)}")
     if isinstance(smooth, bool) or not isinstance(smooth, (int, np.integer)) or smooth < 0:
@@ -212,22 +229,35 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, device, optio
                          f"inside at size {h:g}; check the shape, move 'bounds' or lower 'size'")
     t0 = time.perf_counter()
     tris = boundary_faces(tets, on_surface)
+    tape = tape_of(shape)
+    info["time_boundary"] = time.perf_counter() - t0
+    crease = np.zeros(len(points), bool)
+    stages = [("stuffing", tet_quality_summary(points, tets, device))]
+    if features:
+        t0 = time.perf_counter()
+        target = ImplicitTarget(shape, bounds=box, device=device)
+        points, tets, tris, crease, finfo = recover_features(points, tets, tris, target, h, floor=opts["feature_floor"],
+                                                 ceiling=opts["feature_ceiling"], angle=opts["feature_angle"],
+                                                 device=device)
+        info.update(finfo, time_features=time.perf_counter() - t0)
+        stages.append(("features", tet_quality_summary(points, tets, device)))
     refs = _face_refs(points, tris, box, h)
     on_cap = np.zeros(len(points), bool)
     on_cap[tris[refs == C.CAP_REF].ravel()] = True
     on_f = np.zeros(len(points), bool)
     on_f[tris[refs == C.SURFACE_REF].ravel()] = True
     on_f &= ~on_cap
-    tape = tape_of(shape)
-    info["time_boundary"] = time.perf_counter() - t0
     if smooth:
         t0 = time.perf_counter()
-        before = tet_quality_summary(points, tets, device)
-        points, moved = smooth_tets(points, tets, tris, on_f, on_cap, tape, sweeps=int(smooth), device=device)
+        before = stages[-1][1]
+        points, moved = smooth_tets(points, tets, tris, on_f & ~crease, on_cap | crease, tape,
+                                    sweeps=int(smooth), device=device)
         info.update(smooth_sweeps=int(smooth), smooth_moved=moved,
                     dihedral_min_before=before["dihedral_min"], dihedral_max_before=before["dihedral_max"],
                     radius_edge_max_before=before["radius_edge_max"], time_smooth=time.perf_counter() - t0)
-    info.update(tet_quality_summary(points, tets, device))
+        stages.append(("smooth", tet_quality_summary(points, tets, device)))
+    info.update(stages[-1][1])
+    info["quality_stages"] = [{"stage": k, **v} for k, v in stages]
     info["boundary_distance"] = _boundary_distance(tape, points, on_f, h, device)
     info["method"] = method
     return Mesh(points, {"tetra": tets, "triangle": tris},

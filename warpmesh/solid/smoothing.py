@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from warpmesh.frep.tape import value_gradient_at
+from warpmesh.solid.adjacency import TRI_EDGES, unique_edges
 from warpmesh.solid.dihedral import tet_quality
 
 __all__ = ["smooth_tets"]
@@ -34,12 +35,6 @@ PROJECTION_STEPS = 3
 MAX_ROUNDS = 12
 #: fractions of the move to the neighbours' centroid tried for each vertex (the best kept)
 STEPS = (1.0, 0.5, 0.25)
-
-
-def _unique_edges(cells: np.ndarray, pairs) -> np.ndarray:
-    e = np.concatenate([cells[:, [i, j]] for i, j in pairs])
-    e = np.sort(e, axis=1)
-    return np.unique(e, axis=0)
 
 
 def _centroids(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -59,7 +54,8 @@ def _project(tape, x: np.ndarray, device) -> np.ndarray:
     return x
 
 
-def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, device="cpu", seed: int = 0):
+def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, device="cpu", seed: int = 0,
+                only=None):
     """Smooth a tetrahedral mesh without lowering its smallest dihedral angle.
 
     Parameters
@@ -71,6 +67,7 @@ def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, devi
     on_cap : (n,) bool, vertices on the bounds (fixed)
     tape : Tape of the shape (the projection's field)
     sweeps : int
+    only : (n,) bool, optional: the vertices that may move (default all that are free)
 
     Returns
     -------
@@ -84,8 +81,11 @@ def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, devi
     boundary[np.asarray(tris).ravel()] = True
     free_in = ~boundary
     free_f = boundary & np.asarray(on_f) & ~np.asarray(on_cap)
-    edges = _unique_edges(tets, ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)))
-    surf_edges = _unique_edges(np.asarray(tris, dtype=np.int64), ((0, 1), (1, 2), (0, 2)))
+    if only is not None:
+        free_in &= np.asarray(only)
+        free_f &= np.asarray(only)
+    edges = unique_edges(tets)
+    surf_edges = unique_edges(tris, TRI_EDGES)
     q = tet_quality(pts, tets, device)
     t_min, t_max = q[:, 0].copy(), q[:, 1].copy()
     ceiling = float(t_max.max()) if len(t_max) else 180.0

@@ -1,0 +1,615 @@
+"""Sharp features of stuffed tetrahedral meshes: boundary vertices moved onto the creases
+and corners of the exact surface, boundary edges split or flipped onto them [FG §16.4.3:
+metric then topological modifications].
+
+Isosurface stuffing puts every boundary vertex on f = 0 but knows nothing of the creases of
+a CSG shape (where two primitives meet, or where the bounds cap it): the boundary cuts
+across them. Here:
+
+1. Exact outward normals at the boundary vertices (the clipped field of
+   :class:`warpmesh.frep.projection.ImplicitTarget`: the active primitive's gradient, the box
+   face's normal on a cap). A boundary edge whose end normals differ by more than
+   ``FEATURE_ANGLE`` crosses a crease.
+2. Corners: a vertex whose ring of boundary neighbours has normals spread in three
+   directions gets the dual-contouring point of their tangent planes
+   (:func:`warpmesh.surface.adaptive.qef.qef_points`, rank 3); one vertex per corner.
+3. Creases: an end of a crossing edge gets the point of the crease nearest to it: the
+   tangent planes at both ends meet in a line; then, ``REFINE_STEPS`` times, each face is
+   sampled a tenth of ``h`` beside the current point (projected onto f = 0), and the two
+   new tangent planes meet again (second-order: 2e-4 h on the part's hole rims).
+4. Moves in rounds of an independent set (no two moving vertices share a tetrahedron),
+   closest target first; a move is kept only when every tetrahedron around the vertex stays
+   positive with dihedral angles in [``floor``, ``ceiling``] (default 10° and 165°). A
+   crossing edge is covered once one of its ends sits on the crease; the ends of uncovered
+   edges are tried in the next round. The covered ends form the crease's polyline: in the
+   strip of triangles the crease crosses, consecutive covered vertices share a triangle.
+5. Crossing edges still open are split at the crease point nearest their midpoint (every
+   tetrahedron around the edge halved; kept only in the same dihedral range); an open edge
+   whose two boundary triangles end on crease vertices a, b is flipped onto a-b (the cap
+   tetrahedron (u, w, a, b) removed, added outside, or a boundary 2-2 flip). Between passes
+   the vertices near open edges are smoothed (:func:`warpmesh.solid.smoothing.smooth_tets`,
+   crease vertices fixed). Chords of the crease that sag more than ``SAG`` h from it are split.
+6. Moves are judged by the dihedral angles around them only: if boundary faces end up
+   crossing (:func:`warpmesh.cells.intersections.find_self_intersections`), the whole
+   recovery is undone and ``feature_undone`` counts the crossing pairs.
+
+:func:`feature_distance` measures the result: the distance from points of the exact edges
+to the nearest boundary edge of the mesh.
+
+Example
+-------
+>>> import warpmesh as wm
+>>> part, bounds = wm.example("part")
+>>> vol = wm.mesh_domain(part, bounds=bounds, size=0.1)
+>>> s = vol.stats()
+>>> s["feature_vertices"] > 100, s["dihedral_min"] >= 10.0, s["dihedral_max"] <= 165.0
+(True, True, True)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from warpmesh.cells.intersections import find_self_intersections
+from warpmesh.solid.adjacency import TRI_EDGES, gather_rows, unique_edges, vertex_tets
+from warpmesh.solid.dihedral import tet_quality
+from warpmesh.solid.smoothing import smooth_tets
+from warpmesh.surface.adaptive.qef import qef_points
+
+__all__ = ["FEATURE_ANGLE", "DIHEDRAL_FLOOR", "DIHEDRAL_CEILING", "crease_points", "recover_features",
+           "feature_distance", "example_edges"]
+
+#: degrees between the exact normals at the ends of a boundary edge that mark a crease
+FEATURE_ANGLE = 35.0
+#: a feature move is kept only when every dihedral angle around the vertex stays in [floor, ceiling]
+DIHEDRAL_FLOOR = 10.0
+DIHEDRAL_CEILING = 165.0
+#: smallest over largest eigenvalue of a ring's normal tensor for a corner
+CORNER_SPREAD = 0.15
+#: crease point refinements (tangent planes sampled beside the point) and their offset / h
+REFINE_STEPS = 4
+BESIDE = 0.1
+#: the farthest a vertex moves onto a crease or corner, in units of h
+MAX_MOVE = 0.75
+ROUNDS = 10
+#: rounds of (snap, split, smooth) while crossing edges stay open
+PASSES = 3
+#: crease chords farther than this (times h) from the crease at their midpoint are split
+SAG = 0.02
+
+def _unit(v):
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def _planes_meet(na, pa, nb, pb, c):
+    """The point of the line where planes (na, pa) and (nb, pb) meet nearest ``c`` (NaN when
+    they are parallel)."""
+    d = _unit(np.cross(na, nb))
+    mat = np.stack([na, nb, d], axis=1)
+    rhs = np.stack([np.einsum("ij,ij->i", na, pa), np.einsum("ij,ij->i", nb, pb), np.einsum("ij,ij->i", d, c)], 1)
+    out = np.full_like(c, np.nan)
+    ok = np.abs(np.linalg.det(mat)) > 1e-6
+    out[ok] = np.linalg.solve(mat[ok], rhs[ok][..., None])[..., 0]
+    return out
+
+
+def crease_points(target, pa, pb, h: float, cos_angle: float, near=None) -> np.ndarray:
+    """(k, 3) the crease point nearest each ``pa`` (or ``near``), between the face of ``pa``
+    and the face of ``pb`` (both on the surface); NaN where the faces' normals stop differing.
+
+    Tangent planes at both points meet in a line; then each face is sampled ``BESIDE * h``
+    beside the current estimate, projected onto the surface, and the new tangent planes met
+    again (``REFINE_STEPS`` times).
+    """
+    na, nb = target.normals(pa), target.normals(pb)
+    c = _planes_meet(na, pa, nb, pb, pa if near is None else near)
+    qa, qb = pa.copy(), pb.copy()
+    eps = BESIDE * h
+    refined = np.zeros(len(c), bool)
+    for _ in range(REFINE_STEPS):
+        good = np.all(np.isfinite(c), axis=1)
+        if not good.any():
+            break
+        d = _unit(np.cross(na, nb))
+        cc = np.where(good[:, None], c, pa)
+
+        def beside(p, nrm):
+            # eps from the crease in the face's tangent plane, on the side of p: Newton lands on that face
+            t = _unit(np.cross(d, nrm))
+            t *= np.where(np.einsum("ij,ij->i", t, p - cc) < 0, -1.0, 1.0)[:, None]
+            return cc + eps * t
+        qa2 = target.project(beside(qa, na), max_step=eps)
+        qb2 = target.project(beside(qb, nb), max_step=eps)
+        ma, mb = target.normals(qa2), target.normals(qb2)
+        new = _planes_meet(ma, qa2, mb, qb2, cc)
+        ok = good & np.all(np.isfinite(new), axis=1) & (np.einsum("ij,ij->i", ma, mb) < cos_angle)
+        ok &= np.linalg.norm(np.where(ok[:, None], new, cc) - cc, axis=1) < 0.5 * h
+        refined |= ok
+        c = np.where(ok[:, None], new, c)
+        qa, qb = np.where(ok[:, None], qa2, qa), np.where(ok[:, None], qb2, qb)
+        na, nb = np.where(ok[:, None], ma, na), np.where(ok[:, None], mb, nb)
+    c[~refined] = np.nan  # never confirmed by samples on both faces: no crease point
+    return c
+
+
+def _ring_corners(points, bverts, bedges, nrm, h):
+    """Corner targets: (vertices, points) for rings whose normals span three directions."""
+    ring_owner = np.concatenate([bverts, bedges[:, 0], bedges[:, 1]])
+    ring_vert = np.concatenate([bverts, bedges[:, 1], bedges[:, 0]])
+    n = len(points)
+    tensor = np.zeros((n, 3, 3))
+    for i in range(3):
+        for j in range(3):
+            tensor[:, i, j] = np.bincount(ring_owner, nrm[ring_vert, i] * nrm[ring_vert, j], n)
+    lam = np.linalg.eigvalsh(tensor[bverts])
+    spread = lam[:, 0] / np.maximum(lam[:, 2], 1e-300)
+    cand = bverts[spread > CORNER_SPREAD]
+    if not len(cand):
+        return cand, np.zeros((0, 3))
+    remap = np.full(n, -1)
+    remap[cand] = np.arange(len(cand))
+    sub = remap[ring_owner] >= 0
+    x, rank = qef_points(remap[ring_owner[sub]], points[ring_vert[sub]], nrm[ring_vert[sub]], len(cand))
+    dist = np.linalg.norm(x - points[cand], axis=1)
+    ok = (rank == 3) & (dist < MAX_MOVE * h)
+    cand, x, dist = cand[ok], x[ok], dist[ok]
+    if len(cand) < 2:
+        return cand, x
+    # one vertex per corner: candidates whose corners lie within h / 2 of each other compete
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(x).query_pairs(0.5 * h, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(cand), len(cand)))
+    _, comp = connected_components(graph, directed=False)
+    order = np.lexsort((dist, comp))
+    first = order[np.r_[True, comp[order][1:] != comp[order][:-1]]]
+    return cand[first], x[first]
+
+
+def _try_moves(pts, tets, vt_ptr, vt_idx, verts, targets, floor, ceiling, device):
+    """Move each of ``verts`` (no two in one tetrahedron) to its target when every
+    tetrahedron around it stays positive with dihedral angles in [floor, ceiling]; returns
+    the accepted mask."""
+    owner, around = gather_rows(vt_ptr, vt_idx, verts)
+    trial = pts.copy()
+    trial[verts] = targets
+    q = tet_quality(trial, tets[around], device)
+    bad = (q[:, 0] < floor) | (q[:, 1] > ceiling) | (q[:, 3] <= 0) | ~np.isfinite(q[:, 0])
+    return np.bincount(owner, bad, len(verts)) == 0
+
+
+def _split_edges(pts, tets, tris, edges, where, floor, ceiling, device, rng):
+    """Split boundary edges at points of the crease: every tetrahedron (and the two boundary
+    triangles) around edge (u, w) becomes two, with the new vertex m for u in one and for w
+    in the other (orientation kept). Edges sharing a tetrahedron are split in different
+    calls: here the ones of highest random priority. A split is kept only when all its new
+    tetrahedra are positive with dihedral angles in [floor, ceiling].
+
+    Returns (points, tets, tris, split (k,) bool over ``edges``)."""
+    n = len(pts)
+    ptr, idx = vertex_tets(tets, n)
+    owner, cand = gather_rows(ptr, idx, edges[:, 0])
+    has_w = (tets[cand] == edges[owner, 1][:, None]).any(axis=1)
+    owner, around = owner[has_w], cand[has_w]
+    prio = rng.random(len(edges))
+    tet_best = np.full(len(tets), -1.0)
+    np.maximum.at(tet_best, around, prio[owner])
+    lose = np.zeros(len(edges), bool)
+    lose[owner[tet_best[around] > prio[owner]]] = True
+    sel = ~lose & (np.bincount(owner, minlength=len(edges)) > 0)
+    keep = sel[owner]
+    owner, around = owner[keep], around[keep]
+    m_id = n + np.cumsum(sel) - 1  # the new vertex of each selected edge
+    new_pts = np.concatenate([pts, where[sel]])
+    u, w, m = edges[owner, 0][:, None], edges[owner, 1][:, None], m_id[owner][:, None]
+    t1 = np.where(tets[around] == u, m, tets[around])
+    t2 = np.where(tets[around] == w, m, tets[around])
+    q = tet_quality(new_pts, np.concatenate([t1, t2]), device)
+    bad = (q[:, 0] < floor) | (q[:, 1] > ceiling) | (q[:, 3] <= 0) | ~np.isfinite(q[:, 0])
+    ok_edge = sel & (np.bincount(np.concatenate([owner, owner]), bad, len(edges)) == 0)
+    if not ok_edge.any():
+        return pts, tets, tris, ok_edge
+    # renumber the new vertices of the kept splits only
+    m_new = np.full(len(edges), -1)
+    m_new[ok_edge] = n + np.arange(int(ok_edge.sum()))
+    take = ok_edge[owner]
+    owner, around = owner[take], around[take]
+    u, w, m = edges[owner, 0][:, None], edges[owner, 1][:, None], m_new[owner][:, None]
+    t1 = np.where(tets[around] == u, m, tets[around])
+    t2 = np.where(tets[around] == w, m, tets[around])
+    tets = tets.copy()
+    tets[around] = t1
+    tets = np.concatenate([tets, t2])
+    # the boundary triangles holding a split edge
+    ke = edges[ok_edge]
+    km = m_new[ok_edge]
+    big = np.int64(n + 1)
+    key = np.minimum(ke[:, 0], ke[:, 1]) * big + np.maximum(ke[:, 0], ke[:, 1])
+    order = np.argsort(key)
+    key, ke, km = key[order], ke[order], km[order]
+    add = []
+    tris = tris.copy()
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        a, b = tris[:, i], tris[:, j]
+        k = np.minimum(a, b) * big + np.maximum(a, b)
+        pos = np.clip(np.searchsorted(key, k), 0, len(key) - 1)
+        hit = np.flatnonzero(key[pos] == k)
+        if not len(hit):
+            continue
+        first = tris[hit].copy()
+        second = tris[hit].copy()
+        first[:, j] = km[pos[hit]]
+        second[:, i] = km[pos[hit]]
+        tris[hit] = first
+        add.append(second)
+    if add:
+        tris = np.concatenate([tris] + add)
+    return np.concatenate([pts, where[ok_edge]]), tets, tris, ok_edge
+
+
+def _crease_chords(pts, tris, crease, target, cos_a):
+    """(edges (k, 2), third vertices (k, 2)): boundary edges with both ends on a crease
+    whose two triangles lie on different faces (their third vertices' normals differ)."""
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    third = np.concatenate([tris[:, 2], tris[:, 0], tris[:, 1]])
+    key = np.sort(e, axis=1)
+    both = crease[key].all(axis=1)
+    key, third = key[both], third[both]
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    key, third = key[order], third[order]
+    pair = np.flatnonzero((key[1:] == key[:-1]).all(axis=1))
+    edges, opp = key[pair], np.stack([third[pair], third[pair + 1]], axis=1)
+    if not len(edges):
+        return edges, opp
+    na, nb = target.normals(pts[opp[:, 0]]), target.normals(pts[opp[:, 1]])
+    sharp = np.einsum("ij,ij->i", na, nb) < cos_a
+    return edges[sharp], opp[sharp]
+
+
+#: the faces of a positive tetrahedron (a, b, c, d), counter-clockwise seen from outside
+_FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
+
+
+def _signed(pts, t):
+    """Six times the signed volume of tetrahedron t (> 0 when t[3] is on the outer side of
+    the counter-clockwise face t[:3])."""
+    p = pts[t]
+    return float(np.dot(np.cross(p[1] - p[0], p[2] - p[0]), p[3] - p[0]))
+
+
+def _face_key(f, n):
+    f = np.sort(f, axis=1)
+    return (f[:, 0] * n + f[:, 1]) * n + f[:, 2]
+
+
+def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device):
+    """Boundary edge flips onto the crease: for an open crossing edge (u, w) whose two
+    boundary triangles (u, w, a), (w, u, b) have both third vertices on the crease, the
+    boundary is moved from (u, w) to the crease chord (a, b) by removing the tetrahedron
+    (u, w, a, b) when it is the only one around (u, w), or else by adding it outside (when
+    positive, with dihedral angles in [floor, ceiling], and a-b no edge yet). One flip per
+    tetrahedron neighbourhood per call (edges whose triangles overlap are skipped).
+
+    Returns (tets, tris, flipped count)."""
+    n = np.int64(len(pts))
+    tri_e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    third = np.concatenate([tris[:, 2], tris[:, 0], tris[:, 1]])
+    tri_id = np.tile(np.arange(len(tris)), 3)
+    ekey = np.minimum(tri_e[:, 0], tri_e[:, 1]) * n + np.maximum(tri_e[:, 0], tri_e[:, 1])
+    order = np.argsort(ekey, kind="stable")
+    ekey, third, tri_id, tri_e = ekey[order], third[order], tri_id[order], tri_e[order]
+    want = np.minimum(edges[:, 0], edges[:, 1]) * n + np.maximum(edges[:, 0], edges[:, 1])
+    pos = np.searchsorted(ekey, want)
+    ok = (pos + 1 < len(ekey)) & (ekey[np.minimum(pos, len(ekey) - 1)] == want)
+    pos, edges = pos[ok], edges[ok]
+    ok = ekey[pos + 1] == ekey[pos]
+    pos, edges = pos[ok], edges[ok]
+    a, b = third[pos], third[pos + 1]
+    t1, t2 = tri_id[pos], tri_id[pos + 1]
+    ok = crease[a] & crease[b] & (a != b)
+    # one flip per triangle: no two chosen edges share a boundary triangle
+    used = np.zeros(len(tris), bool)
+    pick = []
+    for i in np.flatnonzero(ok):  # few open edges (tens): a loop over them is cheap
+        if not used[t1[i]] and not used[t2[i]]:
+            used[t1[i]] = used[t2[i]] = True
+            pick.append(i)
+    if not pick:
+        return tets, tris, 0
+    pick = np.array(pick)
+    edges, a, b, t1, t2 = edges[pick], a[pick], b[pick], t1[pick], t2[pick]
+    vt_ptr, vt_idx = vertex_tets(tets, len(pts))
+    bnd = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    bkey = np.minimum(bnd[:, 0], bnd[:, 1]) * n + np.maximum(bnd[:, 0], bnd[:, 1])
+
+    def tets_with(x, y):
+        _, around = gather_rows(vt_ptr, vt_idx, np.array([x]))
+        return around[(tets[around] == y).any(axis=1)]
+
+    quad = np.stack([edges[:, 0], edges[:, 1], a, b], axis=1)
+    remove, add, drop_tris, new_tris = [], [], [], []
+    busy = np.zeros(len(pts), bool)  # one flip per vertex and call: no two flips share an edge a-b
+    for i in range(len(edges)):  # tens of edges
+        u, w = edges[i]
+        around = tets_with(u, w)
+        if busy[quad[i]].any() or np.isin(around, remove).any():
+            continue
+        busy[quad[i]] = True
+        ab = min(a[i], b[i]) * n + max(a[i], b[i])
+        cap = around[np.isin(tets[around], quad[i]).all(axis=1)]
+        if len(around) == 1 and len(cap) == 1:  # the cap tetrahedron: remove it, its two other faces become boundary
+            t = tets[cap[0]]
+            faces = t[list(_FACES)]
+            onb = np.isin(_face_key(faces, n), _face_key(tris[[t1[i], t2[i]]], n))
+            if onb.sum() != 2 or (bkey == ab).any():
+                continue
+            remove.append(cap[0])
+            new_tris.append(faces[~onb][:, ::-1])
+            drop_tris += [t1[i], t2[i]]
+        elif len(cap) == 0 and not len(tets_with(a[i], b[i])):
+            f1, f2 = tris[t1[i]], tris[t2[i]]
+            outside = _signed(pts, np.array([*f1, b[i]])) > 0 and _signed(pts, np.array([*f2, a[i]])) > 0
+            if len(around) == 2:
+                # a boundary 2-2 flip: (u, w, a, c), (u, w, b, c) -> (c, u, a, b), (c, w, a, b)
+                c = np.setdiff1d(np.intersect1d(tets[around[0]], tets[around[1]]), edges[i])
+                if len(c) == 1:
+                    pair = np.array([[c[0], u, a[i], b[i]], [c[0], w, a[i], b[i]]])
+                    vol = np.einsum("ij,ij->i", np.cross(pts[pair[:, 1]] - pts[pair[:, 0]],
+                                                         pts[pair[:, 2]] - pts[pair[:, 0]]),
+                                    pts[pair[:, 3]] - pts[pair[:, 0]])
+                    pair[vol < 0, 2:] = pair[vol < 0, 3:1:-1]
+                    q = tet_quality(pts, pair, device)
+                    # the pair fills the old two with the cap added (b outside face u w a) or taken off
+                    v_old = tet_quality(pts, tets[around], device)[:, 3].sum()
+                    v_cap = abs(_signed(pts, quad[i]))
+                    v_new = v_old + (v_cap if outside else -v_cap)
+                    fills = abs(q[:, 3].sum() - v_new) <= 1e-9 * max(v_old, 1e-300)
+                    if fills and (q[:, 3] > 0).all() and q[:, 0].min() >= floor and q[:, 1].max() <= ceiling:
+                        remove += [around[0], around[1]]
+                        add += [pair[0], pair[1]]
+                        new_tris += [pair[j][list(_FACES[0])][None] for j in range(2)]  # the face off c
+                        drop_tris += [t1[i], t2[i]]
+                        continue
+            # else the cap tetrahedron added outside
+            if not outside:
+                continue
+            t = quad[i].copy()
+            vol = np.dot(np.cross(pts[t[1]] - pts[t[0]], pts[t[2]] - pts[t[0]]), pts[t[3]] - pts[t[0]])
+            if vol < 0:
+                t[[2, 3]] = t[[3, 2]]
+            q = tet_quality(pts, t[None], device)[0]
+            if q[3] <= 0 or q[0] < floor or q[1] > ceiling:
+                continue
+            faces = t[list(_FACES)]
+            onb = np.isin(_face_key(faces, n), _face_key(tris[[t1[i], t2[i]]], n))
+            if onb.sum() != 2:
+                continue
+            add.append(t)
+            new_tris.append(faces[~onb])
+            drop_tris += [t1[i], t2[i]]
+    if not new_tris:
+        return tets, tris, 0
+    keep_t = np.ones(len(tets), bool)
+    keep_t[remove] = False
+    tets = np.concatenate([tets[keep_t]] + ([np.array(add)] if add else []))
+    keep_f = np.ones(len(tris), bool)
+    keep_f[drop_tris] = False
+    tris = np.concatenate([tris[keep_f]] + new_tris)
+    return tets, tris, len(new_tris)
+
+
+def recover_features(points, tets, tris, target, h: float, *, floor: float = DIHEDRAL_FLOOR,
+                     ceiling: float = DIHEDRAL_CEILING, angle: float = FEATURE_ANGLE, passes: int = PASSES,
+                     device="cpu"):
+    """Move boundary vertices onto the corners and creases of the exact surface, and split
+    the boundary edges that still cross a crease (or sag from it) at a crease point.
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+    tets : (m, 4) int, positive
+    tris : (k, 3) int, the boundary triangles
+    target : :class:`warpmesh.frep.projection.ImplicitTarget` of the shape, clipped by the bounds
+    h : float, the lattice's cube side
+    floor, ceiling : float, degrees: the dihedral range every accepted move or split keeps around it
+    angle : float, degrees between end normals that make a boundary edge cross a crease
+    passes : int, rounds of (snap, split, smooth the vertices off the creases) while edges stay open
+
+    Returns
+    -------
+    points : (n', 3) float64, moved, with the split vertices appended
+    tets : (m', 4) int64, positive
+    tris : (k', 3) int64, the boundary triangles, outward
+    crease : (n',) bool, the vertices on a crease or corner
+    info : dict, ``feature_edges`` (boundary edges crossing a crease at the start),
+        ``feature_open`` (crossing at the end with no end on the crease), ``feature_vertices``,
+        ``feature_corners``, ``feature_splits``, ``feature_rejected`` (snaps refused by the
+        dihedral range), ``feature_floor``, ``feature_ceiling``
+    """
+    pts = np.array(points, dtype=np.float64, copy=True)
+    tets = tets_in = np.asarray(tets, dtype=np.int64)
+    tris = tris_in = np.asarray(tris, dtype=np.int64)
+    cos_a = float(np.cos(np.radians(angle)))
+    rng = np.random.default_rng(0)
+    crease = np.zeros(len(pts), bool)
+    n_corners = n_split = n_flip = rejected = 0
+
+    def normals_at_boundary():
+        nrm = np.zeros((len(pts), 3))
+        bv = np.unique(tris)
+        nrm[bv] = target.normals(pts[bv])
+        return bv, nrm
+
+    def open_edges(nrm):
+        be = unique_edges(tris, TRI_EDGES)
+        cross = np.einsum("ij,ij->i", nrm[be[:, 0]], nrm[be[:, 1]]) < cos_a
+        return be[cross & ~(crease[be[:, 0]] | crease[be[:, 1]])]
+
+    def independent(cand, prio, te):
+        """The candidates of highest priority among their neighbours (no shared tetrahedron)."""
+        p = np.full(len(pts), -np.inf)
+        p[cand] = prio + 1e-9 * rng.random(len(cand))
+        best = p.copy()
+        np.maximum.at(best, te[:, 0], p[te[:, 1]])
+        np.maximum.at(best, te[:, 1], p[te[:, 0]])
+        return p[cand] >= best[cand]
+
+    def snap(verts, where):
+        """Rounds of independent moves of ``verts`` onto ``where``; returns the accepted count."""
+        nonlocal rejected
+        vt_ptr, vt_idx = vertex_tets(tets, len(pts))
+        te = unique_edges(tets)
+        todo = np.ones(len(verts), bool)
+        done = 0
+        for _ in range(ROUNDS):
+            todo &= ~crease[verts]
+            if not todo.any():
+                break
+            idx = np.flatnonzero(todo)
+            pick = idx[independent(verts[idx], -np.linalg.norm(where[idx] - pts[verts[idx]], axis=1), te)]
+            ok = _try_moves(pts, tets, vt_ptr, vt_idx, verts[pick], where[pick], floor, ceiling, device)
+            pts[verts[pick[ok]]] = where[pick[ok]]
+            crease[verts[pick[ok]]] = True
+            done += int(ok.sum())
+            rejected += int((~ok).sum())
+            todo[pick] = False
+        return done
+
+    def split(edges, a, b):
+        """Split ``edges`` at the crease point between the faces of a and b nearest their midpoints."""
+        nonlocal pts, tets, tris, crease, n_split
+        if not len(edges):
+            return
+        mid = 0.5 * (pts[edges[:, 0]] + pts[edges[:, 1]])
+        c = crease_points(target, pts[a], pts[b], h, cos_a, near=mid)
+        reach = np.all(np.isfinite(c), axis=1) & (np.linalg.norm(c - mid, axis=1) < MAX_MOVE * h)
+        edges, c = edges[reach], c[reach]
+        for _ in range(ROUNDS):
+            if not len(edges):
+                break
+            n0 = len(pts)
+            pts, tets, tris, done = _split_edges(pts, tets, tris, edges, c, floor, ceiling, device, rng)
+            crease = np.concatenate([crease, np.ones(len(pts) - n0, bool)])
+            n_split += int(done.sum())
+            edges, c = edges[~done], c[~done]
+
+    bv, nrm = normals_at_boundary()
+    n_cross = len(open_edges(nrm))
+    # corners first: one vertex each
+    c_verts, c_pts = _ring_corners(pts, bv, unique_edges(tris, TRI_EDGES), nrm, h)
+    n_corners = snap(c_verts, c_pts)
+    for k in range(passes):
+        # an end of every open crossing edge onto the crease nearest it (the nearer first)
+        e = open_edges(nrm)
+        if not len(e):
+            break
+        v, w = np.concatenate([e[:, 0], e[:, 1]]), np.concatenate([e[:, 1], e[:, 0]])
+        cosv = np.einsum("ij,ij->i", nrm[v], nrm[w])
+        o = np.lexsort((cosv, v))  # per vertex, the other end whose normal differs most
+        first = o[np.r_[True, v[o][1:] != v[o][:-1]]]
+        v, w = v[first], w[first]
+        c = crease_points(target, pts[v], pts[w], h, cos_a)
+        reach = np.all(np.isfinite(c), axis=1) & (np.linalg.norm(c - pts[v], axis=1) < MAX_MOVE * h)
+        snap(v[reach], c[reach])
+        # the crossing edges still open: split at the crease point nearest their midpoint
+        e = open_edges(nrm)
+        split(e, e[:, 0], e[:, 1])
+        # the crossing edges still open between two crease vertices: flip the boundary onto them
+        bv, nrm = normals_at_boundary()
+        tets, tris, k_flip = _flip_open_edges(pts, tets, tris, open_edges(nrm), crease, floor, ceiling, device)
+        n_flip += k_flip
+        bv, nrm = normals_at_boundary()
+        if k + 1 < passes and len(open_edges(nrm)):
+            # room for the next pass: smooth the vertices off the creases (never lowering the
+            # smallest dihedral angle); cap vertices stay
+            lo, hi = target.bounds if target.bounds is not None else (np.full(3, -np.inf), np.full(3, np.inf))
+            on_cap = (np.minimum(pts - lo, hi - pts).min(axis=1) <= 1e-4 * h)
+            on_b = np.zeros(len(pts), bool)
+            on_b[bv] = True
+            near = np.zeros(len(pts), bool)  # two rings of tetrahedra around the open edges
+            near[open_edges(nrm).ravel()] = True
+            for _ in range(2):
+                near[tets[near[tets].any(axis=1)].ravel()] = True
+            # only the tetrahedra around the vertices that may move take part
+            sub = tets[near[tets].any(axis=1)]
+            pts, _ = smooth_tets(pts, sub, tris, on_b & ~crease & ~on_cap, crease | on_cap, target.tape,
+                                 sweeps=2, device=device, only=near)
+            bv, nrm = normals_at_boundary()
+    # chords of the crease that sag more than ``SAG * h`` from it: split at the crease's midpoint
+    chords, opp = _crease_chords(pts, tris, crease, target, cos_a)
+    if len(chords):
+        mid = 0.5 * (pts[chords[:, 0]] + pts[chords[:, 1]])
+        c = crease_points(target, pts[opp[:, 0]], pts[opp[:, 1]], h, cos_a, near=mid)
+        sag = np.linalg.norm(c - mid, axis=1)
+        far = np.isfinite(sag) & (sag > SAG * h)
+        split(chords[far], opp[far, 0], opp[far, 1])
+    bv, nrm = normals_at_boundary()
+    # the moves are judged by the dihedral angles around them only: where boundary faces now
+    # cross (an under-resolved surface near a crease), the whole recovery is undone
+    crossing = len(find_self_intersections(pts, tris, device=device))
+    if crossing:
+        pts, tets, tris = np.array(points, dtype=np.float64), np.asarray(tets_in), np.asarray(tris_in)
+        crease = np.zeros(len(pts), bool)
+    info = {"feature_undone": int(crossing), "feature_edges": int(n_cross), "feature_open": int(len(open_edges(nrm))),
+            "feature_vertices": int(crease.sum()), "feature_corners": n_corners, "feature_splits": n_split, "feature_flips": n_flip,
+            "feature_rejected": rejected, "feature_floor": float(floor), "feature_ceiling": float(ceiling)}
+    return pts, tets, tris, crease, info
+
+
+def feature_distance(points, tris, samples) -> np.ndarray:
+    """(s,) the distance from each sample point to the nearest edge of the triangles.
+
+    Example
+    -------
+    >>> feature_distance(np.eye(3), np.array([[0, 1, 2]]), np.array([[0.5, 0.5, 0.0]])).round(6).tolist()
+    [0.0]
+    """
+    from scipy.spatial import cKDTree
+
+    e = unique_edges(np.asarray(tris, dtype=np.int64), TRI_EDGES)
+    a, b = np.asarray(points)[e[:, 0]], np.asarray(points)[e[:, 1]]
+    s = np.asarray(samples, dtype=np.float64).reshape(-1, 3)
+    k = min(24, len(e))
+    _, idx = cKDTree(0.5 * (a + b)).query(s, k=k)
+    idx = np.asarray(idx).reshape(len(s), k)
+    ab = b[idx] - a[idx]
+    t = np.einsum("ijk,ijk->ij", s[:, None] - a[idx], ab) / np.maximum(np.einsum("ijk,ijk->ij", ab, ab), 1e-300)
+    q = a[idx] + np.clip(t, 0.0, 1.0)[..., None] * ab
+    return np.linalg.norm(q - s[:, None], axis=2).min(axis=1)
+
+
+def example_edges(name: str = "part", n: int = 64) -> np.ndarray:
+    """(s, 3) points on the exact sharp edges of ``wm.example(name)`` ('part' only), ``n``
+    per curve: the box's twelve edges (no hole or boss reaches them), the holes' rims (circles
+    r = 0.2 at z = ±0.3) and the boss's creases (the sphere r = 0.5 meets the plate's faces
+    z = ±0.3 in circles of radius 0.4). The reference for :func:`feature_distance`.
+
+    Example
+    -------
+    >>> example_edges("part", 8).shape  # 12 box edges, 8 rims, 2 boss creases
+    (176, 3)
+    """
+    if name != "part":
+        raise ValueError(f"expected 'part' for 'name' (the example with known edges), got {name!r}")
+    t = (np.arange(n) + 0.5) / n
+    out = []
+    for a in range(3):  # box edges along axis a
+        half = np.array([1.0, 1.0, 0.3])
+        b, c = [k for k in range(3) if k != a]
+        for sb in (-1, 1):
+            for sc in (-1, 1):
+                p = np.zeros((n, 3))
+                p[:, a] = half[a] * (2 * t - 1)
+                p[:, b], p[:, c] = sb * half[b], sc * half[c]
+                out.append(p)
+    ang = 2 * np.pi * t
+    circle = np.stack([np.cos(ang), np.sin(ang), np.zeros(n)], axis=1)
+    for z in (-0.3, 0.3):
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                out.append(circle * 0.2 + [sx * 0.6, sy * 0.6, z])
+        out.append(circle * 0.4 + [0.0, 0.0, z])
+    return np.concatenate(out)
