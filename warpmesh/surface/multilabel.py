@@ -76,10 +76,12 @@ Example
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
 
 from warpmesh import _conventions as C
+from warpmesh._util.parallel import run_parallel
 from warpmesh.io.images import Volume
 
 __all__ = ["LABEL_ABOVE", "INTERFACES", "REST", "interface_refs", "label_boundary", "label_codes", "shared_surface"]
@@ -251,8 +253,9 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     shape = np.array(codes.shape, dtype=np.int64)
     strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
     flat = codes.ravel()
-    firsts, cubes = [], []
-    for a in range(3):  # crossing edges: consecutive samples along axis a with different codes
+    firsts, cubes = [None] * 3, [None] * 3
+
+    def crossing_edges(a: int) -> None:  # consecutive samples along axis a with different codes
         s = int(strides[a])
         first = np.flatnonzero(flat[:-s] != flat[s:])
         if not cap:  # keep the edges with 4 cubes around them (off the faces of the box along the
@@ -263,9 +266,11 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
                 at = first // strides[b] % shape[b]
                 keep &= (at <= shape[b] - 2) & ((at >= 1) | (b == a))
             first = first[keep]
-        firsts.append(first)
+        firsts[a] = first
         # the 4 cubes around each edge (a cube is named by its lowest sample), counter-clockwise about +a
-        cubes.append((np.array(_AROUND[a]) @ strides)[:, None] + first)  # (4, q): each row sorted
+        cubes[a] = (np.array(_AROUND[a]) @ strides)[:, None] + first  # (4, q): each row sorted
+
+    run_parallel([partial(crossing_edges, a) for a in range(3)])  # numpy releases the GIL: one axis a thread
     timings["edges"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -281,15 +286,17 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
 
     t0 = time.perf_counter()
     columns = [np.ascontiguousarray(points[:, d]) for d in range(3)]
-    tris, lo_codes, hi_codes = [], [], []
-    for a in range(3):
+    tris, lo_codes, hi_codes = [None] * 3, [None] * 3, [None] * 3
+
+    def triangles(a: int) -> None:
         quads = np.ascontiguousarray(np.searchsorted(cube_ids, cubes[a]).T)  # sorted keys: fast search
         code0, code1 = flat[firsts[a]], flat[firsts[a] + strides[a]]
         flip = code0 > code1  # lower -> higher runs along -a: reverse the winding
         quads[flip] = quads[flip][:, ::-1]
-        tris.append(_split_quads(columns, quads, a, flip))
-        lo_codes.append(np.minimum(code0, code1))
-        hi_codes.append(np.maximum(code0, code1))
+        tris[a] = _split_quads(columns, quads, a, flip)
+        lo_codes[a], hi_codes[a] = np.minimum(code0, code1), np.maximum(code0, code1)
+
+    run_parallel([partial(triangles, a) for a in range(3)])
     tris = np.concatenate(tris)
     lo_code, hi_code = np.concatenate(lo_codes), np.concatenate(hi_codes)
     lower, upper = ids[np.repeat(lo_code, 2)], ids[np.repeat(hi_code, 2)]
