@@ -15,6 +15,8 @@ holes and a boss: sharp edges), each at about ``--tets`` tetrahedra (default 100
 - TetGen (``tetgen`` package) on warpmesh's own boundary surface (the same triangles),
   quality switches ``minratio=1.5``, ``mindihedral=10`` and a maximum volume giving a
   similar count.
+- warpmesh with ``features=False`` (one run): stuffing without the crease recovery (on the
+  part, the distance from the exact edges to the nearest boundary edge, in units of size).
 - warpmesh with ``smooth=2`` (one run): the before/after of the smoothing that never lowers
   the smallest dihedral angle.
 
@@ -50,6 +52,7 @@ import tetgen  # noqa: E402
 
 import warpmesh as wm  # noqa: E402
 from warpmesh.solid.dihedral import dihedral_angles, radius_edge_ratio, signed_volumes  # noqa: E402
+from warpmesh.solid.features import example_edges, feature_distance  # noqa: E402
 
 CASES = ("sphere", "torus", "part")
 VOLUME = {"sphere": 4.0 / 3.0 * math.pi, "torus": 2 * math.pi**2 * 0.35**2, "part": 2.2}
@@ -62,10 +65,10 @@ def quality(points, tets) -> dict:
 
 
 # -- the tools --------------------------------------------------------------------------------------
-def run_warpmesh(name, size, smooth=0):
+def run_warpmesh(name, size, smooth=0, features=True):
     shape, bounds = wm.example(name)
     t0 = time.perf_counter()
-    vol = wm.mesh_domain(shape, bounds=bounds, size=size, smooth=smooth)
+    vol = wm.mesh_domain(shape, bounds=bounds, size=size, smooth=smooth, features=features)
     dt = time.perf_counter() - t0
     return dt, vol.points, vol.cells["tetra"], vol
 
@@ -153,8 +156,19 @@ def run_case(name, target, repeat, rows):
     s = vol.stats()
     t_sm, p_sm, k_sm, _ = run_warpmesh(name, h_wm, smooth=2)
     q_sm = quality(p_sm, k_sm)
+    t_nf, p_nf, k_nf, vol_nf = run_warpmesh(name, h_wm, features=False)
+    q_nf = quality(p_nf, k_nf)
+    edges, edges_nf = "", ""
+    if name == "part":  # distance from the exact sharp edges to the nearest boundary edge, / size
+        samples = example_edges("part", 200)
+        d = feature_distance(vol.points, vol.cells["triangle"], samples) / h_wm
+        d0 = feature_distance(vol_nf.points, vol_nf.cells["triangle"], samples) / h_wm
+        edges = f", edge distance max {d.max():.3f} h, {100 * (d <= 0.05).mean():.1f} % within 0.05 h"
+        edges_nf = f", edge distance max {d0.max():.3f} h, {100 * (d0 <= 0.05).mean():.1f} % within 0.05 h"
     for tool, t, q, note in (("warpmesh stuffing", t_wm, q_wm, f"size {h_wm:.4f}, evaluate "
-                              f"{s['time_evaluate']:.3f} s, roots {s['time_roots']:.3f} s, fill {s['time_fill']:.3f} s"),
+                              f"{s['time_evaluate']:.3f} s, roots {s['time_roots']:.3f} s, fill {s['time_fill']:.3f} s, "
+                              f"features {s.get('time_features', 0.0):.3f} s{edges}"),
+                             ("warpmesh stuffing, features=False", t_nf, q_nf, f"no crease recovery{edges_nf}"),
                              ("warpmesh stuffing + smooth=2", t_sm, q_sm, "smoothing never lowers the smallest angle"),
                              ("gmsh (OCC, Delaunay 3D)", t_gm, q_gm, f"mesh size {h_gm:.4f}"),
                              ("TetGen (on warpmesh's surface)", t_tg, q_tg, f"maxvolume {a:.2e}")):

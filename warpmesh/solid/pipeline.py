@@ -33,13 +33,14 @@ from warpmesh.mesh import Mesh
 from warpmesh.planar.curves import mesh_domain as planar_mesh_domain
 from warpmesh.frep.projection import ImplicitTarget
 from warpmesh.solid.dihedral import tet_quality_summary
+from warpmesh.solid.hierarchical import mesh_tetgen
 from warpmesh.solid.features import DIHEDRAL_CEILING, DIHEDRAL_FLOOR, FEATURE_ANGLE, recover_features
 from warpmesh.solid.smoothing import smooth_tets
 from warpmesh.solid.stuffing import ALPHA_LONG, ALPHA_SHORT, ROOT_ITERATIONS, stuff
 
 __all__ = ["mesh_domain", "METHODS_3D", "VOLUME_REF", "boundary_faces"]
 
-METHODS_3D = ("stuffing",)
+METHODS_3D = ("stuffing", "tetgen")
 #: the ref of the tetrahedra of a domain (one region)
 VOLUME_REF = 1
 #: a vertex within this fraction of the cube size of a face of the bounds lies on it (cap)
@@ -64,8 +65,12 @@ def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: 
         3D: the lattice's cube side, the length of the long edges (short edges are
         sqrt(3)/2 of it); default: the smallest side of the box / 20. Must be positive and
         below the smallest side of the box.
-    method : {'stuffing'}, optional
-        3D: isosurface stuffing (Labelle & Shewchuk 2007) on a body-centred cubic lattice.
+    method : {'stuffing', 'tetgen'}, optional
+        3D: isosurface stuffing (Labelle & Shewchuk 2007) on a body-centred cubic lattice
+        (default), or the hierarchical approach, the cross-check: the surface from
+        ``mesh_surface``, optimised on the exact shape with edges near ``size``, filled by
+        TetGen (the optional ``tetgen`` package; :mod:`warpmesh.solid.hierarchical`).
+        ``smooth``, ``features`` and the options apply to stuffing only.
     smooth : int
         3D: sweeps of smoothing (interior vertices to the centroid of their neighbours,
         boundary vertices along f = 0), each move kept only when the smallest dihedral
@@ -221,6 +226,16 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, features, dev
         raise ValueError(f"expected a number of sweeps >= 0 for 'smooth', got {smooth!r}")
     h = _check_size(size, box)
     opts = _check_options(options)
+    if method == "tetgen":
+        if options or smooth:
+            raise ValueError("method='tetgen' takes no 'smooth' and none of the stuffing options "
+                             f"{sorted(options)}; drop them or use method='stuffing'")
+        points, tets, tris, refs, info = mesh_tetgen(shape, box, h, device)
+        info.update(tet_quality_summary(points, tets, device), method=method)
+        info["boundary_distance"] = _boundary_distance(tape_of(shape), points, np.isin(
+            np.arange(len(points)), tris[refs == C.SURFACE_REF]), h, device)
+        return Mesh(points, {"tetra": tets, "triangle": tris},
+                    cell_refs={"tetra": np.full(len(tets), VOLUME_REF), "triangle": refs}, info=info)
     points, tets, on_surface, info = stuff(shape, box, h, alpha_long=opts["alpha_long"],
                                            alpha_short=opts["alpha_short"], iterations=opts["root_iterations"],
                                            device=device)
