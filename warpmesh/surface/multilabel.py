@@ -45,11 +45,13 @@ find_self_intersections`).
 
 Measured on pyvista's frog (25 labels, 500 x 470 x 136, ``benchmarks/bench_labels.py``):
 the same 1,583,774 triangles as ``contour_labels("all")``, no triangle twice, no crossing
-pair; 1.0 s against 1.3 s for ``contour_labels("all")`` (its default 16 smoothing
-passes) and 0.6 s for its unsmoothed staircase. Not smoothed, the area lies between the
-peer's two: 1.31x its smoothed surface, 0.69x its staircase (vertices at cube centres).
-Laplacian smoothing clamped to each vertex's cube made 3,748 crossing pairs on the frog,
-so none is applied: smooth the result where a smaller area matters more than embedding.
+pair; 1.0 to 2.0 s against 0.7 to 1.7 s for ``contour_labels("all")`` (its default 16
+smoothing passes, multithreaded) over four runs on a loaded 2-core machine (time ratio
+VTK / warpmesh 0.56 to 1.22). Not smoothed, the area lies between the peer's two: 1.31x
+its smoothed surface, 0.69x its staircase (vertices at cube centres). 16 Laplacian passes
+clamped to each vertex's cube (junction vertices along junctions only) gave 3,748
+crossing pairs on the frog (unit spacing), so none is applied: smooth the result where a
+smaller area matters more than embedding.
 
 Manifoldness: two samples of one label touching only along a grid edge or at a node (a
 face of a cube with the label on one diagonal) make that label's boundary pass twice
