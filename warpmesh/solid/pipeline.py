@@ -33,6 +33,7 @@ from warpmesh.mesh import Mesh
 from warpmesh.planar.curves import mesh_domain as planar_mesh_domain
 from warpmesh.frep.projection import ImplicitTarget
 from warpmesh.solid.dihedral import tet_quality_summary
+from warpmesh.solid.flips import flip_tets
 from warpmesh.solid.hierarchical import mesh_tetgen
 from warpmesh.solid.features import DIHEDRAL_CEILING, DIHEDRAL_FLOOR, FEATURE_ANGLE, recover_features
 from warpmesh.solid.smoothing import smooth_tets
@@ -50,7 +51,7 @@ _FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
 
 
 def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: int = 0,
-                features: bool = True, device: str = C.DEFAULT_DEVICE, **options) -> Mesh:
+                features: bool = True, flips: bool = False, device: str = C.DEFAULT_DEVICE, **options) -> Mesh:
     """Mesh the domain {f > 0} inside ``bounds``: triangles in the plane, tetrahedra in 3D.
 
     Parameters
@@ -80,6 +81,11 @@ def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: 
         primitives meet, and where the bounds cap the shape), each move kept only when every
         dihedral angle around it stays in [``feature_floor``, ``feature_ceiling``]
         (:func:`warpmesh.solid.features.recover_features`); crease vertices then stay put.
+    flips : bool
+        3D: after smoothing, 2-3 and 3-2 flips of interior faces and edges, each kept only when
+        it raises the smallest dihedral angle where it acts (:func:`warpmesh.solid.flips.flip_tets`).
+        ``info["quality_stages"]`` lists the quality after each stage (stuffing, features,
+        smooth, flips).
     device : str
     **options
         3D: ``alpha_long``, ``alpha_short`` (the violation thresholds, default the paper's
@@ -122,14 +128,15 @@ def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: 
         if as_shape(shape).dim == 3:
             raise ValueError("expected 3-value 'bounds' ((x0, y0, z0), (x1, y1, z1)) for a 3D shape, "
                              f"got {box.tolist()}")
-        if smooth or features is not True:
-            raise ValueError("'smooth' and 'features' apply to 3D domains; planar domains are smoothed by their own pipeline")
+        if smooth or features is not True or flips:
+            raise ValueError("'smooth', 'features' and 'flips' apply to 3D domains; planar domains are smoothed by their own pipeline")
         if method is not None:
             options["method"] = method
         return planar_mesh_domain(shape, bounds, size=size, device=device, **options)
-    if not isinstance(features, bool):
-        raise ValueError(f"expected True or False for 'features', got {features!r}")
-    return _mesh_solid(shape, box, size, method or "stuffing", smooth, features, device, options)
+    for name, value in (("features", features), ("flips", flips)):
+        if not isinstance(value, bool):
+            raise ValueError(f"expected True or False for {name!r}, got {value!r}")
+    return _mesh_solid(shape, box, size, method or "stuffing", smooth, (features, flips), device, options)
 
 
 def _check_size(size, box: np.ndarray) -> float:
@@ -219,7 +226,8 @@ def _boundary_distance(tape, points: np.ndarray, on_f: np.ndarray, h: float, dev
     return float(np.max(np.abs(f) / np.where(gn > 0, gn, np.inf))) / h
 
 
-def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, features, device, options) -> Mesh:
+def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, device, options) -> Mesh:
+    features, flips = switches
     if method not in METHODS_3D:
         raise ValueError(f"unknown method {method!r} for a 3D domain. Pick one of {list(METHODS_3D)}")
     if isinstance(smooth, bool) or not isinstance(smooth, (int, np.integer)) or smooth < 0:
@@ -227,7 +235,7 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, features, dev
     h = _check_size(size, box)
     opts = _check_options(options)
     if method == "tetgen":
-        if options or smooth:
+        if options or smooth or flips:
             raise ValueError("method='tetgen' takes no 'smooth' and none of the stuffing options "
                              f"{sorted(options)}; drop them or use method='stuffing'")
         points, tets, tris, refs, info = mesh_tetgen(shape, box, h, device)
@@ -271,6 +279,12 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, features, dev
                     dihedral_min_before=before["dihedral_min"], dihedral_max_before=before["dihedral_max"],
                     radius_edge_max_before=before["radius_edge_max"], time_smooth=time.perf_counter() - t0)
         stages.append(("smooth", tet_quality_summary(points, tets, device)))
+    if flips:
+        t0 = time.perf_counter()
+        info["dihedral_min_before_flips"] = stages[-1][1]["dihedral_min"]
+        tets, flip_info = flip_tets(points, tets, tris, device=device)
+        info.update(flip_info, time_flips=time.perf_counter() - t0)
+        stages.append(("flips", tet_quality_summary(points, tets, device)))
     info.update(stages[-1][1])
     info["quality_stages"] = [{"stage": k, **v} for k, v in stages]
     info["boundary_distance"] = _boundary_distance(tape, points, on_f, h, device)

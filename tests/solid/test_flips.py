@@ -1,0 +1,52 @@
+"""2-3 and 3-2 flips after smoothing (issue 20, part 4): the smallest dihedral angle never
+drops, the largest never rises, the mesh stays conforming, positive, embedded, with the same
+boundary and volume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from tests.solid.test_stuffing import _check_volume_mesh
+from warpmesh.solid.dihedral import dihedral_angles, signed_volumes
+from warpmesh.solid.flips import flip_tets
+from warpmesh.solid.pipeline import boundary_faces
+
+
+def test_three_tetrahedra_around_a_long_edge_become_two():
+    ang = 2 * np.pi * np.arange(3) / 3
+    ring = np.stack([np.cos(ang), np.sin(ang), np.zeros(3)], axis=1)
+    pts = np.vstack([[0, 0, 1.0], [0, 0, -1.0], ring])  # a = 0, b = 1, ring c d e = 2 3 4: 39° -> 63°
+    tets = np.array([[0, 1, 2, 3], [0, 1, 3, 4], [0, 1, 4, 2]])
+    tets[signed_volumes(pts, tets) < 0] = tets[signed_volumes(pts, tets) < 0][:, [0, 1, 3, 2]]
+    tris = boundary_faces(tets)
+    new, info = flip_tets(pts, tets, tris)
+    assert info["flips_32"] == 1 and len(new) == 2
+    assert sorted(map(sorted, new.tolist())) == [[0, 2, 3, 4], [1, 2, 3, 4]]
+    assert (signed_volumes(pts, new) > 0).all()
+    assert signed_volumes(pts, new).sum() == pytest.approx(signed_volumes(pts, tets).sum())
+    assert dihedral_angles(pts, new).min() > dihedral_angles(pts, tets).min()
+    assert set(map(frozenset, boundary_faces(new).tolist())) == set(map(frozenset, tris.tolist()))
+
+
+def test_flips_on_the_part_never_lower_the_smallest_angle(capsys):
+    part, bounds = wm.example("part")
+    vol = wm.mesh_domain(part, bounds=bounds, size=0.08, smooth=2, flips=True)
+    s = _check_volume_mesh(vol, -6)
+    st = {q["stage"]: q for q in s["quality_stages"]}
+    assert list(st) == ["stuffing", "features", "smooth", "flips"]
+    assert s["flips_23"] + s["flips_32"] > 0
+    assert st["flips"]["dihedral_min"] >= st["smooth"]["dihedral_min"]
+    assert st["flips"]["dihedral_max"] <= st["smooth"]["dihedral_max"]
+    ang = np.degrees(dihedral_angles(vol.points, vol.cells["tetra"]))
+    assert ang.min() == pytest.approx(s["dihedral_min"]) and ang.min() >= 10.0
+    with capsys.disabled():
+        print("\npart, size 0.08, smooth=2, flips: " + ", ".join(
+            f"{k} {v['dihedral_min']:.2f}..{v['dihedral_max']:.2f}" for k, v in st.items())
+            + f" deg; {s['flips_23']} 2-3 and {s['flips_32']} 3-2 flips")
+
+
+def test_flips_must_be_a_bool():
+    with pytest.raises(ValueError, match="flips"):
+        wm.mesh_domain(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), size=0.3, flips=1)
