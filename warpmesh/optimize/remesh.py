@@ -603,6 +603,25 @@ class _Run:
         return self.collapse_pass(cand_mask=mask, limit_q=q_limit)
 
 
+#: the input's median distance to the target, in tolerances, beyond which the mesh is
+#: taken for one of another shape
+FAR_FROM_TARGET = 4.0
+
+
+def _check_on_target(target, points: np.ndarray, tolerance: float) -> None:
+    """Refuse a mesh that does not lie on the target (a sphere's mesh given a torus):
+    projecting it would not optimise it but replace it."""
+    d = target.estimate(points)
+    if not np.all(np.isfinite(d)):
+        raise ValueError("expected a 'shape' defined at the mesh's vertices, got NaN or infinite values at "
+                         f"{int((~np.isfinite(d)).sum())} of them")
+    median = float(np.median(d))
+    if median > FAR_FROM_TARGET * tolerance:
+        raise ValueError(f"expected a mesh of 'shape': half its vertices lie farther than {median:.3g} from "
+                         f"f = 0, {median / tolerance:.1f} tolerances ({tolerance:.3g}); pass the shape it was "
+                         "meshed from, or a larger 'tolerance'")
+
+
 def _run_setup(mesh: MeshLike, shape, bounds, size, tolerance, features, angle, fraction, simplifying):
     require_mesh(mesh)
     tri = mesh.triangles
@@ -635,6 +654,8 @@ def _run_setup(mesh: MeshLike, shape, bounds, size, tolerance, features, angle, 
             tolerance = 0.1 * mean_edge
     if not np.isfinite(tolerance) or tolerance <= 0:
         raise ValueError(f"expected a positive 'tolerance', got {tolerance!r}")
+    if isinstance(target, FunctionTarget):
+        _check_on_target(target, pts[used], tolerance)
     extent = float(np.linalg.norm(pts[used].max(0) - pts[used].min(0)))
     if simplifying:
         lo = mean_edge
