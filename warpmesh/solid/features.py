@@ -364,10 +364,11 @@ def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device):
                     q = tet_quality(pts, pair, device)
                     # the pair fills the old two with the cap added (b outside face u w a) or taken off
                     v_old = tet_quality(pts, tets[around], device)[:, 3].sum()
-                    v_cap = abs(_signed(pts, quad[i]))
+                    v_cap = abs(_signed(pts, quad[i])) / 6.0
                     v_new = v_old + (v_cap if outside else -v_cap)
                     fills = abs(q[:, 3].sum() - v_new) <= 1e-9 * max(v_old, 1e-300)
                     if fills and (q[:, 3] > 0).all() and q[:, 0].min() >= floor and q[:, 1].max() <= ceiling:
+                        busy[c[0]] = True
                         remove += [around[0], around[1]]
                         add += [pair[0], pair[1]]
                         new_tris += [pair[j][list(_FACES[0])][None] for j in range(2)]  # the face off c
