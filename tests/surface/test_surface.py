@@ -339,8 +339,10 @@ def test_flags_must_be_booleans(flag):
 def test_bad_types():
     with pytest.raises(TypeError, match="resolution"):
         wm.mesh_surface(wm.sphere(0.5), bounds=BOUNDS, resolution=8.5)
+    with pytest.raises(FileNotFoundError, match="no such image file or DICOM folder: 'sphere'"):
+        wm.mesh_surface("sphere", bounds=BOUNDS)  # a string is an image's path
     with pytest.raises(TypeError, match="source"):
-        wm.mesh_surface("sphere", bounds=BOUNDS)
+        wm.mesh_surface(object(), bounds=BOUNDS)
     with pytest.raises(TypeError, match="unexpected keyword"):
         wm.mesh_surface(wm.sphere(0.5), bounds=BOUNDS, resolution=8, method_name="mc")
 
