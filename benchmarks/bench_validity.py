@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -39,40 +38,12 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import warpmesh as wm  # noqa: E402
 from warpmesh.cells.intersections import count_self_intersecting_faces  # noqa: E402
 from warpmesh.cells.quality import triangle_angles, triangle_quality  # noqa: E402
-
-TETGEN = """
-import sys, numpy as np, tetgen
-d = np.load(sys.argv[1])
-tet = tetgen.TetGen(d["points"], d["faces"])
-tet.tetrahedralize(order=1, mindihedral=10, minratio=1.5, quiet=True)
-print("TETRAHEDRA", tet.grid.n_cells)
-"""
-
-GMSH = """
-import sys, gmsh
-gmsh.initialize()
-gmsh.option.setNumber("General.Terminal", 0)
-gmsh.merge(sys.argv[1])
-gmsh.model.mesh.createTopology()
-loop = gmsh.model.geo.addSurfaceLoop([tag for _, tag in gmsh.model.getEntities(2)])
-gmsh.model.geo.addVolume([loop])
-gmsh.model.geo.synchronize()
-gmsh.model.mesh.generate(3)
-print("TETRAHEDRA", sum(len(t) for t in gmsh.model.mesh.getElements(3)[1]))
-gmsh.finalize()
-"""
-
+from tests.helpers.mesher_clients import GMSH, TETGEN, run_client  # noqa: E402
 
 def client(script: str, path: str) -> str:
-    """A mesher's verdict on a file: "N tets", or its exit code and last error line."""
-    try:
-        run = subprocess.run([sys.executable, "-c", script, path], capture_output=True, text=True, timeout=900)
-    except subprocess.TimeoutExpired:
-        return "timeout (900 s)"
-    if run.returncode == 0 and "TETRAHEDRA" in run.stdout:
-        return f"{int(run.stdout.split('TETRAHEDRA')[1].split()[0]):,} tets"
-    last = (run.stderr.strip().splitlines() or run.stdout.strip().splitlines() or [""])[-1]
-    return f"FAILED ({run.returncode}): {last[:70]}"
+    """A mesher's verdict on a file: "N tets", or why it failed."""
+    n, why = run_client(script, path)
+    return f"{n:,} tets" if n is not None else f"FAILED ({why[:80]})"
 
 
 def pymeshlab_faces(points, faces) -> int | None:

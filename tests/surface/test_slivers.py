@@ -11,8 +11,6 @@ goes into TetGen and gmsh as it comes out of ``mesh_surface``.
 
 from __future__ import annotations
 
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -22,6 +20,7 @@ from warpmesh.kernels import block_grid as KB
 from warpmesh.kernels.emit import TYPE_DELTA
 
 import warpmesh as wm
+from tests.helpers.mesher_clients import GMSH as _GMSH, TETGEN as _TETGEN, run_client
 from warpmesh import _conventions as C
 from warpmesh.cells.intersections import count_self_intersecting_faces
 from warpmesh.cells.quality import triangle_angles, triangle_quality
@@ -68,37 +67,11 @@ def _extract(shape, bounds, resolution: int, method: str = "mc33", clearance: fl
     return verts.numpy().astype(np.float64) + lo, tris.numpy(), {k: v.numpy() for k, v in edges.items()}, grid
 
 
-_TETGEN = """
-import sys, numpy as np, tetgen
-d = np.load(sys.argv[1])
-tet = tetgen.TetGen(d["points"], d["faces"])
-tet.tetrahedralize(order=1, mindihedral=10, minratio=1.5, quiet=True)
-print("TETRAHEDRA", tet.grid.n_cells)
-"""
-
-_GMSH = """
-import sys, gmsh
-gmsh.initialize()
-gmsh.option.setNumber("General.Terminal", 0)
-gmsh.merge(sys.argv[1])
-gmsh.model.mesh.createTopology()
-loop = gmsh.model.geo.addSurfaceLoop([tag for _, tag in gmsh.model.getEntities(2)])
-gmsh.model.geo.addVolume([loop])
-gmsh.model.geo.synchronize()
-gmsh.model.mesh.generate(3)
-print("TETRAHEDRA", sum(len(t) for t in gmsh.model.mesh.getElements(3)[1]))
-gmsh.finalize()
-"""
-
-
 def _run_client(script: str, path) -> int:
-    """Run a mesher on a file in a subprocess (a crash must not take pytest down); the
-    number of tetrahedra it made."""
-    run = subprocess.run([sys.executable, "-c", script, str(path)], check=False, capture_output=True, text=True,
-                         timeout=900)
-    assert run.returncode == 0 and "TETRAHEDRA" in run.stdout, \
-        f"exit code {run.returncode}: {(run.stderr.strip().splitlines() or [''])[-1]}"
-    return int(run.stdout.split("TETRAHEDRA")[1].split()[0])
+    """The number of tetrahedra the mesher made (it must succeed)."""
+    n, why = run_client(script, path)
+    assert n is not None, why
+    return n
 
 
 # -- the bound, from the tables --------------------------------------------------------------
