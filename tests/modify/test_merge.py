@@ -393,3 +393,20 @@ def test_pairs_straddling_a_rounding_border_merge_unlike_trimesh():
     tm = trimesh.Trimesh(vertices=np.concatenate([a, a]), faces=np.arange(2 * n).reshape(-1, 3), process=False)
     tm.merge_vertices()
     assert len(tm.vertices) == n  # (and merges exact duplicates: the check above is not vacuous)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_an_empty_mesh_is_merges_identity(dim):
+    """Merging with a mesh that has no points gives the other mesh back (was a reshape error)."""
+    sq = tri_square(3)
+    pts = sq.points if dim == 2 else np.column_stack([sq.points, np.zeros(sq.n_points)])
+    m = Mesh(pts, {"triangle": sq.cells["triangle"]})
+    empty = Mesh(np.zeros((0, dim)), {"triangle": np.zeros((0, 3), dtype=np.int64)})
+    for a, b in [(m, empty), (empty, m)]:
+        out = merge(a, b)
+        assert np.array_equal(out.points, m.points)
+        assert np.array_equal(out.cells["triangle"], m.cells["triangle"])
+    both = merge(empty, empty)
+    assert both.n_points == 0 and both.n_cells == 0
+    with pytest.raises(ValueError, match="same dimension"):
+        merge(m, Mesh(np.zeros((0, 5 - dim)), {"triangle": np.zeros((0, 3), dtype=np.int64)}))

@@ -83,6 +83,10 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
     if check not in CHECKS:
         raise ValueError(f"expected 'check' among {list(CHECKS)}, got {check!r}")
     tol = default_tolerance(a.points, b.points) if tolerance is None else _check_tolerance(tolerance)
+    if b.n_points == 0:  # an empty mesh is merge's identity: nothing to match, nothing to add
+        return a, np.zeros(0, dtype=INDEX_DTYPE)
+    if a.n_points == 0:
+        return b, np.arange(b.n_points, dtype=INDEX_DTYPE)
     top, blocks_a, blocks_b = _euler_check_dims(a, b)
     n1, n2 = a.n_points, b.n_points
     ra = rb = None

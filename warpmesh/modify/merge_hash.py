@@ -79,9 +79,11 @@ def default_tolerance(*point_sets) -> float:
     >>> float(default_tolerance([[0.0, 0.0], [2.0, 1.0]], [[4.0, 0.0]]) / 1e-8)
     4.0
     """
-    pts = np.concatenate([np.asarray(p, dtype=REAL_DTYPE).reshape(len(p), -1) for p in point_sets])
-    if len(pts) == 0:
+    sets = [np.asarray(p, dtype=REAL_DTYPE) for p in point_sets]
+    sets = [p.reshape(len(p), -1) for p in sets if p.size]  # an empty set adds nothing to the box
+    if not sets:
         return RELATIVE_TOLERANCE
+    pts = np.concatenate(sets)
     delta = float((pts.max(axis=0) - pts.min(axis=0)).max())
     if delta == 0.0:  # one point (or all coincident): relative to the coordinates' size
         delta = max(float(np.abs(pts).max()), 1.0)
