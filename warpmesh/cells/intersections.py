@@ -33,6 +33,7 @@ import os
 import numpy as np
 import warp as wp
 
+from warpmesh._util.validate import check_device
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.parallel import run_parallel
 from warpmesh.cells.types import points3, require_mesh
@@ -115,6 +116,7 @@ def find_self_intersections(points, triangles, *, device: str = "cpu", workers: 
     """
     pts, tris = _validate(points, triangles)
     n_workers = _check_workers(workers)
+    device = check_device(device)
     if len(tris) < 2:
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
     with wp.ScopedDevice(device):
@@ -186,6 +188,7 @@ def find_degenerate_faces(points, triangles, *, device: str = "cpu") -> np.ndarr
     array([1, 2])
     """
     pts, tris = _validate(points, triangles)
+    device = check_device(device)
     if len(tris) == 0:
         return np.zeros(0, dtype=INDEX_DTYPE)
     with wp.ScopedDevice(device):

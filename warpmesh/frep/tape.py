@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from warpmesh._util.validate import check_device
 from warpmesh.frep.codegen import EVALUATORS, Evaluator, generated_kernel
 from warpmesh._util.parallel import parallel_ranges, run_parallel
 from warpmesh.frep.expr import Expr, Param, check_values, last_uses, origin
@@ -288,6 +289,7 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu",
     [[1.0, 0.0, 0.0, -1.0]]
     """
     tape = tape_of(shape)
+    device = check_device(device)
     pts = points_array(points, device)
     if gradient:
         if evaluator != "auto":
@@ -312,6 +314,7 @@ def evaluate_interval(shape, lo, hi, *, device: str = "cpu") -> np.ndarray:
     [[-inf, inf]]
     """
     tape = tape_of(shape)
+    device = check_device(device)
     blo, bhi = points_array(lo, device), points_array(hi, device)
     if blo.shape != bhi.shape:
         raise ValueError(f"expected 'lo' and 'hi' of one shape, got {blo.shape} and {bhi.shape}")

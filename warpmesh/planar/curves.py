@@ -36,6 +36,7 @@ from typing import Literal
 
 import numpy as np
 
+from warpmesh._util.validate import check_device
 from warpmesh.frep.planar_field import PlanarField
 from warpmesh.planar.samplers.sample import CurveSample
 from warpmesh.mesh import Mesh
@@ -162,6 +163,7 @@ def mesh_curve(shape, bounds, *, method: CurveMethod = "continuation", tolerance
     >>> m.stats()["components"]
     1
     """
+    device = check_device(device)
     t0 = time.perf_counter()
     field, sample = sample_curve(shape, bounds, method=method, tolerance=tolerance, device=device, **options)
     t1 = time.perf_counter()
@@ -233,6 +235,7 @@ def mesh_domain(shape, bounds, *, size: float | None = None, tolerance: float = 
     (2.6, True)
     """
     _check_options(mesh_domain_from_boundary, options, "mesh_domain")
+    device = check_device(device)
     field = PlanarField(shape, bounds, device=device)
     h = field.size / 20 if size is None else size
     if not (isinstance(h, (int, float, np.floating)) and not isinstance(h, bool) and h > 0 and math.isfinite(h)):

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import time
 
+from warpmesh._util.validate import check_device
 from warpmesh import _conventions as C
 from warpmesh.frep.expr import check_values
 from warpmesh.frep.shapes import as_shape
@@ -86,7 +87,7 @@ class Preview:
         self.shape = as_shape(shape)
         self.params = dict(self.shape.params)
         self.values = {name: p.value for name, p in self.params.items()}
-        self.device = device
+        self.device = check_device(device)
         self._options = dict(bounds=bounds, resolution=resolution, **options)
         if not options.get("adaptive"):  # the octree evaluates pruned tapes: no method, no evaluator
             self._options.update(method=method, evaluator=evaluator)

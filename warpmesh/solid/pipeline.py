@@ -25,6 +25,7 @@ import time
 import numpy as np
 
 from warpmesh import _conventions as C
+from warpmesh._util.validate import check_device
 from warpmesh._util.validate import check_box
 from warpmesh.frep.expr import Expr
 from warpmesh.frep.shapes import Shape, as_shape
@@ -124,6 +125,7 @@ def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: 
     if not isinstance(shape, (Shape, Expr)):
         raise TypeError(f"expected a Shape or an Expr for 'shape', got {type(shape).__name__}")
     box = check_box(bounds)
+    device = check_device(device)
     if box.shape[1] == 2:
         if as_shape(shape).dim == 3:
             raise ValueError("expected 3-value 'bounds' ((x0, y0, z0), (x1, y1, z1)) for a 3D shape, "

@@ -26,6 +26,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh import _conventions as C
+from warpmesh._util.validate import check_device
 from warpmesh.errors import WarpMeshError
 from warpmesh.frep.expr import Expr
 from warpmesh.frep.shapes import Shape, as_shape
@@ -192,7 +193,7 @@ def mesh_surface(
         options = _options_from_keywords(source, covering, adaptive, keywords)
     else:
         _check_options(source, options, covering, adaptive, keywords)
-    device = wp.get_device(device)
+    device = check_device(device)
     check_choice(refs, "refs", REFS)
     if isinstance(options, VolumeOptions):
         if refs != "surface":
