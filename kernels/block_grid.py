@@ -42,10 +42,11 @@ def block_coords(b: int, nb: wp.vec3i):
 
 @wp.kernel
 def block_boxes_kernel(
-    nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
+    nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3, goff: wp.vec3i,
     box_lo: wp.array(dtype=wp.vec3), box_hi: wp.array(dtype=wp.vec3),
 ):
-    """One thread: the axis-aligned box spanned by the nodes of one block."""
+    """One thread: the axis-aligned box spanned by the nodes of one block (node g of the
+    grid at origin + (g + goff) h, as ``node_point``)."""
     b = wp.tid()
     c = block_coords(b, nb)
     lo = wp.vec3(0.0)
@@ -53,8 +54,8 @@ def block_boxes_kernel(
     for a in range(3):
         g0 = c[a] * _BLOCK
         g1 = wp.min(g0 + _BLOCK, n[a] - 1)
-        lo[a] = origin[a] + float(g0) * h[a]
-        hi[a] = origin[a] + float(g1) * h[a]
+        lo[a] = origin[a] + float(g0 + goff[a]) * h[a]
+        hi[a] = origin[a] + float(g1 + goff[a]) * h[a]
     box_lo[b] = lo
     box_hi[b] = hi
 
@@ -132,12 +133,14 @@ def fill_values_kernel(first: int, value: float, values: wp.array(dtype=wp.float
 
 
 @wp.func
-def node_point(c: wp.vec3i, li: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3):
-    """Coordinates of local node li of the block at c (clamped into the grid)."""
+def node_point(c: wp.vec3i, li: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3, goff: wp.vec3i):
+    """Coordinates of local node li of the block at c (clamped into the grid); a grid that
+    is a window of a larger one starting at its node goff passes that grid's origin, so
+    its nodes get the larger grid's coordinates bit for bit (goff = 0 otherwise)."""
     p = wp.vec3(0.0)
     for a in range(3):
         g = wp.min(c[a] * _BLOCK + li[a], n[a] - 1)
-        p[a] = origin[a] + float(g) * h[a]
+        p[a] = origin[a] + float(g + goff[a]) * h[a]
     return p
 
 
@@ -150,7 +153,7 @@ def node_points_kernel(ids: wp.array(dtype=wp.int64), n: wp.vec3i, origin: wp.ve
     nx = wp.int64(n[0])
     ny = wp.int64(n[1])
     g = wp.vec3i(int(q % nx), int((q / nx) % ny), int(q / (nx * ny)))
-    points[v] = node_point(wp.vec3i(0, 0, 0), g, n, origin, h)
+    points[v] = node_point(wp.vec3i(0, 0, 0), g, n, origin, h, wp.vec3i(0, 0, 0))
 
 
 @wp.func
@@ -169,14 +172,14 @@ _SUBS = wp.constant(SUBS)
 @wp.kernel
 def sub_boxes_kernel(
     slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3, h: wp.vec3,
-    box_lo: wp.array(dtype=wp.vec3), box_hi: wp.array(dtype=wp.vec3),
+    goff: wp.vec3i, box_lo: wp.array(dtype=wp.vec3), box_hi: wp.array(dtype=wp.vec3),
 ):
     """One thread per (slot, sub-block): the box spanned by the sub-block's nodes."""
     s, q = wp.tid()
     c = block_coords(slot_block[s], nb)
     sq = wp.vec3i(q % _SUB_SIDE, (q / _SUB_SIDE) % _SUB_SIDE, q / (_SUB_SIDE * _SUB_SIDE))
-    box_lo[s * _SUBS + q] = node_point(c, sq * _SUB, n, origin, h)
-    box_hi[s * _SUBS + q] = node_point(c, sq * _SUB + wp.vec3i(_SUB, _SUB, _SUB), n, origin, h)
+    box_lo[s * _SUBS + q] = node_point(c, sq * _SUB, n, origin, h, goff)
+    box_hi[s * _SUBS + q] = node_point(c, sq * _SUB + wp.vec3i(_SUB, _SUB, _SUB), n, origin, h, goff)
 
 
 @wp.func
@@ -243,7 +246,7 @@ def node_needs_kernel(
 @wp.kernel
 def needed_points_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, origin: wp.vec3,
-    h: wp.vec3, needs: wp.array(dtype=wp.int8), need_offset: wp.array(dtype=wp.int32),
+    h: wp.vec3, goff: wp.vec3i, needs: wp.array(dtype=wp.int8), need_offset: wp.array(dtype=wp.int32),
     points: wp.array(dtype=wp.vec3),
 ):
     """One thread per slot: the coordinates of its nodes to evaluate, compacted."""
@@ -252,7 +255,7 @@ def needed_points_kernel(
     out = need_offset[s]
     for l in range(_NODES):
         if needs[s * _NODES + l] != wp.int8(0):
-            points[out] = node_point(c, local_coords(l), n, origin, h)
+            points[out] = node_point(c, local_coords(l), n, origin, h, goff)
             out += 1
 
 

@@ -71,11 +71,16 @@ class BlockGrid:
     """The block-sparse grid of one extraction: its device arrays and the kernel launches
     (allocation, prefix sums, per-core splits), so that :func:`mesh_surface` reads as a pipeline."""
 
-    def __init__(self, n_nodes, origin, h, device, node_offset=(0, 0, 0), global_nodes=None):
+    def __init__(self, n_nodes, origin, h, device, node_offset=(0, 0, 0), global_nodes=None, global_origin=None):
         self.n = np.asarray(n_nodes, dtype=np.int64)
         # a slab of a larger grid: where its first node sits, and the whole grid's size
         # (vertex keys are node ids of the whole grid, so slabs weld exactly)
         self.wgoff = wp.vec3i(*[int(v) for v in node_offset])
+        # with the whole grid's origin, a shape is sampled at the whole grid's node coordinates
+        # (global_origin + (node_offset + g) h, bit for bit: bricks of warpmesh.distributed)
+        self.sample_at = (wp.vec3(*np.asarray(origin, dtype=np.float64).tolist()), wp.vec3i(0, 0, 0)) \
+            if global_origin is None else \
+            (wp.vec3(*np.asarray(global_origin, dtype=np.float64).tolist()), self.wgoff)
         self.wgn = wp.vec3i(*[int(v) for v in (self.n if global_nodes is None else global_nodes)])
         self.nb = np.maximum(1, -(-(self.n - 1) // K.BLOCK))
         self.n_blocks = int(np.prod(self.nb))
@@ -132,7 +137,8 @@ class BlockGrid:
         if cull:
             lo = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
             hi = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
-            self._launch(K.block_boxes_kernel, self.n_blocks, [self.wnb, self.wn, self.worigin, self.wh], [lo, hi])
+            self._launch(K.block_boxes_kernel, self.n_blocks, [self.wnb, self.wn, self.sample_at[0], self.wh,
+                                                               self.sample_at[1]], [lo, hi])
             intervals = eval_intervals(tape, lo, hi, device=self.device)
             self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [state])
             self.info["interval_evaluations"] = self.n_blocks
@@ -154,7 +160,8 @@ class BlockGrid:
                 lo = wp.empty(ne * K.SUBS, dtype=wp.vec3, device=dev)
                 hi = wp.empty(ne * K.SUBS, dtype=wp.vec3, device=dev)
                 self._launch(K.sub_boxes_kernel, (ne, K.SUBS), [self.slot_block, self.wnb, self.wn,
-                                                                self.worigin, self.wh], [lo, hi])
+                                                                self.sample_at[0], self.wh, self.sample_at[1]],
+                             [lo, hi])
                 intervals = eval_intervals(tape, lo, hi, device=dev)
                 states = wp.empty(ne * K.SUBS, dtype=wp.int32, device=dev)
                 self._per_slot(K.node_needs_kernel, [intervals], [states, self.values, needs, need_count], ne)
@@ -163,8 +170,8 @@ class BlockGrid:
             wp.utils.array_scan(need_count, need_offset, inclusive=False)
             n_pts = int(need_offset[ne - 1:].numpy()[0] + need_count[ne - 1:].numpy()[0])  # sync point
             pts = wp.empty(max(n_pts, 1), dtype=wp.vec3, device=dev)
-            self._per_slot(K.needed_points_kernel, [self.slot_block, self.wnb, self.wn, self.worigin, self.wh,
-                                                    needs, need_offset], [pts], ne)
+            self._per_slot(K.needed_points_kernel, [self.slot_block, self.wnb, self.wn, self.sample_at[0], self.wh,
+                                                    self.sample_at[1], needs, need_offset], [pts], ne)
             # choose once (and count this as one large run of the structure under "auto")
             used = "compiled" if codegen.generated_kernel(tape, dev, evaluator, n_pts) else "interpreter"
             self.info["evaluator"] = used
