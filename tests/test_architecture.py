@@ -24,7 +24,7 @@ KERNELS = ROOT / "kernels"
 
 #: the subpackages a user may reach as ``wm.<name>``, and the two top modules
 SUBPACKAGES = {"frep", "surface", "planar", "solid", "optimize", "modify", "numbering", "cells", "io", "preview", "cli",
-               "kernels"}
+               "distributed", "kernels"}
 TOP_MODULES = {"mesh", "errors"}
 #: expression functions named like builtins: reachable as wm.min etc., kept out of __all__
 BUILTIN_NAMES = {"abs", "min", "max"}

@@ -74,6 +74,12 @@ def mesh_surface(
     device: str = C.DEFAULT_DEVICE,
     params: dict | None = None,
     refs: Literal["surface", "primitives"] = "surface",
+    client=None,
+    bricks: tuple[int, int, int] | None = None,
+    brick_cells: int | None = None,
+    gather: bool = True,
+    output=None,
+    progress=True,
     **keywords,
 ) -> Mesh:
     """Triangulate the surface f = 0 of a shape, or an iso-surface of a sampled volume.
@@ -128,6 +134,21 @@ def mesh_surface(
         For a shape: values of its parameters (:func:`warpmesh.param`) for this run;
         the tape's constants change, not its structure (no compile). An unknown name
         or a value outside the parameter's [lo, hi] raises ValueError.
+    client : dask.distributed.Client, optional
+        Mesh brick by brick on this Dask cluster (:mod:`warpmesh.distributed`): a shape on
+        a grid or a volume (numpy, dask or zarr array, read brick by brick); the same
+        mesh as one process makes, seams welded on global grid-edge keys.
+    bricks, brick_cells : (3,) ints or int, optional
+        With ``client``: bricks per axis, or cells per brick side (a multiple of 8;
+        default 128).
+    gather : bool
+        With ``client``: return one Mesh (default), or, with False, a
+        :class:`~warpmesh.distributed.run.PartitionedMesh` of the pieces on disk.
+    output : str or os.PathLike, optional
+        With ``client``: a ``.pvtu`` path; one VTU piece per brick is written beside it as
+        bricks finish.
+    progress : bool or callable
+        With ``client``: a progress bar over the bricks, or ``progress(done, total)``.
     **keywords
         The fields of the chosen pipeline's group, by name. A keyword given as None
         takes its default. A keyword of another pipeline raises one ValueError that
@@ -186,6 +207,10 @@ def mesh_surface(
         if not isinstance(source, (Shape, Expr)):
             raise TypeError(f"'params' sets the parameters of a shape, got {type(source).__name__} for 'source'")
         source = source.with_params(params)
+    if client is not None:
+        return _mesh_bricked(source, options, covering, adaptive, device, refs, keywords, t_start, client=client,
+                             bricks=bricks, brick_cells=brick_cells, gather=gather, output=output, progress=progress)
+    _refuse_bricking(bricks=bricks, brick_cells=brick_cells, gather=gather, output=output, progress=progress)
     image = as_volume(source)  # a Volume, an image file or a pyvista ImageData; None for arrays and shapes
     if image is not None:
         return _mesh_image(image, options, covering, adaptive, device, keywords)
@@ -204,6 +229,43 @@ def mesh_surface(
         mesh = _mesh_adaptive(source, options, device, t_start)
     else:
         mesh = _mesh_grid(source, options, device, t_start)
+    return _tag_primitives(as_shape(source), mesh) if refs == "primitives" and mesh.n_cells else mesh
+
+
+def _refuse_bricking(**given) -> None:
+    """The bricking keywords mean nothing without a cluster."""
+    defaults = {"bricks": None, "brick_cells": None, "gather": True, "output": None, "progress": True}
+    for name, value in given.items():
+        if value is not defaults[name] and not (isinstance(value, bool) and value == defaults[name]):
+            raise ValueError(f"{name!r} applies to a run on a Dask cluster (client=...), got {name}={value!r} "
+                             "without 'client'")
+
+
+def _mesh_bricked(source, options, covering, adaptive, device, refs, keywords: dict, t_start: float, **run):
+    """``client=``: the options group as for one process, then :func:`warpmesh.distributed.run.mesh_bricks`."""
+    from warpmesh.distributed.run import mesh_bricks
+
+    if not (isinstance(source, (Shape, Expr)) or all(hasattr(source, a) for a in ("shape", "dtype", "ndim"))):
+        raise TypeError(f"with 'client', expected a Shape, an expression or a 3D numpy, dask or zarr array for "
+                        f"'source', got {type(source).__name__} (for an image, pass its values with spacing and "
+                        "origin)")
+    if adaptive or covering == "continuation" or isinstance(options, (AdaptiveOptions, ContinuationOptions)):
+        raise ValueError("'client' meshes a shape on the grid (covering='grid') or a volume; adaptive=True and "
+                         "covering='continuation' are not bricked")
+    if options is None:
+        options = _options_from_keywords(source, covering, adaptive, keywords)
+    else:
+        _check_options(source, options, covering, adaptive, keywords)
+    check_choice(refs, "refs", REFS)
+    if isinstance(options, VolumeOptions) and refs != "surface":
+        raise ValueError(f"refs={refs!r} tags the primitives of a shape; a volume's triangles carry its "
+                         "labels (labels=...)")
+    if refs == "primitives" and run["gather"] is False:
+        raise ValueError("refs='primitives' tags the gathered mesh: give gather=True with 'client'")
+    if isinstance(options, GridOptions) and options.normals:
+        raise ValueError("normals=True is not computed on bricks: with 'client' use normals=False (the gathered "
+                         "mesh's to_trimesh().vertex_normals gives them)")
+    mesh = mesh_bricks(source, options, device=device, **run)
     return _tag_primitives(as_shape(source), mesh) if refs == "primitives" and mesh.n_cells else mesh
 
 
