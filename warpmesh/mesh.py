@@ -337,20 +337,15 @@ class Mesh:
             "self_intersections",
         ):
             s[key] = None
-        if len(tri):
-            counts = self._edge_data[2]
-            s["watertight"] = bool(np.all(counts == 2))
-            s["manifold"] = bool(np.all(counts <= 2)) and _topo.is_vertex_manifold(
-                tri, self.n_points
-            )
-            s["oriented"] = _topo.is_consistently_oriented(tri)
-            s["euler"] = _topo.euler_characteristic(None, tri)
-            s["components"] = _topo.connected_components(tri)[0]
+        if len(tri):  # every topological figure from one pass over the half-edges
+            t = _topo.mesh_topology(tri, self.n_points)
+            for key in ("watertight", "manifold", "oriented", "euler", "components"):
+                s[key] = t[key]
             if s["watertight"] and s["manifold"] and s["oriented"]:
                 s["genus"] = (2 * s["components"] - s["euler"]) // 2
-            s["area"] = float(_topo.face_areas(self._points, tri).sum())
+            s["area"], volume = _topo.surface_measures(self._points, tri, volume=s["watertight"])
             if s["watertight"] and self.dim == 3:
-                s["volume"] = _topo.signed_volume(self._points, tri)
+                s["volume"] = volume
         if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
             s["components"] = components(self._cells["line"], self.n_points)[0]
         if len(tri) or ("line" in self._cells and self.dim == 2):

@@ -43,6 +43,8 @@ __all__ = [
     "face_areas",
     "degenerate_faces",
     "duplicate_faces",
+    "mesh_topology",
+    "surface_measures",
 ]
 
 
@@ -412,3 +414,177 @@ def duplicate_faces(faces) -> np.ndarray:
     mask = np.zeros(len(faces), dtype=bool)
     mask[order[1:][repeat]] = True
     return mask
+
+
+# ----------------------------------------------------------------------------- all at once
+def _half_edge_csr(flat: np.ndarray, dst: np.ndarray, n: int):
+    """(offsets, out_of, out_dst): the half-edges leaving each vertex, ascending, and
+    where each ends, by a counting sort (one bincount, one prefix sum, one scatter pass)."""
+    import warp as wp
+
+    from warpmesh.kernels import topology as KT
+
+    offsets = np.zeros(n + 1, np.int32)
+    np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
+    out_of, out_dst = np.empty(len(flat), np.int32), np.empty(len(flat), np.int32)
+    cursor = offsets[:-1].copy()
+    wp.launch(KT.scatter_half_edges_kernel, dim=1, inputs=[_wp(flat), _wp(dst), _wp(cursor)],
+              outputs=[_wp(out_of), _wp(out_dst)], device="cpu")
+    return offsets, out_of, out_dst
+
+
+def _wp(a: np.ndarray):
+    """A Warp CPU view of a contiguous numpy array (no copy)."""
+    import warp as wp
+
+    dtype = {np.dtype(np.int32): wp.int32, np.dtype(np.int8): wp.int8, np.dtype(np.float64): wp.float64}[a.dtype]
+    return wp.array(a, dtype=dtype, device="cpu", copy=False)
+
+
+def _per_item(kernel, n: int, inputs: list, outputs: list) -> None:
+    """Launch a kernel whose first argument is ``first`` over [0, n), split across the CPU cores."""
+    import warp as wp
+
+    from warpmesh._util.parallel import parallel_ranges, run_parallel
+
+    run_parallel(lambda a=a, b=b: wp.launch(kernel, dim=b - a, inputs=[a, *inputs], outputs=outputs, device="cpu")
+                 for a, b in parallel_ranges(n, "cpu"))
+    wp.synchronize_device("cpu")
+
+
+def mesh_topology(faces, n_points: int | None = None) -> dict:
+    """Every topological figure of a triangle mesh from one pass over its half-edges.
+
+    The half-edges are gathered per start vertex by a counting sort; each finds the
+    others of its undirected edge among those of its two end vertices (Warp kernels in
+    :mod:`warpmesh.kernels.topology`), so no sort or ``unique`` over the faces is
+    needed. The figures equal those of :func:`unique_edges`, :func:`is_watertight`,
+    :func:`is_edge_manifold`, :func:`is_vertex_manifold`,
+    :func:`is_consistently_oriented`, :func:`euler_characteristic` and
+    :func:`connected_components` (edge connectivity), which compute one each; a mesh
+    with a face that repeats a vertex is handed to those functions.
+
+    Parameters
+    ----------
+    faces : (m, 3) int
+    n_points : int, optional
+        Number of points (default: largest index + 1).
+
+    Returns
+    -------
+    dict
+        ``n_vertices`` (referenced by faces), ``n_edges`` (unique undirected),
+        ``n_boundary_edges`` (in one face), ``n_nonmanifold_edges`` (in more than two),
+        ``watertight`` (every edge in two faces; False without faces), ``edge_manifold``,
+        ``manifold`` (edges and vertices), ``oriented``, ``euler`` (V - E + F),
+        ``components`` (edge-connected).
+
+    Examples
+    --------
+    >>> t = mesh_topology([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    >>> t["watertight"], t["manifold"], t["oriented"], t["euler"], t["components"]
+    (True, True, True, 2, 1)
+    """
+    faces = _as_faces(faces)
+    m = len(faces)
+    n = _count(faces, n_points)
+    if m == 0:
+        return {"n_vertices": 0, "n_edges": 0, "n_boundary_edges": 0, "n_nonmanifold_edges": 0,
+                "watertight": False, "edge_manifold": True, "manifold": True, "oriented": True, "euler": 0,
+                "components": 0}
+    repeated = bool(np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
+                           | (faces[:, 2] == faces[:, 0])))
+    if repeated or 3 * m >= np.iinfo(np.int32).max or n >= np.iinfo(np.int32).max:
+        return _mesh_topology_by_functions(faces, n)
+    import warp as wp
+
+    from warpmesh._util.parallel import parallel_ranges, run_parallel
+    from warpmesh.kernels import topology as KT
+
+    wp.load_module(KT, device="cpu")  # once here, not in the worker threads
+    flat = faces.astype(np.int32).ravel()
+    dst = np.ascontiguousarray(faces[:, [1, 2, 0]], dtype=np.int32).ravel()  # where each half-edge ends
+    offsets, out_of, out_dst = _half_edge_csr(flat, dst, n)
+    rep, twin = np.empty(3 * m, np.int32), np.empty(3 * m, np.int32)
+    ranges = parallel_ranges(3 * m, "cpu")
+    tallies = np.zeros((len(ranges), 4), np.int32)  # one row per launch: no two threads add to one
+    run_parallel(lambda a=a, b=b, i=i: wp.launch(
+        KT.match_half_edges_kernel, dim=b - a,
+        inputs=[a, _wp(flat), _wp(dst), _wp(offsets), _wp(out_of), _wp(out_dst)],
+        outputs=[_wp(rep), _wp(twin), _wp(tallies[i])], device="cpu") for i, (a, b) in enumerate(ranges))
+    bad = np.empty(n, np.int8)
+    _per_item(KT.fan_check_kernel, n, [_wp(flat), _wp(offsets), _wp(out_of), _wp(twin)], [_wp(bad)])
+    parent = np.arange(m, dtype=np.int32)
+    count = np.zeros(1, np.int32)
+    wp.launch(KT.union_faces_kernel, dim=1, inputs=[_wp(rep)], outputs=[_wp(parent), _wp(count)], device="cpu")
+    wp.synchronize_device("cpu")  # sync point: the host reads count and the tallies
+    n_edges, n_boundary, heavy, repeats = (int(x) for x in tallies.sum(axis=0))
+    n_vertices = int(np.count_nonzero(offsets[1:] != offsets[:-1]))
+    return {"n_vertices": n_vertices, "n_edges": n_edges, "n_boundary_edges": n_boundary,
+            "n_nonmanifold_edges": heavy, "watertight": n_boundary == 0 and heavy == 0,
+            "edge_manifold": heavy == 0, "manifold": heavy == 0 and not bool(bad.any()), "oriented": repeats == 0,
+            "euler": n_vertices - n_edges + m, "components": int(count[0])}
+
+
+def _mesh_topology_by_functions(faces: np.ndarray, n: int) -> dict:
+    """:func:`mesh_topology` from the one-figure functions (faces with a repeated vertex)."""
+    _, _, counts = unique_edges(faces)
+    heavy = int(np.count_nonzero(counts > 2))
+    return {"n_vertices": len(_unique(faces)), "n_edges": len(counts),
+            "n_boundary_edges": int(np.count_nonzero(counts == 1)), "n_nonmanifold_edges": heavy,
+            "watertight": bool(np.all(counts == 2)), "edge_manifold": heavy == 0,
+            "manifold": heavy == 0 and is_vertex_manifold(faces, n), "oriented": is_consistently_oriented(faces),
+            "euler": euler_characteristic(None, faces), "components": connected_components(faces)[0]}
+
+
+def surface_measures(points, faces, *, volume: bool = True) -> tuple[float, float | None]:
+    """Total area of a triangle mesh and, for 3D points, the signed volume it encloses.
+
+    The sums of :func:`face_areas` and :func:`signed_volume` (the same centre), from one
+    pass over the faces (a Warp kernel for 3D points, split across the CPU cores); equal
+    to them up to rounding.
+
+    Parameters
+    ----------
+    points : (n, 2) or (n, 3) float
+    faces : (m, 3) int
+    volume : bool
+        Compute the volume too (3D only; meaningful for a closed surface).
+
+    Returns
+    -------
+    area : float
+    volume : float or None
+        None for 2D points or ``volume=False``.
+
+    Examples
+    --------
+    >>> tet = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]
+    >>> a, v = surface_measures([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], tet)
+    >>> round(a, 6), round(v, 12)
+    (2.366025, 0.166666666667)
+    """
+    points, faces = _as_points(points), _as_faces(faces)
+    m = len(faces)
+    if points.shape[1] == 2 or m == 0 or 3 * m >= np.iinfo(np.int32).max:
+        area = float(face_areas(points, faces).sum())
+        vol = signed_volume(points, faces) if volume and points.shape[1] == 3 else None
+        return area, vol
+    import warp as wp
+
+    from warpmesh.kernels import topology as KT
+
+    if int(faces.max()) >= len(points):
+        raise ValueError(f"expected indices in 'faces' below the number of points {len(points)}, "
+                         f"got {int(faces.max())}")
+    seen = np.zeros(len(points), bool)
+    seen[faces.ravel()] = True
+    used = points if seen.all() else points[seen]
+    centre = 0.5 * (used.min(axis=0) + used.max(axis=0))
+    wp.load_module(KT, device="cpu")
+    area, vol6 = np.empty(m, np.float64), np.empty(m, np.float64)
+    pts = wp.array(np.ascontiguousarray(points), dtype=wp.vec3d, device="cpu", copy=False)
+    _per_item(KT.face_measures_kernel, m, [pts, _wp(faces.astype(np.int32).ravel()), wp.vec3d(*centre)],
+              [_wp(area), _wp(vol6)])
+    return float(area.sum()), (float(vol6.sum() / 6.0) if volume else None)
+

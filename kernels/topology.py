@@ -1,0 +1,201 @@
+"""Half-edge topology of triangle meshes for the mesh statistics: twins of every
+half-edge, fans around every vertex, edge-connected components, face measures.
+
+Half-edge ``h = 3 f + j`` runs from ``faces[h]`` to ``faces[3 f + (j + 1) % 3]``
+(``faces`` flattened, the numbering of :mod:`warpmesh.cells.topology`). The host
+gathers the half-edges leaving each vertex into CSR (``offsets``, ``out_of``) by a
+counting sort, so a half-edge finds its partners among the few half-edges of its two
+end vertices: no sort of the edges. Faces with a repeated vertex are handled on the
+host (these kernels assume three distinct corners). The per-half-edge, per-vertex and
+per-face kernels take ``first`` so the host can split a launch across CPU cores; the
+counting-sort scatter and the union-find run on one thread.
+"""
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def next_half_edge(h: int) -> int:
+    """The half-edge after ``h`` in its face (its destination's corner)."""
+    if h % 3 == 2:
+        return h - 2
+    return h + 1
+
+
+@wp.func
+def prev_half_edge(h: int) -> int:
+    """The half-edge before ``h`` in its face (it ends where ``h`` starts)."""
+    if h % 3 == 0:
+        return h + 2
+    return h - 1
+
+
+@wp.kernel
+def scatter_half_edges_kernel(
+    faces: wp.array(dtype=wp.int32), dst: wp.array(dtype=wp.int32), cursor: wp.array(dtype=wp.int32),
+    out_of: wp.array(dtype=wp.int32), out_dst: wp.array(dtype=wp.int32),
+):
+    """One thread places every half-edge h at its start vertex's next free slot k
+    (``cursor`` starts at the CSR offsets; ascending within each vertex):
+    ``out_of[k] = h``, ``out_dst[k] = dst[h]`` (its end, so that the scans of a vertex's
+    half-edges read one contiguous run)."""
+    for h in range(faces.shape[0]):
+        u = faces[h]
+        k = cursor[u]
+        out_of[k] = h
+        out_dst[k] = dst[h]
+        cursor[u] = k + 1
+
+
+@wp.kernel
+def match_half_edges_kernel(
+    first: int, faces: wp.array(dtype=wp.int32), dst: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32),
+    out_of: wp.array(dtype=wp.int32), out_dst: wp.array(dtype=wp.int32),
+    rep: wp.array(dtype=wp.int32), twin: wp.array(dtype=wp.int32), tally: wp.array(dtype=wp.int32),
+):
+    """A thread takes half-edge h = first + tid, u -> v, and finds the other half-edges
+    of its undirected edge among those leaving u and v: ``rep[h]``, the smallest of
+    them (h == rep[h] once per edge), and ``twin[h]``, the other one when the edge has
+    two faces, -1 when it has one, -2 when more. ``tally`` (this launch's own) counts
+    edges, edges in one face, edges in more than two, and half-edges that repeat a
+    direction (inconsistent orientation)."""
+    h = first + wp.tid()
+    u = faces[h]
+    v = dst[h]
+    m = int(0)
+    s = int(0)
+    r = h
+    t = int(-1)
+    for k in range(offsets[u], offsets[u + 1]):
+        if out_dst[k] == v:
+            g = out_of[k]
+            m += 1
+            s += 1
+            r = wp.min(r, g)
+            if g != h:
+                t = g
+    for k in range(offsets[v], offsets[v + 1]):
+        if out_dst[k] == u:
+            g = out_of[k]
+            m += 1
+            r = wp.min(r, g)
+            t = g
+    rep[h] = r
+    if m == 2:
+        twin[h] = t
+    elif m == 1:
+        twin[h] = -1
+    else:
+        twin[h] = -2
+    if r == h:
+        wp.atomic_add(tally, 0, 1)
+        if m == 1:
+            wp.atomic_add(tally, 1, 1)
+        if m > 2:
+            wp.atomic_add(tally, 2, 1)
+    if s > 1:
+        wp.atomic_add(tally, 3, 1)
+
+
+@wp.func
+def walk_fan(faces: wp.array(dtype=wp.int32), twin: wp.array(dtype=wp.int32), v: int, start: int, leave: int,
+             limit: int) -> wp.vec2i:
+    """From the corner of half-edge ``start`` (leaving v), cross edge ``leave`` and go
+    on around v from corner to corner through the twins. Returns (corners met besides
+    ``start``, 1 if the walk came back to ``start``)."""
+    e = leave
+    met = int(0)
+    closed = int(0)
+    while met <= limit:
+        t = twin[e]
+        if t < 0:  # a boundary edge (no edge of v has more than two faces here)
+            break
+        c = t
+        if faces[t] == v:  # t leaves v: its corner is t, left by the edge into v
+            e = prev_half_edge(t)
+        else:  # t enters v: v's corner is the next half-edge, left by itself
+            c = next_half_edge(t)
+            e = c
+        if c == start:
+            closed = 1
+            break
+        met += 1
+    return wp.vec2i(met, closed)
+
+
+@wp.kernel
+def fan_check_kernel(
+    first: int, faces: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32),
+    out_of: wp.array(dtype=wp.int32), twin: wp.array(dtype=wp.int32), bad: wp.array(dtype=wp.int8),
+):
+    """A thread takes vertex v = first + tid and marks it non-manifold (``bad``) when an
+    edge through it has more than two faces or its faces do not form one fan: the walk
+    around v from its first corner, both ways, must meet all of its corners."""
+    v = first + wp.tid()
+    lo = offsets[v]
+    corners = offsets[v + 1] - lo
+    bad[v] = wp.int8(0)
+    if corners == 0:
+        return
+    for k in range(lo, lo + corners):
+        h = out_of[k]
+        if twin[h] == -2 or twin[prev_half_edge(h)] == -2:
+            bad[v] = wp.int8(1)
+            return
+    h0 = out_of[lo]
+    a = walk_fan(faces, twin, v, h0, h0, corners)
+    met = 1 + a[0]
+    if a[1] == 0:
+        b = walk_fan(faces, twin, v, h0, prev_half_edge(h0), corners)
+        met += b[0]
+    if met != corners:
+        bad[v] = wp.int8(1)
+
+
+@wp.func
+def find_root(parent: wp.array(dtype=wp.int32), x: int) -> int:
+    """Union-find root of ``x``, halving the path on the way."""
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    return x
+
+
+@wp.kernel
+def union_faces_kernel(rep: wp.array(dtype=wp.int32), parent: wp.array(dtype=wp.int32),
+                       count: wp.array(dtype=wp.int32)):
+    """One thread joins the face of every half-edge with the face of its edge's
+    representative (``parent`` starts as the identity), then counts the roots: the
+    edge-connected components."""
+    for h in range(rep.shape[0]):
+        r = rep[h]
+        if r != h:
+            a = find_root(parent, h // 3)
+            b = find_root(parent, r // 3)
+            if a < b:
+                parent[b] = a
+            elif b < a:
+                parent[a] = b
+    c = int(0)
+    for f in range(parent.shape[0]):
+        if parent[f] == f:
+            c += 1
+    count[0] = c
+
+
+@wp.kernel
+def face_measures_kernel(
+    first: int, points: wp.array(dtype=wp.vec3d), faces: wp.array(dtype=wp.int32), centre: wp.vec3d,
+    area: wp.array(dtype=wp.float64), volume6: wp.array(dtype=wp.float64),
+):
+    """A thread takes face f = first + tid: its area |(p1 - p0) x (p2 - p0)| / 2 and six
+    times the signed volume of the tetrahedron (centre, p0, p1, p2)."""
+    f = first + wp.tid()
+    p0 = points[faces[3 * f]]
+    p1 = points[faces[3 * f + 1]]
+    p2 = points[faces[3 * f + 2]]
+    c = wp.cross(p1 - p0, p2 - p0)
+    area[f] = wp.float64(0.5) * wp.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+    volume6[f] = wp.dot(p0 - centre, wp.cross(p1 - centre, p2 - centre))

@@ -1,0 +1,227 @@
+"""Mesh.stats() and warpmesh.cells.topology.mesh_topology against straightforward
+computations: a dict of edges, a walk around each vertex in Python, components by a
+breadth-first search, areas and volumes face by face (no warpmesh code in the oracle)."""
+
+from __future__ import annotations
+
+import itertools
+from collections import defaultdict, deque
+
+import numpy as np
+import pytest
+import trimesh
+
+from warpmesh.cells import topology as T
+from warpmesh.mesh import Mesh
+
+
+# ----------------------------------------------------------------------------- the oracle
+def oracle_topology(faces) -> dict:
+    faces = [tuple(int(x) for x in f) for f in np.asarray(faces).reshape(-1, 3)]
+    directed = defaultdict(int)
+    undirected = defaultdict(list)  # edge -> faces on it
+    corners = defaultdict(list)  # vertex -> faces around it
+    for fi, f in enumerate(faces):
+        for j in range(3):
+            a, b = f[j], f[(j + 1) % 3]
+            directed[(a, b)] += 1
+            undirected[(min(a, b), max(a, b))].append(fi)
+        for v in set(f):
+            corners[v].append(fi)
+    counts = {e: len(fs) for e, fs in undirected.items()}
+    bad = set()
+    for v, fs in corners.items():  # fans: faces around v joined through edges through v
+        if any(counts[(min(v, w), max(v, w))] > 2 for f in fs for w in faces[f] if w != v):
+            bad.add(v)
+            continue
+        seen, todo = {fs[0]}, [fs[0]]
+        while todo:
+            f = todo.pop()
+            for w in faces[f]:
+                if w == v:
+                    continue
+                for g in undirected[(min(v, w), max(v, w))]:
+                    if g not in seen:
+                        seen.add(g)
+                        todo.append(g)
+        if len(seen) != len(set(fs)):
+            bad.add(v)
+    adjacency = defaultdict(set)  # faces sharing an edge
+    for fs in undirected.values():
+        for f, g in itertools.combinations(fs, 2):
+            adjacency[f].add(g)
+            adjacency[g].add(f)
+    label, n_comp = {}, 0
+    for start in range(len(faces)):
+        if start in label:
+            continue
+        label[start] = n_comp
+        queue = deque([start])
+        while queue:
+            f = queue.popleft()
+            for g in adjacency[f]:
+                if g not in label:
+                    label[g] = n_comp
+                    queue.append(g)
+        n_comp += 1
+    n_vertices = len({v for f in faces for v in f})
+    return {
+        "n_vertices": n_vertices,
+        "n_edges": len(counts),
+        "n_boundary_edges": sum(c == 1 for c in counts.values()),
+        "n_nonmanifold_edges": sum(c > 2 for c in counts.values()),
+        "watertight": bool(faces) and all(c == 2 for c in counts.values()),
+        "edge_manifold": all(c <= 2 for c in counts.values()),
+        "manifold": all(c <= 2 for c in counts.values()) and not bad,
+        "oriented": all(c == 1 for c in directed.values()),
+        "euler": n_vertices - len(counts) + len(faces),
+        "components": n_comp,
+    }
+
+
+def oracle_measures(points, faces) -> tuple[float, float]:
+    p = np.asarray(points, float)
+    used = p[np.unique(np.asarray(faces))]
+    centre = 0.5 * (used.min(axis=0) + used.max(axis=0))
+    area = volume = 0.0
+    for f in np.asarray(faces):
+        a, b, c = (p[i] for i in f)
+        if p.shape[1] == 2:
+            area += 0.5 * abs((b - a)[0] * (c - a)[1] - (b - a)[1] * (c - a)[0])
+            continue
+        area += 0.5 * float(np.sqrt(np.sum(np.cross(b - a, c - a) ** 2)))
+        volume += float(np.dot(a - centre, np.cross(b - centre, c - centre))) / 6.0
+    return area, volume
+
+
+# ----------------------------------------------------------------------------- meshes
+def _sphere():
+    tm = trimesh.creation.icosphere(subdivisions=2)
+    return np.asarray(tm.vertices), np.asarray(tm.faces)
+
+
+def _cases() -> dict:
+    pts, tri = _sphere()
+    n = len(pts)
+    flipped = tri.copy()
+    flipped[[3, 17]] = flipped[[3, 17]][:, ::-1]
+    two = (np.vstack([pts, pts + 3.0]), np.vstack([tri, tri + n]))
+    apex = np.array([[0, 0, 0], [1, 0, 1], [0, 1, 1], [-1, -1, 1], [1, 0, -1], [0, 1, -1], [-1, -1, -1]], float)
+    cones = [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2], [0, 5, 4], [0, 6, 5], [0, 4, 6], [4, 5, 6]]
+    fin = np.vstack([pts, [[0.0, 0.0, 3.0]]])
+    a, b = tri[0, 0], tri[0, 1]
+    torus = trimesh.creation.torus(1.0, 0.3)
+    return {
+        "closed sphere": (pts, tri),
+        "open sphere": (pts, tri[5:]),
+        "flipped faces": (pts, flipped),
+        "two spheres": two,
+        "two cones at one apex": (apex, np.array(cones)),
+        "three faces on an edge": (fin, np.vstack([tri, [[a, b, n]]])),
+        "duplicate face": (pts, np.vstack([tri, tri[:1]])),
+        "bowtie": (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0.0]]),
+                   np.array([[0, 1, 2], [0, 3, 4]])),
+        "repeated vertex": (pts, np.vstack([tri, [[0, 0, 1]]])),
+        "unused points": (np.vstack([pts, [[9.0, 9, 9]]]), tri),
+        "torus": (np.asarray(torus.vertices), np.asarray(torus.faces)),
+        "square 2D": (np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]]), np.array([[0, 1, 2], [0, 2, 3]])),
+    }
+
+
+CASES = _cases()
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_mesh_topology_equals_the_oracle(name):
+    points, faces = CASES[name]
+    assert T.mesh_topology(faces, len(points)) == oracle_topology(faces)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_mesh_topology_of_random_soups(seed):
+    """Random faces over few vertices: every kind of non-manifold and flipped edge."""
+    rng = np.random.default_rng(seed)
+    n = 12
+    faces = np.array([rng.choice(n, 3, replace=False) for _ in range(30 + 10 * seed)])
+    assert T.mesh_topology(faces, n) == oracle_topology(faces)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mesh_topology_of_pieces_of_a_sphere(seed):
+    """A sphere with random faces removed, some flipped, renumbered at random."""
+    pts, tri = _sphere()
+    rng = np.random.default_rng(seed)
+    keep = tri[rng.random(len(tri)) > 0.2]
+    flip = rng.random(len(keep)) < 0.05
+    keep[flip] = keep[flip][:, ::-1]
+    perm = rng.permutation(len(pts))
+    faces = perm[keep]
+    assert T.mesh_topology(faces, len(pts)) == oracle_topology(faces)
+
+
+def test_mesh_topology_agrees_with_the_one_figure_functions():
+    for name, (points, faces) in CASES.items():
+        t = T.mesh_topology(faces, len(points))
+        _, _, counts = T.unique_edges(faces)
+        assert t["n_edges"] == len(counts), name
+        assert t["watertight"] == T.is_watertight(faces), name
+        assert t["edge_manifold"] == T.is_edge_manifold(faces), name
+        assert t["manifold"] == (T.is_edge_manifold(faces) and T.is_vertex_manifold(faces, len(points))), name
+        assert t["oriented"] == T.is_consistently_oriented(faces), name
+        assert t["euler"] == T.euler_characteristic(None, faces), name
+        assert t["components"] == T.connected_components(faces)[0], name
+
+
+def test_mesh_topology_without_faces():
+    t = T.mesh_topology(np.zeros((0, 3), int))
+    assert (t["watertight"], t["euler"], t["components"]) == (False, 0, 0)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_surface_measures_equal_the_oracle(name):
+    points, faces = CASES[name]
+    area, volume = T.surface_measures(points, faces)
+    want_area, want_volume = oracle_measures(points, faces)
+    assert area == pytest.approx(want_area, rel=1e-12)
+    if np.shape(points)[1] == 3:
+        assert volume == pytest.approx(want_volume, rel=1e-12, abs=1e-14)
+    else:
+        assert volume is None
+
+
+def test_surface_measures_refuse_indices_beyond_the_points():
+    with pytest.raises(ValueError, match="'faces'"):
+        T.surface_measures(np.zeros((3, 3)), [[0, 1, 3]])
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_stats_equal_the_oracle(name):
+    points, faces = CASES[name]
+    s = Mesh(points, {"triangle": faces}).stats()
+    t = oracle_topology(faces)
+    area, volume = oracle_measures(points, faces)
+    for key in ("watertight", "manifold", "oriented", "euler", "components"):
+        assert s[key] == t[key], key
+    closed = t["watertight"] and t["manifold"] and t["oriented"]
+    assert s["genus"] == ((2 * t["components"] - t["euler"]) // 2 if closed else None)
+    assert s["area"] == pytest.approx(area, rel=1e-12)
+    if t["watertight"] and np.shape(points)[1] == 3:
+        assert s["volume"] == pytest.approx(volume, rel=1e-12, abs=1e-14)
+    else:
+        assert s["volume"] is None
+
+
+def test_stats_of_tetrahedra_with_boundary_triangles():
+    """Tetrahedra (volume from the cells) beside their closed boundary triangles."""
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1.0]])
+    tets = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+    tets[1] = tets[1][[1, 0, 2, 3]] if np.linalg.det(pts[tets[1, 1:]] - pts[tets[1, 0]]) < 0 else tets[1]
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 4], [1, 4, 3], [2, 3, 4]])
+    s = Mesh(pts, {"tetra": tets, "triangle": faces}).stats()
+    t = oracle_topology(faces)
+    assert (s["watertight"], s["manifold"], s["euler"], s["components"]) == (True, True, 2, 1) == (
+        t["watertight"], t["manifold"], t["euler"], t["components"])
+    assert s["oriented"] == t["oriented"]
+    want = sum(abs(np.linalg.det(pts[k[1:]] - pts[k[0]])) / 6.0 for k in tets)
+    assert s["volume"] == pytest.approx(want, rel=1e-12)
+    assert s["ne"] == 2 and s["n_triangles"] == 6
