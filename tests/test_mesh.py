@@ -517,6 +517,41 @@ def test_load_empty_file(tmp_path):
         load(path)
 
 
+def _tri_sphere() -> Mesh:
+    t = trimesh.creation.icosphere(subdivisions=2)
+    return Mesh(np.asarray(t.vertices), {"triangle": np.asarray(t.faces)})
+
+
+@pytest.mark.parametrize("ext", list(ROUND_TRIPS))
+def test_load_truncated_file(tmp_path, ext):
+    """A file cut anywhere is a ReadError naming it, or (OBJ cut at a line end in its faces: the
+    format has no terminator) a mesh of some of the faces; never points without cells (issue 19)."""
+    mesh = _tri_sphere()
+    data = mesh.save(tmp_path / f"whole{ext}").read_bytes()
+    faces = {tuple(sorted(f)) for f in mesh.cells["triangle"].tolist()}
+    for cut in np.linspace(0.03, 0.97, 25):
+        path = tmp_path / f"cut{ext}"
+        path.write_bytes(data[: int(len(data) * cut)])
+        try:
+            part = load(path)
+        except ReadError as error:
+            assert "cut" in str(error)
+            continue
+        assert ext == ".obj" and part.n_cells > 0, (ext, cut)
+        assert {tuple(sorted(f)) for f in part.cells["triangle"].tolist()} <= faces
+
+
+def test_load_ply_with_a_truncated_header_does_not_hang(tmp_path):
+    """meshio's PLY reader reads lines until 'end_header' forever; warpmesh refuses the file first."""
+    path = tmp_path / "head.ply"
+    path.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 54\nproperty double x\n")
+    script = f"import warpmesh as wm\ntry:\n    wm.load({str(path)!r})\nexcept wm.ReadError as e:\n    print(e)\n"
+    import subprocess
+    import sys
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert "end_header" in run.stdout, run.stderr
+
+
 def test_load_invalid_mesh_in_a_file(tmp_path):
     path = tmp_path / "bad.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")

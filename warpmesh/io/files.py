@@ -414,6 +414,7 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     if not path.exists():
         raise FileNotFoundError(errno.ENOENT, "no such mesh file", str(path))
     reader = reader_map[fmt.name]  # the format's own: meshio.read calls sys.exit
+    _check_complete(path, fmt.name)
     try:
         with warnings.catch_warnings():
             # meshio's binary-STL probe overflows on ascii files
@@ -422,6 +423,7 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     except Exception as exc:  # meshio raises ReadError, ValueError, UnicodeError, IndexError, ...
         if fmt.name in ("vtk", "vtu"):  # VTK's own reader knows what meshio's does not (64-bit ids)
             mesh = _read_with_vtk(path, mesh_type, exc)
+            _check_cells(mesh, path, fmt.name)
             return mesh if dim in (None, mesh.dim) else mesh.replace(points=set_dim(np.asarray(mesh.points), dim))
         raise ReadError(
             f"could not read {str(path)!r} as {fmt.name}: {type(exc).__name__}: {exc}"
@@ -433,9 +435,47 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
         mesh = from_meshio(m, mesh_type=mesh_type)
     except (ValueError, TypeError) as exc:
         raise ReadError(f"could not read {str(path)!r} as {fmt.name}: invalid mesh: {exc}") from exc
+    _check_cells(mesh, path, fmt.name)
     if dim in (None, mesh.dim):
         return mesh
     return mesh.replace(points=set_dim(np.asarray(mesh.points), dim))
+
+
+#: bytes of a PLY file searched for the end of its header (headers are a few hundred bytes)
+PLY_HEADER_BYTES = 1 << 16
+
+
+def _check_complete(path: Path, fmt_name: str) -> None:
+    """A ReadError for the truncations a reader would take for a mesh or hang on:
+
+    - an OBJ file whose last line has no newline: the format has no terminator, so a file
+      cut inside a face line (``f 12 3`` of ``f 12 35 4``) would read as a wrong face;
+    - a PLY file whose header never ends: meshio's PLY reader waits for ``end_header`` forever.
+    """
+    if fmt_name == "obj":
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            size = f.tell()
+            f.seek(max(size - 1, 0))
+            last = f.read(1)
+        if size and last not in (b"\n", b"\r"):
+            raise ReadError(f"could not read {str(path)!r} as obj: its last line has no newline, so it may be "
+                            "cut (a truncated file?); if the file is whole, end it with a newline")
+    if fmt_name != "ply":
+        return
+    with open(path, "rb") as f:
+        head = f.read(PLY_HEADER_BYTES)
+    if head.startswith(b"ply") and b"end_header" not in head:
+        raise ReadError(f"could not read {str(path)!r} as ply: the header has no 'end_header' line in its "
+                        f"first {len(head)} bytes (a truncated file?)")
+
+
+def _check_cells(mesh: MeshLike, path: Path, fmt_name: str) -> None:
+    """A ReadError for points without cells: what a truncated file (OBJ, VTK, Gmsh cut after
+    its vertices) reads as; warpmesh reads meshes, not point clouds."""
+    if mesh.n_points and not mesh.n_cells:
+        raise ReadError(f"could not read {str(path)!r} as {fmt_name}: the file holds {mesh.n_points} points "
+                        "and no cells (a truncated file, or a point cloud: warpmesh reads meshes)")
 
 
 def _read_with_vtk(path: Path, mesh_type, first: Exception) -> MeshLike:
