@@ -80,7 +80,7 @@ def axis_cuts(cells: int, bricks: int | None = None, brick_cells: int | None = N
     on a block boundary.
 
     >>> axis_cuts(100, bricks=3), axis_cuts(100, brick_cells=32)
-    ([0, 32, 64, 100], [0, 32, 64, 96, 100])
+    ([0, 32, 72, 100], [0, 32, 64, 96, 100])
     """
     if brick_cells is not None:
         return list(range(0, cells, brick_cells)) + [cells]
@@ -109,20 +109,37 @@ def layout(cells, bricks=None, brick_cells=None) -> list[Brick]:
     return out
 
 
+def key_nodes(keys: np.ndarray, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The global node (m, 3) and direction (m, 3) of each vertex's grid edge, from its key
+    ``node * 8 + type``, and which vertices are interior ones (type ``CENTER``, no edge)."""
+    cells = np.asarray(cells, dtype=np.int64)
+    nx, ny = cells[0] + 1, cells[1] + 1
+    kind = keys & 7
+    node = (keys >> 3) & ((1 << 53) - 1)  # bits 56 and up: the slot of an interior vertex
+    g = np.stack([node % nx, node // nx % ny, node // (nx * ny)], axis=1)
+    return g, KE.TYPE_DELTA[kind].astype(np.int64), kind == KE.CENTER
+
+
+def edge_ends(keys: np.ndarray, cells, h) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """float32 ends (p0, p1) of each vertex's grid edge relative to the global grid's origin,
+    rounded operation by operation as ``kernels.emit.crossing`` computes them in one process
+    (so a root refined from them sees the same points, bit for bit); and the interior mask."""
+    g, d, interior = key_nodes(keys, cells)
+    h32 = np.asarray(h, dtype=np.float64).astype(np.float32)
+    p0 = g.astype(np.float32) * h32
+    return p0, p0 + d.astype(np.float32) * h32, interior
+
+
 def on_seams(keys: np.ndarray, brick: Brick, cells) -> np.ndarray:
     """Which vertices (by global key ``node * 8 + type``) lie on an edge in a seam plane of
     the brick: a face of its core that is not a face of the whole grid. Interior vertices
     (type ``CENTER``) never do."""
     cells = np.asarray(cells, dtype=np.int64)
-    nx, ny = cells[0] + 1, cells[1] + 1
-    kind = keys & 7
-    node = (keys >> 3) & ((1 << 53) - 1)  # bits 56 and up: the slot of an interior vertex
-    g = (node % nx, node // nx % ny, node // (nx * ny))
-    delta = KE.TYPE_DELTA[np.minimum(kind, len(KE.TYPE_DELTA) - 1)]
+    g, delta, interior = key_nodes(keys, cells)
     seam = np.zeros(len(keys), dtype=bool)
     for a in range(3):
         flat = delta[:, a] == 0  # the edge lies in a plane normal to axis a
         for plane in (brick.lo[a], brick.hi[a]):
             if 0 < plane < cells[a]:
-                seam |= flat & (g[a] == plane)
-    return seam & (kind != KE.CENTER)
+                seam |= flat & (g[:, a] == plane)
+    return seam & ~interior

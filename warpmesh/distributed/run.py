@@ -41,7 +41,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh import _conventions as C
-from warpmesh.distributed.bricks import BLOCK, Brick, layout, on_seams
+from warpmesh.distributed.bricks import BLOCK, Brick, edge_ends, layout, on_seams
 from warpmesh.distributed.output import output_paths, piece_path, write_piece, write_pvtu
 from warpmesh.distributed.seams import BrickMesh, weld
 from warpmesh.errors import WarpMeshError
@@ -283,10 +283,17 @@ class _ShapeJob:
         verts, tris, edges = grid.extract(opts.method, cap, timings, _core_cells(grid, lo_node, brick),
                                           clearance=opts.clearance)
         verts, tris, edges = _drop_unused(verts, tris, edges)
+        frame = origin  # where the float32 positions are measured from
         if opts.root != "linear" and len(verts):
-            refine_roots(tape, verts, edges, grid.worigin, opts.root, opts.root_iterations, timings, opts.evaluator,
-                         opts.gradient, grid.h)
-        points = verts.numpy().astype(C.REAL_DTYPE) + origin  # sync point: results to the host
+            # the edges' ends in the global grid's frame, as one process has them: the root finder
+            # evaluates f at the same points, so the roots are the same bit for bit
+            p0, p1, interior = edge_ends(edges["key"].numpy(), cells, self.h)
+            p0[interior] = p1[interior] = verts.numpy()[interior] + (origin - self.lo).astype(np.float32)
+            edges["p0"], edges["p1"] = (wp.array(p, dtype=wp.vec3, device=dev) for p in (p0, p1))
+            refine_roots(tape, verts, edges, wp.vec3(*self.lo.tolist()), opts.root, opts.root_iterations, timings,
+                         opts.evaluator, opts.gradient, grid.h)
+            frame = self.lo
+        points = verts.numpy().astype(C.REAL_DTYPE) + frame  # sync point: results to the host
         faces = tris.numpy().astype(C.INDEX_DTYPE)
         if len(faces) and faces.min() < 0:
             raise WarpMeshError(f"{brick.describe(self.lo, self.h)}: a block culled as uniform holds a crossing "

@@ -15,7 +15,7 @@ Example
 >>> b = BrickMesh(np.ones((3, 3)), np.array([[0, 2, 1]]), None, np.array([0, 1]), np.array([11, 10]))
 >>> points, faces, refs = weld([a, b])
 >>> len(points), faces.tolist()
-(4, [[0, 1, 2], [3, 1, 2]])
+(4, [[0, 1, 2], [2, 3, 1]])
 """
 
 from __future__ import annotations
