@@ -541,7 +541,8 @@ def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
         if label is not None and vmax <= 0.0:
             raise ValueError(f"expected label {label} in 'volume', got no sample equal to it")
         if cap and len(faces):
-            info["enclosed_volume"] = info.get("enclosed_volume", 0.0) + check_closed_outward(points, faces)
+            info["enclosed_volume"] = info.get("enclosed_volume", 0.0) + check_closed_outward(
+                points, faces, info.pop("signed_volume", None))
             info["orientation"] = "outward (closed, positive enclosed volume)"
         capped = (flags & 4) != 0
         refs = np.where(capped[faces].all(axis=1), CAP_REF, SURFACE_REF) if label is None else \

@@ -1,8 +1,20 @@
 """Iso-surfaces and label surfaces of sampled volumes, in bounded memory.
 
-The volume is processed in *slabs* along its first axis (contiguous in a C-order array):
-each slab of ``s + 1`` node planes is converted to float32 on its own (a label volume
-becomes the indicator field of one label), culled, sampled and emitted by the block grid
+Two engines give the same triangles (tests/surface/test_volume_rows.py):
+
+*Rows* (:func:`extract_rows`, "mc" and "mc33" on float32, uint8 and bool volumes, and
+labels of any integer volume): flying edges over the array read in place
+(:mod:`warpmesh.kernels.flying_edges`). One pass reads every sample and keeps each
+node's class as a bit; the counting pass, the prefix sums and the emission work on those
+bits and read values only where an edge crosses, one vertex per crossing edge, so there
+is nothing to weld. Extra memory: one bit per sample and a few integers per row (a
+label of a volume that is not uint8 adds its one-byte indicator). The launches go over
+the rows slab by slab (``slab_voxels`` samples each), split across cores.
+
+*Slabs* (:func:`extract_slabs`, every other case: "mt", float64 or integer values): the
+volume is processed in slabs along its first axis (contiguous in a C-order array): each
+slab of ``s + 1`` node planes is converted to float32 on its own (a label volume becomes
+the indicator field of one label), culled, sampled and emitted by the block grid
 pipeline, and its output kept on the host. Consecutive slabs share one node plane; the
 vertices on it are emitted by both with identical values, and every vertex carries the
 key ``node * 8 + type`` of its grid edge in the *whole* grid, so welding the seams is an
@@ -27,10 +39,15 @@ import time
 
 import numpy as np
 
+import warp as wp
+
 from warpmesh import _conventions as C
-from warpmesh.surface.block_grid import BlockGrid
+from warpmesh._util.parallel import parallel_ranges, run_parallel
 from warpmesh.errors import WarpMeshError
 from warpmesh.kernels import block_grid as KB
+from warpmesh.kernels import flying_edges as KF
+from warpmesh.kernels import emit as KE
+from warpmesh.surface.block_grid import BlockGrid, check_clearance, method_tables
 
 #: default slab size: 16 M samples (64 MB as float32) per pass
 SLAB_VOXELS = 1 << 24
@@ -95,12 +112,142 @@ def check_label_range(values: np.ndarray) -> None:
         raise ValueError(f"expected labels that fit int64 triangle refs, got {big}")
 
 
+#: the dtypes the row pass reads in place (others go through float32 copies, slab by slab)
+ROW_DTYPES = (np.dtype(np.float32), np.dtype(np.uint8), np.dtype(np.bool_))
+ENGINES = ("auto", "rows", "slabs")
+
+
 def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool,
                    cull: bool, device, slab_voxels: int, label=None, timings: dict, info: dict,
-                   clearance: float = C.NODE_CLEARANCE):
+                   clearance: float = C.NODE_CLEARANCE, engine: str = "auto"):
     """Points (float64), triangles, per-vertex edge flags and the value range of one
-    field of the volume (the indicator of ``label`` when given), slab by slab;
-    ``clearance`` as :meth:`BlockGrid.extract`."""
+    field of the volume (the indicator of ``label`` when given); ``clearance`` as
+    :meth:`BlockGrid.extract`.
+
+    ``engine`` "rows" (:func:`extract_rows`: flying edges over the array read in place,
+    for "mc" and "mc33") or "slabs" (:func:`extract_slabs`: the block grid on float32
+    copies of slabs, welded); "auto" takes "rows" wherever it applies: "mc" or "mc33" on
+    a float32, uint8 or bool volume, or a label of an integer volume (its indicator as
+    uint8). Both give the same triangles and vertices (tests/surface/test_volume_rows.py).
+    """
+    if engine not in ENGINES:
+        raise ValueError(f"expected 'engine' in {list(ENGINES)}, got {engine!r}")
+    rows = method in ("mc", "mc33") and (vol.dtype in ROW_DTYPES or label is not None)
+    if engine == "rows" and not rows:
+        raise ValueError(f"the row pass meshes \"mc\" and \"mc33\" on float32, uint8 or bool volumes (or "
+                         f"labels), got method {method!r} on dtype {vol.dtype}")
+    if engine == "slabs" or not rows:
+        return extract_slabs(vol, origin, spacing, level=level, sign=sign, method=method, cap=cap, cull=cull,
+                             device=device, slab_voxels=slab_voxels, label=label, timings=timings, info=info,
+                             clearance=clearance)
+    return extract_rows(vol, origin, spacing, level=level, sign=sign, method=method, cap=cap, device=device,
+                        slab_voxels=slab_voxels, label=label, timings=timings, info=info, clearance=clearance)
+
+
+def extract_rows(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool, device,
+                 slab_voxels: int, label=None, timings: dict, info: dict, clearance: float = C.NODE_CLEARANCE):
+    """:func:`extract_volume` by flying edges (:mod:`warpmesh.kernels.flying_edges`): the
+    array read in place (a copy only when it is not C-contiguous, or a label's uint8
+    indicator for a volume of another integer dtype), every pass a launch over rows
+    split across cores, slab by slab of ``slab_voxels`` samples; one vertex per crossing
+    edge, so nothing is welded. Sync points: the rows' value ranges (validation) and
+    the output sizes."""
+    clearance = check_clearance(clearance)
+    t0 = time.perf_counter()
+    wp.load_module(KF, device=device)  # compile/load once here, not in worker threads
+    dev = wp.get_device(device)
+    n = tuple(int(v) for v in vol.shape)
+    mode, lab = KF.MODE_FLOAT, -1
+    if label is not None and vol.dtype != np.uint8:  # the indicator of the label, one byte a sample
+        vol, label = np.equal(vol, label).view(np.uint8), None
+    if vol.dtype == np.float32:
+        host_f, host_u = np.ascontiguousarray(vol), np.zeros((1, 1, 1), np.uint8)
+    else:
+        mode = KF.MODE_UINT8 if label is None else KF.MODE_LABEL
+        lab = int(label) if label is not None and 0 <= int(label) <= 255 else -1  # -1: never equal
+        host_f, host_u = np.zeros((1, 1, 1), np.float32), np.ascontiguousarray(vol).view(np.uint8)
+    # on the CPU Warp reads the numpy buffers in place; elsewhere they are uploaded once
+    vf = wp.array(host_f, dtype=wp.float32, device=dev, copy=not dev.is_cpu)
+    vu = wp.array(host_u, dtype=wp.uint8, device=dev, copy=not dev.is_cpu)
+    timings["upload"] = timings.get("upload", 0.0) + time.perf_counter() - t0
+    t0 = time.perf_counter()
+    n_rows = n[0] * n[1]
+    wn = wp.vec3i(*n)
+    cap_mask = KB.ALL_FACES if cap else 0
+    common = [vf, vu, mode, lab, float(level), float(sign), cap_mask, wn]
+    ints = {k: wp.empty(n_rows, dtype=wp.int32, device=dev) for k in
+            ("bad", "count_i", "count_j", "vcount", "tcount", "ccount", "moved")}
+    ranges = wp.empty(n_rows, dtype=wp.vec2, device=dev)
+    words = -(-n[2] // KF.WORD_BITS)
+    classes = wp.empty(n_rows * words, dtype=wp.uint64, device=dev)  # the nodes' classes, a bit each
+    planes = [(a, b if b < n[0] - 1 else n[0]) for a, b in slab_ranges(n[0], n[1] * n[2], slab_voxels)]
+
+    def per_row(kernel, inputs, outputs):  # planes [a, b) (the last slab takes plane n0 - 1), split across cores
+        for a, b in planes:
+            run_parallel([lambda lo=lo, hi=hi: wp.launch(kernel, dim=hi - lo, inputs=[lo, *inputs],
+                                                         outputs=outputs, device=dev)
+                          for lo, hi in parallel_ranges((b - a) * n[1], dev, min_per_worker=64)
+                          for lo, hi in [(lo + a * n[1], hi + a * n[1])]])
+
+    per_row(KF.classify_rows_kernel, [*common, words], [classes, ranges, ints["bad"]])
+    if int(ints["bad"].numpy().sum()):  # sync point: validation
+        raise ValueError("expected finite values in 'volume', got NaN or infinity (or values beyond "
+                         "float32's range, where the volume is converted to float32)")
+    rr = ranges.numpy()
+    lo_hi = np.float32(sign) * (np.array([rr[:, 0].min(), rr[:, 1].max()], np.float32) - np.float32(level))
+    vmin, vmax = float(lo_hi.min()), float(lo_hi.max())  # of sign * (volume - level)
+    timings["cull"] = timings.get("cull", 0.0) + time.perf_counter() - t0
+    t0 = time.perf_counter()
+    tab = method_tables(method, dev)
+    mid = KE.METHOD_MC33 if method == "mc33" else KE.METHOD_MC
+    per_row(KF.count_rows_kernel, [*common, words, mid, tab, classes],
+            [ints["count_i"], ints["count_j"], ints["vcount"], ints["tcount"], ints["ccount"]])
+    offsets = {}
+    totals = {}
+    for key in ("vcount", "tcount", "ccount"):
+        totals[key] = int(ints[key].numpy().sum(dtype=np.int64))  # sync point: output sizes
+        offsets[key] = wp.empty(n_rows, dtype=wp.int32, device=dev)
+        wp.utils.array_scan(ints[key], offsets[key], inclusive=False)
+    nv_edges, nt, nc = totals["vcount"], totals["tcount"], totals["ccount"]
+    if nv_edges + nc >= 2**31 or nt >= 2**31:
+        raise WarpMeshError(f"the surface has {nv_edges + nc} vertices and {nt} triangles, more than int32 "
+                            "ids can number: mesh a coarser volume or parts of it")
+    verts = wp.empty(nv_edges + nc, dtype=wp.vec3, device=dev)
+    flags = wp.empty(nv_edges + nc, dtype=wp.int32, device=dev)
+    tris = wp.empty(nt, dtype=wp.vec3i, device=dev)
+    row_volume = wp.empty(n_rows, dtype=wp.float64, device=dev)
+    h = np.asarray(spacing, dtype=np.float64)
+    wh, t_min = wp.vec3(*h.tolist()), float(C.EDGE_T_MIN)
+    if nt:
+        per_row(KF.emit_row_vertices_kernel, [*common, words, wh, t_min, clearance, classes, offsets["vcount"]],
+                [verts, flags, ints["moved"]])
+        centre = wp.vec3d(*(0.5 * (np.array(n) - 1) * h).tolist())
+        per_row(KF.emit_row_triangles_kernel,
+                [*common, words, wh, t_min, clearance, mid, tab, centre, classes, ints["count_i"], ints["count_j"],
+                 offsets["vcount"], offsets["tcount"], offsets["ccount"], nv_edges],
+                [verts, flags, tris, row_volume])
+    timings["extract"] = timings.get("extract", 0.0) + time.perf_counter() - t0
+    t0 = time.perf_counter()
+    # sync point: float64 points = grid-relative float32 positions + the origin
+    points = verts.numpy().astype(C.REAL_DTYPE)
+    points += np.asarray(origin, dtype=np.float64)
+    faces = np.asarray(tris.numpy(), dtype=C.INDEX_DTYPE).reshape(-1, 3)
+    flag = flags.numpy().copy()
+    info["interior_vertices"] = info.get("interior_vertices", 0) + nc
+    info["clearance_moved"] = info.get("clearance_moved", 0) + (int(ints["moved"].numpy().sum()) if nt else 0)
+    if cap and nt:  # the enclosed volume of this field's closed surface, for check_closed_outward
+        info["signed_volume"] = float(row_volume.numpy().sum()) / 6.0
+    info["slabs"], info["engine"], info["clearance"] = len(planes), "rows", float(clearance)
+    timings["host"] = timings.get("host", 0.0) + time.perf_counter() - t0
+    return points, faces, flag, (vmin, vmax)
+
+
+def extract_slabs(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool,
+                  cull: bool, device, slab_voxels: int, label=None, timings: dict, info: dict,
+                  clearance: float = C.NODE_CLEARANCE):
+    """:func:`extract_volume` by the block grid, slab by slab: each slab of ``s + 1`` node
+    planes converted to float32 on its own, culled, sampled and emitted, the seams welded
+    on the vertices' edge keys."""
     n = np.array(vol.shape, dtype=np.int64)
     origin = np.asarray(origin, dtype=np.float64)
     slabs = slab_ranges(int(n[0]), int(n[1] * n[2]), slab_voxels)
@@ -138,7 +285,8 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
     key, flag = _concatenate(keys), _concatenate(flags)
     if len(slabs) > 1 and len(points):
         points, faces, flag = _weld_seams(points, faces, flag, key, [b for _, b in slabs[:-1]], int(n[0]))
-    info["slabs"], info["blocks"], info["clearance"] = len(slabs), n_blocks, float(clearance)  # of the grid (the same for every label)
+    info["slabs"], info["blocks"], info["clearance"] = len(slabs), n_blocks, float(clearance)
+    info["engine"] = "slabs"  # of the grid (the same for every label)
     timings["weld"] = timings.get("weld", 0.0) + time.perf_counter() - t0
     return points, faces, flag, (vmin, vmax)
 
@@ -173,15 +321,20 @@ def _concatenate(pieces: list, dtype=None) -> np.ndarray:
     return out
 
 
-def check_closed_outward(points: np.ndarray, faces: np.ndarray, chunk: int = 1 << 18) -> float:
+def check_closed_outward(points: np.ndarray, faces: np.ndarray, signed_volume: float | None = None,
+                         chunk: int = 1 << 18) -> float:
     """The enclosed volume of a capped surface, which must be positive (outward winding);
     summed in chunks of triangles (about a common centre) so the check adds little to the
-    peak memory."""
-    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
-    vol = 0.0
-    for a in range(0, len(faces), chunk):
-        p0, p1, p2 = (points[faces[a:a + chunk, j]] - centre for j in range(3))
-        vol += float(np.einsum("ij,ij->", p0, np.cross(p1, p2))) / 6.0
+    peak memory, unless the extraction already summed it (``signed_volume``, as
+    :func:`extract_rows` reports it in ``info["signed_volume"]``)."""
+    if signed_volume is not None:
+        vol = float(signed_volume)
+    else:
+        centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+        vol = 0.0
+        for a in range(0, len(faces), chunk):
+            p0, p1, p2 = (points[faces[a:a + chunk, j]] - centre for j in range(3))
+            vol += float(np.einsum("ij,ij->", p0, np.cross(p1, p2))) / 6.0
     if not vol > 0.0:
         raise WarpMeshError(f"the capped surface encloses a signed volume of {vol:g}: its triangles do "
                             "not face outward (an internal error: please report it)")

@@ -1,0 +1,484 @@
+"""Dense extraction of a sampled volume row by row, after flying edges (Schroeder,
+Maynard & Geveci 2015) [FG §16.4.1-16.4.2]: "mc" and "mc33" with the tables of
+:mod:`warpmesh.kernels.emit`, the same vertices and triangles as its block emission.
+
+The volume ``volume[i, j, k]`` (C order: k contiguous) is read in place, a *row* being
+the samples of one (i, j), ``r = i * n1 + j``. A node's value is ``sign * (raw - level)``
+in float32, capped (0, i.e. outside, where an inside node lies on a capped face of the
+grid: bit ``2 a`` / ``2 a + 1`` of ``cap`` for the low / high face of axis a), with
+``raw`` the float32 sample (mode 0), the uint8 sample (mode 1) or the indicator of
+``label`` in a uint8 volume (mode 2). Edge types are those of ``emit.TYPE_DELTA``: 0
+towards row (i + 1, j), 1 towards row (i, j + 1), 2 along the row.
+
+1. ``classify_rows_kernel`` reads every sample once: each row's node classes (inside:
+   value > 0) packed 64 to a word (bit b of word w is node k = 64 w + b; ``WORD_BITS``),
+   its raw value range and its non-finite samples.
+2. ``count_rows_kernel``, on the words alone: per node row its crossing edges of each
+   type (bit counts of xors), per cell row (the cells between rows (i, j), (i + 1, j),
+   (i, j + 1), (i + 1, j + 1)) the triangles and interior vertices of the cells whose
+   eight corners are not all alike (a word of such cells at a time: the others are
+   skipped 64 at once, where flying edges trims each row at its first and last crossing).
+3. The host's prefix sums give each row its first vertex and triangle.
+4. ``emit_row_vertices_kernel`` places each row's vertices, type 0 then 1 then 2, each in
+   k order; ``emit_row_triangles_kernel`` numbers a cell's edge vertices by counting the
+   crossings before it in the edge's row (nothing to look up, nothing to weld).
+
+Values are read only where an edge crosses (and at the corners of crossed cells for
+"mc33"). One thread works on one row; launches take ``first`` so the host can split
+them across cores.
+"""
+
+import warp as wp
+
+from warpmesh.kernels.block_grid import on_capped_face
+from warpmesh.kernels.emit import (
+    Tables,
+    interior_count,
+    interior_value,
+    mc33_entry,
+    mc33_hub,
+    spoke_point,
+    trilinear,
+    vec8d,
+)
+
+wp.set_module_options({"enable_backward": False, "fuse_fp": False})  # bit for bit as kernels.emit
+
+MODE_FLOAT = 0  # float32 samples
+MODE_UINT8 = 1  # uint8 samples, their values
+MODE_LABEL = 2  # uint8 samples, the indicator of one label
+WORD_BITS = 64  # node classes per word
+
+_METHOD_MC33 = wp.constant(1)  # emit.METHOD_MC33
+_CENTER = wp.constant(7)  # emit.CENTER
+_CENTER_VERTEX = wp.constant(12)  # emit.CENTER_VERTEX
+_HUB_MARGIN = wp.constant(0.05)  # emit.HUB_MARGIN
+vec8f = wp.types.vector(length=8, dtype=wp.float32)
+vec4u64 = wp.types.vector(length=4, dtype=wp.uint64)
+vec2u64 = wp.types.vector(length=2, dtype=wp.uint64)
+
+
+@wp.func
+def raw_value(vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
+              i: int, j: int, k: int):
+    r = float(0.0)
+    if mode == 0:
+        r = vf[i, j, k]
+    elif mode == 1:
+        r = float(vu[i, j, k])
+    elif int(vu[i, j, k]) == label:
+        r = 1.0
+    return r
+
+
+@wp.func
+def row_capped(i: int, j: int, n: wp.vec3i, cap: int):
+    """Whether the whole row (i, j) lies on a capped face."""
+    return (i == 0 and (cap & 1) != 0) or (i == n[0] - 1 and (cap & 2) != 0) or \
+        (j == 0 and (cap & 4) != 0) or (j == n[1] - 1 and (cap & 8) != 0)
+
+
+@wp.func
+def capped_value(v: float, rowcap: bool, k: int, n2: int, cap: int):
+    """An inside value on a capped face becomes 0 (outside)."""
+    r = v
+    if v > 0.0:
+        if rowcap or (k == 0 and (cap & 16) != 0) or (k == n2 - 1 and (cap & 32) != 0):
+            r = 0.0
+    return r
+
+
+@wp.func
+def node_value(vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
+               level: float, sign: float, cap: int, n: wp.vec3i, rowcap: bool, i: int, j: int, k: int):
+    """The field at node (i, j, k) of row (i, j) (``rowcap``: the row is on a capped face)."""
+    return capped_value(sign * (raw_value(vf, vu, mode, label, i, j, k) - level), rowcap, k, n[2], cap)
+
+@wp.kernel
+def classify_rows_kernel(
+    first: int, vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
+    level: float, sign: float, cap: int, n: wp.vec3i, words: int,
+    classes: wp.array(dtype=wp.uint64), row_range: wp.array(dtype=wp.vec2), row_bad: wp.array(dtype=wp.int32),
+):
+    """One thread per row: its node classes (``classes[r * words + w]``, capped nodes
+    outside, bits past the row's end 0); the (min, max) of its raw samples and how many
+    samples or values are not finite."""
+    r = wp.tid() + first
+    i = r / n[1]
+    j = r % n[1]
+    lo = float(3.4e38)
+    hi = float(-3.4e38)
+    bad = int(0)
+    word = wp.uint64(0)
+    one = wp.uint64(1)
+    for k in range(n[2]):
+        raw = raw_value(vf, vu, mode, label, i, j, k)
+        lo = wp.min(lo, raw)
+        hi = wp.max(hi, raw)
+        v = sign * (raw - level)
+        if v - v != 0.0:  # NaN or infinite (a sample, or its value beyond float32's range)
+            bad += 1
+        if v > 0.0:
+            word = word | (one << wp.uint64(k & 63))
+        if (k & 63) == 63 or k == n[2] - 1:
+            classes[r * words + k / 64] = word
+            word = wp.uint64(0)
+    if row_capped(i, j, n, cap):
+        for w in range(words):
+            classes[r * words + w] = wp.uint64(0)
+    else:
+        if (cap & 16) != 0:
+            classes[r * words] = classes[r * words] & ~one
+        if (cap & 32) != 0:
+            last = r * words + (n[2] - 1) / 64
+            classes[last] = classes[last] & ~(one << wp.uint64((n[2] - 1) & 63))
+    row_range[r] = wp.vec2(lo, hi)
+    row_bad[r] = bad
+
+
+@wp.func
+def word_of(classes: wp.array(dtype=wp.uint64), row: int, w: int, words: int):
+    return classes[row * words + w]
+
+
+@wp.func
+def next_of(classes: wp.array(dtype=wp.uint64), row: int, w: int, words: int):
+    """The classes of nodes k + 1 at the bits of nodes k (word w of the row)."""
+    x = classes[row * words + w] >> wp.uint64(1)
+    if w + 1 < words:
+        x = x | (classes[row * words + w + 1] << wp.uint64(63))
+    return x
+
+
+@wp.func
+def valid_edges(w: int, n2: int):
+    """Bits of word w whose node k has a node k + 1 (k < n2 - 1)."""
+    m = ~wp.uint64(0)
+    top = n2 - 1 - 64 * w  # valid bits in this word
+    if top <= 0:
+        m = wp.uint64(0)
+    elif top < 64:
+        m = (wp.uint64(1) << wp.uint64(top)) - wp.uint64(1)
+    return m
+
+
+@wp.func
+def low_bit(x: wp.uint64):
+    """Index of the lowest set bit of x (x != 0)."""
+    return wp.bit_count((x & (~x + wp.uint64(1))) - wp.uint64(1))
+
+
+@wp.func
+def below(b: int):
+    """Bits below bit b."""
+    return (wp.uint64(1) << wp.uint64(b)) - wp.uint64(1)
+
+
+@wp.func
+def cell_masks(classes: wp.array(dtype=wp.uint64), rows: wp.vec4i, w: int, words: int, n2: int):
+    """(low face, high face) classes of the four rows (bits dx + 2 dy ... as words) and
+    the mask of word w's cells whose eight corners are not all alike."""
+    a = vec4u64()
+    b = vec4u64()
+    for q in range(4):
+        a[q] = word_of(classes, rows[q], w, words)
+        b[q] = next_of(classes, rows[q], w, words)
+    m = (a[0] ^ a[1]) | (a[0] ^ a[2]) | (a[0] ^ a[3]) | (a[0] ^ b[0]) | (a[0] ^ b[1]) | (a[0] ^ b[2]) | \
+        (a[0] ^ b[3])
+    return a, b, m & valid_edges(w, n2)
+
+
+@wp.func
+def cell_config(a: vec4u64, b: vec4u64, bit: int):
+    ci = int(0)
+    for q in range(4):
+        ci = ci | (int((a[q] >> wp.uint64(bit)) & wp.uint64(1)) << q)
+        ci = ci | (int((b[q] >> wp.uint64(bit)) & wp.uint64(1)) << (q + 4))
+    return ci
+
+
+@wp.func
+def cell_rows(r: int, n1: int):
+    """Rows of cell row r: (i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)."""
+    return wp.vec4i(r, r + n1, r + 1, r + n1 + 1)
+
+
+@wp.kernel
+def count_rows_kernel(
+    first: int, vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
+    level: float, sign: float, cap: int, n: wp.vec3i, words: int, method: int, tab: Tables,
+    classes: wp.array(dtype=wp.uint64),
+    count_i: wp.array(dtype=wp.int32), count_j: wp.array(dtype=wp.int32), vertex_count: wp.array(dtype=wp.int32),
+    triangle_count: wp.array(dtype=wp.int32), center_count: wp.array(dtype=wp.int32),
+):
+    """One thread per row: its crossing edges of types 0 and 1 and of all three types;
+    the triangles and interior vertices of its cell row (none for i = n0 - 1 or j = n1 - 1).
+    Classes only; "mc33" reads the values at the corners of crossed cells."""
+    r = wp.tid() + first
+    i = r / n[1]
+    j = r % n[1]
+    ci = int(0)
+    cj = int(0)
+    ck = int(0)
+    nt = int(0)
+    nc = int(0)
+    cells = i < n[0] - 1 and j < n[1] - 1
+    rows = cell_rows(r, n[1])
+    for w in range(words):
+        a = word_of(classes, r, w, words)
+        ck += wp.bit_count((a ^ next_of(classes, r, w, words)) & valid_edges(w, n[2]))
+        if i < n[0] - 1:
+            ci += wp.bit_count(a ^ word_of(classes, r + n[1], w, words))
+        if j < n[1] - 1:
+            cj += wp.bit_count(a ^ word_of(classes, r + 1, w, words))
+        if cells:
+            lo, hi, m = cell_masks(classes, rows, w, words, n[2])
+            while m != wp.uint64(0):
+                bit = low_bit(m)
+                m = m & (m - wp.uint64(1))
+                cfg = cell_config(lo, hi, bit)
+                row = cfg
+                if method == _METHOD_MC33:
+                    k = 64 * w + bit
+                    row = mc33_row(corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k),
+                                   corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k + 1), cfg, tab)
+                nt += tab.tri_count[row]
+                nc += interior_count(tab.center[row])
+    count_i[r] = ci
+    count_j[r] = cj
+    vertex_count[r] = ci + cj + ck
+    triangle_count[r] = nt
+    center_count[r] = nc
+
+
+@wp.func
+def corner_values(vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
+                  level: float, sign: float, cap: int, n: wp.vec3i, i: int, j: int, k: int):
+    """The four rows' values at position k: (i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)."""
+    return wp.vec4(node_value(vf, vu, mode, label, level, sign, cap, n, row_capped(i, j, n, cap), i, j, k),
+                   node_value(vf, vu, mode, label, level, sign, cap, n, row_capped(i + 1, j, n, cap), i + 1, j, k),
+                   node_value(vf, vu, mode, label, level, sign, cap, n, row_capped(i, j + 1, n, cap), i, j + 1, k),
+                   node_value(vf, vu, mode, label, level, sign, cap, n, row_capped(i + 1, j + 1, n, cap),
+                              i + 1, j + 1, k))
+
+
+@wp.func
+def cell_values(cur: wp.vec4, nxt: wp.vec4):
+    """The 8 corner values in float64 (corner order of ``emit.Tables.corners``: bits dx,
+    dy, dz; cur / nxt hold the four rows at k / k + 1)."""
+    v = vec8d()
+    for q in range(4):
+        v[q] = wp.float64(cur[q])
+        v[q + 4] = wp.float64(nxt[q])
+    return v
+
+
+@wp.func
+def mc33_row(cur: wp.vec4, nxt: wp.vec4, ci: int, tab: Tables):
+    """Table row of an "mc33" cell (as ``emit.mc33_case``)."""
+    v = cell_values(cur, nxt)
+    entry = mc33_entry(v, tab, ci)
+    row = tab.case_offset[entry]
+    test = tab.interior_test[entry]
+    if test >= 0:
+        row += interior_value(v, tab, test)
+    return row
+
+
+@wp.func
+def edge_point(v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, n: wp.vec3i, cap: int, t_min: float,
+               gap: float):
+    """(position, t) of the crossing on the edge from node g in direction d, as
+    ``emit.crossing`` with ``emit.edge_t_range`` (volumes: no lonely-node exemption)."""
+    lo = gap
+    hi = 1.0 - gap
+    if on_capped_face(g, n, cap):
+        lo = t_min
+    if on_capped_face(g + d, n, cap):
+        hi = 1.0 - t_min
+    t = wp.clamp(v0 / (v0 - v1), lo, hi)
+    p0 = wp.vec3(0.0 + float(g[0]) * h[0], 0.0 + float(g[1]) * h[1], 0.0 + float(g[2]) * h[2])
+    p1 = wp.vec3(p0[0] + float(d[0]) * h[0], p0[1] + float(d[1]) * h[1], p0[2] + float(d[2]) * h[2])
+    return p0 + t * (p1 - p0), t
+
+
+@wp.func
+def put_vertex(vid: int, v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, n: wp.vec3i, cap: int,
+               t_min: float, gap: float, points: wp.array(dtype=wp.vec3), flags: wp.array(dtype=wp.int32)):
+    """Store the vertex of a crossing edge with the flags of ``emit.emit_vertices_kernel``;
+    1 when the clearance moved it."""
+    p, te = edge_point(v0, v1, g, d, h, n, cap, t_min, gap)
+    points[vid] = p
+    f = wp.where(v0 > 0.0, 1, 0)
+    if v0 == 0.0 or v1 == 0.0:
+        f = f | 2
+        if on_capped_face(g, n, cap) or on_capped_face(g + d, n, cap):
+            f = f | 4
+        else:
+            f = f | 8
+    flags[vid] = f
+    return wp.where(te != wp.clamp(v0 / (v0 - v1), t_min, 1.0 - t_min), 1, 0)
+
+
+@wp.kernel
+def emit_row_vertices_kernel(
+    first: int, vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
+    level: float, sign: float, cap: int, n: wp.vec3i, words: int, h: wp.vec3, t_min: float, clearance: float,
+    classes: wp.array(dtype=wp.uint64), vertex_offset: wp.array(dtype=wp.int32),
+    points: wp.array(dtype=wp.vec3), flags: wp.array(dtype=wp.int32), moved: wp.array(dtype=wp.int32),
+):
+    """One thread per row: its vertices, type 0 then 1 then 2, each in k order, from
+    ``vertex_offset[r]`` (positions relative to node (0, 0, 0))."""
+    r = wp.tid() + first
+    i = r / n[1]
+    j = r % n[1]
+    gap = wp.max(t_min, clearance)
+    vid = vertex_offset[r]
+    n_moved = int(0)
+    ca = row_capped(i, j, n, cap)
+    for t in range(3):
+        d = wp.vec3i(wp.where(t == 0, 1, 0), wp.where(t == 1, 1, 0), wp.where(t == 2, 1, 0))
+        if i + d[0] < n[0] and j + d[1] < n[1]:
+            rb = r + d[0] * n[1] + d[1]
+            cb = row_capped(i + d[0], j + d[1], n, cap)
+            for w in range(words):
+                x = word_of(classes, r, w, words)
+                if t == 2:
+                    x = (x ^ next_of(classes, r, w, words)) & valid_edges(w, n[2])
+                else:
+                    x = x ^ word_of(classes, rb, w, words)
+                while x != wp.uint64(0):
+                    k = 64 * w + low_bit(x)
+                    x = x & (x - wp.uint64(1))
+                    v0 = node_value(vf, vu, mode, label, level, sign, cap, n, ca, i, j, k)
+                    v1 = node_value(vf, vu, mode, label, level, sign, cap, n, cb, i + d[0], j + d[1], k + d[2])
+                    n_moved += put_vertex(vid, v0, v1, wp.vec3i(i, j, k), d, h, n, cap, t_min, gap, points, flags)
+                    vid += 1
+    moved[r] = n_moved
+
+
+@wp.func
+def signed_volume6(points: wp.array(dtype=wp.vec3), tri: wp.vec3i, centre: wp.vec3d):
+    """Six times the signed volume of the tetrahedron (centre, triangle), in float64."""
+    a = wp.vec3d(points[tri[0]]) - centre
+    b = wp.vec3d(points[tri[1]]) - centre
+    c = wp.vec3d(points[tri[2]]) - centre
+    return wp.dot(a, wp.cross(b, c))
+
+@wp.kernel
+def emit_row_triangles_kernel(
+    first: int, vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
+    level: float, sign: float, cap: int, n: wp.vec3i, words: int, h: wp.vec3, t_min: float, clearance: float,
+    method: int, tab: Tables, centre: wp.vec3d, classes: wp.array(dtype=wp.uint64),
+    count_i: wp.array(dtype=wp.int32), count_j: wp.array(dtype=wp.int32), vertex_offset: wp.array(dtype=wp.int32),
+    triangle_offset: wp.array(dtype=wp.int32), center_offset: wp.array(dtype=wp.int32), n_edge_vertices: int,
+    points: wp.array(dtype=wp.vec3), flags: wp.array(dtype=wp.int32), triangles: wp.array(dtype=wp.vec3i),
+    row_volume: wp.array(dtype=wp.float64),
+):
+    """One thread per cell row: the tables' triangles of its crossed cells in k order. The
+    vertex of an edge of type t from node k of a row is that row's first vertex of type t
+    plus the row's crossings of type t before k (counted a word at a time); interior
+    vertices of "mc33" cells as ``emit.emit_triangles_kernel`` places them (after the
+    n_edge_vertices edge vertices); six times the signed volume about ``centre``."""
+    r = wp.tid() + first
+    i = r / n[1]
+    j = r % n[1]
+    vol = wp.float64(0.0)
+    if i < n[0] - 1 and j < n[1] - 1:
+        gap = wp.max(t_min, clearance)
+        rows = cell_rows(r, n[1])
+        # first ids: type 2 in the four rows; type 0 in rows (i, j), (i, j + 1); type 1 in (i, j), (i + 1, j)
+        id2 = wp.vec4i(0, 0, 0, 0)
+        for q in range(4):
+            id2[q] = vertex_offset[rows[q]] + count_i[rows[q]] + count_j[rows[q]]
+        id0 = wp.vec2i(vertex_offset[rows[0]], vertex_offset[rows[2]])
+        id1 = wp.vec2i(vertex_offset[rows[0]] + count_i[rows[0]], vertex_offset[rows[1]] + count_i[rows[1]])
+        out = triangle_offset[r]
+        cid = center_offset[r] + n_edge_vertices
+        for w in range(words):
+            lo, hi, m = cell_masks(classes, rows, w, words, n[2])
+            x2 = vec4u64()
+            for q in range(4):
+                x2[q] = (lo[q] ^ hi[q]) & valid_edges(w, n[2])
+            x0 = vec2u64(lo[0] ^ lo[1], lo[2] ^ lo[3])
+            x1 = vec2u64(lo[0] ^ lo[2], lo[1] ^ lo[3])
+            while m != wp.uint64(0):
+                bit = low_bit(m)
+                m = m & (m - wp.uint64(1))
+                k = 64 * w + bit
+                under = below(bit)
+                cfg = cell_config(lo, hi, bit)
+                case = cfg
+                cv0 = wp.vec4(0.0)
+                cv1 = wp.vec4(0.0)
+                if method == _METHOD_MC33:
+                    cv0 = corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k)
+                    cv1 = corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k + 1)
+                    case = mc33_row(cv0, cv1, cfg, tab)
+                g = wp.vec3i(i, j, k)
+                mask = tab.center[case]
+                center = int(-1)
+                if mask != 0:
+                    center = cid
+                    cid += interior_count(mask)
+                    cv = vec8f()
+                    for q in range(4):
+                        cv[q] = cv0[q]
+                        cv[q + 4] = cv1[q]
+                    if (mask & 1) != 0:  # vertex 12: the mean of the cell's edge vertices
+                        acc = wp.vec3(0.0)
+                        mm = float(0.0)
+                        for t in range(3):
+                            d = wp.vec3i(tab.type_delta[t, 0], tab.type_delta[t, 1], tab.type_delta[t, 2])
+                            for q in range(8):
+                                if tab.corners[q, t] == 0:
+                                    va = cv[q]
+                                    vb = cv[q | (1 << t)]
+                                    if (va > 0.0) != (vb > 0.0):
+                                        ge = g + wp.vec3i(tab.corners[q, 0], tab.corners[q, 1], tab.corners[q, 2])
+                                        p, te = edge_point(va, vb, ge, d, h, n, cap, t_min, gap)
+                                        acc = acc + p
+                                        mm += 1.0
+                        points[center] = acc / wp.max(mm, 1.0)
+                        flags[center] = 2
+                    if mask > 1:  # the spokes of the hub construction
+                        v = cell_values(cv0, cv1)
+                        test = tab.interior_test[mc33_entry(v, tab, cfg)]
+                        hub = mc33_hub(v, tab, test, wp.float64(_HUB_MARGIN))
+                        f_hub = trilinear(v, tab, hub)
+                        for q in range(8):
+                            if ((mask >> (q + 1)) & 1) != 0:
+                                u = spoke_point(v, tab, hub, f_hub, q, wp.float64(gap))
+                                vq = center + interior_count(mask & ((2 << q) - 1))
+                                points[vq] = wp.vec3(0.0 + (float(g[0]) + float(u[0])) * h[0],
+                                                     0.0 + (float(g[1]) + float(u[1])) * h[1],
+                                                     0.0 + (float(g[2]) + float(u[2])) * h[2])
+                                flags[vq] = 2
+                for q in range(tab.tri_count[case]):
+                    tri = wp.vec3i(0, 0, 0)
+                    for m3 in range(3):
+                        lv = tab.tris[case, q * 3 + m3]
+                        dx = tab.origin[lv, 0]
+                        dy = tab.origin[lv, 1]
+                        dz = tab.origin[lv, 2]
+                        t = tab.origin[lv, 3]
+                        vid = int(-1)
+                        if t == _CENTER:
+                            vid = center + interior_count(mask & ((1 << (lv - _CENTER_VERTEX)) - 1))
+                        elif t == 2:
+                            vid = id2[dx + 2 * dy] + wp.bit_count(x2[dx + 2 * dy] & under)
+                        elif t == 0:
+                            xw = x0[dy]
+                            vid = id0[dy] + wp.bit_count(xw & under) + dz * int((xw >> wp.uint64(bit)) & wp.uint64(1))
+                        else:
+                            xw = x1[dx]
+                            vid = id1[dx] + wp.bit_count(xw & under) + dz * int((xw >> wp.uint64(bit)) & wp.uint64(1))
+                        tri[m3] = vid
+                    triangles[out] = tri
+                    out += 1
+                    vol += signed_volume6(points, tri, centre)
+            for q in range(4):
+                id2[q] += wp.bit_count(x2[q])
+            id0 = id0 + wp.vec2i(wp.bit_count(x0[0]), wp.bit_count(x0[1]))
+            id1 = id1 + wp.vec2i(wp.bit_count(x1[0]), wp.bit_count(x1[1]))
+    row_volume[r] = vol
