@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import errno
 import os
-import uuid
 import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -60,6 +59,7 @@ from typing import Literal
 import meshio
 import numpy as np
 
+from warpmesh._util.atomic import atomic_path
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.cells.types import CELL_TYPES, REF_KEY, MeshLike, block_refs, points3
 from meshio._helpers import reader_map
@@ -309,30 +309,17 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
     if fmt.folder:
         _write_in_folder(data, path, fmt)
         return path
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
-    try:
+    with atomic_path(path) as tmp:
         meshio.write(tmp, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
     return path
 
 
 def _write_in_folder(data: meshio.Mesh, path: Path, fmt: _Format) -> None:
     """Write with the final name inside a temporary folder next to ``path`` (side files,
     such as XDMF's .h5 or TetGen's .ele, keep the names the main file refers to), then
-    move every file out; on failure nothing is left."""
-    tmp = path.parent / f".{path.name}.{uuid.uuid4().hex[:12]}.tmpdir"
-    tmp.mkdir()
-    try:
+    move every file out, the main file last; on failure nothing is left."""
+    with atomic_path(path, kind="tmpdir") as tmp:
         meshio.write(tmp / path.name, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
-        for f in sorted(tmp.iterdir(), key=lambda f: f.name == path.name):  # the main file last
-            os.replace(f, path.parent / f.name)
-    finally:
-        for f in tmp.iterdir():
-            f.unlink()
-        tmp.rmdir()
 
 
 def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path:
