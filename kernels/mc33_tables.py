@@ -183,6 +183,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from warpmesh.kernels import mc_tables as _mc_tables
+from warpmesh.kernels.table_cache import cached
 from warpmesh.kernels.mc_tables import (
     CORNERS,
     EDGE_MIDPOINTS,
@@ -877,8 +879,9 @@ def _build():
 #: 1 when the entry's face bits occur in exact arithmetic
 #: (rows,) triangles per row, (rows, MAX33, 3) triangles (-1 padded), and the interior
 #: vertices each row uses (bit j: local vertex 12 + j)
+#: (generated once per install, 0.5 s: :mod:`warpmesh.kernels.table_cache`)
 (BASE_CASES, CASE_OFFSET, INTERIOR_TEST, CASE_FEASIBLE, CASE_TRI_COUNT, MAX33, CASE_TRIS,
- CASE_INTERIOR) = _build()
+ CASE_INTERIOR) = cached("mc33", _build, __file__, _mc_tables.__file__)
 
 
 # ----------------------------------------------------------------------------- run time

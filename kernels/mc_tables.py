@@ -57,6 +57,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from warpmesh.kernels.table_cache import cached
+
 CORNERS = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=np.int32)
 
 
@@ -256,5 +258,6 @@ def _build():
     return np.array(base, dtype=np.int32), max_tris, counts, table
 
 
-#: orbit representatives (smallest index) under the 48 cube symmetries
-BASE_CONFIGS, MAX_TRIS, TRI_COUNT, TRI_TABLE = _build()
+#: orbit representatives (smallest index) under the 48 cube symmetries (generated once per install:
+#: :mod:`warpmesh.kernels.table_cache`)
+BASE_CONFIGS, MAX_TRIS, TRI_COUNT, TRI_TABLE = cached("mc", _build, __file__)

@@ -7,23 +7,33 @@ import inspect
 
 import pytest
 
-from warpmesh import mesh as M
 from warpmesh.mesh import Mesh
+from warpmesh.modify.convert_cells import convert_cells
+from warpmesh.modify.crack import crack
+from warpmesh.modify.merge import merge
+from warpmesh.modify.periodic import periodic
+from warpmesh.modify.refine_local import refine_local
+from warpmesh.modify.refine_uniform import refine_uniform
+from warpmesh.modify.transforms import transform
+from warpmesh.numbering.coloring import color_mesh
+from warpmesh.numbering.high_order import to_order
+from warpmesh.numbering.renumber import renumber
+from warpmesh.optimize.remesh import optimize, simplify
 
 #: method -> the functions it calls (their parameters after the mesh), and what the method
 #: leaves out on purpose
 PAIRS = {
-    "optimize": ([M.optimize], ()),
-    "simplify": ([M.simplify], ()),
-    "to_order": ([M.to_order], ("stacklevel",)),  # the method passes its caller's
-    "renumber": ([M.renumber], ()),
-    "color_elements": ([M.color_mesh], ()),
-    "transform": ([M.transform], ()),
-    "refine": ([M.refine_uniform, M.refine_local], ()),
-    "convert": ([M.convert_cells], ()),
-    "merge": ([M.merge], ()),
-    "crack": ([M.crack], ()),
-    "periodic": ([M.periodic], ()),
+    "optimize": ([optimize], ()),
+    "simplify": ([simplify], ()),
+    "to_order": ([to_order], ("stacklevel",)),  # the method passes its caller's
+    "renumber": ([renumber], ()),
+    "color_elements": ([color_mesh], ()),
+    "transform": ([transform], ()),
+    "refine": ([refine_uniform, refine_local], ()),
+    "convert": ([convert_cells], ()),
+    "merge": ([merge], ()),
+    "crack": ([crack], ()),
+    "periodic": ([periodic], ()),
 }
 
 

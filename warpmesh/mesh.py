@@ -35,34 +35,32 @@ from collections.abc import Mapping
 from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
-from typing import Literal
+import sys
+from typing import TYPE_CHECKING, Literal
 
-import meshio
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh.cells import intersections as _intersections
 from warpmesh.cells import topology as _topo
 from warpmesh.cells.quality import quality_summary, tetra_quality, triangle_quality
-from warpmesh.cells.reference import cell_measures
 from warpmesh.cells.types import CELL_TYPES, REF_KEY
-from warpmesh.io import convert as _convert
-from warpmesh.io import files as _io
-from warpmesh.io.files import FILE_FORMATS, FileFormat
-from warpmesh.modify.convert_cells import convert_cells
-from warpmesh.modify.crack import crack
-from warpmesh.modify.merge import merge
-from warpmesh.modify.periodic import periodic
-from warpmesh.modify.refine_local import refine_local
-from warpmesh.modify.refine_uniform import refine_uniform
-from warpmesh.modify.transforms import transform
-from warpmesh.numbering.coloring import color_mesh
-from warpmesh.numbering.high_order import to_order
-from warpmesh.numbering.renumber import renumber
-from warpmesh.optimize.remesh import optimize, simplify
 from warpmesh.planar.polyline import components
 
+if TYPE_CHECKING:  # annotations only; the operations behind the methods are imported when called
+    import meshio
+
+    from warpmesh.io.files import FileFormat
+
 __all__ = ["Mesh", "load", "CELL_TYPES", "FILE_FORMATS", "REF_KEY"]
+
+
+def __getattr__(name: str):
+    """``FILE_FORMATS`` of :mod:`warpmesh.io.files`, imported on first use (it imports meshio)."""
+    if name == "FILE_FORMATS":
+        from warpmesh.io.files import FILE_FORMATS
+
+        return FILE_FORMATS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ----------------------------------------------------------------------------- validation
@@ -102,7 +100,8 @@ def _check_cells(cells, n: int, d: int) -> dict[str, np.ndarray]:
     if isinstance(cells, Mapping):
         pairs = list(cells.items())
     elif isinstance(cells, (list, tuple)):
-        pairs = [(c.type, c.data) if isinstance(c, meshio.CellBlock) else tuple(c) for c in cells]
+        cell_block = getattr(sys.modules.get("meshio"), "CellBlock", ())  # none without meshio imported
+        pairs = [(c.type, c.data) if isinstance(c, cell_block) else tuple(c) for c in cells]
         if any(len(p) != 2 for p in pairs):
             raise TypeError(
                 "expected (type, array) pairs in the list 'cells', got an item of another length"
@@ -352,6 +351,8 @@ class Mesh:
             s["self_intersections"] = len(self._crossings)
         solids = [t for t in ("tetra", "hexahedron", "wedge", "pyramid") if t in self._cells]
         if solids and self.dim == 3:  # signed, exact for the multilinear cells
+            from warpmesh.cells.reference import cell_measures  # its Lagrange tables take 0.1 s to build
+
             s["volume"] = float(sum(cell_measures(self._points, self._cells[t], t).sum() for t in solids))
         q = (
             quality_summary(self._points, self._cells)
@@ -369,7 +370,9 @@ class Mesh:
 
     @cached_property
     def _crossings(self) -> np.ndarray:
-        return _intersections.check(self)
+        from warpmesh.cells.intersections import check
+
+        return check(self)
 
     def check(self) -> np.ndarray:
         """The pairs of crossing cells (triangles; segments of a planar polyline):
@@ -434,6 +437,8 @@ class Mesh:
                  progress: bool = False) -> Mesh:
         """A new mesh optimised on the exact surface: :func:`warpmesh.optimize.remesh.optimize`
         (the same parameters)."""
+        from warpmesh.optimize.remesh import optimize
+
         return optimize(self, shape, bounds=bounds, size=size, tolerance=tolerance, features=features, angle=angle,
                         iterations=iterations, progress=progress)
 
@@ -442,6 +447,8 @@ class Mesh:
                  progress: bool = False) -> Mesh:
         """A new, decimated mesh within a tolerance: :func:`warpmesh.optimize.remesh.simplify`
         (the same parameters)."""
+        from warpmesh.optimize.remesh import simplify
+
         return simplify(self, shape, tolerance=tolerance, fraction=fraction, bounds=bounds, features=features,
                         angle=angle, iterations=iterations, progress=progress)
 
@@ -453,6 +460,8 @@ class Mesh:
         >>> Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_order(3).cells["triangle10"].shape
         (1, 10)
         """
+        from warpmesh.numbering.high_order import to_order
+
         return to_order(self, order, shape, bounds=bounds, check=check, stacklevel=3)  # warnings name the caller
 
     # ---------------------------------------------------------------- numbering
@@ -469,6 +478,8 @@ class Mesh:
         >>> m.renumber("rcm").stats()["bandwidth"]
         2
         """
+        from warpmesh.numbering.renumber import renumber
+
         return renumber(self, method, reverse=reverse, higher_order=higher_order, reduced=reduced, elements=elements)
 
     def color_elements(self, *, adjacency: Literal["face", "node"] = "face") -> Mesh:
@@ -481,6 +492,8 @@ class Mesh:
         >>> m.color_elements().cell_data["color"]["triangle"].tolist()
         [0, 1]
         """
+        from warpmesh.numbering.coloring import color_mesh
+
         return color_mesh(self, adjacency=adjacency)
 
     # ---------------------------------------------------------------- modifications [FG ch. 17]
@@ -495,6 +508,8 @@ class Mesh:
         >>> m.transform(wm.transforms.symmetry((1, 0, 0))).cells["triangle"].tolist()
         [[0, 2, 1]]
         """
+        from warpmesh.modify.transforms import transform
+
         return transform(self, matrix, vectors=vectors)
 
     def refine(self, n: int | None = None, shape=None, *, where=None, max_length=None, bounds=None,
@@ -520,9 +535,13 @@ class Mesh:
             if bounds is not None or tetra_diagonal != "shortest":
                 raise ValueError("'bounds' and 'tetra_diagonal' apply to uniform refinement (n), not to "
                                  "where/max_length")
+            from warpmesh.modify.refine_local import refine_local
+
             return refine_local(self, where=where, max_length=max_length, shape=shape, max_rounds=max_rounds)
         if max_rounds != 64:
             raise ValueError("'max_rounds' applies to local refinement (where/max_length), not to n")
+        from warpmesh.modify.refine_uniform import refine_uniform
+
         return refine_uniform(self, 2 if n is None else n, shape, bounds=bounds, tetra_diagonal=tetra_diagonal)
 
     def convert(self, target: str, *, quads: Literal["best", "min", 4] | None = None,
@@ -536,6 +555,8 @@ class Mesh:
         >>> m.convert("triangle").cells["triangle"].shape
         (2, 3)
         """
+        from warpmesh.modify.convert_cells import convert_cells
+
         return convert_cells(self, target, quads=quads, hexes=hexes)
 
     def merge(self, other: Mesh, tolerance: float | None = None, *, refs: bool = False,
@@ -551,6 +572,8 @@ class Mesh:
         >>> a.merge(b).n_points
         4
         """
+        from warpmesh.modify.merge import merge
+
         return merge(self, other, tolerance, refs=refs, duplicates=duplicates, check=check)
 
     def crack(self, facets=None, *, ref: int | None = None, side_refs: tuple[int, int] | None = None) -> Mesh:
@@ -564,6 +587,8 @@ class Mesh:
         >>> m.crack([[0, 2]]).n_points  # the crack crosses the square: both ends split
         6
         """
+        from warpmesh.modify.crack import crack
+
         return crack(self, facets, ref=ref, side_refs=side_refs)
 
     def periodic(self, matrix, copies: int, tolerance: float | None = None, *, refs: bool = False,
@@ -579,6 +604,8 @@ class Mesh:
         >>> m.periodic(wm.transforms.translation((1, 0)), 3).n_points
         8
         """
+        from warpmesh.modify.periodic import periodic
+
         return periodic(self, matrix, copies, tolerance, refs=refs, duplicates=duplicates, check=check)
 
     # ---------------------------------------------------------------- meshio
@@ -590,6 +617,8 @@ class Mesh:
         >>> Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_meshio().cells[0].type
         'triangle'
         """
+        from warpmesh.io import convert as _convert
+
         return _convert.to_meshio(self)
 
     @classmethod
@@ -603,6 +632,8 @@ class Mesh:
         >>> Mesh.from_meshio(m).n_cells
         1
         """
+        from warpmesh.io import convert as _convert
+
         return _convert.from_meshio(m, mesh_type=cls, dim=dim, info=info)
 
     # ---------------------------------------------------------------- trimesh
@@ -614,6 +645,8 @@ class Mesh:
         >>> float(Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_trimesh().area)
         0.5
         """
+        from warpmesh.io import convert as _convert
+
         return _convert.to_trimesh(self)
 
     @classmethod
@@ -626,6 +659,8 @@ class Mesh:
         >>> Mesh.from_trimesh(trimesh.creation.box()).n_cells
         12
         """
+        from warpmesh.io import convert as _convert
+
         return _convert.from_trimesh(tm, mesh_type=cls, info=info)
 
     # ---------------------------------------------------------------- pyvista
@@ -637,6 +672,8 @@ class Mesh:
         >>> type(Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).to_pyvista()).__name__
         'PolyData'
         """
+        from warpmesh.io import convert as _convert
+
         return _convert.to_pyvista(self)
 
     @classmethod
@@ -651,6 +688,8 @@ class Mesh:
         >>> Mesh.from_pyvista(pv.Cube()).cells["quad"].shape
         (6, 4)
         """
+        from warpmesh.io import convert as _convert
+
         return _convert.from_pyvista(obj, mesh_type=cls, triangulate=triangulate, dim=dim, info=info)
 
     # ---------------------------------------------------------------- pictures
@@ -695,6 +734,8 @@ class Mesh:
         ...     load(m.save(os.path.join(d, "t.vtu")), dim=2).n_cells
         1
         """
+        from warpmesh.io import files as _io
+
         return _io.save_mesh(self, path, file_format, stacklevel=2)
 
     @classmethod
@@ -702,6 +743,8 @@ class Mesh:
         cls, path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | None = None
     ) -> Mesh:
         """Read a mesh file (:func:`warpmesh.io.files.load`)."""
+        from warpmesh.io import files as _io
+
         return _io.load(path, mesh_type=cls, file_format=file_format, dim=dim)
 
 
@@ -717,4 +760,6 @@ def load(path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | No
     ...
     FileNotFoundError: [Errno 2] no such mesh file: 'no/such/file.vtu'
     """
+    from warpmesh.io import files as _io
+
     return _io.load(path, mesh_type=Mesh, file_format=file_format, dim=dim)

@@ -38,13 +38,13 @@ def check_device(device, name: str = "device"):
     """
     import warp as wp
 
-    from warpmesh._util.warp_init import init_warp
+    from warpmesh.kernels.startup import start
 
     if isinstance(device, wp.Device):
         return device
     if not isinstance(device, str):
         raise TypeError(f"expected a device name such as 'cpu' or 'cuda' for '{name}', got {type(device).__name__}")
-    init_warp()
+    start()
     if device.startswith("cuda") and not wp.is_cuda_available():
         raise ValueError(f"expected an available Warp device for '{name}', got {device!r}: this machine has "
                          "no CUDA device (Warp finds no CUDA driver); use 'cpu'")

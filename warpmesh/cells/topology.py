@@ -24,8 +24,6 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse import csgraph
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE, REL_TOL
 
@@ -196,6 +194,9 @@ def nonmanifold_vertices(faces, n_points: int | None = None) -> np.ndarray:
     flip = vert[c0[h1]] != vert[c0[h2]]
     rows = np.concatenate([c0[h1], c1[h1]])
     cols = np.concatenate([np.where(flip, c1[h2], c0[h2]), np.where(flip, c0[h2], c1[h2])])
+    from scipy import sparse  # here, not at import: scipy.sparse costs 0.3 s of every start
+    from scipy.sparse import csgraph
+
     graph = sparse.coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(3 * m, 3 * m))
     n_fans, labels = csgraph.connected_components(graph, directed=False)
     pairs = _unique(vert * n_fans + labels)
@@ -301,6 +302,9 @@ def connected_components(
         return 0, np.zeros(0, dtype=INDEX_DTYPE)
     k = _count(links, n_points if connectivity == "vertex" else None)
     rows = np.repeat(np.arange(m), 3)  # bipartite graph: faces 0..m-1, then edges/vertices
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
     graph = sparse.coo_matrix(
         (np.ones(3 * m, np.int8), (rows, m + links.ravel())), shape=(m + k, m + k)
     )

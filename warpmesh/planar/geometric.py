@@ -40,8 +40,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.signal import find_peaks
-from scipy.spatial import cKDTree
 
 from warpmesh.frep import geometry
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
@@ -273,6 +271,8 @@ class _Dense:
 
     def _kappa(self, p):
         """|curvature| at p, NaN within the Hessian stencil of a corner or singular point."""
+        from scipy.spatial import cKDTree
+
         scale = np.maximum(min(1.0, 0.5 * self.field.size), np.abs(p).max(axis=1))
         step = geometry.HESSIAN_STEP * scale
         k = np.abs(geometry.curvature(self.field.shape, p, step=step, device=self.field.device))
@@ -405,6 +405,8 @@ class _Dense:
 
         A closed chain with extrema is rolled to start at one, so that its arbitrary
         first raw point is no longer a vertex."""
+        from scipy.signal import find_peaks
+
         k, u = self.kappa_filled(), self.arc()
         start = np.r_[0, np.flatnonzero(self.cid[1:] != self.cid[:-1]) + 1, len(k)]
         perm = np.arange(len(k))
@@ -609,6 +611,8 @@ def _check_dense(d: _Dense):
     """The dense polyline lies on the curve: if it crosses itself, the raw polyline's
     topology is not the curve's (a sampler too coarse for a thin neck or a narrow gap)."""
     # chains lying on top of each other (cheap test first: their points nearly coincide)
+    from scipy.spatial import cKDTree
+
     n = len(d.p)
     seg = np.where(d.cid[1:] == d.cid[:-1], np.linalg.norm(np.diff(d.p, axis=0), axis=1), np.inf)
     local = np.minimum(np.r_[np.inf, seg], np.r_[seg, np.inf])

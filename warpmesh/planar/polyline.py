@@ -19,8 +19,6 @@ Example
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 
@@ -64,6 +62,9 @@ def components(segments: np.ndarray, n_points: int) -> tuple[int, np.ndarray]:
     segs = np.asarray(segments, INDEX_DTYPE).reshape(-1, 2)
     if len(segs) == 0:
         return 0, np.full(n_points, -1, INDEX_DTYPE)
+    import scipy.sparse as sp  # here, not at import: scipy.sparse is slow to import
+    from scipy.sparse.csgraph import connected_components
+
     graph = sp.coo_matrix((np.ones(len(segs)), (segs[:, 0], segs[:, 1])), shape=(n_points, n_points))
     _, lab = connected_components(graph, directed=False)
     used = np.zeros(n_points, bool)

@@ -40,8 +40,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.errors import WarpMeshError
@@ -316,6 +314,9 @@ def _progress(store, frontier, cases, dims, cell_dims, max_cells):
         return np.empty(0, INDEX_DTYPE), 0, 0
     a = np.concatenate([e[0] for e in edges])
     b = np.concatenate([e[1] for e in edges])
+    from scipy.sparse import coo_matrix  # here, not at import: scipy.sparse is slow to import
+    from scipy.sparse.csgraph import connected_components
+
     graph = coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(offset, offset))
     components = int(connected_components(graph, directed=False)[0])
     return np.sort(np.concatenate(layers)), components, len(layers)

@@ -33,13 +33,15 @@ Example
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import Delaunay, cKDTree
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.errors import WarpMeshError
+
+if TYPE_CHECKING:  # annotations only: scipy is imported where it is used (0.5 s at start-up)
+    from scipy.spatial import Delaunay
 
 __all__ = ["delaunay", "ccw", "signed_area2", "edge_keys", "missing_segments", "regions", "classify", "conform",
            "refine", "circumcenters", "min_angles", "split_segments"]
@@ -65,6 +67,8 @@ def delaunay(points: np.ndarray) -> tuple[np.ndarray, Delaunay]:
     WarpMeshError
         Qhull dropped points (duplicates): every point must be a vertex.
     """
+    from scipy.spatial import Delaunay
+
     d = Delaunay(np.asarray(points, REAL_DTYPE))
     if len(d.coplanar):
         raise WarpMeshError(f"Delaunay dropped {len(d.coplanar)} duplicate point(s); weld the input first")
@@ -134,6 +138,9 @@ def min_angles(points: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.nda
 def regions(tris: np.ndarray, segments: np.ndarray, n: int) -> np.ndarray:
     """(k,) label of each triangle's region: triangles joined across every edge that is
     not a segment (connected components of the dual graph cut by the segments)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
     k = len(tris)
     a, b = _tri_edges(tris)
     tri_of = np.repeat(np.arange(k), 3)
@@ -273,6 +280,8 @@ def _encroached_by_vertices(points, tris, segments, n):
 def _encroaching(c: np.ndarray, points: np.ndarray, segments: np.ndarray) -> np.ndarray:
     """For each point of ``c`` the nearest segment whose diametral circle contains it
     (among the nearest segment midpoints), or -1."""
+    from scipy.spatial import cKDTree
+
     mid = 0.5 * (points[segments[:, 0]] + points[segments[:, 1]])
     half = 0.5 * np.linalg.norm(points[segments[:, 1]] - points[segments[:, 0]], axis=1)
     k = min(_K_ENCROACH, len(segments))
@@ -308,6 +317,8 @@ def _steiner_points(points: np.ndarray, tris: np.ndarray, min_angle: float) -> t
 def _thin(c: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Indices of a subset of ``c`` (in priority order) with no two points closer than
     the larger circumradius: of each conflicting pair the later one is dropped."""
+    from scipy.spatial import cKDTree
+
     if len(c) < 2:
         return np.arange(len(c))
     k = min(_K_THIN, len(c))

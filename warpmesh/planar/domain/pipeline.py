@@ -43,7 +43,6 @@ import warnings
 from typing import Literal
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.planar.domain.delaunay import classify, conform, min_angles, refine, signed_area2
@@ -109,6 +108,8 @@ def _check(points, segments, size, min_angle, gradation, max_points, method):
 def size_function(points: np.ndarray, segments: np.ndarray, size: float, gradation: float):
     """h(x) = min(size, min_v (h_v + (gradation - 1) |x - v|)) over boundary vertices v,
     h_v the mean length of the segments at v. Returns a callable (q, 2) -> (q,)."""
+    from scipy.spatial import cKDTree
+
     ln = np.linalg.norm(points[segments[:, 1]] - points[segments[:, 0]], axis=1)
     acc = np.bincount(segments.ravel(), weights=np.repeat(ln, 2), minlength=len(points))
     h_v = acc / np.maximum(np.bincount(segments.ravel(), minlength=len(points)), 1)
@@ -125,6 +126,8 @@ def size_function(points: np.ndarray, segments: np.ndarray, size: float, gradati
 
 
 def _distance_to_boundary(q, points, segments, k: int = 8):
+    from scipy.spatial import cKDTree
+
     mid = 0.5 * (points[segments[:, 0]] + points[segments[:, 1]])
     k = min(k, len(segments))
     _, idx = cKDTree(mid).query(q, k=k)

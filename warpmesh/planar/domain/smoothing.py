@@ -21,11 +21,15 @@ True
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import scipy.sparse as sp
 
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.planar.domain.delaunay import min_angles, signed_area2
+
+if TYPE_CHECKING:  # annotations only: scipy is imported where it is used
+    import scipy.sparse as sp
 
 __all__ = ["smooth", "independent_sets"]
 
@@ -34,6 +38,8 @@ STEPS = (1.0, 0.5, 0.25)
 
 
 def _vertex_graph(tris: np.ndarray, n: int) -> sp.csr_matrix:
+    import scipy.sparse as sp
+
     a = tris.ravel()
     b = tris[:, [1, 2, 0]].ravel()
     g = sp.coo_matrix((np.ones(2 * len(a)), (np.concatenate([a, b]), np.concatenate([b, a]))), shape=(n, n)).tocsr()

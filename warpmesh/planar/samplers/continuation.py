@@ -37,7 +37,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.frep.planar_field import PlanarField
@@ -538,6 +537,8 @@ def _traced_segment(q, tangents, points, segments, floor, slack) -> np.ndarray:
     the absolute error allowed at corners) of a segment running the same way. Two different
     components facing each other run opposite ways (the domain lies between them, or
     outside both), so a point of a nearby component is not taken for a traced one."""
+    from scipy.spatial import cKDTree
+
     out = np.full(len(q), -1, INDEX_DTYPE)
     if len(segments) == 0 or len(q) == 0:
         return out

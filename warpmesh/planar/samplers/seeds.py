@@ -32,8 +32,6 @@ Example
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.frep.planar_field import PlanarField
@@ -102,6 +100,9 @@ def inside_box(p: np.ndarray, bounds: np.ndarray) -> np.ndarray:
 
 def _clusters(ij: np.ndarray) -> np.ndarray:
     """Labels of the 8-connected groups of the (k, 2) integer cells ``ij``."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
     k = len(ij)
     if k == 0:
         return np.zeros(0, INDEX_DTYPE)
