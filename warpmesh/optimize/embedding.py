@@ -13,8 +13,8 @@ only at the faces nearby:
 * **folded**: two faces sharing an edge, the surface turning by more than
   ``FOLD_COS`` allows across it (a coplanar fold, which the self-intersection check
   counts as a crossing, is the extreme case);
-* **crossing**: any other common point with a face nearby (candidates from the
-  bounding spheres of the faces, one k-d tree per size class, then their boxes), with
+* **crossing**: any other common point with a face nearby (candidates from a BVH over
+  the faces' boxes, grown by the touching distance, then their bounding spheres), with
   the rules of :func:`warpmesh.cells.intersections.find_self_intersections`: faces
   sharing a vertex may meet only there, faces sharing an edge only along it, a
   repeated vertex triple is always a crossing. Pairs sharing one vertex whose fan
@@ -23,6 +23,8 @@ only at the faces nearby:
 
 The predicates run in float64 with a tolerance of a few float32 ulps of the coordinates
 (the tape evaluates in float32), so touching counts as crossing: a conservative test.
+They run in Warp, one thread per checked face (:mod:`warpmesh.kernels.remesh`); the
+inversion test, which evaluates the target, and the fans run here.
 
 :func:`apply_verified` applies a batch, checks its new faces in the resulting mesh and
 applies it again without the operations whose faces fail, until none does: faces
@@ -42,11 +44,14 @@ Examples
 from __future__ import annotations
 
 import numpy as np
+import warp as wp
 
+from warpmesh._util.parallel import parallel_ranges, run_parallel
+from warpmesh.kernels import remesh as KR
 from warpmesh.optimize.local_ops import gather, vertex_faces
 
 __all__ = ["FOLD_COS", "NORMAL_COS", "apply_verified", "face_violations", "revert_violations",
-           "segment_meets_triangle", "verified_collapse", "verified_flip", "verified_split"]
+           "verified_collapse", "verified_flip", "verified_split"]
 
 #: a new face whose unit normal has a dot product with the exact normal at its centroid
 #: at or below this is inverted
@@ -58,6 +63,10 @@ FOLD_COS = -np.cos(np.radians(30.0))
 #: ulps of the coordinates
 REL_TOUCH = 1.0e-6
 ULP_TOUCH = 4.0 * 2.0**-24
+#: the BVH's float32 boxes are grown by this fraction of the largest coordinate (rounding)
+_BOX_PAD = 4.0 * 2.0**-24
+#: checked faces per worker thread below which a CPU launch is not split
+_MIN_FACES_PER_WORKER = 1 << 12
 #: apply-check-retry rounds of :func:`apply_verified` before giving the batch up
 VERIFY_ROUNDS = 6
 
@@ -73,184 +82,7 @@ def _unit(v):
     return v / np.maximum(np.linalg.norm(v, axis=-1), 1e-300)[..., None]
 
 
-# ----------------------------------------------------------------------------- predicates
-def _point_in_triangle(x, a, b, c, n_hat, tol):
-    """x (in the plane of a, b, c, within tol) inside the closed triangle grown by tol."""
-    inside = np.ones(len(x), bool)
-    for e0, e1 in ((a, b), (b, c), (c, a)):
-        e = e1 - e0
-        d = _dot(np.cross(e, x - e0), n_hat) / np.maximum(np.linalg.norm(e, axis=1), 1e-300)
-        inside &= d >= -tol
-    return inside
-
-
-def _segments_meet_2d(p, q, e0, e1, n_hat, tol):
-    """Coplanar segments pq and e0e1 (3D points, plane normal n_hat) meet, within tol."""
-    def side(a, b, x):  # signed distance of x from the line ab, in the plane
-        ab = b - a
-        return _dot(np.cross(ab, x - a), n_hat) / np.maximum(np.linalg.norm(ab, axis=1), 1e-300)
-
-    d1, d2 = side(p, q, e0), side(p, q, e1)
-    d3, d4 = side(e0, e1, p), side(e0, e1, q)
-    apart = ((d1 > tol) & (d2 > tol)) | ((d1 < -tol) & (d2 < -tol))
-    apart |= ((d3 > tol) & (d4 > tol)) | ((d3 < -tol) & (d4 < -tol))
-    # collinear: the intervals along pq must overlap
-    col = (np.abs(d1) <= tol) & (np.abs(d2) <= tol)
-    u = q - p
-    lu = np.maximum(np.linalg.norm(u, axis=1), 1e-300)
-    t0, t1 = _dot(e0 - p, u) / lu, _dot(e1 - p, u) / lu
-    disjoint = (np.maximum(t0, t1) < -tol) | (np.minimum(t0, t1) > lu + tol)
-    return ~apart & ~(col & disjoint)
-
-
-def segment_meets_triangle(p, q, a, b, c, tol):
-    """Closed segments pq against closed triangles abc, (k, 3) each; ``tol`` (k,) the
-    touching distance (touching counts). Degenerate triangles never meet."""
-    n = np.cross(b - a, c - a)
-    nn = np.linalg.norm(n, axis=1)
-    good = nn > 1e-300
-    n_hat = n / np.maximum(nn, 1e-300)[:, None]
-    dp, dq = _dot(p - a, n_hat), _dot(q - a, n_hat)
-    out = np.zeros(len(p), bool)
-    apart = ((dp > tol) & (dq > tol)) | ((dp < -tol) & (dq < -tol)) | ~good
-    flat = ~apart & (np.abs(dp) <= tol) & (np.abs(dq) <= tol)
-    cross = ~apart & ~flat
-    if cross.any():
-        i = np.flatnonzero(cross)
-        den = dp[i] - dq[i]
-        t = np.clip(np.where(np.abs(den) > 1e-300, dp[i] / np.where(den == 0, 1.0, den), 0.0), 0.0, 1.0)
-        x = p[i] + t[:, None] * (q[i] - p[i])
-        out[i] = _point_in_triangle(x, a[i], b[i], c[i], n_hat[i], tol[i])
-    if flat.any():
-        i = np.flatnonzero(flat)
-        pp, qq, aa, bb, cc, nh, tt = p[i], q[i], a[i], b[i], c[i], n_hat[i], tol[i]
-        # project onto the plane, then: an end inside, or pq meeting an edge
-        pp = pp - _dot(pp - aa, nh)[:, None] * nh
-        qq = qq - _dot(qq - aa, nh)[:, None] * nh
-        hit = _point_in_triangle(pp, aa, bb, cc, nh, tt) | _point_in_triangle(qq, aa, bb, cc, nh, tt)
-        for e0, e1 in ((aa, bb), (bb, cc), (cc, aa)):
-            hit |= _segments_meet_2d(pp, qq, e0, e1, nh, tt)
-        out[i] = hit
-    return out
-
-
-def _min3(x):
-    return np.minimum(np.minimum(x[..., 0], x[..., 1]), x[..., 2])
-
-
-def _max3(x):
-    return np.maximum(np.maximum(x[..., 0], x[..., 1]), x[..., 2])
-
-
-def _triangles_meet(A, B, tol):
-    """Triangles (k, 3, 3) that share no vertex meet within ``tol``: no separating axis
-    among the two normals, the nine cross products of their edges (complete when they
-    are not coplanar) and the six in-plane edge normals (complete when they are)."""
-    ea, eb = A[:, _NEXT] - A, B[:, _NEXT] - B
-    na, nb = np.cross(ea[:, 0], ea[:, 1]), np.cross(eb[:, 0], eb[:, 1])
-    axes = np.concatenate([na[:, None], nb[:, None], np.cross(ea[:, :, None], eb[:, None, :]).reshape(-1, 9, 3),
-                           np.cross(na[:, None], ea), np.cross(nb[:, None], eb)], axis=1)  # (k, 17, 3)
-    length = np.sqrt(np.einsum("ijk,ijk->ij", axes, axes))
-    scale = np.maximum(_max3(np.einsum("ijk,ijk->ij", ea, ea)), _max3(np.einsum("ijk,ijk->ij", eb, eb)))
-    usable = length > 1e-9 * scale[:, None]
-    axes /= np.maximum(length, 1e-300)[:, :, None]
-    pa, pb = np.matmul(axes, A.transpose(0, 2, 1)), np.matmul(axes, B.transpose(0, 2, 1))
-    gap = np.maximum(_min3(pb) - _max3(pa), _min3(pa) - _max3(pb))
-    return ~np.any(usable & (gap > tol[:, None]), axis=1)
-
-
-# ----------------------------------------------------------------------------- neighbours
-def _spheres(p, t):
-    corners = p[t]
-    cen = (corners[:, 0] + corners[:, 1] + corners[:, 2]) / 3.0
-    d = corners - cen[:, None]
-    rad = np.sqrt(_max3(np.einsum("ijk,ijk->ij", d, d)))
-    return corners, cen, rad
-
-
-def _nearby_faces(p, t, faces, pad):
-    """The faces ``faces`` first, then every other face whose bounding sphere may meet
-    one of theirs (centroids in the grid cells around theirs, cells as wide as the
-    largest two radii)."""
-    if 4 * len(faces) > len(t):
-        rest = np.ones(len(t), bool)
-        rest[faces] = False
-        return np.concatenate([faces, np.flatnonzero(rest)])
-    _, cen, rad = _spheres(p, t)
-    width = float(rad[faces].max() + rad.max()) + pad
-    lo = cen.min(axis=0)
-    cell = np.floor((cen - lo) / width).astype(np.int64) + 1
-    dims = cell.max(axis=0) + 2
-
-    def key(c):
-        return (c[..., 0] * dims[1] + c[..., 1]) * dims[2] + c[..., 2]
-
-    offsets = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
-    around = np.unique(key(cell[faces][:, None, :] + offsets[None]))
-    near = np.isin(key(cell), around)
-    near[faces] = False
-    return np.concatenate([faces, np.flatnonzero(near)])
-
-
-def _tree(x):
-    from scipy.spatial import cKDTree
-
-    return cKDTree(x, balanced_tree=False, compact_nodes=False)
-
-
-def _near_pairs(cen, rad, new, pad):
-    """Unordered pairs (a, b) of faces, a listed in ``new`` (bool per face), whose
-    bounding spheres meet; each pair once.
-
-    The faces are sorted into size classes (the radius over twice the median: class 0,
-    then one class per doubling), one k-d tree each, so that a few large faces do not
-    widen every query.
-    """
-    med = max(float(np.median(rad)), 1e-300)
-    cls = np.clip(np.ceil(np.log2(np.maximum(rad, med) / (2.0 * med))), 0, 30).astype(np.int64)
-    groups = {}
-    for c in np.unique(cls):
-        idx = np.flatnonzero(cls == c)
-        groups[int(c)] = (idx, float(rad[idx].max()), new[idx])
-    out_a, out_b = [], []
-    keys = sorted(groups)
-    for x, cx in enumerate(keys):
-        ix, rx, nx = groups[cx]
-        if nx.sum() > 0.25 * len(ix):  # many new faces: every pair of the class, then filter
-            pr = _tree(cen[ix]).query_pairs(2 * rx + pad, output_type="ndarray")
-            a, b = ix[pr[:, 0]], ix[pr[:, 1]]
-            a, b = a[new[a] | new[b]], b[new[a] | new[b]]
-        elif nx.any():
-            sub = ix[nx]
-            pr = _tree(cen[sub]).sparse_distance_matrix(_tree(cen[ix]), 2 * rx + pad, output_type="ndarray")
-            a, b = sub[pr["i"]], ix[pr["j"]]
-            a, b = a[(a < b) | ~new[b]], b[(a < b) | ~new[b]]  # a pair of two new faces once
-        else:
-            a = b = np.zeros(0, np.int64)
-        out_a.append(a)
-        out_b.append(b)
-        for cy in keys[x + 1:]:  # the larger classes
-            iy, ry, ny = groups[cy]
-            for (i1, n1), (i2, n2) in (((ix, nx), (iy, ny)), ((iy, ny), (ix, nx))):
-                if not n1.any():
-                    continue
-                sub = i1[n1]
-                pr = _tree(cen[sub]).sparse_distance_matrix(_tree(cen[i2]), rx + ry + pad, output_type="ndarray")
-                a, b = sub[pr["i"]], i2[pr["j"]]
-                if i1 is iy:  # a pair of two new faces of the two classes: from the first side only
-                    a, b = a[~new[b]], b[~new[b]]
-                out_a.append(a)
-                out_b.append(b)
-    a, b = np.concatenate(out_a), np.concatenate(out_b)
-    swap = ~new[a]
-    if swap.any():
-        a, b = np.where(swap, b, a), np.where(swap, a, b)
-    d = cen[a] - cen[b]
-    reach = rad[a] + rad[b] + pad
-    keep = np.einsum("ij,ij->i", d, d) <= reach * reach
-    return a[keep], b[keep]
-
-
+# ----------------------------------------------------------------------------- fans
 def _projectable_fans(p, t, verts):
     """Which of the vertices ``verts`` (bool per point: True where ``verts`` says and the
     fan in ``t`` is one closed cycle of faces projecting one-to-one onto the plane of
@@ -281,14 +113,6 @@ def _projectable_fans(p, t, verts):
     ok[kp[~cycle] // n] = False
     total = np.bincount(own, weights=angle, minlength=n)
     return want & ok & (total <= 2.0 * np.pi + 1e-9)
-
-
-def _shared_corners(fa, fb):
-    """(corner of fa shared with fb (q, 3) bool, same for fb, number shared)."""
-    eq = [[fa[:, x] == fb[:, y] for y in range(3)] for x in range(3)]
-    sa = np.stack([eq[x][0] | eq[x][1] | eq[x][2] for x in range(3)], axis=1)
-    sb = np.stack([eq[0][y] | eq[1][y] | eq[2][y] for y in range(3)], axis=1)
-    return sa, sb, sa[:, 0].astype(np.int8) + sa[:, 1] + sa[:, 2]
 
 
 def face_violations(points, triangles, faces, normals=None, *, fold_cos: float = FOLD_COS,
@@ -326,76 +150,85 @@ def face_violations(points, triangles, faces, normals=None, *, fold_cos: float =
     return (bad[inverse], others) if partners else bad[inverse]
 
 
+def _fans_kernel(points, tris, verts, n, device):
+    """:func:`_projectable_fans` in Warp: (n,) int32, 1 at the vertices ``verts`` whose
+    fan is closed (the same next and previous vertices, compared by sums of 64-bit
+    mixes), every projected corner positive and the angles summing to at most a turn."""
+    want = np.zeros(n, np.int32)
+    want[np.asarray(verts).ravel()] = 1
+    want_w = wp.array(want, dtype=wp.int32, device=device)
+    m = tris.shape[0] // 3
+    normal_sum = wp.zeros(n, dtype=wp.vec3d, device=device)
+    next_sum = wp.zeros(n, dtype=wp.uint64, device=device)
+    prev_sum = wp.zeros(n, dtype=wp.uint64, device=device)
+    angle_sum = wp.zeros(n, dtype=wp.float64, device=device)
+    folded = wp.zeros(n, dtype=wp.int32, device=device)
+    wp.launch(KR.fan_sums_kernel, dim=m, inputs=[points, tris, want_w], outputs=[normal_sum, next_sum, prev_sum],
+              device=device)
+    wp.launch(KR.fan_angles_kernel, dim=m, inputs=[points, tris, want_w, normal_sum], outputs=[angle_sum, folded],
+              device=device)
+    ok = (want != 0) & (folded.numpy() == 0) & (next_sum.numpy() == prev_sum.numpy())  # sync point
+    ok &= angle_sum.numpy() <= 2.0 * np.pi + 1e-9
+    return ok.astype(np.int32)
+
+
 def _violations(p, t_all, faces, normals, fold_cos, normal_cos, average):
-    """(bad flags of ``faces``, the unlisted faces of failing pairs)."""
-    bad = np.zeros(len(faces), bool)
+    """(bad flags of ``faces`` (unique), the unlisted faces of failing pairs).
+
+    The inversion test runs here (it evaluates the target); the pair tests run in
+    :func:`warpmesh.kernels.remesh.face_violations_kernel`, one thread per listed face
+    against the faces of its BVH query."""
+    m, k = len(t_all), len(faces)
+    bad = np.zeros(k, bool)
     ulp = ULP_TOUCH * max(float(np.abs(p).max()), 1e-300)
-    # only the faces near the listed ones take part (renumbered: listed ones first)
-    near = _nearby_faces(p, t_all, faces, 2 * ulp)
-    t = t_all[near].astype(np.int32) if len(p) < 2**31 else t_all[near]
-    faces = np.arange(len(faces))
-    corners, cen, rad = _spheres(p, t)
-    nrm = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    area2 = np.sqrt(_dot(nrm, nrm))
-    lmax = np.sqrt(_max3(np.einsum("ijk,ijk->ij", corners - corners[:, _NEXT], corners - corners[:, _NEXT])))
-    degenerate = (area2 <= 1e-14 * lmax**2) | (t[:, 0] == t[:, 1]) | (t[:, 1] == t[:, 2]) | (t[:, 0] == t[:, 2])
-    bad |= degenerate[faces]
-    n_hat = nrm / np.maximum(area2, 1e-300)[:, None]
+    tri = t_all[faces]
     if normals is not None:
-        k = len(faces)
-        exact = normals(np.concatenate([cen[faces], corners[faces].reshape(-1, 3)]) if average else cen[faces])
+        corners = p[tri]
+        n_hat = _unit(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+        cen = corners.mean(axis=1)
+        exact = normals(np.concatenate([cen, corners.reshape(-1, 3)]) if average else cen)
         at_centroid = exact[:k]
         known = _dot(at_centroid, at_centroid) > 0.25  # where the gradient vanishes nothing is known
-        bad |= known & (_dot(n_hat[faces], at_centroid) <= normal_cos)
+        bad |= known & (_dot(n_hat, at_centroid) <= normal_cos)
         if average:  # the centroid's and the corners' normals, averaged, must agree too
             mean = _unit(at_centroid + exact[k:].reshape(k, 3, 3).sum(axis=1))
-            bad |= (_dot(mean, mean) > 0.25) & (_dot(n_hat[faces], mean) <= normal_cos)
-    new = np.zeros(len(t), bool)
-    new[faces] = True
-    a, b = _near_pairs(cen, rad, new, 2 * ulp)
-    live = ~degenerate[a] & ~degenerate[b]
-    a, b = a[live], b[live]
-    if len(a) == 0:
-        return bad, np.zeros(0, np.int64)
-    fa, fb = t[a], t[b]
-    sa, sb, k = _shared_corners(fa, fb)
-    hit = np.zeros(len(a), bool)
-    hit[k == 3] = True  # a repeated vertex triple: a duplicate face
-    two = np.flatnonzero(k == 2)  # a shared edge: a fold
-    hit[two] = _dot(n_hat[a[two]], n_hat[b[two]]) < fold_cos
-    tol = REL_TOUCH * np.maximum(lmax[a], lmax[b]) + ulp
-    # a shared vertex: the edges opposite it against the other face, unless its fan is flat
-    one = np.flatnonzero(k == 1)
-    if len(one):
-        ca = np.where(sa[one, 0], 0, np.where(sa[one, 1], 1, 2))
-        cb = np.where(sb[one, 0], 0, np.where(sb[one, 1], 1, 2))
-        shared = fa[one, ca]
-        curved = ~_projectable_fans(p, t, shared)[shared]
-        test, ca, cb = one[curved], ca[curved], cb[curved]
-        if len(test):
-            A, B = p[fa[test]], p[fb[test]]
-            r = np.arange(len(test))
-            tt = tol[test]
-            h = np.zeros(len(test), bool)
-            for s0, s1, T, nt in ((A[r, _NEXT[ca]], A[r, _PREV[ca]], B, n_hat[b[test]]),
-                                  (B[r, _NEXT[cb]], B[r, _PREV[cb]], A, n_hat[a[test]])):
-                d0, d1 = _dot(s0 - T[:, 0], nt), _dot(s1 - T[:, 0], nt)
-                close = np.flatnonzero(~h & ~(((d0 > tt) & (d1 > tt)) | ((d0 < -tt) & (d1 < -tt))))
-                h[close] = segment_meets_triangle(s0[close], s1[close], T[close, 0], T[close, 1], T[close, 2], tt[close])
-            hit[test] = h
-    # no vertex shared: boxes, then separating axes
-    zero = np.flatnonzero(k == 0)
-    if len(zero):
-        A, B = corners[a[zero]], corners[b[zero]]
-        pad = tol[zero][:, None]
-        At, Bt = A.transpose(0, 2, 1), B.transpose(0, 2, 1)
-        keep = np.all((_min3(At) <= _max3(Bt) + pad) & (_min3(Bt) <= _max3(At) + pad), axis=1)
-        zero, A, B = zero[keep], A[keep], B[keep]
-        hit[zero] = _triangles_meet(A, B, tol[zero])
-    bad[a[hit]] = True
-    other = b[hit]
-    bad[other[other < len(faces)]] = True
-    return bad, np.unique(near[other[other >= len(faces)]])
+            bad |= (_dot(mean, mean) > 0.25) & (_dot(n_hat, mean) <= normal_cos)
+    listed = np.full(m, -1, np.int32)
+    listed[faces] = np.arange(k, dtype=np.int32)
+    device = "cpu"  # the optimiser's arrays live on the host
+    points = wp.array(np.ascontiguousarray(p, np.float64), dtype=wp.vec3d, device=device)
+    tris = wp.array(np.ascontiguousarray(t_all, np.int32).ravel(), dtype=wp.int32, device=device)
+    # the fans of the listed faces' vertices (a pair sharing one vertex shares one of these)
+    fan_ok = _fans_kernel(points, tris, tri, len(p), device)
+    lowers = wp.empty(m, dtype=wp.vec3, device=device)
+    uppers = wp.empty(m, dtype=wp.vec3, device=device)
+    degenerate = wp.empty(m, dtype=wp.int32, device=device)
+    keys = wp.empty(2 * m, dtype=wp.int32, device=device)  # the radix sort's scratch: 2m
+    ids = wp.empty(2 * m, dtype=wp.int32, device=device)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    wp.launch(KR.face_boxes_kernel, dim=m,
+              inputs=[points, tris, REL_TOUCH, ulp, _BOX_PAD * ulp / ULP_TOUCH, wp.vec3d(*lo),
+                      1023.999 / max(float((hi - lo).max()), 1e-300)],
+              outputs=[lowers, uppers, degenerate, keys, ids], device=device)
+    wp.utils.radix_sort_pairs(keys, ids, m)  # the faces in Morton order: leaf groups are compact patches
+    order = ids[:m]
+    n_groups = (m + KR.GROUP - 1) // KR.GROUP
+    group_lowers = wp.empty(n_groups, dtype=wp.vec3, device=device)
+    group_uppers = wp.empty(n_groups, dtype=wp.vec3, device=device)
+    wp.launch(KR.group_boxes_kernel, dim=n_groups, inputs=[order, lowers, uppers],
+              outputs=[group_lowers, group_uppers], device=device)
+    bvh = wp.Bvh(group_lowers, group_uppers)
+    flags = wp.zeros(k, dtype=wp.int32, device=device)
+    partner = wp.zeros(m, dtype=wp.int32, device=device)
+    walk = [bvh.id, points, tris, order, wp.array(faces.astype(np.int32), dtype=wp.int32, device=device),
+            wp.array(listed, dtype=wp.int32, device=device), degenerate,
+            wp.array(fan_ok, dtype=wp.int32, device=device), lowers, uppers, REL_TOUCH, ulp, 2.0 * ulp, fold_cos]
+    wp.load_module(KR, device=device)  # compiled/loaded once here, not by two worker threads at once
+    run_parallel([lambda a=a, b=b: wp.launch(KR.face_violations_kernel, dim=b - a, inputs=[*walk, a],
+                                              outputs=[flags, partner], device=device)
+                  for a, b in parallel_ranges(k, device, _MIN_FACES_PER_WORKER)])
+    bad |= flags.numpy() != 0  # sync point
+    return bad, np.flatnonzero(partner.numpy())
 
 
 # ----------------------------------------------------------------------------- batches

@@ -28,8 +28,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import warp as wp
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh.kernels import remesh as KR
 
 __all__ = ["Surface", "Topology", "select_independent", "edge_key"]
 
@@ -182,21 +184,17 @@ def gather(indptr: np.ndarray, values: np.ndarray, rows: np.ndarray) -> tuple[np
     return owner, values[np.arange(counts.sum()) + start]
 
 
-def triangle_frames(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(normal vectors (unnormalised, 2 x area), longest edge, 2 x inradius-related) of (k, 3, 3)."""
-    e = p[:, [1, 2, 0]] - p
-    nrm = np.cross(e[:, 0], -e[:, 2])
-    lens = np.sqrt(np.einsum("ijk,ijk->ij", e, e))
-    return nrm, lens.max(axis=1), lens.sum(axis=1)
-
-
 def quality_of(p: np.ndarray) -> np.ndarray:
-    """Q_K of (k, 3, 3) triangles [FG eq. 16.15], inf when degenerate."""
-    nrm, hmax, perim = triangle_frames(p)
-    area2 = np.sqrt(np.einsum("ij,ij->i", nrm, nrm))  # 2 * area; rho = 2 area / perimeter = area2 / perim
-    with np.errstate(divide="ignore", invalid="ignore"):
-        q = (np.sqrt(3.0) / 6.0) * hmax * perim / area2
-    return np.where(area2 > 1e-14 * hmax**2, q, np.inf)
+    """Q_K of (k, 3, 3) triangles [FG eq. 16.15], inf when degenerate (twice the area at
+    most 1e-14 x the longest edge squared); one Warp thread per triangle
+    (:func:`warpmesh.kernels.remesh.triangle_quality_kernel`)."""
+    corners = np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 3, 3)
+    if len(corners) == 0:
+        return np.zeros(0)
+    out = wp.empty(len(corners), dtype=wp.float64, device="cpu")  # the optimiser's arrays live on the host
+    wp.launch(KR.triangle_quality_kernel, dim=len(corners),
+              inputs=[wp.array(corners, dtype=wp.mat33d, device="cpu", copy=False)], outputs=[out], device="cpu")
+    return out.numpy()
 
 
 @dataclass

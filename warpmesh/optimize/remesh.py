@@ -166,8 +166,9 @@ class _Run:
         est = self.target.estimate(_face_samples(new).reshape(-1, 3)).reshape(-1, 4).max(1)
         far = np.flatnonzero(est > 0.5 * self.tolerance)
         if len(far):
-            d_new = self._distance(_face_samples(new[far]).reshape(-1, 3)).reshape(-1, 4).max(1)
-            d_old = self._distance(_face_samples(old[far]).reshape(-1, 3)).reshape(-1, 4).max(1)
+            # one projection of both sample sets (each point's Newton steps are its own)
+            d = self._distance(_face_samples(np.concatenate([new[far], old[far]])).reshape(-1, 3))
+            d_new, d_old = np.split(d.reshape(-1, 4).max(1), 2)
             bad[far] = d_new > np.maximum(self.tolerance, d_old + 1e-12)
         return bad
 
