@@ -14,6 +14,7 @@ import logging
 import os
 import pkgutil
 import re
+import types
 from pathlib import Path
 
 import warpmesh
@@ -74,7 +75,7 @@ def _api_page() -> str:
     data: list[str] = []
     for name in warpmesh.__all__:
         obj = getattr(warpmesh, name)
-        if isinstance(obj, type(warpmesh)):
+        if isinstance(obj, types.ModuleType):  # warpmesh's own type is a ModuleType subclass
             modules.append(name)
         elif getattr(obj, "__module__", None) is None or isinstance(obj, (dict, list, tuple)):
             data.append(name)
