@@ -3,6 +3,8 @@ with the topology of the interpolant it claims (mc: the 6-connected digitisation
 inside nodes; mt: the piecewise-linear interpolant on the Kuhn split; mc33: the
 trilinear interpolant, see test_mc33_tables.py for the per-cell oracle)."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -130,6 +132,38 @@ def test_continuation_gives_the_grids_triangles(method, name):
     check_mesh(cont)
     dense = wm.mesh_surface(shape, bounds=bounds, resolution=64, method=method, cull=False)
     assert cont.info["evaluations"] < grid.info["evaluations"] < dense.info["evaluations"]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_continuation_finds_every_component_the_grid_finds(seed):
+    """Components no ray crosses (small balls between the rays, a grid too coarse for any
+    ray) are seeded from the blocks an interval cannot clear [issue 19 item 7]."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 15))
+    balls = wm.union(*[wm.sphere(float(r), center=tuple(c)) for r, c in
+                       zip(rng.uniform(0.03, 0.12, n), rng.uniform(-0.85, 0.85, (n, 3)))])
+    bounds = ((-1, -1, -1), (1, 1, 1))
+    resolution = int(rng.choice([8, 24, 48, 64]))
+    grid = wm.mesh_surface(balls, bounds=bounds, resolution=resolution)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # an empty grid mesh warns in both
+        cont = wm.mesh_surface(balls, bounds=bounds, resolution=resolution, covering="continuation")
+    assert _triangle_set(cont) == _triangle_set(grid)
+    if grid.n_cells:
+        assert cont.stats()["components"] == grid.stats()["components"]
+
+
+@pytest.mark.parametrize("resolution", [6, 8, 24])
+def test_continuation_on_grids_too_coarse_for_rays(resolution):
+    """A centred sphere where no seed ray crosses it: was an empty mesh with a warning."""
+    ball, bounds = wm.sphere(0.5), ((-1, -1, -1), (1, 1, 1))
+    grid = wm.mesh_surface(ball, bounds=bounds, resolution=resolution)
+    cont = wm.mesh_surface(ball, bounds=bounds, resolution=resolution, covering="continuation")
+    assert grid.n_cells > 0 and _triangle_set(cont) == _triangle_set(grid)
+
+
+def _triangle_set(m):
+    return {tuple(sorted(map(tuple, t))) for t in m.points[m.cells["triangle"]].tolist()}
 
 
 def test_continuation_user_seeds_grow_one_component():

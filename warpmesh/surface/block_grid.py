@@ -130,20 +130,73 @@ class BlockGrid:
                 f"{self.n_slots} blocks of {K.BLOCK}^3 cells would be sampled, more than one pass can "
                 "index (int32): keep cull=True, or lower 'resolution'")
 
+    def block_states(self, tape, cap: int) -> wp.array:
+        """Per block (x fastest), what an interval of f over it proves: CULLED (no crossing),
+        INSIDE (crossed only by the cap), or EVALUATE (may be crossed)."""
+        state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
+        lo = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
+        hi = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
+        self._launch(K.block_boxes_kernel, self.n_blocks, [self.wnb, self.wn, self.sample_at[0], self.wh,
+                                                           self.sample_at[1]], [lo, hi])
+        intervals = eval_intervals(tape, lo, hi, device=self.device)
+        self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [state])
+        self.info["interval_evaluations"] = self.info.get("interval_evaluations", 0) + self.n_blocks
+        return state
+
     def cull_shape(self, tape, cull: bool, cap: int, timings) -> None:
         t0 = time.perf_counter()
-        state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
         self.info["interval_evaluations"] = 0
         if cull:
-            lo = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
-            hi = wp.empty(self.n_blocks, dtype=wp.vec3, device=self.device)
-            self._launch(K.block_boxes_kernel, self.n_blocks, [self.wnb, self.wn, self.sample_at[0], self.wh,
-                                                               self.sample_at[1]], [lo, hi])
-            intervals = eval_intervals(tape, lo, hi, device=self.device)
-            self._launch(K.cull_blocks_kernel, self.n_blocks, [self.wnb, self.wn, int(cap), intervals], [state])
-            self.info["interval_evaluations"] = self.n_blocks
+            state = self.block_states(tape, cap)
+        else:
+            state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
         self._compact(state)
         timings["cull"] = time.perf_counter() - t0
+
+    def block_cells(self, blocks: np.ndarray) -> np.ndarray:
+        """Linear ids (i + cx (j + cy k)) of the cells of the given blocks, sorted."""
+        cells = self.n - 1
+        b = np.asarray(blocks, dtype=np.int64)
+        bc = np.stack([b % self.nb[0], b // self.nb[0] % self.nb[1], b // (self.nb[0] * self.nb[1])], axis=1)
+        r = np.arange(K.BLOCK, dtype=np.int64)
+        local = np.stack(np.meshgrid(r, r, r, indexing="ij"), axis=-1).reshape(-1, 3)
+        ijk = (bc[:, None, :] * K.BLOCK + local[None, :, :]).reshape(-1, 3)
+        ijk = ijk[np.all(ijk < cells, axis=1)]
+        return np.sort(ijk[:, 0] + cells[0] * (ijk[:, 1] + cells[1] * ijk[:, 2]))
+
+    def candidate_cells(self, tape, blocks: np.ndarray, cap: bool) -> tuple[np.ndarray, int]:
+        """(sorted ids of the cells of ``blocks`` that an interval of f cannot prove uncrossed,
+        interval evaluations): boxes halved level by level (8, 4, 2, 1 cells a side), a box
+        kept when its interval holds 0 within the cull's rounding slack, is not finite, or
+        is inside and touches a capped grid face."""
+        cells = self.n - 1
+        b = np.asarray(blocks, dtype=np.int64)
+        lo = np.stack([b % self.nb[0], b // self.nb[0] % self.nb[1], b // (self.nb[0] * self.nb[1])], axis=1) * K.BLOCK
+        size, n_intervals = K.BLOCK, 0
+        children = np.array([[(c >> a) & 1 for a in range(3)] for c in range(8)], dtype=np.int64)
+        while size > 1 and len(lo):
+            size //= 2
+            lo = (lo[:, None, :] + children[None, :, :] * size).reshape(-1, 3)
+            lo = lo[np.all(lo < cells, axis=1)]
+            hi = np.minimum(lo + size, cells)
+            wlo = wp.array((self.origin + lo * self.h).astype(np.float32), dtype=wp.vec3, device=self.device)
+            whi = wp.array((self.origin + hi * self.h).astype(np.float32), dtype=wp.vec3, device=self.device)
+            iv = eval_intervals(tape, wlo, whi, device=self.device).numpy().astype(np.float64)
+            n_intervals += len(lo)
+            ilo, ihi = iv[:, 0], iv[:, 1]
+            slack_lo, slack_hi = 1e-4 * np.abs(ilo) + 1e-7, 1e-4 * np.abs(ihi) + 1e-7
+            keep = ~(np.isfinite(ilo) & np.isfinite(ihi)) | ((ilo <= slack_lo) & (ihi >= -slack_hi))
+            if cap:
+                keep |= (ihi >= -slack_hi) & np.any((lo == 0) | (hi == cells), axis=1)
+            lo = lo[keep]
+        return np.sort(lo[:, 0] + cells[0] * (lo[:, 1] + cells[1] * lo[:, 2])), n_intervals
+
+    def cell_blocks(self, cell_ids: np.ndarray) -> np.ndarray:
+        """The block id of each cell (linear ids as in :meth:`block_cells`)."""
+        cells = self.n - 1
+        c = np.asarray(cell_ids, dtype=np.int64)
+        ijk = np.stack([c % cells[0], c // cells[0] % cells[1], c // (cells[0] * cells[1])], axis=1) // K.BLOCK
+        return ijk[:, 0] + self.nb[0] * (ijk[:, 1] + self.nb[1] * ijk[:, 2])
 
     def sample_shape(self, tape, cull: bool, evaluator, timings) -> None:
         """f at the nodes of the EVALUATE slots that a sub-block interval cannot settle

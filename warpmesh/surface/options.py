@@ -204,10 +204,12 @@ _FIELDS: dict[str, tuple[str, str]] = {
         Skip blocks of 8^3 cells that cannot hold the surface (interval arithmetic for a
         shape, exact block ranges for a volume). The mesh is the same either way."""),
     "seeds": ("(m, 3) points, optional", """
-        Points in cells crossed by the surface to grow from. Default: found by casting
-        rays along 32 grid lines per axis direction and transverse axis (every 8th line
-        on grids up to 256 cells), which finds every component that one of those lines
-        crosses; give a seed for smaller components."""),
+        Points in cells crossed by the surface to grow from; only their components are
+        meshed. Default: every component the grid finds. Rays along 32 grid lines per
+        axis direction and transverse axis (every 8th line on grids up to 256 cells) seed
+        the components they cross; then intervals of f over the blocks, halved down to
+        single cells, list the cells that may be crossed, and those not grown yet are
+        evaluated and seed the rest (``info["seed_search_cells"]``)."""),
     "max_level": ("int, optional", """
         Finest level: 2**max_level cells along the longest side of ``bounds``, 1 to 18.
         Default from ``resolution`` (7 when neither is given)."""),
@@ -369,8 +371,8 @@ class ContinuationOptions(_ShapeGrid):
     """Options of a shape meshed by continuation (``mesh_surface(shape, covering="continuation")``).
 
     The cells the surface crosses are grown from seed cells across the cell faces it
-    crosses, and only their corners are evaluated (plus rays to find seeds): the same
-    triangles as on the grid for every component reached, far fewer evaluations
+    crosses, and only their corners are evaluated (plus rays and intervals to find seeds):
+    the same triangles as on the grid, far fewer evaluations
     (``mesh.info``). There is nothing to cull: it always runs as cull=True.
 
     Parameters
