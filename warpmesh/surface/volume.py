@@ -45,7 +45,6 @@ from warpmesh import _conventions as C
 from warpmesh._util.parallel import parallel_ranges, run_parallel
 from warpmesh.errors import WarpMeshError
 from warpmesh.kernels import block_grid as KB
-from warpmesh.kernels import flying_edges as KF
 from warpmesh.kernels import emit as KE
 from warpmesh.surface.block_grid import BlockGrid, check_clearance, method_tables
 
@@ -128,14 +127,17 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
     for "mc" and "mc33") or "slabs" (:func:`extract_slabs`: the block grid on float32
     copies of slabs, welded); "auto" takes "rows" wherever it applies: "mc" or "mc33" on
     a float32, uint8 or bool volume, or a label of an integer volume (its indicator as
-    uint8). Both give the same triangles and vertices (tests/surface/test_volume_rows.py).
+    uint8), of fewer than 2^29 samples (Warp's int32 offsets). Both give the same
+    triangles and vertices (tests/surface/test_volume_rows.py).
     """
     if engine not in ENGINES:
         raise ValueError(f"expected 'engine' in {list(ENGINES)}, got {engine!r}")
-    rows = method in ("mc", "mc33") and (vol.dtype in ROW_DTYPES or label is not None)
+    # Warp indexes an array with int32 byte offsets: the row pass reads the whole array at once
+    rows = method in ("mc", "mc33") and (vol.dtype in ROW_DTYPES or label is not None) and vol.size * 4 < 2**31
     if engine == "rows" and not rows:
         raise ValueError(f"the row pass meshes \"mc\" and \"mc33\" on float32, uint8 or bool volumes (or "
-                         f"labels), got method {method!r} on dtype {vol.dtype}")
+                         f"labels) of fewer than 2^29 samples, got method {method!r} on dtype {vol.dtype}, "
+                         f"{vol.size} samples")
     if engine == "slabs" or not rows:
         return extract_slabs(vol, origin, spacing, level=level, sign=sign, method=method, cap=cap, cull=cull,
                              device=device, slab_voxels=slab_voxels, label=label, timings=timings, info=info,
@@ -152,6 +154,8 @@ def extract_rows(vol: np.ndarray, origin, spacing, *, level: float, sign: float,
     split across cores, slab by slab of ``slab_voxels`` samples; one vertex per crossing
     edge, so nothing is welded. Sync points: the rows' value ranges (validation) and
     the output sizes."""
+    from warpmesh.kernels import flying_edges as KF  # here: a shape's mesh need not define these kernels
+
     clearance = check_clearance(clearance)
     t0 = time.perf_counter()
     wp.load_module(KF, device=device)  # compile/load once here, not in worker threads
