@@ -177,14 +177,19 @@ def _min_index(nodes: np.ndarray, key: np.ndarray) -> int:
 
 
 def _order_by(*columns) -> np.ndarray:
-    """Indices sorting by the first column, then the second, ... (non-negative ints):
-    one argsort of a combined int64 key when it fits (np.lexsort is several times
-    slower on large arrays)."""
+    """Indices sorting by the first column, then the second, ... (non-negative ints),
+    ties left in input order (a stable sort: a trailing column of positions is never
+    needed). One stable argsort of a combined key: 16 bits when it fits (numpy sorts
+    those by radix, in linear time: level numbers and degrees usually fit), else int64
+    (np.lexsort is several times slower on large arrays)."""
     spans = [int(c.max(initial=0)) + 1 for c in columns]
-    if float(np.prod([float(s) for s in spans])) < 2.0**62:
+    total = float(np.prod([float(s) for s in spans]))
+    if total < 2.0**62:
         combined = np.zeros(len(columns[0]), np.int64)
         for c, s in zip(columns, spans):
             combined = combined * s + c
+        if total <= 2.0**16:
+            combined = combined.astype(np.uint16)
         return np.argsort(combined, kind="stable")
     return np.lexsort(columns[::-1])
 
@@ -215,11 +220,20 @@ class _Graph:
 
     def first_per_component(self, nodes: np.ndarray, *keys, comps=None) -> np.ndarray:
         """For each component (of ``comps``, ascending; default all), the one of
-        ``nodes`` (some in each) smallest by ``keys`` (arrays over all nodes), ties by
-        index."""
+        ``nodes`` (some in each, grouped by ascending component) smallest by ``keys``
+        (non-negative arrays over all nodes), ties by index."""
         comps = np.arange(self.n_comp) if comps is None else comps
-        nodes = nodes[_order_by(self.comp[nodes], *(k[nodes] for k in keys), nodes)]
-        return nodes[np.searchsorted(self.comp[nodes], comps)]
+        cn = self.comp[nodes]
+        spans = [int(k.max(initial=0)) + 1 for k in keys]
+        if float(np.prod([float(s) for s in spans])) * self.n >= 2.0**62:  # no room for one key
+            nodes = nodes[_order_by(cn, *(k[nodes] for k in keys))]
+            return nodes[np.searchsorted(self.comp[nodes], comps)]
+        combined = np.zeros(len(nodes), np.int64)  # (keys..., node) as one int64: a minimum per run
+        for k, span in zip(keys, spans):
+            combined = combined * span + k[nodes]
+        combined = combined * self.n + nodes
+        runs = np.flatnonzero(np.r_[True, cn[1:] != cn[:-1]])  # nodes come by ascending component
+        return np.minimum.reduceat(combined, runs) % self.n
 
     def descent(self, sources: np.ndarray, nodes: np.ndarray | None = None) -> np.ndarray:
         """Each node's level in the descent of its component's source: (n,) int64, or
@@ -242,14 +256,14 @@ class _Graph:
         return np.maximum.reduceat(level, np.cumsum(size) - size) + 1
 
     def components(self, nodes: np.ndarray) -> np.ndarray:
-        """Component label of each of ``nodes`` in the subgraph they induce, labelled in
-        the order of each one's smallest node."""
+        """Component label of each of ``nodes`` (ascending) in the subgraph they induce,
+        labelled in the order of each one's smallest node."""
         inside = np.zeros(self.n, np.int32)
         inside[nodes] = 1
         label = np.full(self.n, -1, np.int32)
         count = wp.zeros(1, dtype=wp.int32, device="cpu")
         wp.launch(KN.label_components_kernel, dim=1,
-                  inputs=[self.indptr, self.indices, _as_wp(inside), _as_wp(np.sort(nodes).astype(np.int32))],
+                  inputs=[self.indptr, self.indices, _as_wp(inside), _as_wp(nodes.astype(np.int32))],
                   outputs=[_as_wp(label, copy=False), self.queue, count], device="cpu")
         wp.synchronize_device("cpu")
         return label[nodes].astype(np.int64)
@@ -261,7 +275,7 @@ class _Graph:
         depth = self.depths(level)
         first_level = np.concatenate([[0], np.cumsum(depth)])
         flat = first_level[self.comp] + level  # a global index for every (component, level)
-        members = _order_by(flat, key, np.arange(self.n))
+        members = _order_by(flat, key)
         bounds = np.searchsorted(flat[members], np.arange(first_level[-1] + 1))
         num, out = np.full(self.n, -1, np.int32), np.full(self.n, -1, np.int32)
         buf = wp.empty(max(int(self.deg.max(initial=0)), 1), dtype=wp.int32, device="cpu")
@@ -325,11 +339,11 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
     owner[label] = g.comp[rest]
     # the k-th largest piece of every component is placed in round k, all at once: pieces
     # of different components never share a level count
-    order = _order_by(owner, sizes.max() - sizes, np.arange(len(sizes)))
+    order = _order_by(owner, sizes.max() - sizes)
     round_of = np.empty(len(sizes), np.int64)
     round_of[order] = np.arange(len(sizes)) - np.searchsorted(owner[order], owner[order])
-    by_round = rest[_order_by(round_of[label], label, rest)]
-    lab = label[np.searchsorted(rest, by_round)]
+    perm = _order_by(round_of[label], label)
+    by_round, lab = rest[perm], label[perm]
     ends = np.searchsorted(round_of[lab], np.arange(round_of.max() + 2))
     for k in range(len(ends) - 1):
         nodes, piece = by_round[ends[k]: ends[k + 1]], lab[ends[k]: ends[k + 1]]
@@ -395,7 +409,7 @@ def _search_relabel(graph: sp.csr_matrix, start: int):
     """Breadth-first search from ``start`` that relabels as it goes (one kernel pass).
 
     Returns the nodes reached in search order, the subgraph they span relabelled by
-    that order (csgraph format) and the level of each label."""
+    that order (csgraph format, but rows unsorted) and the level of each label."""
     n = graph.shape[0]
     new_of_old = np.full(n, -1, np.int32)
     old_of_new, level = np.empty(n, np.int32), np.empty(n, np.int32)
@@ -407,7 +421,7 @@ def _search_relabel(graph: sp.csr_matrix, start: int):
               + [count], device="cpu")
     c = int(count.numpy()[0])  # sync point
     local = sp.csr_matrix((np.ones(int(indptr[c])), indices[: indptr[c]], indptr[: c + 1]), shape=(c, c))
-    local.has_sorted_indices = True
+    local.has_sorted_indices = False  # rows in the input's order: the walks that follow need no order
     return old_of_new[:c].astype(np.int64), local, level[:c].astype(np.int64)
 
 
@@ -445,18 +459,36 @@ def _layout(graph, deg):
     wp.synchronize_device("cpu")
     sizes = np.bincount(label)
     kind = np.where(sizes > SMALL_COMPONENT, 0, np.where(sizes > 1, 1, 2))
-    seq = queue.astype(np.int64)[_order_by(kind[label[queue]], np.arange(n))]
+    seq = queue.astype(np.int64)[_order_by(kind[label[queue]])]
     total = int(sizes[kind == 0].sum())
     local = (_relabel(graph, seq, total), None) if total else None
     return seq, sizes[kind == 0].tolist(), int(sizes[kind == 1].sum()), local
 
 
+def _is_csgraph(graph) -> bool:
+    """True for a CSR matrix already in csgraph format: int32 indices, sorted rows without
+    duplicates, no diagonal entry (its values are never read)."""
+    if type(graph) is not sp.csr_matrix or graph.indices.dtype != np.int32 or graph.indptr.dtype != np.int32:
+        return False
+    if not graph.has_canonical_format:  # scipy checks the rows once and remembers
+        return False
+    rows = np.repeat(np.arange(graph.shape[0], dtype=np.int32), np.diff(graph.indptr))
+    return not bool(np.any(graph.indices == rows))
+
+
 def _as_csgraph(graph) -> sp.csr_matrix:
-    """The structure of ``graph`` as CSR with float64 data, int32 indices, sorted rows,
-    no duplicates and no diagonal.
+    """The structure of ``graph`` as CSR with int32 indices, sorted rows, no duplicates
+    and no diagonal: ``graph`` itself when it is so already (its values are never read),
+    else a float64 copy.
 
     Raises ValueError for a graph that cannot be symmetric (a node with more entries in
     its row than in its column) or too large for int32 indices."""
+    if _is_csgraph(graph):  # node_graph's output: nothing to change, only the symmetry to check
+        g = graph
+        if not np.array_equal(np.diff(g.indptr), np.bincount(g.indices, minlength=g.shape[0])):
+            raise ValueError("expected a symmetric 'graph' (every entry (i, j) with its (j, i)); "
+                             "use g + g.T, or warpmesh.numbering.graph.node_graph")
+        return g
     g = sp.csr_matrix(graph, dtype=np.float64, copy=True)
     g.sum_duplicates()  # also sorts the rows
     if g.nnz >= np.iinfo(np.int32).max:
@@ -604,7 +636,7 @@ def _ball_order(mesh, corner_order: np.ndarray):
         first = vnum[cells[:, : corner_count(t)]].min(axis=1)
         key = (first[:, None] * total + offset + np.arange(m)[:, None]) * width + np.arange(k)
         np.minimum.at(best, cells.ravel(), key.ravel())
-        elements[t] = _order_by(first, np.arange(m))
+        elements[t] = _order_by(first)
         offset += m
     return np.argsort(best, kind="stable"), elements
 
