@@ -101,28 +101,41 @@ def classify_rows_kernel(
     classes: wp.array(dtype=wp.uint64), row_range: wp.array(dtype=wp.vec2), row_bad: wp.array(dtype=wp.int32),
 ):
     """One thread per row: its node classes (``classes[r * words + w]``, capped nodes
-    outside, bits past the row's end 0); the (min, max) of its raw samples and how many
-    samples or values are not finite."""
+    outside, bits past the row's end 0); the (min, max) of its raw samples, and in
+    ``row_bad`` a positive count when a sample or its value is not finite."""
     r = wp.tid() + first
     i = r / n[1]
     j = r % n[1]
-    lo = float(3.4e38)
-    hi = float(-3.4e38)
+    lo = wp.vec4(3.4e38)
+    hi = wp.vec4(-3.4e38)
     bad = int(0)
-    word = wp.uint64(0)
     one = wp.uint64(1)
-    for k in range(n[2]):
-        raw = raw_value(vf, vu, mode, label, i, j, k)
-        lo = wp.min(lo, raw)
-        hi = wp.max(hi, raw)
-        v = sign * (raw - level)
-        if v - v != 0.0:  # NaN or infinite (a sample, or its value beyond float32's range)
-            bad += 1
-        if v > 0.0:
-            word = word | (one << wp.uint64(k & 63))
-        if (k & 63) == 63 or k == n[2] - 1:
-            classes[r * words + k / 64] = word
-            word = wp.uint64(0)
+    for w in range(words):
+        k0 = w * 64
+        k1 = wp.min(k0 + 64, n[2])
+        word = wp.uint64(0)
+        quads = (k1 - k0) / 4
+        for q in range(quads):  # four samples a step: four independent min / max chains
+            k = k0 + 4 * q
+            raw = wp.vec4(raw_value(vf, vu, mode, label, i, j, k), raw_value(vf, vu, mode, label, i, j, k + 1),
+                          raw_value(vf, vu, mode, label, i, j, k + 2), raw_value(vf, vu, mode, label, i, j, k + 3))
+            lo = wp.min(lo, raw)
+            hi = wp.max(hi, raw)
+            v = sign * (raw - wp.vec4(level))
+            if wp.dot(v - v, v - v) != 0.0:  # NaN or infinite (a sample, or its value beyond float32's range)
+                bad += 1
+            bits = wp.where(v[0] > 0.0, 1, 0) | wp.where(v[1] > 0.0, 2, 0) | wp.where(v[2] > 0.0, 4, 0) | \
+                wp.where(v[3] > 0.0, 8, 0)
+            word = word | (wp.uint64(bits) << wp.uint64(4 * q))
+        for k in range(k0 + 4 * quads, k1):
+            rs = raw_value(vf, vu, mode, label, i, j, k)
+            lo[0] = wp.min(lo[0], rs)
+            hi[0] = wp.max(hi[0], rs)
+            vs = sign * (rs - level)
+            if vs - vs != 0.0:
+                bad += 1
+            word = word | (wp.uint64(wp.where(vs > 0.0, 1, 0)) << wp.uint64(k - k0))
+        classes[r * words + w] = word
     if row_capped(i, j, n, cap):
         for w in range(words):
             classes[r * words + w] = wp.uint64(0)
@@ -132,7 +145,8 @@ def classify_rows_kernel(
         if (cap & 32) != 0:
             last = r * words + (n[2] - 1) / 64
             classes[last] = classes[last] & ~(one << wp.uint64((n[2] - 1) & 63))
-    row_range[r] = wp.vec2(lo, hi)
+    row_range[r] = wp.vec2(wp.min(wp.min(lo[0], lo[1]), wp.min(lo[2], lo[3])),
+                           wp.max(wp.max(hi[0], hi[1]), wp.max(hi[2], hi[3])))
     row_bad[r] = bad
 
 
@@ -239,9 +253,12 @@ def count_rows_kernel(
                 cfg = cell_config(lo, hi, bit)
                 row = cfg
                 if method == _METHOD_MC33:
-                    k = 64 * w + bit
-                    row = mc33_row(corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k),
-                                   corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k + 1), cfg, tab)
+                    row = mc33_plain(cfg, tab)
+                    if row < 0:
+                        k = 64 * w + bit
+                        row = mc33_row(corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k),
+                                       corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k + 1), cfg,
+                                       tab)
                 nt += tab.tri_count[row]
                 nc += interior_count(tab.center[row])
     count_i[r] = ci
@@ -274,6 +291,22 @@ def cell_values(cur: wp.vec4, nxt: wp.vec4):
 
 
 @wp.func
+def mc33_plain(ci: int, tab: Tables):
+    """The "mc33" table row of configuration ci when the corner values cannot change it
+    (no face with two diagonal corners inside and the other two outside, no interior
+    test), else -1."""
+    row = tab.case_offset[ci * 64]
+    if tab.interior_test[ci * 64] >= 0:
+        row = -1
+    for q in range(6):
+        ia = (ci >> tab.face_corners[q, 0]) & 1
+        ib = (ci >> tab.face_corners[q, 1]) & 1
+        if ia == ((ci >> tab.face_corners[q, 2]) & 1) and ib == ((ci >> tab.face_corners[q, 3]) & 1) and ia != ib:
+            row = -1
+    return row
+
+
+@wp.func
 def mc33_row(cur: wp.vec4, nxt: wp.vec4, ci: int, tab: Tables):
     """Table row of an "mc33" cell (as ``emit.mc33_case``)."""
     v = cell_values(cur, nxt)
@@ -286,15 +319,16 @@ def mc33_row(cur: wp.vec4, nxt: wp.vec4, ci: int, tab: Tables):
 
 
 @wp.func
-def edge_point(v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, n: wp.vec3i, cap: int, t_min: float,
-               gap: float):
+def edge_point(v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, capped0: bool, capped1: bool,
+               t_min: float, gap: float):
     """(position, t) of the crossing on the edge from node g in direction d, as
-    ``emit.crossing`` with ``emit.edge_t_range`` (volumes: no lonely-node exemption)."""
+    ``emit.crossing`` with ``emit.edge_t_range`` (volumes: no lonely-node exemption;
+    ``capped0`` / ``capped1``: whether the edge's ends lie on a capped face)."""
     lo = gap
     hi = 1.0 - gap
-    if on_capped_face(g, n, cap):
+    if capped0:
         lo = t_min
-    if on_capped_face(g + d, n, cap):
+    if capped1:
         hi = 1.0 - t_min
     t = wp.clamp(v0 / (v0 - v1), lo, hi)
     p0 = wp.vec3(0.0 + float(g[0]) * h[0], 0.0 + float(g[1]) * h[1], 0.0 + float(g[2]) * h[2])
@@ -303,16 +337,22 @@ def edge_point(v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, n: wp
 
 
 @wp.func
-def put_vertex(vid: int, v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, n: wp.vec3i, cap: int,
+def node_capped(rowcap: bool, k: int, n2: int, cap: int):
+    """Whether node k of a row lies on a capped face (``rowcap``: the whole row does)."""
+    return rowcap or (k == 0 and (cap & 16) != 0) or (k == n2 - 1 and (cap & 32) != 0)
+
+
+@wp.func
+def put_vertex(vid: int, v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, capped0: bool, capped1: bool,
                t_min: float, gap: float, points: wp.array(dtype=wp.vec3), flags: wp.array(dtype=wp.int32)):
     """Store the vertex of a crossing edge with the flags of ``emit.emit_vertices_kernel``;
     1 when the clearance moved it."""
-    p, te = edge_point(v0, v1, g, d, h, n, cap, t_min, gap)
+    p, te = edge_point(v0, v1, g, d, h, capped0, capped1, t_min, gap)
     points[vid] = p
     f = wp.where(v0 > 0.0, 1, 0)
     if v0 == 0.0 or v1 == 0.0:
         f = f | 2
-        if on_capped_face(g, n, cap) or on_capped_face(g + d, n, cap):
+        if capped0 or capped1:
             f = f | 4
         else:
             f = f | 8
@@ -352,7 +392,8 @@ def emit_row_vertices_kernel(
                     x = x & (x - wp.uint64(1))
                     v0 = node_value(vf, vu, mode, label, level, sign, cap, n, ca, i, j, k)
                     v1 = node_value(vf, vu, mode, label, level, sign, cap, n, cb, i + d[0], j + d[1], k + d[2])
-                    n_moved += put_vertex(vid, v0, v1, wp.vec3i(i, j, k), d, h, n, cap, t_min, gap, points, flags)
+                    n_moved += put_vertex(vid, v0, v1, wp.vec3i(i, j, k), d, h, node_capped(ca, k, n[2], cap),
+                                          node_capped(cb, k + d[2], n[2], cap), t_min, gap, points, flags)
                     vid += 1
     moved[r] = n_moved
 
@@ -412,11 +453,16 @@ def emit_row_triangles_kernel(
                 cv0 = wp.vec4(0.0)
                 cv1 = wp.vec4(0.0)
                 if method == _METHOD_MC33:
-                    cv0 = corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k)
-                    cv1 = corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k + 1)
-                    case = mc33_row(cv0, cv1, cfg, tab)
+                    case = mc33_plain(cfg, tab)
+                    if case < 0:
+                        cv0 = corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k)
+                        cv1 = corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k + 1)
+                        case = mc33_row(cv0, cv1, cfg, tab)
                 g = wp.vec3i(i, j, k)
                 mask = tab.center[case]
+                if mask != 0 and mc33_plain(cfg, tab) >= 0:  # interior vertices: placed from the values
+                    cv0 = corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k)
+                    cv1 = corner_values(vf, vu, mode, label, level, sign, cap, n, i, j, k + 1)
                 center = int(-1)
                 if mask != 0:
                     center = cid
@@ -436,7 +482,8 @@ def emit_row_triangles_kernel(
                                     vb = cv[q | (1 << t)]
                                     if (va > 0.0) != (vb > 0.0):
                                         ge = g + wp.vec3i(tab.corners[q, 0], tab.corners[q, 1], tab.corners[q, 2])
-                                        p, te = edge_point(va, vb, ge, d, h, n, cap, t_min, gap)
+                                        p, te = edge_point(va, vb, ge, d, h, on_capped_face(ge, n, cap),
+                                                           on_capped_face(ge + d, n, cap), t_min, gap)
                                         acc = acc + p
                                         mm += 1.0
                         points[center] = acc / wp.max(mm, 1.0)
