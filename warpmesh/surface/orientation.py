@@ -44,8 +44,6 @@ False
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse import csgraph
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.errors import TopologyError
@@ -134,6 +132,9 @@ def _relative_flips(m: int, f1, f2, parity):
     Returns ``n_comp``, ``comp`` (m,) numbered by first appearance, ``roots`` (n_comp,)
     the first face of each component, and ``flip`` (m,) bool.
     """
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
     graph = sparse.coo_matrix((np.ones(len(f1), np.int8), (f1, f2)), shape=(m, m)).tocsr()
     _, labels = csgraph.connected_components(graph, directed=False)
     _, first = np.unique(labels, return_index=True)

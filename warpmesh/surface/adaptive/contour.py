@@ -46,8 +46,6 @@ rule that makes every face agree from both sides:
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from warpmesh import _conventions as C
 from warpmesh.errors import WarpMeshError
@@ -205,6 +203,9 @@ def leaf_loops(segments, minus, plus, n_vertices: int):
 
     Returns (half (h, 3), loop_of (h,), n_loops, loop_size (n_loops,), next (h,): the
     half-segment that follows each in its loop)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     unit, s, e = segments.T
     half = np.concatenate([np.stack([minus[unit], s, e], axis=1), np.stack([plus[unit], e, s], axis=1)])
     key_from = half[:, 0] * n_vertices + half[:, 1]
