@@ -37,7 +37,7 @@ from warpmesh.kernels import emit as KE
 from warpmesh.mesh import Mesh
 from warpmesh.surface.primitive_refs import primitive_refs, REFS
 from warpmesh.surface.block_grid import BlockGrid, gradients, refine_roots
-from warpmesh.surface.continuation import grow_cells
+from warpmesh.surface.continuation import Growth, grow_cells
 from warpmesh.surface.options import (AdaptiveOptions, ContinuationOptions, GridOptions, SurfaceOptions,
                                       VolumeOptions, check_choice)
 from warpmesh.surface.multilabel import LABEL_ABOVE, shared_surface
@@ -602,18 +602,39 @@ def _grow(grid: BlockGrid, tape, seeds, cap: bool, evaluator, timings, info):
     seed_cells = None
     if seeds is not None:
         seed_cells = _seed_cells(grid, tape, seeds, cap, evaluator)
-    try:
-        growth = grow_cells(lambda ids: grid.node_values(tape, ids, evaluator), tuple(int(v) for v in grid.n),
-                            seeds=seed_cells, ray_stride=None if seeds is not None else _ray_stride(grid.n), cap=cap)
-    except ValueError as exc:
-        if "'evaluate'" in str(exc):  # the callback is ours: say what the user can change
-            raise ValueError(NAN_MESSAGE) from None
-        raise
+    def grow(seed_cells, ray_stride):
+        try:
+            return grow_cells(lambda ids: grid.node_values(tape, ids, evaluator), tuple(int(v) for v in grid.n),
+                              seeds=seed_cells, ray_stride=ray_stride, cap=cap)
+        except ValueError as exc:
+            if "'evaluate'" in str(exc):  # the callback is ours: say what the user can change
+                raise ValueError(NAN_MESSAGE) from None
+            raise
+
+    if seeds is not None:
+        growth = grow(seed_cells, None)
+        block_info = {}
+        grid.info["interval_evaluations"] = 0
+    else:
+        with warnings.catch_warnings():  # no ray seed is not the end: the blocks are searched next
+            warnings.filterwarnings("ignore", message="grow_cells: no ray")
+            growth = grow(None, _ray_stride(grid.n))
+        extra, block_info = _block_seeds(grid, tape, cap, evaluator, growth.cells)
+        if len(extra):
+            more = grow(extra, None)
+            ids = np.concatenate([growth.node_ids, more.node_ids])
+            ids, first = np.unique(ids, return_index=True)
+            growth = Growth(cells=np.union1d(growth.cells, more.cells), node_ids=ids,
+                            node_values=np.concatenate([growth.node_values, more.node_values])[first],
+                            evaluations=growth.evaluations + more.evaluations,
+                            ray_evaluations=growth.ray_evaluations, waves=max(growth.waves, more.waves),
+                            seeds=growth.seeds + more.seeds, components=growth.components + more.components)
     timings["evaluate"] = time.perf_counter() - t0
     mask = grid.load_cells(growth.cells, growth.node_ids, growth.node_values)
-    info.update(evaluations=growth.evaluations, ray_evaluations=growth.ray_evaluations, waves=growth.waves,
+    info.update(evaluations=growth.evaluations + block_info.get("seed_search_evaluations", 0),
+                ray_evaluations=growth.ray_evaluations, waves=growth.waves,
                 seed_cells=growth.seeds, grown_cells=len(growth.cells), components_grown=growth.components,
-                interval_evaluations=0)
+                **block_info)
     timings["load"] = time.perf_counter() - t0 - timings["evaluate"]
     return mask
 
@@ -641,23 +662,48 @@ def _seed_cells(grid: BlockGrid, tape, seeds, cap: bool, evaluator) -> np.ndarra
         ok = np.all((d == 0) | on, axis=1) & np.all((ijk >= 0) & (ijk < cells), axis=1)
         candidates.append(np.where(ok, ijk[:, 0] + cells[0] * (ijk[:, 1] + cells[1] * ijk[:, 2]), -1))
     cand = np.stack(candidates, axis=1)  # (m, 8), -1 where no cell
-    flat = np.unique(cand[cand >= 0])
-    ci = np.stack([flat % cells[0], flat // cells[0] % cells[1], flat // (cells[0] * cells[1])], axis=1)
-    corner_ids = [(ci[:, 0] + (c & 1)) + grid.n[0] * ((ci[:, 1] + ((c >> 1) & 1)) + grid.n[1] *
-                                                      (ci[:, 2] + ((c >> 2) & 1))) for c in range(8)]
-    nodes = np.unique(np.concatenate(corner_ids))
-    inside_node = grid.node_values(tape, nodes, evaluator) > 0
-    if cap:  # capped: boundary nodes are outside
-        g = np.stack([nodes % grid.n[0], nodes // grid.n[0] % grid.n[1], nodes // (grid.n[0] * grid.n[1])], axis=1)
-        inside_node &= ~np.any((g == 0) | (g == grid.n - 1), axis=1)
-    inside = np.stack([inside_node[np.searchsorted(nodes, ids)] for ids in corner_ids], axis=1)
-    crossed = flat[inside.any(axis=1) & ~inside.all(axis=1)]
+    crossed, _ = _crossed_cells(grid, tape, np.unique(cand[cand >= 0]), cap, evaluator)
     hit = (cand >= 0) & np.isin(cand, crossed)
     if not hit.any(axis=1).all():
         bad = pts[~hit.any(axis=1)][0].tolist()
         raise ValueError(f"expected 'seeds' in cells crossed by the surface, got {bad}: no cell holding it "
                          "has corners on both sides; give a point on or next to the surface")
     return np.unique(cand[hit])
+
+
+def _crossed_cells(grid: BlockGrid, tape, flat: np.ndarray, cap: bool, evaluator) -> tuple[np.ndarray, int]:
+    """(the crossed cells among the sorted cell ids ``flat``, nodes evaluated), from f at
+    their corners (boundary nodes outside when capped, as the grid caps them)."""
+    cells = grid.n - 1
+    ci = np.stack([flat % cells[0], flat // cells[0] % cells[1], flat // (cells[0] * cells[1])], axis=1)
+    corner_ids = [(ci[:, 0] + (c & 1)) + grid.n[0] * ((ci[:, 1] + ((c >> 1) & 1)) + grid.n[1] *
+                                                      (ci[:, 2] + ((c >> 2) & 1))) for c in range(8)]
+    nodes = np.unique(np.concatenate(corner_ids))
+    values = grid.node_values(tape, nodes, evaluator)
+    if not np.all(np.isfinite(values)):
+        raise ValueError(NAN_MESSAGE)
+    inside_node = values > 0
+    if cap:  # capped: boundary nodes are outside
+        g = np.stack([nodes % grid.n[0], nodes // grid.n[0] % grid.n[1], nodes // (grid.n[0] * grid.n[1])], axis=1)
+        inside_node &= ~np.any((g == 0) | (g == grid.n - 1), axis=1)
+    inside = np.stack([inside_node[np.searchsorted(nodes, ids)] for ids in corner_ids], axis=1)
+    return flat[inside.any(axis=1) & ~inside.all(axis=1)], len(nodes)
+
+
+def _block_seeds(grid: BlockGrid, tape, cap: bool, evaluator, grown: np.ndarray) -> tuple[np.ndarray, dict]:
+    """Seeds for the components the rays missed [issue 19 item 7]: the crossed cells among
+    those that intervals of f cannot prove uncrossed (blocks, then boxes halved down to
+    single cells) and that were not grown. Sound intervals make this complete: every cell
+    the grid finds crossed is such a candidate, so every component is seeded. Returns
+    (seed cells, counts for ``info``)."""
+    states = grid.block_states(tape, KB.ALL_FACES if cap else 0).numpy()
+    blocks = np.flatnonzero(states != int(KB.CULLED))
+    candidates, n_intervals = grid.candidate_cells(tape, blocks, cap)
+    todo = np.setdiff1d(candidates, grown, assume_unique=True)
+    crossed, n_nodes = _crossed_cells(grid, tape, todo, cap, evaluator) if len(todo) else (todo, 0)
+    grid.info["interval_evaluations"] += n_intervals  # the blocks' are counted by block_states
+    return crossed, {"seed_search_cells": len(todo),
+                     "seed_search_evaluations": n_nodes, "seed_search_crossed": len(crossed)}
 
 
 def _ray_stride(n_nodes) -> int:
