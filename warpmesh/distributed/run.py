@@ -49,7 +49,7 @@ from warpmesh.frep.tape import eval_intervals, tape_of
 from warpmesh.mesh import Mesh
 from warpmesh.surface.block_grid import BlockGrid, refine_roots
 from warpmesh.surface.options import GridOptions, VolumeOptions
-from warpmesh.surface.volume import check_closed_outward, check_label_range, label_form
+from warpmesh.surface.volume import check_label_range, label_form
 
 __all__ = ["PartitionedMesh", "mesh_bricks"]
 
@@ -169,7 +169,9 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
 def _drop_unused(verts, tris, edges):
     """The vertices the triangles use (renumbered in order), and the triangles remapped."""
     faces = tris.numpy()  # sync point
-    kept = np.unique(faces)
+    used = np.zeros(verts.shape[0], dtype=bool)
+    used[faces.reshape(-1)] = True
+    kept = np.flatnonzero(used)
     remap = np.full(verts.shape[0], -1, dtype=np.int32)
     remap[kept] = np.arange(len(kept), dtype=np.int32)
     dev = verts.device
@@ -209,16 +211,24 @@ def _core_cells(grid: BlockGrid, lo_node, brick: Brick) -> wp.array:
                     device=grid.device)
 
 
-def _brick_result(brick: Brick, cells, points, faces, refs, keys, path, want: bool, info: dict) -> BrickMesh:
-    """Write the piece (when asked) and package what the client needs."""
+def _brick_result(brick: Brick, cells, local, frame, faces, refs, keys, path, want: bool, info: dict,
+                  centre) -> BrickMesh:
+    """Write the piece (when asked) and package what the client needs (float32 positions from
+    ``frame``, int32 triangles), with the brick's share of the enclosed volume (about a centre
+    common to all bricks: the sum over a closed surface)."""
+    points = local.astype(C.REAL_DTYPE) + frame
     if path is not None and len(faces):
         write_piece(path, points, faces, refs, keys)
-    info.update(vertices=len(points), triangles=len(faces))
+    vol = 0.0
+    for a in range(0, len(faces), 1 << 18):
+        p0, p1, p2 = (points[faces[a:a + (1 << 18), j]] - centre for j in range(3))
+        vol += float(np.einsum("ij,ij->", p0, np.cross(p1, p2))) / 6.0
+    info.update(vertices=len(points), triangles=len(faces), volume=vol)
     if not want:
-        return BrickMesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, np.zeros(0, np.int64),
+        return BrickMesh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), None, np.zeros(0, np.int64),
                          np.zeros(0, np.int64), info)
     seam = np.flatnonzero(on_seams(keys, brick, cells))
-    return BrickMesh(points, faces, refs, seam, keys[seam], info)
+    return BrickMesh(local, faces.astype(np.int32), refs, seam, keys[seam], info, np.asarray(frame, np.float64))
 
 
 def _slack(b: np.ndarray) -> np.ndarray:
@@ -293,7 +303,7 @@ class _ShapeJob:
             refine_roots(tape, verts, edges, wp.vec3(*self.lo.tolist()), opts.root, opts.root_iterations, timings,
                          opts.evaluator, opts.gradient, grid.h)
             frame = self.lo
-        points = verts.numpy().astype(C.REAL_DTYPE) + frame  # sync point: results to the host
+        local = verts.numpy().copy()  # sync point: results to the host
         faces = tris.numpy().astype(C.INDEX_DTYPE)
         if len(faces) and faces.min() < 0:
             raise WarpMeshError(f"{brick.describe(self.lo, self.h)}: a block culled as uniform holds a crossing "
@@ -305,7 +315,8 @@ class _ShapeJob:
             refs = np.where(capped[faces].all(axis=1), C.CAP_REF, C.SURFACE_REF).astype(C.INDEX_DTYPE)
         info = {"evaluations": grid.info.get("evaluations", 0), "active_blocks": grid.info.get("active_blocks", 0),
                 "evaluator": grid.info.get("evaluator"), "time": {**timings, "total": time.perf_counter() - t0}}
-        return _brick_result(brick, cells, points, faces, refs, keys, path, want, info)
+        return _brick_result(brick, cells, local, frame, faces, refs, keys, path, want, info,
+                             self.lo + 0.5 * self.cells * self.h)
 
     def finish(self, results: dict, where, gather: bool, timings: dict, t_start: float):
         info = {"method": self.opts.method, "root": self.opts.root, "device": self.device,
@@ -406,7 +417,7 @@ class _VolumeJob:
                 raise _brick_error(brick, self.lo, self.h, exc) from None
             grid.finish_values(cap, timings)
             verts, faces, edges = grid.extract(opts.method, cap, timings, clearance=opts.clearance)
-            p = verts.numpy().astype(C.REAL_DTYPE) + origin
+            p = verts.numpy().copy()  # float32, from the brick's origin
             f = faces.numpy().astype(C.INDEX_DTYPE)
             k = edges["key"].numpy().copy()
             if label is None:
@@ -425,7 +436,8 @@ class _VolumeJob:
         key, tagged = np.concatenate(keys), np.concatenate(seam_keys)
         ref = np.concatenate(refs) if self.has_refs else None
         info = {"ranges": ranges, "evaluations": evaluations, "time": {**timings, "total": time.perf_counter() - t0}}
-        result = _brick_result(brick, cells, points, faces, ref, key, path, want, info)
+        result = _brick_result(brick, cells, points, origin, faces, ref, key, path, want, info,
+                               self.lo + 0.5 * self.cells * self.h)
         if want:
             result.seam_keys = tagged[result.seam]
         return result
@@ -471,8 +483,12 @@ def _finish(results: dict, where, gather: bool, timings: dict, t_start: float, i
                                int(sum(p["vertices"] for p in per)), int(sum(p["triangles"] for p in per)), info)
     points, faces, refs = weld([results[i] for i in order])
     info["seam_copies_welded"] = int(sum(p["vertices"] for p in per)) - len(points)
-    if cap and not labels and len(faces):
-        info["enclosed_volume"] = check_closed_outward(points, faces)
+    if cap and not labels and len(faces):  # closed by the caps: the bricks' shares sum to the enclosed volume
+        vol = float(sum(p["volume"] for p in per))
+        if not vol > 0.0:
+            raise WarpMeshError(f"the capped surface encloses a signed volume of {vol:g}: its triangles do not "
+                                "face outward (an internal error: please report it)")
+        info["enclosed_volume"] = vol
         info["orientation"] = "outward (closed, positive enclosed volume)"
     keep_refs = refs is not None and (labels or np.any(refs == C.CAP_REF))
     info["vertices"], info["triangles"] = len(points), len(faces)

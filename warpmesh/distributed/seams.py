@@ -29,9 +29,11 @@ from warpmesh import _conventions as C
 
 @dataclass
 class BrickMesh:
-    """One brick's surface: points (m, 3) float64 in world coordinates, triangles (t, 3)
-    int64 into them, triangle refs (t,) or None, the local ids of its seam vertices and
-    their global keys; ``info`` the brick's counts and timings."""
+    """One brick's surface: points (m, 3) as float32 offsets from ``origin`` (float64; the
+    world position is ``origin + points``, added in float64), triangles (t, 3) int32 into
+    them, triangle refs (t,) or None, the local ids of its seam vertices and their global
+    keys; ``info`` the brick's counts and timings. (float32 and int32: half the bytes
+    sent from the worker.)"""
 
     points: np.ndarray
     faces: np.ndarray
@@ -39,6 +41,7 @@ class BrickMesh:
     seam: np.ndarray
     seam_keys: np.ndarray
     info: dict = field(default_factory=dict)
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 def weld(pieces: list[BrickMesh]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -58,7 +61,13 @@ def weld(pieces: list[BrickMesh]) -> tuple[np.ndarray, np.ndarray, np.ndarray | 
         remap[seam] = seam[first][inverse]  # every copy of a key -> its first copy (lowest brick id)
     keep = remap == np.arange(n)
     new_index = np.cumsum(keep, dtype=C.INDEX_DTYPE) - 1
-    points = np.concatenate([p.points for p in pieces] or [np.zeros((0, 3))])[keep].astype(C.REAL_DTYPE)
+    points = np.empty((int(keep.sum()), 3), dtype=C.REAL_DTYPE)
+    at = 0
+    for p, s in zip(pieces, starts):  # float64 = float32 offset + the brick's origin, one piece at a time
+        mine = p.points[keep[s:s + len(p.points)]]
+        points[at:at + len(mine)] = mine
+        points[at:at + len(mine)] += p.origin
+        at += len(mine)
     faces = np.concatenate([p.faces.astype(C.INDEX_DTYPE) + s for p, s in zip(pieces, starts)]
                            or [np.zeros((0, 3), C.INDEX_DTYPE)])
     faces = new_index[remap[faces]]
