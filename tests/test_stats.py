@@ -225,3 +225,23 @@ def test_stats_of_tetrahedra_with_boundary_triangles():
     want = sum(abs(np.linalg.det(pts[k[1:]] - pts[k[0]])) / 6.0 for k in tets)
     assert s["volume"] == pytest.approx(want, rel=1e-12)
     assert s["ne"] == 2 and s["n_triangles"] == 6
+
+
+def test_cli_figures_are_what_the_mesh_carries(monkeypatch):
+    """warpmesh renumber prints the renumbering's own figures: the same as stats() gives,
+    read without computing the statistics."""
+    from warpmesh.cli.report import mesh_figures
+
+    pts, tri = _sphere()
+    out = Mesh(pts, {"triangle": tri}).renumber("gibbs")
+    keys = ["np", "ne", "n_cells", "bandwidth", "profile", "profile_before", "nodes_per_second"]
+    want = {k: out.stats()[k] for k in keys}
+    fresh = out.replace()  # no cached statistics
+
+    def refuse(self):
+        raise AssertionError("stats() computed")
+
+    monkeypatch.setattr(Mesh, "stats", refuse)
+    assert mesh_figures(fresh, keys) == want
+    monkeypatch.undo()
+    assert mesh_figures(fresh, ["np", "watertight"]) == {"np": len(pts), "watertight": True}  # stats() for the rest
