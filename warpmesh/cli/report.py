@@ -33,7 +33,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-__all__ = ["Clock", "human_lines", "print_report", "process_start"]
+__all__ = ["Clock", "human_lines", "mesh_figures", "print_report", "process_start"]
 
 _WIDTH = 24
 #: stats keys said twice (another key holds the same figure) or stale after a later stage
@@ -262,6 +262,7 @@ def print_report(mesh, stats: dict, clock: Clock | None, as_json: bool) -> None:
         print(json.dumps(stats, indent=2, default=_jsonable, sort_keys=False))
         return
     print("\n".join(human_lines(mesh, stats, times)))
+
 
 def mesh_figures(mesh, keys) -> dict:
     """The figures ``keys`` as the mesh already carries them: its counts (``np``, ``ne``,
