@@ -26,7 +26,12 @@ Cases:
 Ratios: each case against ``import numpy`` and against ``import warp + init`` (what
 warpmesh cannot go below while it imports Warp), and the two targets.
 
-Run:  python benchmarks/bench_startup.py [--repeat 5] [--json out.json]
+``--baseline DIR``: also run the warpmesh cases ("before: ...") with ``PYTHONPATH=DIR``, a
+checkout of an earlier commit, in the same rounds (``git worktree add DIR <commit>``;
+the script links ``DIR/warpmesh/kernels`` to ``DIR/kernels`` so that the checkout's own
+kernels are imported, and checks in each child that warpmesh comes from ``DIR``).
+
+Run:  python benchmarks/bench_startup.py [--repeat 5] [--baseline DIR] [--json out.json]
 """
 
 from __future__ import annotations
@@ -42,7 +47,7 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _report import finish, load_banner, version  # noqa: E402
+from _report import finish, load_banner, version
 
 PART = ("import warpmesh as wm\npart, bounds = wm.example('part')\n"
         "m = wm.mesh_surface(part, bounds=bounds, resolution=128)\nassert m.n_cells > 0\n")
@@ -60,22 +65,32 @@ TARGETS = {"import warpmesh": 0.3, "part 128": 0.5}
 CLI = ["-m", "warpmesh.cli", "mesh", "--example", "part", "--resolution", "128", "--json"]
 
 
-def _child(name: str, code: str | None) -> tuple[float, float, dict | None]:
+def _child(name: str, code: str | None, baseline: str | None = None) -> tuple[float, float, dict | None]:
     """(wall s, CPU s, the CLI's printed times or None) of one fresh process."""
     env = dict(os.environ)
+    if baseline is not None:  # the checkout first on the path, the installed (editable) finder out of the way
+        env["PYTHONPATH"] = baseline
+        check = ("import sys, os\nsys.meta_path[:] = [f for f in sys.meta_path if not "
+                 "getattr(f, '__module__', '').startswith('__editable__')]\nimport warpmesh\n"
+                 f"assert os.path.realpath(warpmesh.__file__).startswith({os.path.realpath(baseline)!r}), "
+                 "warpmesh.__file__\n")
+        if code is None:  # the command line, as python -m warpmesh.cli
+            code = f"import runpy\nsys.argv = ['warpmesh', *{CLI[2:]!r}]\nrunpy.run_module('warpmesh.cli', run_name='__main__')"
+            name = "cli"
+        code = check + code
     with tempfile.TemporaryDirectory(prefix="warpmesh-bench-") as empty:
         if name == "part 128, no table cache":
             env["WARPMESH_CACHE_DIR"] = empty
         argv = [sys.executable, *(CLI if code is None else ["-c", code])]
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        run = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=900)
+        run = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=900, cwd=empty, check=False)  # no ./warpmesh
         wall = time.perf_counter() - t0
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if run.returncode != 0:
         raise RuntimeError(f"{name} failed:\n{run.stderr}")
     cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
-    times = json.loads(run.stdout)["time"] if code is None else None
+    times = json.loads(run.stdout)["time"] if code is None or name == "cli" else None
     return wall, cpu, times
 
 
@@ -83,28 +98,36 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--json", help="write the results to this file")
+    ap.add_argument("--baseline", help="a checkout of an earlier commit, run as 'before: <case>'")
     args = ap.parse_args()
+    cases = {name: (code, None) for name, code in CASES.items()}
+    if args.baseline:
+        link = os.path.join(args.baseline, "warpmesh", "kernels")
+        if not os.path.exists(link):
+            os.symlink(os.path.join("..", "kernels"), link)
+        for name in ("import warpmesh", "part 128", "cli part 128"):
+            cases[f"before: {name}"] = (CASES[name], args.baseline)
     t_start = time.perf_counter()
     load0 = load_banner(f"fresh-process start-up, {os.cpu_count()} cores, Python {sys.version.split()[0]}, "
                         f"numpy {version('numpy')}, warp-lang {version('warp-lang')}")
-    for name, code in CASES.items():  # untimed: disk caches, Warp's kernel cache, the table cache
-        _child(name, code)
-    walls = {n: [] for n in CASES}
-    cpus = {n: [] for n in CASES}
-    printed = []
+    for name, (code, base) in cases.items():  # untimed: disk caches, Warp's kernel cache, the table cache
+        _child(name, code, base)
+    walls = {n: [] for n in cases}
+    cpus = {n: [] for n in cases}
+    printed, printed_before = [], []
     for _ in range(args.repeat):
-        for name, code in CASES.items():
-            wall, cpu, times = _child(name, code)
+        for name, (code, base) in cases.items():
+            wall, cpu, times = _child(name, code, base)
             walls[name].append(wall)
             cpus[name].append(cpu)
             if times is not None:
-                printed.append(times)
+                (printed if base is None else printed_before).append(times)
     med = {n: statistics.median(v) for n, v in walls.items()}
     cpu = {n: statistics.median(v) for n, v in cpus.items()}
     numpy_s, warp_s = med["import numpy"], med["import warp + init"]
     print(f"\nmedian of {args.repeat} fresh processes per case (wall includes interpreter start and exit)")
     print(f"{'case':28s} {'wall s':>8s} {'CPU s':>7s} {'/ numpy':>8s} {'/ warp+init':>12s} {'target':>8s}")
-    for name in CASES:
+    for name in cases:
         target = TARGETS.get(name)
         verdict = "" if target is None else f"{target:.1f} s {'met' if med[name] <= target else 'NOT met'}"
         print(f"{name:28s} {med[name]:8.3f} {cpu[name]:7.3f} {med[name] / numpy_s:8.2f} {med[name] / warp_s:12.2f}"
@@ -120,6 +143,14 @@ def main() -> None:
     print(f"\ncli part 128: printed total {cli_total:.3f} s (import stage {cli_import:.3f} s), wall {med['cli part 128']:.3f}"
           f" s; printed stages add up to the printed total within {max(sums):.1e} s")
     print("stages of the last run: " + ", ".join(f"{k} {v:.3f}" for k, v in printed[-1].items()))
+    if printed_before:
+        total = statistics.median(t["total"] for t in printed_before)
+        staged = statistics.median(sum(v for k, v in t.items() if k not in ("total", "other")) for t in printed_before)
+        print(f"before: cli part 128 printed total {total:.3f} s (stages {staged:.3f} s + other), wall "
+              f"{med['before: cli part 128']:.3f} s")
+        for name in ("import warpmesh", "part 128", "cli part 128"):
+            print(f"{name}: before {med['before: ' + name]:.3f} s, now {med[name]:.3f} s "
+                  f"({med['before: ' + name] / med[name]:.1f}x faster; CPU {cpu['before: ' + name]:.3f} -> {cpu[name]:.3f} s)")
     finish(t_start, load0, args.json, {"median_wall_s": med, "median_cpu_s": cpu, "walls": walls, "cpus": cpus,
                                        "cli_times": printed})
 

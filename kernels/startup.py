@@ -121,7 +121,7 @@ def _estimate() -> int:
             cached = False
         if not cached:
             total += COMPILE_SECONDS.get(name[len(KERNEL_PREFIX):], DEFAULT_COMPILE_SECONDS)
-    return max(1, int(round(total / 5.0) * 5) if total >= 10 else int(round(total)))
+    return max(1, round(total / 5.0) * 5 if total >= 10 else round(total))  # to 5 s above 10 s
 
 
 def _watch_compiles() -> None:
