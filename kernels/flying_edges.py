@@ -97,15 +97,25 @@ def node_value(vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8),
 @wp.kernel
 def classify_rows_kernel(
     first: int, vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
-    level: float, sign: float, cap: int, n: wp.vec3i, words: int,
+    level: float, sign: float, cap: int, n: wp.vec3i, words: int, present: wp.array(dtype=wp.uint64),
+    bit: wp.uint64,
     classes: wp.array(dtype=wp.uint64), row_range: wp.array(dtype=wp.vec2), row_bad: wp.array(dtype=wp.int32),
 ):
     """One thread per row: its node classes (``classes[r * words + w]``, capped nodes
     outside, bits past the row's end 0); the (min, max) of its raw samples, and in
-    ``row_bad`` a positive count when a sample or its value is not finite."""
+    ``row_bad`` a positive count when a sample or its value is not finite. With
+    ``present`` (one entry per row: ``label_rows_kernel``), a label's row that lacks
+    ``bit`` is all outside without a read."""
     r = wp.tid() + first
     i = r / n[1]
     j = r % n[1]
+    if present.shape[0] > 1:
+        if (present[r] & bit) == wp.uint64(0):  # the indicator is 0 along the row
+            for w in range(words):
+                classes[r * words + w] = wp.uint64(0)
+            row_range[r] = wp.vec2(0.0, 0.0)
+            row_bad[r] = 0
+            return
     lo = wp.vec4(3.4e38)
     hi = wp.vec4(-3.4e38)
     bad = int(0)
@@ -148,6 +158,24 @@ def classify_rows_kernel(
     row_range[r] = wp.vec2(wp.min(wp.min(lo[0], lo[1]), wp.min(lo[2], lo[3])),
                            wp.max(wp.max(hi[0], hi[1]), wp.max(hi[2], hi[3])))
     row_bad[r] = bad
+
+
+@wp.kernel
+def label_rows_kernel(
+    first: int, vu: wp.array3d(dtype=wp.uint8), slot: wp.array(dtype=wp.int32), n: wp.vec3i,
+    present: wp.array(dtype=wp.uint64),
+):
+    """One thread per row of a uint8 label volume: bit ``slot[value]`` set for each value
+    in the row that has a slot (``slot``: 256 entries, -1 for values not meshed)."""
+    r = wp.tid() + first
+    i = r / n[1]
+    j = r % n[1]
+    m = wp.uint64(0)
+    for k in range(n[2]):
+        q = slot[int(vu[i, j, k])]
+        if q >= 0:
+            m = m | (wp.uint64(1) << wp.uint64(q))
+    present[r] = m
 
 
 @wp.func
@@ -344,11 +372,13 @@ def node_capped(rowcap: bool, k: int, n2: int, cap: int):
 
 @wp.func
 def put_vertex(vid: int, v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, capped0: bool, capped1: bool,
-               t_min: float, gap: float, points: wp.array(dtype=wp.vec3), flags: wp.array(dtype=wp.int32)):
+               t_min: float, gap: float, origin: wp.vec3d, points: wp.array(dtype=wp.vec3d),
+               flags: wp.array(dtype=wp.int32)):
     """Store the vertex of a crossing edge with the flags of ``emit.emit_vertices_kernel``;
-    1 when the clearance moved it."""
+    1 when the clearance moved it. The point is stored in float64: ``origin`` plus its
+    float32 position relative to node (0, 0, 0)."""
     p, te = edge_point(v0, v1, g, d, h, capped0, capped1, t_min, gap)
-    points[vid] = p
+    points[vid] = wp.vec3d(p) + origin
     f = wp.where(v0 > 0.0, 1, 0)
     if v0 == 0.0 or v1 == 0.0:
         f = f | 2
@@ -365,7 +395,8 @@ def emit_row_vertices_kernel(
     first: int, vf: wp.array3d(dtype=wp.float32), vu: wp.array3d(dtype=wp.uint8), mode: int, label: int,
     level: float, sign: float, cap: int, n: wp.vec3i, words: int, h: wp.vec3, t_min: float, clearance: float,
     classes: wp.array(dtype=wp.uint64), vertex_offset: wp.array(dtype=wp.int32),
-    points: wp.array(dtype=wp.vec3), flags: wp.array(dtype=wp.int32), moved: wp.array(dtype=wp.int32),
+    origin: wp.vec3d, points: wp.array(dtype=wp.vec3d), flags: wp.array(dtype=wp.int32),
+    moved: wp.array(dtype=wp.int32),
 ):
     """One thread per row: its vertices, type 0 then 1 then 2, each in k order, from
     ``vertex_offset[r]`` (positions relative to node (0, 0, 0))."""
@@ -393,17 +424,18 @@ def emit_row_vertices_kernel(
                     v0 = node_value(vf, vu, mode, label, level, sign, cap, n, ca, i, j, k)
                     v1 = node_value(vf, vu, mode, label, level, sign, cap, n, cb, i + d[0], j + d[1], k + d[2])
                     n_moved += put_vertex(vid, v0, v1, wp.vec3i(i, j, k), d, h, node_capped(ca, k, n[2], cap),
-                                          node_capped(cb, k + d[2], n[2], cap), t_min, gap, points, flags)
+                                          node_capped(cb, k + d[2], n[2], cap), t_min, gap, origin, points,
+                                          flags)
                     vid += 1
     moved[r] = n_moved
 
 
 @wp.func
-def signed_volume6(points: wp.array(dtype=wp.vec3), tri: wp.vec3i, centre: wp.vec3d):
+def signed_volume6(points: wp.array(dtype=wp.vec3d), tri: wp.vec3i, centre: wp.vec3d):
     """Six times the signed volume of the tetrahedron (centre, triangle), in float64."""
-    a = wp.vec3d(points[tri[0]]) - centre
-    b = wp.vec3d(points[tri[1]]) - centre
-    c = wp.vec3d(points[tri[2]]) - centre
+    a = points[tri[0]] - centre
+    b = points[tri[1]] - centre
+    c = points[tri[2]] - centre
     return wp.dot(a, wp.cross(b, c))
 
 @wp.kernel
@@ -413,14 +445,16 @@ def emit_row_triangles_kernel(
     method: int, tab: Tables, centre: wp.vec3d, classes: wp.array(dtype=wp.uint64),
     count_i: wp.array(dtype=wp.int32), count_j: wp.array(dtype=wp.int32), vertex_offset: wp.array(dtype=wp.int32),
     triangle_offset: wp.array(dtype=wp.int32), center_offset: wp.array(dtype=wp.int32), n_edge_vertices: int,
-    points: wp.array(dtype=wp.vec3), flags: wp.array(dtype=wp.int32), triangles: wp.array(dtype=wp.vec3i),
+    origin: wp.vec3d, points: wp.array(dtype=wp.vec3d), flags: wp.array(dtype=wp.int32),
+    triangles: wp.array(dtype=wp.int64),
     row_volume: wp.array(dtype=wp.float64),
 ):
     """One thread per cell row: the tables' triangles of its crossed cells in k order. The
     vertex of an edge of type t from node k of a row is that row's first vertex of type t
     plus the row's crossings of type t before k (counted a word at a time); interior
     vertices of "mc33" cells as ``emit.emit_triangles_kernel`` places them (after the
-    n_edge_vertices edge vertices); six times the signed volume about ``centre``."""
+    n_edge_vertices edge vertices); points in float64 (``origin`` plus the float32
+    position), triangles as int64 rows; six times the signed volume about ``centre``."""
     r = wp.tid() + first
     i = r / n[1]
     j = r % n[1]
@@ -486,7 +520,7 @@ def emit_row_triangles_kernel(
                                                            on_capped_face(ge + d, n, cap), t_min, gap)
                                         acc = acc + p
                                         mm += 1.0
-                        points[center] = acc / wp.max(mm, 1.0)
+                        points[center] = wp.vec3d(acc / wp.max(mm, 1.0)) + origin
                         flags[center] = 2
                     if mask > 1:  # the spokes of the hub construction
                         v = cell_values(cv0, cv1)
@@ -497,9 +531,10 @@ def emit_row_triangles_kernel(
                             if ((mask >> (q + 1)) & 1) != 0:
                                 u = spoke_point(v, tab, hub, f_hub, q, wp.float64(gap))
                                 vq = center + interior_count(mask & ((2 << q) - 1))
-                                points[vq] = wp.vec3(0.0 + (float(g[0]) + float(u[0])) * h[0],
-                                                     0.0 + (float(g[1]) + float(u[1])) * h[1],
-                                                     0.0 + (float(g[2]) + float(u[2])) * h[2])
+                                pq = wp.vec3(0.0 + (float(g[0]) + float(u[0])) * h[0],
+                                             0.0 + (float(g[1]) + float(u[1])) * h[1],
+                                             0.0 + (float(g[2]) + float(u[2])) * h[2])
+                                points[vq] = wp.vec3d(pq) + origin
                                 flags[vq] = 2
                 for q in range(tab.tri_count[case]):
                     tri = wp.vec3i(0, 0, 0)
@@ -521,7 +556,8 @@ def emit_row_triangles_kernel(
                             xw = x1[dx]
                             vid = id1[dx] + wp.bit_count(xw & under) + dz * int((xw >> wp.uint64(bit)) & wp.uint64(1))
                         tri[m3] = vid
-                    triangles[out] = tri
+                    for m3 in range(3):  # int64 rows of the host's connectivity
+                        triangles[3 * out + m3] = wp.int64(tri[m3])
                     out += 1
                     vol += signed_volume6(points, tri, centre)
             for q in range(4):

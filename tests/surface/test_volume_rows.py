@@ -11,7 +11,7 @@ from scipy.spatial import cKDTree
 
 import warpmesh as wm
 from tests.helpers.meshcheck import check_mesh
-from warpmesh.surface.volume import check_closed_outward, extract_volume
+from warpmesh.surface.volume import check_closed_outward, extract_fields, extract_volume, label_rows
 
 
 def _extract(vol, engine, method, *, level=0.0, sign=1.0, cap=True, label=None, spacing=(1.0, 1.0, 1.0),
@@ -132,3 +132,37 @@ def test_engine_choice_is_checked():
         _extract(vol, "rows", "mt")
     with pytest.raises(ValueError, match="row pass"):
         _extract(vol.astype(np.float64), "rows", "mc")
+
+
+def test_labels_share_one_pass_over_the_rows():
+    """extract_fields: the labels of a uint8 volume classified from the rows holding each
+    (one listing pass, 64 labels a word: 70 labels take two) mesh as the slab pass does."""
+    rng = np.random.default_rng(13)
+    labels = np.zeros((14, 12, 75), np.uint8)
+    for value in range(1, 71):  # blocks of 70 labels, some rows holding none
+        i, j, k = rng.integers(0, (11, 9, 70))
+        labels[i:i + 3, j:j + 3, k:k + 5] = value
+    labels[5] = 0  # a plane of rows without any label
+    fields = list(range(1, 71)) + [200]  # and a label that is absent
+    opts = dict(level=0.5, sign=1.0, method="mc33", cap=True, cull=True, device=wp.get_device("cpu"),
+                slab_voxels=1 << 24, timings={}, clearance=0.05)
+    shared = list(extract_fields(labels, (0.0, 0.0, 0.0), np.ones(3), fields, info={}, **opts))
+    assert len(shared) == len(fields)
+    for label, got in zip(fields, shared):
+        info = {}
+        ref = extract_volume(labels, (0.0, 0.0, 0.0), np.ones(3), label=label, info=info, engine="slabs", **opts)
+        _assert_same((*got, info), (*ref, info))
+    assert shared[-1][3][1] <= 0.0  # the absent label: no sample inside (the pipeline refuses it)
+    assert label_rows(labels, [1, 2, None, 300], "cpu").numpy().max() < 4  # bits only for meshed uint8 values
+
+
+def test_label_volumes_through_mesh_surface(device):
+    labels = np.zeros((30, 28, 26), np.uint8)
+    labels[3:12, 4:20, 5:21] = 1
+    labels[14:27, 4:20, 5:21] = 2
+    labels[16:20, 23:26, 9:13] = 3  # apart from the others (touching labels share faces: not embedded)
+    m = wm.mesh_surface(labels, labels="all", device=device)
+    check_mesh(m)
+    assert m.info["engine"] == "rows" and sorted(set(m.cell_refs["triangle"].tolist())) == [1, 2, 3]
+    one = wm.mesh_surface(labels, labels=[3], device=device)
+    assert np.count_nonzero(m.cell_refs["triangle"] == 3) == len(one.cells["triangle"])

@@ -41,7 +41,7 @@ from warpmesh.surface.continuation import Growth, grow_cells
 from warpmesh.surface.options import (AdaptiveOptions, ContinuationOptions, GridOptions, SurfaceOptions,
                                       VolumeOptions, check_choice)
 from warpmesh.surface.multilabel import LABEL_ABOVE, shared_surface
-from warpmesh.surface.volume import check_closed_outward, check_labels, extract_volume
+from warpmesh.surface.volume import check_closed_outward, check_labels, extract_fields
 
 RAY_LINES = 32  # continuation's automatic seeds: rays along 32 grid lines per axis (every 8th at least)
 COVERINGS = ("grid", "continuation")
@@ -528,11 +528,9 @@ def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
     info: dict = {"method": opts.method, "root": "linear", "device": str(device)}
     fields = [None] if labels is None else list(check_labels(labels, vol))
     parts, n_verts = [], 0
-    for label in fields:
-        points, faces, flags, (vmin, vmax) = extract_volume(
-            vol, org, sp, level=level, sign=sign, method=opts.method, cap=cap, cull=opts.cull, device=device,
-            slab_voxels=opts.slab_voxels, label=label, timings=timings, info=info,
-            clearance=opts.clearance)
+    for label, (points, faces, flags, (vmin, vmax)) in zip(fields, extract_fields(
+            vol, org, sp, fields, level=level, sign=sign, method=opts.method, cap=cap, cull=opts.cull, device=device,
+            slab_voxels=opts.slab_voxels, timings=timings, info=info, clearance=opts.clearance)):
         if label is None and vmin == vmax:
             raise ValueError(f"expected a non-constant 'volume', got every value equal to {sign * vmin + level}")
         if label is None and not vmin <= 0.0 <= vmax:
@@ -548,8 +546,9 @@ def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
         refs = np.where(capped[faces[:, 0]] & capped[faces[:, 1]] & capped[faces[:, 2]], CAP_REF, SURFACE_REF) \
             if label is None else \
             np.full(len(faces), label)
-        faces += n_verts
-        parts.append((points, faces, refs.astype(C.INDEX_DTYPE)))
+        if n_verts:  # (a pass over every row: not for the first field)
+            faces += n_verts
+        parts.append((points, faces, refs.astype(C.INDEX_DTYPE, copy=False)))
         n_verts += len(points)
     if len(parts) == 1:  # no copy of the whole output
         points, faces, refs = parts.pop()

@@ -118,7 +118,7 @@ ENGINES = ("auto", "rows", "slabs")
 
 def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool,
                    cull: bool, device, slab_voxels: int, label=None, timings: dict, info: dict,
-                   clearance: float = C.NODE_CLEARANCE, engine: str = "auto"):
+                   clearance: float = C.NODE_CLEARANCE, engine: str = "auto", rows_with=None):
     """Points (float64), triangles, per-vertex edge flags and the value range of one
     field of the volume (the indicator of ``label`` when given); ``clearance`` as
     :meth:`BlockGrid.extract`.
@@ -128,7 +128,8 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
     copies of slabs, welded); "auto" takes "rows" wherever it applies: "mc" or "mc33" on
     a float32, uint8 or bool volume, or a label of an integer volume (its indicator as
     uint8), of fewer than 2^29 samples (Warp's int32 offsets). Both give the same
-    triangles and vertices (tests/surface/test_volume_rows.py).
+    triangles and vertices (tests/surface/test_volume_rows.py). ``rows_with``: see
+    :func:`extract_fields`.
     """
     if engine not in ENGINES:
         raise ValueError(f"expected 'engine' in {list(ENGINES)}, got {engine!r}")
@@ -143,17 +144,70 @@ def extract_volume(vol: np.ndarray, origin, spacing, *, level: float, sign: floa
                              device=device, slab_voxels=slab_voxels, label=label, timings=timings, info=info,
                              clearance=clearance)
     return extract_rows(vol, origin, spacing, level=level, sign=sign, method=method, cap=cap, device=device,
-                        slab_voxels=slab_voxels, label=label, timings=timings, info=info, clearance=clearance)
+                        slab_voxels=slab_voxels, label=label, timings=timings, info=info, clearance=clearance,
+                        rows_with=rows_with)
+
+
+def extract_fields(vol: np.ndarray, origin, spacing, fields, **options):
+    """:func:`extract_volume` of each of ``fields`` in turn (None: the level set of the
+    volume; a value: that label's surface), as a generator. Labels of a uint8 volume
+    meshed by the row pass share one pass that lists the labels of each row
+    (:func:`label_rows`, 64 labels at a time): each label's classification then reads
+    only the rows holding it, not the whole volume."""
+    fields = list(fields)
+    shared = (vol.dtype == np.uint8 and len(fields) > 1 and options.get("engine", "auto") != "slabs"
+              and options["method"] in ("mc", "mc33") and vol.size * 4 < 2**31)
+    batch, present = -1, None
+    for idx, label in enumerate(fields):
+        rows_with = None
+        if shared and label is not None and 0 <= int(label) <= 255:
+            if idx // 64 != batch:  # 64 labels per word of row bits
+                batch = idx // 64
+                present = label_rows(vol, fields[64 * batch:64 * batch + 64], options["device"])
+            rows_with = (present, idx % 64)
+        yield extract_volume(vol, origin, spacing, label=label, rows_with=rows_with, **options)
+
+
+def label_rows(vol: np.ndarray, values, device) -> wp.array:
+    """Per row ``(i, j)`` of a uint8 label volume (``r = i * n1 + j``), bit q set when the
+    row holds ``values[q]`` (at most 64 values; None or values beyond uint8 get no bit).
+
+    >>> import numpy as np
+    >>> vol = np.zeros((2, 2, 3), np.uint8); vol[1, 0, 2] = 7; vol[0, 1, 0] = 3
+    >>> label_rows(vol, [3, 7], "cpu").numpy().tolist()
+    [0, 1, 2, 0]
+    """
+    from warpmesh.kernels import flying_edges as KF  # as in extract_rows: only where volumes are meshed
+
+    if len(values) > KF.WORD_BITS:
+        raise ValueError(f"expected at most {KF.WORD_BITS} label values, got {len(values)}")
+    dev = wp.get_device(device)
+    wp.load_module(KF, device=dev)
+    slot = np.full(256, -1, dtype=np.int32)
+    for q, v in enumerate(values):
+        if v is not None and 0 <= int(v) <= 255:
+            slot[int(v)] = q
+    host = np.ascontiguousarray(vol)
+    vu = wp.array(host, dtype=wp.uint8, device=dev, copy=not dev.is_cpu)
+    n = tuple(int(v) for v in vol.shape)
+    present = wp.empty(n[0] * n[1], dtype=wp.uint64, device=dev)
+    wslot = wp.array(slot, dtype=wp.int32, device=dev)
+    run_parallel([lambda lo=lo, hi=hi: wp.launch(KF.label_rows_kernel, dim=hi - lo, inputs=[lo, vu, wslot, wp.vec3i(*n)],
+                                                 outputs=[present], device=dev)
+                  for lo, hi in parallel_ranges(n[0] * n[1], dev, min_per_worker=64)])
+    return present
 
 
 def extract_rows(vol: np.ndarray, origin, spacing, *, level: float, sign: float, method: str, cap: bool, device,
-                 slab_voxels: int, label=None, timings: dict, info: dict, clearance: float = C.NODE_CLEARANCE):
+                 slab_voxels: int, label=None, timings: dict, info: dict, clearance: float = C.NODE_CLEARANCE,
+                 rows_with=None):
     """:func:`extract_volume` by flying edges (:mod:`warpmesh.kernels.flying_edges`): the
     array read in place (a copy only when it is not C-contiguous, or a label's uint8
     indicator for a volume of another integer dtype), every pass a launch over rows
     split across cores, slab by slab of ``slab_voxels`` samples; one vertex per crossing
-    edge, so nothing is welded. Sync points: the rows' value ranges (validation) and
-    the output sizes."""
+    edge, so nothing is welded. ``rows_with`` (uint8 labels: the rows' label bits of
+    :func:`label_rows` and this label's bit) skips the rows without the label. Sync
+    points: the rows' value ranges (validation) and the output sizes."""
     from warpmesh.kernels import flying_edges as KF  # here: a shape's mesh need not define these kernels
 
     clearance = check_clearance(clearance)
@@ -193,7 +247,10 @@ def extract_rows(vol: np.ndarray, origin, spacing, *, level: float, sign: float,
                           for lo, hi in parallel_ranges((b - a) * n[1], dev, min_per_worker=64)
                           for lo, hi in [(lo + a * n[1], hi + a * n[1])]])
 
-    per_row(KF.classify_rows_kernel, [*common, words], [classes, ranges, ints["bad"]])
+    present, bit = wp.zeros(1, dtype=wp.uint64, device=dev), wp.uint64(0)
+    if rows_with is not None and mode == KF.MODE_LABEL:
+        present, bit = rows_with[0], wp.uint64(1 << rows_with[1])
+    per_row(KF.classify_rows_kernel, [*common, words, present, bit], [classes, ranges, ints["bad"]])
     if int(ints["bad"].numpy().sum()):  # sync point: validation
         raise ValueError("expected finite values in 'volume', got NaN or infinity (or values beyond "
                          "float32's range, where the volume is converted to float32)")
@@ -216,26 +273,29 @@ def extract_rows(vol: np.ndarray, origin, spacing, *, level: float, sign: float,
     if nv_edges + nc >= 2**31 or nt >= 2**31:
         raise WarpMeshError(f"the surface has {nv_edges + nc} vertices and {nt} triangles, more than int32 "
                             "ids can number: mesh a coarser volume or parts of it")
-    verts = wp.empty(nv_edges + nc, dtype=wp.vec3, device=dev)
+    # the output in its host form (float64 points, int64 rows): on the CPU the kernels write
+    # into numpy arrays that the mesh keeps, with no conversion pass
+    points = np.empty((nv_edges + nc, 3), dtype=C.REAL_DTYPE)
+    faces = np.empty((nt, 3), dtype=C.INDEX_DTYPE)
+    verts = wp.array(points, dtype=wp.vec3d, device=dev, copy=not dev.is_cpu)
+    tris = wp.array(faces.reshape(-1), dtype=wp.int64, device=dev, copy=not dev.is_cpu)
     flags = wp.empty(nv_edges + nc, dtype=wp.int32, device=dev)
-    tris = wp.empty(nt, dtype=wp.vec3i, device=dev)
     row_volume = wp.empty(n_rows, dtype=wp.float64, device=dev)
     h = np.asarray(spacing, dtype=np.float64)
     wh, t_min = wp.vec3(*h.tolist()), float(C.EDGE_T_MIN)
     if nt:
+        worigin = wp.vec3d(*np.asarray(origin, dtype=np.float64).tolist())
         per_row(KF.emit_row_vertices_kernel, [*common, words, wh, t_min, clearance, classes, offsets["vcount"]],
-                [verts, flags, ints["moved"]])
-        centre = wp.vec3d(*(0.5 * (np.array(n) - 1) * h).tolist())
+                [worigin, verts, flags, ints["moved"]])
+        centre = wp.vec3d(*(np.asarray(origin, dtype=np.float64) + 0.5 * (np.array(n) - 1) * h).tolist())
         per_row(KF.emit_row_triangles_kernel,
                 [*common, words, wh, t_min, clearance, mid, tab, centre, classes, ints["count_i"], ints["count_j"],
                  offsets["vcount"], offsets["tcount"], offsets["ccount"], nv_edges],
-                [verts, flags, tris, row_volume])
+                [worigin, verts, flags, tris, row_volume])
     timings["extract"] = timings.get("extract", 0.0) + time.perf_counter() - t0
     t0 = time.perf_counter()
-    # sync point: float64 points = grid-relative float32 positions + the origin
-    points = verts.numpy().astype(C.REAL_DTYPE)
-    points += np.asarray(origin, dtype=np.float64)
-    faces = np.asarray(tris.numpy(), dtype=C.INDEX_DTYPE).reshape(-1, 3)
+    if not dev.is_cpu:  # sync point: the output to the host
+        points, faces = verts.numpy().reshape(-1, 3), tris.numpy().reshape(-1, 3)
     flag = flags.numpy().copy()
     info["interior_vertices"] = info.get("interior_vertices", 0) + nc
     info["clearance_moved"] = info.get("clearance_moved", 0) + (int(ints["moved"].numpy().sum()) if nt else 0)
