@@ -13,7 +13,7 @@ True
 
 from __future__ import annotations
 
-__all__ = ["WarpMeshError", "ReadError", "TopologyError", "MergeError"]
+__all__ = ["WarpMeshError", "ReadError", "TopologyError", "MergeError", "SizeError"]
 
 
 class WarpMeshError(Exception):
@@ -30,3 +30,8 @@ class TopologyError(WarpMeshError):
 
 class MergeError(WarpMeshError):
     """The merged mesh fails the Euler check: the interfaces do not match."""
+
+
+class SizeError(WarpMeshError, ValueError):
+    """An argument asks for more memory than the budget (:mod:`warpmesh._util.budget`);
+    raised before any work, with the size it would need and the argument to change."""

@@ -29,6 +29,7 @@ import numbers
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import CELL_TYPES, require_mesh
 from warpmesh.modify.merge import _check_tolerance, _match, _merge, default_tolerance
 from warpmesh.cells.reference import mirror_permutation
@@ -190,6 +191,9 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs:
     require_mesh(mesh)
     t = _check_matrix(matrix, mesh.dim)
     n = _check_copies(copies)
+    pattern_bytes = mesh.points.nbytes + sum(c.nbytes for c in mesh.cells.values())
+    check_budget(3.0 * n * pattern_bytes, f"periodic(copies={n}) of a {mesh.n_cells}-cell pattern",
+                 "lower 'copies'")
     options = {"refs": refs, "duplicates": duplicates, "check": check}
     powers = [np.eye(mesh.dim + 1)]
     for _ in range(n):

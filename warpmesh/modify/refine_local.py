@@ -64,6 +64,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import CELL_TYPES, require_mesh
 from warpmesh.frep.projection import as_target, project_nodes
 from warpmesh.errors import WarpMeshError
@@ -145,6 +146,26 @@ def _check_size(max_length) -> Callable | None:
     if not (np.isfinite(h) and h > 0):
         raise ValueError(f"expected a positive finite 'max_length', got {max_length}")
     return lambda x: np.full(len(x), h)
+
+
+def _check_output_size(mesh, types, size: Callable) -> float:
+    """Refuse (SizeError) before any work when ``max_length`` would make more cells than the
+    memory budget holds: each simplex becomes about (longest edge / h(centroid))^d of them.
+    Returns the estimated cell count."""
+    points = np.asarray(mesh.points, REAL_DTYPE)
+    total, nv_max = 0.0, 2
+    for t in types:
+        c = np.asarray(mesh.cells[t])
+        if not len(c):
+            continue
+        p = points[c]
+        longest = np.max([np.linalg.norm(p[:, i] - p[:, j], axis=1) for i, j in _EDGES[t].tolist()], axis=0)
+        ratio = np.maximum(1.0, longest / _sizes(size, p.mean(axis=1)))
+        total += float(np.sum(ratio ** SIMPLEX_TYPES[t]))
+        nv_max = max(nv_max, c.shape[1])
+    check_budget(3 * total * (8 * nv_max + 8 * mesh.dim), f"refine(max_length=...) of {mesh.n_cells} cells "
+                 f"(about {total:.3g} cells after)", "raise 'max_length'")
+    return total
 
 
 def _sizes(size: Callable, x: np.ndarray) -> np.ndarray:
@@ -366,6 +387,8 @@ def refine_local(mesh, *, where=None, max_length=None, shape=None, max_rounds: i
     if max_rounds < 1:
         raise ValueError(f"expected 'max_rounds' >= 1, got {max_rounds}")
     target = None if shape is None else as_target(shape)
+    if size is not None:
+        _check_output_size(mesh, types, size)
 
     dim, n0 = mesh.dim, mesh.n_points
     top_dim = max(SIMPLEX_TYPES[t] for t in types)

@@ -58,6 +58,7 @@ import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.arrays import unique_rows
+from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import require_mesh
 from warpmesh.frep.projection import as_target, project_nodes
 from warpmesh.cells.reference import (base_type, cell_measures, corner_jacobians, extend_point_values,
@@ -414,6 +415,10 @@ def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
     if shape is None and bounds is not None:
         raise ValueError("expected a 'shape' with 'bounds' (the box caps that shape), got shape=None")
     types = _check_blocks(mesh)
+    n_after = sum(len(mesh.cells[t]) * float(k) ** reference_cell(t).tdim for t in types)
+    nv_max = max(mesh.cells[t].shape[1] for t in types)
+    check_budget(3 * n_after * (8 * nv_max + 8 * mesh.dim), f"refine(n={k}) of {mesh.n_cells} cells "
+                 f"({n_after:.3g} cells after)", "lower 'n', or refine where needed (where=..., max_length=...)")
     target = None if shape is None else as_target(shape, bounds=bounds)
     n0 = mesh.n_points
 

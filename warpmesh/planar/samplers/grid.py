@@ -58,6 +58,7 @@ import numpy as np
 
 from warpmesh.planar.samplers import marching_squares as ms
 from warpmesh._conventions import EDGE_T_MIN, INDEX_DTYPE, REAL_DTYPE
+from warpmesh._util.budget import check_budget
 from warpmesh.frep.planar_field import PlanarField
 from warpmesh.planar.samplers.sample import CurveSample
 
@@ -80,6 +81,9 @@ def _check_common(field, resolution, tolerance, root) -> tuple[int, int, float]:
             or not 0.0 < float(tolerance) < 1.0:
         raise ValueError(f"expected 'tolerance' a number in (0, 1) (a fraction of the cell size), got {tolerance!r}")
     nx, ny = _grid_shape(field.bounds, resolution)
+    # per node: its point, value, sign and index arrays (about 64 bytes with temporaries)
+    check_budget(64.0 * (nx + 1) * (ny + 1), f"a {nx} x {ny}-cell grid (resolution={resolution!r})",
+                 "lower 'resolution'")
     return nx, ny, float(tolerance)
 
 
