@@ -232,15 +232,8 @@ def shared_pair_meets(A: wp.mat33d, ca: int, B: wp.mat33d, cb: int, tol: wp.floa
 
 
 @wp.func
-def pair_violates(A: wp.mat33d, ia: wp.vec3i, center_a: wp.vec3d, radius_a: wp.float64, edge_a: wp.float64,
-                  B: wp.mat33d, ib: wp.vec3i, fan_ok: wp.array(dtype=wp.int32), rel: wp.float64, ulp: wp.float64,
-                  pad: wp.float64, fold_cos: wp.float64) -> bool:
-    """Two non-degenerate faces cross, touch or fold onto each other (module rules); A's
-    centroid, radius and longest edge are given (they are the same for all its pairs)."""
-    center_b = centroid(B)
-    reach = radius_a + radius(B, center_b) + pad
-    if wp.length_sq(center_a - center_b) > reach * reach:
-        return False
+def shared_corners(ia: wp.vec3i, ib: wp.vec3i):
+    """(number of vertex indices A and B share, the corner of A and of B of the last one)."""
     shared = int(0)
     ca = int(0)
     cb = int(0)
@@ -250,14 +243,27 @@ def pair_violates(A: wp.mat33d, ia: wp.vec3i, center_a: wp.vec3d, radius_a: wp.f
                 shared += 1
                 ca = x
                 cb = y
+    return shared, ca, cb
+
+
+@wp.func
+def pair_violates(A: wp.mat33d, center_a: wp.vec3d, radius_a: wp.float64, edge_a: wp.float64, B: wp.mat33d,
+                  shared: int, ca: int, cb: int, rel: wp.float64, ulp: wp.float64, pad: wp.float64,
+                  fold_cos: wp.float64) -> bool:
+    """Two non-degenerate faces sharing ``shared`` vertices (the last at corners ca, cb;
+    one shared vertex only when its fan does not project one-to-one) cross, touch or fold
+    onto each other (module rules); A's centroid, radius and longest edge are given (the
+    same for all its pairs)."""
+    center_b = centroid(B)
+    reach = radius_a + radius(B, center_b) + pad
+    if wp.length_sq(center_a - center_b) > reach * reach:
+        return False
     if shared == 3:
         return True
     if shared == 2:
         return wp.dot(unit_normal(A), unit_normal(B)) < fold_cos
     tol = rel * wp.max(edge_a, longest_edge(B)) + ulp
     if shared == 1:
-        if fan_ok[ia[ca]] != 0:
-            return False
         return shared_pair_meets(A, ca, B, cb, tol)
     if not boxes_within(A, B, tol):
         return False
@@ -438,9 +444,13 @@ def face_violations_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tri
             j = listed[g]
             if j <= i and j >= 0:  # itself, or a pair of listed faces tested by the other's thread
                 continue
+            ib = wp.vec3i(tris[3 * g], tris[3 * g + 1], tris[3 * g + 2])
+            shared, ca, cb = shared_corners(ia, ib)
+            if shared == 1 and fan_ok[ia[ca]] != 0:  # a fan that projects one-to-one: no crossing
+                continue
             if degenerate[g] == 0 and boxes_meet(lo, hi, lowers[g], uppers[g]):
                 B, ib = load_face(points, tris, g)
-                if pair_violates(A, ia, center_a, radius_a, edge_a, B, ib, fan_ok, rel, ulp, pad, fold_cos):
+                if pair_violates(A, center_a, radius_a, edge_a, B, shared, ca, cb, rel, ulp, pad, fold_cos):
                     bad[i] = 1
                     if j >= 0:
                         bad[j] = 1

@@ -53,8 +53,9 @@ def _face_normals(points, tri):
     return _unit(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
 
 
-def exact_dihedral_cos(s: Surface, topo, target, offset: float = 0.2) -> np.ndarray:
-    """Cosine of the exact surface's turn across each edge.
+def exact_dihedral_cos(s: Surface, topo, target, offset: float = 0.2, which=None) -> np.ndarray:
+    """Cosine of the exact surface's turn across each edge (``which``: those edges only,
+    indices into ``topo.edges``; the others get 1, flat).
 
     Points beside the edge on either side (``offset`` of the edge length along the
     surface, perpendicular to the edge) are projected onto the surface, at a quarter and
@@ -64,12 +65,15 @@ def exact_dihedral_cos(s: Surface, topo, target, offset: float = 0.2) -> np.ndar
     """
     p = s.points
     a, b = p[topo.edges[:, 0]], p[topo.edges[:, 1]]
-    inner = topo.n_faces == 2
-    axis = _unit(b - a)
     length = np.linalg.norm(b - a, axis=1)
-    length = np.maximum(length, 0.5 * np.median(length))  # tiny edges between crease points
+    median = np.median(length)
+    sel = np.arange(len(a)) if which is None else np.asarray(which)
+    a, b, length = a[sel], b[sel], length[sel]
+    inner = topo.n_faces[sel] == 2
+    axis = _unit(b - a)
+    length = np.maximum(length, 0.5 * median)  # tiny edges between crease points
     fn = _face_normals(p, s.triangles)
-    up = _unit(fn[topo.face0] + fn[np.maximum(topo.face1, 0)] + target.normals(a) + target.normals(b))
+    up = _unit(fn[topo.face0[sel]] + fn[np.maximum(topo.face1[sel], 0)] + target.normals(a) + target.normals(b))
     side = _unit(np.cross(axis, up)) * (offset * length)[:, None]
     out = np.full(len(a), -1.0)
     for t in (0.25, 0.75):
@@ -78,7 +82,11 @@ def exact_dihedral_cos(s: Surface, topo, target, offset: float = 0.2) -> np.ndar
         n = target.normals(pts)
         c = np.einsum("ij,ij->i", n[: len(q)], n[len(q):])
         out = c if t == 0.25 else np.maximum(out, c)
-    return np.where(inner, out, -1.0)
+    if which is None:
+        return np.where(inner, out, -1.0)
+    full = np.ones(len(topo.edges))
+    full[sel] = np.where(inner, out, -1.0)
+    return full
 
 
 def detect_features(s: Surface, angle: float = DEFAULT_ANGLE, target=None, crease=None) -> None:
@@ -91,7 +99,11 @@ def detect_features(s: Surface, angle: float = DEFAULT_ANGLE, target=None, creas
     topo = s.topology()
     inner = topo.n_faces == 2
     f1 = np.maximum(topo.face1, 0)
-    if target is not None:
+    if target is not None and crease is not None and crease.any():
+        # only edges between two crease points can be features (below): the others' turn
+        # is not needed
+        cos = exact_dihedral_cos(s, topo, target, which=np.flatnonzero(inner & crease[topo.edges].all(axis=1)))
+    elif target is not None:
         cos = exact_dihedral_cos(s, topo, target)
     else:
         nrm = _face_normals(s.points, s.triangles)
