@@ -54,7 +54,8 @@ global check), inward faces (normal against the target's outward normal -grad f 
 centroid, the box's where capped; not counted where a sampled gradient vanishes), which
 state was returned (``info["optimize"]["kept"]``, with the worst Q of the last pass), time.
 
-Times are the best of ``--repeat`` runs (tools round-robin after ``--warmup`` untimed
+Times are the best of ``--repeat`` runs, wall and CPU seconds of the process (every
+thread; steadier than wall time on a shared machine) (tools round-robin after ``--warmup`` untimed
 rounds; a tool stops once its timed runs pass ``--budget`` s, and a warm-up call longer
 than that is its only, cold, run); ratio = tool time / warpmesh time (> 1: warpmesh
 faster). ``--peers-only`` skips warpmesh's optimize / simplify (its rows print "n/a").
@@ -380,28 +381,31 @@ def run_round_robin(tools: dict, repeat: int, warmup: int, budget: float) -> dic
     """``warmup`` untimed rounds, then ``repeat`` timed rounds, one call per tool each; a tool
     whose timed runs exceed ``budget`` s runs no more, and a warm-up call longer than ``budget``
     counts as that tool's only (cold) timed run."""
-    res = {name: {"samples": [], "warmup": [], "out": None} for name in tools}
+    res = {name: {"samples": [], "cpu": [], "warmup": [], "out": None} for name in tools}
     for _ in range(warmup):
         for name, fn in tools.items():
             if res[name]["samples"]:
                 continue
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             res[name]["out"] = fn()
             dt = time.perf_counter() - t0
             res[name]["warmup"].append(dt)
             if dt > budget:
                 res[name]["samples"].append(dt)
+                res[name]["cpu"].append(time.process_time() - c0)
     for _ in range(repeat):
         for name, fn in tools.items():
             if sum(res[name]["samples"]) > budget:
                 continue
             res[name]["out"] = None  # free the previous output first
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             out = fn()
             res[name]["samples"].append(time.perf_counter() - t0)
+            res[name]["cpu"].append(time.process_time() - c0)
             res[name]["out"] = out
     for r in res.values():
         r["best"] = min(r["samples"])
+        r["best_cpu"] = min(r["cpu"])  # CPU seconds of the process (every thread): steadier on a loaded machine
     return res
 
 
@@ -410,6 +414,7 @@ def measure(res_entry, distance_fn, surface_error_fn=None) -> dict:
     row = mesh_measures(p, t)
     row.update({"dist_" + k: v for k, v in distance_fn(p, t).items()})
     row["time_s"] = res_entry["best"]
+    row["cpu_s"] = res_entry["best_cpu"]
     row["samples_s"] = res_entry["samples"]
     row["warmup_s"] = res_entry["warmup"]
     if surface_error_fn is not None:
@@ -462,6 +467,7 @@ def optimize_case(args, name) -> dict:
     ref = res.get("warpmesh optimize")
     for r in rows:
         r["ratio"] = r["time_s"] / ref["best"] if ref and not r.get("input") else None
+        r["cpu_ratio"] = r["cpu_s"] / ref["best_cpu"] if ref and not r.get("input") else None
     title = (f"(1) optimize: {name} on {_box(lo, hi)}, MC {args.resolution}^3 (cell {cell:.4g}), "
              f"h = {h:.4g} ({args.size:g} cell), tolerance {tol:.4g} ({args.tolerance:g} h), "
              f"{args.iterations} iterations" + (", capped on the box (distance to min(f, box))" if capped else ""))
@@ -567,6 +573,7 @@ def simplify_case(args, name, frog=None) -> dict:
         rows.append({"tool": tname, **measure(r, dist, se)})
     for r in rows:
         r["ratio"] = r["time_s"] / ref["best"] if ref and not r.get("input") else None
+        r["cpu_ratio"] = r["cpu_s"] / ref["best_cpu"] if ref and not r.get("input") else None
     title = (f"(2) simplify: {what}; {n_in:,} -> ~{target:,} triangles"
              + (f", warpmesh tolerance {tol:.4g} ({tol / cell:g} cell)" if HAVE_SIMPLIFY else "")
              + (f", fraction {args.wm_fraction:g}" if HAVE_SIMPLIFY and args.wm_fraction else ""))
@@ -698,7 +705,7 @@ def print_case(c):
 
 def summary(cases):
     print()
-    print("Summary (time s, ratio = tool / warpmesh; max distance; worst Q):")
+    print("Summary (time s, ratio = tool / warpmesh; CPU s of the process, ratio; max distance; worst Q):")
     for c in cases:
         parts = [] if not c["missing"] else ["warpmesh n/a"]
         for r in c["rows"]:
@@ -707,6 +714,9 @@ def summary(cases):
             s = f"{r['tool']} {r['time_s']:.3f} s"
             if r["ratio"] is not None and not r["tool"].startswith("warpmesh"):
                 s += f" ({r['ratio']:.3g}x)"
+            s += f", CPU {r['cpu_s']:.3f} s"
+            if r.get("cpu_ratio") is not None and not r["tool"].startswith("warpmesh"):
+                s += f" ({r['cpu_ratio']:.3g}x)"
             s += f", {r['ne']:,} tri, max d {r['dist_max']:.2e}, worst Q {_g(r['worst_q'], '{:.2f}')}"
             parts.append(s)
         print(f"  {c['section']} {c['case']}: " + "; ".join(parts))
