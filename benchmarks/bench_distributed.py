@@ -1,0 +1,292 @@
+#!/usr/bin/env python3
+"""Bricked meshing on Dask (issue 25): speed-up over one process, per-worker memory, and
+the parameters of the scaling model of docs/distributed.md, in one run.
+
+Cases:
+
+``part``    the CSG part (``wm.example("part")``) at ``--resolution`` cells (default 1024):
+            one process (``mesh_surface`` in a fresh interpreter, its own two threads per
+            launch), then ``mesh_surface(..., client=...)`` on a LocalCluster of 1 and of 2
+            worker processes (one thread each; each launch still splits over the cores),
+            gathered into one Mesh; and on 2 workers with ``gather=False, output=...``
+            (the workers write VTU pieces, nothing comes back).
+``volume``  a gyroid (float32, ``--volume`` samples, default 512,256,256) in a zarr store
+            (chunks 128^3): one process from the numpy array, 2 workers from
+            ``dask.array.from_zarr`` (each brick read on its worker).
+``scheduler`` 400 no-op tasks on the 2-worker cluster: the scheduler's cost per task.
+
+The shape is evaluated by ``--evaluator`` in every run (default "compiled": the kernel
+generated for the part, loaded from Warp's disk cache by each process's warm-up; with
+"auto" a worker may compile it in the background during the timed run, which one process
+meshing once never does).
+
+Every cluster is new (its workers warmed up by a 64^3 run that loads Warp's cached
+kernels, and started with the allocator setting of this run, see benchmarks/README.md)
+and its workers' peak resident memory is reset (``/proc/self/clear_refs``) before the
+timed run, so "peak" is the run's own. "cpu" sums the worker processes' CPU
+time (their threads too); the one-process figures come from its own process. The single
+process mesh and the bricked one are compared by counts here (the tests compare them
+triangle by triangle). The model's parameters are printed at the end with the prediction
+for 8192^3 on N machines.
+
+Run:  python benchmarks/bench_distributed.py [--resolution 1024] [--brick-cells 128]
+                                             [--volume 512,256,256] [--cases part,volume,scheduler]
+                                             [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _report import MALLOC_ENV, finish, keep_freed_memory, load_banner, version  # noqa: E402
+
+if __name__ == "__main__":
+    keep_freed_memory()
+
+import numpy as np  # noqa: E402
+
+import warpmesh as wm  # noqa: E402
+
+CORES = os.cpu_count() or 1
+
+
+# -- measurements inside a process ------------------------------------------------------------------
+def _reset_peak() -> int:
+    """Reset this process's peak resident size; return the current one (bytes)."""
+    with open("/proc/self/clear_refs", "w") as fh:
+        fh.write("5")
+    return _status("VmRSS")
+
+
+def _status(field: str) -> int:
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) * 1024
+    return 0
+
+
+def _cpu() -> float:
+    return time.process_time()
+
+
+def gyroid(shape) -> np.ndarray:
+    """sin x cos y + sin y cos z + sin z cos x, 0.11 rad per sample (a dense sheet), float32."""
+    i, j, k = (np.arange(n, dtype=np.float32) * np.float32(0.11) for n in shape)
+    return (np.sin(i)[:, None, None] * np.cos(j)[None, :, None] + np.sin(j)[None, :, None] * np.cos(k)[None, None, :]
+            + np.sin(k)[None, None, :] * np.cos(i)[:, None, None]).astype(np.float32)
+
+
+def single_process(case: str, resolution: int, volume_path: str | None, evaluator: str = "compiled") -> dict:
+    """One process: warm up, reset the peak, mesh once; wall, CPU, peak RSS, counts."""
+    if case == "part":
+        part, bounds = wm.example("part")
+        wm.mesh_surface(part, bounds=bounds, resolution=64, evaluator=evaluator)
+        source, kw = part, dict(bounds=bounds, resolution=resolution, evaluator=evaluator)
+    else:
+        source = np.load(volume_path, mmap_mode=None)
+        wm.mesh_surface(gyroid((40, 40, 40)), level=0.2)
+        kw = dict(level=0.2)
+    base = _reset_peak()
+    t, c = time.perf_counter(), _cpu()
+    mesh = wm.mesh_surface(source, **kw)
+    wall, cpu = time.perf_counter() - t, _cpu() - c
+    return {"wall": wall, "cpu": cpu, "peak_extra": _status("VmHWM") - base, "peak": _status("VmHWM"),
+            "points": mesh.n_points, "triangles": mesh.n_cells}
+
+
+def run_in_fresh_process(case: str, resolution: int, volume_path: str | None, evaluator: str = "compiled") -> dict:
+    code = (f"import sys; sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r}); "
+            f"import json, bench_distributed as b; "
+            f"print('RESULT', json.dumps(b.single_process({case!r}, {resolution}, {volume_path!r}, {evaluator!r})))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=3600)
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")]
+    if not line:
+        raise RuntimeError(out.stderr[-3000:])
+    return json.loads(line[0][7:])
+
+
+# -- on a cluster ------------------------------------------------------------------------------------
+def cluster(n_workers: int, evaluator: str = "compiled"):
+    from dask.distributed import Client, LocalCluster
+
+    # the workers get this run's allocator setting too (Dask's nanny would set MALLOC_TRIM_THRESHOLD_=65536,
+    # returning freed memory at once: in this VM every page touched anew then costs kernel time again)
+    env = {k: os.environ[k] for k in MALLOC_ENV if k in os.environ}
+    lc = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                      memory_limit=0, silence_logs=50, env=env)
+    client = Client(lc)
+    part, bounds = wm.example("part")
+    wm.mesh_surface(part, bounds=bounds, resolution=64, client=client, brick_cells=32, progress=False,
+                    evaluator=evaluator)  # warm-up: loads Warp's cached kernels on every worker
+    return lc, client
+
+
+def bricked(client, source, kw: dict) -> dict:
+    """One timed bricked run: wall, the workers' CPU and peak RSS, the mesh's counts and info."""
+    client.run(_reset_peak)
+    cpu0 = client.run(_cpu)
+    t = time.perf_counter()
+    result = wm.mesh_surface(source, client=client, progress=False, **kw)
+    wall = time.perf_counter() - t
+    cpu1 = client.run(_cpu)
+    peaks = client.run(_status, "VmHWM")
+    info = result.info
+    n_pts, n_tri = (result.n_points, result.n_cells)
+    return {"wall": wall, "cpu": sum(cpu1[w] - cpu0[w] for w in cpu1), "peak_per_worker": sorted(peaks.values()),
+            "points": n_pts, "triangles": n_tri, "bricks": info["bricks"], "bricks_meshed": info["bricks_meshed"],
+            "bricks_culled": info.get("bricks_culled", 0), "brick_cpu": info["brick_cpu_time"],
+            "time": info["time"], "seam_copies": info.get("seam_copies_welded")}
+
+
+def scheduler_cost(client, n: int = 400) -> float:
+    """Seconds per no-op task, submitted and gathered as a bricked run does."""
+    from dask.distributed import as_completed
+
+    t = time.perf_counter()
+    futures = [client.submit(int, i, pure=False) for i in range(n)]
+    for f in as_completed(futures):
+        f.result()
+    return (time.perf_counter() - t) / n
+
+
+def _gb(b) -> str:
+    return f"{b / 1e9:.2f} GB" if b >= 1e8 else f"{b / 1e6:.1f} MB"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--resolution", type=int, default=1024)
+    ap.add_argument("--brick-cells", type=int, default=128)
+    ap.add_argument("--volume", default="512,256,256")
+    ap.add_argument("--cases", default="part,volume,scheduler")
+    ap.add_argument("--evaluator", default="compiled", choices=("compiled", "interpreter", "auto"),
+                    help="the shape's evaluator, the same in every run (default: the generated kernel, loaded "
+                         "from Warp's cache in the warm-ups, so no compile falls in a timed run)")
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    cases = args.cases.split(",")
+    t_start = time.perf_counter()
+    load0 = load_banner(f"bench_distributed: warpmesh bricks on dask {version('distributed')}, {CORES} cores")
+    doc: dict = {"resolution": args.resolution, "brick_cells": args.brick_cells, "cores": CORES,
+                 "evaluator": args.evaluator}
+    ev = args.evaluator
+    part, bounds = wm.example("part")
+    R, B = args.resolution, args.brick_cells
+
+    if "part" in cases:
+        print(f"\n(a) part at {R}^3 cells, bricks of {B}^3 cells")
+        one = run_in_fresh_process("part", R, None, ev)
+        print(f"  one process        wall {one['wall']:7.2f} s  cpu {one['cpu']:7.2f} s  peak {_gb(one['peak'])} "
+              f"(+{_gb(one['peak_extra'])})  {one['triangles']:,} triangles")
+        rows = {"one": one}
+        for n in (1, 2):
+            lc, client = cluster(n, ev)
+            try:
+                r = bricked(client, part, dict(bounds=bounds, resolution=R, brick_cells=B, evaluator=ev))
+                rows[f"{n}w"] = r
+                print(f"  {n} worker{'s' if n > 1 else ' '}          wall {r['wall']:7.2f} s  cpu {r['cpu']:7.2f} s  "
+                      f"peak/worker {', '.join(_gb(p) for p in r['peak_per_worker'])}  {r['triangles']:,} triangles, "
+                      f"{r['bricks_meshed']} of {r['bricks']} bricks meshed, weld {r['time']['weld']:.2f} s "
+                      f"({r['seam_copies']:,} seam copies)")
+                if n == 2:
+                    with tempfile.TemporaryDirectory() as d:
+                        p = bricked(client, part, dict(bounds=bounds, resolution=R, brick_cells=B, evaluator=ev, gather=False,
+                                                       output=os.path.join(d, "part.pvtu")))
+                        size = sum(os.path.getsize(os.path.join(d, f)) for f in os.listdir(d))
+                    p["bytes_on_disk"] = size
+                    rows["2w_pieces"] = p
+                    print(f"  2 workers, pieces  wall {p['wall']:7.2f} s  cpu {p['cpu']:7.2f} s  peak/worker "
+                          f"{', '.join(_gb(q) for q in p['peak_per_worker'])}  {p['triangles']:,} triangles in "
+                          f"{p['bricks_meshed']} VTU pieces, {_gb(size)} on disk")
+                    if "scheduler" in cases:
+                        doc["scheduler_s_per_task"] = scheduler_cost(client)
+                        print(f"\n(c) scheduler: {doc['scheduler_s_per_task'] * 1e3:.2f} ms per no-op task "
+                              "(submit + as_completed + result)")
+            finally:
+                client.close()
+                lc.close()
+        same = rows["1w"]["triangles"] == rows["2w"]["triangles"] == one["triangles"] and \
+            rows["1w"]["points"] == rows["2w"]["points"] == one["points"]
+        print(f"  same counts in the three runs: {same}")
+        print(f"  speed-up, 2 workers over one process: {one['wall'] / rows['2w']['wall']:.2f}x (wall); "
+              f"over 1 worker: {rows['1w']['wall'] / rows['2w']['wall']:.2f}x; "
+              f"CPU 2 workers / one process: {rows['2w']['cpu'] / one['cpu']:.2f}")
+        doc["part"] = rows
+
+    if "volume" in cases:
+        shape = tuple(int(v) for v in args.volume.split(","))
+        print(f"\n(b) gyroid volume {shape[0]}x{shape[1]}x{shape[2]} from zarr, bricks of {B}^3 cells")
+        import dask.array as da
+        import zarr
+
+        with tempfile.TemporaryDirectory() as d:
+            vol = gyroid(shape)
+            np.save(os.path.join(d, "v.npy"), vol)
+            store = zarr.create_array(store=os.path.join(d, "v.zarr"), shape=shape, chunks=(128, 128, 128),
+                                      dtype=np.float32)
+            store[:] = vol
+            del vol
+            one = run_in_fresh_process("volume", 0, os.path.join(d, "v.npy"))
+            print(f"  one process (numpy) wall {one['wall']:7.2f} s  cpu {one['cpu']:7.2f} s  peak "
+                  f"{_gb(one['peak'])} (+{_gb(one['peak_extra'])}, input included)  {one['triangles']:,} triangles")
+            lc, client = cluster(2, ev)
+            try:  # warm-up: the workers import dask.array and zarr on their first volume brick
+                small = zarr.create_array(store=os.path.join(d, "w.zarr"), shape=(40, 40, 40), chunks=(20, 20, 20),
+                                          dtype=np.float32)
+                small[:] = gyroid((40, 40, 40))
+                wm.mesh_surface(da.from_zarr(os.path.join(d, "w.zarr")), level=0.2, brick_cells=16, client=client,
+                                progress=False)
+                r = bricked(client, da.from_zarr(os.path.join(d, "v.zarr")), dict(level=0.2, brick_cells=B))
+            finally:
+                client.close()
+                lc.close()
+            print(f"  2 workers (zarr)   wall {r['wall']:7.2f} s  cpu {r['cpu']:7.2f} s  peak/worker "
+                  f"{', '.join(_gb(p) for p in r['peak_per_worker'])}  {r['triangles']:,} triangles, "
+                  f"same counts: {(r['triangles'], r['points']) == (one['triangles'], one['points'])}")
+            print(f"  speed-up, 2 workers over one process: {one['wall'] / r['wall']:.2f}x (wall)")
+            doc["volume"] = {"shape": shape, "one": one, "2w": r}
+
+    if "part" in cases:
+        model(doc, R, B)
+    finish(t_start, load0, args.json, doc)
+
+
+def model(doc: dict, R: int, B: int) -> None:
+    """The scaling model's parameters from this run, and its prediction for 8192^3."""
+    rows = doc["part"]
+    two, one = rows["2w"], rows["one"]
+    cpu_per_brick = two["cpu"] / two["bricks_meshed"]
+    eff = one["cpu"] / max(two["cpu"], 1e-9)  # work bricked vs one process
+    sched = doc.get("scheduler_s_per_task", 1e-3)
+    peak = max(rows["2w_pieces"]["peak_per_worker"])
+    bytes_per_tri = rows["2w_pieces"]["bytes_on_disk"] / max(rows["2w_pieces"]["triangles"], 1)
+    print(f"\n(d) model parameters (docs/distributed.md): {cpu_per_brick:.3f} s of worker time per meshed brick "
+          f"of {B}^3 cells at {R}^3; one-process CPU / bricked CPU {eff:.2f}; scheduler {sched * 1e3:.2f} ms per "
+          f"task; peak per worker {_gb(peak)} (writing pieces); {bytes_per_tri:.0f} bytes per triangle on disk")
+    target = 8192
+    scale = (target / R) ** 2  # the part's surface: meshed bricks, triangles and work grow as R^2
+    bricks = two["bricks_meshed"] * scale
+    work = two["cpu"] * scale  # CPU seconds of the workers (their wall time inside tasks waits on a busy machine)
+    tris = two["triangles"] * scale
+    print(f"    8192^3: {bricks:,.0f} meshed bricks, {tris / 1e6:,.0f} M triangles, {work / 3600:.1f} worker-hours, "
+          f"{_gb(tris * bytes_per_tri)} of pieces")
+    doc["model"] = {"cpu_per_brick": cpu_per_brick, "scheduler_s": sched, "peak_per_worker": peak,
+                    "bytes_per_triangle": bytes_per_tri, "predictions": {}}
+    for machines in (1, 8, 64):
+        workers = machines * CORES
+        t = work / workers + sched * bricks
+        doc["model"]["predictions"][machines] = t
+        print(f"    on {machines:3d} machine(s) of {CORES} cores: {t / 60:8.1f} min "
+              f"(work {work / workers / 60:.1f} min + scheduler {sched * bricks / 60:.2f} min)")
+
+
+if __name__ == "__main__":
+    main()
