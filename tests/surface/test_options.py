@@ -309,3 +309,36 @@ def test_defaults_are_unchanged_on_the_part_at_resolution_32():
         _same(grouped, flat)
         assert (grouped.n_points, len(grouped.triangles)) == PART_32[name], name
         assert grouped.stats()["euler"] == -6  # genus 4
+
+
+FLOAT_LIMITS = [  # (what, call, the argument the error names)  [issue 19 item 4: were internal errors]
+    ("box of 1e-300", lambda: wm.mesh_surface(wm.sphere(0.5), bounds=((0, 0, 0), (1e-300,) * 3), resolution=16),
+     "bounds"),
+    ("box far from the origin", lambda: wm.mesh_surface(wm.sphere(0.5, center=(1e7, 0, 0)),
+                                                        bounds=((1e7 - 1, -1, -1), (1e7 + 1, 1, 1)), resolution=16),
+     "bounds"),
+    ("adaptive far from the origin", lambda: wm.mesh_surface(wm.sphere(0.5, center=(1e6, 0, 0)),
+                                                             bounds=((1e6 - 1, -1, -1), (1e6 + 1, 1, 1)),
+                                                             adaptive=True, max_level=7), "bounds"),
+    ("spacing 1e300", lambda: wm.mesh_surface(np.ones((4, 4, 4)) - np.eye(4)[:, :, None], spacing=1e300), "spacing"),
+    ("spacing 5e-324", lambda: wm.mesh_surface(np.ones((4, 4, 4)) - np.eye(4)[:, :, None], spacing=5e-324),
+     "spacing"),
+    ("origin 1e17", lambda: wm.mesh_surface(np.ones((4, 4, 4)) - np.eye(4)[:, :, None], origin=(1e17, 0, 0)),
+     "origin"),
+]
+
+
+@pytest.mark.parametrize("case", FLOAT_LIMITS, ids=[c[0] for c in FLOAT_LIMITS])
+def test_grids_float_cannot_resolve_are_refused_naming_the_argument(case):
+    _, call, name = case
+    with pytest.raises(ValueError, match=f"'{name}'"):
+        call()
+
+
+def test_grids_near_the_limits_still_mesh():
+    far = wm.mesh_surface(wm.sphere(0.5, center=(1e3, 0, 0)), bounds=((1e3 - 1, -1, -1), (1e3 + 1, 1, 1)),
+                          resolution=16)
+    near = wm.mesh_surface(wm.sphere(0.5), bounds=((-1, -1, -1), (1, 1, 1)), resolution=16)
+    assert far.n_cells == near.n_cells and abs(far.stats()["volume"] - near.stats()["volume"]) < 1e-3
+    small = wm.mesh_surface(np.pad(np.ones((3, 3, 3)), 1), spacing=1e-9, level=0.5)
+    assert small.stats()["volume"] > 0

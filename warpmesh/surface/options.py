@@ -115,6 +115,31 @@ def _bounds(bounds) -> tuple[tuple[float, ...], tuple[float, ...]]:
     return tuple(b[0].tolist()), tuple(b[1].tolist())
 
 
+#: a grid's cell must span this fraction of its coordinates' size at least: the kernels
+#: place nodes and vertices in float32 (24-bit mantissa), so 2**-16 leaves 256 steps a cell
+MIN_RELATIVE_CELL = 2.0**-16
+#: cells and coordinates in this range keep f's squares and cubes normal float32 numbers
+FLOAT32_RANGE = (1e-12, 1e12)
+
+
+def check_float32_grid(bounds, cells, name: str = "bounds") -> None:
+    """A ValueError naming ``name`` when a grid over ``bounds`` with ``cells`` cells per axis
+    cannot be sampled in float32: cells below float32's resolution at those coordinates
+    (a box far from the origin), or sizes outside :data:`FLOAT32_RANGE`."""
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in bounds)
+    h = (hi - lo) / np.asarray(cells, dtype=np.float64)
+    scale = np.maximum(np.abs(lo), np.abs(hi))
+    if np.any(scale > FLOAT32_RANGE[1]) or np.any(h < FLOAT32_RANGE[0]):
+        raise ValueError(f"expected '{name}' with coordinates up to {FLOAT32_RANGE[1]:g} and cells of at least "
+                         f"{FLOAT32_RANGE[0]:g} (f is evaluated in float32), got {np.asarray(bounds).tolist()} with "
+                         f"cells of {h.tolist()}: rescale the shape")
+    worst = int(np.argmin(h / np.maximum(scale, 1e-300)))
+    if h[worst] < MIN_RELATIVE_CELL * scale[worst]:
+        raise ValueError(f"expected '{name}' whose cells float32 can resolve: cells of {h[worst]:.3g} at coordinates "
+                         f"of {scale[worst]:.3g} on axis {worst} are below {MIN_RELATIVE_CELL:.3g} of them (f is "
+                         "evaluated in float32); translate the shape nearer the origin, or lower the resolution")
+
+
 def cells_of(resolution, extent: np.ndarray) -> np.ndarray:
     """Cells per axis of a grid over a box of this extent: an int is the count along the
     longest side (cells near-cubic), 3 ints are the counts per axis."""
@@ -320,6 +345,7 @@ class _ShapeGrid:
             set_(self, name, _flag(getattr(self, name), name))
         set_(self, "root_iterations", _roots(self.root, self.root_iterations, self.gradient, self.normals))
         cells = cells_of(self.resolution, _extent(self.bounds))
+        check_float32_grid(self.bounds, cells)
         if self.cap and np.any(cells < 2):
             raise ValueError(f"expected at least 2 cells per axis with cap=True (the boundary nodes are "
                              f"outside), got {cells.tolist()} from resolution={self.resolution!r}: raise "
@@ -465,6 +491,8 @@ class AdaptiveOptions:
         if self.max_level is not None:
             set_(self, "max_level", _integer(self.max_level, "max_level", 1, MAX_LEVEL))
         _integer(self.finest_level, "max_level", 1, MAX_LEVEL)  # from a resolution of 1
+        ext = _extent(self.bounds)  # the finest cells: cubes, 2**finest_level along the longest side
+        check_float32_grid(self.bounds, ext * 2.0**self.finest_level / ext.max())
         if self.min_level is not None:
             set_(self, "min_level", _integer(self.min_level, "min_level", 0, self.finest_level))
         if self.chord is not None:
@@ -572,10 +600,16 @@ class VolumeOptions:
         sp = np.broadcast_to(sp, (3,)) if sp.ndim == 0 else sp
         if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
             raise ValueError(f"expected 'spacing' as a positive number or 3 positive numbers, got {self.spacing!r}")
+        if np.any(sp < FLOAT32_RANGE[0]) or np.any(sp > FLOAT32_RANGE[1]):
+            raise ValueError(f"expected 'spacing' between {FLOAT32_RANGE[0]:g} and {FLOAT32_RANGE[1]:g} (cell volumes "
+                             f"must stay normal numbers), got {self.spacing!r}: give the spacing in other units")
         set_(self, "spacing", tuple(sp.tolist()))
         org = _vector(self.origin, "origin", "3 finite numbers")
         if org.shape != (3,) or not np.all(np.isfinite(org)):
             raise ValueError(f"expected 'origin' as 3 finite numbers, got {self.origin!r}")
+        if np.any(sp < 2.0**-36 * np.abs(org)):  # points are origin + index * spacing in float64
+            raise ValueError(f"expected an 'origin' that float64 resolves at this spacing (|origin| below 2**36 "
+                             f"spacings), got origin {org.tolist()} with spacing {sp.tolist()}: move the origin")
         set_(self, "origin", tuple(org.tolist()))
         if isinstance(self.slab_voxels, (bool, np.bool_)) or not isinstance(self.slab_voxels, (int, np.integer)) \
                 or self.slab_voxels < 1:
