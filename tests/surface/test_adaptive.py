@@ -271,3 +271,27 @@ def test_caps_carry_their_ref():
     assert set(np.unique(refs)) == {1, 2}
     c = m.points[m.cells["triangle"][refs == 2]].mean(axis=1)
     assert np.all(np.abs(np.abs(c).max(axis=1) - 3.0) < 0.1)  # cap triangles lie on the box
+
+
+@pytest.mark.parametrize("expr", ["zero", "min(x, 0)"])
+def test_a_field_zero_on_whole_cells_is_not_refined(expr):
+    """f = 0 on a cell is outside (as on the grid): such cells are culled, not refined 8x a
+    level down to max_level (an identically zero field took 19 s at level 7) [issue 19 item 3]."""
+    x, y, z = wm.coords()
+    shape = wm.Shape(x * 0.0) if expr == "zero" else wm.Shape(wm.min(x, 0.0))
+    bounds = ((-1, -1, -1), (1, 1, 1))
+    with pytest.warns(UserWarning, match="empty"):
+        m = wm.mesh_surface(shape, bounds=bounds, adaptive=True, max_level=9)
+    assert m.n_cells == 0
+    assert sum(level["cells"] for level in m.info["levels"]) <= 8**4  # not 8**9: only cells at x = 0 refine
+    with pytest.warns(UserWarning, match="empty"):
+        assert wm.mesh_surface(shape, bounds=bounds, resolution=32).n_cells == 0  # the grid agrees
+
+
+def test_a_field_zero_outside_a_ball_meshes_the_ball():
+    x, y, z = wm.coords()
+    ball = wm.Shape(wm.max(0.5 - wm.sqrt(x * x + y * y + z * z), 0.0))
+    m = wm.mesh_surface(ball, bounds=((-1, -1, -1), (1, 1, 1)), adaptive=True, max_level=6)
+    grid = wm.mesh_surface(ball, bounds=((-1, -1, -1), (1, 1, 1)), resolution=64)
+    s = m.stats()  # f's linear roots sit on the outer nodes (f = 0 there): the grid's volume, not pi/6
+    assert s["watertight"] and s["euler"] == 2 and abs(s["volume"] - grid.stats()["volume"]) < 0.01

@@ -314,6 +314,9 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
             finite = np.isfinite(iv).all(axis=1)  # else inf or NaN may sit at a corner: evaluate it
             slack = INTERVAL_SLACK * np.maximum(np.abs(iv[:, 0]), np.abs(iv[:, 1]))
             inside, outside = finite & (iv[:, 0] > slack), finite & (iv[:, 1] < -slack)
+            # f = 0 on the whole cell (an interval of exactly [0, 0]): every node is outside, as the
+            # grid has it (zero is outside), so nothing crosses; refining it would cost 8x a level
+            outside |= (iv[:, 0] == 0.0) & (iv[:, 1] == 0.0)
         else:  # Lipschitz: |f(M)| > L * half-diagonal excludes a zero from the cell
             fc = fld.values(0.5 * (box_lo + box_hi))
             radius = lipschitz * 0.5 * np.linalg.norm(box_hi - box_lo, axis=1) * (1 + 1e-6)
