@@ -298,8 +298,10 @@ _FIELDS: dict[str, tuple[str, str]] = {
         stay on f = 0 and are not moved."""),
     "slab_voxels": ("int", """
         Samples per slab: the volume is processed in slabs of about this many samples
-        along its first axis, whose seams are welded exactly; peak memory grows with the
-        slab, not with the volume."""),
+        along its first axis. "mc" and "mc33" on float32, uint8 and bool volumes (and
+        labels) read the array in place, one bit per sample, the slabs cutting only the
+        launches; other methods and dtypes convert each slab to float32 and weld the
+        seams exactly, so their peak memory grows with the slab, not with the volume."""),
 }
 _ADAPTIVE_RESOLUTION = ("int, optional", """
         The finest level as a resolution, ``max_level = ceil(log2(resolution))``
