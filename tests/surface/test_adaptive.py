@@ -295,3 +295,40 @@ def test_a_field_zero_outside_a_ball_meshes_the_ball():
     grid = wm.mesh_surface(ball, bounds=((-1, -1, -1), (1, 1, 1)), resolution=64)
     s = m.stats()  # f's linear roots sit on the outer nodes (f = 0 there): the grid's volume, not pi/6
     assert s["watertight"] and s["euler"] == 2 and abs(s["volume"] - grid.stats()["volume"]) < 0.01
+
+
+@pytest.mark.parametrize("thickness", [0.05, 0.25, 0.4])
+def test_thin_bounds_give_the_grids_volume_and_topology(thickness):
+    """Bounds far from cube-like (one base cell across was the bug: half the volume, chi 0)."""
+    bounds = ((-1.5, -1.5, -thickness), (1.5, 1.5, thickness))
+    m = wm.mesh_surface(wm.sphere(1.0), bounds=bounds, adaptive=True, max_level=6)
+    grid = wm.mesh_surface(wm.sphere(1.0), bounds=bounds, resolution=64)
+    s, g = m.stats(), grid.stats()
+    assert s["watertight"] and s["oriented"] and s["euler"] == g["euler"] == 2
+    exact = np.pi * (2 * thickness - 2 * thickness**3 / 3)  # the unit ball between z = -t and t
+    assert abs(s["volume"] - exact) < 0.01 * exact + 0.01 and abs(g["volume"] - exact) < 0.01 * exact + 0.01
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_random_bounds_match_the_grid(seed):
+    rng = np.random.default_rng(seed)
+    lo = rng.uniform(-1.0, -0.2, 3)
+    bounds = (tuple(lo), tuple(lo + rng.uniform(0.3, 2.0, 3)))
+    ball = wm.sphere(float(rng.uniform(0.3, 0.7)), center=tuple(rng.uniform(-0.2, 0.2, 3)))
+    m = wm.mesh_surface(ball, bounds=bounds, adaptive=True, max_level=6)
+    grid = wm.mesh_surface(ball, bounds=bounds, resolution=64)
+    s, g = m.stats(), grid.stats()
+    assert s["watertight"] and s["euler"] == g["euler"]
+    h = float(np.max(np.subtract(bounds[1], bounds[0]))) / 64  # a finest cell: the surfaces differ by a fraction
+    assert abs(s["volume"] - g["volume"]) < 0.03 * g["volume"] + 0.5 * g["area"] * h
+    assert np.all(m.points >= np.array(bounds[0])) and np.all(m.points <= np.array(bounds[1]))
+
+
+@pytest.mark.parametrize("normal", [(0.3, 0.5, 0.8), (0.7, -0.2, 0.1)])
+def test_no_vertex_outside_the_bounds(normal):
+    """A slanted plane's feature vertices at the bounds were up to 1.7 finest cells outside."""
+    m = wm.mesh_surface(wm.halfspace(normal=normal, point=(0.1, 0.2, 0.05)), bounds=((-1, -1, -1), (1, 1, 1)),
+                        adaptive=True, max_level=8)
+    assert np.all(np.abs(m.points) <= 1.0)
+    s = m.stats()
+    assert s["watertight"] and s["euler"] == 2 and len(wm.check(m)) == 0

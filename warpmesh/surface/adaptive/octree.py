@@ -283,7 +283,9 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     cells along the longest side), refining where the criteria above fail."""
     extent = hi - lo
     base = min(3, max_level)
-    n0 = np.maximum(1, np.round(extent / extent.max() * (1 << base))).astype(np.int64)
+    # at least 2 base cells per axis, so that no cell touches both ends of an axis: the cap
+    # closes a cell on one side per axis (a thin box with 1 base cell across lost half its volume)
+    n0 = np.maximum(2, np.round(extent / extent.max() * (1 << base))).astype(np.int64)
     n_finest = n0 << (max_level - base)
     h = extent / n_finest
     min_level = min(max_level, 5) if min_level is None else min_level

@@ -86,6 +86,9 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     fanned[loop_of[tri_half[tri_half >= 0]]] = True
     centres, rank = OC.settle_vertices(tree, half, loop_of, n_loops, centres, rank, points, normals, cap_vertex,
                                        fanned)
+    # a QEF minimiser or a Newton step near the bounds may leave them (by up to 1.7 finest cells on a
+    # slanted plane): back onto the box, before untangle checks the fans [issue 19 item 3]
+    centres = np.clip(centres, tree.origin, tree.world(tree.lattice_max()))
     feature = (rank >= 2) & features
     all_points = np.concatenate([points, centres])
     fan_tris, flipped = tris, np.zeros((0, 2), np.int64)
