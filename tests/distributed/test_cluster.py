@@ -108,6 +108,21 @@ def test_capped_torus_keeps_cap_refs(client):
     assert bricked.info["enclosed_volume"] > 0
 
 
+def test_primitive_refs_and_params_on_bricks(client):
+    part, bounds = wm.example("part")
+    single = wm.mesh_surface(part, bounds=bounds, resolution=64, refs="primitives")
+    bricked = wm.mesh_surface(part, bounds=bounds, resolution=64, refs="primitives", client=client, progress=False,
+                              brick_cells=16)
+    assert_same_mesh(single, bricked)
+    assert bricked.info["primitives"] == single.info["primitives"]
+    r = wm.param("r", 0.5, lo=0.2, hi=0.9)
+    ball = wm.sphere(r)
+    single = wm.mesh_surface(ball, bounds=((-1,) * 3, (1,) * 3), resolution=40, params={"r": 0.7})
+    bricked = wm.mesh_surface(ball, bounds=((-1,) * 3, (1,) * 3), resolution=40, params={"r": 0.7}, client=client,
+                              progress=False, brick_cells=16)
+    assert_same_mesh(single, bricked)
+
+
 def _gyroid(shape) -> np.ndarray:
     i, j, k = (np.arange(n, dtype=np.float32) * np.float32(0.11) for n in shape)
     return (np.sin(i)[:, None, None] * np.cos(j)[None, :, None] + np.sin(j)[None, :, None] * np.cos(k)[None, None, :]

@@ -236,6 +236,20 @@ def _slack(b: np.ndarray) -> np.ndarray:
     return 1.0e-4 * np.abs(b) + 1.0e-7
 
 
+_TAPES: dict[str, object] = {}  # on a worker: run token -> the tape of its shape (the last few runs)
+
+
+def _worker_tape(token: str, shape):
+    """The tape of a run's shape, compiled once per worker process and run (every task
+    unpickles its own copy of the shape, whose tape would otherwise be compiled anew)."""
+    tape = _TAPES.get(token)
+    if tape is None:
+        tape = _TAPES[token] = tape_of(shape)
+        while len(_TAPES) > 4:
+            _TAPES.pop(next(iter(_TAPES)))
+    return tape
+
+
 # -- a shape --------------------------------------------------------------------------------------
 class _ShapeJob:
     """A shape on a grid: the layout, the client-side brick culling, the worker's task, the gather."""
@@ -245,6 +259,7 @@ class _ShapeJob:
 
     def __init__(self, shape, opts: GridOptions, device: str, bricks, brick_cells):
         self.shape, self.opts, self.device = shape, opts, device
+        self.token = uuid.uuid4().hex  # this run: a worker compiles the shape's tape once per run
         self.lo, hi = (np.asarray(b, dtype=np.float64) for b in opts.bounds)
         self.cells = opts.cells
         self.h = (hi - self.lo) / self.cells  # as the single-process pipeline computes it
@@ -276,7 +291,7 @@ class _ShapeJob:
         opts, cells = self.opts, self.cells
         timings: dict[str, float] = {}
         dev = wp.get_device(self.device)
-        tape = tape_of(self.shape)
+        tape = _worker_tape(self.token, self.shape)
         lo_c, hi_c = np.array(brick.lo), np.array(brick.hi)
         lo_node = np.where(lo_c > 0, lo_c - BLOCK, 0)  # a whole block below: the same blocks as the whole grid
         hi_node = np.where(hi_c < cells, hi_c + 1, hi_c)  # one node above: the neighbours of the seam nodes
