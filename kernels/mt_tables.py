@@ -79,7 +79,9 @@ import itertools
 
 import numpy as np
 
+from warpmesh.kernels import mc_tables as _mc_tables
 from warpmesh.kernels.mc_tables import CORNERS, EDGES
+from warpmesh.kernels.table_cache import cached
 
 __all__ = [
     "EDGE_TYPE_DELTA",
@@ -258,7 +260,9 @@ def _build():
     return tri_count, tris, max_tris, quad_count, quads, max_quads
 
 
-MT_TRI_COUNT, MT_TRIS, MAX_MT_TRIS, MT_QUAD_COUNT, MT_QUADS, MAX_MT_QUADS = _build()
+#: generated once per install (:mod:`warpmesh.kernels.table_cache`)
+MT_TRI_COUNT, MT_TRIS, MAX_MT_TRIS, MT_QUAD_COUNT, MT_QUADS, MAX_MT_QUADS = cached(
+    "mt", _build, __file__, _mc_tables.__file__)
 
 #: (2, 2, 3) the two splits of a quad (0, 1, 2, 3): diagonal 0-2, then diagonal 1-3
 QUAD_SPLITS = np.array([[[0, 1, 2], [0, 2, 3]], [[0, 1, 3], [1, 2, 3]]], dtype=np.int32)

@@ -177,6 +177,7 @@ def test_clock_moves_compile_time_to_its_own_stage(monkeypatch):
 def test_cached_tables_equal_the_generators_output(tmp_path, monkeypatch):
     from warpmesh.kernels import mc33_tables as M33
     from warpmesh.kernels import mc_tables as MC
+    from warpmesh.kernels import mt_tables as MT
     from warpmesh.kernels import table_cache
 
     monkeypatch.setenv("WARPMESH_CACHE_DIR", str(tmp_path))
@@ -185,6 +186,8 @@ def test_cached_tables_equal_the_generators_output(tmp_path, monkeypatch):
         ("mc33", M33._build, (M33.__file__, MC.__file__),
          (M33.BASE_CASES, M33.CASE_OFFSET, M33.INTERIOR_TEST, M33.CASE_FEASIBLE, M33.CASE_TRI_COUNT, M33.MAX33,
           M33.CASE_TRIS, M33.CASE_INTERIOR)),
+        ("mt", MT._build, (MT.__file__, MC.__file__),
+         (MT.MT_TRI_COUNT, MT.MT_TRIS, MT.MAX_MT_TRIS, MT.MT_QUAD_COUNT, MT.MT_QUADS, MT.MAX_MT_QUADS)),
     ]:
         generated = build()
         path = table_cache.table_path(name, *sources)
