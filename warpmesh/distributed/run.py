@@ -146,7 +146,8 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
     from dask.distributed import as_completed
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=len(futures), unit="brick", desc="warpmesh bricks", disable=progress is not True)
+    total = len(futures)
+    bar = tqdm(total=total, unit="brick", desc="warpmesh bricks", disable=progress is not True)
     pieces: list[str] = []
     try:
         for done, fut in enumerate(as_completed(list(futures)), start=1):
@@ -155,13 +156,15 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
             except BaseException:
                 client.cancel(list(futures))
                 raise
-            results[futures[fut].index] = res
+            brick = futures.pop(fut)
+            fut.release()  # the worker drops its copy now: it holds only the bricks in flight
+            results[brick.index] = res
             if where is not None and res.info["triangles"]:
-                pieces.append(piece_path(*where, futures[fut].index).name)
+                pieces.append(piece_path(*where, brick.index).name)
                 write_pvtu(where[0] / f"{where[1]}.pvtu", sorted(pieces), refs=job.has_refs)
             bar.update(1)
             if callable(progress):
-                progress(done, len(futures))
+                progress(done, total)
     finally:
         bar.close()
 
