@@ -19,14 +19,7 @@ A brick that fails on its data (NaN or infinity) fails the call with an error na
 brick and its box; a worker that dies is replaced by Dask and its bricks recomputed,
 which gives the same mesh (every brick is a pure function of its index range).
 
-Example
--------
->>> import warpmesh as wm
->>> from dask.distributed import Client, LocalCluster
->>> cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False)  # doctest: +SKIP
->>> client = Client(cluster)  # doctest: +SKIP
->>> part, bounds = wm.example("part")
->>> mesh = wm.mesh_surface(part, bounds=bounds, resolution=64, client=client, brick_cells=32)  # doctest: +SKIP
+Example: :func:`mesh_bricks`.
 """
 
 from __future__ import annotations
@@ -104,6 +97,22 @@ def mesh_bricks(source, options: GridOptions | VolumeOptions, *, client, bricks=
     ValueError, TypeError
         Bad arguments, naming them; a brick's NaN or infinite values, naming the brick
         and its box.
+
+    Examples
+    --------
+    ``mesh_surface(..., client=...)`` calls it; an in-process cluster here (threads), a
+    ``LocalCluster(processes=True)`` or a remote scheduler alike:
+
+    >>> import warpmesh as wm
+    >>> from dask.distributed import Client, LocalCluster
+    >>> cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None)
+    >>> client = Client(cluster)
+    >>> part, bounds = wm.example("part")
+    >>> mesh = wm.mesh_surface(part, bounds=bounds, resolution=48, client=client, brick_cells=16, progress=False)
+    >>> one = wm.mesh_surface(part, bounds=bounds, resolution=48)
+    >>> (mesh.n_points, mesh.n_cells) == (one.n_points, one.n_cells), mesh.info["bricks"]
+    (True, 27)
+    >>> client.close(); cluster.close()
     """
     from dask.distributed import Client
 
