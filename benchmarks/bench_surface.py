@@ -257,6 +257,7 @@ def warpmesh_row(label, med, out, note=""):
     info = out["info"]
     r["active_blocks"], r["blocks"], r["evaluations"] = (info.get("active_blocks"), info.get("blocks"),
                                                           info.get("evaluations"))
+    r["engine"], r["slabs"] = info.get("engine"), info.get("slabs")  # a volume's: "rows" has no blocks
     return r
 
 
@@ -571,8 +572,10 @@ def print_case(c):
     for r in rows:
         if "stages_s" in r:
             st = ", ".join(f"{k} {v:.3f}" for k, v in r["stages_s"].items() if k != "total")
+            grid = (f"active blocks {r['active_blocks']:,}/{r['blocks']:,}" if r["blocks"] is not None
+                    else f"volume engine {r.get('engine')} ({r.get('slabs')} slab(s) of launches)")
             print(f"  {r['tool']} stages (median s): {st}; outside the stages {r['outside_stages_s']:.3f}; "
-                  f"active blocks {r['active_blocks']:,}/{r['blocks']:,}, evaluations {r['evaluations']:,}")
+                  f"{grid}, evaluations {r['evaluations']:,}")
             if r["note"]:
                 print(f"    {r['tool']}: {r['note']}")
         elif r["note"]:
