@@ -153,7 +153,7 @@ def test_a_compile_says_so_once_and_a_warm_cache_says_nothing(tmp_path):
 # -- the command line's stage times ----------------------------------------------------------------
 def test_cli_stage_times_add_up_to_the_total_from_the_process_start():
     code = ("import sys\nfrom warpmesh.cli import main\n"
-            "sys.exit(main(['mesh', '--example', 'sphere', '--resolution', '8', '--json']))")
+            "sys.argv = ['warpmesh', 'mesh', '--example', 'sphere', '--resolution', '8', '--json']\nsys.exit(main())")
     times = json.loads(_run(code).stdout)["time"]
     assert next(iter(times)) == "import" and times["import"] > 0.0
     assert sum(v for k, v in times.items() if k != "total") == pytest.approx(times["total"], rel=1e-9)

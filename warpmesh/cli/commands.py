@@ -320,14 +320,14 @@ def _info(wm, args, clock) -> int:
 _IMPORTS = {"mesh": ("mesh_surface",), "curve": ("mesh_curve",), "domain": ("mesh_domain",), "info": ("load",)}
 
 
-def _run(args) -> int:
+def _run(args, program: bool = False) -> int:
     import warpmesh as wm
     from warpmesh.cli import curves as cli_curves
     from warpmesh.cli import modify as cli_modify
     from warpmesh.cli import view as cli_view
     from warpmesh.cli.report import Clock, process_start
 
-    clock = Clock(start=process_start())
+    clock = Clock(start=process_start() if program else None)  # the process is the command: from its start
     with clock.stage("import"):  # warpmesh imports lazily: the command's modules load here, not in its first stage
         for name in _IMPORTS.get(args.command, ()):
             getattr(wm, name)
@@ -363,7 +363,7 @@ def main(argv: list[str] | None = None) -> int:
     2
     """
     try:
-        return _run(_parser().parse_args(argv))
+        return _run(_parser().parse_args(argv), program=argv is None)
     except BrokenPipeError:  # the reader left (| head): no traceback, no error line
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1

@@ -3,8 +3,8 @@
 A person gets ``label  value`` lines (counts per cell block, topology, measures, quality
 [FG eq. 16.15], the mesher's own facts), the optimisation's before/after table, and the
 time of each stage in seconds with an ``other`` line, so that the stages add up to the
-total: from the process's start (``import``: Python, warpmesh, Warp and the command's
-modules), with the time Warp spent compiling warpmesh's kernels (a new machine, a first
+total: run as the program, from the process's start (``import``: Python, warpmesh, Warp
+and the command's modules; called as ``main([...])``, from the call), with the time Warp spent compiling warpmesh's kernels (a new machine, a first
 run) as its own ``compile`` stage, taken out of the stage it happened in. ``--json`` prints the whole statistics as one JSON object and nothing else.
 
 Figures that :meth:`warpmesh.mesh.Mesh.stats` gives under two names (``q_mean`` and
