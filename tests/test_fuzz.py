@@ -1,0 +1,159 @@
+"""A fuzz of the surface pipelines (issue 19 item 7): random CSG trees x methods x coverings
+x resolutions x bounds, each result checked by independent means.
+
+Checks per case: closed, 2-manifold, oriented and embedded (tests/helpers/meshcheck.py,
+whose crossing test is cross-checked against pymeshlab); culling changes nothing (the
+grid's triangles equal cull=False's); continuation finds the grid's triangles; the enclosed
+volume agrees with a Monte-Carlo estimate of {f > 0} within the box (4 standard errors plus
+half a cell times the area, the discretisation's reach).
+
+A bounded, derandomised slice runs in the normal suite; ``-m slow`` runs a longer one; a
+long run is ``WARPMESH_FUZZ_EXAMPLES=5000 python -m pytest tests/test_fuzz.py -m slow``.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import warpmesh as wm
+from tests.helpers.meshcheck import check_mesh
+from tests.helpers.random_shapes import random_shape
+
+MC_POINTS = 20_000
+
+
+def _case(seed: int):
+    """(shape, bounds, resolution, method, covering) drawn from one seed."""
+    rng = np.random.default_rng(seed)
+    shape = random_shape(rng, int(rng.integers(1, 4)))
+    lo = rng.uniform(-1.6, -0.4, 3)
+    hi = lo + rng.uniform(0.6, 3.0, 3)
+    resolution = int(rng.integers(8, 41))
+    method = ("mc", "mc33", "mt")[int(rng.integers(3))]
+    covering = ("grid", "continuation", "adaptive")[int(rng.integers(3))]
+    return shape, (tuple(lo), tuple(hi)), resolution, method, covering
+
+
+def _mesh(shape, bounds, resolution, method, covering, **extra):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # empty meshes and far-off shapes warn
+        if covering == "adaptive":
+            level = max(3, int(np.ceil(np.log2(resolution))))
+            return wm.mesh_surface(shape, bounds=bounds, adaptive=True, max_level=level, **extra)
+        cov = {"covering": "continuation"} if covering == "continuation" else {}
+        return wm.mesh_surface(shape, bounds=bounds, resolution=resolution, method=method, **cov, **extra)
+
+
+def _triangles(m) -> set:
+    return {tuple(sorted(map(tuple, t))) for t in m.points[m.cells["triangle"]].tolist()}
+
+
+def _monte_carlo_volume(shape, bounds, seed: int) -> tuple[float, float]:
+    lo, hi = np.asarray(bounds[0]), np.asarray(bounds[1])
+    pts = np.random.default_rng(seed).uniform(lo, hi, (MC_POINTS, 3))
+    inside = wm.evaluate(shape, pts) > 0
+    box = float(np.prod(hi - lo))
+    p = float(inside.mean())
+    return box * p, box * np.sqrt(max(p * (1 - p), 1.0 / MC_POINTS) / MC_POINTS)
+
+
+def check_case(seed: int) -> None:
+    shape, bounds, resolution, method, covering = _case(seed)
+    try:
+        m = _mesh(shape, bounds, resolution, method, covering)
+    except ValueError as error:  # only a clear refusal of the input is acceptable
+        assert "NaN" in str(error) or "'bounds'" in str(error), error
+        return
+    where = f"seed {seed}: {covering} {method} at {resolution} in {np.round(bounds, 3).tolist()}"
+    area = volume_mesh = 0.0
+    if m.n_cells:
+        try:
+            check_mesh(m)
+        except AssertionError as error:
+            raise AssertionError(f"{where}: {error}") from None
+        stats = m.stats()
+        area, volume_mesh = stats["area"], stats["volume"]
+        if covering == "grid":
+            assert _triangles(m) == _triangles(_mesh(shape, bounds, resolution, method, covering, cull=False)), where
+        if covering == "continuation":
+            assert _triangles(m) == _triangles(_mesh(shape, bounds, resolution, method, "grid")), where
+    volume, sigma = _monte_carlo_volume(shape, bounds, seed)
+    h = float(np.max(np.subtract(bounds[1], bounds[0]))) / resolution
+    reach = 4 * sigma + 0.5 * h * area
+    if abs(volume_mesh - volume) > reach:  # parts thinner than a cell are lost: their area on a finer grid
+        fine_resolution = min(4 * resolution, 192)
+        fine = _mesh(shape, bounds, fine_resolution, "mc", "grid")
+        fine_area, fine_volume = (fine.stats()["area"], fine.stats()["volume"]) if fine.n_cells else (0.0, 0.0)
+        h_fine = h * resolution / fine_resolution
+        if abs(fine_volume - volume) > 4 * sigma + 0.5 * h_fine * fine_area:
+            return  # features thinner than the finer grid's cells too: no grid can be checked against MC here
+        reach = 4 * sigma + 0.5 * h * max(area, fine_area)
+    assert abs(volume_mesh - volume) <= reach, f"{where}: volume {volume_mesh:.4g}, MC {volume:.4g} +- {reach:.3g}"
+
+
+def check_volume_case(seed: int) -> None:
+    """A random volume (floats with ties, or labels), level, method, spacing and cap: closed,
+    manifold, oriented, embedded, and the same triangles with and without culling."""
+    rng = np.random.default_rng(seed)
+    shape = tuple(int(v) for v in rng.integers(2, 14, 3))
+    if rng.random() < 0.5:
+        vol = rng.integers(0, 3, shape).astype(np.float32)  # ties at the level: the hard case
+        level = float(rng.choice([0.5, 1.0, 1.5]))
+    else:
+        vol = rng.normal(size=shape).astype(np.float32)
+        level = float(rng.uniform(-0.5, 0.5))
+    method = ("mc", "mc33", "mt")[int(rng.integers(3))]
+    options = dict(level=level, method=method, spacing=tuple(rng.uniform(0.2, 2.0, 3)), cap=bool(rng.random() < 0.8))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            m = wm.mesh_surface(vol, **options)
+        except ValueError as error:  # too few samples for a capped grid, say: a clear refusal
+            assert "expected" in str(error), error
+            return
+        dense = wm.mesh_surface(vol, cull=False, **options)
+    where = f"volume seed {seed}: {shape} {options}"
+    assert _triangles(m) == _triangles(dense), where
+    if m.n_cells:
+        try:
+            check_mesh(m, closed=options["cap"])
+        except AssertionError as error:
+            raise AssertionError(f"{where}: {error}") from None
+
+
+FAST = settings(max_examples=24, derandomize=True, deadline=None, database=None,
+                suppress_health_check=[HealthCheck.too_slow])
+LONG = settings(max_examples=int(os.environ.get("WARPMESH_FUZZ_EXAMPLES", 120)), derandomize=True, deadline=None,
+                database=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+@FAST
+@given(st.integers(min_value=0, max_value=2**31 - 1))
+def test_fuzz_surfaces(seed):
+    check_case(seed)
+
+
+@pytest.mark.slow
+@LONG
+@given(st.integers(min_value=2**31, max_value=2**32 - 1))
+def test_fuzz_surfaces_long(seed):
+    check_case(seed)
+
+
+@FAST
+@given(st.integers(min_value=0, max_value=2**31 - 1))
+def test_fuzz_volumes(seed):
+    check_volume_case(seed)
+
+
+@pytest.mark.slow
+@LONG
+@given(st.integers(min_value=2**31, max_value=2**32 - 1))
+def test_fuzz_volumes_long(seed):
+    check_volume_case(seed)
