@@ -120,6 +120,25 @@ def test_interrupted_in_process_one_line_and_status_130(tmp_path, capsys, monkey
     assert captured.err == "warpmesh: interrupted\n" and captured.out == "" and not list(tmp_path.iterdir())
 
 
+def test_sigint_while_the_commands_load_exits_130_with_one_line():
+    """Ctrl-C before main's own handler exists (numpy and the commands still importing) ends
+    the same way, not with an import's traceback [issue 24 item 3]."""
+    script = (
+        "import builtins, os, signal, sys\n"
+        "real = builtins.__import__\n"
+        "def loading(name, *args, **kwargs):\n"
+        "    if name == 'warpmesh.cli.commands':\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "    return real(name, *args, **kwargs)\n"
+        "builtins.__import__ = loading\n"
+        "from warpmesh.cli import main\n"
+        "sys.argv = ['warpmesh', 'info', 'nothing.vtu']\n"
+        "sys.exit(main())\n"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 130 and run.stderr == "warpmesh: interrupted\n" and run.stdout == ""
+
+
 def _cpu_seconds(pid: int) -> float:
     fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")

@@ -1,5 +1,35 @@
-"""The warpmesh command line: ``warpmesh mesh | curve | domain | info | transform | ...``."""
+"""The warpmesh command line: ``warpmesh mesh | curve | domain | info | transform | ...``.
 
-from warpmesh.cli.commands import main as main
+:func:`main` is the console script's entry point. It imports the commands (and numpy with
+them) only when called, after a Ctrl-C handler is in place: an interrupt in the first
+fraction of a second ends with the same one line and status 130 as a later one, not with
+an import's traceback.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
 
 __all__ = ["main"]
+
+
+def _interrupted_while_starting(signum, frame) -> None:
+    sys.stderr.write("warpmesh: interrupted\n")
+    sys.stderr.flush()
+    os._exit(130)  # nothing is written yet: the modules were still loading
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the ``warpmesh`` command: :func:`warpmesh.cli.commands.main` (its docs have the
+    exit statuses), loaded behind a quiet Ctrl-C handler when run as the program."""
+    early = argv is None and threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, _interrupted_while_starting) if early else None
+    try:
+        from warpmesh.cli.commands import main as run
+    finally:
+        if early:
+            signal.signal(signal.SIGINT, previous)
+    return run(argv)

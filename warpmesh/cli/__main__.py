@@ -2,7 +2,7 @@
 
 import sys
 
-from warpmesh.cli.commands import main
+from warpmesh.cli import main
 
 if __name__ == "__main__":
     sys.exit(main())
