@@ -198,8 +198,8 @@ def main() -> None:
                       f"({r['seam_copies']:,} seam copies)")
                 if n == 2:
                     with tempfile.TemporaryDirectory() as d:
-                        p = bricked(client, part, dict(bounds=bounds, resolution=R, brick_cells=B, evaluator=ev, gather=False,
-                                                       output=os.path.join(d, "part.pvtu")))
+                        p = bricked(client, part, dict(bounds=bounds, resolution=R, brick_cells=B, evaluator=ev,
+                                                       gather=False, output=os.path.join(d, "part.pvtu")))
                         size = sum(os.path.getsize(os.path.join(d, f)) for f in os.listdir(d))
                     p["bytes_on_disk"] = size
                     rows["2w_pieces"] = p

@@ -57,7 +57,8 @@ def check_bricking(bricks, brick_cells) -> tuple:
     """The bricking arguments, checked: at most one of them; ``bricks`` three positive ints,
     ``brick_cells`` a positive multiple of the block size."""
     if bricks is not None and brick_cells is not None:
-        raise ValueError(f"give 'bricks' or 'brick_cells', not both: got bricks={bricks!r}, brick_cells={brick_cells!r}")
+        raise ValueError(f"give 'bricks' or 'brick_cells', not both: got bricks={bricks!r}, "
+                         f"brick_cells={brick_cells!r}")
     if bricks is not None:
         try:
             b = np.asarray(bricks)
