@@ -25,7 +25,7 @@ ROOT = HERE.parent
 GENERATED = HERE / "generated"
 
 # The public subpackages, in the order of the pipeline (warpmesh/__init__.py's docstring).
-SUBPACKAGES = ["frep", "surface", "planar", "solid", "optimize", "modify", "numbering", "cells", "io", "preview"]
+SUBPACKAGES = ["frep", "surface", "planar", "solid", "optimize", "modify", "numbering", "cells", "io", "preview", "distributed"]
 MODULES = ["mesh", "errors"]  # the top-level modules of the public face
 
 project = "warpmesh"

@@ -33,7 +33,7 @@ DEFAULT_BRICK_CELLS = 128
 @dataclass(frozen=True)
 class Brick:
     """One brick: its id (x fastest), its position in the brick grid, and its core, the
-    global cells ``lo <= c < hi`` (its nodes are ``lo .. hi`` inclusive)."""
+    global cells ``lo <= c < hi`` (its nodes: ``lo`` to ``hi`` inclusive)."""
 
     index: int
     ijk: tuple[int, int, int]
