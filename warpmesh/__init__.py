@@ -15,6 +15,7 @@ pipeline (see ``docs/architecture.md``):
 ``cells``      the cell vocabulary: types, reference cells, topology, quality, validity checks
 ``io``         conversions (meshio, trimesh, pyvista), mesh files, image volumes in
 ``preview``    parameter edits re-meshed live: Preview, off-screen pictures, WebGL pages, widgets
+``distributed`` bricked meshing of large grids on a Dask cluster
 ``cli``        the ``warpmesh`` command line
 ``kernels``    the Warp device code
 
@@ -70,7 +71,7 @@ _EXPORTS = {
 _MODULES = {"geometry": "warpmesh.frep.geometry", "transforms": "warpmesh.modify.transforms"}
 #: subpackages and top modules, reachable as ``wm.<name>``
 _SUBMODULES = ("frep", "surface", "planar", "solid", "optimize", "modify", "numbering", "cells", "io", "preview",
-               "cli", "kernels", "mesh", "errors")
+               "distributed", "cli", "kernels", "mesh", "errors")
 _ORIGIN = {name: module for module, names in _EXPORTS.items() for name in names}
 
 if TYPE_CHECKING:  # what static tools see; at run time the names come from __getattr__
