@@ -240,15 +240,6 @@ def spoke_point(v: vec8d, tab: Tables, hub: wp.vec3d, f_hub: wp.float64, q: int,
 
 
 @wp.func
-def cell_case(method: int, values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int,
-              tab: Tables):
-    ci = config_of(values, base, i, j, k, tab)
-    if method == _METHOD_MC33:
-        return mc33_case(values, base, i, j, k, tab, ci)
-    return ci
-
-
-@wp.func
 def owned_count(c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i):
     """Nodes per axis that the block at c owns (the last block also owns its far face)."""
     r = wp.vec3i(0, 0, 0)
@@ -291,7 +282,8 @@ def count_crossings_kernel(
 ):
     """One thread per slot: crossing edges the block owns (of the method's n_types
     directions), and the triangles and interior vertices of its cells (their cases are
-    kept for the emission pass; -1 for a cell outside ``cell_mask`` when it is given)."""
+    kept for the emission pass; -1 for an uncrossed cell, whose case has no polygon and no
+    interior vertex, and for a cell outside ``cell_mask`` when it is given)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
     base = s * _NODES
@@ -316,9 +308,13 @@ def count_crossings_kernel(
                 cell = s * _CELLS + i + _BLOCK * (j + _BLOCK * k)
                 case = int(-1)
                 if cell_mask.shape[0] == 1 or cell_mask[cell] != wp.uint8(0):
-                    case = cell_case(method, values, base, i, j, k, tab)
-                    nt += tab.tri_count[case] + 2 * tab.quad_count[case]
-                    nc += interior_count(tab.center[case])
+                    ci = config_of(values, base, i, j, k, tab)
+                    if ci != 0 and ci != 255:  # an uncrossed cell has no polygon (checked with the tables)
+                        case = ci
+                        if method == _METHOD_MC33:
+                            case = mc33_case(values, base, i, j, k, tab, ci)
+                        nt += tab.tri_count[case] + 2 * tab.quad_count[case]
+                        nc += interior_count(tab.center[case])
                 cell_cases[cell] = case
     vertex_count[s] = nv
     triangle_count[s] = nt
@@ -353,76 +349,71 @@ def node_inside(g: wp.vec3i, s: int, c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i, blo
     return r
 
 
-@wp.kernel
-def node_crowding_kernel(
-    first: int, slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32), nb: wp.vec3i,
-    n: wp.vec3i, values: wp.array(dtype=wp.float32), known: wp.array(dtype=wp.uint8),
-    crowd: wp.array(dtype=wp.uint8),
-):
-    """One thread per slot, for each node it stores (faces too, so every copy of a node gets
-    the same answer from the same signs): bit a set when the node ends a crossing axis edge
-    along another axis than a, either way (``lonely``). Signs only: the copies of a node in
-    two blocks may differ in magnitude (an evaluated value, a proven sign), never in sign."""
-    s = wp.tid() + first
-    c = block_coords(slot_block[s], nb)
-    for l in range(_NODES):
-        g = c * _BLOCK + local_coords(l)
-        bits = int(0)
-        me = node_inside(g, s, c, nb, n, block_slot, values, known)
-        if me >= 0:
-            hit = wp.vec3i(0, 0, 0)
-            for a in range(3):
+@wp.func
+def lonely(g: wp.vec3i, s: int, c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i, block_slot: wp.array(dtype=wp.int32),
+           values: wp.array(dtype=wp.float32), known: wp.array(dtype=wp.uint8), axis: int):
+    """Whether node g (a node of slot s, block c) ends no crossing axis edge but its own
+    along ``axis`` in any cell: no neighbour along another axis, either way, has the other
+    sign (``node_inside``; an unknown node or neighbour never crosses). No triangle then
+    has a second vertex next to it. Signs only: the copies of a node in two blocks may
+    differ in magnitude (an evaluated value, a proven sign), never in sign, so every block
+    gets the same answer for the same node."""
+    r = True
+    me = node_inside(g, s, c, nb, n, block_slot, values, known)
+    if me >= 0:
+        for b in range(3):
+            if b != axis:
                 for side in range(2):
                     e = wp.vec3i(g[0], g[1], g[2])
-                    e[a] = g[a] + 2 * side - 1
+                    e[b] = g[b] + 2 * side - 1
                     other = node_inside(e, s, c, nb, n, block_slot, values, known)
                     if other >= 0 and other != me:
-                        hit[a] = 1
-            for a in range(3):
-                if hit[(a + 1) % 3] != 0 or hit[(a + 2) % 3] != 0:
-                    bits = bits | (1 << a)
-        crowd[s * _NODES + l] = wp.uint8(bits)
+                        r = False
+    return r
 
 
 @wp.func
-def lonely(crowd: wp.array(dtype=wp.uint8), idx: int, axis: int):
-    """Whether the node of slot-node entry idx ends no crossing edge but its own along
-    ``axis`` in any cell (``node_crowding_kernel``): no triangle then has a second vertex
-    next to it. Never when crowding was not computed (a one-entry array)."""
-    return crowd.shape[0] > 1 and ((int(crowd[idx]) >> axis) & 1) == 0
-
-
-@wp.func
-def edge_t_range(g: wp.vec3i, d: wp.vec3i, axis: int, n: wp.vec3i, cap: int, n_types: int, t_min: float,
-                 clearance: float, crowd: wp.array(dtype=wp.uint8), i0: int, i1: int):
-    """[lo, hi] for the linear vertex parameter t on the edge from node g in direction d
-    (vertex type ``axis``; its ends are slot-node entries i0, i1): ``clearance`` (at least
-    t_min) away from each end, which bounds the shape of every table triangle
-    (``_conventions.NODE_CLEARANCE``). With the axis edges alone (n_types 3: "mc", "mc33")
-    an end keeps t_min where no triangle can have a second vertex next to it: a *lonely*
-    node (``lonely``; so a plane through grid nodes stays on them), and a node on a capped
-    face (outside, as is every neighbour on its face: the caps stay on the bounds). A
-    function of the global edge alone: every block that places the vertex agrees."""
+def clamped_t(v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, axis: int, n: wp.vec3i, cap: int, n_types: int,
+              t_min: float, clearance: float, crowding: int, s: int, c: wp.vec3i, nb: wp.vec3i,
+              block_slot: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.float32),
+              known: wp.array(dtype=wp.uint8)):
+    """The linear vertex parameter t on the crossing edge from node g (of slot s, block c)
+    in direction d (vertex type ``axis``; end values v0, v1), clamped to [lo, hi]:
+    ``clearance`` (at least t_min) away from each end, which bounds the shape of every
+    table triangle (``_conventions.NODE_CLEARANCE``). With the axis edges alone (n_types
+    3: "mc", "mc33") an end keeps t_min where no triangle can have a second vertex next to
+    it: a node on a capped face (outside, as is every neighbour on its face: the caps stay
+    on the bounds), and, when ``crowding`` is set, a *lonely* node (``lonely``; so a plane
+    through grid nodes stays on them). A function of the global edge alone: every block
+    that places the vertex agrees. An end's exemption is looked at only when t is closer
+    to it than the clearance (elsewhere it cannot change the clamp)."""
+    raw = v0 / (v0 - v1)
     gap = wp.max(t_min, clearance)
     lo = gap
     hi = 1.0 - gap
+    end = int(-1)  # the end t is within the clearance of (at most one: gap <= 1/2)
     if n_types == 3:
-        if on_capped_face(g, n, cap) or lonely(crowd, i0, axis):
-            lo = t_min
-        if on_capped_face(g + d, n, cap) or lonely(crowd, i1, axis):
-            hi = 1.0 - t_min
-    return wp.vec2(lo, hi)
+        if raw < gap:
+            end = 0
+        elif raw > 1.0 - gap:
+            end = 1
+    if end >= 0:
+        ge = g + end * d
+        exempt = on_capped_face(ge, n, cap)
+        if not exempt and crowding != 0:
+            exempt = lonely(ge, s, c, nb, n, block_slot, values, known, axis)
+        if exempt:
+            if end == 0:
+                lo = t_min
+            else:
+                hi = 1.0 - t_min
+    return wp.clamp(raw, lo, hi)
 
 
 @wp.func
-def crossing(values: wp.array(dtype=wp.float32), base: int, li: wp.vec3i, d: wp.vec3i, g: wp.vec3i,
-             origin: wp.vec3, h: wp.vec3, t_range: wp.vec2):
-    """(position, t, inside end, outside end) of the crossing on the edge from local node
-    li (global g) in direction d, by linear interpolation (eq. 16.12), t clamped to
-    t_range (``edge_t_range``)."""
-    v0 = values[base + local_index(li[0], li[1], li[2])]
-    v1 = values[base + local_index(li[0] + d[0], li[1] + d[1], li[2] + d[2])]
-    t = wp.clamp(v0 / (v0 - v1), t_range[0], t_range[1])
+def crossing(t: float, d: wp.vec3i, g: wp.vec3i, origin: wp.vec3, h: wp.vec3):
+    """(position, t, inside end, outside end) of the crossing at parameter t (``clamped_t``:
+    linear interpolation, eq. 16.12, clamped) on the edge from node g in direction d."""
     p0 = wp.vec3(origin[0] + float(g[0]) * h[0], origin[1] + float(g[1]) * h[1],
                  origin[2] + float(g[2]) * h[2])
     p1 = wp.vec3(p0[0] + float(d[0]) * h[0], p0[1] + float(d[1]) * h[1], p0[2] + float(d[2]) * h[2])
@@ -440,16 +431,17 @@ def node_key(g: wp.vec3i, goff: wp.vec3i, gn: wp.vec3i):
 def emit_vertices_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, n_types: int, cap: int,
     origin: wp.vec3, h: wp.vec3, t_min: float, clearance: float, goff: wp.vec3i, gn: wp.vec3i,
-    tab: Tables, values: wp.array(dtype=wp.float32), crowd: wp.array(dtype=wp.uint8),
-    vertex_offset: wp.array(dtype=wp.int32),
+    tab: Tables, values: wp.array(dtype=wp.float32), block_slot: wp.array(dtype=wp.int32),
+    known: wp.array(dtype=wp.uint8), crowding: int, vertex_offset: wp.array(dtype=wp.int32),
     edge_vertex_id: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3),
     edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
     edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32),
     edge_key: wp.array(dtype=wp.int64), moved: wp.array(dtype=wp.int32),
 ):
     """One thread per slot: place the vertex of every crossing edge the block owns by
-    linear interpolation (eq. 16.12), t clamped to ``edge_t_range`` (the clearance off the
-    nodes); remember the edge so a root finder can refine it, and its key
+    linear interpolation (eq. 16.12), t clamped by ``clamped_t`` (the clearance off the
+    nodes; ``crowding`` 1 for the lonely-node exemption, ``known`` as in ``node_inside``);
+    remember the edge so a root finder can refine it, and its key
     ``node * 8 + type`` in the whole grid; count the vertices the clearance moved.
     Flags: bit 0 = first end inside, bit 1 = an end has the value 0 exactly (on the
     surface, or capped: keep the clamped t), bit 2 = that end is on a capped face, bit 3
@@ -472,9 +464,9 @@ def emit_vertices_kernel(
                     if edge_in_grid(g, n, d):
                         v1 = values[base + local_index(i + d[0], j + d[1], k + d[2])]
                         if (v1 > 0.0) != inside:
-                            tr = edge_t_range(g, d, t, n, cap, n_types, t_min, clearance, crowd, base + l,
-                                              base + local_index(i + d[0], j + d[1], k + d[2]))
-                            p, te, p0, p1 = crossing(values, base, wp.vec3i(i, j, k), d, g, origin, h, tr)
+                            tc = clamped_t(v0, v1, g, d, t, n, cap, n_types, t_min, clearance, crowding, s, c, nb,
+                                        block_slot, values, known)
+                            p, te, p0, p1 = crossing(tc, d, g, origin, h)
                             if te != wp.clamp(v0 / (v0 - v1), t_min, 1.0 - t_min):
                                 n_moved += 1
                             points[vid] = p
@@ -571,7 +563,8 @@ def emit_triangles_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
     nb: wp.vec3i, n: wp.vec3i, n_types: int, cap: int, origin: wp.vec3, h: wp.vec3, t_min: float,
     clearance: float, goff: wp.vec3i, gn: wp.vec3i, tab: Tables, values: wp.array(dtype=wp.float32),
-    crowd: wp.array(dtype=wp.uint8), cell_cases: wp.array(dtype=wp.int32), triangle_offset: wp.array(dtype=wp.int32),
+    known: wp.array(dtype=wp.uint8), crowding: int, cell_cases: wp.array(dtype=wp.int32),
+    triangle_offset: wp.array(dtype=wp.int32),
     center_offset: wp.array(dtype=wp.int32), edge_vertex_id: wp.array(dtype=wp.int32),
     points: wp.array(dtype=wp.vec3), edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
     edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32), edge_key: wp.array(dtype=wp.int64),
@@ -615,10 +608,9 @@ def emit_triangles_kernel(
                                 v1 = values[base + local_index(li[0] + d[0], li[1] + d[1], li[2] + d[2])]
                                 if (v0 > 0.0) != (v1 > 0.0):
                                     ge = li + c * _BLOCK
-                                    tr = edge_t_range(ge, d, t, n, cap, n_types, t_min, clearance, crowd,
-                                                      base + local_index(li[0], li[1], li[2]),
-                                                      base + local_index(li[0] + d[0], li[1] + d[1], li[2] + d[2]))
-                                    p, te, p0, p1 = crossing(values, base, li, d, ge, origin, h, tr)
+                                    tc = clamped_t(v0, v1, ge, d, t, n, cap, n_types, t_min, clearance, crowding, s,
+                                                c, nb, block_slot, values, known)
+                                    p, te, p0, p1 = crossing(tc, d, ge, origin, h)
                                     acc = acc + p
                                     m += 1.0
                     if (mask & 1) != 0:  # vertex 12: the mean of the edge vertices

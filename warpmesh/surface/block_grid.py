@@ -51,7 +51,13 @@ def _host_tables(method: str) -> dict[str, np.ndarray]:
         from warpmesh.kernels import mc33_tables as M33
 
         tabs.update(M33.kernel_tables())
-    return {k: np.ascontiguousarray(v, dtype=np.int32) for k, v in tabs.items()}
+    tabs = {k: np.ascontiguousarray(v, dtype=np.int32) for k, v in tabs.items()}
+    # kernels.emit.count_crossings_kernel skips the uncrossed configurations 0 and 255
+    rows = [tabs["case_offset"][ci * 64] for ci in (0, 255)] if method == "mc33" else [0, 255]
+    assert all(tabs["tri_count"][r] == tabs["quad_count"][r] == tabs["center"][r] == 0 for r in rows) \
+        and (method != "mc33" or tabs["interior_test"][0] < 0 and tabs["interior_test"][255 * 64] < 0), \
+        "an uncrossed cell has polygons in the tables"
+    return tabs
 
 
 def method_tables(method: str, device) -> KE.Tables:
@@ -392,22 +398,20 @@ class BlockGrid:
             # positions relative to the grid origin: float32 keeps its precision far from 0;
             # the host adds the origin in float64
             local, t_min = wp.vec3(0.0), float(C.EDGE_T_MIN)
-            crowd = wp.zeros(1, dtype=wp.uint8, device=dev)  # one entry: no lonely-node exemption
-            if n_types == 3 and self.lonely_nodes and clearance > t_min:
-                crowd = wp.empty(ns * K.NODES, dtype=wp.uint8, device=dev)
-                known = self.known if self.known is not None else wp.zeros(1, dtype=wp.uint8, device=dev)
-                self._per_slot(KE.node_crowding_kernel, [self.slot_block, self.block_slot, self.wnb, self.wn,
-                                                         self.values, known], [crowd])
+            # the lonely-node exemption (kernels.emit.lonely), looked at per vertex where it
+            # can change the clamp; ``known``: one entry = every slot node known
+            crowding = int(n_types == 3 and self.lonely_nodes and clearance > t_min)
+            known = self.known if self.known is not None else wp.zeros(1, dtype=wp.uint8, device=dev)
             self._per_slot(KE.emit_vertices_kernel, [self.slot_block, self.wnb, self.wn, n_types, int(cap), local,
                                                      self.wh, t_min, clearance, self.wgoff, self.wgn, tab,
-                                                     self.values, crowd, voff],
+                                                     self.values, self.block_slot, known, crowding, voff],
                            [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"], moved])
             if nc:  # interior vertices after the edge vertices
                 wp.launch(KE.add_offset_kernel, dim=ns, inputs=[nv_edges], outputs=[coff], device=dev)
             self._per_slot(KE.emit_triangles_kernel,
                            [self.slot_block, self.block_slot, self.wnb, self.wn, n_types, int(cap), local, self.wh,
-                            t_min, clearance, self.wgoff, self.wgn, tab, self.values, crowd, cases, toff, coff,
-                            eid],
+                            t_min, clearance, self.wgoff, self.wgn, tab, self.values, known, crowding, cases, toff,
+                            coff, eid],
                            [verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"], tris,
                             slot_volume])
         self.info["signed_volume"] = float(slot_volume.numpy().sum()) / 6.0  # linear placement
