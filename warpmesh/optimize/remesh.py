@@ -13,8 +13,7 @@ surface. Each iteration applies the operators of §16.4.3 in batches
 4. **relocate** vertices to the area-weighted centroid of their ball, in the tangent
    plane, then project onto f = 0 (metric: connectivity kept).
 
-The iterations stop early once one changes little (``SETTLED_OPS``, ``SETTLED_Q``). A
-final polishing phase flips for quality, moves the vertices of the worst triangles
+A final polishing phase flips for quality, moves the vertices of the worst triangles
 to the best of a few candidate positions, and collapses needles. Sharp edges are
 recovered on the exact surface and kept by every operator (:mod:`warpmesh.optimize.features`).
 
@@ -90,11 +89,6 @@ RESCUE_TURN = 100.0
 POLISH_Q = 1.6
 #: iterations after the first that look for crease gaps again
 FEATURE_REFRESH = 2
-#: an iteration after those is the last when it split, collapsed and flipped fewer edges
-#: than this fraction of the vertices and lowered the worst Q_K by less than SETTLED_Q
-#: (relative): the remaining iterations would only smooth
-SETTLED_OPS = 5e-3
-SETTLED_Q = 0.01
 
 
 @dataclass
@@ -731,11 +725,9 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
         detect_features(s, angle, target, crease)
         run.lines = FeatureLines(s)
 
-    iterations_run, q_last = 0, _worst_q(s)
     for it in range(iterations):
         if sharp and 0 < it <= FEATURE_REFRESH:
             refresh_creases()  # the mesh is cleaner now
-        ops_before = counts["splits"] + counts["collapses"] + counts["flips"]
         run.sizes()
         for _ in range(0 if simplifying else 8):  # decimation only coarsens
             k = run.split_pass()
@@ -762,16 +754,6 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
             hfield.scale *= float(np.clip(np.sqrt(len(s.triangles) / (fraction * len(mesh.triangles))), 1.0, 1.25))
         keep_if_no_worse(f"iteration {it + 1}")
         bar.update(1)
-        iterations_run = it + 1
-        # settled: the iteration changed the connectivity around few vertices and the worst
-        # triangle little; the polishing passes take it from here (decimation runs on, towards
-        # its count)
-        q_now = _worst_q(s)
-        ops = counts["splits"] + counts["collapses"] + counts["flips"] - ops_before
-        if (not simplifying and it > FEATURE_REFRESH and ops <= SETTLED_OPS * len(s.points)
-                and q_now >= (1.0 - SETTLED_Q) * q_last):
-            break
-        q_last = q_now
     for k in range(POLISH_PASSES):
         run.sizes()
         for _ in range(2):
@@ -831,7 +813,7 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     info.update({
         "optimize": {"before": before, "after": after, **counts, "kept": kept,
                      "q_worst_reached": reached, "tolerance": tol,
-                     "iterations": iterations, "iterations_run": iterations_run, "seconds": time.perf_counter() - t0,
+                     "iterations": iterations, "seconds": time.perf_counter() - t0,
                      "feature_edges": int(len(s.feature_keys)),
                      "corners": int((s.vclass == CORNER).sum())},
     })
@@ -939,7 +921,7 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
         otherwise (a voxel staircase would read as creases). Open boundaries and region
         interfaces are always kept.
     iterations : int
-        Largest number of remeshing iterations before the polishing passes.
+        Remeshing iterations before the polishing passes.
     progress : bool
         Show a progress bar (tqdm).
 
@@ -950,11 +932,8 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
         ``ne``, ``q_mean``, ``q_worst``, ``angle_min``, ...), the operator counts,
         ``rejected`` (operations undone by the embedding checks), ``kept`` ("final",
         the pass returned because the final worst Q_K was above the input's, or
-        "input"), ``q_worst_reached`` (the final worst Q_K, returned or not) and
-        ``iterations_run`` (at most ``iterations``: they stop once an iteration after
-        the crease refreshes changes the connectivity around fewer than 0.5 % of the
-        vertices and lowers the worst Q_K by less than 1 %); ``stats()`` gives
-        ``q_mean``, ``q_worst``.
+        "input") and ``q_worst_reached`` (the final worst Q_K, returned or not);
+        ``stats()`` gives ``q_mean``, ``q_worst``.
 
     Examples
     --------
