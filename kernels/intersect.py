@@ -451,7 +451,7 @@ def classify_faces_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype
 
 
 @wp.func
-def _spread_bits(x: int) -> int:
+def spread_bits(x: int) -> int:
     """The 10 low bits of x moved to every third bit (Morton interleave)."""
     x = (x | (x << 16)) & 0x030000FF
     x = (x | (x << 8)) & 0x0300F00F
@@ -470,7 +470,7 @@ def morton_codes_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=
     x = wp.clamp(int(u[0]), 0, 1023)
     y = wp.clamp(int(u[1]), 0, 1023)
     z = wp.clamp(int(u[2]), 0, 1023)
-    keys[f] = (_spread_bits(x) << 2) | (_spread_bits(y) << 1) | _spread_bits(z)
+    keys[f] = (spread_bits(x) << 2) | (spread_bits(y) << 1) | spread_bits(z)
     ids[f] = f
 
 

@@ -22,6 +22,8 @@ of the two faces' longest edges + ``ulp``, as meeting: a conservative test.
 
 import warp as wp
 
+from warpmesh.kernels.intersect import load_triangle, spread_bits
+
 wp.set_module_options({"enable_backward": False})
 
 #: a face is degenerate when its doubled area is at most this times its longest edge squared
@@ -32,15 +34,6 @@ AXIS_FLOOR = wp.constant(wp.float64(1.0e-9))
 TINY = wp.constant(wp.float64(1.0e-300))
 #: sqrt(3) / 6: Q_K of an equilateral triangle is 1
 QUALITY_SCALE = wp.constant(wp.float64(0.28867513459481287))
-
-
-@wp.func
-def load_face(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), f: int):
-    """Corners of face f as the rows of a matrix, and its vertex indices."""
-    i0 = tris[3 * f]
-    i1 = tris[3 * f + 1]
-    i2 = tris[3 * f + 2]
-    return wp.matrix_from_rows(points[i0], points[i1], points[i2]), wp.vec3i(i0, i1, i2)
 
 
 @wp.func
@@ -270,15 +263,6 @@ def pair_violates(A: wp.mat33d, center_a: wp.vec3d, radius_a: wp.float64, edge_a
     return triangles_meet(A, B, tol)
 
 
-@wp.func
-def spread_bits(x: int) -> int:
-    """The 10 low bits of x moved to every third bit (Morton interleave)."""
-    x = (x | (x << 16)) & 0x030000FF
-    x = (x | (x << 8)) & 0x0300F00F
-    x = (x | (x << 4)) & 0x030C30C3
-    return (x | (x << 2)) & 0x09249249
-
-
 @wp.kernel
 def face_boxes_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), rel: wp.float64,
                       ulp: wp.float64, pad: wp.float64, origin: wp.vec3d, scale: wp.float64,
@@ -291,7 +275,7 @@ def face_boxes_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.
     the 30-bit Morton code of its centroid, (centroid - origin) x scale in [0, 1024)^3,
     as the sort key, its index as the value."""
     f = wp.tid()
-    t, it = load_face(points, tris, f)
+    t, it = load_triangle(points, tris, f)
     u = (centroid(t) - origin) * scale
     x = wp.clamp(int(u[0]), 0, 1023)
     y = wp.clamp(int(u[1]), 0, 1023)
@@ -328,7 +312,7 @@ def fan_sums_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.in
     vector into v's sum, and the mixes of the next and previous vertices into v's sums
     (a closed fan has the same next and previous vertices)."""
     f = wp.tid()
-    t, it = load_face(points, tris, f)
+    t, it = load_triangle(points, tris, f)
     n = wp.cross(t[1] - t[0], t[2] - t[0])
     for c in range(3):
         v = it[c]
@@ -346,7 +330,7 @@ def fan_angles_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.
     projected onto the plane of v's mean normal into v's sum; 1 into ``folded[v]`` when
     the projected corner is not positive (1e-9 of its edges' lengths)."""
     f = wp.tid()
-    t, it = load_face(points, tris, f)
+    t, it = load_triangle(points, tris, f)
     for c in range(3):
         v = it[c]
         if want[v] != 0:
@@ -429,7 +413,7 @@ def face_violations_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tri
     if degenerate[f] != 0:
         bad[i] = 1
         return
-    A, ia = load_face(points, tris, f)
+    A, ia = load_triangle(points, tris, f)
     center_a = centroid(A)
     radius_a = radius(A, center_a)
     edge_a = longest_edge(A)
@@ -449,7 +433,7 @@ def face_violations_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tri
             if shared == 1 and fan_ok[ia[ca]] != 0:  # a fan that projects one-to-one: no crossing
                 continue
             if degenerate[g] == 0 and boxes_meet(lo, hi, lowers[g], uppers[g]):
-                B, ib = load_face(points, tris, g)
+                B, ib = load_triangle(points, tris, g)
                 if pair_violates(A, center_a, radius_a, edge_a, B, shared, ca, cb, rel, ulp, pad, fold_cos):
                     bad[i] = 1
                     if j >= 0:
