@@ -283,11 +283,30 @@ def count_crossings_kernel(
     """One thread per slot: crossing edges the block owns (of the method's n_types
     directions), and the triangles and interior vertices of its cells (their cases are
     kept for the emission pass; -1 for an uncrossed cell, whose case has no polygon and no
-    interior vertex, and for a cell outside ``cell_mask`` when it is given)."""
+    interior vertex, and for a cell outside ``cell_mask`` when it is given). A slot whose
+    nodes all have one sign has neither (its edges and cells join its own nodes)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
     base = s * _NODES
     nv = int(0)
+    nt = int(0)
+    nc = int(0)
+    cells = cell_count(c, n)
+    first_inside = values[base] > 0.0
+    mixed = int(0)
+    for l in range(_NODES):
+        if (values[base + l] > 0.0) != first_inside:
+            mixed = 1
+            break
+    if mixed == 0:
+        for k in range(cells[2]):
+            for j in range(cells[1]):
+                for i in range(cells[0]):
+                    cell_cases[s * _CELLS + i + _BLOCK * (j + _BLOCK * k)] = -1
+        vertex_count[s] = 0
+        triangle_count[s] = 0
+        center_count[s] = 0
+        return
     own = owned_count(c, nb, n)
     for k in range(own[2]):
         for j in range(own[1]):
@@ -299,9 +318,6 @@ def count_crossings_kernel(
                     if edge_in_grid(g, n, d):
                         if (values[base + local_index(i + d[0], j + d[1], k + d[2])] > 0.0) != inside:
                             nv += 1
-    nt = int(0)
-    nc = int(0)
-    cells = cell_count(c, n)
     for k in range(cells[2]):
         for j in range(cells[1]):
             for i in range(cells[0]):
@@ -432,7 +448,8 @@ def emit_vertices_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i, n_types: int, cap: int,
     origin: wp.vec3, h: wp.vec3, t_min: float, clearance: float, goff: wp.vec3i, gn: wp.vec3i,
     tab: Tables, values: wp.array(dtype=wp.float32), block_slot: wp.array(dtype=wp.int32),
-    known: wp.array(dtype=wp.uint8), crowding: int, vertex_offset: wp.array(dtype=wp.int32),
+    known: wp.array(dtype=wp.uint8), crowding: int, vertex_count: wp.array(dtype=wp.int32),
+    vertex_offset: wp.array(dtype=wp.int32),
     edge_vertex_id: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3),
     edge_t: wp.array(dtype=wp.float32), edge_p0: wp.array(dtype=wp.vec3),
     edge_p1: wp.array(dtype=wp.vec3), edge_flags: wp.array(dtype=wp.int32),
@@ -445,8 +462,12 @@ def emit_vertices_kernel(
     ``node * 8 + type`` in the whole grid; count the vertices the clearance moved.
     Flags: bit 0 = first end inside, bit 1 = an end has the value 0 exactly (on the
     surface, or capped: keep the clamped t), bit 2 = that end is on a capped face, bit 3
-    = it is not (an exact root at a node: root refinement puts the vertex t_min from it)."""
+    = it is not (an exact root at a node: root refinement puts the vertex t_min from it).
+    A slot that owns no crossing edge (``vertex_count``) is skipped."""
     s = wp.tid() + first
+    if vertex_count[s] == 0:
+        moved[s] = 0
+        return
     c = block_coords(slot_block[s], nb)
     base = s * _NODES
     vid = vertex_offset[s]

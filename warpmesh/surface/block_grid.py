@@ -404,7 +404,8 @@ class BlockGrid:
             known = self.known if self.known is not None else wp.zeros(1, dtype=wp.uint8, device=dev)
             self._per_slot(KE.emit_vertices_kernel, [self.slot_block, self.wnb, self.wn, n_types, int(cap), local,
                                                      self.wh, t_min, clearance, self.wgoff, self.wgn, tab,
-                                                     self.values, self.block_slot, known, crowding, voff],
+                                                     self.values, self.block_slot, known, crowding, vcount,
+                                                     voff],
                            [eid, verts, edges["t"], edges["p0"], edges["p1"], edges["flags"], edges["key"], moved])
             if nc:  # interior vertices after the edge vertices
                 wp.launch(KE.add_offset_kernel, dim=ns, inputs=[nv_edges], outputs=[coff], device=dev)
