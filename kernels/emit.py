@@ -20,7 +20,7 @@ so the host can split them across cores.
 import numpy as np
 import warp as wp
 
-from warpmesh.kernels.block_grid import BLOCK, NODES, SIDE, block_coords, local_coords, local_index, on_capped_face
+from warpmesh.kernels.block_grid import BLOCK, NODES, SIDE, block_coords, local_index, on_capped_face
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})  # decisions as the numpy reference
 
@@ -142,16 +142,21 @@ def mc33_entry(v: vec8d, tab: Tables, ci: int):
 
 
 @wp.func
-def mc33_case(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int, tab: Tables, ci: int):
-    """Row of the "mc33" tables for a cell of configuration ci: its entry, then the
-    interior test the entry asks for."""
-    v = mc33_values(values, base, i, j, k, tab)
+def mc33_row(v: vec8d, tab: Tables, ci: int):
+    """Row of the "mc33" tables for a cell of configuration ci with corner values v: its
+    entry, then the interior test the entry asks for."""
     entry = mc33_entry(v, tab, ci)
     row = tab.case_offset[entry]
     test = tab.interior_test[entry]
     if test >= 0:
         row += interior_value(v, tab, test)
     return row
+
+
+@wp.func
+def mc33_case(values: wp.array(dtype=wp.float32), base: int, i: int, j: int, k: int, tab: Tables, ci: int):
+    """Row of the "mc33" tables for a cell of configuration ci of a block grid."""
+    return mc33_row(mc33_values(values, base, i, j, k, tab), tab, ci)
 
 
 @wp.func

@@ -34,13 +34,13 @@ from warpmesh.kernels.block_grid import on_capped_face
 from warpmesh.kernels.emit import (
     Tables,
     interior_count,
-    interior_value,
     mc33_entry,
     mc33_hub,
     spoke_point,
     trilinear,
     vec8d,
 )
+from warpmesh.kernels.emit import mc33_row as table_row
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})  # bit for bit as kernels.emit
 
@@ -336,21 +336,15 @@ def mc33_plain(ci: int, tab: Tables):
 
 @wp.func
 def mc33_row(cur: wp.vec4, nxt: wp.vec4, ci: int, tab: Tables):
-    """Table row of an "mc33" cell (as ``emit.mc33_case``)."""
-    v = cell_values(cur, nxt)
-    entry = mc33_entry(v, tab, ci)
-    row = tab.case_offset[entry]
-    test = tab.interior_test[entry]
-    if test >= 0:
-        row += interior_value(v, tab, test)
-    return row
+    """Table row of an "mc33" cell (``emit.mc33_row`` of its corner values)."""
+    return table_row(cell_values(cur, nxt), tab, ci)
 
 
 @wp.func
 def edge_point(v0: float, v1: float, g: wp.vec3i, d: wp.vec3i, h: wp.vec3, capped0: bool, capped1: bool,
                t_min: float, gap: float):
     """(position, t) of the crossing on the edge from node g in direction d, as
-    ``emit.crossing`` with ``emit.edge_t_range`` (volumes: no lonely-node exemption;
+    ``emit.crossing`` with ``emit.clamped_t`` (volumes: no lonely-node exemption;
     ``capped0`` / ``capped1``: whether the edge's ends lie on a capped face)."""
     lo = gap
     hi = 1.0 - gap

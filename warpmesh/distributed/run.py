@@ -40,7 +40,7 @@ from warpmesh.distributed.seams import BrickMesh, weld
 from warpmesh.errors import WarpMeshError
 from warpmesh.frep.tape import eval_intervals, tape_of
 from warpmesh.mesh import Mesh
-from warpmesh.surface.block_grid import BlockGrid, refine_roots
+from warpmesh.surface.block_grid import BlockGrid, drop_unused, refine_roots
 from warpmesh.surface.options import GridOptions, VolumeOptions
 from warpmesh.surface.volume import check_label_range, label_form
 
@@ -178,22 +178,6 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
         bar.close()
 
 
-def _drop_unused(verts, tris, edges):
-    """The vertices the triangles use (renumbered in order), and the triangles remapped."""
-    faces = tris.numpy()  # sync point
-    used = np.zeros(verts.shape[0], dtype=bool)
-    used[faces.reshape(-1)] = True
-    kept = np.flatnonzero(used)
-    remap = np.full(verts.shape[0], -1, dtype=np.int32)
-    remap[kept] = np.arange(len(kept), dtype=np.int32)
-    dev = verts.device
-
-    def sub(arr):
-        return wp.array(arr.numpy()[kept], dtype=arr.dtype, device=dev)
-
-    return sub(verts), wp.array(remap[faces], dtype=wp.vec3i, device=dev), {k: sub(v) for k, v in edges.items()}
-
-
 def _brick_error(brick: Brick, origin, h, exc: Exception) -> ValueError:
     return ValueError(f"{brick.describe(origin, h)}: {exc}")
 
@@ -319,7 +303,7 @@ class _ShapeJob:
             raise _brick_error(brick, self.lo, self.h, exc) from None
         verts, tris, edges = grid.extract(opts.method, cap, timings, _core_cells(grid, lo_node, brick),
                                           clearance=opts.clearance)
-        verts, tris, edges = _drop_unused(verts, tris, edges)
+        verts, tris, edges = drop_unused(verts, tris, edges)
         frame = origin  # where the float32 positions are measured from
         if opts.root != "linear" and len(verts):
             # the edges' ends in the global grid's frame, as one process has them: the root finder

@@ -493,3 +493,21 @@ def refine_roots(tape, verts, edges, origin, root, iterations, timings, evaluato
     wp.launch(KE.clamp_edge_t_kernel, dim=nv, inputs=[float(C.EDGE_T_MIN)], outputs=[t], device=dev)
     wp.launch(KE.edge_points_kernel, dim=nv, inputs=[t, p0, p1, wp.vec3(0.0)], outputs=[verts], device=dev)
     timings["root"] = time.perf_counter() - t0
+
+
+def drop_unused(verts: wp.array, tris: wp.array, edges: dict) -> tuple[wp.array, wp.array, dict]:
+    """Keep the vertices the triangles use (renumbered in order) and remap the triangles,
+    before any root refinement or normal evaluation spends work on the others (continuation's
+    grown cells, a brick's halo)."""
+    faces = tris.numpy()  # sync point
+    used = np.zeros(verts.shape[0], dtype=bool)
+    used[faces.reshape(-1)] = True
+    kept = np.flatnonzero(used)
+    remap = np.full(verts.shape[0], -1, dtype=np.int32)
+    remap[kept] = np.arange(len(kept), dtype=np.int32)
+    dev = verts.device
+
+    def sub(arr):
+        return wp.array(arr.numpy()[kept], dtype=arr.dtype, device=dev)
+
+    return sub(verts), wp.array(remap[faces], dtype=wp.vec3i, device=dev), {k: sub(v) for k, v in edges.items()}

@@ -36,7 +36,7 @@ from warpmesh.kernels import block_grid as KB
 from warpmesh.kernels import emit as KE
 from warpmesh.mesh import Mesh
 from warpmesh.surface.primitive_refs import primitive_refs, REFS
-from warpmesh.surface.block_grid import BlockGrid, gradients, refine_roots
+from warpmesh.surface.block_grid import BlockGrid, drop_unused, gradients, refine_roots
 from warpmesh.surface.continuation import Growth, grow_cells
 from warpmesh.surface.options import (AdaptiveOptions, ContinuationOptions, GridOptions, SurfaceOptions,
                                       VolumeOptions, check_choice)
@@ -443,7 +443,7 @@ def _mesh_grid(source, opts: GridOptions | ContinuationOptions, device, t_start:
     grid.finish_values(cap_mask, timings)
     verts, tris, edges = grid.extract(opts.method, cap_mask, timings, cell_mask, clearance=opts.clearance)
     if cell_mask is not None:  # continuation: drop the vertices of edges on no grown cell first
-        verts, tris, edges = _drop_unused(verts, tris, edges)
+        verts, tris, edges = drop_unused(verts, tris, edges)
     if opts.root != "linear" and len(verts):
         refine_roots(tape, verts, edges, grid.worigin, opts.root, opts.root_iterations, timings, opts.evaluator,
                      opts.gradient, grid.h)
@@ -709,21 +709,6 @@ def _ray_stride(n_nodes) -> int:
     """Grid lines between seed rays: the rays cost O(n) evaluations per line family, below
     the O(n^2) of the surface itself."""
     return int(max(8, int(np.max(n_nodes)) // RAY_LINES))
-
-
-def _drop_unused(verts, tris, edges):
-    """Keep the vertices the triangles use (renumbered in order), before any root
-    refinement or normal evaluation spends work on the others."""
-    faces = tris.numpy()  # sync point
-    kept = np.unique(faces)
-    remap = np.full(verts.shape[0], -1, dtype=np.int32)
-    remap[kept] = np.arange(len(kept), dtype=np.int32)
-    dev = verts.device
-
-    def sub(arr):
-        return wp.array(arr.numpy()[kept], dtype=arr.dtype, device=dev)
-
-    return sub(verts), wp.array(remap[faces], dtype=wp.vec3i, device=dev), {k: sub(v) for k, v in edges.items()}
 
 
 def _mesh_adaptive(source, opts: AdaptiveOptions, device, t_start: float) -> Mesh:
