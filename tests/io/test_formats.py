@@ -114,3 +114,17 @@ def test_legacy_vtk_with_64_bit_ids():
     m = wm.load(examples.hexbeamfile)
     assert list(m.cells) == ["hexahedron"] and m.n_cells == 40
     assert np.all(wm.Mesh(m.points, {"hexahedron": m.cells["hexahedron"]}).stats()["volume"] > 0)
+
+
+def test_the_first_probe_says_why_it_waits(tmp_path):
+    """On a new installation the probe takes seconds: one line on stderr says so, once."""
+    import subprocess
+    import sys
+
+    env = {**__import__("os").environ, "XDG_CACHE_HOME": str(tmp_path)}
+    code = "from warpmesh.io.formats import format_support; print(len(format_support()))"
+    first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    second = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    assert first.returncode == 0 and second.returncode == 0, first.stderr + second.stderr
+    assert first.stderr.count("first run only") == 1 and "first run only" not in second.stderr
+    assert first.stdout == second.stdout and int(first.stdout) > 10

@@ -123,6 +123,9 @@ def format_support(refresh: bool = False) -> dict[str, FormatSupport]:
         except (OSError, ValueError):
             raw = None
     if raw is None:
+        # once per installation (new meshio or h5py/netCDF4 versions): say why the first run waits
+        print("warpmesh: measuring which file formats meshio reads and writes here, first run only "
+              "(about 15 s)", file=sys.stderr, flush=True)
         run = subprocess.run([sys.executable, "-m", "warpmesh.io.formats"], capture_output=True, text=True,
                              timeout=PROBE_SECONDS * 40)
         if run.returncode != 0 or not run.stdout.strip():
