@@ -4,13 +4,13 @@ The marching-cubes tables (:mod:`warpmesh.kernels.mc_tables`, :mod:`warpmesh.ker
 are *generated* from the cube's symmetries and the trilinear interpolant's topology, in
 pure Python: about 0.6 s, which every process paid before its first extraction.
 :func:`cached` runs a generator once and keeps its arrays in an ``.npz`` file under
-``$WARPMESH_CACHE_DIR/tables`` (default ``~/.cache/warpmesh/tables``, the folder of the
-generated tape kernels), named after a hash of the generator's source files: an edited
-generator (or table module it reads) gets a new file, so a stale table is never loaded.
+``tables/`` of the cache folder (:func:`warpmesh._util.cache_dir.cache_root`:
+``$WARPMESH_CACHE_DIR``, else ``$XDG_CACHE_HOME/warpmesh``, else ``~/.cache/warpmesh``),
+named after a hash of the generator's source files: an edited generator (or table module it reads) gets a new file, so a stale table is never loaded.
 
 The file is written atomically (a temporary file, then a rename), so two processes
 starting at once never read half a file; one that cannot be read is generated again, and
-a cache folder that cannot be written only costs the generation time.
+a cache folder that cannot be written only costs the generation time (and one warning).
 
 Example
 -------
@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from warpmesh._util.cache_dir import cache_root, writable_cache_dir
+
 #: bump when the file layout changes
 FORMAT = 1
 
@@ -39,8 +41,8 @@ __all__ = ["cached", "table_dir", "table_path"]
 
 
 def table_dir() -> Path:
-    """Where generated tables live: ``$WARPMESH_CACHE_DIR/tables`` or ``~/.cache/warpmesh/tables``."""
-    return Path(os.environ.get("WARPMESH_CACHE_DIR", Path.home() / ".cache" / "warpmesh")) / "tables"
+    """Where generated tables live: ``tables/`` in :func:`~warpmesh._util.cache_dir.cache_root`."""
+    return cache_root("tables")
 
 
 def table_path(name: str, *sources: str | os.PathLike) -> Path:
@@ -94,8 +96,9 @@ def _store(path: Path, values: tuple) -> None:
         else:
             kinds.append("array")
             arrays[f"v{i}"] = np.asarray(v)
+    if writable_cache_dir("tables") is None:  # warned once: every process generates
+        return
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem, suffix=".tmp")
         try:
             with os.fdopen(fd, "wb") as f:

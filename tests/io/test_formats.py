@@ -121,7 +121,8 @@ def test_the_first_probe_says_why_it_waits(tmp_path):
     import subprocess
     import sys
 
-    env = {**__import__("os").environ, "XDG_CACHE_HOME": str(tmp_path)}
+    env = {k: v for k, v in __import__("os").environ.items() if k != "WARPMESH_CACHE_DIR"}
+    env["XDG_CACHE_HOME"] = str(tmp_path)  # the rule's second choice (tests/io/test_cache_dir.py)
     code = "from warpmesh.io.formats import format_support; print(len(format_support()))"
     first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
     second = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)

@@ -9,7 +9,8 @@ compiled kernel; only a new *structure* needs a compile (about 1.5 s on the CPU,
 cached on disk by Warp).
 
 Warp compiles kernels from files, so the source is written (atomically) to
-``$WARPMESH_CACHE_DIR`` (default ``~/.cache/warpmesh``) and imported from there.
+the cache folder (:func:`warpmesh._util.cache_dir.cache_root`: ``$WARPMESH_CACHE_DIR``, else
+``$XDG_CACHE_HOME/warpmesh``, else ``~/.cache/warpmesh``) and imported from there.
 
 Policy (``evaluator=``): ``"interpreter"`` never compiles; ``"compiled"`` compiles now if
 needed (blocking) and runs the kernel; ``"auto"`` runs the compiled kernel when it is
@@ -37,6 +38,7 @@ from typing import Literal
 
 import warp as wp
 
+from warpmesh._util.cache_dir import cache_root
 from warpmesh.errors import WarpMeshError
 from warpmesh.kernels import opcodes as O
 
@@ -106,8 +108,8 @@ def eval_generated_kernel(
 
 
 def cache_dir() -> Path:
-    """Where generated sources live: $WARPMESH_CACHE_DIR or ~/.cache/warpmesh."""
-    return Path(os.environ.get("WARPMESH_CACHE_DIR", Path.home() / ".cache" / "warpmesh"))
+    """Where generated sources live: :func:`warpmesh._util.cache_dir.cache_root`."""
+    return cache_root()
 
 
 def _module(tape, key: str):

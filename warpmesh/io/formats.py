@@ -12,8 +12,8 @@ connectivity come back equal, and whether cell refs (``"medit:ref"``) survive.
 
 The probe runs once per installation in a subprocess (a writer that loops cannot hang
 the caller; each format gets :data:`PROBE_SECONDS`), and its result is cached on disk
-under the user cache folder, keyed by the versions of meshio and of the optional
-packages. The extensions come from meshio's own table (``meshio.extension_to_filetypes``),
+in the cache folder (:func:`warpmesh._util.cache_dir.cache_root`), keyed by the versions of
+meshio and of the optional packages. The extensions come from meshio's own table (``meshio.extension_to_filetypes``),
 the curated formats' extensions winning.
 
 Example
@@ -36,6 +36,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from warpmesh._util.cache_dir import cache_root, writable_cache_dir
 
 __all__ = ["FormatSupport", "format_support", "meshio_extensions", "PROBE_CELLS", "PROBE_SECONDS"]
 
@@ -91,7 +93,7 @@ def _versions() -> str:
 
 
 def _cache_file() -> Path:
-    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "warpmesh"
+    root = cache_root()
     key = hashlib.sha256(f"{_SCHEMA};{_versions()};{','.join(PROBE_CELLS)}".encode()).hexdigest()[:16]
     return root / f"meshio-formats-{key}.json"
 
@@ -133,7 +135,8 @@ def format_support(refresh: bool = False) -> dict[str, FormatSupport]:
             raise RuntimeError(f"probing meshio's formats failed: {last}")
         raw = json.loads(run.stdout.strip().splitlines()[-1])
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
+            if writable_cache_dir() is None:  # warned once: probe again next time
+                raise OSError("no cache folder")
             tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
             tmp.write_text(json.dumps(raw))
             os.replace(tmp, path)
