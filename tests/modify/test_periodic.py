@@ -172,3 +172,23 @@ def test_annular_sector_with_a_chord_closes_up():
     assert len(ring.info["periodic_pairs"]) == 0
     got = check_cells(ring)
     assert got["measure"] == pytest.approx(6 * cell_measures(pts, pattern.cells["triangle"], "triangle").sum())
+
+
+@pytest.mark.parametrize("copies", [2, 5, 6, 7])
+def test_copies_merged_in_halves_equal_copies_merged_one_by_one(copies):
+    """The halves-merged result (copies x log(copies) work) is the one of merging each copy
+    into everything before it: same points in the same order, same cells, same pairs."""
+    from warpmesh.modify.merge import merge
+    from warpmesh.modify.periodic import _transformed
+
+    for pattern, t in ((tri_square(5, seed=1), translation(1.0, 0.0)), (sector(4), rotation_z(np.pi / 3))):
+        if copies > 6 and pattern.n_points == sector(4).n_points:
+            continue  # a seventh sixth would lie on the first
+        got = periodic(pattern, t, copies, check="full")
+        want, power = pattern, np.eye(3)
+        for _ in range(copies - 1):
+            power = t @ power
+            want = merge(want, _transformed(pattern, power), got.info["merge_tolerance"], check="full")
+        np.testing.assert_array_equal(got.points, want.points)
+        np.testing.assert_array_equal(got.cells["triangle"], want.cells["triangle"])
+        assert got.info["euler"] == want.info["euler"]

@@ -6,7 +6,7 @@ A transformation is a homogeneous (d+1) x (d+1) matrix acting on column vectors
 The book's requirement for a periodic mesh is that the two zones put in correspondence
 are meshed the same way; :func:`periodic_pairs` finds the node pairs, by the hashing of
 :func:`warpmesh.modify.merge.match_points`, and :func:`periodic` merges the copies with
-:func:`warpmesh.modify.merge.merge` (which then also checks the Euler formula at each step).
+:func:`warpmesh.modify.merge.merge`, half with half (each merge checks the Euler formula).
 
 Examples
 --------
@@ -88,6 +88,26 @@ def _check_copies(copies) -> int:
     return int(copies)
 
 
+def _merge_range(parts, lo: int, hi: int, tol: float, options: dict):
+    """(the copies ``parts[lo:hi]`` merged, the new index of each point of the last one).
+
+    Halves merged with each other, recursively: every level of the recursion handles
+    every point once, so the work grows as copies × log2(copies), where merging each
+    copy into everything before it grew as copies². The numbering is the same: a
+    merge keeps its first mesh's points and appends the second's free points in their
+    order, so the points come out pattern first, then each copy's new points in turn;
+    the cells, per type, copy after copy.
+    """
+    if hi - lo == 1:
+        part = parts[lo]
+        return part.replace(info={}), np.arange(part.n_points, dtype=INDEX_DTYPE)
+    mid = (lo + hi + 1) // 2
+    left, _ = _merge_range(parts, lo, mid, tol, options)
+    right, last = _merge_range(parts, mid, hi, tol, options)
+    merged, bmap = _merge(left, right, tol, stacklevel=5, **options)
+    return merged, bmap[last]
+
+
 def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
     """Pairs of nodes (i, j) with T(x_i) ≈ x_j: the node pairs of periodic boundary
     conditions [FG §17.5].
@@ -135,12 +155,14 @@ def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
 def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs: bool = False,
              duplicates: Literal["merge", "keep", "drop"] = "merge",
              check: Literal["interface", "full", False] = "interface"):
-    """The pattern ``mesh`` and its images by T, T², ..., T^(copies-1), merged one after
-    the other [FG §17.5, "Periodic mesh"].
+    """The pattern ``mesh`` and its images by T, T², ..., T^(copies-1), merged
+    [FG §17.5, "Periodic mesh"].
 
-    Each copy is merged with everything before it (:func:`warpmesh.modify.merge.merge`, with its
-    Euler check), so a last copy that comes back onto the first (a rotation by
-    2π/copies) merges with it as well: the result closes up. A matrix with a negative
+    The copies are merged in halves, recursively (:func:`warpmesh.modify.merge.merge`,
+    with its Euler check at every merge): the first half of the copies with the second,
+    so each copy meets every copy before it, and a last copy that comes back onto the
+    first (a rotation by 2π/copies) merges with it as well: the result closes up. The
+    work grows as copies × log(copies). A matrix with a negative
     determinant reverses each odd copy: its cells of dimension d and d - 1 are permuted
     with :func:`~warpmesh.cells.reference.mirror_permutation`, so volumes stay positive
     and boundary faces outward. The two sides of the pattern must be meshed alike (for
@@ -203,9 +225,7 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs:
         tol = default_tolerance(*(p.points for p in parts))
     else:
         tol = _check_tolerance(tolerance)
-    result, last = mesh.replace(info={}), np.arange(mesh.n_points, dtype=INDEX_DTYPE)
-    for part in parts[1:]:  # a loop over copies, not over points
-        result, last = _merge(result, part, tol, stacklevel=4, **options)
+    result, last = _merge_range(parts, 0, n, tol, options)
     # T^copies maps the pattern's free side onto the last copy's free side
     image = _apply(powers[n], mesh.points)
     pairs = _match(image, result.points[last], tol)[0]
