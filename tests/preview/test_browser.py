@@ -8,44 +8,24 @@ apt-get, Debian's ``chromium`` package), else the tests skip and print why.
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 
 import numpy as np
 import pytest
 
 import warpmesh as wm
+from tests.helpers.chromium import NO_CHROMIUM, SOFTWARE_GL, find_or_install_chromium
 from tests.preview.test_params import BOUNDS, part_of
 
 SIZE = (640, 480)
 
 
-def _install_chromium() -> str | None:
-    """The Chromium binary, installed with apt-get if missing and possible; else None."""
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        path = shutil.which(name)
-        if path:
-            return path
-    if os.geteuid() != 0 or shutil.which("apt-get") is None:
-        return None
-    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
-    try:
-        subprocess.run(["apt-get", "update", "-qq"], check=True, env=env, capture_output=True, timeout=600)
-        subprocess.run(["apt-get", "install", "-y", "-qq", "chromium"], check=True, env=env, capture_output=True,
-                       timeout=1200)
-    except (subprocess.SubprocessError, OSError) as exc:
-        print(f"installing chromium failed: {exc}")
-        return None
-    return shutil.which("chromium")
-
-
 @pytest.fixture(scope="module")
 def chromium():
-    path = _install_chromium()
+    path = find_or_install_chromium()
     if path is None:
-        reason = "no Chromium, and it cannot be installed here (needs root and apt-get)"
-        print(reason)
-        pytest.skip(reason)
+        print(NO_CHROMIUM)
+        pytest.skip(NO_CHROMIUM)
     return path
 
 
@@ -55,7 +35,7 @@ def screenshot(chromium, page, png, profile) -> np.ndarray:
 
     cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
            "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+           *SOFTWARE_GL,
            f"--user-data-dir={profile}", f"--screenshot={png}", f"--window-size={SIZE[0]},{SIZE[1]}",
            "--virtual-time-budget=5000", f"file://{page}"]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
