@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Edit latency of a real-time preview: warpmesh's Preview against numpy + scikit-image.
+"""Edit latency of a real-time preview: warpmesh's Preview against numpy + scikit-image and numpy + VTK.
 
 The CSG part of issue 21 (a plate with four through-holes of radius ``r`` and a boss of
 radius ``boss``, R-function booleans) is edited 50 times: both parameters drawn at random
@@ -12,12 +12,16 @@ in their ranges (one seeded sequence, the same for every tool). For each resolut
 - numpy + scikit-image: the edited shape evaluated with numpy on the same nodes
   (float64, broadcast open axes, cast to float32) and ``skimage.measure.marching_cubes``
   (Lewiner) on the volume: what a preview without warpmesh would do per edit.
+- numpy + VTK: the same numpy volume contoured by VTK's flying edges
+  (``pyvista.ImageData.contour(method="flying_edges")``, multithreaded).
+- adaptive (``--adaptive 8``): ``wm.Preview(part, adaptive=True, max_level=8)``, the
+  octree re-meshed per edit (its finest cells are those of the grid at 2^8 = 256).
 
 Printed per resolution: set-up time, p50 / p95 / max edit latency, triangles, and the
 ratio of the peer's p50 to warpmesh's. Acceptance (issue 21): p95 < 100 ms at 128³ on two
 cores; the banner prints the load average, since other processes skew every figure.
 
-Run:  python benchmarks/bench_preview.py [--resolutions 64,128,256] [--edits 50]
+Run:  python benchmarks/bench_preview.py [--resolutions 64,128,256] [--edits 50] [--adaptive 8]
                                           [--evaluator compiled] [--no-peer] [--json out.json]
 """
 
@@ -60,11 +64,14 @@ def percentiles(times, cpu) -> dict:
             "cpu_p50_ms": float(np.percentile(np.asarray(cpu) * 1000.0, 50))}
 
 
-def bench_warpmesh(wm, part, res, values, evaluator) -> dict:
+def bench_warpmesh(wm, part, res, values, evaluator, max_level=None) -> dict:
     from warpmesh.preview.instrument import count_module_loads
 
     t0 = time.perf_counter()
-    view = wm.Preview(part, bounds=BOUNDS, resolution=res, evaluator=evaluator)
+    if max_level:
+        view = wm.Preview(part, bounds=BOUNDS, resolution=None, adaptive=True, max_level=max_level)
+    else:
+        view = wm.Preview(part, bounds=BOUNDS, resolution=res, evaluator=evaluator)
     setup = time.perf_counter() - t0
     times, cpu, tris = [], [], []
     with count_module_loads() as counts:
@@ -78,9 +85,9 @@ def bench_warpmesh(wm, part, res, values, evaluator) -> dict:
             "warp_module_loads": counts.loads, "warp_compiles": counts.compiles}
 
 
-def bench_skimage(wm, part, res, values) -> dict:
-    from skimage.measure import marching_cubes
-
+def bench_numpy_peer(part, res, values, contour) -> dict:
+    """numpy evaluation of each edit on the grid's nodes, then ``contour(vol, spacing)``
+    (which returns the triangle count)."""
     n = res + 1
     axes = [np.linspace(BOUNDS[0][i], BOUNDS[1][i], n) for i in range(3)]
     spacing = tuple(float(a[1] - a[0]) for a in axes)
@@ -90,11 +97,24 @@ def bench_skimage(wm, part, res, values) -> dict:
         shape = part.with_params(v)
         f = shape.eval_numpy(axes[0][:, None, None], axes[1][None, :, None], axes[2][None, None, :])
         vol = np.ascontiguousarray(np.broadcast_to(f, (n, n, n)), dtype=np.float32)
-        _, faces, _, _ = marching_cubes(vol, level=0.0, spacing=spacing)
+        tris.append(contour(vol, spacing))
         times.append(time.perf_counter() - t)
         cpu.append(time.process_time() - c)
-        tris.append(len(faces))
     return {**percentiles(times, cpu), "triangles_mean": float(np.mean(tris))}
+
+
+def skimage_contour(vol, spacing) -> int:
+    from skimage.measure import marching_cubes
+
+    return len(marching_cubes(vol, level=0.0, spacing=spacing)[1])
+
+
+def vtk_contour(vol, spacing) -> int:
+    import pyvista as pv
+
+    grid = pv.ImageData(dimensions=vol.shape, spacing=spacing, origin=BOUNDS[0])
+    grid.point_data["f"] = vol.ravel(order="F")
+    return grid.contour([0.0], scalars="f", method="flying_edges").n_cells
 
 
 def main(argv=None) -> int:
@@ -102,7 +122,8 @@ def main(argv=None) -> int:
     p.add_argument("--resolutions", default="64,128,256")
     p.add_argument("--edits", type=int, default=50)
     p.add_argument("--evaluator", choices=["compiled", "interpreter"], default="compiled")
-    p.add_argument("--no-peer", action="store_true", help="skip numpy + scikit-image")
+    p.add_argument("--adaptive", type=int, default=8, help="max_level of the adaptive row (0: none)")
+    p.add_argument("--no-peer", action="store_true", help="skip the numpy + scikit-image / VTK peers")
     p.add_argument("--json", help="write the results to this file")
     p.add_argument("--default-malloc", action="store_true", help="measure with glibc's stock allocator")
     args = p.parse_args(argv)
@@ -123,14 +144,21 @@ def main(argv=None) -> int:
               f"{w['p95_ms']:6.1f}ms | {w['max_ms']:6.1f}ms | {w['cpu_p50_ms']:6.1f}ms | {w['triangles_mean']:9.0f} | "
               f"{w['warp_module_loads']:>5} |")
         if not args.no_peer:
-            s = bench_skimage(wm, part, res, values)
-            rows.append({"resolution": res, "tool": "numpy + scikit-image", **s})
-            print(f"{res:>5} | {'numpy + scikit-image':<26} | {'-':>7} | {s['p50_ms']:6.1f}ms | "
-                  f"{s['p95_ms']:6.1f}ms | {s['max_ms']:6.1f}ms | {s['cpu_p50_ms']:6.1f}ms | {s['triangles_mean']:9.0f} |     - | "
-                  f"{s['p50_ms'] / w['p50_ms']:.1f}x")
+            for tool, contour in (("numpy + scikit-image", skimage_contour), ("numpy + VTK flying edges", vtk_contour)):
+                s = bench_numpy_peer(part, res, values, contour)
+                rows.append({"resolution": res, "tool": tool, **s})
+                print(f"{res:>5} | {tool:<26} | {'-':>7} | {s['p50_ms']:6.1f}ms | "
+                      f"{s['p95_ms']:6.1f}ms | {s['max_ms']:6.1f}ms | {s['cpu_p50_ms']:6.1f}ms | "
+                      f"{s['triangles_mean']:9.0f} |     - | {s['p50_ms'] / w['p50_ms']:.1f}x")
+    if args.adaptive:
+        w = bench_warpmesh(wm, part, None, values, args.evaluator, max_level=args.adaptive)
+        rows.append({"resolution": f"L{args.adaptive}", "tool": "warpmesh Preview (adaptive)", **w})
+        print(f"{'L' + str(args.adaptive):>5} | {rows[-1]['tool']:<26} | {w['setup_s']:6.2f}s | {w['p50_ms']:6.1f}ms | "
+              f"{w['p95_ms']:6.1f}ms | {w['max_ms']:6.1f}ms | {w['cpu_p50_ms']:6.1f}ms | {w['triangles_mean']:9.0f} | "
+              f"{w['warp_module_loads']:>5} |")
     _report.finish(t_start, load0, args.json, {"rows": rows, "edits": args.edits, "evaluator": args.evaluator,
                                                "versions": {k: _report.version(k) for k in
-                                                            ("warp-lang", "scikit-image", "numpy")}})
+                                                            ("warp-lang", "scikit-image", "numpy", "vtk")}})
     return 0
 
 

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -81,3 +84,90 @@ def test_other_pipelines_and_no_parameters():
     assert still.params == {} and still.update().stats()["euler"] == 2
     with pytest.raises(ValueError, match="Unknown parameter 'r' in 'values'. Pick one of none"):
         still.update(r=0.1)
+
+
+# ---------------------------------------------------------------- idle refinement
+def _small_preview(**kw):
+    boss = wm.param("boss", 0.5, lo=0.3, hi=0.7)
+    return wm.Preview(wm.box((2, 2, 0.6)) | wm.sphere(boss), bounds=BOUNDS, resolution=16,
+                      evaluator="interpreter", **kw)
+
+
+def _fresh(boss, resolution):
+    return wm.mesh_surface(wm.box((2, 2, 0.6)) | wm.sphere(boss), bounds=BOUNDS, resolution=resolution)
+
+
+def test_refined_is_a_fresh_mesh_at_twice_the_resolution():
+    view = _small_preview()
+    assert view.refine_options == {"resolution": 32}
+    view.update(boss=0.6)
+    fine = view.refined()
+    np.testing.assert_array_equal(fine.triangles, _fresh(0.6, 32).triangles)
+    assert view.refined() is fine, "made once per edit"
+    view.update(boss=0.4)
+    assert view.refined_mesh is None, "an edit makes the refinement stale"
+    np.testing.assert_array_equal(view.refined().triangles, _fresh(0.4, 32).triangles)
+
+
+def test_a_watched_preview_refines_when_idle_and_drops_stale_work():
+    view = _small_preview(idle=0.05)
+    seen, landed = [], threading.Event()
+
+    def watcher(mesh, kind):
+        seen.append((kind, mesh.n_cells))
+        if kind == "refined":
+            landed.set()
+
+    view.watch(watcher)
+    for boss in (0.35, 0.45, 0.55):  # edits faster than the idle delay: only the last refines
+        view.update(boss=boss)
+    assert landed.wait(60), "no refinement landed"
+    assert [k for k, _ in seen] == ["update"] * 3 + ["refined"]
+    np.testing.assert_array_equal(view.refined_mesh.triangles, _fresh(0.55, 32).triangles)
+    assert view.refined() is view.refined_mesh
+
+    slow = _small_preview(idle=0.0)  # the refinement starts at once: an edit while it runs drops it
+    gate = threading.Event()
+    kinds = []
+    slow.watch(lambda mesh, kind: kinds.append(kind))
+    original = slow._mesh
+
+    def held(values, finer=False):
+        if finer:
+            gate.wait(30)
+        return original(values, finer)
+
+    slow._mesh = held
+    slow.update(boss=0.4)
+    slow.update(boss=0.6)  # the 0.4 refinement is waiting in `held`: it will be stale
+    gate.set()
+    deadline = time.monotonic() + 60
+    while slow.refined_mesh is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert slow.dropped >= 1
+    np.testing.assert_array_equal(slow.refined_mesh.triangles, _fresh(0.6, 32).triangles)
+    assert kinds.count("refined") == 1
+
+
+def test_a_headless_preview_starts_no_thread():
+    view = _small_preview(idle=0.0)
+    before = threading.active_count()
+    view.update(boss=0.5)
+    assert threading.active_count() == before and view.refined_mesh is None
+
+
+def test_refine_options_and_bad_values():
+    assert _small_preview(refine=None).refine_options == {}
+    assert _small_preview(refine=20).refine_options == {"resolution": 20}
+    octree = wm.Preview(wm.sphere(1.0), bounds=BOUNDS, resolution=None, adaptive=True, max_level=5)
+    assert octree.refine_options == {"max_level": 6}
+    with pytest.raises(ValueError, match="no refinement"):
+        _small_preview(refine=None).refined()
+    with pytest.raises(ValueError, match="'refine'"):
+        _small_preview(refine=0)
+    with pytest.raises(ValueError, match="Unknown refine 'fast'"):
+        _small_preview(refine="fast")
+    with pytest.raises(ValueError, match="'idle'"):
+        _small_preview(idle=-1)
+    with pytest.raises(TypeError, match="'callback'"):
+        _small_preview().watch(3)

@@ -9,6 +9,14 @@ then changes the tape's constant array only: no tape rebuild, no Warp compile
 and its mesh is the one a fresh :func:`warpmesh.mesh_surface` of the same shape built
 with plain numbers gives (the same triangles).
 
+While a view is shown (the notebook widget, or any watcher added with
+:meth:`Preview.watch`), a pause of ``idle`` seconds after the last edit starts a finer
+mesh of the same values in a background thread (``refine``: twice the resolution by
+default, one more octree level for ``adaptive=True``); it replaces the preview mesh in
+the views when it is done, unless a newer edit arrived meanwhile, in which case it is
+dropped (``Preview.dropped`` counts them). Headless code asks for it with
+:meth:`Preview.refined`.
+
 Example
 -------
 >>> import warpmesh as wm
@@ -22,6 +30,7 @@ Example
 
 from __future__ import annotations
 
+import threading
 import time
 
 from warpmesh._util.validate import check_device
@@ -52,6 +61,14 @@ class Preview:
         start a compile in the middle of the edit loop.)
     device : str
         Warp device.
+    refine : "auto", int, dict or None
+        The finer mesh made while the user is idle: "auto" (default) is twice
+        ``resolution`` (at most 512) on the grid, ``max_level + 1`` (at most 10) with
+        ``adaptive=True``; an int is a grid resolution; a dict holds the
+        :func:`warpmesh.mesh_surface` keywords that change (e.g. ``{"max_level": 9}``);
+        None: no refinement.
+    idle : float
+        Seconds without an edit before the refinement starts (only while a view is shown).
     **options
         Other keywords of :func:`warpmesh.mesh_surface` (``cap``, ``root``, ``covering``,
         ``adaptive=True`` with its ``max_level``, ``tolerance``, ...).
@@ -66,6 +83,10 @@ class Preview:
         The shape's parameters (names, ranges).
     timings : list of float
         Seconds per update, in order.
+    refined_mesh : Mesh or None
+        The finer mesh of the current values, once made (None after every edit until then).
+    dropped : int
+        Background refinements whose result was thrown away because an edit came first.
 
     Examples
     --------
@@ -80,7 +101,8 @@ class Preview:
     """
 
     def __init__(self, shape, bounds, resolution: int = 128, *, method: str = "mc33",
-                 evaluator: str = "compiled", device: str = C.DEFAULT_DEVICE, **options):
+                 evaluator: str = "compiled", device: str = C.DEFAULT_DEVICE, refine="auto", idle: float = 0.4,
+                 **options):
         if evaluator not in ("compiled", "interpreter"):
             raise ValueError(f"Unknown evaluator {evaluator!r} for a preview. Pick one of ['compiled', 'interpreter'] "
                              "('auto' would compile in the middle of the edit loop)")
@@ -91,8 +113,18 @@ class Preview:
         self._options = dict(bounds=bounds, resolution=resolution, **options)
         if not options.get("adaptive"):  # the octree evaluates pruned tapes: no method, no evaluator
             self._options.update(method=method, evaluator=evaluator)
+        self._refine = _refine_options(refine, self._options)
+        if isinstance(idle, bool) or not isinstance(idle, (int, float)) or not 0 <= idle < float("inf"):
+            raise ValueError(f"expected a non-negative number of seconds for 'idle', got {idle!r}")
+        self.idle = float(idle)
         self.timings: list[float] = []
         self._views: list = []
+        self._watchers: list = []
+        self._generation = 0
+        self._lock = threading.Lock()
+        self._timer: threading.Timer | None = None
+        self.refined_mesh = None
+        self.dropped = 0
         self.mesh = self._mesh(self.values)  # set-up: tape, module loads, the generated kernel
 
     @property
@@ -100,8 +132,19 @@ class Preview:
         """The meshing box."""
         return self._options["bounds"]
 
-    def _mesh(self, values):
-        return mesh_surface(self.shape, params=values, device=self.device, **self._options)
+    def _mesh(self, values, finer: bool = False):
+        options = {**self._options, **self._refine} if finer else self._options
+        return mesh_surface(self.shape, params=values, device=self.device, **options)
+
+    @property
+    def options(self) -> dict:
+        """The :func:`warpmesh.mesh_surface` keywords of the preview mesh (bounds, resolution, ...)."""
+        return dict(self._options)
+
+    @property
+    def refine_options(self) -> dict:
+        """The :func:`warpmesh.mesh_surface` keywords of the idle refinement ({} when off)."""
+        return dict(self._refine)
 
     def update(self, **values):
         """Set parameter values (keywords) and re-mesh; shown views refresh.
@@ -125,11 +168,76 @@ class Preview:
         t0 = time.perf_counter()
         new = {**self.values, **checked}
         mesh = self._mesh(new)
-        self.values, self.mesh = new, mesh
+        with self._lock:
+            self._generation += 1
+            generation = self._generation
+            self.values, self.mesh, self.refined_mesh = new, mesh, None
+            if self._timer is not None:
+                self._timer.cancel()
+                self._timer = None
+        self.timings.append(time.perf_counter() - t0)
+        self._show(mesh, "update")
+        if self._refine and (self._views or self._watchers):
+            timer = threading.Timer(self.idle, self._refine_in_background, args=(generation, new))
+            timer.daemon = True
+            with self._lock:
+                self._timer = timer
+            timer.start()
+        return mesh
+
+    def refined(self):
+        """The finer mesh of the current values (see ``refine``): made now if no
+        background refinement has made it yet.
+
+        Examples
+        --------
+        >>> import warpmesh as wm
+        >>> boss = wm.param("boss", 0.5, lo=0.3, hi=0.7)
+        >>> view = wm.Preview(wm.box((2, 2, 0.6)) | wm.sphere(boss), bounds=((-1.2,) * 3, (1.2,) * 3),
+        ...                   resolution=16, evaluator="interpreter")
+        >>> view.refine_options, view.update(boss=0.6).n_cells < view.refined().n_cells
+        ({'resolution': 32}, True)
+        """
+        if not self._refine:
+            raise ValueError("this preview has no refinement: pass 'refine' (\"auto\", a resolution or options)")
+        with self._lock:
+            generation, values, done = self._generation, dict(self.values), self.refined_mesh
+        if done is not None:
+            return done
+        mesh = self._mesh(values, finer=True)
+        with self._lock:
+            if generation == self._generation:
+                self.refined_mesh = mesh
+        return mesh
+
+    def _refine_in_background(self, generation: int, values: dict) -> None:
+        with self._lock:
+            if generation != self._generation:
+                self.dropped += 1
+                return
+        try:
+            mesh = self._mesh(values, finer=True)
+        except Exception:  # noqa: BLE001 - the preview mesh stays; the next edit reports real errors
+            return
+        with self._lock:
+            if generation != self._generation:  # an edit came while we meshed: stale
+                self.dropped += 1
+                return
+            self.refined_mesh = mesh
+        self._show(mesh, "refined")
+
+    def watch(self, callback) -> None:
+        """Call ``callback(mesh, kind)`` after every update (``kind`` "update") and when a
+        background refinement lands ("refined"); a preview with a watcher refines when idle."""
+        if not callable(callback):
+            raise TypeError(f"expected a callable for 'callback', got {type(callback).__name__}")
+        self._watchers.append(callback)
+
+    def _show(self, mesh, kind: str) -> None:
         for view in list(self._views):
             view.show_mesh(mesh)
-        self.timings.append(time.perf_counter() - t0)
-        return mesh
+        for callback in list(self._watchers):
+            callback(mesh, kind)
 
     # -- showing -----------------------------------------------------------------------
     def widget(self):
@@ -165,3 +273,25 @@ class Preview:
         vals = ", ".join(f"{n}={v:.4g}" for n, v in self.values.items())
         return (f"<Preview ({vals}) {self.mesh.n_points} points, {self.mesh.n_cells} triangles, "
                 f"resolution {self._options['resolution']}>")
+
+
+def _refine_options(refine, options: dict) -> dict:
+    """The mesh_surface keywords that differ for the idle refinement ({} for none)."""
+    if refine is None or refine is False:
+        return {}
+    adaptive = bool(options.get("adaptive"))
+    if isinstance(refine, str):
+        if refine != "auto":
+            raise ValueError(f"Unknown refine {refine!r}. Pick one of ['auto'], an int resolution, a dict or None")
+        if adaptive:
+            level = options.get("max_level")
+            return {"max_level": min(int(level) + 1, 10)} if level is not None else {}
+        res = options.get("resolution")
+        return {"resolution": min(2 * int(res), 512)} if isinstance(res, int) and res < 512 else {}
+    if isinstance(refine, dict):
+        return dict(refine)
+    if isinstance(refine, bool) or not isinstance(refine, int) or refine < 1:
+        raise ValueError(f"expected 'auto', a positive int resolution, a dict or None for 'refine', got {refine!r}")
+    if adaptive:
+        raise ValueError("an int 'refine' is a grid resolution; with adaptive=True pass a dict, e.g. {'max_level': 9}")
+    return {"resolution": refine}

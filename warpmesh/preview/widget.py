@@ -62,6 +62,27 @@ def _slider_range(p) -> tuple[float, float]:
     return lo, hi
 
 
+def status_line(preview, mesh, kind: str = "update") -> str:
+    """What the widget shows under the view: points, triangles, Euler characteristic, the
+    resolution and what made the mesh (the last edit, with its time, or the refinement).
+
+    >>> import warpmesh as wm
+    >>> view = wm.Preview(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8, evaluator="interpreter")
+    >>> status_line(view, view.update())
+    '... points, ... triangles, χ 2, resolution 8, last update ... ms'
+    """
+    from warpmesh.cells.topology import euler_characteristic
+
+    tri = mesh.cells.get("triangle")
+    chi = euler_characteristic(None, tri) if tri is not None and len(tri) else 0
+    options = {**preview.options, **(preview.refine_options if kind == "refined" else {})}
+    where = (f"max level {options.get('max_level')}" if options.get("adaptive")
+             else f"resolution {options.get('resolution')}")
+    done = ("refined while idle" if kind == "refined"
+            else f"last update {1000 * preview.timings[-1]:.0f} ms" if preview.timings else "first mesh")
+    return f"{mesh.n_points} points, {mesh.n_cells} triangles, χ {chi}, {where}, {done}"
+
+
 def preview_widget(preview, *, height: int = 420):
     """A VBox: one FloatSlider per parameter, then the :class:`MeshView` of ``preview``.
 
@@ -73,10 +94,11 @@ def preview_widget(preview, *, height: int = 420):
     preview._views.append(view)
     status = ipywidgets.HTML()
 
-    def show_status():
-        last = f", last update {1000 * preview.timings[-1]:.0f} ms" if preview.timings else ""
-        status.value = (f"<small>{preview.mesh.n_points} points, {preview.mesh.n_cells} triangles"
-                        f"{last}</small>")
+    def show_status(mesh=None, kind="update"):
+        mesh = preview.mesh if mesh is None else mesh
+        status.value = f"<small>{status_line(preview, mesh, kind)}</small>"
+
+    preview.watch(show_status)
 
     sliders = []
     for name, p in preview.params.items():
@@ -85,8 +107,7 @@ def preview_widget(preview, *, height: int = 420):
                                    description=name, continuous_update=True, readout_format=".3g")
 
         def changed(change, name=name):
-            preview.update(**{name: change["new"]})
-            show_status()
+            preview.update(**{name: change["new"]})  # the watcher writes the status
 
         s.observe(changed, names="value")
         sliders.append(s)
