@@ -349,7 +349,7 @@ ROUND_TRIPS = {
     ".vtk": (True, {"point_refs", "cell_refs", "point_data", "cell_data"}),
     ".msh": (True, {"point_refs", "cell_refs", "point_data", "cell_data"}),
     ".mesh": (True, {"point_refs", "cell_refs"}),
-    ".ply": (True, {"point_refs", "point_data"}),
+    ".ply": (True, {"point_refs", "cell_refs", "point_data", "cell_data"}),
     ".obj": (True, set()),
     ".stl": (False, set()),
 }

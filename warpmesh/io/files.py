@@ -14,7 +14,10 @@ ext     format   cells                          besides points (precision) and c
                                                 only with a single block
 .mesh   medit    line tri quad tetra pyramid    point refs, cell refs (Medit ascii,
                  wedge hexahedron               17 digits); 2D kept 2D
-.ply    ply      triangle quad                  point refs and point data (binary)
+.ply    ply      triangle quad                  point and cell refs (``ref``), point and
+                                                cell data of one value each, as vertex
+                                                and face properties (binary;
+                                                :mod:`warpmesh.io.ply`)
 .obj    obj      triangle quad                  nothing else (17 digits)
 .stl    stl      triangle                       nothing else (binary float32;
                                                 points are merged and renumbered)
@@ -31,7 +34,7 @@ extra). Legacy ``.vtk`` files meshio cannot parse (64-bit ids) are read by VTK.
 The gmsh-only types are line4, line5, triangle10, triangle15, tetra20 and tetra35: meshio's
 vtu/vtk writers have no VTK type for them. Every format but Medit stores 3D points; 2D
 meshes get z = 0 and come back 3D unless ``load(..., dim=2)``. Refs are written as
-``"medit:ref"`` (Medit, vtu, vtk, ply) or as ``"gmsh:physical"`` (gmsh); refs that are
+``"medit:ref"`` (Medit, vtu, vtk), ``ref`` (ply) or as ``"gmsh:physical"`` (gmsh); refs that are
 all zero are read back as "no refs" (Medit and gmsh always store one).
 
 Examples
@@ -66,6 +69,7 @@ from meshio._helpers import reader_map
 
 from warpmesh.io.convert import GMSH_GEO, GMSH_REF, from_meshio, set_dim, to_meshio
 from warpmesh.io.formats import format_support, meshio_extensions
+from warpmesh.io.ply import read_ply, write_ply
 from warpmesh.errors import ReadError
 
 
@@ -100,6 +104,8 @@ class _Format:
     keep_data: _DataFilter = _keep_all  # on save: which arrays the file gets
     tidy: Callable[[meshio.Mesh], None] = _no_tidy  # on load: drop what meshio invents
     folder: bool = False  # written in a temporary folder (writers that add side files: .h5, .ele)
+    read: Callable[[str], meshio.Mesh] | None = None  # warpmesh's own reader (default: meshio's)
+    write: Callable[..., object] | None = None  # warpmesh's own writer: (path, meshio.Mesh, **write_kwargs)
 
 
 _FORMATS: dict[str, _Format] = {}  # name -> format, in registration order
@@ -196,10 +202,13 @@ def _gmsh_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
 
 
 def _ply_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
-    """PLY keeps scalar point data only (integers as int32)."""
-    dropped = [*cd, *(k for k, v in pd.items() if v.ndim != 1)]
-    pd = {k: v.astype(np.int32) if v.dtype.kind in "iu" else v for k, v in pd.items()}
-    return {k: v for k, v in pd.items() if v.ndim == 1}, {}, dropped
+    """PLY keeps one value per vertex and per face (vertex and face properties)."""
+    def scalar(v) -> bool:
+        return np.asarray(v).ndim == 1 or (np.asarray(v).ndim == 2 and np.asarray(v).shape[1] == 1)
+
+    dropped = [k for k, v in pd.items() if not scalar(v)] + [k for k, v in cd.items() if not all(map(scalar, v))]
+    return ({k: v for k, v in pd.items() if k not in dropped}, {k: v for k, v in cd.items() if k not in dropped},
+            dropped)
 
 
 def _tidy_stl(m: meshio.Mesh) -> None:
@@ -256,6 +265,8 @@ _register_format(
     cell_types=_SURFACE,
     index_dtype=np.int32,
     keep_data=_ply_data,
+    read=read_ply,
+    write=write_ply,
 )
 _register_format("obj", ".obj", "obj", cell_types=_SURFACE, keep_data=_keep_nothing, tidy=_tidy_obj)
 _register_format(
@@ -310,7 +321,10 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         _write_in_folder(data, path, fmt)
         return path
     with atomic_path(path) as tmp:
-        meshio.write(tmp, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
+        if fmt.write is not None:
+            fmt.write(tmp, data, **fmt.write_kwargs)
+        else:
+            meshio.write(tmp, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
     return path
 
 
@@ -400,13 +414,15 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     set_dim(np.zeros((0, 3)), dim)  # check the argument before reading
     if not path.exists():
         raise FileNotFoundError(errno.ENOENT, "no such mesh file", str(path))
-    reader = reader_map[fmt.name]  # the format's own: meshio.read calls sys.exit
+    reader = fmt.read or reader_map[fmt.name]  # the format's own: meshio.read calls sys.exit
     _check_complete(path, fmt.name)
     try:
         with warnings.catch_warnings():
             # meshio's binary-STL probe overflows on ascii files
             warnings.simplefilter("ignore", RuntimeWarning)
             m = reader(str(path))
+    except ReadError:  # warpmesh's own readers say what is wrong, naming the file
+        raise
     except Exception as exc:  # meshio raises ReadError, ValueError, UnicodeError, IndexError, ...
         if fmt.name in ("vtk", "vtu"):  # VTK's own reader knows what meshio's does not (64-bit ids)
             mesh = _read_with_vtk(path, mesh_type, exc)
@@ -428,17 +444,10 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     return mesh.replace(points=set_dim(np.asarray(mesh.points), dim))
 
 
-#: bytes of a PLY file searched for the end of its header (headers are a few hundred bytes)
-PLY_HEADER_BYTES = 1 << 16
-
-
 def _check_complete(path: Path, fmt_name: str) -> None:
-    """A ReadError for the truncations a reader would take for a mesh or hang on:
-
-    - an OBJ file whose last line has no newline: the format has no terminator, so a file
-      cut inside a face line (``f 12 3`` of ``f 12 35 4``) would read as a wrong face;
-    - a PLY file whose header never ends: meshio's PLY reader waits for ``end_header`` forever.
-    """
+    """A ReadError for an OBJ file whose last line has no newline: the format has no
+    terminator, so a file cut inside a face line (``f 12 3`` of ``f 12 35 4``) would read as a
+    wrong face. (PLY files are checked by :func:`warpmesh.io.ply.read_ply`.)"""
     if fmt_name == "obj":
         with open(path, "rb") as f:
             f.seek(0, os.SEEK_END)
@@ -448,13 +457,6 @@ def _check_complete(path: Path, fmt_name: str) -> None:
         if size and last not in (b"\n", b"\r"):
             raise ReadError(f"could not read {str(path)!r} as obj: its last line has no newline, so it may be "
                             "cut (a truncated file?); if the file is whole, end it with a newline")
-    if fmt_name != "ply":
-        return
-    with open(path, "rb") as f:
-        head = f.read(PLY_HEADER_BYTES)
-    if head.startswith(b"ply") and b"end_header" not in head:
-        raise ReadError(f"could not read {str(path)!r} as ply: the header has no 'end_header' line in its "
-                        f"first {len(head)} bytes (a truncated file?)")
 
 
 def _check_cells(mesh: MeshLike, path: Path, fmt_name: str) -> None:
