@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import warpmesh as wm
+from warpmesh.preview.render import write_html
 from tests.helpers.chromium import NO_CHROMIUM, SOFTWARE_GL, find_or_install_chromium
 from tests.preview.test_params import BOUNDS, part_of
 
@@ -85,3 +86,20 @@ def test_an_edit_differs_where_the_shape_changed(pages):
     ys, xs = np.nonzero(diff)
     h, w = diff.shape
     assert abs(xs.mean() - w / 2) < 0.15 * w and abs(ys.mean() - h / 2) < 0.2 * h
+
+
+def test_a_curve_page_draws_a_ring_from_above_and_a_tet_page_its_cut(chromium, tmp_path):
+    curve = wm.mesh_curve(wm.circle(1.0), bounds=((-1.2, -1.2), (1.2, 1.2)))
+    page = write_html(curve, tmp_path / "curve.html", label=False)
+    ring = drawn(screenshot(chromium, page, tmp_path / "curve.png", tmp_path / "profile-curve"))
+    ys, xs = np.nonzero(ring)
+    assert len(xs) > 200, "the circle is not drawn"
+    r = np.hypot(xs - xs.mean(), ys - ys.mean())
+    assert r.std() < 0.1 * r.mean(), "seen from above, the circle is a ring"
+    shell = wm.mesh_domain(wm.sphere(1.0) - wm.sphere(0.5), bounds=((-1.2,) * 3, (1.2,) * 3), size=0.25)
+    shots = {}
+    for clip in ("auto", None):
+        page = write_html(shell, tmp_path / f"shell-{clip}.html", label=False, clip=clip)
+        shots[clip] = screenshot(chromium, page, tmp_path / f"shell-{clip}.png", tmp_path / f"profile-{clip}")
+    assert drawn(shots["auto"]).mean() > 0.05 and drawn(shots[None]).mean() > 0.05
+    assert (np.abs(shots["auto"] - shots[None]).sum(axis=2) > 30).mean() > 0.02, "the cut shows"

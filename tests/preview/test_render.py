@@ -83,3 +83,14 @@ def test_cli_view(tmp_path, capsys):
     assert "s.ply" in capsys.readouterr().out
     assert main(["view", "--example", "sphere", "-o", str(tmp_path / "s.stl")]) == 2
     assert "for -o/--output" in capsys.readouterr().err  # the flag named, before any rendering
+
+
+def test_cli_view_cuts_a_tet_mesh_unless_told_not_to(tmp_path):
+    shell = wm.mesh_domain(wm.sphere(1.0) - wm.sphere(0.5), bounds=BOUNDS, size=0.3)
+    shell.save(tmp_path / "shell.vtu")
+    sizes = {}
+    for clip in ("auto", "none"):
+        out = tmp_path / f"shell-{clip}.html"
+        assert main(["view", str(tmp_path / "shell.vtu"), "--clip", clip, "-o", str(out)]) == 0
+        sizes[clip] = len(out.read_text())
+    assert sizes["auto"] != sizes["none"], "the cut page draws other triangles than the outside"

@@ -37,6 +37,8 @@ def add_parsers(sub) -> None:
     v.add_argument("--window-size", type=int, nargs=2, default=(800, 600), metavar=("W", "H"),
                    help="picture size in pixels (.png)")
     v.add_argument("--edges", action="store_true", help="draw the triangle edges (.png)")
+    v.add_argument("--clip", choices=["auto", "x", "y", "z", "none"], default="auto",
+                   help="volume meshes: cut through the middle across this axis (auto: x), or none: the outside only")
     v.add_argument("--open", action="store_true", help="open the page in the web browser")
     v.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
 
@@ -62,13 +64,14 @@ def run(wm, args) -> int:
         mesh = wm.mesh_surface(source.shape, bounds=source.bounds, resolution=args.resolution, device=args.device,
                                evaluator="interpreter")
         title = f"warpmesh {source.label} ({args.resolution})"
+    clip = None if args.clip == "none" else args.clip
     if out is None:
         fd, out = tempfile.mkstemp(prefix="warpmesh-view-", suffix=".html")
         os.close(fd)
     if out.lower().endswith(".png"):
-        render_png(mesh, out, window_size=tuple(args.window_size), show_edges=args.edges)
+        render_png(mesh, out, window_size=tuple(args.window_size), show_edges=args.edges, clip=clip)
     else:
-        write_html(mesh, out, title=title)
+        write_html(mesh, out, title=title, clip=clip)
     print(f"{title}: {mesh.n_points} points, {mesh.n_cells} cells -> {out}")
     if args.open:
         import webbrowser

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warpmesh.cells.types import require_mesh
+from warpmesh.preview.drawable import drawable
 from warpmesh.preview.viewer import VIEWER_JS
 
 #: above this many triangles the notebook shows text, not the page (it would be megabytes)
@@ -39,19 +39,12 @@ MAX_INLINE_TRIANGLES = 2_000_000
 DEFAULT_COLOR = (0.55, 0.72, 0.9)
 
 
-def surface_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """(points (n, 3) float32, triangles (m, 3) uint32) to draw: the triangle cells, or
-    the boundary surface of any other cells (through pyvista)."""
-    require_mesh(mesh)
-    pts = np.asarray(mesh.points, dtype=np.float64)
-    if pts.shape[1] == 2:
-        pts = np.column_stack([pts, np.zeros(len(pts))])
-    if "triangle" in mesh.cells:
-        tri = np.asarray(mesh.cells["triangle"])
-    else:
-        surf = mesh.to_pyvista().extract_surface().triangulate()
-        pts, tri = np.asarray(surf.points, np.float64), np.asarray(surf.faces).reshape(-1, 4)[:, 1:]
-    return np.ascontiguousarray(pts, np.float32), np.ascontiguousarray(tri, np.uint32)
+def surface_arrays(mesh, clip=None) -> tuple[np.ndarray, np.ndarray]:
+    """(points (n, 3) float32, triangles (m, 3) uint32) to draw (see
+    :func:`warpmesh.preview.drawable.drawable`; default: the outer boundary of volume
+    meshes)."""
+    d = drawable(mesh, clip=clip)
+    return d.points, d.triangles
 
 
 def _umask_mode() -> int:
@@ -65,13 +58,14 @@ def _b64(arr: np.ndarray) -> str:
 
 
 def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str = "100vh", box=None,
-              label: bool = True) -> str:
+              label: bool = True, clip="auto") -> str:
     """A self-contained HTML page drawing ``mesh`` with WebGL.
 
     Parameters
     ----------
     mesh : Mesh
-        Triangles are drawn as they are; other cells by their boundary surface.
+        Triangles are drawn as they are, curves as thin ribbons, volume meshes cut by
+        ``clip`` (:func:`warpmesh.preview.drawable.drawable`); a 2D mesh is seen from above.
     title : str
         The page title, also shown in its corner.
     color : 3 floats in [0, 1]
@@ -83,24 +77,27 @@ def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str
         edits of one preview framed by its bounds overlay exactly.
     label : bool
         Show the title and counts in the corner.
+    clip : "auto", "x", "y", "z", (normal, origin) or None
+        The cut of a volume mesh (see :func:`warpmesh.preview.drawable.drawable`).
 
     Returns
     -------
     str
         The page (about 16 bytes per triangle plus 7 KB).
     """
-    pts, tri = surface_arrays(mesh)
+    shown = drawable(mesh, clip=clip)
+    pts, tri = shown.points, shown.triangles
     col = [float(c) for c in color]
     if len(col) != 3 or not all(0.0 <= c <= 1.0 for c in col):
         raise ValueError(f"expected 3 values in [0, 1] for 'color', got {color!r}")
     esc = html.escape(title)
-    opts = {"color": col}
+    opts = {"color": col, "top": shown.planar}
     if box is not None:
         b = np.asarray(box, dtype=np.float64)
         if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[0] >= b[1]):
             raise ValueError(f"expected ((x0, y0, z0), (x1, y1, z1)) with lo < hi for 'box', got {box!r}")
         opts["box"] = b.tolist()
-    text = f"{esc} &middot; {len(pts)} points, {len(tri)} triangles" if label else ""
+    text = f"{esc} &middot; {mesh.n_points} points, {mesh.n_cells} cells" if label else ""
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>{esc}</title>
 <style>html,body{{margin:0;height:100%;background:#fff;overflow:hidden}}
@@ -119,7 +116,8 @@ def mesh_html(mesh, *, title: str = "warpmesh", color=DEFAULT_COLOR, height: str
 """
 
 
-def write_html(mesh, path, *, title: str = "warpmesh", color=DEFAULT_COLOR, box=None, label: bool = True) -> str:
+def write_html(mesh, path, *, title: str = "warpmesh", color=DEFAULT_COLOR, box=None, label: bool = True,
+               clip="auto") -> str:
     """Write :func:`mesh_html` to ``path`` atomically (a temporary file, then a rename).
 
     Example
@@ -133,7 +131,7 @@ def write_html(mesh, path, *, title: str = "warpmesh", color=DEFAULT_COLOR, box=
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):
         raise ValueError(f"expected a .html path for 'path', got {str(path)!r}")
-    text = mesh_html(mesh, title=title, color=color, box=box, label=label)
+    text = mesh_html(mesh, title=title, color=color, box=box, label=label, clip=clip)
     fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
@@ -185,7 +183,7 @@ def _headless_vtk() -> None:
 
 
 def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, show_edges: bool = False,
-               camera=None) -> RenderedImage:
+               camera=None, clip="auto") -> RenderedImage:
     """Render ``mesh`` off-screen with pyvista; write a PNG when ``path`` is given.
 
     Parameters
@@ -200,7 +198,9 @@ def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, 
         Draw the triangle edges.
     camera : str or list, optional
         A pyvista camera position ("iso", "xy", ... or [(pos), (focus), (up)]); default: an
-        isometric view of the mesh.
+        isometric view of the mesh, from above ("xy") for a 2D mesh.
+    clip : "auto", "x", "y", "z", (normal, origin) or None
+        The cut of a volume mesh (see :func:`warpmesh.preview.drawable.drawable`).
 
     Returns
     -------
@@ -209,7 +209,8 @@ def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, 
     w, h = (int(v) for v in window_size)
     if w <= 0 or h <= 0:
         raise ValueError(f"expected a positive 'window_size', got {window_size!r}")
-    pts, tri = surface_arrays(mesh)
+    shown = drawable(mesh, clip=clip)
+    pts, tri = shown.points, shown.triangles
     _headless_vtk()
     import pyvista as pv
 
@@ -218,8 +219,8 @@ def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, 
     plotter = pv.Plotter(off_screen=True, window_size=(w, h))
     try:
         plotter.set_background("white")
-        plotter.add_mesh(surf, color=tuple(color), show_edges=show_edges, smooth_shading=True)
-        plotter.camera_position = camera or "iso"
+        plotter.add_mesh(surf, color=tuple(color), show_edges=show_edges, smooth_shading=not shown.flat)
+        plotter.camera_position = camera or ("xy" if shown.planar else "iso")
         image = RenderedImage(plotter.screenshot(return_img=True))
     finally:
         plotter.close()

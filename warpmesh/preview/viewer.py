@@ -25,7 +25,8 @@ written in about 4 ms; sending new buffers to the widget takes about 5 ms; headl
 Chromium (SwiftShader WebGL) draws the page in under 3 s from a cold start.
 
 ``VIEWER_JS`` defines ``createWarpmeshViewer(canvas, options)`` (options: ``color``,
-``background``, ``box`` = [lo, hi] to frame instead of the first mesh's bounding box),
+``background``, ``box`` = [lo, hi] to frame instead of the first mesh's bounding box,
+``top`` to look down the z axis, for 2D meshes),
 which returns an object with ``setMesh(positions: Float32Array, indices: Uint32Array)``,
 ``fit()`` and ``draw()``.
 
@@ -79,7 +80,8 @@ function createWarpmeshViewer(canvas, options) {
     fitted = true;
   }
   // camera: orbit angles around the centre, distance in units of the radius
-  const cam = {yaw: -0.6, pitch: 0.45, dist: 2.6};
+  // from (1, 1, 1) as pyvista's "iso" (so a volume mesh's cut, which faces +x, is seen), or from above
+  const cam = options.top ? {yaw: 0, pitch: 1.55, dist: 2.6} : {yaw: 2.356, pitch: 0.615, dist: 2.6};
 
   function normals(p, t) {
     const n = new Float32Array(p.length);

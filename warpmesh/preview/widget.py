@@ -29,7 +29,7 @@ import anywidget
 import ipywidgets
 import traitlets
 
-from warpmesh.preview.render import surface_arrays
+from warpmesh.preview.drawable import drawable
 from warpmesh.preview.viewer import WIDGET_ESM
 
 
@@ -45,7 +45,8 @@ class MeshView(anywidget.AnyWidget):
 
     def show_mesh(self, mesh) -> None:
         """Send ``mesh``'s points and triangles (one message, then ``version`` bumped)."""
-        pts, tri = surface_arrays(mesh)
+        shown = drawable(mesh)
+        pts, tri = shown.points, shown.triangles
         with self.hold_sync():
             self.positions = pts.astype("<f4").tobytes()
             self.indices = tri.astype("<u4").tobytes()
