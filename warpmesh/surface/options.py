@@ -282,6 +282,12 @@ _FIELDS: dict[str, tuple[str, str]] = {
         meshed (and, with ``cap``, the outside) are the rest, id 0, or min(labels) - 1
         when 0 is among ``labels`` (-1 for labels=[0, 3]). "shared" alone implies labels="all"; ``method`` and ``clearance`` are
         for marching cubes and do not apply to it."""),
+    "smoothing": ("int", """
+        With interfaces="shared": passes of constrained smoothing
+        (:func:`warpmesh.optimize.label_smoothing.smooth_labels`): every vertex kept in
+        its voxel cube, junction curves smoothed along themselves, no triangle crossing,
+        turning over or folding. 0 (default) keeps the raw surface-nets vertices;
+        VTK's ``contour_labels`` smooths with 16 by default."""),
     "spacing": ("float or (3,) floats", """
         The sample spacing: ``volume[i, j, k]`` sits at ``origin + (i, j, k) * spacing``
         (trilinear in between)."""),
@@ -569,11 +575,16 @@ class VolumeOptions:
     cull: bool = True
     slab_voxels: int = SLAB_VOXELS
     clearance: float = NODE_CLEARANCE
+    smoothing: int = 0
 
     def __post_init__(self):
         set_ = object.__setattr__
         set_(self, "clearance", check_clearance(self.clearance))
         check_choice(self.method, "method", METHODS)
+        if isinstance(self.smoothing, (bool, np.bool_)) or not isinstance(self.smoothing, (int, np.integer)) \
+                or self.smoothing < 0:
+            raise ValueError(f"expected a non-negative integer for 'smoothing', got {self.smoothing!r}")
+        set_(self, "smoothing", int(self.smoothing))
         for name in ("cap", "cull"):
             set_(self, name, _flag(getattr(self, name), name))
         check_choice(self.inside, "inside", INSIDES)
@@ -598,6 +609,9 @@ class VolumeOptions:
             elif self.labels is None:
                 raise ValueError(f"'interfaces' applies with 'labels', got interfaces={self.interfaces!r} "
                                  "and no 'labels'")
+        if self.smoothing and self.interfaces != "shared":
+            raise ValueError(f"'smoothing' applies with interfaces='shared', got smoothing={self.smoothing} and "
+                             f"interfaces={self.interfaces!r}")
         sp = _vector(self.spacing, "spacing", "a positive number or 3 positive numbers")
         sp = np.broadcast_to(sp, (3,)) if sp.ndim == 0 else sp
         if sp.shape != (3,) or not np.all(np.isfinite(sp)) or np.any(sp <= 0):

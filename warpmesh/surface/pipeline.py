@@ -41,6 +41,7 @@ from warpmesh.surface.continuation import Growth, grow_cells
 from warpmesh.surface.options import (AdaptiveOptions, ContinuationOptions, GridOptions, SurfaceOptions,
                                       VolumeOptions, check_choice)
 from warpmesh.surface.multilabel import LABEL_ABOVE, shared_surface
+from warpmesh.optimize.label_smoothing import GRID_INFO, smooth_labels
 from warpmesh.surface.volume import check_closed_outward, check_labels, extract_fields
 
 RAY_LINES = 32  # continuation's automatic seeds: rays along 32 grid lines per axis (every 8th at least)
@@ -96,9 +97,10 @@ def mesh_surface(
       (bounds, max_level, resolution, min_level, tolerance, angles, chord, bound,
       lipschitz, root, root_iterations, gradient, cap, prune, features);
     - an array: :class:`~warpmesh.surface.options.VolumeOptions` (level, inside, labels,
-      interfaces, spacing, origin, method, cap, cull, slab_voxels); ``interfaces="shared"``
-      gives one surface in which each interface between two labels is meshed once
-      (:mod:`warpmesh.surface.multilabel`).
+      interfaces, spacing, origin, method, cap, cull, slab_voxels, smoothing);
+      ``interfaces="shared"`` gives one surface in which each interface between two labels
+      is meshed once (:mod:`warpmesh.surface.multilabel`), ``smoothing=N`` smooths it
+      (:mod:`warpmesh.optimize.label_smoothing`).
 
     Give the options as keywords (the group is built from them), or as one group
     built beforehand with ``options=``; not both.
@@ -312,6 +314,7 @@ def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: di
     mesh = mesh_surface(values, options=options, covering=covering, adaptive=adaptive, device=device, **keywords)
     if moved and mesh.n_points:
         mesh = mesh.transform(placement)
+        mesh = mesh.replace(info={k: v for k, v in mesh.info.items() if k != GRID_INFO})  # not the world's grid
     return mesh.replace(info={**mesh.info, "space": image.space})
 
 
@@ -574,13 +577,18 @@ def _mesh_shared(vol: np.ndarray, opts: VolumeOptions, device, t_start: float) -
     points, faces, lower, upper, info = shared_surface(vol, opts.labels, origin=opts.origin, spacing=opts.spacing,
                                                        cap=opts.cap, timings=timings)
     info.update({"method": "surface nets", "interfaces": "shared", "device": str(device), "evaluations": 0,
-                 "vertices": len(points), "triangles": len(faces), "interface_pairs": info.pop("interfaces")})
+                 "vertices": len(points), "triangles": len(faces), "interface_pairs": info.pop("interfaces"),
+                 GRID_INFO: {"origin": list(opts.origin), "spacing": list(opts.spacing), "shape": list(vol.shape)}})
     if opts.cap:
         info["orientation"] = "from the lower label to the higher (cell_refs: lower, cell_data['label_above'])"
+    mesh = Mesh(points, {"triangle": faces}, cell_refs={"triangle": lower},
+                cell_data={LABEL_ABOVE: {"triangle": upper}}, info=info)
+    if opts.smoothing:
+        mesh = smooth_labels(mesh, opts.smoothing)
+        timings["smoothing"] = mesh.info["smoothing"]["time"]
     timings["total"] = time.perf_counter() - t_start
     info["time"] = timings
-    return Mesh(points, {"triangle": faces}, cell_refs={"triangle": lower},
-                cell_data={LABEL_ABOVE: {"triangle": upper}}, info=info)
+    return mesh.replace(info={**mesh.info, "time": timings})
 
 
 def _check_volume(source) -> np.ndarray:
