@@ -559,3 +559,317 @@ def emit_row_triangles_kernel(
             id0 = id0 + wp.vec2i(wp.bit_count(x0[0]), wp.bit_count(x0[1]))
             id1 = id1 + wp.vec2i(wp.bit_count(x1[0]), wp.bit_count(x1[1]))
     row_volume[r] = vol
+
+
+# -- surface nets of a label volume (warpmesh.surface.multilabel) ------------------------------------------------
+# The samples map to small codes: a 256- or 65536-entry table from each 8- or 16-bit pattern (LABEL_U8, LABEL_U16),
+# or int32 codes as they are (LABEL_I32); arrays are flat, C order. The grid is read as if padded with one layer of
+# the rest's code on every side when ``pad`` is 1 (virtual index i is sample i - pad): no padded copy. A *cube* is
+# named by its lowest sample and gets a vertex when a quad uses it. Rows are the (i, j) of the virtual grid (shape
+# ``p``), k contiguous; the cube bits of cube row (i, j) are at row r = i * p[1] + j, ``words`` uint64 a row (bit b
+# of word w: cube k = 64 w + b).
+LABEL_U8 = 0
+LABEL_U16 = 1
+LABEL_I32 = 2
+vec8i = wp.types.vector(length=8, dtype=wp.int32)
+
+
+@wp.func
+def label_row_base(i: int, j: int, pad: int, n: wp.vec3i):
+    """Flat index of sample (i - pad, j - pad, 0), or -1 for a row of the padding (or past the grid)."""
+    a = i - pad
+    b = j - pad
+    base = int(-1)
+    if a >= 0 and a < n[0] and b >= 0 and b < n[1]:
+        base = (a * n[1] + b) * n[2]
+    return base
+
+
+@wp.func
+def label_raw(u8: wp.array(dtype=wp.uint8), u16: wp.array(dtype=wp.uint16), i32: wp.array(dtype=wp.int32), mode: int,
+              at: int):
+    raw = int(0)
+    if mode == 0:
+        raw = int(u8[at])
+    elif mode == 1:
+        raw = int(u16[at])
+    else:
+        raw = i32[at]
+    return raw
+
+
+@wp.func
+def label_code(raw: int, mode: int, table: wp.array(dtype=wp.int32)):
+    code = raw
+    if mode != 2:
+        code = table[raw]
+    return code
+
+
+@wp.func
+def code_at(u8: wp.array(dtype=wp.uint8), u16: wp.array(dtype=wp.uint16), i32: wp.array(dtype=wp.int32), mode: int,
+            table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i, i: int, j: int, k: int):
+    """The code of virtual sample (i, j, k): ``rest`` in the padding."""
+    base = label_row_base(i, j, pad, n)
+    c = k - pad
+    code = rest
+    if base >= 0 and c >= 0 and c < n[2]:
+        code = label_code(label_raw(u8, u16, i32, mode, base + c), mode, table)
+    return code
+
+
+@wp.func
+def distinct_codes(c0: int, c1: int, c2: int, c3: int, c4: int, c5: int, c6: int, c7: int):
+    """How many distinct values among eight."""
+    v = vec8i(c0, c1, c2, c3, c4, c5, c6, c7)
+    count = int(0)
+    for m in range(8):
+        seen = int(0)
+        for l in range(m):
+            if v[l] == v[m]:
+                seen = 1
+        count += 1 - seen
+    return count
+
+
+@wp.func
+def inside_span(x: int, size: int):
+    """1 <= x <= size - 2: an edge at x has cubes on both sides along that axis."""
+    return x >= 1 and x + 2 <= size
+
+
+@wp.func
+def boundary_cube_used(q: wp.vec4i, c: wp.vec4i, i: int, j: int, k: int, p: wp.vec3i):
+    """Whether cube (i, j, k) (corner codes ``q`` at k and ``c`` at k + 1, entry a + 2 b
+    at i + a, j + b) has a crossing edge with 4 cubes around it: a quad uses its vertex."""
+    used = False
+    for d in range(2):
+        for e in range(2):
+            lo = q
+            if e == 1:
+                lo = c
+            # along axis 0 at (j + d, k + e); along axis 1 at (i + d, k + e); along axis 2 at (i + d, j + e)
+            if lo[2 * d] != lo[2 * d + 1] and inside_span(j + d, p[1]) and inside_span(k + e, p[2]):
+                used = True
+            if lo[d] != lo[d + 2] and inside_span(i + d, p[0]) and inside_span(k + e, p[2]):
+                used = True
+            if q[d + 2 * e] != c[d + 2 * e] and inside_span(i + d, p[0]) and inside_span(j + e, p[1]):
+                used = True
+    return used
+
+
+@wp.kernel
+def count_label_rows_kernel(
+    first: int, u8: wp.array(dtype=wp.uint8), u16: wp.array(dtype=wp.uint16), i32: wp.array(dtype=wp.int32),
+    mode: int, table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i, p: wp.vec3i, words: int,
+    bits: wp.array(dtype=wp.uint64), vertex_count: wp.array(dtype=wp.int32), quad_count: wp.array(dtype=wp.int32),
+    junction_count: wp.array(dtype=wp.int32), seen: wp.array(dtype=wp.uint8),
+):
+    """One thread per row (i, j) of the virtual grid, reading rows (i, j), (i + 1, j),
+    (i, j + 1), (i + 1, j + 1) once along k (a sample's table entry only where the row's
+    value changes): the bits and count of the cubes of cube row (i, j) that get a vertex
+    (8 codes not all alike; on the grid's faces without ``pad``, a crossing edge with 4
+    cubes around it), those holding three codes or more, and the quads of the crossing
+    edges starting on row (i, j) along each axis (an edge makes a quad when the 4 cubes
+    around it exist); ``seen[code]`` set for the codes of row (i, j)'s samples."""
+    r = wp.tid() + first
+    i = r / p[1]
+    j = r % p[1]
+    has_i = i + 1 < p[0]
+    has_j = j + 1 < p[1]
+    cubes = has_i and has_j
+    inner_i = inside_span(i, p[0])
+    inner_j = inside_span(j, p[1])
+    base = wp.vec4i(label_row_base(i, j, pad, n), -1, -1, -1)  # entry a + 2 b: row (i + a, j + b)
+    if has_i:
+        base[1] = label_row_base(i + 1, j, pad, n)
+    if has_j:
+        base[2] = label_row_base(i, j + 1, pad, n)
+    if cubes:
+        base[3] = label_row_base(i + 1, j + 1, pad, n)
+    last_raw = wp.vec4i(-1, -1, -1, -1)
+    last = wp.vec4i(rest, rest, rest, rest)
+    prev = wp.vec4i(rest, rest, rest, rest)
+    nv = int(0)
+    nq = int(0)
+    nj = int(0)
+    word = wp.uint64(0)
+    for k in range(p[2]):
+        kk = k - pad
+        inside_k = kk >= 0 and kk < n[2]
+        cur = wp.vec4i(rest, rest, rest, rest)
+        for q in range(4):
+            if base[q] >= 0 and inside_k:
+                raw = label_raw(u8, u16, i32, mode, base[q] + kk)
+                if raw != last_raw[q]:
+                    last_raw[q] = raw
+                    last[q] = label_code(raw, mode, table)
+                    if q == 0:
+                        seen[last[0]] = wp.uint8(1)
+                cur[q] = last[q]
+        inner_k = inside_span(k, p[2])
+        if has_i and inner_j and inner_k and cur[1] != cur[0]:
+            nq += 1
+        if has_j and inner_i and inner_k and cur[2] != cur[0]:
+            nq += 1
+        if k >= 1:
+            if inner_i and inner_j and cur[0] != prev[0]:  # the edge (k - 1, k) along the row
+                nq += 1
+            c0 = prev[0]
+            used = cubes and not (cur[0] == c0 and cur[1] == c0 and cur[2] == c0 and cur[3] == c0 and
+                                  prev[1] == c0 and prev[2] == c0 and prev[3] == c0)
+            if used and pad == 0 and (i == 0 or i + 2 == p[0] or j == 0 or j + 2 == p[1] or k == 1 or k == p[2] - 1):
+                used = boundary_cube_used(prev, cur, i, j, k - 1, p)
+            if used:
+                word = word | (wp.uint64(1) << wp.uint64((k - 1) % 64))
+                nv += 1
+                if distinct_codes(prev[0], prev[1], prev[2], prev[3], cur[0], cur[1], cur[2], cur[3]) >= 3:
+                    nj += 1
+            if cubes and ((k - 1) % 64 == 63 or k == p[2] - 1):
+                bits[r * words + (k - 1) / 64] = word
+                word = wp.uint64(0)
+        prev = cur
+    vertex_count[r] = nv
+    quad_count[r] = nq
+    junction_count[r] = nj
+
+
+@wp.func
+def cube_rank(bits: wp.array(dtype=wp.uint64), row: int, w: int, words: int, bit: int, before: int):
+    """Vertices of cube row ``row`` before cube 64 w + bit, given ``before`` up to word w."""
+    return before + wp.bit_count(bits[row * words + w] & below(bit))
+
+
+@wp.func
+def write_quad(q: wp.vec4i, flip: bool, lo: int, hi: int, ids: wp.array(dtype=wp.int64),
+               pair_seen: wp.array(dtype=wp.uint8), n_codes: int, out: int, triangles: wp.array(dtype=wp.int64),
+               lower: wp.array(dtype=wp.int64), upper: wp.array(dtype=wp.int64)):
+    """Quad ``q`` (counter-clockwise about its edge's + direction) as triangles 2 out and
+    2 out + 1, split along q0-q2, the winding reversed where ``flip``; flags the pair of
+    codes in ``pair_seen`` (codes ``n_codes`` a row) when ``n_codes`` > 0."""
+    a = q
+    if flip:
+        a = wp.vec4i(q[3], q[2], q[1], q[0])
+    t = 6 * out
+    triangles[t + 0] = wp.int64(a[0])
+    triangles[t + 1] = wp.int64(a[1])
+    triangles[t + 2] = wp.int64(a[2])
+    triangles[t + 3] = wp.int64(a[0])
+    triangles[t + 4] = wp.int64(a[2])
+    triangles[t + 5] = wp.int64(a[3])
+    lower[2 * out] = ids[lo]
+    lower[2 * out + 1] = ids[lo]
+    upper[2 * out] = ids[hi]
+    upper[2 * out + 1] = ids[hi]
+    if n_codes > 0:
+        pair_seen[lo * n_codes + hi] = wp.uint8(1)
+
+
+@wp.kernel
+def emit_label_quads_kernel(
+    first: int, u8: wp.array(dtype=wp.uint8), u16: wp.array(dtype=wp.uint16), i32: wp.array(dtype=wp.int32),
+    mode: int, table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i, p: wp.vec3i, words: int,
+    bits: wp.array(dtype=wp.uint64), vertex_first: wp.array(dtype=wp.int32), quad_count: wp.array(dtype=wp.int32),
+    quad_first: wp.array(dtype=wp.int64), ids: wp.array(dtype=wp.int64), reverse: int,
+    pair_seen: wp.array(dtype=wp.uint8), n_codes: int, triangles: wp.array(dtype=wp.int64),
+    lower: wp.array(dtype=wp.int64), upper: wp.array(dtype=wp.int64),
+):
+    """One thread per row (i, j): the quads of the crossing edges starting on it, in k
+    order and axis 0, 1, 2 at each k, as ``count_label_rows_kernel`` counted them. A
+    quad's vertices are the cubes around its edge (lowest samples at (0, -1, -1), (0, 0,
+    -1), (0, 0, 0), (0, -1, 0) from the edge's first sample about axis 0, and the same
+    turned for axes 1 and 2), numbered by the cube bits before them in their rows. The
+    winding runs from the lower code to the higher, reversed once more with ``reverse``
+    (the points' axes swapped). Only the cubes (i, j, k) with a vertex are visited: every
+    crossing edge's cubes have one."""
+    r = wp.tid() + first
+    if quad_count[r] == 0:
+        return
+    i = r / p[1]
+    j = r % p[1]
+    inner_i = inside_span(i, p[0])
+    inner_j = inside_span(j, p[1])
+    r_j = r - 1  # cube rows (i, j - 1), (i - 1, j), (i - 1, j - 1)
+    r_i = r - p[1]
+    r_ij = r - p[1] - 1
+    b00 = vertex_first[r]
+    b0j = int(0)
+    bi0 = int(0)
+    bij = int(0)
+    if j >= 1:
+        b0j = vertex_first[r_j]
+    if i >= 1:
+        bi0 = vertex_first[r_i]
+    if i >= 1 and j >= 1:
+        bij = vertex_first[r_ij]
+    turn = reverse != 0
+    out = int(quad_first[r])
+    for w in range(words):
+        m = bits[r * words + w]
+        while m != wp.uint64(0):
+            bit = low_bit(m)
+            m = m & (m - wp.uint64(1))
+            k = 64 * w + bit
+            inner_k = inside_span(k, p[2])
+            c00 = code_at(u8, u16, i32, mode, table, rest, pad, n, i, j, k)
+            v00 = cube_rank(bits, r, w, words, bit, b00)  # cube (i, j, k)
+            if inner_j and inner_k:  # axis 0
+                c = code_at(u8, u16, i32, mode, table, rest, pad, n, i + 1, j, k)
+                if c != c00:
+                    v0j = cube_rank(bits, r_j, w, words, bit, b0j)
+                    write_quad(wp.vec4i(v0j - 1, v00 - 1, v00, v0j), (c00 > c) != turn, wp.min(c, c00),
+                               wp.max(c, c00), ids, pair_seen, n_codes, out, triangles, lower, upper)
+                    out += 1
+            if inner_i and inner_k:  # axis 1
+                c = code_at(u8, u16, i32, mode, table, rest, pad, n, i, j + 1, k)
+                if c != c00:
+                    vi0 = cube_rank(bits, r_i, w, words, bit, bi0)
+                    write_quad(wp.vec4i(vi0 - 1, vi0, v00, v00 - 1), (c00 > c) != turn, wp.min(c, c00),
+                               wp.max(c, c00), ids, pair_seen, n_codes, out, triangles, lower, upper)
+                    out += 1
+            if inner_i and inner_j and k + 1 < p[2]:  # axis 2
+                c = code_at(u8, u16, i32, mode, table, rest, pad, n, i, j, k + 1)
+                if c != c00:
+                    vij = cube_rank(bits, r_ij, w, words, bit, bij)
+                    v0j = cube_rank(bits, r_j, w, words, bit, b0j)
+                    vi0 = cube_rank(bits, r_i, w, words, bit, bi0)
+                    write_quad(wp.vec4i(vij, v0j, v00, vi0), (c00 > c) != turn, wp.min(c, c00), wp.max(c, c00),
+                               ids, pair_seen, n_codes, out, triangles, lower, upper)
+                    out += 1
+        b00 += wp.bit_count(bits[r * words + w])
+        if j >= 1:
+            b0j += wp.bit_count(bits[r_j * words + w])
+        if i >= 1:
+            bi0 += wp.bit_count(bits[r_i * words + w])
+        if i >= 1 and j >= 1:
+            bij += wp.bit_count(bits[r_ij * words + w])
+
+
+@wp.kernel
+def emit_label_points_kernel(
+    first: int, p: wp.vec3i, words: int, bits: wp.array(dtype=wp.uint64), vertex_first: wp.array(dtype=wp.int32),
+    origin: wp.vec3d, spacing: wp.vec3d, reverse: int, points: wp.array(dtype=wp.float64),
+):
+    """One thread per cube row: each of its vertices at its cube's centre,
+    ``origin + (index + 1/2) * spacing`` (``origin``: the virtual grid's sample 0), in k
+    order; the coordinates written z, y, x with ``reverse``."""
+    r = wp.tid() + first
+    i = r / p[1]
+    j = r % p[1]
+    v = vertex_first[r]
+    x = origin[0] + (wp.float64(i) + wp.float64(0.5)) * spacing[0]
+    y = origin[1] + (wp.float64(j) + wp.float64(0.5)) * spacing[1]
+    for w in range(words):
+        m = bits[r * words + w]
+        while m != wp.uint64(0):
+            bit = low_bit(m)
+            m = m & (m - wp.uint64(1))
+            z = origin[2] + (wp.float64(64 * w + bit) + wp.float64(0.5)) * spacing[2]
+            if reverse != 0:
+                points[3 * v] = z
+                points[3 * v + 2] = x
+            else:
+                points[3 * v] = x
+                points[3 * v + 2] = z
+            points[3 * v + 1] = y
+            v += 1

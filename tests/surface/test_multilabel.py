@@ -74,7 +74,16 @@ def test_random_label_volumes_closed_oriented_embedded():
     _check_label_boundaries(m, np.unique(vol).tolist())
     assert len(find_self_intersections(m.points, tris)) == 0
     assert m.info["junction_vertices"] > 0
-    assert len(tris) == _peer(vol).n_cells  # one quad per crossing edge, as VTK's surface nets
+    peer = _peer(vol)
+    assert len(tris) == peer.n_cells  # one quad per crossing edge, as VTK's surface nets
+    _same_points(m.points, peer.points)  # the staircase: both at the cube centres
+    assert np.isclose(m.to_trimesh().area, peer.area, rtol=1e-12)
+
+
+def _same_points(a, b):
+    """The same positions (VTK's output may hold a position more than once)."""
+    key = lambda p: np.unique(np.round(np.asarray(p, dtype=np.float64) * 64).astype(np.int64), axis=0)  # noqa: E731
+    assert np.array_equal(key(a), key(b))
 
 
 @pytest.mark.parametrize("seed, cap, spacing", [(1, True, (1.0, 0.7, 1.9)), (4, False, (1.0, 0.7, 1.9)),
@@ -111,9 +120,8 @@ def test_frog_block_shared_interfaces():
     assert len(find_self_intersections(m.points, tris)) == 0
     peer = _peer(vol, frog.spacing)
     assert len(tris) == peer.n_cells
-    # the peer's staircase encloses the voxels; our vertices cut its corners, never adding area
-    area = m.to_trimesh().area
-    assert 0.55 * peer.area < area < peer.area
+    _same_points(m.points, peer.points)  # vertices at the cube centres, as VTK's unsmoothed surface nets
+    assert np.isclose(m.to_trimesh().area, peer.area, rtol=1e-12)
     # the separate per-label surfaces mesh every interface between two labels twice
     sep = wm.mesh_surface(vol, labels="all", spacing=frog.spacing)
     assert _coincident(tris) == 0 and len(sep.cells["triangle"]) > len(tris)
@@ -234,7 +242,72 @@ def test_files_keep_both_labels(tmp_path):
     tagged.save(tmp_path / "a.msh")
     raw = meshio.read(tmp_path / "a.msh")
     physical = np.concatenate(raw.cell_data["gmsh:physical"])
+    faces = np.concatenate([c.data for c in raw.cells])
     lower, upper = _labels(m)
     pair_of = {v: k for k, v in tagged.info["interfaces"].items()}
-    assert np.array_equal(physical, [pair_of[(a, b)] for a, b in zip(lower.tolist(), upper.tolist())])
 
+    def by_position(points, tris, values):  # the writer may order the triangles by group
+        corners = np.round(np.asarray(points)[tris] * 8).astype(np.int64).tolist()
+        return {tuple(sorted(map(tuple, c))): v for c, v in zip(corners, values)}
+
+    expect = by_position(m.points, m.cells["triangle"], [pair_of[(a, b)] for a, b in zip(lower.tolist(), upper.tolist())])
+    assert len(faces) == len(expect) and by_position(raw.points, faces, physical.tolist()) == expect
+
+
+
+def test_raw_vertices_at_cube_centres_every_vertex_used():
+    """Each vertex sits at the centre of its cube, so floor((p - origin) / spacing) is the
+    cube's lowest sample exactly (-1 .. n - 1 with cap); each is used by a triangle and
+    belongs to a cube whose 8 samples are not all alike (with cap=False, one of its
+    crossing edges has 4 cubes around it); cubes are distinct."""
+    vol = _random_tiles(seed=3, n_tiles=40)
+    origin, spacing = np.array([0.25, -3.0, 1.0]), np.array([0.5, 1.5, 0.75])
+    for cap in (True, False):
+        m = wm.mesh_surface(vol, labels="all", interfaces="shared", cap=cap, origin=origin, spacing=spacing)
+        units = (m.points - origin) / spacing
+        cube = np.floor(units).astype(np.int64)
+        assert np.allclose(units - cube, 0.5, atol=1e-9)
+        assert len(np.unique(cube, axis=0)) == len(cube)
+        assert np.array_equal(np.unique(m.cells["triangle"]), np.arange(len(m.points)))
+        lo, hi = (-1, np.array(vol.shape) - 1) if cap else (0, np.array(vol.shape) - 2)
+        assert cube.min() >= lo and np.all(cube.max(axis=0) <= hi)
+        padded = np.pad(vol.astype(np.int64), 1, constant_values=-1) if cap else vol
+        c = cube + (1 if cap else 0)
+        corners = np.stack([padded[c[:, 0] + dx, c[:, 1] + dy, c[:, 2] + dz]
+                            for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)])
+        assert np.all((corners != corners[0]).any(axis=0))
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int8, np.uint16, np.int16, np.int32, np.int64, bool])
+def test_dtypes_and_label_subsets_agree(dtype):
+    """The same surface whatever the integer type holding the labels (8- and 16-bit read in
+    place through a table, wider ones coded first), for "all" and for a subset."""
+    base = _random_tiles(seed=5, n_tiles=40)  # values 0..4
+    if dtype is bool:
+        base = base > 1
+    shift = {np.int8: -3, np.int16: -300, np.int32: -70000, np.int64: -(1 << 40)}.get(dtype, 0)
+    ref = wm.mesh_surface(base.astype(np.int64), labels="all", interfaces="shared")
+    vol = base.astype(dtype)
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    assert np.array_equal(m.cells["triangle"], ref.cells["triangle"]) and np.array_equal(m.points, ref.points)
+    assert np.array_equal(_labels(m)[1], _labels(ref)[1])
+    if dtype is bool:
+        return
+    shifted = (base.astype(np.int64) + shift).astype(dtype)  # 0 moves to shift: a subset without 0 gets rest 0
+    sub = [shift + 2, shift + 4]
+    m = wm.mesh_surface(shifted, labels=sub, interfaces="shared")
+    wide = shifted.astype(np.int64)
+    expect = wm.mesh_surface(np.where(np.isin(wide, sub), wide, 0), labels="all", interfaces="shared")
+    assert np.array_equal(m.cells["triangle"], expect.cells["triangle"])
+    lower, upper = _labels(m)
+    assert set(np.unique(np.concatenate([lower, upper])).tolist()) == {0 if 0 not in sub else sub[0] - 1, *sub}
+    assert m.info["labels"] == sub
+
+
+def test_progress_callback_reaches_the_total():
+    from warpmesh.surface.multilabel import shared_surface
+
+    calls = []
+    vol = _random_tiles(seed=2, n_tiles=20)
+    shared_surface(vol, "all", origin=(0, 0, 0), spacing=(1, 1, 1), progress=lambda done, total: calls.append((done, total)))
+    assert calls and calls[-1][0] == calls[-1][1] and all(a[0] < b[0] for a, b in zip(calls, calls[1:]))

@@ -72,18 +72,19 @@ Example
 [[0, 1], [0, 2], [1, 2]]
 >>> from warpmesh.surface.multilabel import label_boundary
 >>> [(s["watertight"], s["oriented"], round(s["volume"], 1)) for s in (label_boundary(m, v).stats() for v in (1, 2))]
-[(True, True, 183.9), (True, True, 183.9)]
+[(True, True, 196.0), (True, True, 196.0)]
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from functools import partial
 
 import numpy as np
 
 from warpmesh import _conventions as C
-from warpmesh._util.parallel import run_parallel
+from warpmesh._util.parallel import parallel_ranges, run_parallel
 from warpmesh.io.images import Volume
 
 __all__ = ["LABEL_ABOVE", "INTERFACES", "REST", "interface_refs", "label_boundary", "label_codes", "shared_surface"]
@@ -94,17 +95,6 @@ LABEL_ABOVE = "label_above"
 INTERFACES = ("separate", "shared")
 #: the id of the rest (unmeshed samples and, with ``cap``, the outside) when 0 is not meshed
 REST = 0
-
-# the 4 cubes around an edge along axis a, as offsets (in units of the strides) of the
-# edge's first sample, in counter-clockwise order seen from the edge's + direction:
-# around x in the (y, z) plane, around y in (z, x), around z in (x, y)
-_AROUND = {0: ((0, -1, -1), (0, 0, -1), (0, 0, 0), (0, -1, 0)),
-           1: ((-1, 0, -1), (-1, 0, 0), (0, 0, 0), (0, 0, -1)),
-           2: ((-1, -1, 0), (0, -1, 0), (0, 0, 0), (-1, 0, 0))}
-#: a cube's 8 samples (offsets from its lowest), its 12 edges (pairs of those) and their midpoints
-_CORNERS = np.array([(c & 1, c >> 1 & 1, c >> 2 & 1) for c in range(8)])
-_CUBE_EDGES = [(i, j) for i in range(8) for j in range(i + 1, 8) if np.abs(_CORNERS[i] - _CORNERS[j]).sum() == 1]
-_EDGE_MIDPOINTS = np.array([0.5 * (_CORNERS[i] + _CORNERS[j]) for i, j in _CUBE_EDGES])
 
 
 def label_codes(vol: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
@@ -138,28 +128,11 @@ def label_codes(vol: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
     >>> codes.ravel().tolist(), ids.tolist(), rest
     ([1, 2, 0, 2], [-1, 0, 3], 0)
     """
-    from warpmesh.surface.volume import check_label_range, check_labels  # shared label checks
-
     if vol.flags.f_contiguous and not vol.flags.c_contiguous:  # x fastest: slabs of the C-order view
         codes, ids, rest = label_codes(vol.T, labels)
         return codes.T, ids, rest
 
-    present = _present(vol)
-    if isinstance(labels, str):
-        chosen = check_labels(labels, vol[:0]) if labels != "all" else present[present != 0]
-        if len(chosen) == 0:
-            raise ValueError("expected some non-zero labels in 'volume' with labels=\"all\", got only 0")
-        check_label_range(chosen)
-        chosen = chosen.astype(np.int64)
-    else:
-        chosen = np.asarray(check_labels(labels, vol[:0])).astype(np.int64)
-    missing = chosen[~np.isin(chosen, present.astype(np.int64))]
-    if len(missing):
-        raise ValueError(f"expected 'labels' present in 'volume', got {missing.tolist()} with no sample "
-                         f"equal to it (the volume holds {present.tolist()[:20]}): drop it from 'labels'")
-    rest_id = REST if REST not in chosen else int(chosen.min()) - 1
-    ids = np.unique(np.append(chosen, rest_id))
-    rest = int(np.searchsorted(ids, rest_id))
+    chosen, ids, rest = _choose(_present(vol), labels)
     dtype = np.uint8 if len(ids) <= 256 else np.uint16 if len(ids) <= 65536 else np.int32
     if vol.dtype.itemsize <= 2 and (vol.dtype == np.bool_ or np.issubdtype(vol.dtype, np.integer)):
         lo = int(np.iinfo(vol.dtype).min) if vol.dtype != np.bool_ else 0
@@ -200,7 +173,7 @@ def _as_label_volume(vol: np.ndarray) -> np.ndarray:
         raise ValueError(f"interfaces='shared' meshes the regions of a label volume: {exc}") from None
 
 
-def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True,
+def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True, device="cpu", progress=False,
                    timings: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
     """One surface with each interface between two regions meshed once (surface nets).
 
@@ -208,26 +181,37 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     ----------
     vol : (nx, ny, nz) integer array
         Labels; ``vol[i, j, k]`` sits at ``origin + (i, j, k) * spacing``. Floats are
-        taken when every value is a whole number.
+        taken when every value is a whole number. Read in place when C- or
+        F-contiguous with 8- or 16-bit values.
     labels : "all" or sequence of int
         As :func:`label_codes`.
     origin, spacing : (3,) float
     cap : bool
         The outside of the box is the rest, so every label's boundary is closed; False
         leaves the surfaces open where they meet the box.
+    device : str
+        Warp device of the kernels.
+    progress : bool or callable
+        A progress bar (tqdm, shown once the run has taken a second), or
+        ``progress(done, total)`` called as rows of the grid are done.
     timings : dict, optional
         Filled with the seconds per stage.
 
     Returns
     -------
     points : (n, 3) float64
+        Each at the centre of its cube (the 2 x 2 x 2 samples from its lowest, ``c``):
+        ``origin + (c + 1/2) * spacing``, so ``floor((point - origin) / spacing)`` is
+        ``c`` exactly, -1 to n - 1 per axis (-1 and n - 1: cubes reaching into the cap).
+        Read-only, as the other arrays.
     triangles : (m, 3) int64
         Oriented from the lower label's side to the higher's.
     lower, upper : (m,) int64
         The two labels of each triangle, ``lower < upper``.
     info : dict
         ``labels`` (meshed), ``rest`` (its id), ``interfaces`` (count of label pairs),
-        ``junction_vertices`` (vertices of cubes holding 3 labels or more).
+        ``junction_vertices`` (vertices of cubes holding 3 labels or more), ``cubes``
+        (vertices).
 
     Example
     -------
@@ -238,115 +222,203 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     >>> len(points), len(tris), set(lower.tolist()), set(upper.tolist())
     (26, 48, {0}, {5})
     """
+    import warp as wp
+
+    import warpmesh.kernels.flying_edges as KF
+
     timings = {} if timings is None else timings
     t0 = time.perf_counter()
     vol = _as_label_volume(np.asarray(vol))
-    codes, ids, rest = label_codes(vol, labels)
     origin, spacing = np.asarray(origin, dtype=np.float64), np.asarray(spacing, dtype=np.float64)
-    reverse = codes.flags.f_contiguous and not codes.flags.c_contiguous
-    if reverse:  # x fastest (VTK, NIfTI): mesh the C-order view codes.T, then swap the axes back
-        codes, origin, spacing = codes.T, origin[::-1], spacing[::-1]
-    if cap:  # one layer of the rest around the box: every region closes on it
-        codes = np.pad(codes, 1, constant_values=rest)
-        origin = origin - spacing
+    reverse = vol.flags.f_contiguous and not vol.flags.c_contiguous
+    if reverse:  # x fastest (VTK, NIfTI): mesh the C-order view vol.T; the kernels write the axes back
+        vol, origin, spacing = vol.T, origin[::-1], spacing[::-1]
+    vol = np.ascontiguousarray(vol)
+    source, mode, table, ids, rest, chosen = _label_source(vol, labels)
     timings["codes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    shape = np.array(codes.shape, dtype=np.int64)
-    strides = np.array([shape[1] * shape[2], shape[2], 1], dtype=np.int64)
-    flat = codes.ravel()
-    firsts, cubes = [None] * 3, [None] * 3
-
-    def crossing_edges(a: int) -> None:  # consecutive samples along axis a with different codes
-        s = int(strides[a])
-        first = np.flatnonzero(flat[:-s] != flat[s:])
-        if not cap:  # keep the edges with 4 cubes around them (off the faces of the box along the
-            # other axes), and drop the pairs that wrap to the next row; with cap, both samples of
-            # such a pair are in the padding layer of the rest, so no crossing edge is among them
-            keep = np.ones(len(first), dtype=bool)
-            for b in range(3):
-                at = first // strides[b] % shape[b]
-                keep &= (at <= shape[b] - 2) & ((at >= 1) | (b == a))
-            first = first[keep]
-        firsts[a] = first
-        # the 4 cubes around each edge (a cube is named by its lowest sample), counter-clockwise about +a
-        cubes[a] = (np.array(_AROUND[a]) @ strides)[:, None] + first  # (4, q): each row sorted
-
-    run_parallel([partial(crossing_edges, a) for a in range(3)])  # numpy releases the GIL: one axis a thread
-    timings["edges"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    mark = np.zeros(flat.size, dtype=bool)  # the cubes that get a vertex, in grid order
-    for c in cubes:
-        mark[c] = True
-    cube_ids = np.flatnonzero(mark)
-    del mark
-    corners = np.stack([flat[cube_ids + np.dot(corner, strides)] for corner in _CORNERS])  # (8, n)
-    points = _cube_vertices(corners, cube_ids, shape, strides)
-    points = origin + points * spacing
-    timings["vertices"] = time.perf_counter() - t0
+    dev = wp.get_device(device)
+    pad = 1 if cap else 0  # one layer of the rest around the box, read, never stored: every region closes on it
+    n = np.array(vol.shape, dtype=np.int64)
+    p = n + 2 * pad
+    n_rows, words = int(p[0] * p[1]), int((p[2] - 2) // 64 + 1)  # p[2] - 1 cubes a row
+    empty = {KF.LABEL_U8: wp.empty(0, dtype=wp.uint8, device=dev), KF.LABEL_U16: wp.empty(0, dtype=wp.uint16, device=dev),
+             KF.LABEL_I32: wp.empty(0, dtype=wp.int32, device=dev)}
+    empty[mode] = wp.array(source, dtype={KF.LABEL_U8: wp.uint8, KF.LABEL_U16: wp.uint16,
+                                          KF.LABEL_I32: wp.int32}[mode], device=dev, copy=not dev.is_cpu)
+    grid = [empty[KF.LABEL_U8], empty[KF.LABEL_U16], empty[KF.LABEL_I32], mode,
+            wp.array(table, dtype=wp.int32, device=dev), rest, pad, wp.vec3i(*n.tolist()), wp.vec3i(*p.tolist()), words]
+    bits = wp.zeros(n_rows * words, dtype=wp.uint64, device=dev)
+    counts = {key: wp.empty(n_rows, dtype=wp.int32, device=dev) for key in ("vertex", "quad", "junction")}
+    seen = wp.zeros(max(len(ids), len(table)), dtype=wp.uint8, device=dev)
+    bar = _Progress(progress, 2 * n_rows, n_rows * int(p[2]))
+    _launch_rows(KF.count_label_rows_kernel, n_rows, grid + [bits, counts["vertex"], counts["quad"],
+                                                              counts["junction"], seen], dev, bar)
+    meshed = _present_labels(seen.numpy(), ids, rest, chosen)  # sync point: the labels met
+    vertex_count, quad_count = counts["vertex"].numpy(), counts["quad"].numpy()  # sync point: output sizes
+    n_vertices, n_quads = int(vertex_count.sum(dtype=np.int64)), int(quad_count.sum(dtype=np.int64))
+    if n_vertices >= 2**31:
+        raise ValueError(f"expected fewer than 2**31 vertices, got {n_vertices} for 'volume' of shape {vol.shape}: "
+                         "mesh it in parts")
+    vertex_first = np.zeros(n_rows, dtype=np.int32)
+    np.cumsum(vertex_count[:-1], out=vertex_first[1:])
+    quad_first = np.zeros(n_rows, dtype=np.int64)
+    np.cumsum(quad_count[:-1], out=quad_first[1:])
+    timings["cubes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    columns = [np.ascontiguousarray(points[:, d]) for d in range(3)]
-    tris, lo_codes, hi_codes = [None] * 3, [None] * 3, [None] * 3
-
-    def triangles(a: int) -> None:
-        quads = np.ascontiguousarray(np.searchsorted(cube_ids, cubes[a]).T)  # sorted keys: fast search
-        code0, code1 = flat[firsts[a]], flat[firsts[a] + strides[a]]
-        flip = code0 > code1  # lower -> higher runs along -a: reverse the winding
-        quads[flip] = quads[flip][:, ::-1]
-        tris[a] = _split_quads(columns, quads, a, flip)
-        lo_codes[a], hi_codes[a] = np.minimum(code0, code1), np.maximum(code0, code1)
-
-    run_parallel([partial(triangles, a) for a in range(3)])
-    tris = np.concatenate(tris)
-    lo_code, hi_code = np.concatenate(lo_codes), np.concatenate(hi_codes)
-    lower, upper = ids[np.repeat(lo_code, 2)], ids[np.repeat(hi_code, 2)]
+    points = np.empty((n_vertices, 3), dtype=C.REAL_DTYPE)
+    tris = np.empty((2 * n_quads, 3), dtype=C.INDEX_DTYPE)
+    lower, upper = np.empty(2 * n_quads, dtype=C.INDEX_DTYPE), np.empty(2 * n_quads, dtype=C.INDEX_DTYPE)
+    out = {name: wp.array(a.reshape(-1), dtype=wp.float64 if a.dtype == np.float64 else wp.int64, device=dev,
+                          copy=not dev.is_cpu) for name, a in
+           (("points", points), ("tris", tris), ("lower", lower), ("upper", upper))}
+    seen_size = len(ids) ** 2 if len(ids) <= 2048 else 1  # a flag per pair of codes (4 MB at most)
+    pair_seen = wp.zeros(seen_size, dtype=wp.uint8, device=dev)
+    w_vertex_first = wp.array(vertex_first, dtype=wp.int32, device=dev)
+    _launch_rows(KF.emit_label_quads_kernel, n_rows, grid + [
+        bits, w_vertex_first, counts["quad"], wp.array(quad_first, dtype=wp.int64, device=dev),
+        wp.array(ids, dtype=wp.int64, device=dev), int(reverse), pair_seen, len(ids) if seen_size > 1 else 0,
+        out["tris"], out["lower"], out["upper"]], dev, bar,
+        extra=(KF.emit_label_points_kernel, [wp.vec3i(*p.tolist()), words, bits, w_vertex_first,
+                                             wp.vec3d(*(origin - pad * spacing)), wp.vec3d(*spacing), int(reverse),
+                                             out["points"]]))
+    if not dev.is_cpu:  # sync point: the results back to the host
+        points[:], tris[:] = out["points"].numpy().reshape(-1, 3), out["tris"].numpy().reshape(-1, 3)
+        lower[:], upper[:] = out["lower"].numpy(), out["upper"].numpy()
+    bar.close()
     timings["triangles"] = time.perf_counter() - t0
 
-    corners.sort(axis=0)
-    labels_in_cube = 1 + np.count_nonzero(corners[1:] != corners[:-1], axis=0)
-    info = {"labels": [int(v) for v in ids if v != ids[rest]], "rest": int(ids[rest]),
-            "interfaces": int(len(np.unique(lo_code.astype(np.int64) * len(ids) + hi_code))),
-            "junction_vertices": int(np.count_nonzero(labels_in_cube >= 3)), "cubes": int(len(points))}
-    if reverse:  # (k, j, i) -> (i, j, k) is a reflection: the windings turn over with it
-        points, tris = np.ascontiguousarray(points[:, ::-1]), np.ascontiguousarray(tris[:, ::-1])
-    return points.astype(C.REAL_DTYPE, copy=False), tris.astype(C.INDEX_DTYPE, copy=False), lower, upper, info
+    if seen_size > 1:  # sync point: the label pairs met
+        n_pairs = int(np.count_nonzero(pair_seen.numpy()))
+    else:
+        n_pairs = len(np.unique(np.column_stack([lower[::2], upper[::2]]), axis=0))
+    info = {"labels": [int(v) for v in meshed], "rest": int(ids[rest]), "interfaces": n_pairs,
+            "junction_vertices": int(counts["junction"].numpy().sum(dtype=np.int64)), "cubes": n_vertices}
+    for a in (points, tris, lower, upper):  # handed to the Mesh, which keeps read-only arrays without a copy
+        a.setflags(write=False)
+    return points, tris, lower, upper, info
 
 
-def _cube_vertices(corners: np.ndarray, cube_ids: np.ndarray, shape: np.ndarray, strides: np.ndarray) -> np.ndarray:
-    """Each cube's vertex in sample units: its lowest sample plus the mean of the midpoints
-    of its crossing edges (edges whose two samples differ), from its (8, n) corner codes.
-    The sums are exact in float32 (at most 12 halves); the mean is taken in float64."""
-    crossing = np.empty((len(_CUBE_EDGES), corners.shape[1]), dtype=np.float32)
-    for e, (i, j) in enumerate(_CUBE_EDGES):
-        np.not_equal(corners[i], corners[j], out=crossing[e], casting="unsafe")
-    offset = (_EDGE_MIDPOINTS.T.astype(np.float32) @ crossing) / crossing.sum(axis=0, dtype=np.float64)  # (3, n)
-    base = np.stack([cube_ids // strides[0], cube_ids // strides[1] % shape[1], cube_ids % shape[2]], axis=1)
-    return base + offset.T
+class _Progress:
+    """A tqdm bar (after a second), a callback ``progress(done, total)``, or nothing."""
+
+    def __init__(self, progress, total: int, samples: int):
+        self.callback, self.bar, self.done, self.total = None, None, 0, total
+        self.lock = threading.Lock()
+        if callable(progress):
+            self.callback = progress
+        elif progress:
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=total, unit="row", desc="warpmesh surface nets", delay=1.0, leave=False)
+
+    def update(self, rows: int) -> None:
+        with self.lock:
+            self.done += rows
+            if self.bar is not None:
+                self.bar.update(rows)
+            if self.callback is not None:
+                self.callback(self.done, self.total)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
-def _split_quads(columns: list, quads: np.ndarray, axis: int, flip: np.ndarray) -> np.ndarray:
-    """Two triangles per quad around edges along ``axis``, split along the diagonal whose
-    triangles both face the quad's direction (``+axis``, or ``-axis`` where ``flip``); the
-    shorter one when both do. ``columns`` are the points' x, y, z arrays."""
-    u, v = (axis + 1) % 3, (axis + 2) % 3  # the plane across the edge, (u, v, axis) right-handed
-    pu, pv = columns[u][quads], columns[v][quads]  # (q, 4) projected corners
-    sign = np.where(flip, -1.0, 1.0)
+def _launch_rows(kernel, n_rows: int, inputs: list, dev, bar: _Progress, extra=None) -> None:
+    """Launch a row kernel over [0, n_rows) from one thread per core, in chunks (for the bar);
+    ``extra`` (kernel, inputs) runs over the same rows, chunk by chunk after the first."""
+    chunk = max(4096, n_rows // 64)
 
-    def facing(i, j, k):  # twice the projected area of triangle (i, j, k), along the quad's direction
-        return ((pu[:, j] - pu[:, i]) * (pv[:, k] - pv[:, i]) - (pv[:, j] - pv[:, i]) * (pu[:, k] - pu[:, i])) * sign
+    def work(lo: int, hi: int) -> None:
+        for a in range(lo, hi, chunk):
+            b = min(hi, a + chunk)
+            wp.launch(kernel, dim=b - a, inputs=[a, *inputs], device=dev)
+            if extra is not None:
+                wp.launch(extra[0], dim=b - a, inputs=[a, *extra[1]], device=dev)
+            bar.update(b - a)
 
-    good02 = np.minimum(facing(0, 1, 2), facing(0, 2, 3))
-    good13 = np.minimum(facing(1, 2, 3), facing(1, 3, 0))
-    pa = columns[axis][quads]
-    d02 = (pu[:, 2] - pu[:, 0]) ** 2 + (pv[:, 2] - pv[:, 0]) ** 2 + (pa[:, 2] - pa[:, 0]) ** 2
-    d13 = (pu[:, 3] - pu[:, 1]) ** 2 + (pv[:, 3] - pv[:, 1]) ** 2 + (pa[:, 3] - pa[:, 1]) ** 2
-    use02 = (good02 > 0) & ((good13 <= 0) | (d02 <= d13))
-    tris = np.empty((len(quads), 2, 3), dtype=C.INDEX_DTYPE)
-    tris[:, 0] = np.where(use02[:, None], quads[:, [0, 1, 2]], quads[:, [1, 2, 3]])
-    tris[:, 1] = np.where(use02[:, None], quads[:, [0, 2, 3]], quads[:, [1, 3, 0]])
-    return tris.reshape(-1, 3)
+    import warp as wp
+
+    run_parallel([partial(work, lo, hi) for lo, hi in parallel_ranges(n_rows, dev, min_per_worker=1024)])
+
+
+def _choose(present: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
+    """The meshed labels, the region ids (meshed labels and the rest's id, increasing) and the
+    rest's code, from the values present."""
+    from warpmesh.surface.volume import check_label_range, check_labels  # shared label checks
+
+    if isinstance(labels, str):
+        chosen = check_labels(labels, present[:0]) if labels != "all" else present[present != 0]
+        if len(chosen) == 0:
+            raise ValueError("expected some non-zero labels in 'volume' with labels=\"all\", got only 0")
+        check_label_range(chosen)
+        chosen = chosen.astype(np.int64)
+    else:
+        chosen = np.asarray(check_labels(labels, present[:0])).astype(np.int64)
+    missing = chosen[~np.isin(chosen, present.astype(np.int64))]
+    if len(missing):
+        raise ValueError(f"expected 'labels' present in 'volume', got {missing.tolist()} with no sample "
+                         f"equal to it (the volume holds {present.tolist()[:20]}): drop it from 'labels'")
+    rest_id = REST if REST not in chosen else int(chosen.min()) - 1
+    ids = np.unique(np.append(chosen, rest_id))
+    return chosen, ids, int(np.searchsorted(ids, rest_id))
+
+
+def _label_source(vol: np.ndarray, labels):
+    """What the kernels read: (flat array, mode, table, ids, rest, chosen). 8- and 16-bit
+    values are read in place through a table from each bit pattern to its code, made from
+    ``labels`` alone (with "all", every value of the dtype is a region id; ``chosen`` is
+    None and the values present are known after the first pass); wider values are coded
+    first (:func:`label_codes`), which checks ``labels`` against the volume."""
+    import warpmesh.kernels.flying_edges as KF
+    from warpmesh.surface.volume import check_label_range, check_labels  # shared label checks
+
+    small = vol.dtype.itemsize <= 2 and (vol.dtype == np.bool_ or np.issubdtype(vol.dtype, np.integer))
+    if not small:
+        codes, ids, rest = label_codes(vol, labels)
+        chosen = ids[np.arange(len(ids)) != rest]
+        if codes.dtype == np.int32:
+            return codes.reshape(-1), KF.LABEL_I32, np.zeros(1, dtype=np.int32), ids, rest, chosen
+        identity = np.arange(1 << (8 * codes.dtype.itemsize), dtype=np.int32)
+        return (codes.reshape(-1), KF.LABEL_U8 if codes.dtype == np.uint8 else KF.LABEL_U16, identity, ids, rest,
+                chosen)
+    unsigned = np.uint8 if vol.dtype.itemsize == 1 else np.uint16
+    values = np.arange(1 << (8 * vol.dtype.itemsize)).astype(unsigned).view(
+        vol.dtype if vol.dtype != np.bool_ else np.uint8).astype(np.int64)  # the value of each bit pattern
+    if isinstance(labels, str) and labels == "all":
+        chosen, ids = None, np.sort(values)
+        table = np.searchsorted(ids, values).astype(np.int32)
+        return vol.view(unsigned).reshape(-1), KF.LABEL_U8 if unsigned == np.uint8 else KF.LABEL_U16, table, ids, \
+            int(np.searchsorted(ids, 0)), None
+    chosen = np.asarray(check_labels(labels, vol[:0])).astype(np.int64)
+    check_label_range(chosen)
+    rest_id = REST if REST not in chosen else int(chosen.min()) - 1
+    ids = np.unique(np.append(chosen, rest_id))
+    rest = int(np.searchsorted(ids, rest_id))
+    table = np.full(len(values), rest, dtype=np.int32)
+    meshed = np.isin(values, chosen)
+    table[meshed] = np.searchsorted(ids, values[meshed])
+    return vol.view(unsigned).reshape(-1), KF.LABEL_U8 if unsigned == np.uint8 else KF.LABEL_U16, table, ids, rest, \
+        chosen
+
+
+def _present_labels(seen: np.ndarray, ids: np.ndarray, rest: int, chosen) -> np.ndarray:
+    """The meshed labels, from the codes the first pass met; the errors of :func:`label_codes`."""
+    met = ids[np.flatnonzero(seen[:len(ids)])]
+    if chosen is None:  # labels="all"
+        labels = met[met != ids[rest]]
+        if len(labels) == 0:
+            raise ValueError("expected some non-zero labels in 'volume' with labels=\"all\", got only 0")
+        return labels
+    missing = chosen[~np.isin(chosen, met)]
+    if len(missing):
+        raise ValueError(f"expected 'labels' present in 'volume', got {missing.tolist()} with no sample "
+                         f"equal to it (the volume holds {met[met != ids[rest]].tolist()[:20]} among the labels "
+                         "asked for): drop it from 'labels'")
+    return chosen
 
 
 def label_boundary(mesh, label: int):
