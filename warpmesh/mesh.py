@@ -65,8 +65,6 @@ def __getattr__(name: str):
 
 # ----------------------------------------------------------------------------- validation
 def _frozen(arr: np.ndarray) -> np.ndarray:
-    if arr.flags.owndata and not arr.flags.writeable:  # frozen already (another mesh's, or handed over): shared
-        return arr
     arr = np.array(arr, copy=True)
     arr.setflags(write=False)
     return arr
@@ -150,7 +148,7 @@ def _check_data(data, length: int, name: str, *, integer: bool = False) -> np.nd
         raise ValueError(f"expected {name} of length {length}, got shape {arr.shape}")
     if integer and arr.ndim != 1:
         raise ValueError(f"expected {name} of shape ({length},), got shape {arr.shape}")
-    return _frozen(arr.astype(INDEX_DTYPE, copy=False) if integer else arr)
+    return _frozen(arr.astype(INDEX_DTYPE) if integer else arr)
 
 
 def _check_mapping(value, name: str) -> Mapping:
@@ -695,14 +693,12 @@ class Mesh:
         return _convert.from_pyvista(obj, mesh_type=cls, triangulate=triangulate, dim=dim, info=info)
 
     # ---------------------------------------------------------------- pictures
-    def plot(self, path=None, *, window_size=(800, 600), show_edges: bool = False, camera=None, clip="auto",
-             scalars: str | None = None):
+    def plot(self, path=None, *, window_size=(800, 600), show_edges: bool = False, camera=None, clip="auto"):
         """An off-screen picture (pyvista/VTK, no display needed): shows itself in notebooks.
 
         See :func:`warpmesh.preview.render.render_png`; ``path`` (a .png) also writes it.
         Curves are drawn as ribbons, 2D meshes from above, volume meshes cut through the
-        middle (``clip``, :func:`warpmesh.preview.drawable.drawable`); ``scalars="ref"`` (or
-        a cell_data name) colours a surface's triangles by value.
+        middle (``clip``, :func:`warpmesh.preview.drawable.drawable`).
 
         Examples
         --------
@@ -713,8 +709,7 @@ class Mesh:
         """
         from warpmesh.preview.render import render_png
 
-        return render_png(self, path, window_size=window_size, show_edges=show_edges, camera=camera, clip=clip,
-                          scalars=scalars)
+        return render_png(self, path, window_size=window_size, show_edges=show_edges, camera=camera, clip=clip)
 
     def _repr_mimebundle_(self, include=None, exclude=None):
         """Jupyter: an interactive WebGL view (:func:`warpmesh.preview.render.mesh_mimebundle`)."""

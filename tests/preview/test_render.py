@@ -94,3 +94,20 @@ def test_cli_view_cuts_a_tet_mesh_unless_told_not_to(tmp_path):
         assert main(["view", str(tmp_path / "shell.vtu"), "--clip", clip, "-o", str(out)]) == 0
         sizes[clip] = len(out.read_text())
     assert sizes["auto"] != sizes["none"], "the cut page draws other triangles than the outside"
+
+
+def test_plot_colours_a_surface_by_its_labels(tmp_path):
+    vol = np.zeros((24, 24, 24), np.uint8)
+    g = np.indices(vol.shape)
+    ball = ((g - 12) ** 2).sum(0) < 80
+    vol[ball] = 1
+    vol[ball & (g[1] < 12)] = 2  # half the ball another label
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    plain = m.plot(window_size=(160, 160)).array.reshape(-1, 3)
+    coloured = m.plot(window_size=(160, 160), scalars="label_above").array.reshape(-1, 3)
+    hue = lambda px: np.unique((px[(np.abs(px.astype(int) - 255).sum(1) > 60)] // 64), axis=0)  # noqa: E731
+    assert len(hue(coloured)) > len(hue(plain)), "two labels above: two colours"
+    with pytest.raises(ValueError, match=r"Unknown scalars 'tissue'. Pick one of \['ref', 'label_above'\]"):
+        m.plot(scalars="tissue")
+    with pytest.raises(ValueError, match="no triangle refs"):
+        wm.mesh_surface(wm.sphere(1.0), bounds=BOUNDS, resolution=8).plot(scalars="ref")

@@ -183,7 +183,7 @@ def _headless_vtk() -> None:
 
 
 def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, show_edges: bool = False,
-               camera=None, clip="auto") -> RenderedImage:
+               camera=None, clip="auto", scalars: str | None = None) -> RenderedImage:
     """Render ``mesh`` off-screen with pyvista; write a PNG when ``path`` is given.
 
     Parameters
@@ -201,6 +201,10 @@ def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, 
         isometric view of the mesh, from above ("xy") for a 2D mesh.
     clip : "auto", "x", "y", "z", (normal, origin) or None
         The cut of a volume mesh (see :func:`warpmesh.preview.drawable.drawable`).
+    scalars : str, optional
+        Colour a triangle surface by a per-triangle array, one colour per distinct value:
+        "ref" (``cell_refs["triangle"]``) or the name of a ``cell_data`` array (e.g. the
+        interfaces' ``"label_above"``).
 
     Returns
     -------
@@ -209,6 +213,7 @@ def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, 
     w, h = (int(v) for v in window_size)
     if w <= 0 or h <= 0:
         raise ValueError(f"expected a positive 'window_size', got {window_size!r}")
+    values = None if scalars is None else _triangle_values(mesh, scalars)
     shown = drawable(mesh, clip=clip)
     pts, tri = shown.points, shown.triangles
     _headless_vtk()
@@ -219,7 +224,14 @@ def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, 
     plotter = pv.Plotter(off_screen=True, window_size=(w, h))
     try:
         plotter.set_background("white")
-        plotter.add_mesh(surf, color=tuple(color), show_edges=show_edges, smooth_shading=not shown.flat)
+        if values is None:
+            plotter.add_mesh(surf, color=tuple(color), show_edges=show_edges, smooth_shading=not shown.flat)
+        else:  # categories: value i of the sorted distinct values -> colour i of a qualitative map
+            codes = np.unique(values, return_inverse=True)[1].astype(np.float64)
+            surf.cell_data[scalars] = codes
+            plotter.add_mesh(surf, scalars=scalars, cmap="tab20", clim=(0.0, max(float(codes.max()), 1.0)),
+                             show_edges=show_edges, smooth_shading=not shown.flat, show_scalar_bar=False,
+                             preference="cell")
         plotter.camera_position = camera or ("xy" if shown.planar else "iso")
         image = RenderedImage(plotter.screenshot(return_img=True))
     finally:
@@ -227,6 +239,23 @@ def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, 
     if path is not None:
         image.save(path)
     return image
+
+
+def _triangle_values(mesh, scalars) -> np.ndarray:
+    """The per-triangle array ``scalars`` names ("ref" or a cell_data name)."""
+    if "triangle" not in mesh.cells or any(t in mesh.cells for t in ("tetra", "hexahedron", "wedge", "pyramid")):
+        raise ValueError("'scalars' colours the triangles of a surface mesh; this mesh has "
+                         f"{sorted(mesh.cells)} cells")
+    if scalars == "ref":
+        refs = mesh.cell_refs.get("triangle") if mesh.cell_refs else None
+        if refs is None:
+            raise ValueError("scalars='ref': the mesh has no triangle refs")
+        return np.asarray(refs)
+    data = (mesh.cell_data or {}).get(scalars)
+    if not isinstance(scalars, str) or data is None or "triangle" not in data:
+        names = sorted((mesh.cell_data or {}))
+        raise ValueError(f"Unknown scalars {scalars!r}. Pick one of {['ref', *names]}")
+    return np.asarray(data["triangle"])
 
 
 def _iframe(page: str, height: int = 420) -> str:
