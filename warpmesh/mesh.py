@@ -65,6 +65,8 @@ def __getattr__(name: str):
 
 # ----------------------------------------------------------------------------- validation
 def _frozen(arr: np.ndarray) -> np.ndarray:
+    if arr.flags.owndata and not arr.flags.writeable:  # frozen already (another mesh's, or handed over): shared
+        return arr
     arr = np.array(arr, copy=True)
     arr.setflags(write=False)
     return arr
@@ -148,7 +150,7 @@ def _check_data(data, length: int, name: str, *, integer: bool = False) -> np.nd
         raise ValueError(f"expected {name} of length {length}, got shape {arr.shape}")
     if integer and arr.ndim != 1:
         raise ValueError(f"expected {name} of shape ({length},), got shape {arr.shape}")
-    return _frozen(arr.astype(INDEX_DTYPE) if integer else arr)
+    return _frozen(arr.astype(INDEX_DTYPE, copy=False) if integer else arr)
 
 
 def _check_mapping(value, name: str) -> Mapping:
