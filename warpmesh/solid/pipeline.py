@@ -37,6 +37,7 @@ from warpmesh.solid.dihedral import tet_quality_summary
 from warpmesh.solid.flips import flip_tets
 from warpmesh.solid.hierarchical import mesh_tetgen
 from warpmesh.solid.features import DIHEDRAL_CEILING, DIHEDRAL_FLOOR, FEATURE_ANGLE, recover_features
+from warpmesh.solid.regions import mesh_regions
 from warpmesh.solid.smoothing import smooth_tets
 from warpmesh.solid.stuffing import ALPHA_LONG, ALPHA_SHORT, ROOT_ITERATIONS, stuff
 
@@ -51,14 +52,18 @@ CAP_TOLERANCE = 1.0e-4
 _FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
 
 
-def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: int = 0,
+def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smooth: int = 0,
                 features: bool = True, flips: bool = False, device: str = C.DEFAULT_DEVICE, **options) -> Mesh:
     """Mesh the domain {f > 0} inside ``bounds``: triangles in the plane, tetrahedra in 3D.
 
     Parameters
     ----------
-    shape : Shape or Expr
-        f > 0 inside. A planar shape with 2-value bounds gives a planar mesh
+    shape : Shape or Expr, or a label volume
+        f > 0 inside. A label volume (an integer array, a :class:`~warpmesh.io.images.Volume`,
+        a pyvista ImageData or an image path) gives conforming tetrahedra of its regions by
+        lattice cleaving (:func:`warpmesh.solid.regions.mesh_regions`, which takes
+        ``labels=``, ``size`` and ``snap``; no ``bounds``).
+        For a shape: a planar shape with 2-value bounds gives a planar mesh
         (:func:`warpmesh.planar.curves.mesh_domain`, whose options ``tolerance``,
         ``min_angle``, ``method`` ({'global', 'triangle'}) and ``boundary`` apply there).
     bounds : ((x0, y0, z0), (x1, y1, z1)) or ((x0, y0), (x1, y1))
@@ -122,8 +127,10 @@ def mesh_domain(shape, bounds, *, size=None, method: str | None = None, smooth: 
     >>> s["euler"], s["n_tetra"] > 10000, sorted(set(vol.cell_refs["triangle"].tolist()))
     (-6, True, [1])
     """
-    if not isinstance(shape, (Shape, Expr)):
-        raise TypeError(f"expected a Shape or an Expr for 'shape', got {type(shape).__name__}")
+    if not isinstance(shape, (Shape, Expr)):  # a label volume: its regions (lattice cleaving)
+        defaults = {"method": None, "smooth": 0, "features": True, "flips": False}
+        given = {k: v for k, v in zip(defaults, (method, smooth, features, flips)) if v is not defaults[k]}
+        return mesh_regions(shape, bounds, size=size, device=device, **given, **options)
     box = check_box(bounds)
     device = check_device(device)
     if box.shape[1] == 2:

@@ -1,0 +1,271 @@
+"""Multi-region tetrahedra of label volumes (warpmesh.solid.regions, issue 23 part 4)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from warpmesh.solid.dihedral import signed_volumes
+from warpmesh.solid.regions import mesh_regions
+
+_FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
+
+
+def _balls(n=40, radii=(14.0, 7.0), centre=None):
+    """Nested balls: label 1 the box, 2 the shell, 3 the core (voxel volumes known by count)."""
+    g = np.indices((n, n, n)).astype(float)
+    c = (n - 1) / 2.0 if centre is None else np.asarray(centre, float)[:, None, None, None]
+    r2 = ((g - c) ** 2).sum(axis=0)
+    vol = np.ones((n, n, n), np.int16)
+    for label, r in zip((2, 3), radii):
+        vol[r2 < r * r] = label
+    return vol
+
+
+def _two_balls(n=40):
+    """Two balls 5 voxels apart (labels 4 and 9) in background 0, and a slab of label 2 cutting both."""
+    g = np.indices((n, n, n)).astype(float)
+    vol = np.zeros((n, n, n), np.uint8)
+    vol[((g - np.array([11.0, 20, 20])[:, None, None, None]) ** 2).sum(0) < 7.5 ** 2] = 4
+    vol[((g - np.array([30.0, 20, 20])[:, None, None, None]) ** 2).sum(0) < 6.5 ** 2] = 9
+    vol[:, :, 30:36] = np.where(vol[:, :, 30:36] == 0, 2, vol[:, :, 30:36])
+    return vol
+
+
+def check_regions(m: wm.Mesh, rest: int) -> dict:
+    """Positive, conforming tetrahedra whose interfaces are exactly the triangles, oriented from
+    the lower label to the higher, and a closed outer boundary enclosing the tetrahedra's volume."""
+    pts, tets = m.points, m.cells["tetra"]
+    lab = m.cell_refs["tetra"]
+    tris = m.cells["triangle"]
+    lower, upper = m.cell_refs["triangle"], m.cell_data["label_above"]["triangle"]
+    vols = signed_volumes(pts, tets)
+    assert len(tets) and np.all(vols > 0), f"{int((vols <= 0).sum())} tetrahedra not positive"
+    assert np.all(lower < upper) and not np.any(lab == rest)
+    # every face of a tetrahedron: in one tet (the boundary with the rest) or two (interior or interface)
+    faces = np.concatenate([tets[:, list(f)] for f in _FACES])
+    owner = np.tile(np.arange(len(tets)), 4)
+    key = np.sort(faces, axis=1)
+    uniq, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    assert counts.max() <= 2, "a face in three tetrahedra or more: not conforming"
+    # the labels on either side of every face
+    side = np.full((len(uniq), 2), rest, np.int64)
+    order = np.argsort(inv, kind="stable")
+    first = np.ones(len(order), bool)
+    first[1:] = inv[order][1:] != inv[order][:-1]
+    side[inv[order][first], 0] = lab[owner[order][first]]
+    side[inv[order][~first], 1] = lab[owner[order][~first]]
+    side.sort(axis=1)
+    between = side[:, 0] != side[:, 1]
+    # the triangles are exactly the faces between two different regions, once each, with their labels
+    tkey = np.sort(tris, axis=1)
+    assert len(np.unique(tkey, axis=0)) == len(tris), "an interface triangle twice"
+    want = uniq[between]
+    assert len(want) == len(tris)
+    a = np.lexsort(want.T[::-1])
+    b = np.lexsort(tkey.T[::-1])
+    assert np.array_equal(want[a], tkey[b])
+    assert np.array_equal(side[between][a, 0], lower[b]) and np.array_equal(side[between][a, 1], upper[b])
+    # orientation: the tetrahedron of the higher label lies on the normal's side
+    n = len(pts)
+    assert n < 2**21
+    code = (key[:, 0] * n + key[:, 1]) * n + key[:, 2]
+    tcode = (tkey[:, 0] * n + tkey[:, 1]) * n + tkey[:, 2]
+    srt = np.argsort(tcode)
+    pos = np.minimum(np.searchsorted(tcode[srt], code), len(tcode) - 1)
+    hi_face = np.where(tcode[srt][pos] == code, srt[pos], -1)
+    sel = (hi_face >= 0) & (lab[owner] == upper[np.maximum(hi_face, 0)])
+    t = tris[hi_face[sel]]
+    d = pts[tets[owner[sel]]]
+    apex = d.sum(axis=1) - pts[t].sum(axis=1)  # the fourth vertex: the sum of four minus the three
+    p = pts[t]
+    det = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), apex - p[:, 0])
+    assert sel.sum() == len(tris) and np.all(det > 0), "a triangle not oriented from lower to higher"
+    # the boundary with the rest is closed and encloses the volume of the tetrahedra (no gap, no overlap)
+    outer = tris[lower == rest][:, ::-1]  # flipped: outward from the meshed domain
+    edges = np.concatenate([outer[:, [0, 1]], outer[:, [1, 2]], outer[:, [2, 0]]])
+    fwd = np.unique(edges, axis=0)
+    back = np.unique(edges[:, ::-1], axis=0)
+    assert np.array_equal(fwd, back), "the outer boundary is not closed and oriented"
+    q = pts[outer]
+    enclosed = np.einsum("ij,ij->i", q[:, 0], np.cross(q[:, 1], q[:, 2])).sum() / 6.0
+    assert abs(enclosed - vols.sum()) < 1e-8 * vols.sum()
+    return {"volume": vols.sum()}
+
+
+def test_two_slabs_exact_labels_and_conforming():
+    vol = np.zeros((20, 20, 20), np.uint8)
+    vol[3:10, 3:17, 3:17] = 1
+    vol[10:17, 3:17, 3:17] = 2
+    m = wm.mesh_domain(vol, labels="all", size=3.0)
+    check_regions(m, rest=0)
+    pairs = np.unique(np.column_stack([m.cell_refs["triangle"], m.cell_data["label_above"]["triangle"]]), axis=0)
+    assert pairs.tolist() == [[0, 1], [0, 2], [1, 2]]
+    for r in m.info["region_volumes"].values():
+        assert abs(r["error"]) < 0.05  # 7 x 14 x 14 voxels at h = 3: the box's edges are chamfered
+    assert m.info["negative_tets"] == 0
+
+
+@pytest.mark.parametrize("snap", [0.0, 0.2, 0.45])
+def test_nested_balls_volumes(snap):
+    vol = _balls(40, (14.0, 7.0))
+    m = mesh_regions(vol, labels="all", size=2.5, snap=snap)  # 1 (the box) is a label: nothing is rest
+    check_regions(m, rest=0)
+    assert sorted(m.info["region_volumes"]) == [1, 2, 3]
+    box = 40.0 ** 3
+    assert abs(sum(r["volume"] for r in m.info["region_volumes"].values()) - box) < 0.02 * box
+    for label, r in m.info["region_volumes"].items():
+        assert r["voxel_volume"] == float((vol == label).sum())
+        assert abs(r["error"]) < 0.05, (label, r)
+
+
+def test_snapping_raises_the_smallest_angle():
+    vol = _balls(40, (14.0, 7.0))
+    raw = mesh_regions(vol, size=3.0, snap=0.0)
+    snapped = mesh_regions(vol, size=3.0, snap=0.2)
+    assert snapped.info["snapped_cuts"] > 0 and raw.info["snapped_cuts"] == 0
+    assert snapped.info["dihedral_min"] > raw.info["dihedral_min"]
+
+
+def test_two_balls_and_a_slab_in_background():
+    vol = _two_balls()
+    m = wm.mesh_domain(vol, size=2.5)
+    check_regions(m, rest=0)
+    assert sorted(m.info["region_volumes"]) == [2, 4, 9]
+    for r in m.info["region_volumes"].values():
+        assert abs(r["error"]) < 0.06
+    # the two balls do not touch: no 4|9 interface
+    pairs = {tuple(p) for p in np.column_stack([m.cell_refs["triangle"], m.cell_data["label_above"]["triangle"]])}
+    assert (4, 9) not in pairs and (0, 2) in pairs and (0, 4) in pairs and (0, 9) in pairs
+
+
+def test_labels_subset_and_label_zero():
+    vol = _two_balls()
+    m = mesh_regions(vol, labels=[9], size=2.5)
+    check_regions(m, rest=0)
+    assert set(m.cell_refs["tetra"].tolist()) == {9}
+    assert set(m.cell_refs["triangle"].tolist()) == {0}
+    z = mesh_regions(vol, labels=[0, 4], size=3.0)  # 0 meshed: the rest is -1
+    check_regions(z, rest=-1)
+    assert set(z.cell_refs["tetra"].tolist()) == {0, 4} and z.info["rest"] == -1
+    assert {(-1, 0), (-1, 4), (0, 4)} >= set(map(tuple, np.column_stack(
+        [z.cell_refs["triangle"], z.cell_data["label_above"]["triangle"]]).tolist()))
+
+
+def test_volume_spacing_origin_and_reflection():
+    vol = _balls(32, (12.0, 7.0))
+    plain = mesh_regions(vol, size=3.0)
+    sp, org = (0.5, 0.5, 0.75), (10.0, -2.0, 3.0)
+    v = wm.Volume(vol, spacing=sp, origin=org)
+    m = wm.mesh_domain(v, size=1.25)  # 2.5 voxels along x, y
+    check_regions(m, rest=0)
+    lo, hi = m.points.min(axis=0), m.points.max(axis=0)
+    # the voxel box, to the snapping of cut points onto nodes (0.2 of an edge), the cut points'
+    # sampling and the face and tet points' pull inside (0.05 of the weights)
+    box_lo, box_hi = np.array(org) - 0.5 * np.array(sp), np.array(org) + (np.array(vol.shape) - 0.5) * np.array(sp)
+    np.testing.assert_allclose(lo, box_lo, atol=0.3 * 1.25)
+    np.testing.assert_allclose(hi, box_hi, atol=0.3 * 1.25)
+    core = m.cells["tetra"][m.cell_refs["tetra"] == 3]
+    np.testing.assert_allclose(m.points[core].reshape(-1, 3).mean(axis=0), 0.5 * (box_lo + box_hi), atol=0.1)
+    for label, r in m.info["region_volumes"].items():
+        assert r["voxel_volume"] == pytest.approx((vol == label).sum() * np.prod(sp))
+        assert abs(r["error"]) < 0.06
+    assert len(plain.cells["tetra"]) > 0
+    # a reflected direction: still positive tetrahedra, triangles still from lower to higher
+    flip = wm.Volume(vol, spacing=1.0, direction=np.diag([1.0, -1.0, 1.0]))
+    r = mesh_regions(flip, size=3.0)
+    check_regions(r, rest=0)
+    assert r.points[:, 1].max() <= 0.5 + 0.3 * 3.0 and r.points[:, 1].min() >= -31.5 - 0.3 * 3.0
+    np.testing.assert_allclose(r.stats()["volume"], plain.stats()["volume"], rtol=1e-9)
+
+
+def test_pyvista_image_and_file_give_the_array_mesh(tmp_path):
+    pv = pytest.importorskip("pyvista")
+    vol = _two_balls(24)
+    img = pv.ImageData(dimensions=vol.shape, spacing=(1.0, 1.0, 1.0))
+    img.point_data["labels"] = vol.ravel(order="F")
+    a = mesh_regions(vol, size=3.0)
+    b = wm.mesh_domain(img, size=3.0)
+    path = tmp_path / "labels.vti"
+    img.save(path)
+    c = wm.mesh_domain(str(path), size=3.0)
+    for m in (b, c):
+        np.testing.assert_allclose(m.points, a.points)
+        assert np.array_equal(m.cells["tetra"], a.cells["tetra"])
+        assert np.array_equal(m.cell_refs["tetra"], a.cell_refs["tetra"])
+
+
+def test_scikit_fem_solves_a_two_material_problem():
+    """-div(k grad u) = 0 in a box, k = 1 (label 1, x < 9.5) and k = 4 (label 2), u = 0 at x = -0.5
+    and u = 1 at x = 19.5: u is piecewise linear in x with the flux continuous; P1 on a mesh whose
+    interface is the plane (to the cut points' sampling) is near exact."""
+    skfem = pytest.importorskip("skfem")
+    from skfem.helpers import dot, grad
+
+    vol = np.ones((20, 12, 12), np.uint8)
+    vol[10:] = 2
+    m = mesh_regions(vol, size=2.0)
+    check_regions(m, rest=0)
+    mesh = skfem.MeshTet(m.points.T.copy(), m.cells["tetra"].T.copy())
+    basis = skfem.Basis(mesh, skfem.ElementTetP1())
+    k = np.where(m.cell_refs["tetra"] == 1, 1.0, 4.0)
+    kq = np.repeat(k[:, None], basis.X.shape[1], axis=1)  # per element, per quadrature point
+
+    @skfem.BilinearForm
+    def laplace(u, v, w):
+        return w.k * dot(grad(u), grad(v))
+
+    A = laplace.assemble(basis, k=kq)
+    x = m.points[:, 0]
+    left, right = np.flatnonzero(np.isclose(x, -0.5)), np.flatnonzero(np.isclose(x, 19.5))
+    assert len(left) and len(right)
+    u = np.zeros(len(x))
+    u[right] = 1.0
+    fixed = np.concatenate([left, right])
+    u = skfem.solve(*skfem.condense(A, np.zeros(len(x)), x=u, D=fixed))
+    # exact: slope s1 in label 1, s2 = s1 / 4 in label 2, s1 * 10 + s2 * 10 = 1
+    s1 = 1.0 / (10.0 + 2.5)
+    exact = np.where(x < 9.5, s1 * (x + 0.5), s1 * 10.0 + s1 / 4.0 * (x - 9.5))
+    assert np.max(np.abs(u - exact)) < 0.02
+
+
+def test_tetgen_accepts_the_outer_boundary():
+    tetgen = pytest.importorskip("tetgen")
+    vol = _balls(24, (9.0, 4.0))
+    vol[vol == 1] = 0
+    m = mesh_regions(vol, size=3.0)
+    outer = m.cells["triangle"][m.cell_refs["triangle"] == 0][:, ::-1]
+    used, inv = np.unique(outer, return_inverse=True)
+    tg = tetgen.TetGen(m.points[used], inv.reshape(-1, 3))
+    nodes, elems = tg.tetrahedralize(order=1)[:2]
+    vols = signed_volumes(nodes, elems)
+    assert np.all(vols > 0) or np.all(vols < 0)
+    np.testing.assert_allclose(np.abs(vols).sum(), m.stats()["volume"], rtol=1e-5)  # TetGen's float32 output
+
+
+def test_bad_input():
+    vol = _two_balls(16)
+    with pytest.raises(ValueError, match="whole-number"):
+        wm.mesh_domain(vol + 0.5, size=3.0)
+    with pytest.raises(ValueError, match="present in 'volume'"):
+        wm.mesh_domain(vol, labels=[4, 77], size=3.0)
+    with pytest.raises(ValueError, match="3D label array for 'volume'"):
+        wm.mesh_domain(vol[:, :, 0], size=3.0)
+    with pytest.raises(ValueError, match="'size'"):
+        wm.mesh_domain(vol, size=0.0)
+    with pytest.raises(ValueError, match="'size' below"):
+        wm.mesh_domain(vol, size=100.0)
+    with pytest.raises(ValueError, match="'snap'"):
+        wm.mesh_domain(vol, size=3.0, snap=0.5)
+    with pytest.raises(ValueError, match="no 'bounds'"):
+        wm.mesh_domain(vol, ((0, 0, 0), (1, 1, 1)), size=3.0)
+    with pytest.raises(ValueError, match="'smooth' is an option of a shape"):
+        wm.mesh_domain(vol, size=3.0, smooth=2)
+    with pytest.raises(TypeError, match="'volume'"):
+        wm.mesh_domain("not a volume object".split(), size=3.0)
+    with pytest.raises(TypeError, match="'volume'"):
+        wm.mesh_domain(object(), size=3.0)
+    floats = vol.astype(np.float32)  # whole-number floats are labels
+    assert len(wm.mesh_domain(floats, size=3.0).cells["tetra"]) == len(wm.mesh_domain(vol, size=3.0).cells["tetra"])

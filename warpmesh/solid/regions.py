@@ -1,0 +1,471 @@
+"""Multi-region tetrahedra of a label volume by lattice cleaving: ``mesh_domain(volume, labels=..., size=h)``.
+
+The approach, and why
+---------------------
+A label volume is piecewise constant: the region of label ``L`` is the union of the voxel
+boxes (centred on the samples) holding ``L``. Its tetrahedra come from the body-centred
+cubic lattice of isosurface stuffing (:func:`warpmesh.solid.lattice.lattice_tables`, cube
+side ``h``), cleaved by the labels (after Bronson, Levine & Whitaker's lattice cleaving):
+
+1. every lattice node takes the label of the voxel it lies in (the rest outside the box);
+   a background tetrahedron with one label stays whole, one of the rest is dropped;
+2. on each lattice edge whose two ends differ, one *cut point* where the label changes:
+   the labels are sampled along the edge (4 samples per voxel) and the cut sits at
+   ``(n_first + n_other / 2) / n`` of the edge (``n_first`` samples of the first end's
+   label, ``n_other`` of neither end's), so a single change lands within 1/8 voxel of the
+   voxel face and the volume between the two ends is shared as the samples say;
+3. a cut point within ``snap`` of the edge's length from a node is *snapped* onto that node
+   (the vertex-snapping half of lattice cleaving's warp): it removes the sliver the cut
+   would make, and the edge then belongs wholly to its other end's label;
+4. every lattice face with two or three labels gets a *face point*, every cleaved
+   tetrahedron a *tet point*: the mean of its cut points, pulled towards the face's
+   (tetrahedron's) centroid until every barycentric weight is at least ``INTERIOR`` (so
+   the point is strictly inside, even when cut points are snapped onto nodes);
+5. the sub-tetrahedra of a cleaved tetrahedron: a star from the tet point over its faces,
+   a mixed face triangulated as a fan from its face point over the polygon of nodes and cut
+   points (a face of one label stays one triangle). Each sub-tetrahedron takes the label of
+   the lattice node of its polygon segment; those of the rest are dropped, degenerate ones
+   (a segment snapped to a point) too.
+
+Everything in steps 2-5 is decided per edge and per face from that edge's or face's own
+nodes and labels (and the vertices are named by their edge and face), so the two
+tetrahedra on either side of a face cut it the same way: the mesh is conforming by
+construction, and every interface between two regions is a set of triangles shared by the
+tetrahedra of both. Every sub-tetrahedron is positive: the tet point is strictly inside,
+the face point strictly inside its face, and the polygon segments are non-degenerate
+pieces of the face's edges, in the face's counter-clockwise order.
+
+What is lost: a region thinner than about ``h`` that no lattice node lies in and that no
+edge changes label across (a label met only *between* two nodes of one other label) is
+missed; where an edge crosses three labels it gets one cut point, so the middle label's
+share goes half to each end. ``info["region_volumes"]`` reports each region's volume
+against its voxel volume, so a user sees what was missed.
+
+Quality: without snapping, a cut point near a node makes slivers; snapping (default
+``SNAP`` = 0.2 of the edge) removes the worst of them at the cost of moving the interface
+by at most that fraction of ``h`` locally. ``info`` holds the dihedral range after
+snapping, and ``benchmarks/bench_regions.py`` prints it against no snapping.
+
+Conventions (those of ``mesh_surface(..., interfaces="shared")``, :mod:`warpmesh.surface.multilabel`)
+-----------------------------------------------------------------------------------------------------
+- ``cell_refs["tetra"]``: the label of each tetrahedron (positive volume);
+- ``cells["triangle"]``: every triangle between two different regions (between two
+  labels, or a label and the rest, which is ``REST`` = 0 unless 0 is meshed, then
+  ``min(labels) - 1``); ``cell_refs["triangle"]`` the lower label,
+  ``cell_data["label_above"]["triangle"]`` the higher; each triangle's normal points from
+  the lower label's side to the higher's (so the boundary of the meshed domain, where the
+  rest is the lower label, points inward: flip the triangles naming ``L`` as the higher
+  label to get ``L``'s outward boundary, as :func:`warpmesh.surface.multilabel.label_boundary`
+  does for surfaces).
+
+Example
+-------
+>>> import numpy as np, warpmesh as wm
+>>> vol = np.zeros((20, 20, 20), dtype=np.uint8)
+>>> vol[3:10, 3:17, 3:17] = 1
+>>> vol[10:17, 3:17, 3:17] = 2
+>>> m = wm.mesh_domain(vol, labels="all", size=3.0)
+>>> sorted(set(m.cell_refs["tetra"].tolist())), m.info["negative_tets"]
+([1, 2], 0)
+>>> [round(r["volume"] / r["voxel_volume"], 2) for r in m.info["region_volumes"].values()]
+[1.0, 1.0]
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from warpmesh._util.validate import check_device
+from warpmesh.io.images import Volume, as_volume
+from warpmesh.mesh import Mesh
+from warpmesh.solid.dihedral import signed_volumes, tet_quality_summary
+from warpmesh.solid.lattice import lattice_tables
+from warpmesh.solid.stuffing import lattice_for
+from warpmesh.surface.multilabel import LABEL_ABOVE, label_codes
+
+__all__ = ["mesh_regions", "SNAP", "INTERIOR", "SAMPLES_PER_VOXEL"]
+
+#: a cut point within this fraction of its edge's length from a node is snapped onto the node
+SNAP = 0.2
+#: face and tet points keep every barycentric weight at least this (strictly inside)
+INTERIOR = 0.05
+#: label samples per voxel along a cut edge
+SAMPLES_PER_VOXEL = 4
+#: the default size, in voxels (the largest spacing)
+DEFAULT_VOXELS = 4.0
+
+_EDGES = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))
+_EDGE_OF = {frozenset(e): k for k, e in enumerate(_EDGES)}
+#: faces of a positive tetrahedron, counter-clockwise seen from outside
+_FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
+
+
+def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = SNAP, device: str = "cpu",
+                 **refused) -> Mesh:
+    """Conforming tetrahedra of the regions of a label volume (lattice cleaving).
+
+    What :func:`warpmesh.mesh_domain` runs when its first argument is a volume.
+
+    Parameters
+    ----------
+    volume : (nx, ny, nz) integer array, Volume, pyvista ImageData, str or os.PathLike
+        Labels; ``volume[i, j, k]`` fills the voxel box centred on ``origin + (i, j, k) *
+        spacing`` (a :class:`~warpmesh.io.images.Volume`, an image or a file brings its
+        spacing, origin and direction; a bare array has spacing 1 and origin 0). Floats are
+        taken when every value is a whole number.
+    bounds : None
+        A volume's extent is its samples; only shapes take bounds.
+    labels : "all" or sequence of int
+        The regions to mesh: "all" meshes every value but 0; a sequence meshes those values
+        (0 included when listed). The other samples and the outside of the box are the rest
+        (not meshed).
+    size : float, optional
+        The lattice's cube side (the long edges; short edges are sqrt(3)/2 of it), in world
+        units. Default: 4 times the largest spacing.
+    snap : float
+        Cut points within ``snap`` times their edge's length of a node are snapped onto it,
+        in [0, 0.5); 0 keeps every cut where the labels put it.
+    device : str
+
+    Returns
+    -------
+    Mesh
+        ``cells["tetra"]`` positive, ``cell_refs["tetra"]`` their labels; ``cells["triangle"]``
+        the interfaces and the domain's boundary with ``cell_refs["triangle"]`` (lower label)
+        and ``cell_data["label_above"]["triangle"]`` (higher label; for ``"tetra"`` the tetrahedron's own
+        label, as the Mesh wants one array per block), oriented from the lower
+        label's side to the higher's (the module docstring). ``info``: counts,
+        ``region_volumes`` (per label: ``volume``, ``voxel_volume``, ``error`` relative),
+        the dihedral range, timings.
+
+    Raises
+    ------
+    ValueError
+        A volume that is not 3D or holds non-integer values, ``labels`` not present,
+        ``size`` not positive or not below the volume's extent, ``snap`` outside [0, 0.5),
+        ``bounds`` or a shape-only option given.
+    TypeError
+        ``volume`` is not an array, a Volume, an image or a path.
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> vol = np.zeros((16, 16, 16), dtype=np.int16)
+    >>> vol[4:12, 4:12, 4:12] = 7
+    >>> m = mesh_regions(vol, size=2.0)
+    >>> set(m.cell_refs["tetra"].tolist()), set(m.cell_refs["triangle"].tolist()), round(m.stats()["volume"])
+    ({7}, {0}, 512)
+    """
+    t_start = time.perf_counter()
+    if refused:
+        raise ValueError(f"{sorted(refused)[0]!r} is an option of a shape's domain; a label volume takes "
+                         "'labels', 'size' and 'snap'")
+    if bounds is not None:
+        raise ValueError(f"expected no 'bounds' with a label volume (its extent is its samples), got {bounds!r}")
+    device = check_device(device)
+    image = _as_image(volume)
+    if isinstance(snap, bool) or not isinstance(snap, (int, float, np.integer, np.floating)) or not 0 <= snap < 0.5:
+        raise ValueError(f"expected 0 <= 'snap' < 0.5 (a fraction of the edge), got {snap!r}")
+    codes, ids, rest = label_codes(image.values, labels)
+    spacing = np.asarray(image.spacing, dtype=np.float64)
+    h = _check_size(size, image.values.shape, spacing)
+    timings: dict[str, float] = {}
+    points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
+    t0 = time.perf_counter()
+    vols = signed_volumes(points, tets)
+    quality = tet_quality_summary(points, tets, device)
+    timings["quality"] = time.perf_counter() - t0
+    region = {}
+    voxel = float(np.prod(spacing))
+    counts = np.bincount(codes.ravel(order="K"), minlength=len(ids))
+    meshed = np.bincount(tet_codes, weights=vols, minlength=len(ids))
+    for c, label in enumerate(ids.tolist()):
+        if c == rest:
+            continue
+        vv = float(counts[c]) * voxel
+        region[int(label)] = {"volume": float(meshed[c]), "voxel_volume": vv,
+                              "error": float(meshed[c] / vv - 1.0) if vv else math.nan}
+    # placement: world = origin + direction @ local
+    d = np.asarray(image.direction, dtype=np.float64)
+    points = points @ d.T + np.asarray(image.origin)
+    if np.linalg.det(d) < 0:  # a reflection turns every cell over: swap two vertices back
+        tets = tets[:, [0, 2, 1, 3]]
+        tris = tris[:, [0, 2, 1]]
+    timings["total"] = time.perf_counter() - t_start
+    info.update(quality, method="cleaving", size=h, snap=float(snap), labels=[int(v) for v in ids if v != ids[rest]],
+                rest=int(ids[rest]), region_volumes=region, time=timings, space=image.space,
+                region_error_max=max((abs(r["error"]) for r in region.values()), default=0.0))
+    return Mesh(points, {"tetra": tets, "triangle": tris},
+                cell_refs={"tetra": ids[tet_codes], "triangle": ids[lower]},
+                cell_data={LABEL_ABOVE: {"tetra": ids[tet_codes], "triangle": ids[upper]}}, info=info)
+
+
+# ----------------------------------------------------------------------------------- validation
+def _as_image(volume) -> Volume:
+    if isinstance(volume, np.ndarray) or (as_volume(volume) is None and hasattr(volume, "__array__")):
+        values = np.asarray(volume)
+        if values.ndim != 3:
+            raise ValueError(f"expected a 3D label array for 'volume', got {values.ndim}D with shape {values.shape}")
+        image = Volume(values)
+    else:
+        image = as_volume(volume)
+        if image is None:
+            raise TypeError("expected a label volume for 'volume' (an integer array, a wm.Volume, a pyvista "
+                            f"ImageData or an image path) or a Shape, got {type(volume).__name__}")
+    if not (np.issubdtype(image.values.dtype, np.number) or image.values.dtype == np.bool_):
+        raise TypeError(f"expected integer labels in 'volume', got dtype {image.values.dtype}")
+    try:
+        return image.as_labels()
+    except ValueError as exc:
+        raise ValueError(f"mesh_domain meshes the regions of a label 'volume': {exc}") from None
+
+
+def _check_size(size, shape, spacing: np.ndarray) -> float:
+    extent = float(np.min(np.asarray(shape) * spacing))
+    if size is None:
+        size = DEFAULT_VOXELS * float(spacing.max())
+    ok = isinstance(size, (int, float, np.integer, np.floating)) and not isinstance(size, bool) \
+        and math.isfinite(size) and size > 0
+    if not ok:
+        raise ValueError(f"expected a positive finite 'size' (the lattice's cube side, world units), got {size!r}")
+    if size >= extent:
+        raise ValueError(f"expected 'size' below the volume's smallest extent ({extent:g}), got {size!r}")
+    n = np.ceil(np.asarray(shape) * spacing / size) + 3
+    if 2 * np.prod(n) >= 2**31:
+        raise ValueError(f"a lattice of {n.astype(int).tolist()} cubes is too large to index: raise 'size' "
+                         f"(got {size!r})")
+    return float(size)
+
+
+# ----------------------------------------------------------------------------------- the lattice
+def _labels_at(codes: np.ndarray, local: np.ndarray, spacing: np.ndarray, rest: int) -> np.ndarray:
+    """The code of the voxel holding each local point (the rest outside the box)."""
+    ijk = np.rint(local / spacing).astype(np.int64)
+    shape = np.asarray(codes.shape)
+    inside = np.all((ijk >= 0) & (ijk < shape), axis=1)
+    out = np.full(len(local), rest, dtype=codes.dtype)
+    ii = ijk[inside]
+    out[inside] = codes[ii[:, 0], ii[:, 1], ii[:, 2]]
+    return out
+
+
+def _node_positions(dims: np.ndarray, origin: np.ndarray, h: float, nodes: np.ndarray) -> np.ndarray:
+    cell, colour = nodes // 2, nodes % 2
+    c = np.stack([cell % dims[0], (cell // dims[0]) % dims[1], cell // (dims[0] * dims[1])], axis=1)
+    return origin + h * (c + 0.5 * colour[:, None])
+
+
+def _background_tets(dims: np.ndarray, node_code: np.ndarray, rest: int, chunk: int = 32768):
+    """The background tetrahedra holding a node of a meshed label: (m, 4) node ids, positive."""
+    from scipy.ndimage import binary_dilation
+
+    layout = lattice_tables()[0].astype(np.int64)  # (12, 4, (colour, dx, dy, dz))
+    colour, off = layout[:, :, 0], layout[:, :, 1:]
+    # the tetrahedra of black node B(c) have their nodes in the cells c + {-1, 0, 1}^3: only the
+    # cells next to a meshed node are visited
+    grid = (node_code.reshape(-1, 2) != rest).any(axis=1).reshape(dims[::-1])
+    cells = np.flatnonzero(binary_dilation(grid, structure=np.ones((3, 3, 3), bool)).ravel())
+    out = []
+    for a in range(0, len(cells), chunk):  # a loop over batches of cells, not over tetrahedra
+        cell = cells[a:a + chunk]
+        c = np.stack([cell % dims[0], (cell // dims[0]) % dims[1], cell // (dims[0] * dims[1])], axis=1)
+        cc = c[:, None, None, :] + off[None]  # (k, 12, 4, 3)
+        limit = dims[None, None, None, :] - colour[None, :, :, None]
+        ok = np.all((cc >= 0) & (cc < limit), axis=(2, 3))
+        ids = 2 * (cc[..., 0] + dims[0] * (cc[..., 1] + dims[1] * cc[..., 2])) + colour[None]
+        ids = ids[ok]
+        keep = np.any(node_code[ids] != rest, axis=1)
+        out.append(ids[keep])
+    return np.concatenate(out) if out else np.zeros((0, 4), np.int64)
+
+
+def _edge_cuts(codes, rest, spacing, p_lo, p_hi, c_lo, c_hi, chunk: int = 65536) -> np.ndarray:
+    """(e,) the parameter of the label change along each edge p_lo -> p_hi."""
+    n = max(4, int(math.ceil(SAMPLES_PER_VOXEL * np.max(np.linalg.norm(p_hi - p_lo, axis=1), initial=0.0)
+                             / float(spacing.min()))))
+    s = (np.arange(n) + 0.5) / n
+    t = np.empty(len(p_lo))
+    for a in range(0, len(p_lo), chunk):
+        lo, hi = p_lo[a:a + chunk], p_hi[a:a + chunk]
+        pts = lo[:, None, :] + s[None, :, None] * (hi - lo)[:, None, :]
+        lab = _labels_at(codes, pts.reshape(-1, 3), spacing, rest).reshape(len(lo), n)
+        first = (lab == c_lo[a:a + chunk, None]).sum(axis=1)
+        last = (lab == c_hi[a:a + chunk, None]).sum(axis=1)
+        t[a:a + chunk] = (first + 0.5 * (n - first - last)) / n
+    return np.clip(t, 0.5 / n, 1.0 - 0.5 / n)
+
+
+def _interior(w: np.ndarray) -> np.ndarray:
+    """Barycentric weights (k, m) pulled towards the centroid until each is >= INTERIOR."""
+    m = w.shape[1]
+    low = w.min(axis=1, keepdims=True)
+    gap = 1.0 / m - low
+    lam = np.clip((INTERIOR - low) / np.where(gap > 0, gap, 1.0), 0.0, 1.0)
+    return (1.0 - lam) * w + lam / m
+
+
+# ----------------------------------------------------------------------------------- cleaving
+def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings: dict | None = None):
+    """Tetrahedra of every region of ``codes`` but ``rest`` (local coordinates: sample i at i * spacing).
+
+    Returns
+    -------
+    points : (n, 3) float64
+    tets : (m, 4) int64, positive
+    tet_codes : (m,) the code of each tetrahedron
+    triangles : (k, 3) int64, oriented from the lower code's side to the higher's
+    lower, upper : (k,) codes on either side
+    info : dict of counts
+    """
+    timings = {} if timings is None else timings
+    spacing = np.asarray(spacing, dtype=np.float64)
+    t0 = time.perf_counter()
+    shape = np.asarray(codes.shape)
+    box = np.array([-0.5 * spacing, (shape - 0.5) * spacing])
+    dims, origin = lattice_for(box, h)
+    n_nodes = 2 * int(np.prod(dims))
+    node_pos = _node_positions(dims, origin, h, np.arange(n_nodes))
+    node_code = _labels_at(codes, node_pos, spacing, rest)
+    bg = _background_tets(dims, node_code, rest)
+    lab = node_code[bg]
+    mixed = np.any(lab != lab[:, :1], axis=1)
+    whole, whole_code = bg[~mixed], lab[~mixed, 0]
+    T, L = bg[mixed], lab[mixed]
+    timings["lattice"] = time.perf_counter() - t0
+
+    # -- cut points, one per edge with two labels (named by the edge)
+    t0 = time.perf_counter()
+    M = len(T)
+    ei = np.array([e[0] for e in _EDGES]), np.array([e[1] for e in _EDGES])
+    a_, b_ = T[:, ei[0]], T[:, ei[1]]  # (M, 6)
+    cut = L[:, ei[0]] != L[:, ei[1]]
+    lo, hi = np.minimum(a_, b_), np.maximum(a_, b_)
+    keys, edge_of = np.unique((lo * n_nodes + hi)[cut], return_inverse=True)
+    e_lo, e_hi = keys // n_nodes, keys % n_nodes
+    t = _edge_cuts(codes, rest, spacing, node_pos[e_lo], node_pos[e_hi], node_code[e_lo], node_code[e_hi])
+    snapped_lo, snapped_hi = t < snap, t > 1.0 - snap
+    ts = np.where(snapped_lo, 0.0, np.where(snapped_hi, 1.0, t))
+    cut_vertex = np.where(snapped_lo, e_lo, np.where(snapped_hi, e_hi, n_nodes + np.arange(len(keys))))
+    cut_id = np.full((M, 6), -1, np.int64)
+    cut_id[cut] = edge_of.ravel()
+    timings["cuts"] = time.perf_counter() - t0
+
+    # -- face points (named by the face's nodes) and tet points: means of the (snapped) cuts, inside
+    t0 = time.perf_counter()
+    n_cuts = len(keys)
+
+    def weights_on(corners, edges):
+        """Barycentric weights over ``corners`` (local vertex indices) of the mean of the cuts on
+        ``edges`` (local edge indices) of each row."""
+        w = np.zeros((M, len(corners)))
+        n = np.zeros((M, 1))
+        for k in edges:
+            i, j = _EDGES[k]
+            e = cut_id[:, k]
+            on = e >= 0
+            te = np.where(on, ts[np.maximum(e, 0)], 0.0)
+            # ts is along lo -> hi; local i is lo when its node id is the smaller
+            t_j = np.where(T[:, i] < T[:, j], te, 1.0 - te)
+            w[:, corners.index(i)] += np.where(on, 1.0 - t_j, 0.0)
+            w[:, corners.index(j)] += np.where(on, t_j, 0.0)
+            n[:, 0] += on
+        return _interior(w / np.maximum(n, 1.0))
+
+    face_vertex = np.full((M, 4), -1, np.int64)
+    face_w, face_nodes = [], []
+    face_keys = []
+    for f, face in enumerate(_FACES):
+        fl = L[:, list(face)]
+        fm = np.any(fl != fl[:, :1], axis=1)
+        edges = [_EDGE_OF[frozenset((face[q], face[(q + 1) % 3]))] for q in range(3)]
+        w = weights_on(list(face), edges)
+        s = np.sort(T[:, list(face)], axis=1)
+        face_keys.append(np.where(fm[:, None], s, -1))
+        face_w.append(w)
+        face_nodes.append(T[:, list(face)])
+    fk = np.stack(face_keys, axis=1)  # (M, 4, 3)
+    mixed_face = fk[..., 0] >= 0
+    rows = fk[mixed_face]
+    if len(rows):
+        if n_nodes < 2**21:
+            _, first, inv = np.unique((rows[:, 0] * n_nodes + rows[:, 1]) * n_nodes + rows[:, 2],
+                                      return_index=True, return_inverse=True)
+        else:
+            _, first, inv = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+    else:
+        first, inv = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    n_faces = len(first)
+    face_vertex[mixed_face] = n_nodes + n_cuts + inv.ravel()
+    fw = np.stack(face_w, axis=1)[mixed_face][first]  # one representative per face
+    fn = np.stack(face_nodes, axis=1)[mixed_face][first]
+    face_pos = np.einsum("kv,kvd->kd", fw, node_pos[fn])
+    tw = weights_on([0, 1, 2, 3], range(6))
+    tet_pos = np.einsum("kv,kvd->kd", tw, node_pos[T])
+    tet_vertex = n_nodes + n_cuts + n_faces + np.arange(M)
+    cut_pos = (1.0 - t)[:, None] * node_pos[e_lo] + t[:, None] * node_pos[e_hi]
+    timings["points"] = time.perf_counter() - t0
+
+    # -- sub-tetrahedra: star from the tet point over the faces, fans from the face points
+    t0 = time.perf_counter()
+    sub, sub_code, tris, tri_lo, tri_hi = [], [], [], [], []
+    for f, face in enumerate(_FACES):
+        fv = face_vertex[:, f]
+        uni = fv < 0
+        sub.append(np.column_stack([tet_vertex[uni], T[uni][:, list(face)]]))
+        sub_code.append(L[uni, face[0]])
+        mx = np.flatnonzero(~uni)
+        # the face's polygon as 6 segment slots, counter-clockwise: (k, x) and (x, k') per edge k -> k',
+        # x the edge's cut point (a node when snapped or uncut); each labelled by its lattice node
+        start, end, code = (np.empty((len(mx), 6), np.int64) for _ in range(3))
+        for q in range(3):
+            k, k2 = face[q], face[(q + 1) % 3]
+            e = cut_id[mx, _EDGE_OF[frozenset((k, k2))]]
+            x = np.where(e >= 0, cut_vertex[np.maximum(e, 0)], T[mx, k2])
+            start[:, 2 * q], end[:, 2 * q], code[:, 2 * q] = T[mx, k], x, L[mx, k]
+            start[:, 2 * q + 1], end[:, 2 * q + 1], code[:, 2 * q + 1] = x, T[mx, k2], L[mx, k2]
+        valid = start != end  # a segment snapped to a point is no segment
+        tp, fp = tet_vertex[mx], fv[mx]
+        r, c = np.nonzero(valid)
+        sub.append(np.column_stack([tp[r], fp[r], start[r, c], end[r, c]]))
+        sub_code.append(code[r, c])
+        # the next valid slot after each (cyclically): where their codes differ, the triangle
+        # (tet point, face point, shared point) lies between two regions
+        nxt = np.zeros_like(start)
+        for d in range(5, 0, -1):
+            cols = (np.arange(6) + d) % 6
+            nxt = np.where(valid[:, cols], cols[None, :], nxt)
+        cn = np.take_along_axis(code, nxt, axis=1)
+        r, c = np.nonzero(valid & (code != cn))
+        lower_first = code[r, c] < cn[r, c]
+        # (tp, fp, end) is the outward face of the slot's sub-tetrahedron (tp, fp, start, end)
+        tris.append(np.where(lower_first[:, None], np.column_stack([tp[r], fp[r], end[r, c]]),
+                             np.column_stack([tp[r], end[r, c], fp[r]])))
+        tri_lo.append(np.minimum(code[r, c], cn[r, c]))
+        tri_hi.append(np.maximum(code[r, c], cn[r, c]))
+    sub = np.concatenate(sub)
+    sub_code = np.concatenate(sub_code)
+    triangles = np.concatenate(tris)
+    lower, upper = np.concatenate(tri_lo), np.concatenate(tri_hi)
+    keep = sub_code != rest
+    tets = np.concatenate([whole, sub[keep]])
+    tet_codes = np.concatenate([whole_code, sub_code[keep]]).astype(np.int64)
+    timings["cleave"] = time.perf_counter() - t0
+
+    # -- compact the vertex ids
+    t0 = time.perf_counter()
+    all_pos = np.concatenate([node_pos, cut_pos, face_pos, tet_pos])
+    used = np.zeros(len(all_pos), bool)
+    used[tets.ravel()] = True
+    used[triangles.ravel()] = True
+    new_id = np.cumsum(used) - 1
+    points = all_pos[used]
+    tets_out = new_id[tets]
+    tris_out = new_id[triangles]
+    timings["compact"] = time.perf_counter() - t0
+    info = {"lattice": tuple(int(x) for x in dims), "background_tets": int(len(bg)), "whole_tets": int(len(whole)),
+            "cleaved_tets": int(M), "cut_edges": int(n_cuts), "snapped_cuts": int(snapped_lo.sum() + snapped_hi.sum()),
+            "face_points": int(n_faces), "n_interface_triangles": int(len(tris_out))}
+    return points, tets_out, tet_codes, tris_out, lower.astype(np.int64), upper.astype(np.int64), info
