@@ -375,6 +375,39 @@ def test_bad_input_is_named(sphere_mc):
         wm.optimize(fan, shape)
 
 
+def test_degenerate_far_and_out_of_range_input_is_refused_in_seconds(sphere_mc):
+    """Issue 19 item 5: inputs that hung optimize or simplify get a clear error naming the
+    argument (each call here takes about a second)."""
+    shape, bounds = wm.example("sphere")
+    small = wm.mesh_surface(shape, bounds=bounds, resolution=8, method="mc")  # 440 triangles
+    pts, tri = small.points, small.triangles
+    for run in (wm.optimize, wm.simplify):
+        # a cell with a repeated vertex, which Mesh accepts (files carry collapsed cells)
+        with pytest.raises(ValueError, match="'mesh'.*triangle 440, vertices \\[0, 1, 0\\]"):
+            run(wm.Mesh(pts, {"triangle": np.vstack([tri, [[0, 1, 0]]])}), shape)
+        with pytest.raises(ValueError, match="non-zero area"):
+            run(wm.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 0]]}))
+        # many points moved onto one: flat triangles
+        p = pts.copy()
+        p[: len(p) // 3] = p[0]
+        with pytest.raises(ValueError, match="non-zero area"):
+            run(wm.Mesh(p, {"triangle": tri}), shape)
+        for scale in (1e-150, 1e150):
+            with pytest.raises(ValueError, match="'mesh' whose extent"):
+                run(small.transform(wm.transforms.dilation(scale, dim=3)))
+        # a strip far from the shape: refused by the distance check, naming the default tolerance
+        strip = wm.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]]) + 100,
+                        {"triangle": [[0, 1, 2], [1, 3, 2]]})
+        with pytest.raises(ValueError, match="'shape'.*the default"):
+            run(strip, shape)
+    # a size whose unit mesh would not fit in memory
+    with pytest.raises(wm.SizeError, match="'size'"):
+        wm.optimize(small, shape, size=1e-6)
+    # the limits are the range's ends: 1e-50 still works
+    tiny = wm.optimize(small.transform(wm.transforms.dilation(1e-50, dim=3)), iterations=1)
+    assert tiny.stats()["watertight"] and tiny.stats()["q_worst"] < small.stats()["q_worst"]
+
+
 def test_surface_sample_points_cover_vertices_midpoints_centroids():
     pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
     s = surface_sample_points(pts, np.array([[0, 1, 2]]))

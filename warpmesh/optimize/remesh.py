@@ -57,8 +57,9 @@ from warpmesh._conventions import CAP_REF, SURFACE_REF
 from warpmesh.cells.quality import quality_table
 from warpmesh.cells.types import MeshLike, require_mesh
 from warpmesh.optimize.sizing import GRADATION, graded, size_field
-from warpmesh.cells.topology import is_edge_manifold
+from warpmesh.cells.topology import degenerate_faces, is_edge_manifold
 from warpmesh.errors import TopologyError
+from warpmesh._util.budget import check_budget
 
 __all__ = ["optimize", "simplify"]
 
@@ -609,7 +610,21 @@ class _Run:
 FAR_FROM_TARGET = 4.0
 
 
-def _check_on_target(target, points: np.ndarray, tolerance: float) -> None:
+#: bytes optimize holds per output triangle (the surface, its topology, the checks' copies)
+BYTES_PER_TRIANGLE = 1000
+
+
+def _check_output_size(hfield, points: np.ndarray, area: float, size) -> None:
+    """Refuse a size field whose unit mesh (about 4 area / (sqrt(3) h^2) triangles) would
+    not fit the memory budget (:mod:`warpmesh._util.budget`)."""
+    h = np.asarray(hfield(points), dtype=float)
+    expected = 4.0 * area * float(np.mean(1.0 / h ** 2)) / np.sqrt(3.0) if np.all(h > 0) else np.inf
+    check_budget(BYTES_PER_TRIANGLE * expected,
+                 f"optimize(size={size!r}) (about {expected:.3g} triangles for an area of {area:.3g})",
+                 "pass a larger 'size'")
+
+
+def _check_on_target(target, points: np.ndarray, tolerance: float, *, given: bool = True) -> None:
     """Refuse a mesh that does not lie on the target (a sphere's mesh given a torus):
     projecting it would not optimise it but replace it."""
     d = target.estimate(points)
@@ -619,8 +634,24 @@ def _check_on_target(target, points: np.ndarray, tolerance: float) -> None:
     median = float(np.median(d))
     if median > FAR_FROM_TARGET * tolerance:
         raise ValueError(f"expected a mesh of 'shape': half its vertices lie farther than {median:.3g} from "
-                         f"f = 0, {median / tolerance:.1f} tolerances ({tolerance:.3g}); pass the shape it was "
-                         "meshed from, or a larger 'tolerance'")
+                         f"f = 0, {median / tolerance:.1f} tolerances "
+                         f"({'' if given else 'the default, '}{tolerance:.3g}); pass the shape it was meshed from, "
+                         "or a larger 'tolerance'")
+
+
+#: the extent of a mesh that optimize and simplify take: Q_K squares squared lengths, which
+#: must stay within float64's range (1e-308..1e308) for every edge of the mesh
+SCALE_RANGE = (1e-60, 1e60)
+
+
+def _check_scale(points: np.ndarray) -> None:
+    """Refuse a mesh too small or too large for Q_K in float64 (scale it first)."""
+    lo, hi = SCALE_RANGE
+    extent = float(np.max(np.ptp(points, axis=0)))
+    size = float(np.max(np.abs(points)))
+    if not (lo <= extent and size <= hi):
+        raise ValueError(f"expected a 'mesh' whose extent lies within [{lo:g}, {hi:g}], got extent {extent:.3g} and "
+                         f"largest coordinate {size:.3g}; scale it into that range first (mesh.transform)")
 
 
 def _run_setup(mesh: MeshLike, shape, bounds, size, tolerance, features, angle, fraction, simplifying):
@@ -633,16 +664,26 @@ def _run_setup(mesh: MeshLike, shape, bounds, size, tolerance, features, angle, 
     if not (0.0 < angle < 180.0):
         raise ValueError(f"expected 0 < 'angle' < 180 degrees, got {angle!r}")
 
-    if not is_edge_manifold(tri):
-        raise TopologyError("expected an edge-manifold triangle mesh (no edge in more than two triangles)")
     used = np.unique(tri)
     pts = mesh.points
+    _check_scale(pts[used])
+    # a repeated vertex or a zero area: no operator can shape such a triangle (and Mesh
+    # accepts them: files carry collapsed cells)
+    flat = degenerate_faces(pts, tri)
+    if flat.any():
+        i = int(np.flatnonzero(flat)[0])
+        raise ValueError(f"expected triangles of non-zero area in 'mesh', got {int(flat.sum())} degenerate ones "
+                         f"(the first: triangle {i}, vertices {tri[i].tolist()}); weld coincident points "
+                         "(merge) and drop flat triangles first")
+    if not is_edge_manifold(tri):
+        raise TopologyError("expected an edge-manifold triangle mesh (no edge in more than two triangles)")
     e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
     mean_edge = float(np.linalg.norm(pts[e[:, 0]] - pts[e[:, 1]], axis=1).mean())
     target = as_target(shape, bounds=bounds, reference=(pts, tri))
     area = float(np.linalg.norm(np.cross(pts[tri[:, 1]] - pts[tri[:, 0]], pts[tri[:, 2]] - pts[tri[:, 0]]),
                                 axis=1).sum() / 2)
     unit = np.sqrt(4.0 * area / (np.sqrt(3.0) * len(tri)))  # edge of a unit mesh with as many triangles
+    tolerance_given = tolerance is not None
     if tolerance is None:
         if simplifying and isinstance(target, VolumeField):
             tolerance = float(target.spacing.min())  # a sampled surface is known to about a sample
@@ -655,8 +696,6 @@ def _run_setup(mesh: MeshLike, shape, bounds, size, tolerance, features, angle, 
             tolerance = 0.1 * mean_edge
     if not np.isfinite(tolerance) or tolerance <= 0:
         raise ValueError(f"expected a positive 'tolerance', got {tolerance!r}")
-    if isinstance(target, FunctionTarget):
-        _check_on_target(target, pts[used], tolerance)
     extent = float(np.linalg.norm(pts[used].max(0) - pts[used].min(0)))
     if simplifying:
         lo = mean_edge
@@ -672,6 +711,10 @@ def _run_setup(mesh: MeshLike, shape, bounds, size, tolerance, features, angle, 
         # default: the edge length of a unit mesh with as many triangles as the input
         hfield = size_field(unit if size is None else size, target, tolerance=tolerance,
                             limits=(1e-3 * mean_edge, extent))
+    if not simplifying:
+        _check_output_size(hfield, pts[used], area, size)
+    if isinstance(target, FunctionTarget):
+        _check_on_target(target, pts[used], tolerance, given=tolerance_given)
     refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
     if refs is not None and target.bounds is not None and set(np.unique(refs)) <= {SURFACE_REF, CAP_REF}:
         refs = None  # cap refs are recomputed on the recovered cap edges (see _cap_refs)
@@ -898,7 +941,10 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
     Parameters
     ----------
     mesh : Mesh
-        A 3D triangle mesh (closed or open, edge-manifold).
+        A 3D triangle mesh (closed or open, edge-manifold), without a triangle of zero
+        area or with a repeated vertex, of an extent within ``SCALE_RANGE`` (1e-60..1e60:
+        Q_K squares squared lengths), lying on ``shape`` (half its vertices within
+        ``FAR_FROM_TARGET`` tolerances): each is refused with a ValueError naming it.
     shape : Shape, Expr, VolumeField or None
         The exact surface f = 0 (f > 0 inside). None: the input mesh itself is the
         reference (closest-point projection).
@@ -909,7 +955,9 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
         Target edge length: constant (default: that of a unit mesh with as many triangles
         as the input), from
         the curvature so that the chord deviation stays below ``tolerance``, or
-        ``h(points) -> (n,)``.
+        ``h(points) -> (n,)``. A size whose unit mesh would not fit the memory budget
+        (``BYTES_PER_TRIANGLE`` per triangle, :mod:`warpmesh._util.budget`) raises
+        :class:`~warpmesh.errors.SizeError` before any work.
     tolerance : float, optional
         Largest distance from the surface (at face centroids and edge midpoints) that a
         collapse, flip or move may leave (default 0.25 x the target edge length; 0.1 x the
