@@ -145,10 +145,13 @@ def test_no_private_name_taken_from_another_subpackage():
 
 
 def test_kernels_import_no_host_code():
+    """Kernels import kernels, and at most a leaf helper of ``_util`` that imports nothing of
+    warpmesh (the cache-folder rule, shared with the host caches)."""
     mods, edges, _ = _graph()
     for mod in mods:
         if mod.startswith("warpmesh.kernels"):
-            assert all(t.startswith("warpmesh.kernels") for t in edges[mod]), (mod, edges[mod])
+            assert all(t.startswith("warpmesh.kernels") or (t.startswith("warpmesh._util.") and not edges.get(t))
+                       for t in edges[mod]), (mod, edges[mod])
 
 
 def test_cells_is_the_bottom_layer():
