@@ -39,9 +39,10 @@ def test_the_rule_in_its_order(clean_env, tmp_path):
 
 
 def test_every_cache_follows_the_rule(clean_env, tmp_path):
+    from warpmesh.kernels import table_cache
+
     from warpmesh.frep import codegen
     from warpmesh.io import formats
-    from warpmesh.kernels import table_cache
 
     clean_env.setenv("XDG_CACHE_HOME", str(tmp_path))
     root = tmp_path / "warpmesh"

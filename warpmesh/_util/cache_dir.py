@@ -33,7 +33,7 @@ import uuid
 import warnings
 from pathlib import Path
 
-__all__ = ["cache_root", "writable_cache_dir", "ENV_VAR"]
+__all__ = ["ENV_VAR", "cache_root", "writable_cache_dir"]
 
 #: the environment variable that overrides every other rule
 ENV_VAR = "WARPMESH_CACHE_DIR"

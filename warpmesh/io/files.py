@@ -11,7 +11,11 @@ ext     format   cells                          besides points (precision) and c
 .msh    gmsh     all                            gmsh 2.2 binary: cell refs as
                                                 gmsh:physical (= gmsh:geometrical),
                                                 point refs and point data, cell data
-                                                only with a single block
+                                                only with a single block; refs named
+                                                (region_3, ref_2); surfaces of label
+                                                interfaces: gmsh 4.1 binary with a
+                                                group per label and per interface,
+                                                refs only (:mod:`~warpmesh.io.gmsh_groups`)
 .mesh   medit    line tri quad tetra pyramid    point refs, cell refs (Medit ascii,
                  wedge hexahedron               17 digits); 2D kept 2D
 .ply    ply      triangle quad                  point and cell refs (``ref``), point and
@@ -69,6 +73,7 @@ from meshio._helpers import reader_map
 
 from warpmesh.io.convert import GMSH_GEO, GMSH_REF, from_meshio, set_dim, to_meshio
 from warpmesh.io.formats import format_support, meshio_extensions
+from warpmesh.io.gmsh_groups import LABEL_ABOVE, ref_names, restore_refs, uses_groups, write_msh41
 from warpmesh.io.ply import read_ply, write_ply
 from warpmesh.errors import ReadError
 
@@ -105,7 +110,7 @@ class _Format:
     tidy: Callable[[meshio.Mesh], None] = _no_tidy  # on load: drop what meshio invents
     folder: bool = False  # written in a temporary folder (writers that add side files: .h5, .ele)
     read: Callable[[str], meshio.Mesh] | None = None  # warpmesh's own reader (default: meshio's)
-    write: Callable[..., object] | None = None  # warpmesh's own writer: (path, meshio.Mesh, **write_kwargs)
+    write: Callable[..., object] | None = None  # warpmesh's own: (path, meshio.Mesh, mesh, **write_kwargs)
 
 
 _FORMATS: dict[str, _Format] = {}  # name -> format, in registration order
@@ -186,7 +191,12 @@ def _medit_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
 
 
 def _gmsh_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
-    """Cell refs become gmsh:physical = gmsh:geometrical; cell data only with one block."""
+    """Cell refs become gmsh:physical = gmsh:geometrical; cell data only with one block. A
+    mesh of labels, interfaces or regions (:func:`~warpmesh.io.gmsh_groups.uses_groups`)
+    keeps its refs as named groups and nothing else."""
+    if uses_groups(mesh):
+        kept = (REF_KEY, LABEL_ABOVE)
+        return {}, {k: v for k, v in cd.items() if k in kept}, [*pd, *(k for k in cd if k not in kept)]
     dropped = []
     if len(mesh.cells) > 1:
         dropped += [k for k in cd if k != REF_KEY]  # meshio cannot read them back
@@ -209,6 +219,22 @@ def _ply_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
     dropped = [k for k, v in pd.items() if not scalar(v)] + [k for k, v in cd.items() if not all(map(scalar, v))]
     return ({k: v for k, v in pd.items() if k not in dropped}, {k: v for k, v in cd.items() if k not in dropped},
             dropped)
+
+
+def _write_gmsh(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
+    """Named groups in gmsh 4.1 for meshes of labels and regions, else meshio's gmsh 2.2."""
+    if uses_groups(mesh):
+        write_msh41(path, mesh)
+        return
+    names = ref_names(mesh)
+    if names:  # $PhysicalNames: a name per ref
+        data = meshio.Mesh(data.points, data.cells, point_data=data.point_data, cell_data=data.cell_data,
+                           field_data={k: np.array(v) for k, v in names.items()})
+    meshio.write(path, data, file_format="gmsh22", **kwargs)
+
+
+def _write_ply(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
+    write_ply(path, data, **kwargs)
 
 
 def _tidy_stl(m: meshio.Mesh) -> None:
@@ -248,7 +274,8 @@ _GMSH_ONLY = ("line4", "line5", "triangle10", "triangle15", "tetra20", "tetra35"
 _VTK_CELLS = tuple(t for t in CELL_TYPES if t not in _GMSH_ONLY)
 _register_format("vtu", ".vtu", "vtu", write_kwargs={"binary": True}, cell_types=_VTK_CELLS)
 _register_format("vtk", ".vtk", "vtk", write_kwargs={"binary": True}, cell_types=_VTK_CELLS)
-_register_format("gmsh", ".msh", "gmsh22", write_kwargs={"binary": True}, keep_data=_gmsh_data)
+_register_format("gmsh", ".msh", "gmsh22", write_kwargs={"binary": True}, keep_data=_gmsh_data,
+                 write=_write_gmsh, tidy=restore_refs)
 _register_format(
     "medit",
     ".mesh",
@@ -266,7 +293,7 @@ _register_format(
     index_dtype=np.int32,
     keep_data=_ply_data,
     read=read_ply,
-    write=write_ply,
+    write=_write_ply,
 )
 _register_format("obj", ".obj", "obj", cell_types=_SURFACE, keep_data=_keep_nothing, tidy=_tidy_obj)
 _register_format(
@@ -322,7 +349,7 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         return path
     with atomic_path(path) as tmp:
         if fmt.write is not None:
-            fmt.write(tmp, data, **fmt.write_kwargs)
+            fmt.write(tmp, data, mesh, **fmt.write_kwargs)
         else:
             meshio.write(tmp, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
     return path

@@ -53,7 +53,7 @@ import numpy as np
 from warpmesh.cells.types import REF_KEY
 from warpmesh.errors import ReadError
 
-__all__ = ["read_ply", "write_ply", "PLY_TYPES", "HEADER_BYTES"]
+__all__ = ["HEADER_BYTES", "PLY_TYPES", "read_ply", "write_ply"]
 
 #: PLY scalar type names -> numpy kinds + sizes (both spellings of the 1.0 spec)
 PLY_TYPES = {

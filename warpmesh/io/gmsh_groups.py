@@ -1,0 +1,376 @@
+"""Gmsh ``.msh`` files with named physical groups per label, per interface and per region,
+for solvers (issue 23 part 6).
+
+Gmsh puts an element in a physical group through its elementary entity, and an entity
+may belong to several groups; the 2.2 format written by meshio gives each element one
+physical tag only. So a mesh whose cells carry labels is written here in the 4.1 format
+(binary), with one elementary entity per distinct key of its cells and named groups:
+
+- **Surface of several labels** (``mesh_surface(volume, labels=..., interfaces="shared")``:
+  ``cell_refs`` = the lower label, ``cell_data["label_above"]`` = the higher one): one
+  surface entity per label pair; physical surfaces ``interface_<a>_<b>`` (its triangles)
+  and ``label_<a>`` (every triangle bounding label a: all interfaces naming a). The
+  background (0, or the mesh's ``info["rest"]``) is a label like the others.
+- **The same surface with one ref per interface** (:func:`warpmesh.surface.multilabel.interface_refs`:
+  ``info["interfaces"] = {ref: (a, b)}``): the same groups.
+- **Multi-region volume meshes** (tetrahedra or other 3D cells with a region ref each,
+  and interface triangles as above): one volume entity and physical volume per region, ``label_<r>`` when the mesh comes from a label volume (``info["labels"]``), else
+  ``region_<r>``; the surface cells as interfaces (above) or plain refs.
+- **Plain refs** of lower-dimensional cells: ``ref_<r>`` (surfaces), ``line_ref_<r>``,
+  ``vertex_ref_<r>``, with ``_<name>`` appended when ``info["primitives"]`` names the ref
+  (``mesh_surface(..., refs="primitives")``). Names are unique across dimensions (meshio
+  keys the groups by name).
+
+:func:`uses_groups` says when a mesh is written this way. Other meshes with refs (regions
+of tetrahedra and plain boundary refs, primitive refs) are written as gmsh 2.2 through
+meshio, where each element has one physical group: the ref, named by :func:`ref_names`
+(same names as above) and keeping point data and the other formats' extras. What the 4.1 file
+keeps: points (float64), cells, refs and the second label; no other point or cell data
+(dropped with a warning by :func:`warpmesh.io.files.save`). On load, :func:`restore_refs`
+turns the groups back into ``cell_refs`` (and ``label_above``), from the group names.
+
+Example
+-------
+>>> import os, tempfile, numpy as np, warpmesh as wm
+>>> from warpmesh.io.gmsh_groups import physical_groups
+>>> vol = np.zeros((6, 6, 6), dtype=np.uint8); vol[1:5, 1:5, 1:3] = 1; vol[1:5, 1:5, 3:5] = 2
+>>> groups = physical_groups(wm.mesh_surface(vol, labels="all", interfaces="shared"))
+>>> sorted(g.name for g in groups)
+['interface_0_1', 'interface_0_2', 'interface_1_2', 'label_0', 'label_1', 'label_2']
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from warpmesh._conventions import INDEX_DTYPE
+from warpmesh.cells.types import CELL_TYPES, REF_KEY, MeshLike, block_refs, points3
+
+__all__ = ["LABEL_ABOVE", "PhysicalGroup", "physical_groups", "ref_names", "restore_refs", "uses_groups", "write_msh41"]
+
+#: the cell-data name of the higher label of an interface cell (the same name as
+#: ``warpmesh.surface.multilabel.LABEL_ABOVE``, checked by tests/io/test_gmsh_groups.py;
+#: io sits below surface and cannot import it)
+LABEL_ABOVE = "label_above"
+_GEO = "gmsh:geometrical"
+_PHYS = "gmsh:physical"
+
+
+@dataclass(frozen=True)
+class PhysicalGroup:
+    """One physical group: its dimension, tag (1, 2, ... per dimension), name and the tags
+    of the elementary entities (of that dimension) it holds."""
+
+    dim: int
+    tag: int
+    name: str
+    entities: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class _Entity:
+    dim: int
+    tag: int
+    key: tuple  # (ref,) or (lower, upper)
+    groups: tuple[int, ...]  # physical tags, the first one being what meshio reads back
+
+
+def _dim(t: str) -> int:
+    return CELL_TYPES[t][1]
+
+
+def _pairs(mesh: MeshLike, t: str) -> np.ndarray | None:
+    """(m, 2) int: the (lower, upper) labels of block ``t`` if its cells are interfaces."""
+    if _dim(t) != 2:
+        return None
+    refs = block_refs(mesh, t)
+    has_refs = mesh.cell_refs is not None and t in mesh.cell_refs
+    table = mesh.info.get("interfaces") if isinstance(mesh.info, Mapping) else None
+    if isinstance(table, Mapping) and table and has_refs:  # refs number the interfaces (interface_refs)
+        keys = np.array(sorted(table), dtype=INDEX_DTYPE)
+        at = np.minimum(np.searchsorted(keys, refs), len(keys) - 1)
+        if not np.all(keys[at] == refs):
+            missing = sorted(set(refs.tolist()) - set(keys.tolist()))
+            raise ValueError(f"expected every ref of the {t} cells in info['interfaces'], got refs {missing[:5]} "
+                             "that it does not list")
+        pairs = np.array([table[k] for k in keys.tolist()], dtype=INDEX_DTYPE).reshape(-1, 2)
+        return pairs[at]
+    above = mesh.cell_data.get(LABEL_ABOVE, {}).get(t)
+    if above is not None and has_refs:  # refs are the lower label
+        return np.column_stack([refs, np.asarray(above)]).astype(INDEX_DTYPE)
+    return None
+
+
+def uses_groups(mesh: MeshLike) -> bool:
+    """Whether ``mesh`` is written with groups shared between elements (gmsh 4.1): its
+    surface cells are interfaces between labels (``cell_data["label_above"]`` with the
+    refs, or refs numbering ``info["interfaces"]``). Other meshes are written as gmsh 2.2,
+    one physical group per ref and dimension, named by :func:`ref_names`."""
+    return mesh.cell_refs is not None and any(_pairs(mesh, t) is not None for t in mesh.cells)
+
+
+def ref_names(mesh: MeshLike) -> dict[str, tuple[int, int]]:
+    """``{name: (ref, dim)}`` for the non-zero refs of a mesh written one group per ref
+    (gmsh 2.2, where the physical tag is the ref): ``region_<r>`` / ``label_<r>`` for
+    volume cells, ``ref_<r>``, ``line_ref_<r>``, ``vertex_ref_<r>`` below (with the
+    primitive's name appended when ``info["primitives"]`` has it).
+
+    Example
+    -------
+    >>> import numpy as np, warpmesh as wm
+    >>> m = wm.Mesh(np.eye(4, 3), {"tetra": [[3, 0, 1, 2]], "line": [[0, 1]]},
+    ...             cell_refs={"tetra": [7], "line": [2]})
+    >>> ref_names(m)
+    {'line_ref_2': (2, 1), 'region_7': (7, 3)}
+    """
+    if mesh.cell_refs is None:
+        return {}
+    top = max(_dim(t) for t in mesh.cells)
+    found = {(_dim(t), int(r)) for t in mesh.cells for r in np.unique(block_refs(mesh, t)).tolist() if r > 0}
+    return {_name_of_ref(mesh, d, r, top): (r, d) for d, r in sorted(found)}
+
+
+def _entities(mesh: MeshLike) -> tuple[dict, dict]:
+    """({(dim, key): entity tag}, {type: (m,) entity tags of its cells})."""
+    keys_by_dim: dict[int, set] = {}
+    per_block = {}
+    for t in mesh.cells:
+        pairs = _pairs(mesh, t)
+        keys = pairs if pairs is not None else block_refs(mesh, t)[:, None]
+        per_block[t] = keys
+        keys_by_dim.setdefault(_dim(t), set()).update(map(tuple, np.unique(keys, axis=0).tolist()))
+    tags = {}
+    for d, keys in keys_by_dim.items():
+        for i, k in enumerate(sorted(keys, key=lambda k: (len(k), k))):
+            tags[(d, k)] = i + 1
+    cell_tags = {}
+    for t, keys in per_block.items():
+        uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+        lookup = np.array([tags[(_dim(t), tuple(u))] for u in uniq.tolist()], dtype=np.int32)
+        cell_tags[t] = lookup[inv.ravel()]
+    return tags, cell_tags
+
+
+def _name_of_ref(mesh: MeshLike, d: int, r: int, top: int) -> str:
+    info = mesh.info if isinstance(mesh.info, Mapping) else {}
+    if d == 3 and d == top:
+        return f"label_{r}" if info.get("labels") is not None else f"region_{r}"
+    prefix = {2: "ref", 1: "line_ref", 0: "vertex_ref"}[d]  # names are unique across dimensions
+    names = info.get("primitives")
+    if isinstance(names, Mapping) and r in names:
+        return f"{prefix}_{r}_{re.sub(r'[^A-Za-z0-9_.-]+', '_', str(names[r]))}"
+    return f"{prefix}_{r}"
+
+
+def _plan(mesh: MeshLike) -> tuple[list[_Entity], list[PhysicalGroup], dict]:
+    tags, cell_tags = _entities(mesh)
+    top = max(_dim(t) for t in mesh.cells)
+    groups: dict[tuple[int, str], list[int]] = {}  # (dim, name) -> entity tags, in order of creation
+    entity_groups: dict[tuple[int, int], list[tuple[int, str]]] = {}
+    for (d, key), etag in sorted(tags.items(), key=lambda kv: (kv[0][0], kv[1])):
+        if len(key) == 2:
+            a, b = key
+            names = [f"interface_{a}_{b}"]
+            if top == 2:  # a surface: each label's boundary; a volume mesh has the label's volume instead
+                names += [f"label_{a}", f"label_{b}"]
+        else:
+            names = [_name_of_ref(mesh, d, key[0], top)]
+        for n in names:
+            groups.setdefault((d, n), []).append(etag)
+            entity_groups.setdefault((d, etag), []).append((d, n))
+    # physical tags per dimension: interfaces first, then labels / regions / refs, in name order
+    def order(item):
+        (d, n), _ = item
+        kind = 0 if n.startswith("interface_") else 1
+        nums = tuple(int(x) for x in re.findall(r"-?\d+", n)[:2])
+        return d, kind, nums, n
+
+    phys: dict[tuple[int, str], int] = {}
+    out = []
+    count: dict[int, int] = {}
+    for (d, n), ents in sorted(groups.items(), key=order):
+        count[d] = count.get(d, 0) + 1
+        phys[(d, n)] = count[d]
+        out.append(PhysicalGroup(d, count[d], n, tuple(ents)))
+    entities = [_Entity(d, etag, key, tuple(phys[g] for g in entity_groups[(d, etag)]))
+                for (d, key), etag in sorted(tags.items(), key=lambda kv: (kv[0][0], kv[1]))]
+    return entities, out, cell_tags
+
+
+def physical_groups(mesh: MeshLike) -> list[PhysicalGroup]:
+    """The physical groups :func:`write_msh41` writes for ``mesh`` (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        With ``cell_refs`` (and, for interfaces, ``cell_data["label_above"]`` or
+        ``info["interfaces"]``).
+
+    Returns
+    -------
+    list of PhysicalGroup
+        Sorted by dimension, interfaces first.
+
+    Example
+    -------
+    >>> import numpy as np, warpmesh as wm
+    >>> tets = wm.Mesh(np.eye(4, 3), {"tetra": [[3, 0, 1, 2]], "triangle": [[0, 1, 2]]},
+    ...                cell_refs={"tetra": [7], "triangle": [2]})
+    >>> [(g.dim, g.name) for g in physical_groups(tets)]
+    [(2, 'ref_2'), (3, 'region_7')]
+    """
+    return _plan(mesh)[1]
+
+
+def write_msh41(path, mesh: MeshLike) -> Path:
+    """Write ``mesh`` as a binary gmsh 4.1 file with the groups of :func:`physical_groups`.
+
+    Not atomic by itself (:func:`warpmesh.io.files.save` writes to a temporary name). All
+    nodes are listed in one block, on the first entity of the highest dimension. Elements
+    are grouped by entity; their tags are their 1-based positions in the mesh (blocks in
+    order), so the mesh's cell order can be restored from them (meshio does not; a loaded
+    file has its cells grouped by entity).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    mesh : Mesh
+
+    Returns
+    -------
+    pathlib.Path
+
+    Example
+    -------
+    >>> import os, tempfile, gmsh, numpy as np, warpmesh as wm
+    >>> tets = wm.Mesh(np.eye(4, 3), {"tetra": [[3, 0, 1, 2]]}, cell_refs={"tetra": [7]},
+    ...                info={"labels": [7]})
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     path = str(write_msh41(os.path.join(d, "t.msh"), tets))
+    ...     gmsh.initialize(["-v", "0"]); gmsh.open(path)
+    ...     groups = [(dim, gmsh.model.getPhysicalName(dim, tag)) for dim, tag in gmsh.model.getPhysicalGroups()]
+    ...     gmsh.finalize()
+    >>> groups
+    [(3, 'label_7')]
+    """
+    from meshio.gmsh.common import _meshio_to_gmsh_order, _meshio_to_gmsh_type
+
+    path = Path(path)
+    entities, groups, cell_tags = _plan(mesh)
+    unknown = [t for t in mesh.cells if t not in _meshio_to_gmsh_type]
+    if unknown:
+        raise ValueError(f"gmsh files have no element type for {unknown}")
+    pts = points3(mesh).astype("<f8")
+    n = len(pts)
+    size_t, i32, f64 = np.dtype("<u8"), np.dtype("<i4"), np.dtype("<f8")
+
+    def arr(values, dtype) -> bytes:
+        return np.asarray(values, dtype=dtype).tobytes()
+
+    parts = [b"$MeshFormat\n4.1 1 8\n", arr([1], i32), b"\n$EndMeshFormat\n"]
+    parts.append(b"$PhysicalNames\n" + f"{len(groups)}\n".encode())
+    parts += [f'{g.dim} {g.tag} "{g.name}"\n'.encode() for g in groups]
+    parts.append(b"$EndPhysicalNames\n$Entities\n")
+    by_dim = {d: [e for e in entities if e.dim == d] for d in range(4)}
+    parts.append(arr([len(by_dim[d]) for d in range(4)], size_t))
+    for d in range(4):
+        for e in by_dim[d]:
+            members = [c[cell_tags[t] == e.tag].ravel() for t, c in mesh.cells.items() if _dim(t) == d]
+            used = np.concatenate(members) if members else np.zeros(0, dtype=np.int64)
+            lo, hi = (pts[used].min(axis=0), pts[used].max(axis=0)) if used.size else (np.zeros(3), np.zeros(3))
+            parts.append(arr([e.tag], i32))
+            parts.append(arr(lo, f64) if d == 0 else arr(np.concatenate([lo, hi]), f64))
+            parts.append(arr([len(e.groups)], size_t) + arr(e.groups, i32))
+            if d > 0:
+                parts.append(arr([0], size_t))  # no bounding entities
+    parts.append(b"\n$EndEntities\n$Nodes\n")
+    host = max(entities, key=lambda e: (e.dim, -e.tag))
+    parts.append(arr([1, n, 1, n], size_t))
+    parts.append(arr([host.dim, host.tag, 0], i32) + arr([n], size_t))
+    parts.append(arr(np.arange(1, n + 1), size_t))
+    parts.append(pts.tobytes())
+    parts.append(b"\n$EndNodes\n$Elements\n")
+    # element tags number the cells in the mesh's order (blocks in order, 1-based), so a
+    # reader can restore the order that the grouping by entity changes
+    blocks, base = [], 1
+    for t, cells in mesh.cells.items():
+        order = _meshio_to_gmsh_order(t, np.asarray(cells))
+        numbers = np.arange(base, base + len(order))
+        for e in entities:
+            if e.dim == _dim(t):
+                mine = cell_tags[t] == e.tag
+                if np.any(mine):
+                    blocks.append((e, t, numbers[mine], order[mine]))
+        base += len(order)
+    total = base - 1
+    parts.append(arr([len(blocks), total, 1, total], size_t))
+    for e, t, numbers, cells in blocks:
+        parts.append(arr([e.dim, e.tag, _meshio_to_gmsh_type[t]], i32) + arr([len(cells)], size_t))
+        parts.append(np.column_stack([numbers, cells + 1]).astype(size_t).tobytes())
+    parts.append(b"\n$EndElements\n")
+    path.write_bytes(b"".join(parts))
+    return path
+
+
+_PATTERNS = (
+    (re.compile(r"^interface_(-?\d+)_(-?\d+)$"), "pair"),
+    (re.compile(r"^(?:label|region)_(-?\d+)$"), "ref"),
+    (re.compile(r"^(?:line_|vertex_)?ref_(-?\d+)(?:_.*)?$"), "ref"),
+)
+
+
+def _parse(name: str):
+    for pattern, kind in _PATTERNS:
+        m = pattern.match(name)
+        if m:
+            values = tuple(int(v) for v in m.groups())
+            return values if kind == "pair" else values[0]
+    return None
+
+
+def restore_refs(m) -> None:
+    """On load of a ``.msh`` file written by :func:`write_msh41` (read by meshio, whose
+    ``"gmsh:physical"`` is each entity's first group): the refs from the group names, and
+    ``label_above`` for interface cells (other blocks get their refs there, as a label on
+    both sides). Files whose group names do not follow :func:`physical_groups` are left as
+    they are.
+
+    Parameters
+    ----------
+    m : meshio.Mesh
+        Modified in place.
+    """
+    names = {}
+    for name, (tag, dim) in ((k, tuple(int(x) for x in v[:2])) for k, v in m.field_data.items()):
+        names[(dim, tag)] = _parse(name)
+    if not names or any(v is None for v in names.values()) or _PHYS not in m.cell_data:
+        return
+    refs, above, any_pair = [], [], False
+    for block, tags in zip(m.cells, m.cell_data[_PHYS], strict=True):
+        d = _dim(block.type)
+        values = [names.get((d, int(t))) for t in np.unique(tags)]
+        if any(v is None for v in values):
+            return  # a tag without a name of ours
+        lookup = {int(t): names[(d, int(t))] for t in np.unique(tags)}
+        parsed = [lookup[int(t)] for t in np.asarray(tags).tolist()] if len(tags) else []
+        if parsed and all(isinstance(v, tuple) for v in parsed):
+            pairs = np.array(parsed, dtype=INDEX_DTYPE).reshape(-1, 2)
+            refs.append(pairs[:, 0])
+            above.append(pairs[:, 1])
+            any_pair = True
+        elif all(isinstance(v, int) for v in parsed):
+            r = np.array(parsed, dtype=INDEX_DTYPE)
+            refs.append(r)
+            above.append(r.copy())
+        else:
+            return
+    del m.cell_data[_PHYS]
+    m.cell_data.pop(_GEO, None)
+    m.cell_data[REF_KEY] = refs
+    if any_pair:
+        m.cell_data[LABEL_ABOVE] = above
