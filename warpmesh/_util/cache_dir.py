@@ -17,12 +17,12 @@ evaluator, which must import a file, then refuses with a message naming
 
 Example
 -------
->>> import os
->>> from warpmesh._util.cache_dir import cache_root
->>> os.environ["WARPMESH_CACHE_DIR"] = "/tmp/wm-cache-doctest"
->>> str(cache_root()), str(cache_root("tables"))
-('/tmp/wm-cache-doctest', '/tmp/wm-cache-doctest/tables')
->>> del os.environ["WARPMESH_CACHE_DIR"]
+>>> from warpmesh._util.cache_dir import cache_root, writable_cache_dir
+>>> cache_root("tables") == cache_root() / "tables"
+True
+>>> folder = writable_cache_dir()  # None (and one warning) if it cannot be written
+>>> folder is None or folder.is_dir()
+True
 """
 
 from __future__ import annotations
@@ -91,10 +91,11 @@ def writable_cache_dir(sub: str | None = None) -> Path | None:
     -------
     >>> import os, tempfile
     >>> from warpmesh._util.cache_dir import writable_cache_dir
+    >>> saved = os.environ.get("WARPMESH_CACHE_DIR")
     >>> os.environ["WARPMESH_CACHE_DIR"] = tempfile.mkdtemp()
     >>> writable_cache_dir("tables").name
     'tables'
-    >>> del os.environ["WARPMESH_CACHE_DIR"]
+    >>> _ = os.environ.pop("WARPMESH_CACHE_DIR") if saved is None else os.environ.__setitem__("WARPMESH_CACHE_DIR", saved)
     """
     folder = cache_root(sub)
     key = str(folder)
