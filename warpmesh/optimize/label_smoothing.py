@@ -179,6 +179,7 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
     free = ~frozen & (kind > 0)[:, None]
     pairs, pair_cos0 = _wing_pairs(points, tris, table)
     del table
+    cells = _cube_index(cube)
     mu = -relaxation / (1.0 - PASS_BAND * relaxation)  # 1/lambda + 1/mu = PASS_BAND
     raw = points.copy()
     reverted = 0
@@ -188,7 +189,7 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
             delta = weights @ points - points
             points = np.where(free, np.clip(points + step * delta, lo, hi), points)
         if (k + 1) % CHECK_EVERY == 0 or k + 1 == passes:
-            reverted += _revert_failures(checked, points, tris, axis, facing, pairs, pair_cos0)
+            reverted += _revert_failures(checked, points, tris, axis, facing, pairs, pair_cos0, cells)
             checked = points.copy()
     info = {**mesh.info, "smoothing": {
         "passes": int(passes), "relaxation": float(relaxation), "mu": float(mu),
@@ -340,7 +341,7 @@ def _local_failures(points, tris, faces, axis, facing, pairs, pair_cos0, pending
     return np.concatenate([turned, pairs[folded, 0], pairs[folded, 1]])
 
 
-def _revert_failures(old, new, tris, axis, facing, pairs, pair_cos0) -> int:
+def _revert_failures(old, new, tris, axis, facing, pairs, pair_cos0, cells) -> int:
     """Undo (in ``new``) the moves of the vertices of failing faces, round by round, until
     no face around a moved vertex fails; returns the count of moves undone."""
     moved = np.any(new != old, axis=1)
@@ -348,7 +349,7 @@ def _revert_failures(old, new, tris, axis, facing, pairs, pair_cos0) -> int:
     undone_total = 0
     while pending.any():
         faces = np.flatnonzero(pending)
-        bad, others = face_violations(new, tris, faces, fold_cos=-2.0, partners=True)  # crossings only
+        bad, others = _crossings(new, tris, faces, cells)
         failing = np.concatenate([faces[bad], others, _local_failures(new, tris, faces, axis, facing, pairs,
                                                                       pair_cos0, pending)])
         verts = np.unique(tris[failing].ravel())
@@ -362,3 +363,35 @@ def _revert_failures(old, new, tris, axis, facing, pairs, pair_cos0) -> int:
         back[verts] = True
         pending = back[tris].any(axis=1)
     return undone_total
+
+
+def _crossings(points, tris, faces, cells):
+    """:func:`face_violations` of ``faces`` (crossings and degenerate faces; its fold test
+    assumes one orientation and is off) with the failing faces' partners. A few faces are
+    checked within the faces near them only: every vertex stays in its cube, so a face can
+    meet only faces whose cubes lie within 2 of its own cubes' range along each axis (a
+    triangle's cubes span 2 along each axis at most), hence within 3 of each of its cubes.
+    ``cells`` is :func:`_cube_index`'s."""
+    m = len(tris)
+    if len(faces) * 8 > m:
+        return face_violations(points, tris, faces, fold_cos=-2.0, partners=True)
+    key, order, sorted_keys, offsets = cells
+    zone = (np.unique(key[tris[faces]])[:, None] + offsets[None, :]).ravel()
+    pos = np.minimum(np.searchsorted(sorted_keys, zone), len(sorted_keys) - 1)
+    marked = np.zeros(len(points), bool)
+    marked[order[pos[sorted_keys[pos] == zone]]] = True
+    keep = np.flatnonzero(marked[tris].any(axis=1))
+    bad, others = face_violations(points, tris[keep], np.searchsorted(keep, faces), fold_cos=-2.0, partners=True)
+    return bad, keep[others]
+
+
+def _cube_index(cube):
+    """Each vertex's cube as one integer key (linear in the cube, so offsets add), the
+    vertices in key order, the sorted keys and the keys of the offsets within 3 cubes."""
+    lo = cube.min(axis=0) - 3
+    span = cube.max(axis=0) - lo + 4
+    stride = np.array([span[1] * span[2], span[2], 1], dtype=np.int64)
+    key = (cube - lo) @ stride
+    order = np.argsort(key)
+    offsets = np.stack(np.meshgrid(*[np.arange(-3, 4)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) @ stride
+    return key, order, key[order], offsets
