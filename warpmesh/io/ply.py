@@ -141,11 +141,11 @@ def _header(path: Path, head: bytes) -> tuple[str | None, list[_Element], int]:
 class _Body:
     """The body of the file, read element by element: binary records or ascii tokens."""
 
-    def __init__(self, path: Path, data: bytes, order: str | None):
+    def __init__(self, path: Path, data: memoryview, order: str | None):
         self.path, self.order, self.at = path, order, 0
         if order is None:
             try:
-                self.tokens = np.array(data.split(), dtype=np.float64)
+                self.tokens = np.array(bytes(data).split(), dtype=np.float64)
             except ValueError as exc:
                 raise ReadError(f"could not read {str(path)!r} as ply: a token of the ascii body is not a "
                                 f"number ({exc})") from exc
@@ -230,7 +230,7 @@ class _Body:
         rest = self.size - self.at
         if self.order is None and rest:
             raise ReadError(f"could not read {str(self.path)!r} as ply: {rest} numbers after the last element")
-        if self.order is not None and self.data[self.at:].strip():
+        if self.order is not None and bytes(self.data[self.at:]).strip():
             raise ReadError(f"could not read {str(self.path)!r} as ply: {rest} bytes after the last element")
 
 
@@ -279,7 +279,7 @@ def read_ply(path) -> meshio.Mesh:
     path = Path(path)
     raw = path.read_bytes()
     order, elements, start = _header(path, raw[:HEADER_BYTES])
-    body = _Body(path, raw[start:], order)
+    body = _Body(path, memoryview(raw)[start:], order)  # binary records are read in place
     points, point_data, blocks, cell_data = None, {}, [], {}
     for el in elements:
         if el.name == "vertex":
