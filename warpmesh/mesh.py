@@ -186,7 +186,10 @@ class Mesh:
         Non-numeric points, non-integer indices or refs, wrong container types.
     ValueError
         Non-finite coordinates, wrong shapes, unknown cell type, wrong number of nodes
-        per cell, negative or out-of-range indices, mismatched data lengths.
+        per cell, negative or out-of-range indices, mismatched data lengths. A cell with
+        a repeated vertex (a collapsed cell, as files carry them) is accepted; the
+        operations that split or rebuild cells refuse it
+        (:mod:`warpmesh.modify.collapsed_cells` lists which).
 
     Examples
     --------

@@ -54,6 +54,7 @@ from scipy.sparse.csgraph import connected_components
 
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.cells.types import require_mesh
+from warpmesh.modify.collapsed_cells import reject_collapsed
 from warpmesh.errors import WarpMeshError
 from warpmesh.cells.quality import tetra_quality, triangle_quality
 from warpmesh.cells.reference import (
@@ -299,6 +300,7 @@ def _boundary_quad_bits(quads, hexes, choice, mode):
 # ----------------------------------------------------------------------------- assembly
 def _validate(mesh, target, quads, hexes):
     require_mesh(mesh)
+    reject_collapsed(mesh, 'convert')
     if target not in TARGETS:
         raise ValueError(f"expected 'target' among {list(TARGETS)}, got {target!r}")
     if quads is not None and target != "triangle":

@@ -48,6 +48,7 @@ from scipy.sparse.csgraph import connected_components
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh._util.arrays import unique_rows
 from warpmesh.cells.types import CELL_TYPES, require_mesh
+from warpmesh.modify.collapsed_cells import reject_collapsed
 from warpmesh.cells.reference import P1_TYPES, mirror_permutation, reference_cell
 
 __all__ = ["crack"]
@@ -387,6 +388,7 @@ def crack(mesh, facets=None, *, ref: int | None = None, side_refs: tuple[int, in
     [[4, 3, 9, 10], [5, 4, 10, 11]]
     """
     require_mesh(mesh)
+    reject_collapsed(mesh, 'crack')
     if side_refs is not None:
         sr = np.asarray(side_refs)
         if sr.shape != (2,) or sr.dtype.kind not in "iu":

@@ -66,6 +66,7 @@ import numpy as np
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import CELL_TYPES, require_mesh
+from warpmesh.modify.collapsed_cells import reject_collapsed
 from warpmesh.frep.projection import as_target, project_nodes
 from warpmesh.errors import WarpMeshError
 from warpmesh.cells.quality import tetra_quality, triangle_quality
@@ -377,6 +378,7 @@ def refine_local(mesh, *, where=None, max_length=None, shape=None, max_rounds: i
     """
     t0 = time.perf_counter()
     require_mesh(mesh)
+    reject_collapsed(mesh, 'refine')
     types = _check_types(mesh)
     marks = _check_where(mesh, where, types)
     size = _check_size(max_length)

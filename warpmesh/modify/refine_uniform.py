@@ -60,6 +60,7 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.arrays import unique_rows
 from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import require_mesh
+from warpmesh.modify.collapsed_cells import reject_collapsed
 from warpmesh.frep.projection import as_target, project_nodes
 from warpmesh.cells.reference import (base_type, cell_measures, corner_jacobians, extend_point_values,
                               reference_cell, weighted_nodes)
@@ -409,6 +410,7 @@ def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
     """
     t0 = time.perf_counter()
     require_mesh(mesh)
+    reject_collapsed(mesh, 'refine')
     k = _check_n(n)
     if tetra_diagonal not in ("shortest", "fixed"):
         raise ValueError(f"expected 'tetra_diagonal' 'shortest' or 'fixed', got {tetra_diagonal!r}")
