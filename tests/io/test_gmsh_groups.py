@@ -245,3 +245,25 @@ def test_vtu_keeps_both_label_arrays_and_medit_the_refs(three_labels, tmp_path):
     back = wm.load(tets.save(tmp_path / "regions.mesh"))
     np.testing.assert_array_equal(back.cell_refs["tetra"], tets.cell_refs["tetra"])
     np.testing.assert_array_equal(back.cell_refs["triangle"], tets.cell_refs["triangle"])
+
+
+def test_gmsh_fills_each_label_group_with_tetrahedra(three_labels, tmp_path):
+    """A solver's use of the file: gmsh meshes the volume inside each label's surface group;
+    each volume is the label's voxel volume (boxes: surface nets keep their faces)."""
+    path = three_labels.save(tmp_path / "labels.msh")
+    gmsh.initialize(["-v", "0"])
+    try:
+        gmsh.open(str(path))
+        names = {gmsh.model.getPhysicalName(d, t): (d, t) for d, t in gmsh.model.getPhysicalGroups()}
+        volumes = {}
+        for label in (1, 2, 5):
+            loop = gmsh.model.geo.addSurfaceLoop(list(gmsh.model.getEntitiesForPhysicalGroup(*names[f"label_{label}"])))
+            volumes[label] = gmsh.model.geo.addVolume([loop])
+        gmsh.model.geo.synchronize()
+        gmsh.model.mesh.generate(3)
+        for label, want in ((1, 8 * 4 * 4), (2, 8 * 4 * 4), (5, 8 * 8 * 4)):
+            _, tags, _ = gmsh.model.mesh.getElements(3, volumes[label])
+            sizes = gmsh.model.mesh.getElementQualities(tags[0], "volume")
+            assert np.all(sizes > 0) and sizes.sum() == pytest.approx(want, rel=0.02)
+    finally:
+        gmsh.finalize()
