@@ -61,7 +61,8 @@ import numpy as np
 
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 
-__all__ = ["CHECK_EVERY", "DEFAULT_PASSES", "GRID_INFO", "MARGIN", "PASS_BAND", "smooth_labels", "vertex_cubes"]
+__all__ = ["CHECK_EVERY", "DEFAULT_PASSES", "GRID_INFO", "MARGIN", "PASS_BAND", "classify_edges", "smooth_labels",
+           "vertex_cubes", "wing_cos"]
 
 #: passes when none is given: VTK's ``vtkSurfaceNets3D`` default of 16 smoothing iterations
 DEFAULT_PASSES = 16
@@ -175,7 +176,8 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
             frozen[:, a] = low | high
             side_bits |= low.astype(np.int64) << (2 * a) | high.astype(np.int64) << (2 * a + 1)
     table = _edge_table(tris, len(points))
-    weights, kind = _neighbour_weights(tris, refs, above, side_bits, table, len(points))
+    a, b, feature, kind = classify_edges(tris, refs, above, len(points), side_bits, table)
+    weights = _neighbour_weights(a, b, feature, kind, len(points))
     free = ~frozen & (kind > 0)[:, None]
     pairs, pair_cos0 = _wing_pairs(points, tris, table)
     del table
@@ -264,12 +266,50 @@ def _edge_table(tris, n):
     return e[order], order // 3, starts, count
 
 
-def _neighbour_weights(tris, lower, upper, side_bits, table, n):
-    """The smoothing operator (row-normalised adjacency, a scipy CSR matrix; fixed vertices
-    have the identity row) and each vertex's kind: 0 fixed, 1 on a curve, 2 on a surface."""
-    import scipy.sparse as sp
+def classify_edges(triangles, lower, upper, n: int, side_bits=None, table=None):
+    """The edges of a shared surface, which are feature edges, and the kind of each vertex.
 
-    ends, face, starts, count = table
+    A feature edge is not shared by exactly two triangles of one interface (one label
+    pair and, with ``side_bits``, one face of the box): junction curves, cap rims, open
+    boundaries, a label touching itself along a grid edge.
+
+    Parameters
+    ----------
+    triangles : (m, 3) int
+    lower, upper : (m,) int
+        The two labels of each triangle.
+    n : int
+        The number of points.
+    side_bits : (n,) int, optional
+        Per vertex, bit 2a (2a + 1) set when its cube lies before (after) the samples
+        along axis a.
+    table : tuple, optional
+        :func:`_edge_table` of the triangles, if already computed.
+
+    Returns
+    -------
+    a, b : (e,) int64
+        The ends of each edge, a < b.
+    feature : (e,) bool
+    kind : (n,) int
+        0: fixed (a curve's end, a corner, 4 labels or more: not on exactly two feature
+        edges of one curve), 1: on a curve (exactly two feature edges, incident to the
+        same interfaces), 2: on one interface (no feature edge).
+
+    Example
+    -------
+    >>> import numpy as np, warpmesh as wm
+    >>> vol = np.zeros((8, 8, 8), np.uint8); vol[2:6, 2:6, 2:4] = 1; vol[2:6, 2:6, 4:6] = 2
+    >>> m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    >>> a, b, feature, kind = classify_edges(m.triangles, m.cell_refs["triangle"],
+    ...                                      m.cell_data["label_above"]["triangle"], m.n_points)
+    >>> int(feature.sum()), np.bincount(kind, minlength=3).tolist()  # one closed junction loop
+    (16, [0, 16, 91])
+    """
+    tris = np.asarray(triangles, np.int64)
+    ends, face, starts, count = _edge_table(tris, n) if table is None else table
+    if side_bits is None:
+        side_bits = np.zeros(n, np.int64)
     common = side_bits[tris[:, 0]] & side_bits[tris[:, 1]] & side_bits[tris[:, 2]]
     lowest_bit = np.array([0] + [(i & -i).bit_length() for i in range(1, 64)])
     cap_face = lowest_bit[common]  # 1 + the lowest face of the box all three vertices lie beyond, or 0
@@ -291,13 +331,19 @@ def _neighbour_weights(tris, lower, upper, side_bits, table, n):
         np.minimum.at(smin, v, fs)
         np.maximum.at(smax, v, fs)
     kind = np.where(degree == 0, 2, np.where((degree == 2) & (smin == smax), 1, 0))
-    # rows: a surface vertex over all its edges, a curve vertex over its two feature edges
+    return a, b, feature, kind
+
+
+def _neighbour_weights(a, b, feature, kind, n):
+    """The smoothing operator: a row-normalised adjacency (scipy CSR), a surface vertex over
+    all its edges, a curve vertex over its two feature edges, a fixed vertex the identity."""
+    import scipy.sparse as sp
+
     use = np.where(feature, kind[a] == 1, kind[a] == 2), np.where(feature, kind[b] == 1, kind[b] == 2)
     rows = np.concatenate([a[use[0]], b[use[1]], np.flatnonzero(kind == 0)])
     cols = np.concatenate([b[use[0]], a[use[1]], np.flatnonzero(kind == 0)])
     deg = np.bincount(rows, minlength=n).astype(np.float64)
-    w = sp.csr_matrix((1.0 / deg[rows], (rows, cols)), shape=(n, n))
-    return w, kind
+    return sp.csr_matrix((1.0 / deg[rows], (rows, cols)), shape=(n, n))
 
 
 def _wing_pairs(points, tris, table):
@@ -309,11 +355,31 @@ def _wing_pairs(points, tris, table):
         i = np.flatnonzero(np.all(ends[lag:] == ends[:-lag], axis=1))
         rows.append(np.column_stack([face[i], face[i + lag], ends[i, 0], ends[i, 1]]))
     pairs = np.concatenate(rows)
-    return pairs, _wing_cos(points, tris, pairs)
+    return pairs, wing_cos(points, tris, pairs)
 
 
-def _wing_cos(points, tris, pairs):
-    """Cosine of the angle between the two wings of each pair around their shared edge."""
+def wing_cos(points, tris, pairs):
+    """Cosine of the angle between the two wings of each pair of triangles around their
+    shared edge (1: folded flat onto each other, -1: flat), whatever their orientations.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    tris : (m, 3) int
+    pairs : (k, 4) int
+        Rows (face A, face B, shared vertex, shared vertex).
+
+    Returns
+    -------
+    (k,) float
+
+    Example
+    -------
+    >>> p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 1, 1e-3]], float)
+    >>> t = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+    >>> np.round(wing_cos(p, t, np.array([[0, 1, 0, 1], [0, 2, 0, 1]])), 3).tolist()
+    [-1.0, 1.0]
+    """
     if len(pairs) == 0:
         return np.zeros(0)
     fa, fb, e0, e1 = pairs.T
@@ -336,7 +402,7 @@ def _local_failures(points, tris, faces, axis, facing, pairs, pair_cos0, pending
     turned = faces[n_hat[np.arange(len(faces)), axis[faces]] * facing[faces] <= 0.0]
     near = pending[pairs[:, 0]] | pending[pairs[:, 1]]
     sel = np.flatnonzero(near)
-    cos = _wing_cos(points, tris, pairs[sel])
+    cos = wing_cos(points, tris, pairs[sel])
     folded = sel[cos > np.maximum(_WING_COS, pair_cos0[sel] + 1e-9)]
     return np.concatenate([turned, pairs[folded, 0], pairs[folded, 1]])
 
