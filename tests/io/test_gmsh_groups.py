@@ -267,3 +267,17 @@ def test_gmsh_fills_each_label_group_with_tetrahedra(three_labels, tmp_path):
             assert np.all(sizes > 0) and sizes.sum() == pytest.approx(want, rel=0.02)
     finally:
         gmsh.finalize()
+
+
+def test_primitive_refs_are_named_after_their_primitives(tmp_path):
+    """refs="primitives" (issue 24 part 4): each primitive's triangles are one named gmsh group."""
+    shell = wm.sphere(1.0) - wm.sphere(0.5)
+    m = wm.mesh_surface(shell, bounds=((-1.2,) * 3, (1.2,) * 3), resolution=24, refs="primitives")
+    assert not uses_groups(m)
+    groups = _gmsh_groups(m.save(tmp_path / "shell.msh"))
+    refs = m.cell_refs["triangle"]
+    assert {k: (v[0], len(v[1])) for k, v in groups.items()} == {
+        f"ref_{r}_sphere": (2, int(np.sum(refs == r))) for r in m.info["primitives"]}
+    outer = groups[f"ref_{min(m.info['primitives'])}_sphere"][1]
+    radius = np.linalg.norm(m.points[np.array(outer)].reshape(-1, 3), axis=1)
+    assert np.all(np.abs(radius - 1.0) < 0.05)  # the first primitive is the outer sphere
