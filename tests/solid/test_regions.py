@@ -275,5 +275,9 @@ def test_bad_input():
         wm.mesh_domain("not a volume object".split(), size=3.0)
     with pytest.raises(TypeError, match="'volume'"):
         wm.mesh_domain(object(), size=3.0)
+    tiny = np.zeros((16, 16, 16), np.uint8)
+    tiny[5, 5, 5] = 3  # one voxel: no lattice node at size 4 (at 3.5, 5.5, 7.5, ...) lies in it
+    with pytest.raises(ValueError, match="thinner than the lattice"):
+        wm.mesh_domain(tiny, size=4.0)
     floats = vol.astype(np.float32)  # whole-number floats are labels
     assert len(wm.mesh_domain(floats, size=3.0).cells["tetra"]) == len(wm.mesh_domain(vol, size=3.0).cells["tetra"])

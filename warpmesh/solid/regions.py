@@ -182,6 +182,9 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     h = _check_size(size, image.values.shape, spacing)
     timings: dict[str, float] = {}
     points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
+    if not len(tets):
+        raise ValueError(f"no lattice node at size {h:g} lies in a region of 'labels' {ids[ids != ids[rest]].tolist()[:20]}"
+                         ": the regions are thinner than the lattice; lower 'size'")
     t0 = time.perf_counter()
     vols = signed_volumes(points, tets)
     quality = tet_quality_summary(points, tets, device)
@@ -213,16 +216,15 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
 
 # ----------------------------------------------------------------------------------- validation
 def _as_image(volume) -> Volume:
-    if isinstance(volume, np.ndarray) or (as_volume(volume) is None and hasattr(volume, "__array__")):
+    image = None if isinstance(volume, np.ndarray) else as_volume(volume)  # (an image file is read here)
+    if image is None:
+        if not (isinstance(volume, np.ndarray) or hasattr(volume, "__array__")):
+            raise TypeError("expected a label volume for 'volume' (an integer array, a wm.Volume, a pyvista "
+                            f"ImageData or an image path) or a Shape, got {type(volume).__name__}")
         values = np.asarray(volume)
         if values.ndim != 3:
             raise ValueError(f"expected a 3D label array for 'volume', got {values.ndim}D with shape {values.shape}")
         image = Volume(values)
-    else:
-        image = as_volume(volume)
-        if image is None:
-            raise TypeError("expected a label volume for 'volume' (an integer array, a wm.Volume, a pyvista "
-                            f"ImageData or an image path) or a Shape, got {type(volume).__name__}")
     if not (np.issubdtype(image.values.dtype, np.number) or image.values.dtype == np.bool_):
         raise TypeError(f"expected integer labels in 'volume', got dtype {image.values.dtype}")
     try:
