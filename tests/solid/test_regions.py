@@ -275,6 +275,8 @@ def test_bad_input():
         wm.mesh_domain("not a volume object".split(), size=3.0)
     with pytest.raises(TypeError, match="'volume'"):
         wm.mesh_domain(object(), size=3.0)
+    with pytest.raises(TypeError, match="names no file"):
+        wm.mesh_domain("no_such_labels.vti", size=3.0)
     tiny = np.zeros((16, 16, 16), np.uint8)
     tiny[5, 5, 5] = 3  # one voxel: no lattice node at size 4 (at 3.5, 5.5, 7.5, ...) lies in it
     with pytest.raises(ValueError, match="thinner than the lattice"):

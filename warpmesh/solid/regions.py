@@ -82,6 +82,7 @@ Example
 from __future__ import annotations
 
 import math
+import os
 import time
 
 import numpy as np
@@ -171,10 +172,10 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     if refused:
         raise ValueError(f"{sorted(refused)[0]!r} is an option of a shape's domain; a label volume takes "
                          "'labels', 'size' and 'snap'")
+    image = _as_image(volume)
     if bounds is not None:
         raise ValueError(f"expected no 'bounds' with a label volume (its extent is its samples), got {bounds!r}")
     device = check_device(device)
-    image = _as_image(volume)
     if isinstance(snap, bool) or not isinstance(snap, (int, float, np.integer, np.floating)) or not 0 <= snap < 0.5:
         raise ValueError(f"expected 0 <= 'snap' < 0.5 (a fraction of the edge), got {snap!r}")
     codes, ids, rest = label_codes(image.values, labels)
@@ -216,6 +217,9 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
 
 # ----------------------------------------------------------------------------------- validation
 def _as_image(volume) -> Volume:
+    if isinstance(volume, (str, os.PathLike)) and not os.path.exists(volume):
+        raise TypeError(f"expected a Shape or an expression for 'shape', or a label volume (an array, a wm.Volume, "
+                        f"a pyvista ImageData or an image path), got {volume!r}, which names no file")
     image = None if isinstance(volume, np.ndarray) else as_volume(volume)  # (an image file is read here)
     if image is None:
         if not (isinstance(volume, np.ndarray) or hasattr(volume, "__array__")):
