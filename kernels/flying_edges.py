@@ -28,6 +28,8 @@ Values are read only where an edge crosses (and at the corners of crossed cells 
 them across cores.
 """
 
+from typing import Any
+
 import warp as wp
 
 from warpmesh.kernels.block_grid import on_capped_face
@@ -562,15 +564,13 @@ def emit_row_triangles_kernel(
 
 
 # -- surface nets of a label volume (warpmesh.surface.multilabel) ------------------------------------------------
-# The samples map to small codes: a 256- or 65536-entry table from each 8- or 16-bit pattern (LABEL_U8, LABEL_U16),
-# or int32 codes as they are (LABEL_I32); arrays are flat, C order. The grid is read as if padded with one layer of
+# The samples (flat, C order; uint8, uint16 or int32: one overload each, declared below) map to small codes through
+# ``table`` (an entry per 8- or 16-bit pattern, or per int32 code). The grid is read as if padded with one layer of
 # the rest's code on every side when ``pad`` is 1 (virtual index i is sample i - pad): no padded copy. A *cube* is
 # named by its lowest sample and gets a vertex when a quad uses it. Rows are the (i, j) of the virtual grid (shape
 # ``p``), k contiguous; the cube bits of cube row (i, j) are at row r = i * p[1] + j, ``words`` uint64 a row (bit b
 # of word w: cube k = 64 w + b).
-LABEL_U8 = 0
-LABEL_U16 = 1
-LABEL_I32 = 2
+LABEL_DTYPES = (wp.uint8, wp.uint16, wp.int32)  # the sample types of the overloads
 vec8i = wp.types.vector(length=8, dtype=wp.int32)
 
 
@@ -586,35 +586,14 @@ def label_row_base(i: int, j: int, pad: int, n: wp.vec3i):
 
 
 @wp.func
-def label_raw(u8: wp.array(dtype=wp.uint8), u16: wp.array(dtype=wp.uint16), i32: wp.array(dtype=wp.int32), mode: int,
-              at: int):
-    raw = int(0)
-    if mode == 0:
-        raw = int(u8[at])
-    elif mode == 1:
-        raw = int(u16[at])
-    else:
-        raw = i32[at]
-    return raw
-
-
-@wp.func
-def label_code(raw: int, mode: int, table: wp.array(dtype=wp.int32)):
-    code = raw
-    if mode != 2:
-        code = table[raw]
-    return code
-
-
-@wp.func
-def code_at(u8: wp.array(dtype=wp.uint8), u16: wp.array(dtype=wp.uint16), i32: wp.array(dtype=wp.int32), mode: int,
-            table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i, i: int, j: int, k: int):
+def code_at(values: wp.array(dtype=Any), table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i, i: int,
+            j: int, k: int):
     """The code of virtual sample (i, j, k): ``rest`` in the padding."""
     base = label_row_base(i, j, pad, n)
     c = k - pad
     code = rest
     if base >= 0 and c >= 0 and c < n[2]:
-        code = label_code(label_raw(u8, u16, i32, mode, base + c), mode, table)
+        code = table[int(values[base + c])]
     return code
 
 
@@ -658,16 +637,25 @@ def boundary_cube_used(q: wp.vec4i, c: wp.vec4i, i: int, j: int, k: int, p: wp.v
     return used
 
 
+@wp.func
+def row_code(values: wp.array(dtype=Any), table: wp.array(dtype=wp.int32), rest: int, base: int, kk: int,
+             inside: bool):
+    """The code of sample kk of the row at ``base`` (``rest`` for a padding row or outside)."""
+    code = rest
+    if base >= 0 and inside:
+        code = table[int(values[base + kk])]
+    return code
+
+
 @wp.kernel
 def count_label_rows_kernel(
-    first: int, u8: wp.array(dtype=wp.uint8), u16: wp.array(dtype=wp.uint16), i32: wp.array(dtype=wp.int32),
-    mode: int, table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i, p: wp.vec3i, words: int,
-    bits: wp.array(dtype=wp.uint64), vertex_count: wp.array(dtype=wp.int32), quad_count: wp.array(dtype=wp.int32),
+    first: int, values: wp.array(dtype=Any), table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i,
+    p: wp.vec3i, words: int, bits: wp.array(dtype=wp.uint64), vertex_count: wp.array(dtype=wp.int32),
+    quad_count: wp.array(dtype=wp.int32),
     junction_count: wp.array(dtype=wp.int32), seen: wp.array(dtype=wp.uint8),
 ):
     """One thread per row (i, j) of the virtual grid, reading rows (i, j), (i + 1, j),
-    (i, j + 1), (i + 1, j + 1) once along k (a sample's table entry only where the row's
-    value changes): the bits and count of the cubes of cube row (i, j) that get a vertex
+    (i, j + 1), (i + 1, j + 1) once along k: the bits and count of the cubes of cube row (i, j) that get a vertex
     (8 codes not all alike; on the grid's faces without ``pad``, a crossing edge with 4
     cubes around it), those holding three codes or more, and the quads of the crossing
     edges starting on row (i, j) along each axis (an edge makes a quad when the 4 cubes
@@ -680,55 +668,71 @@ def count_label_rows_kernel(
     cubes = has_i and has_j
     inner_i = inside_span(i, p[0])
     inner_j = inside_span(j, p[1])
-    base = wp.vec4i(label_row_base(i, j, pad, n), -1, -1, -1)  # entry a + 2 b: row (i + a, j + b)
+    edge_i = has_i and inner_j  # quads of the edges towards row (i + 1, j), for k inside
+    edge_j = has_j and inner_i
+    edge_k = inner_i and inner_j
+    face = pad == 0 and (i == 0 or i + 2 == p[0] or j == 0 or j + 2 == p[1])  # cubes on the grid's faces
+    base0 = label_row_base(i, j, pad, n)  # rows (i + a, j + b): variables named a b
+    base1 = int(-1)
+    base2 = int(-1)
+    base3 = int(-1)
     if has_i:
-        base[1] = label_row_base(i + 1, j, pad, n)
+        base1 = label_row_base(i + 1, j, pad, n)
     if has_j:
-        base[2] = label_row_base(i, j + 1, pad, n)
+        base2 = label_row_base(i, j + 1, pad, n)
     if cubes:
-        base[3] = label_row_base(i + 1, j + 1, pad, n)
-    last_raw = wp.vec4i(-1, -1, -1, -1)
-    last = wp.vec4i(rest, rest, rest, rest)
-    prev = wp.vec4i(rest, rest, rest, rest)
+        base3 = label_row_base(i + 1, j + 1, pad, n)
+    c00 = rest
+    c10 = rest
+    c01 = rest
+    c11 = rest
     nv = int(0)
     nq = int(0)
     nj = int(0)
     word = wp.uint64(0)
     for k in range(p[2]):
         kk = k - pad
-        inside_k = kk >= 0 and kk < n[2]
-        cur = wp.vec4i(rest, rest, rest, rest)
-        for q in range(4):
-            if base[q] >= 0 and inside_k:
-                raw = label_raw(u8, u16, i32, mode, base[q] + kk)
-                if raw != last_raw[q]:
-                    last_raw[q] = raw
-                    last[q] = label_code(raw, mode, table)
-                    if q == 0:
-                        seen[last[0]] = wp.uint8(1)
-                cur[q] = last[q]
-        inner_k = inside_span(k, p[2])
-        if has_i and inner_j and inner_k and cur[1] != cur[0]:
-            nq += 1
-        if has_j and inner_i and inner_k and cur[2] != cur[0]:
-            nq += 1
-        if k >= 1:
-            if inner_i and inner_j and cur[0] != prev[0]:  # the edge (k - 1, k) along the row
-                nq += 1
-            c0 = prev[0]
-            used = cubes and not (cur[0] == c0 and cur[1] == c0 and cur[2] == c0 and cur[3] == c0 and
-                                  prev[1] == c0 and prev[2] == c0 and prev[3] == c0)
-            if used and pad == 0 and (i == 0 or i + 2 == p[0] or j == 0 or j + 2 == p[1] or k == 1 or k == p[2] - 1):
-                used = boundary_cube_used(prev, cur, i, j, k - 1, p)
-            if used:
-                word = word | (wp.uint64(1) << wp.uint64((k - 1) % 64))
-                nv += 1
-                if distinct_codes(prev[0], prev[1], prev[2], prev[3], cur[0], cur[1], cur[2], cur[3]) >= 3:
-                    nj += 1
-            if cubes and ((k - 1) % 64 == 63 or k == p[2] - 1):
+        inside = kk >= 0 and kk < n[2]
+        q00 = c00  # the codes at k - 1
+        q10 = c10
+        q01 = c01
+        q11 = c11
+        c00 = row_code(values, table, rest, base0, kk, inside)
+        c10 = row_code(values, table, rest, base1, kk, inside)
+        c01 = row_code(values, table, rest, base2, kk, inside)
+        c11 = row_code(values, table, rest, base3, kk, inside)
+        if c00 != q00 or k == 0:
+            seen[c00] = wp.uint8(1)
+        if k == 0:
+            continue
+        if cubes and ((c00 ^ q00) | (c10 ^ q00) | (c01 ^ q00) | (c11 ^ q00) | (q10 ^ q00) | (q01 ^ q00) |
+                      (q11 ^ q00)) == 0:  # the usual case: 8 codes alike, no crossing edge at k
+            if ((k - 1) & 63) == 63 or k == p[2] - 1:
                 bits[r * words + (k - 1) / 64] = word
                 word = wp.uint64(0)
-        prev = cur
+            continue
+        inner_k = k + 1 < p[2]  # edges at k (k >= 1 here) have cubes k - 1 and k
+        if edge_i and inner_k and c10 != c00:
+            nq += 1
+        if edge_j and inner_k and c01 != c00:
+            nq += 1
+        if edge_k and c00 != q00:  # the edge (k - 1, k) along the row
+            nq += 1
+        if cubes:
+            if not (c00 == q00 and c10 == q00 and c01 == q00 and c11 == q00 and q10 == q00 and q01 == q00 and
+                    q11 == q00):
+                used = True
+                if face or (pad == 0 and (k == 1 or k == p[2] - 1)):
+                    used = boundary_cube_used(wp.vec4i(q00, q10, q01, q11), wp.vec4i(c00, c10, c01, c11), i, j, k - 1,
+                                              p)
+                if used:
+                    word = word | (wp.uint64(1) << wp.uint64((k - 1) % 64))
+                    nv += 1
+                    if distinct_codes(q00, q10, q01, q11, c00, c10, c01, c11) >= 3:
+                        nj += 1
+            if (k - 1) % 64 == 63 or k == p[2] - 1:
+                bits[r * words + (k - 1) / 64] = word
+                word = wp.uint64(0)
     vertex_count[r] = nv
     quad_count[r] = nq
     junction_count[r] = nj
@@ -767,9 +771,9 @@ def write_quad(q: wp.vec4i, flip: bool, lo: int, hi: int, ids: wp.array(dtype=wp
 
 @wp.kernel
 def emit_label_quads_kernel(
-    first: int, u8: wp.array(dtype=wp.uint8), u16: wp.array(dtype=wp.uint16), i32: wp.array(dtype=wp.int32),
-    mode: int, table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i, p: wp.vec3i, words: int,
-    bits: wp.array(dtype=wp.uint64), vertex_first: wp.array(dtype=wp.int32), quad_count: wp.array(dtype=wp.int32),
+    first: int, values: wp.array(dtype=Any), table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i,
+    p: wp.vec3i, words: int, bits: wp.array(dtype=wp.uint64), vertex_first: wp.array(dtype=wp.int32),
+    quad_count: wp.array(dtype=wp.int32),
     quad_first: wp.array(dtype=wp.int64), ids: wp.array(dtype=wp.int64), reverse: int,
     pair_seen: wp.array(dtype=wp.uint8), n_codes: int, triangles: wp.array(dtype=wp.int64),
     lower: wp.array(dtype=wp.int64), upper: wp.array(dtype=wp.int64),
@@ -811,24 +815,24 @@ def emit_label_quads_kernel(
             m = m & (m - wp.uint64(1))
             k = 64 * w + bit
             inner_k = inside_span(k, p[2])
-            c00 = code_at(u8, u16, i32, mode, table, rest, pad, n, i, j, k)
+            c00 = code_at(values, table, rest, pad, n, i, j, k)
             v00 = cube_rank(bits, r, w, words, bit, b00)  # cube (i, j, k)
             if inner_j and inner_k:  # axis 0
-                c = code_at(u8, u16, i32, mode, table, rest, pad, n, i + 1, j, k)
+                c = code_at(values, table, rest, pad, n, i + 1, j, k)
                 if c != c00:
                     v0j = cube_rank(bits, r_j, w, words, bit, b0j)
                     write_quad(wp.vec4i(v0j - 1, v00 - 1, v00, v0j), (c00 > c) != turn, wp.min(c, c00),
                                wp.max(c, c00), ids, pair_seen, n_codes, out, triangles, lower, upper)
                     out += 1
             if inner_i and inner_k:  # axis 1
-                c = code_at(u8, u16, i32, mode, table, rest, pad, n, i, j + 1, k)
+                c = code_at(values, table, rest, pad, n, i, j + 1, k)
                 if c != c00:
                     vi0 = cube_rank(bits, r_i, w, words, bit, bi0)
                     write_quad(wp.vec4i(vi0 - 1, vi0, v00, v00 - 1), (c00 > c) != turn, wp.min(c, c00),
                                wp.max(c, c00), ids, pair_seen, n_codes, out, triangles, lower, upper)
                     out += 1
             if inner_i and inner_j and k + 1 < p[2]:  # axis 2
-                c = code_at(u8, u16, i32, mode, table, rest, pad, n, i, j, k + 1)
+                c = code_at(values, table, rest, pad, n, i, j, k + 1)
                 if c != c00:
                     vij = cube_rank(bits, r_ij, w, words, bit, bij)
                     v0j = cube_rank(bits, r_j, w, words, bit, b0j)
@@ -873,3 +877,8 @@ def emit_label_points_kernel(
                 points[3 * v + 2] = z
             points[3 * v + 1] = y
             v += 1
+
+
+for _dtype in LABEL_DTYPES:  # compiled with the module, once: no instance made at the first launch of a new type
+    wp.overload(count_label_rows_kernel, {"values": wp.array(dtype=_dtype)})
+    wp.overload(emit_label_quads_kernel, {"values": wp.array(dtype=_dtype)})

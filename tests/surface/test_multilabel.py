@@ -250,7 +250,8 @@ def test_files_keep_both_labels(tmp_path):
         corners = np.round(np.asarray(points)[tris] * 8).astype(np.int64).tolist()
         return {tuple(sorted(map(tuple, c))): v for c, v in zip(corners, values)}
 
-    expect = by_position(m.points, m.cells["triangle"], [pair_of[(a, b)] for a, b in zip(lower.tolist(), upper.tolist())])
+    pairs = [pair_of[(a, b)] for a, b in zip(lower.tolist(), upper.tolist())]
+    expect = by_position(m.points, m.cells["triangle"], pairs)
     assert len(faces) == len(expect) and by_position(raw.points, faces, physical.tolist()) == expect
 
 
@@ -309,5 +310,11 @@ def test_progress_callback_reaches_the_total():
 
     calls = []
     vol = _random_tiles(seed=2, n_tiles=20)
-    shared_surface(vol, "all", origin=(0, 0, 0), spacing=(1, 1, 1), progress=lambda done, total: calls.append((done, total)))
+    shared_surface(vol, "all", origin=(0, 0, 0), spacing=(1, 1, 1),
+                   progress=lambda done, total: calls.append((done, total)))
     assert calls and calls[-1][0] == calls[-1][1] and all(a[0] < b[0] for a, b in zip(calls, calls[1:]))
+    through = []  # mesh_surface hands it on, for an array and for an image; False shows nothing
+    wm.mesh_surface(vol, labels="all", interfaces="shared", progress=lambda done, total: through.append(done))
+    wm.mesh_surface(wm.Volume(vol), labels="all", interfaces="shared", progress=lambda done, total: through.append(done))
+    assert through.count(calls[-1][1]) == 2
+    assert wm.mesh_surface(vol, labels="all", interfaces="shared", progress=False).n_cells > 0

@@ -234,7 +234,7 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     if reverse:  # x fastest (VTK, NIfTI): mesh the C-order view vol.T; the kernels write the axes back
         vol, origin, spacing = vol.T, origin[::-1], spacing[::-1]
     vol = np.ascontiguousarray(vol)
-    source, mode, table, ids, rest, chosen = _label_source(vol, labels)
+    source, table, ids, rest, chosen = _label_source(vol, labels)
     timings["codes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -243,11 +243,7 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     n = np.array(vol.shape, dtype=np.int64)
     p = n + 2 * pad
     n_rows, words = int(p[0] * p[1]), int((p[2] - 2) // 64 + 1)  # p[2] - 1 cubes a row
-    empty = {KF.LABEL_U8: wp.empty(0, dtype=wp.uint8, device=dev), KF.LABEL_U16: wp.empty(0, dtype=wp.uint16, device=dev),
-             KF.LABEL_I32: wp.empty(0, dtype=wp.int32, device=dev)}
-    empty[mode] = wp.array(source, dtype={KF.LABEL_U8: wp.uint8, KF.LABEL_U16: wp.uint16,
-                                          KF.LABEL_I32: wp.int32}[mode], device=dev, copy=not dev.is_cpu)
-    grid = [empty[KF.LABEL_U8], empty[KF.LABEL_U16], empty[KF.LABEL_I32], mode,
+    grid = [wp.array(source, dtype=wp.dtype_from_numpy(source.dtype), device=dev, copy=not dev.is_cpu),
             wp.array(table, dtype=wp.int32, device=dev), rest, pad, wp.vec3i(*n.tolist()), wp.vec3i(*p.tolist()), words]
     bits = wp.zeros(n_rows * words, dtype=wp.uint64, device=dev)
     counts = {key: wp.empty(n_rows, dtype=wp.int32, device=dev) for key in ("vertex", "quad", "junction")}
@@ -368,30 +364,25 @@ def _choose(present: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def _label_source(vol: np.ndarray, labels):
-    """What the kernels read: (flat array, mode, table, ids, rest, chosen). 8- and 16-bit
-    values are read in place through a table from each bit pattern to its code, made from
-    ``labels`` alone (with "all", every value of the dtype is a region id; ``chosen`` is
-    None and the values present are known after the first pass); wider values are coded
-    first (:func:`label_codes`), which checks ``labels`` against the volume."""
-    import warpmesh.kernels.flying_edges as KF
+    """What the kernels read: (flat samples, table, ids, rest, chosen). 8- and 16-bit values
+    are read in place (as uint8 / uint16) through a table from each bit pattern to its code,
+    made from ``labels`` alone (with "all", every value of the dtype is a region id;
+    ``chosen`` is None and the values present are known after the first pass); wider values
+    are coded first (:func:`label_codes`, which checks ``labels`` against the volume)."""
     from warpmesh.surface.volume import check_label_range, check_labels  # shared label checks
 
     small = vol.dtype.itemsize <= 2 and (vol.dtype == np.bool_ or np.issubdtype(vol.dtype, np.integer))
     if not small:
         codes, ids, rest = label_codes(vol, labels)
         chosen = ids[np.arange(len(ids)) != rest]
-        if codes.dtype == np.int32:
-            return codes.reshape(-1), KF.LABEL_I32, np.zeros(1, dtype=np.int32), ids, rest, chosen
-        identity = np.arange(1 << (8 * codes.dtype.itemsize), dtype=np.int32)
-        return (codes.reshape(-1), KF.LABEL_U8 if codes.dtype == np.uint8 else KF.LABEL_U16, identity, ids, rest,
-                chosen)
+        identity = np.arange(len(ids) if codes.dtype == np.int32 else 1 << (8 * codes.dtype.itemsize), dtype=np.int32)
+        return codes.reshape(-1), identity, ids, rest, chosen
     unsigned = np.uint8 if vol.dtype.itemsize == 1 else np.uint16
     values = np.arange(1 << (8 * vol.dtype.itemsize)).astype(unsigned).view(
         vol.dtype if vol.dtype != np.bool_ else np.uint8).astype(np.int64)  # the value of each bit pattern
     if isinstance(labels, str) and labels == "all":
-        chosen, ids = None, np.sort(values)
-        table = np.searchsorted(ids, values).astype(np.int32)
-        return vol.view(unsigned).reshape(-1), KF.LABEL_U8 if unsigned == np.uint8 else KF.LABEL_U16, table, ids, \
+        ids = np.sort(values)
+        return vol.view(unsigned).reshape(-1), np.searchsorted(ids, values).astype(np.int32), ids, \
             int(np.searchsorted(ids, 0)), None
     chosen = np.asarray(check_labels(labels, vol[:0])).astype(np.int64)
     check_label_range(chosen)
@@ -401,8 +392,7 @@ def _label_source(vol: np.ndarray, labels):
     table = np.full(len(values), rest, dtype=np.int32)
     meshed = np.isin(values, chosen)
     table[meshed] = np.searchsorted(ids, values[meshed])
-    return vol.view(unsigned).reshape(-1), KF.LABEL_U8 if unsigned == np.uint8 else KF.LABEL_U16, table, ids, rest, \
-        chosen
+    return vol.view(unsigned).reshape(-1), table, ids, rest, chosen
 
 
 def _present_labels(seen: np.ndarray, ids: np.ndarray, rest: int, chosen) -> np.ndarray:

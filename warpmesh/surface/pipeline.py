@@ -150,7 +150,9 @@ def mesh_surface(
         With ``client``: a ``.pvtu`` path; one VTU piece per brick is written beside it as
         bricks finish.
     progress : bool or callable
-        With ``client``: a progress bar over the bricks, or ``progress(done, total)``.
+        With ``client``: a progress bar over the bricks, or ``progress(done, total)``; with
+        ``interfaces="shared"``: a bar over the grid's rows (tqdm, shown once the run has
+        taken a second), or ``progress(done, total)``.
     **keywords
         The fields of the chosen pipeline's group, by name. A keyword given as None
         takes its default. A keyword of another pipeline raises one ValueError that
@@ -212,10 +214,10 @@ def mesh_surface(
     if client is not None:
         return _mesh_bricked(source, options, covering, adaptive, device, refs, keywords, t_start, client=client,
                              bricks=bricks, brick_cells=brick_cells, gather=gather, output=output, progress=progress)
-    _refuse_bricking(bricks=bricks, brick_cells=brick_cells, gather=gather, output=output, progress=progress)
+    _refuse_bricking(bricks=bricks, brick_cells=brick_cells, gather=gather, output=output)
     image = as_volume(source)  # a Volume, an image file or a pyvista ImageData; None for arrays and shapes
     if image is not None:
-        return _mesh_image(image, options, covering, adaptive, device, keywords)
+        return _mesh_image(image, options, covering, adaptive, device, keywords, progress)
     if options is None:
         options = _options_from_keywords(source, covering, adaptive, keywords)
     else:
@@ -226,7 +228,7 @@ def mesh_surface(
         if refs != "surface":
             raise ValueError(f"refs={refs!r} tags the primitives of a shape; a volume's triangles carry its "
                              "labels (labels=...)")
-        return _mesh_volume(source, options, device, t_start)
+        return _mesh_volume(source, options, device, t_start, progress)
     if isinstance(options, AdaptiveOptions):
         mesh = _mesh_adaptive(source, options, device, t_start)
     else:
@@ -281,7 +283,7 @@ def _tag_primitives(shape: Shape, mesh: Mesh) -> Mesh:
     return mesh.replace(cell_refs={"triangle": refs}, info={**mesh.info, **extra, "timings": timings})
 
 
-def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: dict) -> Mesh:
+def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: dict, progress=True) -> Mesh:
     """An image's values meshed with its spacing, then placed by its direction and origin.
 
     With a rotated (or reflected) ``direction`` the array pipeline runs at origin 0 and
@@ -311,7 +313,8 @@ def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: di
         options = dataclasses.replace(options, **place)
     else:
         keywords = {**keywords, **place} if options is None else keywords
-    mesh = mesh_surface(values, options=options, covering=covering, adaptive=adaptive, device=device, **keywords)
+    mesh = mesh_surface(values, options=options, covering=covering, adaptive=adaptive, device=device,
+                        progress=progress, **keywords)
     if moved and mesh.n_points:
         mesh = mesh.transform(placement)
         mesh = mesh.replace(info={k: v for k, v in mesh.info.items() if k != GRID_INFO})  # not the world's grid
@@ -511,12 +514,12 @@ def _vertex_normals(tape, grid: BlockGrid, verts, edges: dict, cap: bool, gradie
     return normals
 
 
-def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
+def _mesh_volume(source, opts: VolumeOptions, device, t_start: float, progress=True) -> Mesh:
     """The volume pipeline: one extraction per label (or one at ``level``), slab by slab;
     with interfaces='shared', one surface of every interface (:mod:`warpmesh.surface.multilabel`)."""
     vol = _check_volume(source)
     if opts.interfaces == "shared":
-        return _mesh_shared(vol, opts, device, t_start)
+        return _mesh_shared(vol, opts, device, t_start, progress)
     if opts.cap and min(vol.shape) < 3:
         raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
                          f"boundary samples are outside), got shape {vol.shape}")
@@ -571,11 +574,11 @@ def _mesh_volume(source, opts: VolumeOptions, device, t_start: float) -> Mesh:
 
 
 
-def _mesh_shared(vol: np.ndarray, opts: VolumeOptions, device, t_start: float) -> Mesh:
-    """One surface with each interface between two labels meshed once (surface nets, on the host)."""
+def _mesh_shared(vol: np.ndarray, opts: VolumeOptions, device, t_start: float, progress=True) -> Mesh:
+    """One surface with each interface between two labels meshed once (surface nets)."""
     timings: dict[str, float] = {}
     points, faces, lower, upper, info = shared_surface(vol, opts.labels, origin=opts.origin, spacing=opts.spacing,
-                                                       cap=opts.cap, timings=timings)
+                                                       cap=opts.cap, device=device, progress=progress, timings=timings)
     info.update({"method": "surface nets", "interfaces": "shared", "device": str(device), "evaluations": 0,
                  "vertices": len(points), "triangles": len(faces), "interface_pairs": info.pop("interfaces"),
                  GRID_INFO: {"origin": list(opts.origin), "spacing": list(opts.spacing), "shape": list(vol.shape)}})
