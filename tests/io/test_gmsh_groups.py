@@ -281,3 +281,39 @@ def test_primitive_refs_are_named_after_their_primitives(tmp_path):
     outer = groups[f"ref_{min(m.info['primitives'])}_sphere"][1]
     radius = np.linalg.norm(m.points[np.array(outer)].reshape(-1, 3), axis=1)
     assert np.all(np.abs(radius - 1.0) < 0.05)  # the first primitive is the outer sphere
+
+
+def test_mesh_domain_regions_go_to_volume_groups(tmp_path):
+    """mesh_domain(volume, labels=...) (lattice cleaving): one physical volume per label with
+    that label's tetrahedra, one physical surface per interface; gmsh's volumes per group
+    equal warpmesh's region volumes."""
+    vol = np.zeros((16, 16, 16), dtype=np.int16)
+    vol[3:13, 3:13, 3:8] = 2
+    vol[3:13, 3:13, 8:13] = 5
+    m = wm.mesh_domain(vol, labels="all", size=2.0)
+    path = m.save(tmp_path / "regions.msh")
+    groups = _gmsh_groups(path)
+    tet_refs = m.cell_refs["tetra"]
+    lo, hi = m.cell_refs["triangle"], m.cell_data[LABEL_ABOVE]["triangle"]
+    pairs = sorted({(int(a), int(b)) for a, b in zip(lo, hi)})
+    assert {k: (v[0], len(v[1])) for k, v in groups.items()} == {
+        **{f"label_{r}": (3, int(np.sum(tet_refs == r))) for r in (2, 5)},
+        **{f"interface_{a}_{b}": (2, int(np.sum((lo == a) & (hi == b)))) for a, b in pairs}}
+    assert (2, 5) in pairs
+    tets = m.cells["tetra"]
+    for r in (2, 5):
+        assert sorted(groups[f"label_{r}"][1]) == sorted(map(tuple, tets[tet_refs == r].tolist()))
+    gmsh.initialize(["-v", "0"])
+    try:
+        gmsh.open(str(path))
+        for dim, tag in gmsh.model.getPhysicalGroups(3):
+            r = int(gmsh.model.getPhysicalName(dim, tag).split("_")[1])
+            elems = [e for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag)
+                     for e in gmsh.model.mesh.getElements(3, ent)[1][0]]
+            got = gmsh.model.mesh.getElementQualities(elems, "volume").sum()
+            assert got == pytest.approx(m.info["region_volumes"][r]["volume"], rel=1e-9)
+    finally:
+        gmsh.finalize()
+    back = wm.load(path)
+    assert sorted(zip(map(tuple, back.cells["tetra"].tolist()), back.cell_refs["tetra"].tolist())) == \
+        sorted(zip(map(tuple, tets.tolist()), tet_refs.tolist()))
