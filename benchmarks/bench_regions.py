@@ -9,7 +9,7 @@ times the smallest spacing.
 
 Rows per case:
 
-- warpmesh cleaving with the default snapping (0.2 of an edge) and without (snap=0): the
+- warpmesh cleaving with the default snapping (0.3 of an edge) and without (snap=0): the
   quality before and after the snapping;
 - TetGen (the ``tetgen`` module, ``regionattrib``, one seed per label at its voxel deepest
   inside, ``quality`` with minratio 1.5, mindihedral 10, maxvolume the volume of a BCC
@@ -111,7 +111,7 @@ def run_case(name: str, image, values: np.ndarray, spacing, h: float, repeat: in
           f"({h / min(spacing):g} voxels)")
     rows = []
     w, c, m = _timed(lambda: wm.mesh_domain(image, labels="all", size=h), repeat)
-    rows.append(("warpmesh cleaving (snap 0.2)", m.points, m.cells["tetra"], m.cell_refs["tetra"], w, c))
+    rows.append((f"warpmesh cleaving (snap {m.info['snap']:g})", m.points, m.cells["tetra"], m.cell_refs["tetra"], w, c))
     w0, c0, m0 = _timed(lambda: wm.mesh_domain(image, labels="all", size=h, snap=0.0), max(1, repeat // 2))
     rows.append(("warpmesh cleaving (snap 0)", m0.points, m0.cells["tetra"], m0.cell_refs["tetra"], w0, c0))
     print("warpmesh stages: " + ", ".join(f"{k} {v:.2f} s" for k, v in m.info["time"].items())
