@@ -1,4 +1,4 @@
-"""2-3 and 3-2 flips after smoothing (issue 20, part 4): the smallest dihedral angle never
+"""2-3, 3-2 and 4-4 flips after smoothing (issue 20, part 4): the smallest dihedral angle never
 drops, the largest never rises, the mesh stays conforming, positive, embedded, with the same
 boundary and volume."""
 
@@ -30,6 +30,48 @@ def test_three_tetrahedra_around_a_long_edge_become_two():
     assert set(map(frozenset, boundary_faces(new).tolist())) == set(map(frozenset, tris.tolist()))
 
 
+def test_four_tetrahedra_around_an_edge_take_the_better_diagonal_of_their_ring():
+    """Random octahedra (an axis and a ring of 4): where a 4-4 flip is made it raises the
+    smallest angle, keeps the volume and the 8 outer faces, and gives positive tetrahedra
+    around a diagonal of the ring; where none is made, no diagonal would have raised the
+    smallest angle without raising the largest above the mesh's."""
+    rng = np.random.default_rng(44)
+    flipped = 0
+    for _ in range(200):
+        ang = 2 * np.pi * np.arange(4) / 4 + rng.uniform(-0.3, 0.3, 4)
+        ring = np.stack([np.cos(ang), np.sin(ang), rng.uniform(-0.4, 0.4, 4)], axis=1)
+        pts = np.vstack([[0, 0, rng.uniform(0.3, 1.5)], [0, 0, -rng.uniform(0.3, 1.5)], ring])
+        tets = np.array([[0, 1, 2 + i, 2 + (i + 1) % 4] for i in range(4)])
+        vol = signed_volumes(pts, tets)
+        tets[vol < 0] = tets[vol < 0][:, [0, 1, 3, 2]]
+        if (np.abs(vol) < 1e-3).any():
+            continue
+        tris = boundary_faces(tets)
+        new, info = flip_tets(pts, tets, tris)
+        before, after = dihedral_angles(pts, tets).min(), dihedral_angles(pts, new).min()
+        assert after >= before and (signed_volumes(pts, new) > 0).all()
+        assert signed_volumes(pts, new).sum() == pytest.approx(signed_volumes(pts, tets).sum())
+        assert set(map(frozenset, boundary_faces(new).tolist())) == set(map(frozenset, tris.tolist()))
+        if info["flips_44"]:
+            flipped += 1
+            assert after > before
+            axis = {frozenset(e) for t in new.tolist() for e in ((t[0], t[1]),)}
+            edges = {frozenset((t[i], t[j])) for t in new.tolist() for i in range(4) for j in range(i + 1, 4)}
+            assert frozenset((0, 1)) not in edges, "the old axis is gone"
+            assert axis and {frozenset((2, 4)), frozenset((3, 5))} & edges, "a diagonal of the ring is the new axis"
+        else:
+            for d in ((2, 4, 3, 5), (3, 5, 2, 4)):  # both diagonals, by hand
+                p, q, r, s_ = d
+                alt = np.array([[p, q, r, 0], [p, q, r, 1], [p, q, s_, 0], [p, q, s_, 1]])
+                v = signed_volumes(pts, alt)
+                alt[v < 0] = alt[v < 0][:, [0, 1, 3, 2]]
+                fills = abs(np.abs(v).sum() - np.abs(signed_volumes(pts, tets)).sum()) < 1e-9
+                if fills and info["flips_23"] + info["flips_32"] == 0:  # the flip rule: min up, max not above
+                    ang = dihedral_angles(pts, alt)
+                    assert ang.min() <= before + 1e-6 or ang.max() > dihedral_angles(pts, tets).max()
+    assert flipped > 10
+
+
 @pytest.mark.parametrize("name, smooth, euler", [("sphere", 2, 2), ("part", 2, -6)])
 def test_flips_never_lower_the_smallest_angle(name, smooth, euler, capsys):
     shape, bounds = wm.example(name)
@@ -46,7 +88,7 @@ def test_flips_never_lower_the_smallest_angle(name, smooth, euler, capsys):
     with capsys.disabled():
         print(f"\n{name}, size 0.08, smooth={smooth}, flips: " + ", ".join(
             f"{k} {v['dihedral_min']:.2f}..{v['dihedral_max']:.2f}" for k, v in st.items())
-            + f" deg; {s['flips_23']} 2-3 and {s['flips_32']} 3-2 flips")
+            + f" deg; {s['flips_23']} 2-3, {s['flips_32']} 3-2 and {s['flips_44']} 4-4 flips")
 
 
 def test_flips_must_be_a_bool():

@@ -1,9 +1,12 @@
 """Flips of tetrahedral meshes that never lower the smallest dihedral angle [FG §16.4.3,
 "topological modifications"]: 2-3 (two tetrahedra sharing an interior face become three
-around the edge joining their opposite vertices) and 3-2 (the three tetrahedra around an
-interior edge of degree 3 become two sharing the face of the ring).
+around the edge joining their opposite vertices), 3-2 (the three tetrahedra around an
+interior edge of degree 3 become two sharing the face of the ring) and 4-4 (the four
+tetrahedra around an interior edge of degree 4 fill an octahedron whose axis is that edge;
+they become the four around one of the two diagonals of the ring instead, whichever
+gains more).
 
-Each round lists every candidate (all interior faces, all interior edges of degree 3),
+Each round lists every candidate (all interior faces, all interior edges of degree 3 and 4),
 keeps those whose new tetrahedra are positive, fill the same volume (so the new edge or face
 crosses the old one), raise the smallest dihedral angle among the tetrahedra they replace
 and keep the largest below the mesh's largest; then applies, per tetrahedron, only the
@@ -15,7 +18,7 @@ Example
 >>> import warpmesh as wm
 >>> vol = wm.mesh_domain(wm.example("part")[0], bounds=wm.example("part")[1], size=0.12, flips=True)
 >>> s = vol.stats()
->>> s["flips_23"] + s["flips_32"] > 0, s["dihedral_min"] >= s["dihedral_min_before_flips"]
+>>> s["flips_23"] + s["flips_32"] + s["flips_44"] > 0, s["dihedral_min"] >= s["dihedral_min_before_flips"]
 (True, True)
 """
 
@@ -62,9 +65,8 @@ def _candidates_23(pts, tets, q):
     return np.stack([tid[pair], tid[pair + 1]], axis=1), new
 
 
-def _candidates_32(pts, tets, boundary_keys):
-    """Interior edges of degree 3: (old (k, 3) tet ids, new (k, 2, 4) tets)."""
-    n = np.int64(len(pts))
+def _edge_fans(tets, n, boundary_keys, degree: int):
+    """Interior edges in exactly ``degree`` tetrahedra: (edge (k, 2), tet ids (k, degree))."""
     m = len(tets)
     e = np.sort(np.concatenate([tets[:, [i, j]] for i, j in TET_EDGES]), axis=1)
     tid = np.tile(np.arange(m), 6)
@@ -73,22 +75,62 @@ def _candidates_32(pts, tets, boundary_keys):
     key, e, tid = key[o], e[o], tid[o]
     start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     count = np.diff(np.r_[start, len(key)])
-    three = start[(count == 3) & ~np.isin(key[start], boundary_keys)]
-    old = np.stack([tid[three], tid[three + 1], tid[three + 2]], axis=1)
-    ab = e[three]
-    ring = tets[old].reshape(len(three), 12)
-    ring = np.where((ring == ab[:, :1]) | (ring == ab[:, 1:]), -1, ring)
-    ring = np.sort(ring, axis=1)
-    # each ring vertex appears twice among the three tetrahedra: the distinct ones
-    u = ring[:, 6:]  # the 6 non-(-1) entries, sorted: c c d d e e
+    first = start[(count == degree) & ~np.isin(key[start], boundary_keys)]
+    return e[first], np.stack([tid[first + i] for i in range(degree)], axis=1)
+
+
+def _ring(tets, old, ab):
+    """The vertices other than the edge's, each tetrahedron's pair: (k, degree, 2)."""
+    ring = tets[old]  # (k, degree, 4)
+    off = (ring != ab[:, None, :1]) & (ring != ab[:, None, 1:])
+    return np.sort(np.where(off, ring, -1), axis=2)[:, :, 2:]
+
+
+def _candidates_32(pts, tets, boundary_keys):
+    """Interior edges of degree 3: (old (k, 3) tet ids, new (k, 2, 4) tets)."""
+    ab, old = _edge_fans(tets, np.int64(len(pts)), boundary_keys, 3)
+    u = np.sort(_ring(tets, old, ab).reshape(len(old), 6), axis=1)
+    # each ring vertex appears twice among the three tetrahedra: c c d d e e
     cde = u[:, ::2]
-    ok = (u[:, 0] == u[:, 1]) & (u[:, 2] == u[:, 3]) & (u[:, 4] == u[:, 5])
+    ok = (u[:, 0] == u[:, 1]) & (u[:, 2] == u[:, 3]) & (u[:, 4] == u[:, 5]) & (u[:, 0] >= 0)
     new = np.stack([np.concatenate([cde, ab[:, :1]], 1), np.concatenate([cde, ab[:, 1:]], 1)], axis=1)
     return old[ok], new[ok]
 
 
+def _candidates_44(pts, tets, boundary_keys):
+    """Interior edges of degree 4: (old (2k, 4) tet ids, new (2k, 4, 4) tets), the two
+    diagonals of each edge's ring as two candidates (at most one is applied: they share
+    their tetrahedra)."""
+    n = np.int64(len(pts))
+    ab, old = _edge_fans(tets, n, boundary_keys, 4)
+    pairs = _ring(tets, old, ab)  # (k, 4, 2): the ring's edges
+    u = np.sort(pairs.reshape(len(old), 8), axis=1)
+    # a closed ring of 4: each vertex twice, c c d d e e f f
+    ok = (u[:, 0] == u[:, 1]) & (u[:, 2] == u[:, 3]) & (u[:, 4] == u[:, 5]) & (u[:, 6] == u[:, 7]) & (u[:, 0] >= 0)
+    ab, old, pairs, v = ab[ok], old[ok], pairs[ok], u[ok][:, ::2]
+    ring_keys = pairs[..., 0] * n + pairs[..., 1]
+    # the diagonals: the pairing of the 4 vertices none of whose pairs is a ring edge
+    choices = (((0, 1), (2, 3)), ((0, 2), (1, 3)), ((0, 3), (1, 2)))
+    diag = np.zeros((len(old), 2, 2), np.int64)
+    found = np.zeros(len(old), bool)
+    for (i, j), (k, l) in choices:
+        hit = ~((ring_keys == (v[:, i] * n + v[:, j])[:, None]).any(1) | (ring_keys == (v[:, k] * n + v[:, l])[:, None]).any(1))
+        sel = hit & ~found
+        diag[sel] = np.stack([v[sel][:, [i, j]], v[sel][:, [k, l]]], axis=1)
+        found |= hit
+    ab, old, diag = ab[found], old[found], diag[found]
+    a, b = ab[:, :1], ab[:, 1:]
+    news = []
+    for d in (0, 1):  # new axis diag[d], the other diagonal's ends around it
+        p, q = diag[:, d, :1], diag[:, d, 1:]
+        r, s = diag[:, 1 - d, :1], diag[:, 1 - d, 1:]
+        news.append(np.stack([np.concatenate(c, 1) for c in ((p, q, r, a), (p, q, r, b), (p, q, s, a), (p, q, s, b))],
+                             axis=1))
+    return np.concatenate([old, old]), np.concatenate(news)
+
+
 def flip_tets(points, tets, tris, *, rounds: int = MAX_ROUNDS, device="cpu"):
-    """2-3 and 3-2 flips that raise the smallest dihedral angle where they act.
+    """2-3, 3-2 and 4-4 flips that raise the smallest dihedral angle where they act.
 
     Parameters
     ----------
@@ -100,7 +142,7 @@ def flip_tets(points, tets, tris, *, rounds: int = MAX_ROUNDS, device="cpu"):
     Returns
     -------
     tets : (m', 4) int64, positive
-    info : dict, ``flips_23``, ``flips_32``, ``flip_rounds``
+    info : dict, ``flips_23``, ``flips_32``, ``flips_44``, ``flip_rounds``
     """
     pts = np.asarray(points, dtype=np.float64)
     tets = np.asarray(tets, dtype=np.int64).copy()
@@ -109,13 +151,14 @@ def flip_tets(points, tets, tris, *, rounds: int = MAX_ROUNDS, device="cpu"):
     boundary_keys = be[:, 0] * n + be[:, 1]
     q = tet_quality(pts, tets, device)
     ceiling = float(q[:, 1].max()) if len(q) else 180.0
-    done23 = done32 = 0
+    done23 = done32 = done44 = 0
     r = 0
     for r in range(1, rounds + 1):
         old23, new23 = _candidates_23(pts, tets, q)
         old32, new32 = _candidates_32(pts, tets, boundary_keys)
-        olds = [old23, old32]
-        news = [new23, new32]
+        old44, new44 = _candidates_44(pts, tets, boundary_keys)
+        olds = [old23, old32, old44]
+        news = [new23, new32, new44]
         gains, keep = [], []
         for old, new in zip(olds, news):
             k = new.shape[1]
@@ -155,6 +198,7 @@ def flip_tets(points, tets, tris, *, rounds: int = MAX_ROUNDS, device="cpu"):
             break
         done23 += len(chosen[0])
         done32 += len(chosen[1])
+        done44 += len(chosen[2])
         drop = np.zeros(len(tets), bool)
         add = []
         for old, new, idx in zip(olds, news, chosen):
@@ -162,4 +206,4 @@ def flip_tets(points, tets, tris, *, rounds: int = MAX_ROUNDS, device="cpu"):
             add.append(new[idx].reshape(-1, 4))
         tets = np.concatenate([tets[~drop]] + add)
         q = tet_quality(pts, tets, device)
-    return tets, {"flips_23": int(done23), "flips_32": int(done32), "flip_rounds": int(r)}
+    return tets, {"flips_23": int(done23), "flips_32": int(done32), "flips_44": int(done44), "flip_rounds": int(r)}
