@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
+from warpmesh._util.arrays import unique_rows
 from warpmesh.cells.types import CELL_TYPES, REF_KEY, MeshLike, block_refs, points3
 
 __all__ = ["LABEL_ABOVE", "PhysicalGroup", "physical_groups", "ref_names", "restore_refs", "uses_groups", "write_msh41"]
@@ -142,17 +143,17 @@ def _entities(mesh: MeshLike) -> tuple[dict, dict]:
     for t in mesh.cells:
         pairs = _pairs(mesh, t)
         keys = pairs if pairs is not None else block_refs(mesh, t)[:, None]
-        per_block[t] = keys
-        keys_by_dim.setdefault(_dim(t), set()).update(map(tuple, np.unique(keys, axis=0).tolist()))
+        uniq, _, inverse, _ = unique_rows(keys)
+        per_block[t] = (uniq, inverse)
+        keys_by_dim.setdefault(_dim(t), set()).update(map(tuple, uniq.tolist()))
     tags = {}
     for d, keys in keys_by_dim.items():
         for i, k in enumerate(sorted(keys, key=lambda k: (len(k), k))):
             tags[(d, k)] = i + 1
     cell_tags = {}
-    for t, keys in per_block.items():
-        uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+    for t, (uniq, inverse) in per_block.items():
         lookup = np.array([tags[(_dim(t), tuple(u))] for u in uniq.tolist()], dtype=np.int32)
-        cell_tags[t] = lookup[inv.ravel()]
+        cell_tags[t] = lookup[inverse.ravel()]
     return tags, cell_tags
 
 
@@ -276,13 +277,29 @@ def write_msh41(path, mesh: MeshLike) -> Path:
     parts.append(b"$PhysicalNames\n" + f"{len(groups)}\n".encode())
     parts += [f'{g.dim} {g.tag} "{g.name}"\n'.encode() for g in groups]
     parts.append(b"$EndPhysicalNames\n$Entities\n")
+    # each type's cells sorted by entity once: (entity tag, element numbers, cells) runs;
+    # element numbers are the cells' 1-based positions in the mesh (blocks in order), so a
+    # reader can restore the order that the grouping by entity changes
+    runs, boxes, base = [], {}, 1
+    for t, cells in mesh.cells.items():
+        cells = np.asarray(cells)
+        perm = np.argsort(cell_tags[t], kind="stable")
+        tags_sorted = cell_tags[t][perm]
+        firsts = np.flatnonzero(np.r_[True, tags_sorted[1:] != tags_sorted[:-1]])
+        corners = pts[cells[perm]]  # (m, k, 3): one entity's bounding box is a reduceat over its run
+        lo, hi = np.minimum.reduceat(corners.min(axis=1), firsts), np.maximum.reduceat(corners.max(axis=1), firsts)
+        ordered = _meshio_to_gmsh_order(t, cells[perm])
+        for j, (a, b) in enumerate(zip(firsts, [*firsts[1:], len(perm)])):
+            key = (_dim(t), int(tags_sorted[a]))
+            runs.append((key, t, base + perm[a:b], ordered[a:b]))
+            old = boxes.get(key)
+            boxes[key] = (lo[j], hi[j]) if old is None else (np.minimum(old[0], lo[j]), np.maximum(old[1], hi[j]))
+        base += len(cells)
     by_dim = {d: [e for e in entities if e.dim == d] for d in range(4)}
     parts.append(arr([len(by_dim[d]) for d in range(4)], size_t))
     for d in range(4):
         for e in by_dim[d]:
-            members = [c[cell_tags[t] == e.tag].ravel() for t, c in mesh.cells.items() if _dim(t) == d]
-            used = np.concatenate(members) if members else np.zeros(0, dtype=np.int64)
-            lo, hi = (pts[used].min(axis=0), pts[used].max(axis=0)) if used.size else (np.zeros(3), np.zeros(3))
+            lo, hi = boxes[(d, e.tag)]
             parts.append(arr([e.tag], i32))
             parts.append(arr(lo, f64) if d == 0 else arr(np.concatenate([lo, hi]), f64))
             parts.append(arr([len(e.groups)], size_t) + arr(e.groups, i32))
@@ -295,22 +312,10 @@ def write_msh41(path, mesh: MeshLike) -> Path:
     parts.append(arr(np.arange(1, n + 1), size_t))
     parts.append(pts.tobytes())
     parts.append(b"\n$EndNodes\n$Elements\n")
-    # element tags number the cells in the mesh's order (blocks in order, 1-based), so a
-    # reader can restore the order that the grouping by entity changes
-    blocks, base = [], 1
-    for t, cells in mesh.cells.items():
-        order = _meshio_to_gmsh_order(t, np.asarray(cells))
-        numbers = np.arange(base, base + len(order))
-        for e in entities:
-            if e.dim == _dim(t):
-                mine = cell_tags[t] == e.tag
-                if np.any(mine):
-                    blocks.append((e, t, numbers[mine], order[mine]))
-        base += len(order)
     total = base - 1
-    parts.append(arr([len(blocks), total, 1, total], size_t))
-    for e, t, numbers, cells in blocks:
-        parts.append(arr([e.dim, e.tag, _meshio_to_gmsh_type[t]], i32) + arr([len(cells)], size_t))
+    parts.append(arr([len(runs), total, 1, total], size_t))
+    for (d, tag), t, numbers, cells in runs:
+        parts.append(arr([d, tag, _meshio_to_gmsh_type[t]], i32) + arr([len(cells)], size_t))
         parts.append(np.column_stack([numbers, cells + 1]).astype(size_t).tobytes())
     parts.append(b"\n$EndElements\n")
     path.write_bytes(b"".join(parts))
@@ -337,8 +342,8 @@ def restore_refs(m) -> None:
     """On load of a ``.msh`` file written by :func:`write_msh41` (read by meshio, whose
     ``"gmsh:physical"`` is each entity's first group): the refs from the group names, and
     ``label_above`` for interface cells (other blocks get their refs there, as a label on
-    both sides). Files whose group names do not follow :func:`physical_groups` are left as
-    they are.
+    both sides). Only files with ``interface_<a>_<b>`` groups, every group named as
+    :func:`physical_groups` names them, are changed; others keep their physical tags as refs.
 
     Parameters
     ----------
@@ -350,21 +355,24 @@ def restore_refs(m) -> None:
         names[(dim, tag)] = _parse(name)
     if not names or any(v is None for v in names.values()) or _PHYS not in m.cell_data:
         return
+    if not any(isinstance(v, tuple) for v in names.values()):
+        return  # no interfaces: the physical tags are the refs already (gmsh 2.2 files of ours)
+    if any(b.type not in CELL_TYPES for b in m.cells):
+        return
     refs, above, any_pair = [], [], False
     for block, tags in zip(m.cells, m.cell_data[_PHYS], strict=True):
         d = _dim(block.type)
-        values = [names.get((d, int(t))) for t in np.unique(tags)]
+        uniq, inverse = np.unique(np.asarray(tags, dtype=np.int64), return_inverse=True)
+        values = [names.get((d, int(t))) for t in uniq.tolist()]  # one per group, not per cell
         if any(v is None for v in values):
             return  # a tag without a name of ours
-        lookup = {int(t): names[(d, int(t))] for t in np.unique(tags)}
-        parsed = [lookup[int(t)] for t in np.asarray(tags).tolist()] if len(tags) else []
-        if parsed and all(isinstance(v, tuple) for v in parsed):
-            pairs = np.array(parsed, dtype=INDEX_DTYPE).reshape(-1, 2)
+        if values and all(isinstance(v, tuple) for v in values):
+            pairs = np.array(values, dtype=INDEX_DTYPE).reshape(-1, 2)[inverse.ravel()]
             refs.append(pairs[:, 0])
             above.append(pairs[:, 1])
             any_pair = True
-        elif all(isinstance(v, int) for v in parsed):
-            r = np.array(parsed, dtype=INDEX_DTYPE)
+        elif all(isinstance(v, int) for v in values):
+            r = np.array(values, dtype=INDEX_DTYPE)[inverse.ravel()] if values else np.zeros(0, INDEX_DTYPE)
             refs.append(r)
             above.append(r.copy())
         else:
