@@ -61,8 +61,8 @@ import numpy as np
 
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 
-__all__ = ["CHECK_EVERY", "DEFAULT_PASSES", "GRID_INFO", "MARGIN", "PASS_BAND", "classify_edges", "smooth_labels",
-           "vertex_cubes", "wing_cos"]
+__all__ = ["CHECK_EVERY", "DEFAULT_PASSES", "GRID_INFO", "MARGIN", "PASS_BAND", "box_sides", "classify_edges",
+           "smooth_labels", "vertex_cubes", "wing_cos", "wing_pairs"]
 
 #: passes when none is given: VTK's ``vtkSurfaceNets3D`` default of 16 smoothing iterations
 DEFAULT_PASSES = 16
@@ -171,10 +171,9 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
     frozen = np.zeros(points.shape, dtype=bool)
     side_bits = np.zeros(len(points), dtype=np.int64)
     if shape is not None:  # the padding layer of cap: cubes -1 and shape - 1 lie outside the samples
+        side_bits = box_sides(cube, shape)
         for a in range(3):
-            low, high = cube[:, a] == -1, cube[:, a] == shape[a] - 1
-            frozen[:, a] = low | high
-            side_bits |= low.astype(np.int64) << (2 * a) | high.astype(np.int64) << (2 * a + 1)
+            frozen[:, a] = (side_bits >> (2 * a) & 3) != 0
     table = _edge_table(tris, len(points))
     a, b, feature, kind = classify_edges(tris, refs, above, len(points), side_bits, table)
     weights = _neighbour_weights(a, b, feature, kind, len(points))
@@ -331,7 +330,26 @@ def classify_edges(triangles, lower, upper, n: int, side_bits=None, table=None):
         np.minimum.at(smin, v, fs)
         np.maximum.at(smax, v, fs)
     kind = np.where(degree == 0, 2, np.where((degree == 2) & (smin == smax), 1, 0))
+    # a vertex on no feature edge whose faces are not one fan (two cones touching at it, a label
+    # meeting itself at a grid node, may carry two interfaces or one twice) is fixed too
+    kind[(kind == 2) & (_fans(tris, n) != 1)] = 0
     return a, b, feature, kind
+
+
+def _fans(tris, n):
+    """How many fans (edge-connected groups of faces around it) each vertex has."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    own = tris.ravel()
+    nxt, prv = tris[:, [1, 2, 0]].ravel(), tris[:, [2, 0, 1]].ravel()
+    nodes, inverse = np.unique(np.concatenate([own * n + nxt, own * n + prv]), return_inverse=True)
+    inverse = inverse.ravel()
+    k = len(own)
+    graph = coo_matrix((np.ones(k), (inverse[:k], inverse[k:])), shape=(len(nodes), len(nodes)))
+    _, comp = connected_components(graph, directed=False)
+    first = np.unique(comp, return_index=True)[1]
+    return np.bincount(nodes[first] // n, minlength=n)
 
 
 def _neighbour_weights(a, b, feature, kind, n):
@@ -347,15 +365,64 @@ def _neighbour_weights(a, b, feature, kind, n):
 
 
 def _wing_pairs(points, tris, table):
-    """The pairs of triangles sharing an edge (all pairs around a junction edge), as
-    (k, 4) rows (face A, face B, edge end 0, edge end 1), and their wing cosines now."""
+    """:func:`wing_pairs` of every face from the edge table, and their wing cosines now."""
+    pairs = _pairs_of(table)
+    return pairs, wing_cos(points, tris, pairs)
+
+
+def _pairs_of(table):
     ends, face, _, _ = table
     rows = []
     for lag in (1, 2, 3):  # up to 4 faces around an edge (a label touching itself along a grid edge)
         i = np.flatnonzero(np.all(ends[lag:] == ends[:-lag], axis=1))
         rows.append(np.column_stack([face[i], face[i + lag], ends[i, 0], ends[i, 1]]))
-    pairs = np.concatenate(rows)
-    return pairs, wing_cos(points, tris, pairs)
+    return np.concatenate(rows)
+
+
+def wing_pairs(triangles, faces=None) -> np.ndarray:
+    """The pairs of triangles sharing an edge (every pair around an edge in 3 or 4).
+
+    Parameters
+    ----------
+    triangles : (m, 3) int
+    faces : (k,) int, optional
+        Only the pairs with at least one of these faces.
+
+    Returns
+    -------
+    (q, 4) int64
+        Rows (face A, face B, shared vertex, shared vertex), for :func:`wing_cos`.
+
+    Example
+    -------
+    >>> wing_pairs(np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])).tolist()
+    [[0, 1, 0, 1], [1, 2, 0, 1], [0, 2, 0, 1]]
+    """
+    tris = np.asarray(triangles, np.int64)
+    if len(tris) == 0:
+        return np.zeros((0, 4), np.int64)
+    pairs = _pairs_of(_edge_table(tris, int(tris.max()) + 1))
+    if faces is not None:
+        mark = np.zeros(len(tris), bool)
+        mark[np.asarray(faces, np.int64)] = True
+        pairs = pairs[mark[pairs[:, 0]] | mark[pairs[:, 1]]]
+    return pairs
+
+
+def box_sides(cube, shape) -> np.ndarray:
+    """Per vertex, which faces of the sampled box its cube lies beyond (the padding layer
+    of ``cap``): bit 2a for cube index -1 along axis a, bit 2a + 1 for ``shape[a] - 1``.
+
+    Example
+    -------
+    >>> box_sides(np.array([[-1, 0, 3], [2, 2, 2]]), (5, 5, 4)).tolist()
+    [33, 0]
+    """
+    cube = np.asarray(cube, np.int64)
+    bits = np.zeros(len(cube), np.int64)
+    for a in range(3):
+        bits |= (cube[:, a] == -1).astype(np.int64) << (2 * a) | (cube[:, a] == shape[a] - 1).astype(np.int64) << (2 * a + 1)
+    return bits
 
 
 def wing_cos(points, tris, pairs):
