@@ -358,6 +358,8 @@ def surface_error(mesh, shape=None, *, bounds=None, reference=None) -> dict:
     >>> e["vertex_max"] < e["max"] < 0.01    # vertices lie on the sphere, chords cut inside
     True
     """
+    if getattr(mesh, "dim", 3) != 3:
+        raise ValueError(f"expected a 3D triangle surface for 'mesh', got a {mesh.dim}D mesh")
     target = as_target(shape, bounds=bounds, reference=reference)
     tri = mesh.triangles
     if len(tri) == 0:
