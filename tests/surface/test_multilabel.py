@@ -277,6 +277,12 @@ def test_raw_vertices_at_cube_centres_every_vertex_used():
         corners = np.stack([padded[c[:, 0] + dx, c[:, 1] + dy, c[:, 2] + dz]
                             for dx in (0, 1) for dy in (0, 1) for dz in (0, 1)])
         assert np.all((corners != corners[0]).any(axis=0))
+        if cap:  # the staircase encloses each label's voxels exactly (0, the rest, holds the outside)
+            for label in m.info["labels"]:
+                b = label_boundary(m, label)
+                p = b.points[b.cells["triangle"]]
+                enclosed = np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0
+                assert np.isclose(enclosed, np.count_nonzero(vol == label) * spacing.prod(), rtol=1e-9)
 
 
 @pytest.mark.parametrize("dtype", [np.uint8, np.int8, np.uint16, np.int16, np.int32, np.int64, bool])

@@ -32,26 +32,50 @@ is the boundary of the union of the dual cells (cubes centred on the samples) of
 samples, deformed: it is closed, and oriented as that union is. It is the method of
 VTK's ``vtkSurfaceNets3D`` (pyvista's ``ImageData.contour_labels``), the peer.
 
-Vertex placement: the mean of the midpoints of the cube's crossing edges (the "centre
-of the cube's transitions"). A cube's crossing edges never lie all in one face (an
-edge cut of the cube's graph that avoids one axis' edges repeats on the opposite face),
-so the vertex lies strictly inside its cube: distinct cubes give distinct vertices. Each
-quad is split along the diagonal whose two triangles both face along the edge's
-direction (projected on the plane across the edge, the quad has one vertex per open
-quadrant around the edge, in order, so at least one diagonal works; of two, the
-shorter). The surface is not smoothed: the tests check on random label volumes and on
-pyvista's frog that no two triangles cross (:func:`warpmesh.cells.intersections.
-find_self_intersections`).
+Vertex placement: the centre of the cube, ``origin + (c + 1/2) * spacing`` for the cube
+whose lowest sample is ``c`` (-1 to n - 1 per axis with ``cap``): the staircase, VTK's
+surface nets before smoothing (``contour_labels(smoothing=False)``), the same positions
+and the same area. The staircase is the boundary of the union of the samples' voxels: it
+encloses each label's voxels exactly (a label's boundary encloses as many voxel volumes
+as it has samples), and it is embedded by construction: each quad is the square face of
+the dual grid across its edge, distinct edges give distinct squares, and two squares
+meet along a whole side, at a corner, or not at all; each square is split along its
+first diagonal into two coplanar triangles. Coplanar neighbours therefore only share
+edges, and :func:`warpmesh.cells.intersections.find_self_intersections` reports no pair
+on random label volumes and a block of pyvista's frog (tested), and on the whole
+frog (the benchmark). ``floor((point - origin) / spacing)`` recovers each vertex's
+cube exactly (the points sit half a spacing off the grid lines): the constrained smoothing (``smoothing=N``,
+:mod:`warpmesh.optimize.label_smoothing`, with ``info["grid"]``) keeps every vertex in
+that cube. An earlier placement, the mean of the crossing edges' midpoints, cut the
+staircase's corners (area 0.69x the staircase on the frog) but is neither the peer's
+unsmoothed surface nor the shape, so the smoothing starts from the staircase instead.
 
-Measured on pyvista's frog (25 labels, 500 x 470 x 136, ``benchmarks/bench_labels.py``):
-the same 1,583,774 triangles as ``contour_labels("all")``, no triangle twice, no crossing
-pair; 1.0 to 2.0 s against 0.7 to 1.7 s for ``contour_labels("all")`` (its default 16
-smoothing passes, multithreaded) over four runs on a loaded 2-core machine (time ratio
-VTK / warpmesh 0.56 to 1.22). Not smoothed, the area lies between the peer's two: 1.31x
-its smoothed surface, 0.69x its staircase (vertices at cube centres). 16 Laplacian passes
-clamped to each vertex's cube (junction vertices along junctions only) gave 3,748
-crossing pairs on the frog (unit spacing), so none is applied: smooth the result where a
-smaller area matters more than embedding.
+How it runs (:mod:`warpmesh.kernels.flying_edges`, surface nets section): the samples
+are read in place (8- and 16-bit labels through a table from each value to its code;
+wider ones coded first), the cap layer is read as the rest's code, never stored. One
+thread per grid row (i, j) walks k over rows (i, j), (i + 1, j), (i, j + 1), (i + 1, j
++ 1): a bit per cube that gets a vertex, the quads of the crossing edges starting on the
+row, the codes met. Prefix sums give each row its first vertex and quad; a second pass
+writes the quads' triangles, numbering a cube's vertex by the bits before it in its row
+(popcounts, no cube-to-vertex map), and the cube centres, in the output's dtypes and axis
+order (x-fastest images are meshed as their C-order transposes and written back). Rows
+are split over the cores, in chunks for the progress bar. Beyond the input and the output
+it holds a bit per cube (1/8 of a uint8 input) and a few int32 per row.
+
+Measured (``python benchmarks/bench_labels.py --smoothing 0``, one run on the 2-core
+machine at a load average of 10, so wall times are stretched; CPU seconds are the
+process's): pyvista's frog (25 labels, 500 x 470 x 136): the same 1,583,774 triangles
+and area 976,259 as ``contour_labels("all", smoothing=False)``, no triangle twice, no
+crossing pair; 0.94 s wall / 0.31 s CPU against 1.26 / 0.51 for VTK unsmoothed and
+2.77 / 0.82 for ``contour_labels("all")`` (16 smoothing passes): time ratios VTK /
+warpmesh 1.34 and 2.95. A 512^3 Voronoi partition (50 labels, uint8): 9,536,054 triangles
+and the same area as VTK's staircase, 4.84 s / 1.34 s CPU against 9.39 / 2.61 and 14.02 /
+3.94 (ratios 1.94 and 2.89). Peak extra memory of one call in a fresh process, the output
+alive: 85 MB on the frog (input 30.5 MB, output 78 MB: points float64, triangles and both
+label arrays int64) and 500 MB on the Voronoi volume (input 128 MB, output 472 MB), i.e.
+the output plus 0.2x the input; VTK's took 16x the input (488 MB and 2,048 MB). The output
+alone outweighs twice the input, so "peak within 2x the input" cannot hold with int64
+connectivity; peak / (input + output) is 0.78 and 0.83.
 
 Manifoldness: two samples of one label touching only along a grid edge or at a node (a
 face of a cube with the label on one diagonal) make that label's boundary pass twice
