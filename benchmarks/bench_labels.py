@@ -31,7 +31,10 @@ extra = ``VmHWM`` after it - ``VmRSS`` before (the output alive, so it counts), 
 of issue 23 (peak within 2x the input) is shown as peak / input and, because the output
 alone outweighs the input here, as peak / (input + output).
 
-Run:  python benchmarks/bench_labels.py [--repeat 3] [--no-crossings] [--json out.json]
+A second table (:func:`smoothed_rows`) puts the smoothed shared surface (``smoothing=16``)
+beside VTK's smoothed and staircase surfaces: area ratios, crossings, wall and CPU time.
+
+Run:  python benchmarks/bench_labels.py [--repeat 3] [--no-crossings] [--smoothing 16] [--json out.json]
 """
 
 from __future__ import annotations
@@ -225,6 +228,54 @@ def _coincident_positions(points: np.ndarray, tris: np.ndarray) -> tuple[int, in
     return int((counts[inverse] > 1).sum()), _coincident_faces(inverse[tris])
 
 
+def smoothed_rows(frog, passes: int, repeat: int, crossings: bool) -> list[dict]:
+    """The smoothed shared surface (``smoothing=passes``: every vertex in its cube, junctions
+    along their curves, failing moves undone) against VTK's ``contour_labels('all')`` with its
+    default smoothing (16 passes) and without (the staircase), in the same run: time (wall and
+    process CPU, median of ``repeat``), area ratios, crossing pairs of both smoothed surfaces."""
+    import warpmesh as wm
+    from warpmesh.cells.intersections import find_self_intersections
+
+    def cpu_timed(fn):
+        fn()
+        runs = []
+        for _ in range(repeat):
+            w0, c0 = time.perf_counter(), time.process_time()
+            out = fn()
+            runs.append((time.perf_counter() - w0, time.process_time() - c0, out))
+        runs.sort(key=lambda r: r[0])
+        return runs[len(runs) // 2]
+
+    w_raw, c_raw, raw = cpu_timed(lambda: wm.mesh_surface(frog, labels="all", interfaces="shared"))
+    w_sm, c_sm, sm = cpu_timed(lambda: wm.mesh_surface(frog, labels="all", interfaces="shared", smoothing=passes))
+    w_vtk, c_vtk, vtk = cpu_timed(lambda: frog.contour_labels("all"))
+    w_st, c_st, stair = cpu_timed(lambda: frog.contour_labels("all", smoothing=False, output_mesh_type="triangles"))
+    vtk_pts, vtk_tris = np.asarray(vtk.points, dtype=np.float64), vtk.regular_faces
+    rows = [("warpmesh shared, raw", raw.points, raw.triangles, w_raw, c_raw),
+            (f"warpmesh shared, smoothing={passes}", sm.points, sm.triangles, w_sm, c_sm),
+            ("VTK contour_labels('all') (16 passes)", vtk_pts, vtk_tris, w_vtk, c_vtk),
+            ("VTK contour_labels('all', smoothing=False)", np.asarray(stair.points, dtype=np.float64),
+             stair.regular_faces, w_st, c_st)]
+    a_vtk = _area(vtk_pts, vtk_tris)
+    info = sm.info["smoothing"]
+    print(f"\nsmoothing: {passes} passes, {info['surface']} surface / {info['curve']} curve / {info['fixed']} fixed "
+          f"vertices, {info['reverted']} moves undone, largest move {info['moved_max']:.2f} spacing, "
+          f"{info['time']:.2f} s wall in the smoothing")
+    print(f"{'tool':44s} {'triangles':>10s} {'crossings':>9s} {'area':>10s} {'area/VTK':>9s} {'wall s':>7s} "
+          f"{'cpu s':>7s} {'wall/VTK':>8s}")
+    out = []
+    for name, pts, tris, w, c in rows:
+        cross = "-"
+        if crossings and "raw" not in name and "False" not in name:
+            cross = len(find_self_intersections(pts, tris))
+        area = _area(pts, tris)
+        print(f"{name:44s} {len(tris):10d} {cross!s:>9s} {area:10.0f} {area / a_vtk:9.3f} {w:7.2f} {c:7.2f} "
+              f"{w / w_vtk:8.2f}")
+        out.append({"tool": name, "triangles": len(tris), "crossings": cross, "area": area, "area_vs_vtk": area / a_vtk,
+                    "wall_s": w, "cpu_s": c, "wall_vs_vtk": w / w_vtk})
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
@@ -234,6 +285,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-crossings", action="store_true", help="skip the self-intersection checks")
     ap.add_argument("--json")
     ap.add_argument("--default-malloc", action="store_true", help="measure with the stock allocator")
+    ap.add_argument("--smoothing", type=int, default=16, help="passes of the smoothed row (0: no such row)")
     args = ap.parse_args(argv)
     if args.memory_worker:
         print(_WORKER_TAG + json.dumps(memory_worker(json.loads(args.memory_worker))), flush=True)
@@ -293,6 +345,8 @@ def main(argv=None) -> int:
         doc["synthetic"] = voronoi_rows(args.synthetic, args.repeat)
     if not args.no_memory:
         doc["memory"] = memory_rows(args.synthetic)
+    if args.smoothing:
+        doc["smoothed"] = smoothed_rows(frog, args.smoothing, max(1, args.repeat // 2), not args.no_crossings)
     finish(t_start, load0, args.json, doc)
     return 0
 
