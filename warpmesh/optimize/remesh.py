@@ -43,6 +43,7 @@ Examples
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -620,7 +621,7 @@ def _check_output_size(hfield, points: np.ndarray, area: float, size) -> None:
     h = np.asarray(hfield(points), dtype=float)
     expected = 4.0 * area * float(np.mean(1.0 / h ** 2)) / np.sqrt(3.0) if np.all(h > 0) else np.inf
     check_budget(BYTES_PER_TRIANGLE * expected,
-                 f"optimize(size={size!r}) (about {expected:.3g} triangles for an area of {area:.3g})",
+                 f"optimize with 'size' = {size!r} (about {expected:.3g} triangles for an area of {area:.3g})",
                  "pass a larger 'size'")
 
 
@@ -634,7 +635,7 @@ def _check_on_target(target, points: np.ndarray, tolerance: float, *, given: boo
     median = float(np.median(d))
     if median > FAR_FROM_TARGET * tolerance:
         raise ValueError(f"expected a mesh of 'shape': half its vertices lie farther than {median:.3g} from "
-                         f"f = 0, {median / tolerance:.1f} tolerances "
+                         f"f = 0, {median / tolerance:.3g} tolerances "
                          f"({'' if given else 'the default, '}{tolerance:.3g}); pass the shape it was meshed from, "
                          "or a larger 'tolerance'")
 
@@ -850,6 +851,10 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     if reached > allowed:
         kept, s = fallback if fallback is not None else ("input", start)
         s.compact()
+    if kept == "input":  # no progress: say so, the result is no news
+        warnings.warn(f"{'simplify' if simplifying else 'optimize'}: no pass ended with a worst Q_K within "
+                      f"{allowed:.3g} (the input's{' or SIMPLIFY_Q' if simplifying else ''}; reached "
+                      f"{reached:.3g}): the input is returned unchanged", UserWarning, stacklevel=3)
     before = quality_table(mesh.points, mesh.triangles)
     after = quality_table(s.points, s.triangles)
     info = dict(mesh.info)
@@ -980,7 +985,7 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
         ``ne``, ``q_mean``, ``q_worst``, ``angle_min``, ...), the operator counts,
         ``rejected`` (operations undone by the embedding checks), ``kept`` ("final",
         the pass returned because the final worst Q_K was above the input's, or
-        "input") and ``q_worst_reached`` (the final worst Q_K, returned or not);
+        "input", which also warns: no progress) and ``q_worst_reached`` (the final worst Q_K, returned or not);
         ``stats()`` gives ``q_mean``, ``q_worst``.
 
     Examples
