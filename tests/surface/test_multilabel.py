@@ -223,6 +223,9 @@ def test_bad_input_names_the_argument():
     m = wm.mesh_surface(vol, labels="all", interfaces="shared")
     with pytest.raises(ValueError, match="'label'"):
         label_boundary(m, 9)
+    huge = np.broadcast_to(np.uint8(1), (1300, 1300, 1300))  # no memory behind it: refused before any copy
+    with pytest.raises(ValueError, match="2\\*\\*31 samples in 'volume'"):
+        wm.mesh_surface(huge, labels="all", interfaces="shared")
 
 
 def test_files_keep_both_labels(tmp_path):

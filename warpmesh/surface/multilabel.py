@@ -257,6 +257,9 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     reverse = vol.flags.f_contiguous and not vol.flags.c_contiguous
     if reverse:  # x fastest (VTK, NIfTI): mesh the C-order view vol.T; the kernels write the axes back
         vol, origin, spacing = vol.T, origin[::-1], spacing[::-1]
+    if (vol.shape[0] + 2) * (vol.shape[1] + 2) * (vol.shape[2] + 2) >= 2**31:  # int32 sample indices in the kernels
+        raise ValueError(f"expected fewer than 2**31 samples in 'volume' with interfaces='shared', got shape "
+                         f"{vol.shape}: mesh it in parts")
     vol = np.ascontiguousarray(vol)
     source, table, ids, rest, chosen = _label_source(vol, labels)
     timings["codes"] = time.perf_counter() - t0
@@ -278,9 +281,9 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     meshed = _present_labels(seen.numpy(), ids, rest, chosen)  # sync point: the labels met
     vertex_count, quad_count = counts["vertex"].numpy(), counts["quad"].numpy()  # sync point: output sizes
     n_vertices, n_quads = int(vertex_count.sum(dtype=np.int64)), int(quad_count.sum(dtype=np.int64))
-    if n_vertices >= 2**31:
-        raise ValueError(f"expected fewer than 2**31 vertices, got {n_vertices} for 'volume' of shape {vol.shape}: "
-                         "mesh it in parts")
+    if n_vertices >= 2**31 or 6 * n_quads >= 2**31:  # the kernels number vertices and triangle rows in int32
+        raise ValueError(f"expected fewer than 2**31 vertices and 2**31 / 3 triangles, got {n_vertices} and "
+                         f"{2 * n_quads} for 'volume' of shape {vol.shape}: mesh it in parts")
     vertex_first = np.zeros(n_rows, dtype=np.int32)
     np.cumsum(vertex_count[:-1], out=vertex_first[1:])
     quad_first = np.zeros(n_rows, dtype=np.int64)
