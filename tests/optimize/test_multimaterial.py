@@ -87,3 +87,12 @@ def test_bad_input_names_the_argument():
         simplify_labels(raw, 0.5, tolerance=-1.0)
     with pytest.raises(ValueError, match="shared surface in 'mesh'"):
         simplify_labels(wm.mesh_surface(_blobs(0, 3), labels="all"), 0.5)
+
+
+def test_simplify_dispatches_shared_surfaces():
+    """``wm.simplify`` / ``Mesh.simplify`` of a shared surface without a shape is simplify_labels."""
+    smooth = wm.mesh_surface(_blobs(3, 3), labels="all", interfaces="shared", smoothing=8)
+    direct = simplify_labels(smooth, 0.4)
+    via = smooth.simplify(fraction=0.4)
+    assert np.array_equal(via.points, direct.points) and np.array_equal(via.triangles, direct.triangles)
+    assert np.array_equal(via.cell_data["label_above"]["triangle"], direct.cell_data["label_above"]["triangle"])

@@ -1018,7 +1018,9 @@ def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, frac
     input mesh. Default tolerance: 0.05 x the mean input edge, one sample spacing for a
     :class:`VolumeField`. As in :func:`optimize`, no operation may make faces cross,
     fold or face inwards; the result's worst Q_K is at most the input's or ``SIMPLIFY_Q``
-    (6), whichever is larger (else the latest pass that was, else the input).
+    (6), whichever is larger (else the latest pass that was, else the input). A shared
+    multi-material surface (``interfaces="shared"``) without ``shape`` goes to
+    :func:`warpmesh.optimize.multimaterial.simplify_labels` (``fraction`` default 0.5).
 
     Examples
     --------
@@ -1032,5 +1034,8 @@ def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, frac
     _check_iterations(iterations)
     if fraction is not None and (isinstance(fraction, bool) or not isinstance(fraction, (int, float, np.number))):
         raise TypeError(f"expected a number or None for 'fraction', got {type(fraction).__name__}")
+    if shape is None and "label_above" in getattr(mesh, "cell_data", {}):  # a shared multi-material surface
+        from warpmesh.optimize.multimaterial import simplify_labels
+        return simplify_labels(mesh, 0.5 if fraction is None else fraction, tolerance=tolerance)
     return _drive(mesh, shape, bounds=bounds, size=None, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=fraction, simplifying=True)
