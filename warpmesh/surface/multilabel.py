@@ -68,7 +68,8 @@ process's): pyvista's frog (25 labels, 500 x 470 x 136): the same 1,583,774 tria
 and area 976,259 as ``contour_labels("all", smoothing=False)``, no triangle twice, no
 crossing pair; 0.94 s wall / 0.31 s CPU against 1.26 / 0.51 for VTK unsmoothed and
 2.77 / 0.82 for ``contour_labels("all")`` (16 smoothing passes): time ratios VTK /
-warpmesh 1.34 and 2.95. A 512^3 Voronoi partition (50 labels, uint8): 9,536,054 triangles
+warpmesh 1.34 and 2.95 (1.93 and 3.05 in a frog-only run at a load of 4: 0.45 s / 0.33 s
+CPU against 0.86 / 0.55 and 1.37 / 0.68). A 512^3 Voronoi partition (50 labels, uint8): 9,536,054 triangles
 and the same area as VTK's staircase, 4.84 s / 1.34 s CPU against 9.39 / 2.61 and 14.02 /
 3.94 (ratios 1.94 and 2.89). Peak extra memory of one call in a fresh process, the output
 alive: 85 MB on the frog (input 30.5 MB, output 78 MB: points float64, triangles and both
