@@ -682,57 +682,50 @@ def count_label_rows_kernel(
         base2 = label_row_base(i, j + 1, pad, n)
     if cubes:
         base3 = label_row_base(i + 1, j + 1, pad, n)
-    c00 = rest
-    c10 = rest
-    c01 = rest
-    c11 = rest
     nv = int(0)
     nq = int(0)
     nj = int(0)
-    word = wp.uint64(0)
-    for k in range(p[2]):
-        kk = k - pad
-        inside = kk >= 0 and kk < n[2]
-        q00 = c00  # the codes at k - 1
-        q10 = c10
-        q01 = c01
-        q11 = c11
-        c00 = row_code(values, table, rest, base0, kk, inside)
-        c10 = row_code(values, table, rest, base1, kk, inside)
-        c01 = row_code(values, table, rest, base2, kk, inside)
-        c11 = row_code(values, table, rest, base3, kk, inside)
-        if c00 != q00 or k == 0:
-            seen[c00] = wp.uint8(1)
-        if k == 0:
-            continue
-        if cubes and ((c00 ^ q00) | (c10 ^ q00) | (c01 ^ q00) | (c11 ^ q00) | (q10 ^ q00) | (q01 ^ q00) |
-                      (q11 ^ q00)) == 0:  # the usual case: 8 codes alike, no crossing edge at k
-            if ((k - 1) & 63) == 63 or k == p[2] - 1:
-                bits[r * words + (k - 1) / 64] = word
-                word = wp.uint64(0)
-            continue
-        inner_k = k + 1 < p[2]  # edges at k (k >= 1 here) have cubes k - 1 and k
-        if edge_i and inner_k and c10 != c00:
-            nq += 1
-        if edge_j and inner_k and c01 != c00:
-            nq += 1
-        if edge_k and c00 != q00:  # the edge (k - 1, k) along the row
-            nq += 1
-        if cubes:
-            if not (c00 == q00 and c10 == q00 and c01 == q00 and c11 == q00 and q10 == q00 and q01 == q00 and
-                    q11 == q00):
+    c00 = row_code(values, table, rest, base0, -pad, pad == 0)  # k = 0
+    c10 = row_code(values, table, rest, base1, -pad, pad == 0)
+    c01 = row_code(values, table, rest, base2, -pad, pad == 0)
+    c11 = row_code(values, table, rest, base3, -pad, pad == 0)
+    seen[c00] = wp.uint8(1)
+    for w in range(words):  # the cubes k - 1 of word w: k from 64 w + 1
+        word = wp.uint64(0)
+        for k in range(64 * w + 1, wp.min(64 * w + 65, p[2])):
+            kk = k - pad
+            inside = kk >= 0 and kk < n[2]
+            q00 = c00  # the codes at k - 1
+            q10 = c10
+            q01 = c01
+            q11 = c11
+            c00 = row_code(values, table, rest, base0, kk, inside)
+            c10 = row_code(values, table, rest, base1, kk, inside)
+            c01 = row_code(values, table, rest, base2, kk, inside)
+            c11 = row_code(values, table, rest, base3, kk, inside)
+            if ((c00 ^ q00) | (c10 ^ q00) | (c01 ^ q00) | (c11 ^ q00) | (q10 ^ q00) | (q01 ^ q00) | (q11 ^ q00)) == 0:
+                continue  # the usual case: 8 codes alike, no crossing edge at k, no vertex in cube k - 1
+            if c00 != q00:
+                seen[c00] = wp.uint8(1)
+            inner_k = k + 1 < p[2]  # edges at k have cubes k - 1 and k
+            if edge_i and inner_k and c10 != c00:
+                nq += 1
+            if edge_j and inner_k and c01 != c00:
+                nq += 1
+            if edge_k and c00 != q00:  # the edge (k - 1, k) along the row
+                nq += 1
+            if cubes:
                 used = True
                 if face or (pad == 0 and (k == 1 or k == p[2] - 1)):
                     used = boundary_cube_used(wp.vec4i(q00, q10, q01, q11), wp.vec4i(c00, c10, c01, c11), i, j, k - 1,
                                               p)
                 if used:
-                    word = word | (wp.uint64(1) << wp.uint64((k - 1) % 64))
+                    word = word | (wp.uint64(1) << wp.uint64((k - 1) & 63))
                     nv += 1
                     if distinct_codes(q00, q10, q01, q11, c00, c10, c01, c11) >= 3:
                         nj += 1
-            if (k - 1) % 64 == 63 or k == p[2] - 1:
-                bits[r * words + (k - 1) / 64] = word
-                word = wp.uint64(0)
+        if cubes:
+            bits[r * words + w] = word
     vertex_count[r] = nv
     quad_count[r] = nq
     junction_count[r] = nj
