@@ -153,7 +153,7 @@ def test_nested_balls_area_near_the_spheres():
     raw = raw.replace(points=vertex_cubes(raw.points, (0, 0, 0), (1, 1, 1)) + 0.5)
     smooth = smooth_labels(raw)
     _check_smoothed(raw, smooth, vol, junctions=False)
-    lower, upper = _labels(smooth)
+    upper = _labels(smooth)[1]
     for label, r in enumerate(radii, start=1):
         sphere = 4.0 * np.pi * r * r
         keep = upper == label  # the sphere between label - 1 and label

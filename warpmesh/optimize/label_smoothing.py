@@ -239,9 +239,9 @@ def _edge_axes(points, tris, cube, origin, spacing):
     if not ok.all():
         bad = int(np.flatnonzero(~ok)[0])
         raise ValueError(f"expected 'mesh' points at their surface-nets places on the grid (each triangle's three "
-                         f"vertices in three cubes around one grid edge, one vertex per cube), got triangle {bad} in cubes "
-                         f"{c[bad].tolist()}: pass the volume's grid (origin, spacing) and an unsmoothed, "
-                         "untransformed surface")
+                         f"vertices in three cubes around one grid edge, one vertex per cube), got triangle {bad} "
+                         f"in cubes {c[bad].tolist()}: pass the volume's grid (origin, spacing) and its "
+                         "surface as meshed (or smoothed), not transformed")
     axis = np.argmax(same, axis=1)
     normal = _normals(points, tris)
     facing = np.sign(normal[np.arange(len(tris)), axis])
@@ -421,7 +421,8 @@ def box_sides(cube, shape) -> np.ndarray:
     cube = np.asarray(cube, np.int64)
     bits = np.zeros(len(cube), np.int64)
     for a in range(3):
-        bits |= (cube[:, a] == -1).astype(np.int64) << (2 * a) | (cube[:, a] == shape[a] - 1).astype(np.int64) << (2 * a + 1)
+        before, after = (cube[:, a] == -1).astype(np.int64), (cube[:, a] == shape[a] - 1).astype(np.int64)
+        bits |= before << (2 * a) | after << (2 * a + 1)
     return bits
 
 
