@@ -88,8 +88,8 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         dihedral angle around it stays in [``feature_floor``, ``feature_ceiling``]
         (:func:`warpmesh.solid.features.recover_features`); crease vertices then stay put.
     flips : bool
-        3D: after smoothing, 2-3 and 3-2 flips of interior faces and edges, each kept only when
-        it raises the smallest dihedral angle where it acts (:func:`warpmesh.solid.flips.flip_tets`).
+        3D: after smoothing, 2-3, 3-2 and 4-4 flips of interior faces and edges, each kept only
+        when it raises the smallest dihedral angle where it acts (:func:`warpmesh.solid.flips.flip_tets`).
         ``info["quality_stages"]`` lists the quality after each stage (stuffing, features,
         smooth, flips).
     device : str
