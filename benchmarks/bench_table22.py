@@ -529,7 +529,9 @@ def before_cell(row: Row) -> str:
     """The "before" cell of a row measured on the baseline: its warpmesh figure and ratio."""
     if row.warpmesh.startswith("failed"):
         return row.warpmesh
-    return row.warpmesh.split(",")[0] + (f" ({fmt_ratio(row.ratio)} of its run's peer)" if row.ratio else "")
+    parts = ([f"{fmt_ratio(row.ratio)} of its run's peer"] if row.ratio else []) + (
+        [f"met? {verdict(row)}"] if row.target is not None else [])
+    return row.warpmesh.split(",")[0] + (f" ({'; '.join(parts)})" if parts else "")
 
 
 def parse_args(argv=None):

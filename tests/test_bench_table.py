@@ -148,3 +148,11 @@ def test_group_selection(bt, tmp_path):
         bt.parse_args(["--only", "nope", "--logs", str(tmp_path)])
     with pytest.raises(SystemExit):
         bt.parse_args(["--only", "stats", "--skip", "stats", "--logs", str(tmp_path)])
+
+
+def test_before_cell(bt):
+    r = _row(bt, 2.5, seconds=0.2, target=bt.at_most(1), conditions=[("closed", True)])
+    r.warpmesh = "0.2 s (CPU 0.3), mc33"
+    assert bt.before_cell(r) == "0.2 s (CPU 0.3) (2.5x of its run's peer; met? NO)"
+    assert bt.before_cell(_row(bt, 0.5)) == "w (0.5x of its run's peer)"
+    assert bt.before_cell(bt.failed_row("g", "t", "boom")) == "failed: boom"
