@@ -565,3 +565,20 @@ def test_saving_an_empty_mesh_is_refused(tmp_path):
         with pytest.raises(ValueError, match="empty"):
             empty.save(tmp_path / f"e{ext}")
     assert not list(tmp_path.iterdir())
+
+
+def test_replace_info_only_shares_the_checked_arrays():
+    """replace(info=...) keeps the arrays (checked and frozen once) and changes the info only;
+    a Mesh built from read-only arrays that own their memory keeps them without a copy."""
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    tris = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int64)
+    pts.setflags(write=False)
+    tris.setflags(write=False)
+    m = Mesh(pts, {"triangle": tris}, cell_refs={"triangle": [1, 2, 3, 4]}, info={"a": 1})
+    assert m.points is pts and m.triangles is tris
+    r = m.replace(info={"b": 2})
+    assert r.points is m.points and r.triangles is m.triangles and r.cell_refs["triangle"] is m.cell_refs["triangle"]
+    assert dict(r.info) == {"b": 2} and dict(m.info) == {"a": 1}
+    assert r.stats()["watertight"] and r.stats()["n_triangles"] == 4 and r.stats()["b"] == 2
+    with pytest.raises(TypeError, match="info"):
+        m.replace(info=[1])

@@ -305,6 +305,12 @@ class Mesh:
         unknown = set(changes) - set(args)
         if unknown:
             raise TypeError(f"expected keywords among {sorted(args)}, got {sorted(unknown)}")
+        if set(changes) <= {"info"}:  # the arrays are this mesh's, checked and frozen: not checked again
+            new = Mesh.__new__(Mesh)
+            for name in ("_points", "_cells", "_point_refs", "_cell_refs", "_point_data", "_cell_data"):
+                setattr(new, name, getattr(self, name))
+            new._info = dict(_check_mapping(changes.get("info", self._info), "info"))
+            return new
         args.update(changes)
         return Mesh(args.pop("points"), args.pop("cells"), **args)
 
