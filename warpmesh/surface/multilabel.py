@@ -62,21 +62,21 @@ order (x-fastest images are meshed as their C-order transposes and written back)
 are split over the cores, in chunks for the progress bar. Beyond the input and the output
 it holds a bit per cube (1/8 of a uint8 input) and a few int32 per row.
 
-Measured (``python benchmarks/bench_labels.py --smoothing 0``, one run on the 2-core
-machine at a load average of 10, so wall times are stretched; CPU seconds are the
-process's): pyvista's frog (25 labels, 500 x 470 x 136): the same 1,583,774 triangles
-and area 976,259 as ``contour_labels("all", smoothing=False)``, no triangle twice, no
-crossing pair; 0.94 s wall / 0.31 s CPU against 1.26 / 0.51 for VTK unsmoothed and
-2.77 / 0.82 for ``contour_labels("all")`` (16 smoothing passes): time ratios VTK /
-warpmesh 1.34 and 2.95 (1.93 and 3.05 in a frog-only run at a load of 4: 0.45 s / 0.33 s
-CPU against 0.86 / 0.55 and 1.37 / 0.68). A 512^3 Voronoi partition (50 labels, uint8): 9,536,054 triangles
-and the same area as VTK's staircase, 4.84 s / 1.34 s CPU against 9.39 / 2.61 and 14.02 /
-3.94 (ratios 1.94 and 2.89). Peak extra memory of one call in a fresh process, the output
-alive: 85 MB on the frog (input 30.5 MB, output 78 MB: points float64, triangles and both
-label arrays int64) and 500 MB on the Voronoi volume (input 128 MB, output 472 MB), i.e.
-the output plus 0.2x the input; VTK's took 16x the input (488 MB and 2,048 MB). The output
-alone outweighs twice the input, so "peak within 2x the input" cannot hold with int64
-connectivity; peak / (input + output) is 0.78 and 0.83.
+Measured (``python benchmarks/bench_labels.py --repeat 7 --smoothing 0``, 2 cores, load
+average 1.3-1.5; wall s / process CPU s, medians): pyvista's frog (25 labels, 500 x 470 x
+136): the same 1,583,774 triangles and area 976,259 as ``contour_labels("all",
+smoothing=False)``, no triangle twice, no crossing pair; 0.16 / 0.25 against 0.45 / 0.46
+for VTK unsmoothed and 0.60 / 0.61 for ``contour_labels("all")`` (16 smoothing passes):
+time ratios VTK / warpmesh 2.90 and 3.88 (CPU 1.87 and 2.49). A 512^3 Voronoi partition
+(50 labels, uint8): 9,536,054 triangles, the same area as VTK's staircase, 0.53 / 0.91
+against 2.65 / 2.70 and 3.94 / 3.99 (ratios 4.96 and 7.37). On the loaded machine (load
+5-10, other runs) wall times swing: the frog's ratio to VTK unsmoothed went from 0.83 to
+1.93 while the CPU ratio stayed 1.4-1.7. Peak extra memory of one call in a fresh
+process, the output alive: 85 MB on the frog (input 30.5 MB, output 78 MB: points
+float64, triangles and both label arrays int64) and 500 MB on the Voronoi volume (input
+128 MB, output 472 MB), i.e. the output plus 0.2x the input; VTK's took 16x the input
+(488 MB and 2,048 MB). The output alone outweighs twice the input, so "peak within 2x the
+input" cannot hold with int64 connectivity; peak / (input + output) is 0.78 and 0.83.
 
 Manifoldness: two samples of one label touching only along a grid edge or at a node (a
 face of a cube with the label on one diagonal) make that label's boundary pass twice
