@@ -704,12 +704,14 @@ class Mesh:
         return _convert.from_pyvista(obj, mesh_type=cls, triangulate=triangulate, dim=dim, info=info)
 
     # ---------------------------------------------------------------- pictures
-    def plot(self, path=None, *, window_size=(800, 600), show_edges: bool = False, camera=None, clip="auto"):
+    def plot(self, path=None, *, window_size=(800, 600), show_edges: bool = False, camera=None, clip="auto",
+             scalars: str | None = None):
         """An off-screen picture (pyvista/VTK, no display needed): shows itself in notebooks.
 
         See :func:`warpmesh.preview.render.render_png`; ``path`` (a .png) also writes it.
         Curves are drawn as ribbons, 2D meshes from above, volume meshes cut through the
-        middle (``clip``, :func:`warpmesh.preview.drawable.drawable`).
+        middle (``clip``, :func:`warpmesh.preview.drawable.drawable`); ``scalars="ref"`` (or
+        a cell_data name) colours a surface's triangles by value.
 
         Examples
         --------
@@ -720,7 +722,8 @@ class Mesh:
         """
         from warpmesh.preview.render import render_png
 
-        return render_png(self, path, window_size=window_size, show_edges=show_edges, camera=camera, clip=clip)
+        return render_png(self, path, window_size=window_size, show_edges=show_edges, camera=camera, clip=clip,
+                          scalars=scalars)
 
     def _repr_mimebundle_(self, include=None, exclude=None):
         """Jupyter: an interactive WebGL view (:func:`warpmesh.preview.render.mesh_mimebundle`)."""
