@@ -213,6 +213,53 @@ def separated_2d(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
     return _outside_edge_2d(p, q, i, j) or _outside_edge_2d(q, p, i, j)
 
 
+#: a gap (absolute, points scaled into [-1, 1]^3) along the planes' common line that certifies
+#: two touching-within-rounding triangles apart (:func:`apart_on_line`)
+LINE_GAP = wp.constant(wp.float64(2.0**-30))
+#: below this sine of the angle between the planes their common line is not trusted
+LINE_SIN = wp.constant(wp.float64(2.0**-10))
+
+
+@wp.func
+def _line_interval(t: wp.mat33d, s: wp.vec3i, a: wp.vec3d, n: wp.vec3d, u: wp.vec3d) -> wp.vec2d:
+    """[lo, hi] along u of the part of triangle t on the plane (a, n): its vertices of
+    side 0 and the crossings of its edges whose ends have strict opposite sides s."""
+    lo = wp.float64(1.0e300)
+    hi = wp.float64(-1.0e300)
+    for k in range(3):
+        if s[k] == 0:
+            x = wp.dot(t[k], u)
+            lo = wp.min(lo, x)
+            hi = wp.max(hi, x)
+        k2 = (k + 1) % 3
+        if s[k] * s[k2] < 0:
+            da = wp.dot(n, t[k] - a)
+            db = wp.dot(n, t[k2] - a)
+            x = wp.dot(t[k] + (t[k2] - t[k]) * (da / (da - db)), u)
+            lo = wp.min(lo, x)
+            hi = wp.max(hi, x)
+    return wp.vec2d(lo, hi)
+
+
+@wp.func
+def apart_on_line(p: wp.mat33d, ds: wp.vec3i, n1: wp.vec3d, q: wp.mat33d, es: wp.vec3i, n2: wp.vec3d) -> bool:
+    """Two triangles in planes that cross at a fair angle (ds: p's sides wrt q's plane, es:
+    q's wrt p's) meet only on the planes' common line, where each covers one interval: they
+    are certified apart when the intervals are ``LINE_GAP`` apart, far more than the
+    rounding of the sides that were ties (a vertex within rounding of the other plane
+    lies within rounding / sine of the line)."""
+    u = wp.cross(n1, n2)
+    lu = wp.length(u)
+    if not lu > LINE_SIN * wp.length(n1) * wp.length(n2):
+        return False
+    u = u / lu
+    ip = _line_interval(p, ds, q[0], n2, u)
+    iq = _line_interval(q, es, p[0], n1, u)
+    if ip[0] > ip[1] or iq[0] > iq[1]:
+        return False  # no point found on the line (cannot happen past the early exits)
+    return ip[0] > iq[1] + LINE_GAP or iq[0] > ip[1] + LINE_GAP
+
+
 @wp.func
 def drop_axis(n: wp.vec3d) -> int:
     """The axis along which the plane with normal n projects without degenerating."""
@@ -423,7 +470,10 @@ def pair_intersects(p: wp.mat33d, ip: wp.vec3i, n1: wp.vec3d, m1: wp.vec3d,
     o2 = orient3d(p[ia], p[ic], q[jp], q[jr])
     hit = o1 <= 0 and o2 >= 0
     if hit and (ties or o1 == 0 or o2 == 0):
-        hit = not separated_2d(p, q, i, j)
+        # a meet resting on ties: dropped if certified apart in the projection, or along the
+        # planes' common line (the projection cannot tell a steep triangle's edge from a
+        # point of the other triangle straight above it)
+        hit = not (separated_2d(p, q, i, j) or apart_on_line(p, wp.vec3i(d0, d1, d2), n1, q, es, n2))
     return hit
 
 

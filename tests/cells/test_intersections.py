@@ -353,6 +353,27 @@ def test_coplanar_neighbours_touching_at_the_shared_vertex_only():
     assert reference_pairs(pts, tris).shape == (0, 2)  # exactly: only the shared vertex
 
 
+def test_a_steep_face_whose_vertex_is_only_collinear_with_an_edge_does_not_touch_it():
+    """Found by tests/test_fuzz_ops.py (seed 585: a refined low-resolution torus): face p
+    has its edge (a, c) in face q's plane, q's vertex w lies on p's plane and on the line
+    of (a, c) but 0.1 beyond a, and q stands vertical above a, so in the projection along
+    p's dominant axis q's top edge passes within 2e-8 of a. The planes' common line
+    separates them: p covers [a, c] on it, q only w. pymeshlab agrees (no intersection).
+    Moving w onto the segment (a, c) makes them touch, and that is reported."""
+    p = [[-1.0510880251725514, -0.7472331126530966, -0.1666666567325592],
+         [-0.9399769107500712, -0.7222222089767456, -0.22727528711160025],
+         [-0.9932987093925476, -0.8333333134651184, -0.1666666567325592]]
+    q = [[-1.0510880053043365, -0.7472331126530966, -0.05555554231007894],
+         [-1.1088773210843403, -0.6611329118410746, -0.05555554231007894],
+         [-1.1088773409525554, -0.6611329118410746, -0.1666666567325592]]
+    pts = np.array(p + q)
+    assert find_self_intersections(pts, [[0, 1, 2], [3, 4, 5]]).shape == (0, 2)
+    touching = pts.copy()
+    touching[5] = 0.5 * (pts[0] + pts[2])  # w on the middle of (a, c): q touches p there
+    touching[4, :2] = touching[5, :2] + (pts[4, :2] - pts[5, :2])  # q kept vertical above w
+    assert find_self_intersections(touching, [[0, 1, 2], [3, 4, 5]]).tolist() == [[0, 1]]
+
+
 @pytest.mark.parametrize("n", [2, 3, 4])
 def test_refined_icosphere_has_none_and_agrees_with_pymeshlab(n, device):
     # flat subdivision: the n^2 sub-triangles of each face are coplanar
