@@ -32,6 +32,19 @@ def keep_freed_memory() -> None:
     os.execve(sys.executable, [sys.executable, *sys.argv], {**os.environ, **MALLOC_ENV})
 
 
+def median_run(fn, repeat: int):
+    """(wall s, process CPU s, output) of the median-wall run among ``repeat`` runs of
+    ``fn``, after one untimed warm-up call (imports, kernel loads)."""
+    fn()
+    runs = []
+    for _ in range(max(1, int(repeat))):
+        w0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        runs.append((time.perf_counter() - w0, time.process_time() - c0, out))
+    runs.sort(key=lambda r: r[0])
+    return runs[len(runs) // 2]
+
+
 def load_banner(what: str) -> float:
     """Print ``what`` and the 1-minute load average (with a warning when the CPU is busy);
     return the load average."""

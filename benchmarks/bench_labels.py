@@ -49,7 +49,7 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _report import finish, keep_freed_memory, load_banner, version  # noqa: E402
+from _report import finish, keep_freed_memory, load_banner, median_run, version  # noqa: E402
 
 if __name__ == "__main__":
     keep_freed_memory()
@@ -69,13 +69,7 @@ _CPU: dict = {}  # median wall s -> process CPU s of that run, for the frog tabl
 
 def _cpu_timed(fn, repeat: int):
     """(output, median wall s, CPU s of that run) over ``repeat`` warm runs."""
-    fn()
-    runs = []
-    for _ in range(repeat):
-        w0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        runs.append((time.perf_counter() - w0, time.process_time() - c0))
-    wall, cpu = sorted(runs)[len(runs) // 2]
+    wall, cpu, out = median_run(fn, repeat)
     return out, wall, cpu
 
 
@@ -237,14 +231,7 @@ def smoothed_rows(frog, passes: int, repeat: int, crossings: bool) -> list[dict]
     from warpmesh.cells.intersections import find_self_intersections
 
     def cpu_timed(fn):
-        fn()
-        runs = []
-        for _ in range(repeat):
-            w0, c0 = time.perf_counter(), time.process_time()
-            out = fn()
-            runs.append((time.perf_counter() - w0, time.process_time() - c0, out))
-        runs.sort(key=lambda r: r[0])
-        return runs[len(runs) // 2]
+        return median_run(fn, repeat)
 
     w_raw, c_raw, raw = cpu_timed(lambda: wm.mesh_surface(frog, labels="all", interfaces="shared"))
     w_sm, c_sm, sm = cpu_timed(lambda: wm.mesh_surface(frog, labels="all", interfaces="shared", smoothing=passes))

@@ -30,12 +30,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _report import finish, keep_freed_memory, load_banner, version  # noqa: E402
+from _report import finish, keep_freed_memory, load_banner, median_run, version  # noqa: E402
 
 if __name__ == "__main__":
     keep_freed_memory()
@@ -50,17 +49,6 @@ def nested_balls(n: int = 128) -> np.ndarray:
     vol[r2 < (0.4 * n) ** 2] = 2
     vol[r2 < (0.2 * n) ** 2] = 3
     return vol
-
-
-def _timed(fn, repeat: int):
-    fn()  # warm: imports, kernel loads
-    runs = []
-    for _ in range(repeat):
-        w0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        runs.append((time.perf_counter() - w0, time.process_time() - c0, out))
-    runs.sort(key=lambda r: r[0])
-    return runs[len(runs) // 2]
 
 
 def _region_errors(values: np.ndarray, spacing, labels, tet_labels, vols, min_voxels: int):
@@ -110,9 +98,9 @@ def run_case(name: str, image, values: np.ndarray, spacing, h: float, repeat: in
     print(f"\n== {name}: {values.shape} samples, spacing {tuple(spacing)}, {len(present)} labels, size {h:g} "
           f"({h / min(spacing):g} voxels)")
     rows = []
-    w, c, m = _timed(lambda: wm.mesh_domain(image, labels="all", size=h), repeat)
+    w, c, m = median_run(lambda: wm.mesh_domain(image, labels="all", size=h), repeat)
     rows.append((f"warpmesh cleaving (snap {m.info['snap']:g})", m.points, m.cells["tetra"], m.cell_refs["tetra"], w, c))
-    w0, c0, m0 = _timed(lambda: wm.mesh_domain(image, labels="all", size=h, snap=0.0), max(1, repeat // 2))
+    w0, c0, m0 = median_run(lambda: wm.mesh_domain(image, labels="all", size=h, snap=0.0), max(1, repeat // 2))
     rows.append(("warpmesh cleaving (snap 0)", m0.points, m0.cells["tetra"], m0.cell_refs["tetra"], w0, c0))
     print("warpmesh stages: " + ", ".join(f"{k} {v:.2f} s" for k, v in m.info["time"].items())
           + f"; {m.info['cleaved_tets']} of {m.info['background_tets']} background tets cleaved, "

@@ -221,7 +221,7 @@ def test_bad_input_names_the_argument():
     with pytest.raises(ValueError, match="surface-nets places"):  # moved off the grid it records
         smooth_labels(raw.transform(turn), 4, grid=raw.info["grid"])
     sep = wm.mesh_surface(vol, labels="all")
-    with pytest.raises(ValueError, match="shared surface in 'mesh'"):
+    with pytest.raises(ValueError, match="interfaces='shared' in 'mesh'"):
         smooth_labels(sep, 4)
     with pytest.raises(ValueError, match="'smoothing'"):
         wm.mesh_surface(vol, labels="all", smoothing=4)

@@ -85,7 +85,7 @@ def test_bad_input_names_the_argument():
             simplify_labels(raw, bad)
     with pytest.raises(ValueError, match="'tolerance'"):
         simplify_labels(raw, 0.5, tolerance=-1.0)
-    with pytest.raises(ValueError, match="shared surface in 'mesh'"):
+    with pytest.raises(ValueError, match="interfaces='shared' in 'mesh'"):
         simplify_labels(wm.mesh_surface(_blobs(0, 3), labels="all"), 0.5)
 
 

@@ -148,7 +148,7 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
     >>> m.info["smoothing"]["passes"], m.stats()["watertight"]
     (4, True)
     """
-    from warpmesh.surface.multilabel import LABEL_ABOVE  # the label arrays' names
+    from warpmesh.surface.multilabel import shared_labels
 
     t0 = time.perf_counter()
     if isinstance(passes, (bool, np.bool_)) or not isinstance(passes, (int, np.integer)) or passes < 0:
@@ -156,11 +156,7 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
     if isinstance(relaxation, (bool, np.bool_)) or not isinstance(relaxation, (int, float, np.floating)) \
             or not 0.0 < float(relaxation) <= 1.0:
         raise ValueError(f"expected 'relaxation' in (0, 1], got {relaxation!r}")
-    refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
-    above = mesh.cell_data.get(LABEL_ABOVE, {}).get("triangle")
-    if refs is None or above is None or set(mesh.cells) != {"triangle"}:
-        raise ValueError(f"expected a shared surface in 'mesh' (triangles only, cell refs and "
-                         f"cell_data[{LABEL_ABOVE!r}]), got one without them: mesh it with interfaces='shared'")
+    refs, above = shared_labels(mesh)
     origin, spacing, shape = _grid(mesh, grid)
     points = np.array(mesh.points, dtype=np.float64)
     tris = np.asarray(mesh.cells["triangle"], dtype=np.int64)

@@ -98,17 +98,13 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
     (True, True)
     """
     from warpmesh.frep.projection import MeshTarget
-    from warpmesh.surface.multilabel import LABEL_ABOVE
+    from warpmesh.surface.multilabel import LABEL_ABOVE, shared_labels
 
     t_start = time.perf_counter()
     if isinstance(fraction, (bool, np.bool_)) or not isinstance(fraction, (int, float, np.floating)) \
             or not 0.0 < float(fraction) <= 1.0:
         raise ValueError(f"expected 'fraction' in (0, 1], got {fraction!r}")
-    refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
-    above = mesh.cell_data.get(LABEL_ABOVE, {}).get("triangle")
-    if refs is None or above is None or set(mesh.cells) != {"triangle"}:
-        raise ValueError(f"expected a shared surface in 'mesh' (triangles only, cell refs and "
-                         f"cell_data[{LABEL_ABOVE!r}]), got one without them: mesh it with interfaces='shared'")
+    refs, above = shared_labels(mesh)
     p = np.asarray(mesh.points, np.float64)
     t = np.asarray(mesh.cells["triangle"], np.int64).copy()
     lower, upper = np.asarray(refs).copy(), np.asarray(above).copy()

@@ -439,6 +439,25 @@ def _present_labels(seen: np.ndarray, ids: np.ndarray, rest: int, chosen) -> np.
     return chosen
 
 
+def shared_labels(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+    """(lower, higher) label of every triangle of a surface from ``interfaces="shared"``
+    (``cell_refs["triangle"]`` and ``cell_data["label_above"]["triangle"]``); a ValueError
+    naming ``name`` for any other mesh.
+
+    >>> import numpy as np, warpmesh as wm
+    >>> vol = np.zeros((6, 6, 6), np.uint8); vol[1:3, 1:5, 1:5] = 1; vol[3:5, 1:5, 1:5] = 2
+    >>> lower, upper = shared_labels(wm.mesh_surface(vol, labels="all", interfaces="shared"))
+    >>> sorted(set(zip(lower.tolist(), upper.tolist())))
+    [(0, 1), (0, 2), (1, 2)]
+    """
+    refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
+    above = mesh.cell_data.get(LABEL_ABOVE, {}).get("triangle")
+    if refs is None or above is None or set(mesh.cells) != {"triangle"}:
+        raise ValueError(f"expected a surface from interfaces='shared' in {name!r} (triangles only, cell refs and "
+                         f"cell_data[{LABEL_ABOVE!r}]), got one without them")
+    return np.asarray(refs), np.asarray(above)
+
+
 def label_boundary(mesh, label: int):
     """The closed boundary of one label's region in a shared surface, oriented outward.
 
@@ -469,11 +488,7 @@ def label_boundary(mesh, label: int):
     >>> sorted(set(b.cell_refs["triangle"].tolist())), b.stats()["watertight"]
     ([0, 2], True)
     """
-    refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
-    above = mesh.cell_data.get(LABEL_ABOVE, {}).get("triangle")
-    if refs is None or above is None:
-        raise ValueError(f"expected a mesh from interfaces='shared' (cell refs and cell_data[{LABEL_ABOVE!r}]), "
-                         "got a mesh without them")
+    refs, above = shared_labels(mesh)
     tris = mesh.cells["triangle"]
     below, over = refs == label, above == label
     if not (below.any() or over.any()):
@@ -517,11 +532,7 @@ def interface_refs(mesh):
     >>> m.info["interfaces"], sorted(set(m.cell_refs["triangle"].tolist()))
     ({1: (0, 1), 2: (0, 2), 3: (1, 2)}, [1, 2, 3])
     """
-    refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
-    above = mesh.cell_data.get(LABEL_ABOVE, {}).get("triangle")
-    if refs is None or above is None:
-        raise ValueError(f"expected a mesh from interfaces='shared' (cell refs and cell_data[{LABEL_ABOVE!r}]), "
-                         "got a mesh without them")
+    refs, above = shared_labels(mesh)
     pairs, which = np.unique(np.column_stack([refs, above]), axis=0, return_inverse=True)
     table = {k + 1: (int(lo), int(hi)) for k, (lo, hi) in enumerate(pairs.tolist())}
     data = {**{k: dict(v) for k, v in mesh.cell_data.items()}, "label_below": {"triangle": refs.copy()}}
