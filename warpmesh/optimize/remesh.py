@@ -758,9 +758,12 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     bar = _progress(iterations + POLISH_PASSES, progress)
     fallback = None  # (label, state): the latest state within the allowed worst Q_K
 
+    def acceptable() -> bool:  # within the allowed worst Q_K; a decimation never ends with more triangles
+        return _worst_q(s) <= allowed and not (simplifying and len(s.triangles) > len(start.triangles))
+
     def keep_if_no_worse(label):
         nonlocal fallback
-        if _worst_q(s) <= allowed:
+        if acceptable():
             fallback = (label, s.copy())
     def refresh_creases():
         # close gaps in the crease chains, then re-detect
@@ -848,13 +851,16 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     s.compact()
     # never worse than allowed: else the latest state that was not, else the input
     kept, reached = "final", _worst_q(s)
-    if reached > allowed:
+    grew = simplifying and len(s.triangles) > len(start.triangles)
+    if not acceptable():
         kept, s = fallback if fallback is not None else ("input", start)
         s.compact()
     if kept == "input":  # no progress: say so, the result is no news
-        warnings.warn(f"{'simplify' if simplifying else 'optimize'}: no pass ended with a worst Q_K within "
-                      f"{allowed:.3g} (the input's{' or SIMPLIFY_Q' if simplifying else ''}; reached "
-                      f"{reached:.3g}): the input is returned unchanged", UserWarning, stacklevel=3)
+        why = (f"fewer triangles than the input's {len(start.triangles)}" if grew and reached <= allowed else
+               f"a worst Q_K within {allowed:.3g} (the input's{' or SIMPLIFY_Q' if simplifying else ''}; "
+               f"reached {reached:.3g})")
+        warnings.warn(f"{'simplify' if simplifying else 'optimize'}: no pass ended with {why}: the input is "
+                      "returned unchanged", UserWarning, stacklevel=3)
     before = quality_table(mesh.points, mesh.triangles)
     after = quality_table(s.points, s.triangles)
     info = dict(mesh.info)
