@@ -18,10 +18,11 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import warpmesh as wm
+from tests.helpers.fuzz_settings import seeded
 from tests.helpers.meshcheck import check_mesh
 from tests.helpers.random_shapes import random_shape
 
@@ -127,10 +128,8 @@ def check_volume_case(seed: int) -> None:
             raise AssertionError(f"{where}: {error}") from None
 
 
-FAST = settings(max_examples=24, derandomize=True, deadline=None, database=None,
-                suppress_health_check=[HealthCheck.too_slow])
-LONG = settings(max_examples=int(os.environ.get("WARPMESH_FUZZ_EXAMPLES", 120)), derandomize=True, deadline=None,
-                database=None, suppress_health_check=[HealthCheck.too_slow])
+FAST = seeded(24)
+LONG = seeded(int(os.environ.get("WARPMESH_FUZZ_EXAMPLES", 120)))
 
 
 @FAST

@@ -41,10 +41,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import warpmesh as wm
+from tests.helpers.fuzz_settings import seeded
 from tests.helpers.blocks import hex_block, kuhn_block, tri_square
 from tests.helpers.cellcheck import check_cells
 from tests.helpers.meshcheck import check_mesh
@@ -342,10 +343,8 @@ def check_case(seed: int) -> str:
     return "result"
 
 
-FAST = settings(max_examples=60, derandomize=True, deadline=None, database=None,
-                suppress_health_check=[HealthCheck.too_slow])
-LONG = settings(max_examples=int(os.environ.get("WARPMESH_FUZZ_OPS_EXAMPLES", 200)), derandomize=True,
-                deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
+FAST = seeded(60)
+LONG = seeded(int(os.environ.get("WARPMESH_FUZZ_OPS_EXAMPLES", 200)))
 
 
 @FAST
