@@ -66,6 +66,9 @@ DIHEDRAL_FLOOR = 10.0
 DIHEDRAL_CEILING = 165.0
 #: smallest over largest eigenvalue of a ring's normal tensor for a corner
 CORNER_SPREAD = 0.15
+#: the same at the scale ``BESIDE * h`` (26 samples: a face hit by two of them gives about 0.04;
+#: a rim of radius 2 h, two directions and the wall's turn of 3°, below 0.002)
+CONFIRM_SPREAD = 0.02
 #: crease point refinements (tangent planes sampled beside the point) and their offset / h
 REFINE_STEPS = 4
 BESIDE = 0.1
@@ -167,6 +170,35 @@ def _ring_corners(points, bverts, bedges, nrm, h):
     order = np.lexsort((dist, comp))
     first = order[np.r_[True, comp[order][1:] != comp[order][:-1]]]
     return cand[first], x[first]
+
+
+#: the 26 directions to the neighbours of a cube's centre, of unit length
+_DIRS26 = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)],
+                   dtype=np.float64)
+_DIRS26 /= np.linalg.norm(_DIRS26, axis=1, keepdims=True)
+
+
+def _confirm_corners(target, x, h):
+    """(ok (k,) bool, refined x (k, 3)): the corner candidates ``x`` that are corners at the
+    scale ``BESIDE * h``, not only at the ring's scale h. Points ``BESIDE * h`` around each
+    candidate in 26 directions are projected onto the surface; their normals must still
+    span three directions (spread > ``CONFIRM_SPREAD``) and meet, by their tangent planes, at
+    a point within ``BESIDE * h`` of the candidate (which becomes the corner). A ring around
+    a small hole's rim sees the wall's normals turn by tens of degrees and passes the ring
+    test; close to the rim, the wall and the face give two directions only."""
+    k = len(x)
+    if not k:
+        return np.zeros(0, bool), x
+    eps = BESIDE * h
+    q = target.project((x[:, None, :] + eps * _DIRS26[None]).reshape(-1, 3), max_step=eps)
+    nq = target.normals(q)
+    group = np.repeat(np.arange(k), len(_DIRS26))
+    tensor = np.einsum("ni,nj->nij", nq, nq).reshape(k, len(_DIRS26), 3, 3).sum(axis=1)
+    lam = np.linalg.eigvalsh(tensor)
+    spread = lam[:, 0] / np.maximum(lam[:, 2], 1e-300)
+    y, rank = qef_points(group, q, nq, k)
+    ok = (spread > CONFIRM_SPREAD) & (rank == 3) & (np.linalg.norm(y - x, axis=1) < eps)
+    return ok, np.where(ok[:, None], y, x)
 
 
 def _try_moves(pts, tets, vt_ptr, vt_idx, verts, targets, floor, ceiling, device):
@@ -501,6 +533,8 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
     n_cross = len(open_edges(nrm))
     # corners first: one vertex each
     c_verts, c_pts = _ring_corners(pts, bv, unique_edges(tris, TRI_EDGES), nrm, h)
+    real, c_pts = _confirm_corners(target, c_pts, h)
+    c_verts, c_pts = c_verts[real], c_pts[real]
     n_corners = snap(c_verts, c_pts)
     for k in range(passes):
         # an end of every open crossing edge onto the crease nearest it (the nearer first)
