@@ -72,6 +72,8 @@ CONFIRM_SPREAD = 0.02
 #: crease point refinements (tangent planes sampled beside the point) and their offset / h
 REFINE_STEPS = 4
 BESIDE = 0.1
+#: extra refinement steps in which a sample that fell on the wrong face is taken twice as far out
+WIDEN_STEPS = 2
 #: the farthest a vertex moves onto a crease or corner, in units of h
 MAX_MOVE = 0.75
 ROUNDS = 10
@@ -103,14 +105,15 @@ def crease_points(target, pa, pb, h: float, cos_angle: float, near=None) -> np.n
 
     Tangent planes at both points meet in a line; then each face is sampled ``BESIDE * h``
     beside the current estimate, projected onto the surface, and the new tangent planes met
-    again (``REFINE_STEPS`` times).
+    again (``REFINE_STEPS`` times, and up to ``WIDEN_STEPS`` more: where both samples land on
+    one face, the next samples are taken twice as far from the estimate).
     """
     na, nb = target.normals(pa), target.normals(pb)
     c = _planes_meet(na, pa, nb, pb, pa if near is None else near)
     qa, qb = pa.copy(), pb.copy()
-    eps = BESIDE * h
+    eps = np.full((len(c), 1), BESIDE * h)
     refined = np.zeros(len(c), bool)
-    for _ in range(REFINE_STEPS):
+    for _ in range(REFINE_STEPS + WIDEN_STEPS):
         good = np.all(np.isfinite(c), axis=1)
         if not good.any():
             break
@@ -122,13 +125,16 @@ def crease_points(target, pa, pb, h: float, cos_angle: float, near=None) -> np.n
             t = _unit(np.cross(d, nrm))
             t *= np.where(np.einsum("ij,ij->i", t, p - cc) < 0, -1.0, 1.0)[:, None]
             return cc + eps * t
-        qa2 = target.project(beside(qa, na), max_step=eps)
-        qb2 = target.project(beside(qb, nb), max_step=eps)
+        qa2 = target.project(beside(qa, na), max_step=eps[:, 0])
+        qb2 = target.project(beside(qb, nb), max_step=eps[:, 0])
         ma, mb = target.normals(qa2), target.normals(qb2)
         new = _planes_meet(ma, qa2, mb, qb2, cc)
         ok = good & np.all(np.isfinite(new), axis=1) & (np.einsum("ij,ij->i", ma, mb) < cos_angle)
         ok &= np.linalg.norm(np.where(ok[:, None], new, cc) - cc, axis=1) < 0.5 * h
         refined |= ok
+        # a sample that fell on the other face (the first estimate, from tangent planes of a
+        # curved face, sits off the crease by about eps): the next step samples farther out
+        eps = np.where(ok[:, None], BESIDE * h, np.minimum(2.0 * eps, BESIDE * h * 2**WIDEN_STEPS))
         c = np.where(ok[:, None], new, c)
         qa, qb = np.where(ok[:, None], qa2, qa), np.where(ok[:, None], qb2, qb)
         na, nb = np.where(ok[:, None], ma, na), np.where(ok[:, None], mb, nb)
@@ -211,6 +217,103 @@ def _try_moves(pts, tets, vt_ptr, vt_idx, verts, targets, floor, ceiling, device
     q = tet_quality(trial, tets[around], device)
     bad = (q[:, 0] < floor) | (q[:, 1] > ceiling) | (q[:, 3] <= 0) | ~np.isfinite(q[:, 0])
     return np.bincount(owner, bad, len(verts)) == 0
+
+
+#: relocation of the interior neighbours of a refused move: rounds, and the pattern steps / h
+RELAX_ROUNDS = 6
+RELAX_STEPS = (0.2, 0.1, 0.05, 0.025)
+
+
+def _margin(q, floor, ceiling):
+    """(m,) how far each tetrahedron's dihedral angles stay inside [floor, ceiling] (degrees;
+    negative outside, -inf when not positive)."""
+    m = np.minimum(q[:, 0] - floor, ceiling - q[:, 1])
+    return np.where((q[:, 3] > 0) & np.isfinite(m), m, -np.inf)
+
+
+def _relaxed_moves(pts, tets, te, verts, targets, movable, h, floor, ceiling, device, rng):
+    """Moves refused alone, tried again with their neighbours relocated: each of ``verts`` is
+    put on its target, then the ``movable`` vertices of the tetrahedra that leave [floor,
+    ceiling] hill-climb (pattern search of ``RELAX_STEPS`` h along 26 directions, one
+    independent set at a time) to raise the worst margin of the tetrahedra around them. A
+    move is kept with its relocations when every tetrahedron around the vertex and around the
+    relocated ones is in range; else all of them stay. Only vertices at least four edges
+    apart are tried together (their relocations touch no common tetrahedron): the others
+    are left to another call.
+
+    Returns (points, tried (k,) bool, accepted (k,) bool) over ``verts``."""
+    n = len(pts)
+    prio = np.full(n, -np.inf)
+    prio[verts] = rng.random(len(verts))
+    best = prio.copy()
+    for _ in range(3):
+        grown = best.copy()
+        np.maximum.at(grown, te[:, 0], best[te[:, 1]])
+        np.maximum.at(grown, te[:, 1], best[te[:, 0]])
+        best = grown
+    tried = prio[verts] >= best[verts]
+    sel, tgt = verts[tried], targets[tried]
+    zone = np.full(n, -1)  # the selected vertex whose ring each vertex is in
+    ptr, idx = vertex_tets(tets, n)
+    owner, around = gather_rows(ptr, idx, sel)
+    zone[tets[around].ravel()] = np.repeat(owner, 4)
+    trial = pts.copy()
+    trial[sel] = tgt
+    free = movable & (zone >= 0)
+    free[sel] = False
+    moved = np.zeros(n, bool)
+    steps = np.array(RELAX_STEPS) * h
+    cand_off = (steps[:, None, None] * _DIRS26[None]).reshape(-1, 3)
+    for _ in range(RELAX_ROUNDS):
+        # the free vertices of tetrahedra out of range around the moved vertices
+        _, watch = gather_rows(ptr, idx, np.flatnonzero(moved))
+        watch = np.unique(np.concatenate([around, watch]))
+        bad = watch[_margin(tet_quality(trial, tets[watch], device), floor, ceiling) < 0]
+        grow = np.zeros(n, bool)
+        grow[tets[bad].ravel()] = True
+        cand = np.flatnonzero(grow & free)
+        if not len(cand):
+            break
+        p = np.full(n, -np.inf)
+        p[cand] = rng.random(len(cand))
+        b = p.copy()
+        np.maximum.at(b, te[:, 0], p[te[:, 1]])
+        np.maximum.at(b, te[:, 1], p[te[:, 0]])
+        u = cand[p[cand] >= b[cand]]
+        uo, ut = gather_rows(ptr, idx, u)
+        k = len(cand_off) + 1
+        # every candidate position of u as a new point; the tetrahedra around u with u replaced
+        newp = np.concatenate([trial, (trial[u][:, None, :] + np.concatenate([np.zeros((1, 3)), cand_off])[None])
+                               .reshape(-1, 3)])
+        rep = np.repeat(tets[ut][None], k, axis=0)  # (k, t, 4)
+        pid = n + uo[None, :] * k + np.arange(k)[:, None]  # (k, t)
+        rep = np.where(rep == u[uo][None, :, None], pid[..., None], rep)
+        score = _margin(tet_quality(newp, rep.reshape(-1, 4), device), floor, ceiling).reshape(k, len(ut))
+        worst = np.full((k, len(u)), np.inf)
+        for j in range(k):  # 105 candidates: a short loop over whole arrays
+            np.minimum.at(worst[j], uo, score[j])
+        pick = np.argmax(worst, axis=0)
+        better = worst[pick, np.arange(len(u))] > worst[0]
+        trial[u[better]] = newp[n + np.flatnonzero(better) * k + pick[better]]
+        moved[u[better]] = True
+    # keep each zone whose tetrahedra (around its vertex and its relocated ones) are all in range
+    touched = np.zeros(n, bool)
+    touched[sel] = True
+    touched |= moved
+    _, at = gather_rows(ptr, idx, np.flatnonzero(touched))
+    at = np.unique(at)
+    bad_t = at[_margin(tet_quality(trial, tets[at], device), floor, ceiling) < 0]
+    zone_bad = np.zeros(len(sel), bool)
+    zb = zone[tets[bad_t].ravel()]
+    zone_bad[zb[zb >= 0]] = True
+    ok_z = ~zone_bad
+    keep = (zone >= 0) & touched
+    keep[keep] = ok_z[zone[keep]]
+    out = pts.copy()
+    out[keep] = trial[keep]
+    accepted = np.zeros(len(verts), bool)
+    accepted[np.flatnonzero(tried)[ok_z]] = True
+    return out, tried, accepted
 
 
 def _split_edges(pts, tets, tris, edges, where, floor, ceiling, device, rng):
@@ -468,7 +571,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
     cos_a = float(np.cos(np.radians(angle)))
     rng = np.random.default_rng(0)
     crease = np.zeros(len(pts), bool)
-    n_corners = n_split = n_flip = rejected = 0
+    n_corners = n_split = n_flip = rejected = n_relaxed = 0
 
     def normals_at_boundary():
         nrm = np.zeros((len(pts), 3))
@@ -492,7 +595,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
 
     def snap(verts, where):
         """Rounds of independent moves of ``verts`` onto ``where``; returns the accepted count."""
-        nonlocal rejected
+        nonlocal rejected, n_relaxed
         vt_ptr, vt_idx = vertex_tets(tets, len(pts))
         te = unique_edges(tets)
         todo = np.ones(len(verts), bool)
@@ -509,6 +612,21 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
             done += int(ok.sum())
             rejected += int((~ok).sum())
             todo[pick] = False
+        # the moves refused alone: again, with the interior vertices around them relocated
+        interior = np.ones(len(pts), bool)
+        interior[tris.ravel()] = False
+        rest = ~crease[verts]
+        for _ in range(ROUNDS):
+            if not rest.any():
+                break
+            idx = np.flatnonzero(rest)
+            out, tried, acc = _relaxed_moves(pts, tets, te, verts[idx], where[idx], interior, h, floor, ceiling,
+                                             device, rng)
+            pts[:] = out
+            crease[verts[idx[acc]]] = True
+            done += int(acc.sum())
+            n_relaxed += int(acc.sum())
+            rest[idx[tried]] = False
         return done
 
     def split(edges, a, b):
@@ -590,6 +708,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
         crease = np.zeros(len(pts), bool)
     info = {"feature_undone": int(crossing), "feature_edges": int(n_cross), "feature_open": int(len(open_edges(nrm))),
             "feature_vertices": int(crease.sum()), "feature_corners": n_corners, "feature_splits": n_split, "feature_flips": n_flip,
+            "feature_relaxed": n_relaxed,
             "feature_rejected": rejected, "feature_floor": float(floor), "feature_ceiling": float(ceiling)}
     return pts, tets, tris, crease, info
 
