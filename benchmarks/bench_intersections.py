@@ -2,16 +2,23 @@
 
 Usage::
 
-    python benchmarks/bench_intersections.py                  # about 1.5 min on 2 cores
+    python benchmarks/bench_intersections.py                  # about 3 min on 2 cores
+    python benchmarks/bench_intersections.py --cases part,ball --resolution 512   # check / meshing
     python benchmarks/bench_intersections.py --cases sphere7,spheres7 --repeat 1   # smoke run
     python benchmarks/bench_intersections.py --json results.json
 
-Cases (``--cases``, comma-separated; default ``sphere7,sphere8,spheres7,spheres8``):
+Cases (``--cases``, comma-separated; default ``sphere7,sphere8,spheres7,spheres8,part,ball``):
 
 - ``sphere7`` / ``sphere8``: a closed icosphere (``trimesh.creation.icosphere``) with 7 / 8
   subdivisions: 327,680 / 1,310,720 triangles, no crossing;
 - ``spheres7`` / ``spheres8``: two such spheres (radii 1 and 0.8, the second moved by
-  (0.9, 0.13, 0.071)) in one mesh: 655,360 / 2,621,440 triangles, crossing along a curve.
+  (0.9, 0.13, 0.071)) in one mesh: 655,360 / 2,621,440 triangles, crossing along a curve;
+- ``part`` / ``ball``: warpmesh's own output, ``wm.mesh_surface`` of ``wm.example("part")``
+  at its bounds / of ``wm.sphere(1.0)`` in [-1.2, 1.2]^3, at ``--resolution`` (default 512:
+  about 1.5 M / 1.7 M triangles; the part has large grid-aligned flat regions, the ties
+  of the check). These cases add a row ``meshing``: the ``mesh_surface`` call that made the
+  mesh, timed in the same rounds, and the table's last columns give each tool's time
+  divided by the meshing time (CPU seconds, and wall).
 
 Tools: warpmesh ``find_self_intersections`` (all cores, and ``workers=1``), which takes
 numpy arrays (its time includes validation and upload); pymeshlab
@@ -48,7 +55,20 @@ CASES = {
     "sphere8": ("icosphere, 8 subdivisions", 8, False),
     "spheres7": ("two crossing icospheres, 7 subdivisions", 7, True),
     "spheres8": ("two crossing icospheres, 8 subdivisions", 8, True),
+    "part": ("wm.mesh_surface of the bundled part", "part", None),
+    "ball": ("wm.mesh_surface of a unit sphere", "ball", None),
 }
+
+
+def mesher(key: str, resolution: int):
+    """The ``mesh_surface`` call of a meshed case, as a function returning the mesh."""
+    import warpmesh as wm
+
+    if key == "part":
+        shape, bounds = wm.example("part")
+    else:
+        shape, bounds = wm.sphere(1.0), ((-1.2, -1.2, -1.2), (1.2, 1.2, 1.2))
+    return lambda: wm.mesh_surface(shape, bounds=bounds, resolution=resolution)
 
 
 def make_mesh(subdivisions: int, two: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -61,9 +81,16 @@ def make_mesh(subdivisions: int, two: bool) -> tuple[np.ndarray, np.ndarray]:
             np.vstack([a.faces, np.asarray(b.faces) + len(a.vertices)]))
 
 
-def run_case(key: str, repeat: int) -> dict:
+def run_case(key: str, repeat: int, resolution: int = 512) -> dict:
     name, subdivisions, two = CASES[key]
-    points, faces = make_mesh(subdivisions, two)
+    meshing = None
+    if two is None:  # a meshed case: its mesher is timed too
+        meshing = mesher(subdivisions, resolution)
+        mesh = meshing()
+        points, faces = np.asarray(mesh.points, float), np.asarray(mesh.cells["triangle"])
+        name = f"{name} at resolution {resolution}"
+    else:
+        points, faces = make_mesh(subdivisions, two)
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(points, faces))
     out = {}
@@ -79,6 +106,8 @@ def run_case(key: str, repeat: int) -> dict:
 
     tools = {f"warpmesh ({os.cpu_count()} workers)": warpmesh_all, "warpmesh (workers=1)": warpmesh_one,
              "pymeshlab": meshlab}
+    if meshing is not None:
+        tools["meshing"] = meshing
     times = {t: [] for t in tools}
     cpu = {t: [] for t in tools}
     for fn in tools.values():  # warm-up
@@ -95,13 +124,24 @@ def run_case(key: str, repeat: int) -> dict:
     agree = np.array_equal(ours, theirs) and np.array_equal(out["warpmesh"], out["warpmesh 1"])
     med = {t: statistics.median(v) for t, v in times.items()}
     ref = med[next(iter(tools))]
-    rows = [{"tool": t, "seconds": med[t], "ratio": med[t] / ref, "cpu_seconds": statistics.median(cpu[t]),
-             "samples": times[t], "faces": len(theirs) if t == "pymeshlab" else len(ours)} for t in tools]
+    mcpu = {t: statistics.median(v) for t, v in cpu.items()}
+    rows = [{"tool": t, "seconds": med[t], "ratio": med[t] / ref, "cpu_seconds": mcpu[t],
+             "samples": times[t], "cpu_samples": cpu[t],
+             "faces": None if t == "meshing" else len(theirs) if t == "pymeshlab" else len(ours)} for t in tools]
+    if meshing is not None:  # time / meshing time, CPU and wall
+        for r in rows:
+            r["cpu_per_meshing"] = mcpu[r["tool"]] / mcpu["meshing"]
+            r["wall_per_meshing"] = med[r["tool"]] / med["meshing"]
     print(f"\n{name}: {len(faces):,} triangles, {len(out['warpmesh']):,} crossing pairs")
-    print("| tool | seconds | ratio | cpu s | offending faces |")
-    print("| --- | --- | --- | --- | --- |")
+    extra = " cpu / meshing cpu | wall / meshing wall |" if meshing is not None else ""
+    print("| tool | seconds | ratio | cpu s | offending faces |" + extra)
+    print("| --- | --- | --- | --- | --- |" + (" --- | --- |" if extra else ""))
     for r in rows:
-        print(f"| {r['tool']} | {r['seconds']:.3f} | {r['ratio']:.2f}x | {r['cpu_seconds']:.3f} | {r['faces']:,} |")
+        faces_col = "" if r["faces"] is None else f"{r['faces']:,}"
+        line = f"| {r['tool']} | {r['seconds']:.3f} | {r['ratio']:.2f}x | {r['cpu_seconds']:.3f} | {faces_col} |"
+        if extra:
+            line += f" {r['cpu_per_meshing']:.2f} | {r['wall_per_meshing']:.2f} |"
+        print(line)
     print(f"offending faces agree (warpmesh = pymeshlab, and for any workers): {'yes' if agree else 'NO'}")
     return {"case": key, "name": name, "triangles": len(faces), "pairs": len(out["warpmesh"]), "rows": rows,
             "agree": bool(agree)}
@@ -111,6 +151,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", default=",".join(CASES), help=f"comma-separated subset of {list(CASES)}")
     p.add_argument("--repeat", type=int, default=3, help="timed rounds (median; default 3)")
+    p.add_argument("--resolution", type=int, default=512, help="resolution of the meshed cases (default 512)")
     p.add_argument("--json", default=None, help="write every row and sample to this file")
     p.add_argument("--default-malloc", action="store_true", help="keep glibc's default allocator (see README)")
     a = p.parse_args(argv)
@@ -122,7 +163,9 @@ def main(argv=None) -> int:
     load0 = load_banner(f"self-intersections: {os.cpu_count()} cores, python {sys.version.split()[0]}, "
                         f"warp-lang {version('warp-lang')}, pymeshlab {version('pymeshlab')}, "
                         f"trimesh {version('trimesh')}")
-    results = [run_case(c, a.repeat) for c in cases]
+    if a.resolution < 8:
+        p.error(f"expected --resolution >= 8, got {a.resolution}")
+    results = [run_case(c, a.repeat, a.resolution) for c in cases]
     finish(t_start, load0, a.json, {"results": results})
     return 0 if all(r["agree"] for r in results) else 1
 
