@@ -9,6 +9,7 @@ half a cell times the area, the discretisation's reach).
 
 A bounded, derandomised slice runs in the normal suite; ``-m slow`` runs a longer one; a
 long run is ``WARPMESH_FUZZ_EXAMPLES=5000 python -m pytest tests/test_fuzz.py -m slow``.
+The octree's topology is also checked against the grid's (:func:`check_topology_case`).
 """
 
 from __future__ import annotations
@@ -98,6 +99,37 @@ def check_case(seed: int) -> None:
     assert abs(volume_mesh - volume) <= reach, f"{where}: volume {volume_mesh:.4g}, MC {volume:.4g} +- {reach:.3g}"
 
 
+def _topology(m) -> tuple:
+    s = m.stats()
+    return s["euler"], s["components"]
+
+
+def _regular(shape, points: np.ndarray, step: float) -> bool:
+    """Whether |grad f| (central differences) stays above 1 % of its median on these points
+    of f = 0: else the zero set is not a manifold there (two sheets cross or touch) and its
+    topology is not defined."""
+    grad = np.stack([wm.evaluate(shape, points + step * e) - wm.evaluate(shape, points - step * e)
+                     for e in np.eye(3)], axis=1) / (2 * step)
+    norm = np.linalg.norm(grad, axis=1)
+    return bool(norm.min() > 0.01 * np.median(norm))
+
+
+def check_topology_case(seed: int) -> None:
+    """The octree's Euler characteristic and components equal the grid's wherever the grid
+    settles them: the grid agrees with itself at 64 and 128 cells and the zero set is regular
+    (issue 19 item 2: thin parts pressed against the bounds were split by the octree)."""
+    shape, bounds, *_ = _case(seed)
+    grids = [_mesh(shape, bounds, r, "mc", "grid") for r in (64, 128)]
+    if not grids[1].n_cells or _topology(grids[0]) != _topology(grids[1]):
+        return  # nothing in the box, or features finer than a cell of the coarser grid
+    h = float(np.max(np.subtract(bounds[1], bounds[0]))) / 128
+    if not _regular(shape, grids[1].points, 1e-3 * h):
+        return
+    m = _mesh(shape, bounds, 64, "mc", "adaptive")
+    where = f"seed {seed}: adaptive at max_level 6 in {np.round(bounds, 3).tolist()}"
+    assert m.n_cells and _topology(m) == _topology(grids[1]), f"{where}: {_topology(m)} against {_topology(grids[1])}"
+
+
 def check_volume_case(seed: int) -> None:
     """A random volume (floats with ties, or labels), level, method, spacing and cap: closed,
     manifold, oriented, embedded, and the same triangles with and without culling."""
@@ -143,6 +175,27 @@ def test_fuzz_surfaces(seed):
 @given(st.integers(min_value=2**31, max_value=2**32 - 1))
 def test_fuzz_surfaces_long(seed):
     check_case(seed)
+
+
+@pytest.mark.parametrize("seed", [1814, 1863, 1881, 1888, 1929])
+def test_octree_topology_regressions(seed):
+    """Seeds where the octree gave another Euler characteristic than the grid: a solid thinner
+    than a leaf pressed against the bounds vanished under the cap (1863, 1888), and coarse
+    leaves held two sheets that only their finer neighbours' nodes showed (1814, 1881, 1929)."""
+    check_topology_case(seed)
+
+
+@seeded(4)
+@given(st.integers(min_value=0, max_value=2**31 - 1))
+def test_fuzz_octree_topology(seed):
+    check_topology_case(seed)
+
+
+@pytest.mark.slow
+@LONG
+@given(st.integers(min_value=2**31, max_value=2**32 - 1))
+def test_fuzz_octree_topology_long(seed):
+    check_topology_case(seed)
 
 
 @FAST

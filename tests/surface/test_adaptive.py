@@ -332,3 +332,31 @@ def test_no_vertex_outside_the_bounds(normal):
     assert np.all(np.abs(m.points) <= 1.0)
     s = m.stats()
     assert s["watertight"] and s["euler"] == 2 and len(wm.check(m)) == 0
+
+
+def test_without_caps_the_surface_ends_on_the_bounds():
+    """cap=False raised an internal error (a leaf's loops did not close) wherever the shape
+    left the box; it is now the capped surface less its caps, open on the bounds."""
+    bounds = ((-1.5, -1.5, -0.25), (1.5, 1.5, 0.25))
+    capped = wm.mesh_surface(wm.sphere(1.0), bounds=bounds, adaptive=True, max_level=5)
+    band = wm.mesh_surface(wm.sphere(1.0), bounds=bounds, adaptive=True, max_level=5, cap=False)
+    s = band.stats()
+    assert not s["watertight"] and s["euler"] == 0 and s["components"] == 1  # a band: two boundary loops
+    assert band.n_cells == int(np.sum(capped.cell_refs["triangle"] == 1))
+    edges = np.sort(band.cells["triangle"][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    uniq, count = np.unique(edges, axis=0, return_counts=True)
+    open_ends = band.points[uniq[count == 1].ravel()]
+    assert len(open_ends) and np.allclose(np.abs(open_ends[:, 2]), 0.25, atol=1e-3)  # cap vertices sit 1e-3 cell off
+    assert len(wm.check(band)) == 0
+
+
+def test_a_thin_solid_against_the_bounds_is_kept():
+    """A solid thinner than a coarse leaf, pressed against the bounds, vanished under the cap
+    (its only inside corners were on the bounds): the octree refines such cells."""
+    bounds = ((-1.2, -1.2, -1.2), (-0.94, 1.2, 1.2))  # the ball's cap x < -0.94: 0.06 thick
+    m = wm.mesh_surface(wm.sphere(1.0), bounds=bounds, adaptive=True, max_level=7)
+    g = wm.mesh_surface(wm.sphere(1.0), bounds=bounds, resolution=128)
+    s = m.stats()
+    exact = np.pi * 0.06 ** 2 * (3 - 0.06) / 3  # the cap of height 0.06 of the unit ball
+    assert s["watertight"] and s["euler"] == g.stats()["euler"] == 2 and s["components"] == 1
+    assert abs(s["volume"] - exact) < 0.1 * exact

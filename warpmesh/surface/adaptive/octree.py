@@ -278,9 +278,10 @@ def cell_keys(level: np.ndarray, ijk: np.ndarray) -> np.ndarray:
 
 def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, tolerance: float | None,
                  angles=None, chord: float | None = None, bound: str = "interval", lipschitz: float | None = None,
-                 cap: bool = True, prune: bool = True, device="cpu") -> Octree:
+                 cap: bool = True, prune: bool = True, force=None, device="cpu") -> Octree:
     """Build the covering-up of the box [lo, hi] down to ``max_level`` (2**max_level finest
-    cells along the longest side), refining where the criteria above fail."""
+    cells along the longest side), refining where the criteria above fail, and the cells
+    whose keys (:func:`cell_keys`) are in the sorted array ``force``."""
     extent = hi - lo
     base = min(3, max_level)
     # at least 2 base cells per axis, so that no cell touches both ends of an axis: the cap
@@ -341,6 +342,13 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
                 graze[finite & (iv[:, 0] > -width)] = 1
             refine[active] = _criteria_fail(tree, level, ijk[active], vals[active[need]], sin1, cos2,
                                             graze[active])
+            if cap:
+                refine[active] |= _cap_loses(tree, level, ijk[active], vals[active[need]])
+        if force is not None and len(force) and level < max_level:  # a previous round found two sheets
+            keys_here = cell_keys(np.full(len(ijk), level), ijk)
+            hit = force[np.minimum(np.searchsorted(force, keys_here), len(force) - 1)] == keys_here
+            refine |= hit & (active | cap_leaf)
+            cap_leaf &= ~refine
         leaf = cap_leaf | (active & ~refine)
         status = np.where(refine, INTERNAL, np.where(leaf, LEAF, CULLED)).astype(np.int8)
         leaf_of = np.full(len(ijk), -1, np.int64)
@@ -400,6 +408,23 @@ def _level_corners(tree: Octree, level: int, ijk: np.ndarray, pool, tape_id) -> 
                          "(e.g. log of a negative value, division by zero; NaN propagates through min and max)")
     tree.nodes.add(keys, vals)
     return vals[inverse].reshape(-1, 8)
+
+
+def _cap_loses(tree: Octree, level: int, ijk: np.ndarray, vals: np.ndarray) -> np.ndarray:
+    """Which of these cells the cap would empty or split. The extraction closes the surface
+    on the bounds by counting a corner on the bounds as outside; a cell whose inside corners
+    all lie on the bounds then has no crossing left, and its piece of the solid (thinner
+    than the cell, pressed against the bounds) vanishes; a cell whose remaining corners no
+    longer form one sheet comes apart. Both are refined, so the solid is lost only where it
+    is thinner than a finest cell, as on the grid."""
+    span = int(tree.span(level))
+    lat = (ijk[:, None, :] + CORNERS[None]) * span  # (n, 8, 3)
+    on_bound = np.any((lat == 0) | (lat >= tree.lattice_max()[None, None]), axis=2)
+    inside = vals > 0
+    capped = inside & ~on_bound
+    config = (capped << np.arange(8)).sum(axis=1)
+    touched = np.any(inside & on_bound, axis=1)
+    return touched & ((config == 0) | ~ONE_SHEET[config])
 
 
 _EDGE_ARRAYS: dict = {}

@@ -25,17 +25,29 @@ import warp as wp
 from warpmesh._conventions import CAP_REF, SURFACE_REF
 from warpmesh.surface.adaptive import contour as OC
 from warpmesh.surface.block_grid import refine_roots
-from warpmesh.surface.adaptive.octree import build_octree
+from warpmesh.surface.adaptive.octree import build_octree, cell_keys
 
 NEWTON_STEPS = 4  # safeguarded Newton from the linear estimate (quadratic convergence)
 
 
 def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chord, bound, lipschitz, cap, prune,
-                  features, root, root_iterations, gradient, device, timings, info):
-    """(points, faces, triangle refs or None) of the adaptive surface; fills timings and info."""
+                  features, root, root_iterations, gradient, device, timings, info, force=None, rounds=1):
+    """(points, faces, triangle refs or None) of the adaptive surface; fills timings and info.
+
+    Without ``cap`` the surface is the capped one less its cap triangles: an open surface
+    that ends on the bounds (the octree's loops close only on a closed boundary).
+
+    A leaf above ``max_level`` whose boundary (its neighbours' finer nodes included) holds
+    two loops or more has two sheets, which its corners did not show: the octree is built
+    again with those leaves refined (``force``), until none is left (``info["octree_rounds"]``)."""
+    args = dict(max_level=max_level, min_level=min_level, tolerance=tolerance, angles=angles, chord=chord,
+                bound=bound, lipschitz=lipschitz, cap=cap, prune=prune, features=features, root=root,
+                root_iterations=root_iterations, gradient=gradient, device=device, timings=timings, info=info)
+    open_bounds, cap = not cap, True
     t0 = time.perf_counter()
     tree = build_octree(tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance,
-                        angles=angles, chord=chord, bound=bound, lipschitz=lipschitz, cap=cap, prune=prune, device=device)
+                        angles=angles, chord=chord, bound=bound, lipschitz=lipschitz, cap=cap, prune=prune,
+                        force=force, device=device)
     timings["octree"] = time.perf_counter() - t0
     fld = tree.field
 
@@ -77,6 +89,11 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     if isinstance(loops[0], BaseException):
         raise loops[0]
     half, loop_of, n_loops, loop_size, nxt = loops[0]
+    two_sheets = _leaves_with_two_sheets(tree, half, loop_of, n_loops)
+    if len(two_sheets):
+        keys = np.union1d(np.zeros(0, np.int64) if force is None else force, two_sheets)
+        return mesh_adaptive(tape, lo, hi, **args, force=keys, rounds=rounds + 1)
+    info["octree_rounds"] = rounds
     normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
     centres, rank = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, features)
     unit_of_half = np.concatenate([segments[:, 0], segments[:, 0]])
@@ -104,8 +121,10 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     info.update(untangled=moved, crossing_pairs=int(len(pairs)))
     OC.check_closed(tris)
     refs = None
-    if cap and cap_vertex.any():  # a cap triangle has its three vertices on one face of the bounds
+    if cap_vertex.any():  # a cap triangle has its three vertices on one face of the bounds
         refs = np.where(_on_one_face(tree, all_points, tris), CAP_REF, SURFACE_REF)
+        if open_bounds:
+            tris, refs = tris[refs == SURFACE_REF], None
     used = np.zeros(len(all_points), bool)
     used[tris.ravel()] = True
     renumber = np.cumsum(used) - 1
@@ -114,6 +133,16 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     info.update(loops=int(n_loops), feature_vertices=int(feature.sum()), feature_flips=int(flips))
     _finish_info(tree, info, len(all_points), len(tris), n_loops)
     return all_points, tris, refs
+
+
+def _leaves_with_two_sheets(tree, half, loop_of, n_loops) -> np.ndarray:
+    """Sorted cell keys of the leaves above the finest level that hold two loops or more."""
+    leaf_of_loop = np.full(n_loops, -1, np.int64)
+    leaf_of_loop[loop_of] = half[:, 0]
+    leaf_of_loop = leaf_of_loop[leaf_of_loop >= 0]
+    many = np.flatnonzero(np.bincount(leaf_of_loop, minlength=len(tree.leaf_level)) > 1)
+    many = many[tree.leaf_level[many] < tree.max_level]
+    return np.unique(cell_keys(tree.leaf_level[many], tree.leaf_ijk[many]))
 
 
 def _on_one_face(tree, points: np.ndarray, tris: np.ndarray) -> np.ndarray:
