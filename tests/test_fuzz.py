@@ -162,6 +162,7 @@ def check_volume_case(seed: int) -> None:
 
 FAST = seeded(24)
 LONG = seeded(int(os.environ.get("WARPMESH_FUZZ_EXAMPLES", 120)))
+LONG_TOPOLOGY = seeded(int(os.environ.get("WARPMESH_FUZZ_EXAMPLES", 40)))  # three meshes a case
 
 
 @FAST
@@ -192,7 +193,7 @@ def test_fuzz_octree_topology(seed):
 
 
 @pytest.mark.slow
-@LONG
+@LONG_TOPOLOGY
 @given(st.integers(min_value=2**31, max_value=2**32 - 1))
 def test_fuzz_octree_topology_long(seed):
     check_topology_case(seed)
