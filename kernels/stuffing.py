@@ -468,3 +468,139 @@ def tet_quality_kernel(points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp
     if det != wp.float64(0.0) and short > wp.float64(0.0):
         ratio = wp.length(num) / wp.abs(wp.float64(2.0) * det) / short
     out[i] = wp.vec4d(lo, hi, ratio, det / wp.float64(6.0))
+
+
+# -- graded backgrounds: an explicit list of nodes, edges and tetrahedra ---------------------
+# (warpmesh.solid.graded builds it; the vertices of each tetrahedron are listed by increasing
+# global id, and ``flip`` marks those that are then negatively oriented)
+
+
+@wp.kernel
+def mesh_node_signs_kernel(values: wp.array(dtype=wp.float32), signs: wp.array(dtype=wp.int8),
+                           bad: wp.array(dtype=wp.int32)):
+    """One thread per background node: its sign (+1 inside, 0 on f = 0, -1 outside; a NaN
+    value counts in ``bad`` and is outside)."""
+    n = wp.tid()
+    v = values[n]
+    s = int(-1)
+    if v != v:
+        wp.atomic_add(bad, 0, 1)
+    elif v > 0.0:
+        s = 1
+    elif v == 0.0:
+        s = 0
+    signs[n] = wp.int8(s)
+
+
+@wp.kernel
+def count_mesh_cuts_kernel(edges: wp.array(dtype=wp.vec2i), signs: wp.array(dtype=wp.int8),
+                           flags: wp.array(dtype=wp.int32)):
+    """One thread per background edge: 1 when it joins a + node and a - node."""
+    e = wp.tid()
+    flags[e] = wp.where(is_cut(edges[e][0], edges[e][1], signs), 1, 0)
+
+
+@wp.kernel
+def write_mesh_cuts_kernel(edges: wp.array(dtype=wp.vec2i), node_pos: wp.array(dtype=wp.vec3),
+                           values: wp.array(dtype=wp.float32), flags: wp.array(dtype=wp.int32),
+                           offsets: wp.array(dtype=wp.int32), edge_cut: wp.array(dtype=wp.int32),
+                           p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3),
+                           f_lo: wp.array(dtype=wp.float32), f_hi: wp.array(dtype=wp.float32)):
+    """One thread per background edge: a cut edge's bracket (end positions, local, and the
+    field at both ends); ``edge_cut`` maps an edge to its cut index (-1 elsewhere)."""
+    e = wp.tid()
+    if flags[e] == 0:
+        edge_cut[e] = -1
+        return
+    k = offsets[e]
+    a = edges[e][0]
+    b = edges[e][1]
+    edge_cut[e] = k
+    p0[k] = node_pos[a]
+    p1[k] = node_pos[b]
+    f_lo[k] = values[a]
+    f_hi[k] = values[b]
+
+
+@wp.kernel
+def warp_mesh_nodes_kernel(first: int, which: int, star: wp.array(dtype=wp.int32), star_edges: wp.array(dtype=wp.int32),
+                           edges: wp.array(dtype=wp.vec2i), edge_length: wp.array(dtype=wp.float32),
+                           edge_alpha: wp.array(dtype=wp.float32), edge_cut: wp.array(dtype=wp.int32),
+                           cut_pos: wp.array(dtype=wp.vec3), signs: wp.array(dtype=wp.int8),
+                           node_pos: wp.array(dtype=wp.vec3), warped: wp.array(dtype=wp.int32)):
+    """One thread per background node of sign ``which``: when a cut point on one of its edges
+    (``star_edges[star[n]:star[n + 1]]``) lies closer than the edge's alpha times its length,
+    the node moves to the nearest such cut point and its sign becomes 0. Nodes of one sign
+    share no cut edge, so a pass reads only nodes of the other sign: no race."""
+    n = first + wp.tid()
+    if int(signs[n]) != which:
+        return
+    here = node_pos[n]
+    best = float(3.0e38)
+    best_cut = int(-1)
+    for j in range(star[n], star[n + 1]):
+        e = star_edges[j]
+        c = edge_cut[e]
+        other = edges[e][0] + edges[e][1] - n
+        if c >= 0 and int(signs[other]) != 0:
+            d = wp.length(cut_pos[c] - here)
+            if d < edge_alpha[e] * edge_length[e] and d < best:
+                best = d
+                best_cut = c
+    if best_cut >= 0:
+        node_pos[n] = cut_pos[best_cut]
+        signs[n] = wp.int8(0)
+        warped[n] = 1
+
+
+@wp.func
+def mesh_tet_case(t: wp.vec4i, signs: wp.array(dtype=wp.int8)):
+    """The sign code of a background tetrahedron, or -1 when none of its nodes is inside."""
+    code = int(0)
+    scale = int(1)
+    plus = int(0)
+    for v in range(4):
+        s = int(signs[t[v]])
+        code += (s + 1) * scale
+        if s > 0:
+            plus += 1
+        scale *= 3
+    return wp.where(plus > 0, code, -1)
+
+
+@wp.kernel
+def count_mesh_tets_kernel(first: int, tets: wp.array(dtype=wp.vec4i), signs: wp.array(dtype=wp.int8),
+                           count: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
+    """One thread per background tetrahedron: the number of output tetrahedra of its stencil."""
+    i = first + wp.tid()
+    counts[i] = stencil_count(mesh_tet_case(tets[i], signs), count)
+
+
+@wp.kernel
+def write_mesh_tets_kernel(first: int, n_nodes: int, tets: wp.array(dtype=wp.vec4i),
+                           tet_edges: wp.array2d(dtype=wp.int32), flip: wp.array(dtype=wp.int32),
+                           signs: wp.array(dtype=wp.int8), count: wp.array(dtype=wp.int32),
+                           table: wp.array3d(dtype=wp.int32), edge_cut: wp.array(dtype=wp.int32),
+                           offsets: wp.array(dtype=wp.int32), out: wp.array(dtype=wp.vec4i),
+                           used: wp.array(dtype=wp.int32)):
+    """One thread per background tetrahedron: its stencil's tetrahedra as vertex keys (a node
+    id, or n_nodes + the index of a cut point), positive (two references swapped when the
+    tetrahedron is flipped), and the keys marked used."""
+    i = first + wp.tid()
+    t = tets[i]
+    case = mesh_tet_case(t, signs)
+    m = stencil_count(case, count)
+    k = offsets[i]
+    for j in range(m):
+        key = wp.vec4i(0, 0, 0, 0)
+        for v in range(4):
+            r = table[case, j, v]
+            if r < 4:
+                key[v] = t[r]
+            else:
+                key[v] = n_nodes + edge_cut[tet_edges[i, r - 4]]
+            used[key[v]] = 1
+        if flip[i] != 0:
+            key = wp.vec4i(key[0], key[2], key[1], key[3])
+        out[k] = key
+        k += 1

@@ -22,9 +22,9 @@ import warp as wp
 
 from warpmesh._util.parallel import parallel_ranges, run_parallel
 from warpmesh.kernels import stuffing as K
-from warpmesh.solid.stencils import EDGES, LONG_FACES, stencil_tables
+from warpmesh.solid.stencils import EDGES, LONG_FACES, ranked_stencil_tables, stencil_tables
 
-__all__ = ["lattice_tables", "node_coordinates", "Lattice"]
+__all__ = ["lattice_tables", "node_coordinates", "Lattice", "Background", "bracketed_roots"]
 
 
 def node_coordinates(colour: int, offset) -> np.ndarray:
@@ -78,6 +78,32 @@ def lattice_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return layout, slots, bits
 
 
+def bracketed_roots(n: int, p0: wp.array, p1: wp.array, f_lo: wp.array, f_hi: wp.array, worigin, field,
+                    iterations: int, device) -> tuple[wp.array, wp.array]:
+    """(t, cut positions (local)) of ``n`` cut edges p0 -> p1 (local; the field f_lo, f_hi at
+    their ends) by regula falsi with the Illinois modification (superlinear, never leaves the
+    bracket) on the exact field: ``field`` maps world points (wp.array of vec3, world = worigin
+    + local) to values (float32). f_lo and f_hi are overwritten."""
+    t = wp.full(max(n, 1), 0.5, dtype=wp.float32, device=device)
+    t_lo = wp.zeros(max(n, 1), dtype=wp.float32, device=device)
+    t_hi = wp.ones(max(n, 1), dtype=wp.float32, device=device)
+    side = wp.zeros(max(n, 1), dtype=wp.int32, device=device)
+    world = wp.empty(max(n, 1), dtype=wp.vec3, device=device)
+    if n:
+        wp.launch(K.false_position_init_kernel, dim=n, inputs=[f_lo, f_hi], outputs=[t], device=device)
+        for _ in range(iterations):
+            wp.launch(K.edge_points_kernel, dim=n, inputs=[t, p0, p1, worigin], outputs=[world], device=device)
+            values = field(world[:n])
+            wp.launch(K.false_position_step_kernel, dim=n, inputs=[values],
+                      outputs=[t_lo, t_hi, f_lo, f_hi, side, t], device=device)
+    pos = wp.empty(max(n, 1), dtype=wp.vec3, device=device)
+    if n:
+        wp.launch(K.cut_positions_kernel, dim=n, inputs=[t, p0, p1], outputs=[pos], device=device)
+    return t, pos
+
+
+#: short edge / long edge of a BCC tetrahedron
+_SHORT = float(np.sqrt(3.0) / 2.0)
 _DEVICE_TABLES: dict[str, tuple] = {}
 
 
@@ -176,24 +202,10 @@ class Lattice:
 
     def roots(self, field, iterations: int) -> None:
         """Cut points on every cut edge by a bracketed root search of the exact (clipped)
-        field: regula falsi with the Illinois modification (superlinear, never leaves the
-        bracket). ``field`` maps world points (wp.array of vec3) to values (float32)."""
-        n, dev = self.n_cuts, self.device
-        t = wp.full(max(n, 1), 0.5, dtype=wp.float32, device=dev)
-        t_lo = wp.zeros(max(n, 1), dtype=wp.float32, device=dev)
-        t_hi = wp.ones(max(n, 1), dtype=wp.float32, device=dev)
-        side = wp.zeros(max(n, 1), dtype=wp.int32, device=dev)
-        world = wp.empty(max(n, 1), dtype=wp.vec3, device=dev)
-        if n:
-            self._launch(K.false_position_init_kernel, n, [self.f_lo, self.f_hi], [t])
-            for _ in range(iterations):
-                self._launch(K.edge_points_kernel, n, [t, self.p0, self.p1, self.worigin], [world])
-                values = field(world[:n])
-                self._launch(K.false_position_step_kernel, n, [values], [t_lo, t_hi, self.f_lo, self.f_hi, side, t])
-        self.cut_t = t
-        self.cut_pos = wp.empty(max(n, 1), dtype=wp.vec3, device=dev)
-        if n:
-            self._launch(K.cut_positions_kernel, n, [t, self.p0, self.p1], [self.cut_pos])
+        field (:func:`bracketed_roots`). ``field`` maps world points (wp.array of vec3) to
+        values (float32)."""
+        self.cut_t, self.cut_pos = bracketed_roots(self.n_cuts, self.p0, self.p1, self.f_lo, self.f_hi,
+                                                   self.worigin, field, iterations, self.device)
 
     def warp(self, alpha_long: float, alpha_short: float, order=(-1, 1)) -> int:
         """Move violated nodes onto their nearest violating cut point, outside nodes first
@@ -223,6 +235,160 @@ class Lattice:
         self._per_cell(K.write_tets_kernel, [self.dims, self.n_nodes, self.layout, self.face_bits, self.edge_slot,
                                              self.signs, self.count, self.tets, self.edge_cut,
                                              offsets], [tets, used])
+        ids, nv = self._scan(used)
+        points = wp.empty(max(nv, 1), dtype=wp.vec3, device=dev)
+        surf = wp.zeros(max(nv, 1), dtype=wp.uint8, device=dev)
+        self._launch(K.gather_vertices_kernel, n_keys, [self.n_nodes, used, ids, self.node_pos, self.cut_pos,
+                                                        self.signs], [points, surf])
+        if m:
+            self._launch(K.remap_tets_kernel, m, [ids], [tets])
+        # sync point: the result to the host
+        return (points.numpy()[:nv].astype(np.float64), tets.numpy()[:m].astype(np.int64),
+                surf.numpy()[:nv].astype(bool))
+
+
+class Background:
+    """The device arrays of one stuffing run over an explicit (graded) background mesh, and
+    its launches: the same stages as :class:`Lattice`, with nodes, edges and tetrahedra
+    listed instead of implied by a lattice.
+
+    Parameters
+    ----------
+    local : (n, 3) float
+        Node positions relative to ``origin``.
+    tets : (m, 4) int
+        Background tetrahedra (any orientation; relisted here by increasing vertex id, the
+        order :func:`warpmesh.solid.stencils.ranked_diagonal` needs).
+    origin : (3,) float
+    alpha_long, alpha_short : float
+        The violation thresholds of the long and short edges of the BCC tetrahedra (the
+        uniform regions); an edge of a transition tetrahedron (half, quarter, or any that is
+        not a BCC tetrahedron) takes the smaller of the two (measured: 10.4°-158° on a graded
+        sphere where the paper's pair by edge length gave 1.2°-176°).
+    device : str
+    """
+
+    def __init__(self, local, tets, origin, alpha_long: float, alpha_short: float, device):
+        local = np.asarray(local, dtype=np.float64)
+        tets = np.sort(np.asarray(tets, dtype=np.int64), axis=1)
+        n = len(local)
+        if n >= 2**31 - 1 or len(tets) * 6 >= 2**31 - 1:
+            raise ValueError(f"a background of {len(tets)} tetrahedra is too large to index (int32): raise 'size'")
+        p = local[tets]
+        vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0])
+        a, b = tets[:, [e[0] for e in EDGES]], tets[:, [e[1] for e in EDGES]]  # a < b: sorted rows
+        keys = a * n + b
+        uniq, inv = np.unique(keys, return_inverse=True)
+        inv = inv.reshape(-1, 6)
+        edges = np.stack([uniq // n, uniq % n], axis=1)
+        length = np.linalg.norm(local[edges[:, 0]] - local[edges[:, 1]], axis=1)
+        tl = length[inv]
+        top = tl.max(axis=1, keepdims=True)
+        srt = np.sort(tl, axis=1) / top
+        bcc = (np.abs(srt[:, 4:] - 1.0) < 1e-6).all(axis=1) & (np.abs(srt[:, :4] - _SHORT) < 1e-6).all(axis=1)
+        short = np.zeros(len(uniq), bool)  # the short edges of BCC tetrahedra
+        short[inv[bcc][tl[bcc] < top[bcc] * (1 - 1e-6)]] = True
+        transition = np.zeros(len(uniq), bool)  # edges of a half, quarter or other non-BCC tetrahedron
+        transition[inv[~bcc].ravel()] = True
+        alpha = np.where(transition, min(alpha_long, alpha_short), np.where(short, alpha_short, alpha_long))
+        ends = np.concatenate([edges[:, 0], edges[:, 1]])
+        order = np.argsort(ends, kind="stable")
+        star = np.zeros(n + 1, np.int64)
+        np.cumsum(np.bincount(ends, minlength=n), out=star[1:])
+        self.n_nodes, self.n_tets, self.n_edges = n, len(tets), len(uniq)
+        self.origin = np.asarray(origin, dtype=np.float64)
+        self.worigin = wp.vec3(*self.origin.tolist())
+        self.device = dev = device
+        wp.load_module(K, device=device)
+
+        def up(x, dtype):
+            return wp.array(np.ascontiguousarray(x), dtype=dtype, device=dev)
+
+        self.local = up(local.astype(np.float32), wp.vec3)
+        self.tets = up(tets.astype(np.int32), wp.vec4i)
+        self.tet_edges = up(inv.astype(np.int32), wp.int32)
+        self.flip = up((vol < 0).astype(np.int32), wp.int32)
+        self.edges = up(edges.astype(np.int32), wp.vec2i)
+        self.edge_length = up(length.astype(np.float32), wp.float32)
+        self.edge_alpha = up(alpha.astype(np.float32), wp.float32)
+        self.star = up(star.astype(np.int32), wp.int32)
+        self.star_edges = up((order % len(uniq)).astype(np.int32), wp.int32)
+        count, table = ranked_stencil_tables()
+        self.count, self.table = up(count, wp.int32), up(table, wp.int32)
+
+    def _launch(self, kernel, dim, inputs, outputs=()):
+        wp.launch(kernel, dim=dim, inputs=inputs, outputs=list(outputs), device=self.device)
+
+    def _split(self, kernel, n, inputs, outputs, min_per_worker=4096) -> None:
+        """A launch over [0, n) with ``first`` as its first input, split across CPU cores."""
+        run_parallel([lambda a=a, b=b: self._launch(kernel, b - a, [a, *inputs], outputs)
+                      for a, b in parallel_ranges(n, self.device, min_per_worker=min_per_worker)])
+
+    def _scan(self, counts: wp.array) -> tuple[wp.array, int]:
+        offsets = wp.empty_like(counts)
+        wp.utils.array_scan(counts, offsets, inclusive=False)
+        total = int(offsets[-1:].numpy()[0] + counts[-1:].numpy()[0])  # sync point: output size
+        return offsets, total
+
+    def node_points(self) -> wp.array:
+        """World positions of the nodes."""
+        pts = wp.empty(self.n_nodes, dtype=wp.vec3, device=self.device)
+        self._launch(K.edge_points_kernel, self.n_nodes,
+                     [wp.zeros(self.n_nodes, dtype=wp.float32, device=self.device), self.local, self.local,
+                      self.worigin], [pts])
+        return pts
+
+    def classify(self, values: wp.array) -> int:
+        """Node signs from the clipped values; returns the number of NaN values."""
+        self.signs = wp.empty(self.n_nodes, dtype=wp.int8, device=self.device)
+        bad = wp.zeros(1, dtype=wp.int32, device=self.device)
+        self._launch(K.mesh_node_signs_kernel, self.n_nodes, [values], [self.signs, bad])
+        self.node_pos = wp.clone(self.local)
+        return int(bad.numpy()[0])  # sync point: validation
+
+    def cut_edges(self, values: wp.array) -> int:
+        """The edges joining a + and a - node: their bracket."""
+        dev = self.device
+        flags = wp.empty(self.n_edges, dtype=wp.int32, device=dev)
+        self._launch(K.count_mesh_cuts_kernel, self.n_edges, [self.edges, self.signs], [flags])
+        offsets, n = self._scan(flags)
+        self.n_cuts = n
+        self.edge_cut = wp.empty(self.n_edges, dtype=wp.int32, device=dev)
+        self.p0, self.p1 = (wp.empty(max(n, 1), dtype=wp.vec3, device=dev) for _ in range(2))
+        self.f_lo, self.f_hi = (wp.empty(max(n, 1), dtype=wp.float32, device=dev) for _ in range(2))
+        self._launch(K.write_mesh_cuts_kernel, self.n_edges, [self.edges, self.local, values, flags, offsets],
+                     [self.edge_cut, self.p0, self.p1, self.f_lo, self.f_hi])
+        return n
+
+    def roots(self, field, iterations: int) -> None:
+        """Cut points by :func:`bracketed_roots` on the exact (clipped) field."""
+        self.cut_t, self.cut_pos = bracketed_roots(self.n_cuts, self.p0, self.p1, self.f_lo, self.f_hi,
+                                                   self.worigin, field, iterations, self.device)
+
+    def warp(self, order=(-1, 1)) -> int:
+        """Move violated nodes onto their nearest violating cut point, outside nodes first;
+        returns how many moved."""
+        warped = wp.zeros(self.n_nodes, dtype=wp.int32, device=self.device)
+        if self.n_cuts:
+            for which in order:
+                self._split(K.warp_mesh_nodes_kernel, self.n_nodes,
+                            [int(which), self.star, self.star_edges, self.edges, self.edge_length, self.edge_alpha,
+                             self.edge_cut, self.cut_pos], [self.signs, self.node_pos, warped], 8192)
+        return int(warped.numpy().sum())  # sync point: statistics
+
+    def fill(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The stencils of every background tetrahedron: (local points (n, 3) float64,
+        tetrahedra (m, 4) int64, on_surface (n,) bool)."""
+        dev = self.device
+        counts = wp.empty(self.n_tets, dtype=wp.int32, device=dev)
+        self._split(K.count_mesh_tets_kernel, self.n_tets, [self.tets, self.signs, self.count], [counts])
+        offsets, m = self._scan(counts)
+        n_keys = self.n_nodes + self.n_cuts
+        used = wp.zeros(n_keys, dtype=wp.int32, device=dev)
+        tets = wp.empty(max(m, 1), dtype=wp.vec4i, device=dev)
+        self._split(K.write_mesh_tets_kernel, self.n_tets,
+                    [self.n_nodes, self.tets, self.tet_edges, self.flip, self.signs, self.count, self.table,
+                     self.edge_cut, offsets], [tets, used])
         ids, nv = self._scan(used)
         points = wp.empty(max(nv, 1), dtype=wp.vec3, device=dev)
         surf = wp.zeros(max(nv, 1), dtype=wp.uint8, device=dev)

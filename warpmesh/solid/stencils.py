@@ -53,7 +53,7 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["EDGES", "LONG", "LONG_FACES", "sign_code", "stencil", "stencil_tables",
-           "REFERENCE_TET", "face_diagonal"]
+           "REFERENCE_TET", "face_diagonal", "ranked_diagonal", "ranked_stencil_tables"]
 
 #: local edges of a tetrahedron; the cut point on edge e has local reference 4 + e
 EDGES = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))
@@ -89,6 +89,15 @@ def face_diagonal(p: int, q: int, n: int, bits: int) -> tuple[int, int]:
             other = q if end == p else p
             return end, _cut(other, n)
     raise AssertionError("every lattice face has one long edge")
+
+
+def ranked_diagonal(p: int, q: int, n: int) -> tuple[int, int]:
+    """The diagonal of the quadrilateral of face (p, q, n) on a graded background, whose
+    tetrahedra list their vertices by increasing global id: it leaves the first of p, q (the
+    smaller id), a rule both tetrahedra sharing the face see identically. Three vertices in a
+    total order never make the diagonals of a prism cyclic."""
+    end, other = (p, q) if p < q else (q, p)
+    return end, _cut(other, n)
 
 
 def _orient(tet, pos) -> tuple[int, ...]:
@@ -142,13 +151,19 @@ def _split_prism(bottom, top, diagonals) -> list[tuple[int, ...]]:
     return tets
 
 
-def stencil(signs, bits: int = 0, pos: np.ndarray | None = None) -> list[tuple[int, ...]]:
+def stencil(signs, bits: int = 0, pos: np.ndarray | None = None, ranked: bool = False) -> list[tuple[int, ...]]:
     """The stencil of one background tetrahedron: a list of positive tetrahedra of local
     references (empty without a ``+`` vertex).
 
     ``pos`` (10, 3): positions of the 10 references used to orient the output (default: the
-    reference tetrahedron with every cut point at its edge's midpoint).
+    reference tetrahedron with every cut point at its edge's midpoint). ``ranked``: split the
+    quadrilaterals by :func:`ranked_diagonal` (graded backgrounds; ``bits`` unused) instead of
+    the BCC lattice's long edges and parity bits.
     """
+
+    def diagonal(p, q, n):
+        return ranked_diagonal(p, q, n) if ranked else face_diagonal(p, q, n, bits)
+
     if pos is None:
         pos = np.vstack([REFERENCE_TET, [(REFERENCE_TET[a] + REFERENCE_TET[b]) / 2 for a, b in EDGES]])
     s = [int(v) for v in signs]
@@ -165,18 +180,18 @@ def stencil(signs, bits: int = 0, pos: np.ndarray | None = None) -> list[tuple[i
     elif len(plus) == 2 and len(zero) == 1:
         (p, q), n, z = plus, minus[0], zero[0]
         quad = [p, q, _cut(q, n), _cut(p, n)]
-        tets = _split_pyramid(z, quad, face_diagonal(p, q, n, bits))
+        tets = _split_pyramid(z, quad, diagonal(p, q, n))
     elif len(plus) == 2:
         (p, q), (n, m) = plus, minus
         bottom, top = [p, _cut(p, n), _cut(p, m)], [q, _cut(q, n), _cut(q, m)]
         # sides: (p, c_pn | q, c_qn) lies in face (p, q, n); (c_pn, c_pm | ...) is the cut
         # surface (free); (c_pm, p | c_qm, q) lies in face (p, q, m)
-        diags = [face_diagonal(p, q, n, bits), None, face_diagonal(p, q, m, bits)]
+        diags = [diagonal(p, q, n), None, diagonal(p, q, m)]
         tets = _split_prism(bottom, top, diags)
     else:  # three plus, one minus
         n = minus[0]
         bottom, top = list(plus), [_cut(v, n) for v in plus]
-        diags = [face_diagonal(bottom[i], bottom[(i + 1) % 3], n, bits) for i in range(3)]
+        diags = [diagonal(bottom[i], bottom[(i + 1) % 3], n) for i in range(3)]
         tets = _split_prism(bottom, top, diags)
     return [_orient(t, pos) for t in tets]
 
@@ -195,6 +210,24 @@ def stencil_tables() -> tuple[np.ndarray, np.ndarray]:
             count[case] = len(out)
             for k, t in enumerate(out):
                 tets[case, k] = t
+    count.setflags(write=False)
+    tets.setflags(write=False)
+    return count, tets
+
+
+@lru_cache(maxsize=1)
+def ranked_stencil_tables() -> tuple[np.ndarray, np.ndarray]:
+    """(count (81,), tets (81, 3, 4)) int32: the stencils of every sign pattern under
+    :func:`ranked_diagonal`, oriented on the positive ``REFERENCE_TET`` (a background
+    tetrahedron whose id-sorted vertices are negatively oriented swaps two references)."""
+    count = np.zeros(81, np.int32)
+    tets = np.zeros((81, 3, 4), np.int32)
+    for signs in itertools.product((-1, 0, 1), repeat=4):
+        out = stencil(signs, ranked=True)
+        code = sign_code(signs)
+        count[code] = len(out)
+        for k, t in enumerate(out):
+            tets[code, k] = t
     count.setflags(write=False)
     tets.setflags(write=False)
     return count, tets
