@@ -152,9 +152,10 @@ def _check_size(size, box: np.ndarray) -> float:
     extent = float(np.min(box[1] - box[0]))
     if size is None:
         return extent / 20.0
-    if callable(size):
-        raise ValueError("expected a number for 'size' in 3D: graded sizes (a callable) are not supported by "
-                         "the uniform BCC lattice yet; pass the smallest size you need")
+    if callable(size) or isinstance(size, str):  # graded: the smallest size stands for h downstream
+        from warpmesh.solid.graded import smallest_size
+
+        return smallest_size(size, box)
     ok = isinstance(size, (int, float, np.integer, np.floating)) and not isinstance(size, bool) \
         and math.isfinite(size) and size > 0
     if not ok:
@@ -255,6 +256,7 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, dev
                     cell_refs={"tetra": np.full(len(tets), VOLUME_REF), "triangle": refs}, info=info)
     points, tets, on_surface, info = stuff(shape, box, h, alpha_long=opts["alpha_long"],
                                            alpha_short=opts["alpha_short"], iterations=opts["root_iterations"],
+                                           grading=size if callable(size) or isinstance(size, str) else None,
                                            device=device)
     if not len(tets):
         raise ValueError("expected a 'shape' with an inside (f > 0) in 'bounds', found no lattice node "
