@@ -536,9 +536,12 @@ def gather_faces_kernel(tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp
 
 
 #: faces per leaf box of the BVH: consecutive faces of the Morton order (a compact patch),
-#: so the tree has m / GROUP leaves (built GROUP times faster) and each leaf's faces are
-#: screened by their own float32 boxes before any predicate
+#: so the tree has m / GROUP leaves (built GROUP times faster) and one query per group, not
+#: per face, finds the groups near it; faces are then screened by their own float32 boxes
 GROUP = 8
+#: the lower corner of an empty box (its upper corner is -EMPTY): far outside the BVH's
+#: coordinates [-1, 1]^3, so it meets no box
+EMPTY = wp.constant(8.0)
 
 
 @wp.func
@@ -551,30 +554,36 @@ def face_box(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), 
 
 
 @wp.kernel
-def group_boxes_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), m: int,
+def face_boxes_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
+                      degenerate: wp.array(dtype=wp.int32),
+                      lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3)):
+    """One thread per face position s: its float32 box; an empty box (lower corner
+    ``EMPTY`` above the upper one) for a degenerate face, so that it meets nothing."""
+    s = wp.tid()
+    lo, hi = face_box(points32, tris, s)
+    if degenerate[s] != 0:
+        lo = wp.vec3(EMPTY, EMPTY, EMPTY)
+        hi = -lo
+    lowers[s] = lo
+    uppers[s] = hi
+
+
+@wp.kernel
+def group_boxes_kernel(face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3), m: int,
                        lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3)):
-    """One thread per group g: the box of the faces at positions [GROUP g, GROUP g + GROUP)."""
+    """One thread per group g: the box of the faces at positions [GROUP g, GROUP g + GROUP);
+    a group of degenerate faces only gets the point box at ``EMPTY``, which no face's box meets."""
     g = wp.tid()
-    lo, hi = face_box(points32, tris, GROUP * g)
+    lo = face_lowers[GROUP * g]
+    hi = face_uppers[GROUP * g]
     for s in range(GROUP * g + 1, wp.min(GROUP * g + GROUP, m)):
-        a, b = face_box(points32, tris, s)
-        lo = wp.min(lo, a)
-        hi = wp.max(hi, b)
+        lo = wp.min(lo, face_lowers[s])
+        hi = wp.max(hi, face_uppers[s])
+    if lo[0] > hi[0]:
+        lo = wp.vec3(EMPTY, EMPTY, EMPTY)
+        hi = lo
     lowers[g] = lo
     uppers[g] = hi
-
-
-@wp.func
-def face_query(points: wp.array(dtype=wp.vec3d), points32: wp.array(dtype=wp.vec3),
-               tris: wp.array(dtype=wp.int32), pad: float, s: int):
-    """Face s's vertices, indices, normal, its permanent companion and its float32 box
-    (the BVH's own corners) grown by ``pad``."""
-    p, ip = load_triangle(points, tris, s)
-    u1 = p[1] - p[0]
-    v1 = p[2] - p[0]
-    lo, hi = face_box(points32, tris, s)
-    grow = wp.vec3(pad, pad, pad)
-    return p, ip, wp.cross(u1, v1), _abs_cross(u1, v1), lo - grow, hi + grow
 
 
 @wp.func
@@ -582,97 +591,110 @@ def boxes_meet(lo: wp.vec3, hi: wp.vec3, a: wp.vec3, b: wp.vec3) -> bool:
     return a[0] <= hi[0] and a[1] <= hi[1] and a[2] <= hi[2] and lo[0] <= b[0] and lo[1] <= b[1] and lo[2] <= b[2]
 
 
-@wp.kernel
-def count_intersections_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), points32: wp.array(dtype=wp.vec3),
-                               tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
-                               degenerate: wp.array(dtype=wp.int32), pad: float, first: int,
-                               counts: wp.array(dtype=wp.int64)):
-    """One thread per position s = first + tid of the face order (``tris``, ``degenerate``
-    are in that order; ``order[s]`` is the face's input index f): how many faces g > f
-    intersect it (:func:`pair_intersects`), into ``counts[f]``.
+@wp.func
+def positions_intersect(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+                        order: wp.array(dtype=wp.int32), s: int, s2: int) -> bool:
+    """:func:`pair_intersects` of the faces at positions s and s2, the one of the lower input
+    index as p (the predicate's rounding is not symmetric: always the same order)."""
+    a = s
+    b = s2
+    if order[s2] < order[s]:
+        a = s2
+        b = s
+    p, ip = load_triangle(points, tris, a)
+    q, iq = load_triangle(points, tris, b)
+    u = p[1] - p[0]
+    v = p[2] - p[0]
+    return pair_intersects(p, ip, wp.cross(u, v), _abs_cross(u, v), q, iq)
 
-    Candidates: the faces of the BVH's leaf groups (``GROUP`` consecutive positions each)
-    whose boxes meet the face's padded box, screened by their own boxes.
-    """
-    s = wp.tid() + first
-    f = order[s]
+
+@wp.func
+def walk_group(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+               order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
+               face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
+               group_uppers: wp.array(dtype=wp.vec3), pad: float, g: int,
+               keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
+    """The intersecting pairs of group g with the groups h >= g (each unordered pair of faces
+    once): one BVH query with g's box grown by ``pad``; for each group h met, each face s of
+    g whose grown box meets h's grown box, each face s2 of h (s2 > s when h == g) whose box
+    meets s's grown box goes to the exact test. Returns how many pairs intersect; the
+    first ``limit`` of them are written to ``keys[start:]`` as min(f, f2) m + max(f, f2)
+    (f, f2 the input indices)."""
     m = order.shape[0]
-    count = wp.int64(0)
-    if degenerate[s] == 0:
-        p, ip, n1, m1, lo, hi = face_query(points, points32, tris, pad, s)
-        query = wp.bvh_query_aabb(bvh, lo, hi)
-        g = int(0)
-        while wp.bvh_query_next(query, g):
-            for s2 in range(GROUP * g, wp.min(GROUP * g + GROUP, m)):
-                if order[s2] > f and degenerate[s2] == 0:
-                    a, b = face_box(points32, tris, s2)
-                    if boxes_meet(lo, hi, a, b):
-                        q, iq = load_triangle(points, tris, s2)
-                        if pair_intersects(p, ip, n1, m1, q, iq):
-                            count += wp.int64(1)
-    counts[f] = count
-
-
-@wp.func
-def _sift_down(pairs: wp.array(dtype=wp.vec2i), start: wp.int64, root: int, end: int):
-    r = root
-    while 2 * r + 1 < end:
-        c = 2 * r + 1
-        if c + 1 < end and pairs[start + wp.int64(c + 1)][1] > pairs[start + wp.int64(c)][1]:
-            c += 1
-        top = pairs[start + wp.int64(r)]
-        if top[1] >= pairs[start + wp.int64(c)][1]:
-            return
-        pairs[start + wp.int64(r)] = pairs[start + wp.int64(c)]
-        pairs[start + wp.int64(c)] = top
-        r = c
-
-
-@wp.func
-def sort_segment(pairs: wp.array(dtype=wp.vec2i), start: wp.int64, n: int):
-    """Heap sort of ``pairs[start:start + n]`` by the second index (n log n at worst: a
-    face of a pathological soup may cross thousands of others)."""
-    i = n // 2 - 1
-    while i >= 0:
-        _sift_down(pairs, start, i, n)
-        i -= 1
-    end = n - 1
-    while end > 0:
-        top = pairs[start]
-        pairs[start] = pairs[start + wp.int64(end)]
-        pairs[start + wp.int64(end)] = top
-        _sift_down(pairs, start, 0, end)
-        end -= 1
+    grow = wp.vec3(pad, pad, pad)
+    first = GROUP * g
+    last = wp.min(first + GROUP, m)
+    n = int(0)
+    query = wp.bvh_query_aabb(bvh, group_lowers[g] - grow, group_uppers[g] + grow)
+    h = int(0)
+    while wp.bvh_query_next(query, h):
+        if h >= g:
+            hl = group_lowers[h] - grow
+            hh = group_uppers[h] + grow
+            end = wp.min(GROUP * h + GROUP, m)
+            for s in range(first, last):
+                lo = face_lowers[s]
+                hi = face_uppers[s]
+                if boxes_meet(hl, hh, lo, hi):
+                    lo = lo - grow
+                    hi = hi + grow
+                    s2 = GROUP * h
+                    if h == g:
+                        s2 = s + 1
+                    while s2 < end:
+                        if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
+                            if positions_intersect(points, tris, order, s, s2):
+                                if n < limit:
+                                    f = wp.int64(order[s])
+                                    f2 = wp.int64(order[s2])
+                                    keys[start + wp.int64(n)] = wp.min(f, f2) * wp.int64(m) + wp.max(f, f2)
+                                n += 1
+                        s2 += 1
+    return n
 
 
 @wp.kernel
-def write_intersections_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), points32: wp.array(dtype=wp.vec3),
-                               tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
-                               degenerate: wp.array(dtype=wp.int32), pad: float, first: int,
-                               counts: wp.array(dtype=wp.int64), offsets: wp.array(dtype=wp.int64),
-                               pairs: wp.array(dtype=wp.vec2i)):
-    """One thread per position s = first + tid with ``counts[f] > 0`` (f = order[s]): the
-    walk of :func:`count_intersections_kernel` again, writing (f, g) to
-    ``pairs[offsets[f]:]``, sorted by g."""
-    s = wp.tid() + first
-    f = order[s]
-    n = int(counts[f])
-    if n == 0:
+def count_pairs_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+                       order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
+                       face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
+                       group_uppers: wp.array(dtype=wp.vec3), pad: float, first: int,
+                       unused: wp.array(dtype=wp.int64), counts: wp.array(dtype=wp.int64)):
+    """One thread per group g = first + tid (``tris`` and ``order`` in the Morton order of
+    the faces, ``order[s]`` the input index of position s): how many pairs of its faces with
+    the faces of groups h >= g intersect (:func:`walk_group`, writing nothing)."""
+    g = wp.tid() + first
+    counts[g] = wp.int64(walk_group(bvh, points, tris, order, face_lowers, face_uppers, group_lowers,
+                                    group_uppers, pad, g, unused, wp.int64(0), 0))
+
+
+@wp.kernel
+def write_pairs_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+                       order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
+                       face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
+                       group_uppers: wp.array(dtype=wp.vec3), pad: float, first: int,
+                       counts: wp.array(dtype=wp.int64), offsets: wp.array(dtype=wp.int64),
+                       keys: wp.array(dtype=wp.int64)):
+    """One thread per group g = first + tid with ``counts[g] > 0``: the walk of
+    :func:`count_pairs_kernel` again, writing its pairs' keys to ``keys[offsets[g]:]``."""
+    g = wp.tid() + first
+    n = counts[g]
+    if n == wp.int64(0):
         return
-    m = order.shape[0]
-    start = offsets[f]
-    p, ip, n1, m1, lo, hi = face_query(points, points32, tris, pad, s)
-    k = int(0)
-    query = wp.bvh_query_aabb(bvh, lo, hi)
-    g = int(0)
-    while wp.bvh_query_next(query, g):
-        for s2 in range(GROUP * g, wp.min(GROUP * g + GROUP, m)):
-            h = order[s2]
-            if h > f and degenerate[s2] == 0 and k < n:
-                a, b = face_box(points32, tris, s2)
-                if boxes_meet(lo, hi, a, b):
-                    q, iq = load_triangle(points, tris, s2)
-                    if pair_intersects(p, ip, n1, m1, q, iq):
-                        pairs[start + wp.int64(k)] = wp.vec2i(f, h)
-                        k += 1
-    sort_segment(pairs, start, n)
+    walk_group(bvh, points, tris, order, face_lowers, face_uppers, group_lowers, group_uppers, pad, g,
+               keys, offsets[g], int(n))
+
+
+@wp.kernel
+def all_pairs_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+                     degenerate: wp.array(dtype=wp.int32), hits: wp.array2d(dtype=wp.int8)):
+    """The reference of the candidate search (small meshes only): one thread per (f, g),
+    f < g input indices, both non-degenerate: :func:`pair_intersects` with no BVH and no
+    box screen, 1 in ``hits[f, g]`` when they intersect (else left as it was: 0)."""
+    f, g = wp.tid()
+    if f < g and degenerate[f] == 0 and degenerate[g] == 0:
+        p, ip = load_triangle(points, tris, f)
+        q, iq = load_triangle(points, tris, g)
+        u = p[1] - p[0]
+        v = p[2] - p[0]
+        if pair_intersects(p, ip, wp.cross(u, v), _abs_cross(u, v), q, iq):
+            hits[f, g] = wp.int8(1)

@@ -502,6 +502,66 @@ def test_scale_and_translation_do_not_matter():
         assert np.array_equal(find_self_intersections(pts * scale + shift, tris), base)
 
 
+# -- the candidate search against every pair -------------------------------------------------
+# The BVH over groups of faces, the box screens and the split into chunks only choose which
+# pairs reach the predicate: wmi._all_pairs tests every pair with the same predicate, so the
+# two must agree exactly, above all on tie-heavy meshes (faces whose boxes touch exactly:
+# grid-aligned flat regions, coplanar fans, touching at a vertex, duplicates).
+
+
+def _tie_heavy_meshes():
+    import warpmesh as wm
+
+    part, bounds = wm.example("part")
+    for res in (12, 16):  # grid-aligned flat regions: the plate's faces lie on grid planes
+        m = wm.mesh_surface(part, bounds=bounds, resolution=res)
+        yield f"part at {res}", np.asarray(m.points, float), np.asarray(m.cells["triangle"])
+    # a box whose faces fall on grid nodes: vertices at nodes, exactly touching boxes, slivers
+    m = wm.mesh_surface(wm.box(size=(1.0, 0.5, 0.75)), bounds=((-1, -1, -1), (1, 1, 1)), resolution=16)
+    yield "box on grid nodes", np.asarray(m.points, float), np.asarray(m.cells["triangle"])
+    pts, tets = _kuhn_block(2)  # coplanar fans meeting at right angles, straight and rotated
+    k = Mesh(pts, {"tetra": tets}).refine(2)
+    faces = _boundary_triangles(np.asarray(k.cells["tetra"]))
+    yield "Kuhn block", np.asarray(k.points, float), faces
+    yield "Kuhn block rotated", _moved(np.asarray(k.points, float), 3, shift=0.5), faces
+    g = np.arange(13.0)  # a flat grid and a copy moved by half a cell: coplanar overlaps
+    x, y = np.meshgrid(g, g, indexing="ij")
+    a = (np.arange(12)[:, None] * 13 + np.arange(12)[None, :]).ravel()
+    grid = np.concatenate([np.stack([a, a + 13, a + 14], 1), np.stack([a, a + 14, a + 1], 1)])
+    flat = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    yield "two flat grids", np.vstack([flat, flat + [6.5, 0.5, 0.0]]), np.vstack([grid, grid + len(flat)])
+    m = _two_spheres(2, [0.9, 0.13, 0.071])
+    yield "two spheres", np.asarray(m.vertices), np.asarray(m.faces)
+    for seed in range(3):  # integer soups: touching at vertices and edges, coplanar, duplicates
+        rng = np.random.default_rng(500 + seed)
+        pts, tris = _soup(rng, n_points=60, n_tris=400, grid=4)
+        yield f"integer soup {seed}", pts, tris
+        yield f"perturbed soup {seed}", pts + rng.uniform(-1e-9, 1e-9, pts.shape), tris
+
+
+def test_candidate_search_finds_what_every_pair_finds(monkeypatch):
+    names = []
+    for name, pts, tris in _tie_heavy_meshes():
+        names.append(name)
+        _agrees_with_every_pair(name, pts, tris, monkeypatch)
+    assert len(names) == 13
+
+
+def _agrees_with_every_pair(name, pts, tris, monkeypatch):
+    monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 1 << 13)
+    ref = wmi._all_pairs(pts, tris)
+    assert np.array_equal(find_self_intersections(pts, tris, workers=1), ref), name
+    monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 16)  # many chunks, several threads
+    assert np.array_equal(find_self_intersections(pts, tris, workers=3), ref), name
+    if name.startswith(("integer", "two")):
+        assert len(ref) > 0, name  # the tie-heavy cases with genuine crossings or touchings
+
+
+def test_all_pairs_reference_refuses_large_meshes():
+    with pytest.raises(ValueError, match="'triangles'"):
+        wmi._all_pairs(np.zeros((3, 3)), np.zeros((10_001, 3), int))
+
+
 # -- bad input: one pytest.raises each -------------------------------------------------------
 
 GOOD_T = [[0, 1, 2]]

@@ -46,6 +46,8 @@ __all__ = ["check", "find_self_intersections", "count_self_intersecting_faces", 
 _QUERY_PAD = 4.0 * 2.0**-24
 #: faces per worker below which a CPU launch is not split
 _MIN_FACES_PER_WORKER = 1 << 13
+#: ranges of groups per CPU worker
+_CHUNKS = 8
 _INT32_MAX = np.iinfo(np.int32).max
 _TINY_LENGTH = 1.0e-30
 
@@ -313,6 +315,31 @@ def find_segment_intersections(points, segments) -> np.ndarray:
     return np.column_stack([i[hit], j[hit]]).astype(INDEX_DTYPE)
 
 
+def _all_pairs(points, triangles, *, device: str = "cpu") -> np.ndarray:
+    """What :func:`find_self_intersections` returns, by testing every pair of faces with the
+    same predicate (no BVH, no box screen, no Morton order): the tests' reference for the
+    candidate search. O(m^2) time and memory: small meshes only (m <= 10,000).
+
+    >>> _all_pairs([[0, 0, 0], [2, 0, 0], [0, 2, 0], [0.5, 0.5, -1], [0.5, 0.5, 1], [1.5, 1.5, 0]],
+    ...            [[0, 1, 2], [3, 4, 5]]).tolist()
+    [[0, 1]]
+    """
+    pts, tris = _validate(points, triangles)
+    device = check_device(device)
+    m = len(tris)
+    if m > 10_000:
+        raise ValueError(f"expected at most 10,000 'triangles' for the O(m^2) reference, got {m}")
+    if m < 2:
+        return np.zeros((0, 2), dtype=INDEX_DTYPE)
+    with wp.ScopedDevice(device):
+        dev = wp.get_device(device)
+        points64, tris32 = _device_arrays(_scaled(pts), tris, dev)
+        degenerate = _degenerate_flags(points64, tris32, dev)
+        hits = wp.zeros((m, m), dtype=wp.int8, device=dev)
+        wp.launch(K.all_pairs_kernel, dim=(m, m), inputs=[points64, tris32, degenerate], outputs=[hits], device=dev)
+        return np.argwhere(hits.numpy()).astype(INDEX_DTYPE)  # sync point
+
+
 # -- pipeline ------------------------------------------------------------------------------
 
 
@@ -323,32 +350,38 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int) -> np
     points32 = wp.array(_bvh_coordinates(scaled), dtype=wp.vec3, device=device)
     order, sorted_tris = _spatial_order(points32, tris32, device)
     degenerate = _degenerate_flags(points64, sorted_tris, device)
-    ranges = _ranges(m, device, n_workers)
+    face_lowers = wp.empty(m, dtype=wp.vec3, device=device)
+    face_uppers = wp.empty(m, dtype=wp.vec3, device=device)
+    wp.launch(K.face_boxes_kernel, dim=m, inputs=[points32, sorted_tris, degenerate],
+              outputs=[face_lowers, face_uppers], device=device)
     n_groups = (m + K.GROUP - 1) // K.GROUP
     lowers = wp.empty(n_groups, dtype=wp.vec3, device=device)
     uppers = wp.empty(n_groups, dtype=wp.vec3, device=device)
-    wp.launch(K.group_boxes_kernel, dim=n_groups, inputs=[points32, sorted_tris, m], outputs=[lowers, uppers],
+    wp.launch(K.group_boxes_kernel, dim=n_groups, inputs=[face_lowers, face_uppers, m], outputs=[lowers, uppers],
               device=device)
     bvh = wp.Bvh(lowers, uppers)
-    walk = [bvh.id, points64, points32, sorted_tris, order, degenerate, _QUERY_PAD]
+    walk = [bvh.id, points64, sorted_tris, order, face_lowers, face_uppers, lowers, uppers, _QUERY_PAD]
+    split = _split(n_groups, m, device, n_workers)
 
     wp.load_module(K, device=device)  # compiled/loaded once here, not by two worker threads at once
-    counts = wp.empty(m, dtype=wp.int64, device=device)
-    run_parallel([lambda a=a, b=b: wp.launch(K.count_intersections_kernel, dim=b - a, inputs=[*walk, a],
-                                              outputs=[counts], device=device)
-                   for a, b in ranges])
-    offsets = wp.empty(m, dtype=wp.int64, device=device)
+    counts = wp.empty(n_groups, dtype=wp.int64, device=device)
+    unused = wp.empty(1, dtype=wp.int64, device=device)
+    split(lambda a, b: wp.launch(K.count_pairs_kernel, dim=b - a, inputs=[*walk, a, unused], outputs=[counts],
+                                 device=device))
+    offsets = wp.empty(n_groups, dtype=wp.int64, device=device)
     wp.utils.array_scan(counts, offsets, inclusive=False)
-    total = int(offsets[m - 1:].numpy()[0] + counts[m - 1:].numpy()[0])  # sync point: output size
+    total = int(offsets[n_groups - 1:].numpy()[0] + counts[n_groups - 1:].numpy()[0])  # sync point: output size
     if total == 0:
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
 
-    pairs = wp.empty(total, dtype=wp.vec2i, device=device)
-    run_parallel([lambda a=a, b=b: wp.launch(K.write_intersections_kernel, dim=b - a,
-                                              inputs=[*walk, a, counts, offsets], outputs=[pairs],
-                                              device=device)
-                   for a, b in ranges])
-    return pairs.numpy().astype(INDEX_DTYPE)  # sync point
+    keys = wp.empty(2 * total, dtype=wp.int64, device=device)  # radix sort's scratch: 2 total
+    split(lambda a, b: wp.launch(K.write_pairs_kernel, dim=b - a, inputs=[*walk, a, counts, offsets],
+                                 outputs=[keys], device=device))
+    values = wp.empty(2 * total, dtype=wp.int32, device=device)
+    wp.utils.radix_sort_pairs(keys, values, total, end_bit=max(1, (m * m - 1).bit_length()))
+    k = keys[:total].numpy()  # sync point
+    first = k // m
+    return np.column_stack([first, k - first * m]).astype(INDEX_DTYPE)
 
 
 def _spatial_order(points32: wp.array, tris32: wp.array, device) -> tuple[wp.array, wp.array]:
@@ -397,11 +430,19 @@ def _degenerate_flags(points64: wp.array, tris32: wp.array, device) -> wp.array:
     return flags
 
 
-def _ranges(n: int, device, n_workers: int) -> list[tuple[int, int]]:
-    """Split [0, n) into one range per CPU worker (one range on CUDA or for small n)."""
-    k = 1 if device.is_cuda else max(1, min(n_workers, n // _MIN_FACES_PER_WORKER))
-    edges = np.linspace(0, n, k + 1).astype(int)
-    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+def _split(n_groups: int, m: int, device, n_workers: int):
+    """A runner of ``launch(a, b)`` over [0, n_groups): one launch on CUDA or for few faces,
+    else ``_CHUNKS`` ranges per CPU worker, each worker taking every k-th range (so a
+    worker does not wait for one whose region was dense in candidates)."""
+    k = 1 if device.is_cuda else max(1, min(n_workers, m // _MIN_FACES_PER_WORKER))
+    if k == 1:
+        return lambda launch: launch(0, n_groups)
+    edges = np.linspace(0, n_groups, k * _CHUNKS + 1).astype(int)
+    chunks = [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+    def run(launch):
+        run_parallel([lambda w=w: [launch(a, b) for a, b in chunks[w::k]] for w in range(k)])
+    return run
 
 
 def _validate(points, triangles) -> tuple[np.ndarray, np.ndarray]:
