@@ -43,7 +43,7 @@ from warpmesh.solid.stuffing import ALPHA_LONG, ALPHA_SHORT, ROOT_ITERATIONS, st
 
 __all__ = ["mesh_domain", "METHODS_3D", "VOLUME_REF", "boundary_faces"]
 
-METHODS_3D = ("stuffing", "tetgen")
+METHODS_3D = ("stuffing", "delaunay", "tetgen")
 #: the ref of the tetrahedra of a domain (one region)
 VOLUME_REF = 1
 #: a vertex within this fraction of the cube size of a face of the bounds lies on it (cap)
@@ -244,6 +244,19 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, dev
         raise ValueError(f"expected a number of sweeps >= 0 for 'smooth', got {smooth!r}")
     h = _check_size(size, box)
     opts = _check_options(options)
+    if method == "delaunay":
+        from warpmesh.solid.delaunay import mesh_delaunay  # scipy's Qhull: imported when asked for
+
+        stuffing_only = sorted(set(options) & {"alpha_long", "alpha_short", "root_iterations"})
+        if stuffing_only:
+            raise ValueError(f"method='delaunay' takes none of the stuffing options {stuffing_only}; drop them "
+                             "or use method='stuffing'")
+        points, tets, tris, on_f, info = mesh_delaunay(shape, box, h, smooth=int(smooth), features=features,
+                                                       floor=opts["feature_floor"], ceiling=opts["feature_ceiling"],
+                                                       angle=opts["feature_angle"], device=device)
+        info.update(method=method, boundary_distance=_boundary_distance(tape_of(shape), points, on_f, h, device))
+        return Mesh(points, {"tetra": tets, "triangle": tris}, info=info,
+                    cell_refs={"tetra": np.full(len(tets), VOLUME_REF), "triangle": _face_refs(points, tris, box, h)})
     if method == "tetgen":
         if options or smooth or flips:
             raise ValueError("method='tetgen' takes no 'smooth' and none of the stuffing options "
