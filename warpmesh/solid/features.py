@@ -104,7 +104,8 @@ def crease_points(target, pa, pb, h: float, cos_angle: float, near=None) -> np.n
     and the face of ``pb`` (both on the surface); NaN where the faces' normals stop differing.
 
     Tangent planes at both points meet in a line; then each face is sampled ``BESIDE * h``
-    beside the current estimate, projected onto the surface, and the new tangent planes met
+    beside the current estimate (on the side whose projection keeps the face's normal),
+    projected onto the surface, and the new tangent planes met
     again (``REFINE_STEPS`` times, and up to ``WIDEN_STEPS`` more: where both samples land on
     one face, the next samples are taken twice as far from the estimate).
     """
@@ -120,14 +121,19 @@ def crease_points(target, pa, pb, h: float, cos_angle: float, near=None) -> np.n
         d = _unit(np.cross(na, nb))
         cc = np.where(good[:, None], c, pa)
 
-        def beside(p, nrm):
-            # eps from the crease in the face's tangent plane, on the side of p: Newton lands on that face
+        def beside(nrm):
+            # eps from the crease in the face's tangent plane, on both sides; the sample whose
+            # normal is nearer the face's is on that face (the side of p fails when p is
+            # within eps of the crease and the estimate lies beyond it)
             t = _unit(np.cross(d, nrm))
-            t *= np.where(np.einsum("ij,ij->i", t, p - cc) < 0, -1.0, 1.0)[:, None]
-            return cc + eps * t
-        qa2 = target.project(beside(qa, na), max_step=eps[:, 0])
-        qb2 = target.project(beside(qb, nb), max_step=eps[:, 0])
-        ma, mb = target.normals(qa2), target.normals(qb2)
+            x = np.concatenate([cc + eps * t, cc - eps * t])
+            y = target.project(x, max_step=np.concatenate([eps[:, 0], eps[:, 0]]))
+            m = target.normals(y)
+            k = len(cc)
+            first = np.einsum("ij,ij->i", m[:k], nrm) >= np.einsum("ij,ij->i", m[k:], nrm)
+            return np.where(first[:, None], y[:k], y[k:]), np.where(first[:, None], m[:k], m[k:])
+        qa2, ma = beside(na)
+        qb2, mb = beside(nb)
         new = _planes_meet(ma, qa2, mb, qb2, cc)
         ok = good & np.all(np.isfinite(new), axis=1) & (np.einsum("ij,ij->i", ma, mb) < cos_angle)
         ok &= np.linalg.norm(np.where(ok[:, None], new, cc) - cc, axis=1) < 0.5 * h
@@ -420,7 +426,117 @@ def _face_key(f, n):
     return (f[:, 0] * n + f[:, 1]) * n + f[:, 2]
 
 
-def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device):
+def _with(pts, moves: dict):
+    out = pts.copy()
+    for r, x in moves.items():
+        out[r] = x
+    return out
+
+
+def _climb(pts, r, rt, h, floor, ceiling, device):
+    """(position, margin): the best of vertex r's position and the pattern around it
+    (``RELAX_STEPS`` h along 26 directions) for the worst dihedral margin (:func:`_margin`)
+    of its tetrahedra ``rt`` (t, 4)."""
+    local, inv = np.unique(rt, return_inverse=True)
+    inv = inv.reshape(rt.shape)
+    j = int(np.searchsorted(local, r))
+    off = np.concatenate([np.zeros((1, 3)), (np.array(RELAX_STEPS)[:, None, None] * h * _DIRS26[None]).reshape(-1, 3)])
+    lp = np.concatenate([pts[local], pts[r] + off])
+    rep = np.repeat(inv[None], len(off), axis=0)
+    rep = np.where(rep == j, (len(local) + np.arange(len(off)))[:, None, None], rep)
+    score = _margin(tet_quality(lp, rep.reshape(-1, 4), device), floor, ceiling).reshape(len(off), len(rt)).min(axis=1)
+    best = int(np.argmax(score))
+    return lp[len(local) + best], float(score[best])
+
+
+def _relax_star(pts, star, free, h, floor, ceiling, device):
+    """{vertex: position} for the ``free`` vertices (few) that bring every tetrahedron of
+    ``star`` (all those around them, and the ones to mend) into [floor, ceiling], by rounds of
+    :func:`_climb` one vertex at a time; None when some tetrahedron stays out of range."""
+    trial = {}
+    for _ in range(RELAX_ROUNDS):
+        for r in free:
+            trial[r], _ = _climb(_with(pts, trial), r, star[(star == r).any(axis=1)], h, floor, ceiling, device)
+        if _margin(tet_quality(_with(pts, trial), star, device), floor, ceiling).min() >= 0:
+            return trial
+    return None
+
+
+def _ring_flip(pts, tets, around, u, w, a, b, outside, v_cap, floor, ceiling, device, relax=None, busy=None):
+    """The tetrahedra ``around`` the boundary edge (u, w), whose two boundary triangles end
+    on a and b, replaced so that the boundary runs along the chord a-b: the ring of vertices
+    around the edge (a, ..., b), closed by the chord, is triangulated by a fan from one of its
+    vertices (the fan whose worst dihedral angle is largest), and each triangle coned from u
+    and from w. Kept only when the new tetrahedra are positive, in [floor, ceiling], and fill
+    the old ones with the cap (u, w, a, b) added (``outside``) or taken off.
+
+    ``relax`` (vt_ptr, vt_idx, interior (n,) bool, h), optional: when no fan keeps the range,
+    the interior ring vertices of the best filling fan are relocated (:func:`_climb`, rounds of
+    ``RELAX_ROUNDS``) and the flip kept, with the relocations written into ``pts``, when every
+    new tetrahedron and every one around them is in range.
+
+    ``busy`` (n,) bool, optional: no flip when a ring vertex between a and b is busy (another flip's).
+
+    Returns (ring vertices, new tetrahedra (2 (k - 1), 4) or None, new boundary faces (2, 3))."""
+    others = np.array([[x for x in t if x != u and x != w] for t in tets[around]])
+    if others.shape != (len(around), 2):
+        return np.zeros(0, np.int64), None, None
+    ring = [a]
+    left = list(range(len(others)))
+    while ring[-1] != b and left:  # walk the chain of tetrahedra from a to b (k of them: a short loop)
+        nxt = [j for j in left if ring[-1] in others[j]]
+        if len(nxt) != 1:
+            return np.array(ring), None, None
+        j = nxt[0]
+        left.remove(j)
+        ring.append(others[j][0] if others[j][1] == ring[-1] else others[j][1])
+    ring = np.array(ring)
+    if ring[-1] != b or left or len(np.unique(ring)) != len(ring) or (busy is not None and busy[ring[1:-1]].any()):
+        return ring, None, None
+    k = len(ring)
+    v_old = tet_quality(pts, tets[around], device)[:, 3].sum()
+    v_new = v_old + (v_cap if outside else -v_cap)
+    best, best_q = None, -np.inf
+    near, near_q = None, -np.inf  # the best filling fan out of range
+    for apex in range(k):  # fans of the closed ring polygon from each of its vertices
+        poly = np.roll(ring, -apex)
+        tri = np.stack([np.full(k - 2, poly[0]), poly[1:-1], poly[2:]], axis=1)
+        cand = np.concatenate([np.column_stack([np.full(k - 2, u), tri]), np.column_stack([np.full(k - 2, w), tri])])
+        vol = np.einsum("ij,ij->i", np.cross(pts[cand[:, 1]] - pts[cand[:, 0]], pts[cand[:, 2]] - pts[cand[:, 0]]),
+                        pts[cand[:, 3]] - pts[cand[:, 0]])
+        cand[vol < 0, 2:] = cand[vol < 0, 3:1:-1]
+        q = tet_quality(pts, cand, device)
+        fills = abs(q[:, 3].sum() - v_new) <= 1e-9 * max(v_old, 1e-300)
+        if fills and (q[:, 3] > 0).all() and q[:, 0].min() >= floor and q[:, 1].max() <= ceiling \
+                and q[:, 0].min() > best_q:
+            best, best_q = cand, q[:, 0].min()
+        m = _margin(q, floor, ceiling).min()
+        if fills and best is None and np.isfinite(m) and m > near_q:
+            near, near_q = cand, m
+    if best is None and near is not None and relax is not None:
+        vt_ptr, vt_idx, interior, h = relax
+        free = [r for r in ring if interior[r]]
+        if free:
+            _, old_t = gather_rows(vt_ptr, vt_idx, np.array(free))
+            old_t = np.setdiff1d(old_t, around)
+            star = np.concatenate([tets[old_t], near])  # every tetrahedron a relocation changes
+            moves = _relax_star(pts, star, free, h, floor, ceiling, device)
+            if moves is not None:
+                for r, x in moves.items():
+                    pts[r] = x
+                best = near
+    if best is None:
+        return ring, None, None
+    # the new boundary faces: (u, a, b) and (w, a, b), each the face of its tetrahedron off the fourth vertex
+    faces = []
+    for t in best:
+        if a in t and b in t:
+            off = [j for j in range(4) if t[j] not in (a, b) and t[j] not in (u, w)][0]
+            faces.append(t[list(_FACES[off])])
+    return ring, best, np.array(faces)
+
+
+def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device, h=None):
     """Boundary edge flips onto the crease: for an open crossing edge (u, w) whose two
     boundary triangles (u, w, a), (w, u, b) have both third vertices on the crease, the
     boundary is moved from (u, w) to the crease chord (a, b) by removing the tetrahedron
@@ -457,6 +573,9 @@ def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device):
     pick = np.array(pick)
     edges, a, b, t1, t2 = edges[pick], a[pick], b[pick], t1[pick], t2[pick]
     vt_ptr, vt_idx = vertex_tets(tets, len(pts))
+    interior = np.ones(len(pts), bool)
+    interior[tris.ravel()] = False
+    relax = None if h is None else (vt_ptr, vt_idx, interior, h)
     bnd = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
     bkey = np.minimum(bnd[:, 0], bnd[:, 1]) * n + np.maximum(bnd[:, 0], bnd[:, 1])
 
@@ -487,28 +606,19 @@ def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device):
         elif len(cap) == 0 and not len(tets_with(a[i], b[i])):
             f1, f2 = tris[t1[i]], tris[t2[i]]
             outside = _signed(pts, np.array([*f1, b[i]])) > 0 and _signed(pts, np.array([*f2, a[i]])) > 0
-            if len(around) == 2:
-                # a boundary 2-2 flip: (u, w, a, c), (u, w, b, c) -> (c, u, a, b), (c, w, a, b)
-                c = np.setdiff1d(np.intersect1d(tets[around[0]], tets[around[1]]), edges[i])
-                if len(c) == 1:
-                    pair = np.array([[c[0], u, a[i], b[i]], [c[0], w, a[i], b[i]]])
-                    vol = np.einsum("ij,ij->i", np.cross(pts[pair[:, 1]] - pts[pair[:, 0]],
-                                                         pts[pair[:, 2]] - pts[pair[:, 0]]),
-                                    pts[pair[:, 3]] - pts[pair[:, 0]])
-                    pair[vol < 0, 2:] = pair[vol < 0, 3:1:-1]
-                    q = tet_quality(pts, pair, device)
-                    # the pair fills the old two with the cap added (b outside face u w a) or taken off
-                    v_old = tet_quality(pts, tets[around], device)[:, 3].sum()
-                    v_cap = abs(_signed(pts, quad[i])) / 6.0
-                    v_new = v_old + (v_cap if outside else -v_cap)
-                    fills = abs(q[:, 3].sum() - v_new) <= 1e-9 * max(v_old, 1e-300)
-                    if fills and (q[:, 3] > 0).all() and q[:, 0].min() >= floor and q[:, 1].max() <= ceiling:
-                        busy[c[0]] = True
-                        remove += [around[0], around[1]]
-                        add += [pair[0], pair[1]]
-                        new_tris += [pair[j][list(_FACES[0])][None] for j in range(2)]  # the face off c
-                        drop_tris += [t1[i], t2[i]]
-                        continue
+            if len(around) >= 2:
+                # a boundary edge flip: the tetrahedra around (u, w) -> cones from u and w over a
+                # triangulation of their ring a .. b closed by the chord (2-2 with one ring vertex c)
+                v_cap = abs(_signed(pts, quad[i])) / 6.0
+                ring, new_t, faces = _ring_flip(pts, tets, around, u, w, a[i], b[i], outside, v_cap, floor, ceiling,
+                                                device, relax, busy)
+                if new_t is not None:
+                    busy[ring] = True
+                    remove += list(around)
+                    add += list(new_t)
+                    new_tris += [faces]
+                    drop_tris += [t1[i], t2[i]]
+                    continue
             # else the cap tetrahedron added outside
             if not outside:
                 continue
@@ -631,7 +741,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
 
     def split(edges, a, b):
         """Split ``edges`` at the crease point between the faces of a and b nearest their midpoints."""
-        nonlocal pts, tets, tris, crease, n_split
+        nonlocal pts, tets, tris, crease, n_split, n_relaxed
         if not len(edges):
             return
         mid = 0.5 * (pts[edges[:, 0]] + pts[edges[:, 1]])
@@ -646,6 +756,29 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
             crease = np.concatenate([crease, np.ones(len(pts) - n0, bool)])
             n_split += int(done.sum())
             edges, c = edges[~done], c[~done]
+            if not done.any():
+                break
+        # the splits refused alone: again, with the interior vertices around the new one relocated
+        # (one edge at a time: tens of them)
+        for e, x in zip(edges, c):
+            p2, t2, f2, done = _split_edges(pts, tets, tris, e[None], x[None], -1.0, 181.0, device, rng)
+            if not done[0]:
+                continue
+            m = len(p2) - 1
+            interior = np.ones(len(p2), bool)
+            interior[f2.ravel()] = False
+            ring = np.unique(t2[(t2 == m).any(axis=1)])
+            free = [r for r in ring if interior[r]]
+            near = np.zeros(len(p2), bool)
+            near[free] = True
+            near[m] = True
+            moves = _relax_star(p2, t2[near[t2].any(axis=1)], free, h, floor, ceiling, device) if free else None
+            if moves is None:
+                continue
+            pts, tets, tris = _with(p2, moves), t2, f2
+            crease = np.concatenate([crease, [True]])
+            n_split += 1
+            n_relaxed += 1
 
     bv, nrm = normals_at_boundary()
     n_cross = len(open_edges(nrm))
@@ -672,7 +805,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
         split(e, e[:, 0], e[:, 1])
         # the crossing edges still open between two crease vertices: flip the boundary onto them
         bv, nrm = normals_at_boundary()
-        tets, tris, k_flip = _flip_open_edges(pts, tets, tris, open_edges(nrm), crease, floor, ceiling, device)
+        tets, tris, k_flip = _flip_open_edges(pts, tets, tris, open_edges(nrm), crease, floor, ceiling, device, h)
         n_flip += k_flip
         bv, nrm = normals_at_boundary()
         if k + 1 < passes and len(open_edges(nrm)):
@@ -699,6 +832,10 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
         sag = np.linalg.norm(c - mid, axis=1)
         far = np.isfinite(sag) & (sag > SAG * h)
         split(chords[far], opp[far, 0], opp[far, 1])
+        # the new crease vertices may close open edges by a flip
+        bv, nrm = normals_at_boundary()
+        tets, tris, k_flip = _flip_open_edges(pts, tets, tris, open_edges(nrm), crease, floor, ceiling, device, h)
+        n_flip += k_flip
     bv, nrm = normals_at_boundary()
     # the moves are judged by the dihedral angles around them only: where boundary faces now
     # cross (an under-resolved surface near a crease), the whole recovery is undone
