@@ -164,3 +164,11 @@ def test_bad_input_names_the_argument(kwargs, match):
             **kwargs}
     with pytest.raises(ValueError, match=match):
         wm.mesh_domain(args.pop("shape"), **args)
+
+
+def test_command_line_domain_delaunay(capsys):
+    from warpmesh.cli.commands import main
+
+    assert main(["domain", "--example", "sphere", "--size", "0.3", "--method", "delaunay", "--json"]) == 0
+    facts = __import__("json").loads(capsys.readouterr().out)
+    assert facts["euler"] == 2 and facts["method"] == "delaunay" and facts["negative_tets"] == 0

@@ -72,12 +72,18 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         3D: the lattice's cube side, the length of the long edges (short edges are
         sqrt(3)/2 of it); default: the smallest side of the box / 20. Must be positive and
         below the smallest side of the box.
-    method : {'stuffing', 'tetgen'}, optional
+    method : {'stuffing', 'delaunay', 'tetgen'}, optional
         3D: isosurface stuffing (Labelle & Shewchuk 2007) on a body-centred cubic lattice
-        (default), or the hierarchical approach, the cross-check: the surface from
+        (default); or the seed's second global variant, ``'delaunay'``: BCC lattice points
+        inside and points on the clipped surface about ``0.5 * size`` apart (creases first),
+        scipy's Delaunay kernel, boundary recovery by points projected onto f = 0, then boundary
+        sliver peeling, ``features``, ``max(smooth, 2)`` smoothing sweeps and flips, always
+        (:mod:`warpmesh.solid.delaunay`; no proven dihedral bound: read ``dihedral_min``); or
+        the hierarchical approach, the cross-check: the surface from
         ``mesh_surface``, optimised on the exact shape with edges near ``size``, filled by
         TetGen (the optional ``tetgen`` package; :mod:`warpmesh.solid.hierarchical`).
-        ``smooth``, ``features`` and the options apply to stuffing only.
+        ``smooth``, ``features`` and the ``feature_*`` options apply to stuffing and delaunay,
+        the other options to stuffing only.
     smooth : int
         3D: sweeps of smoothing (interior vertices to the centroid of their neighbours,
         boundary vertices along f = 0), each move kept only when the smallest dihedral
