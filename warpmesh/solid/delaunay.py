@@ -460,9 +460,10 @@ def peel_slivers(points, tets, on_surface, field: ClippedField, h: float, *, ang
     """Remove boundary slivers: tetrahedra with a face on the boundary, all four vertices on
     the surface and a dihedral angle below ``angle`` (Delaunay makes them of nearly coplanar
     surface points), when the faces they expose lie within ``TOLERANCE * h`` of the surface
-    at their centroids. Removed in rounds of tetrahedra sharing no vertex; a removal that
-    leaves an edge in more than two boundary faces or a vertex with two fans is undone, so
-    the boundary stays a closed 2-manifold.
+    at their centroids. Removed in rounds, all candidates at once (then, once that keeps none,
+    sets of tetrahedra sharing no vertex); a removal that leaves an edge in more than two
+    boundary faces or a vertex with two fans is undone, so the boundary stays a closed
+    2-manifold.
 
     Returns
     -------
@@ -481,7 +482,8 @@ def peel_slivers(points, tets, on_surface, field: ClippedField, h: float, *, ang
     tets = np.asarray(tets, dtype=np.int64)
     n = len(points)
     rng = np.random.default_rng(0)
-    removed = 0
+    removed = strikes = 0
+    together = 1  # all candidates at once, until a round keeps none of them
     for _ in range(rounds):
         faces = np.concatenate([tets[:, list(f)] for f in _FACES])
         _, inv, cnt = np.unique(_face_key(faces, n), return_inverse=True, return_counts=True)
@@ -495,28 +497,31 @@ def peel_slivers(points, tets, on_surface, field: ClippedField, h: float, *, ang
         dc, _ = field(fc.reshape(-1, 3))
         near = (np.abs(dc).reshape(4, -1).T <= TOLERANCE * h) | on_b[cand]
         cand = cand[near.all(axis=1)]
-        # independent: no two share a vertex
-        prio = rng.random(len(cand))
-        best = np.full(n, -1.0)
-        np.maximum.at(best, tets[cand].ravel(), np.repeat(prio, 4))
-        cand = cand[(best[tets[cand]] == prio[:, None]).all(axis=1)]
-        if not len(cand):
-            break
+        if together == 0:  # removals that pinch each other: rounds of tetrahedra sharing no vertex
+            prio = rng.random(len(cand))
+            best = np.full(n, -1.0)
+            np.maximum.at(best, tets[cand].ravel(), np.repeat(prio, 4))
+            cand = cand[(best[tets[cand]] == prio[:, None]).all(axis=1)]
         drop = np.zeros(len(tets), bool)
         drop[cand] = True
-        for _ in range(4):  # undo the removals next to a non-manifold edge or vertex
-            bad_faces, bad_verts = _nonmanifold(_boundary(tets[~drop], n), n)
+        while drop.any():  # undo the removals next to a non-manifold edge or vertex (ends: drop shrinks)
+            tris = _boundary(tets[~drop], n)
+            bad_faces, bad_verts = _nonmanifold(tris, n)
             mark = np.zeros(n, bool)
             mark[bad_verts] = True
-            mark[_boundary(tets[~drop], n)[bad_faces].ravel()] = True
+            mark[tris[bad_faces].ravel()] = True
             undo = drop & mark[tets].any(axis=1)
             if not undo.any():
                 break
             drop &= ~undo
-        else:
-            drop[:] = False
         if not drop.any():
-            break
+            if together:
+                together = 0
+            else:
+                strikes += 1
+                if strikes == 3:
+                    break
+            continue
         tets = tets[~drop]
         removed += int(drop.sum())
     return tets, removed
