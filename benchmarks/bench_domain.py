@@ -17,6 +17,9 @@ holes and a boss: sharp edges), each at about ``--tets`` tetrahedra (default 100
   similar count.
 - warpmesh with ``features=False`` (one run): stuffing without the crease recovery (on the
   part, the distance from the exact edges to the nearest boundary edge, in units of size).
+- warpmesh with ``method="delaunay"`` (one run, its own size for a similar count): lattice
+  and surface points, scipy's Delaunay kernel, boundary recovery, sliver peeling, smoothing
+  and flips (:mod:`warpmesh.solid.delaunay`); ``time / warpmesh`` is against stuffing.
 - warpmesh with ``smooth=2, flips=True`` (one run): the smoothing and the 2-3/3-2 flips that
   never lower the smallest dihedral angle.
 
@@ -65,10 +68,11 @@ def quality(points, tets) -> dict:
 
 
 # -- the tools --------------------------------------------------------------------------------------
-def run_warpmesh(name, size, smooth=0, features=True, flips=False):
+def run_warpmesh(name, size, smooth=0, features=True, flips=False, method="stuffing"):
     shape, bounds = wm.example(name)
     t0 = time.perf_counter()
-    vol = wm.mesh_domain(shape, bounds=bounds, size=size, smooth=smooth, features=features, flips=flips)
+    vol = wm.mesh_domain(shape, bounds=bounds, size=size, smooth=smooth, features=features, flips=flips,
+                         method=method)
     dt = time.perf_counter() - t0
     return dt, vol.points, vol.cells["tetra"], vol
 
@@ -158,6 +162,11 @@ def run_case(name, target, repeat, rows):
     q_sm = quality(p_sm, k_sm)
     t_nf, p_nf, k_nf, vol_nf = run_warpmesh(name, h_wm, features=False)
     q_nf = quality(p_nf, k_nf)
+    # the Delaunay variant: its own size for about the same count (calibrated at 1/8 of it), one run
+    h_dl = calibrate(lambda h: len(run_warpmesh(name, h, method="delaunay")[2]), 2 * h_wm, target / 8) / 2
+    t_dl, p_dl, k_dl, vol_dl = run_warpmesh(name, h_dl, method="delaunay")
+    q_dl = quality(p_dl, k_dl)
+    s_dl = vol_dl.stats()
     edges, edges_nf = "", ""
     if name == "part":  # distance from the exact sharp edges to the nearest boundary edge, / size
         samples = example_edges("part", 200)
@@ -169,6 +178,10 @@ def run_case(name, target, repeat, rows):
                               f"{s['time_evaluate']:.3f} s, roots {s['time_roots']:.3f} s, fill {s['time_fill']:.3f} s, "
                               f"features {s.get('time_features', 0.0):.3f} s{edges}"),
                              ("warpmesh stuffing, features=False", t_nf, q_nf, f"no crease recovery{edges_nf}"),
+                             ("warpmesh delaunay", t_dl, q_dl,
+                              f"size {h_dl:.4f}, one run: points {s_dl['time_points']:.2f} s, Qhull "
+                              f"{s_dl['time_delaunay']:.2f} s in {s_dl['delaunay_rounds']} rounds, optimise "
+                              f"{s_dl['time_optimise']:.2f} s; volume error {s_dl['volume'] / vol0 - 1:+.2%}"),
                              ("warpmesh stuffing + smooth=2 + flips", t_sm, q_sm,
                               "smoothing and 2-3/3-2 flips never lower the smallest angle"),
                              ("gmsh (OCC, Delaunay 3D)", t_gm, q_gm, f"mesh size {h_gm:.4f}"),

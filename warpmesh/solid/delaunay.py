@@ -80,6 +80,8 @@ RIM = 0.1
 ON_SURFACE = 1.0e-3
 #: smoothing sweeps of the optimisation at least
 SWEEPS = 2
+#: further (smoothing sweeps, flips) passes after the first
+PASSES_AFTER = (1,)
 #: boundary slivers with a dihedral angle below this (degrees) are peeled off
 SLIVER_ANGLE = 20.0
 #: the faces of a positive tetrahedron, outward, each opposite vertex 0, 1, 2, 3
@@ -579,7 +581,7 @@ def mesh_delaunay(shape, box, h: float, *, smooth: int = 0, features: bool = Tru
     t0 = time.perf_counter()
     moved = 0
     flips = {"flips_23": 0, "flips_32": 0, "flips_44": 0}
-    for sweeps in (max(int(smooth), SWEEPS), 1):
+    for sweeps in (max(int(smooth), SWEEPS),) + PASSES_AFTER:
         points, m = smooth_tets(points, tets, tris, on_f & ~crease, on_cap | crease, field.tape, sweeps=sweeps,
                                 device=device)
         moved += m
