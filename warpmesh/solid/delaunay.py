@@ -546,6 +546,13 @@ def mesh_delaunay(shape, box, h: float, *, smooth: int = 0, features: bool = Tru
     tris : (k, 3) int64, the boundary triangles, outward
     on_f : (n,) bool, boundary vertices on f = 0 (not on a cap of the box)
     info : dict, counts, timings and ``quality_stages`` (the quality after each stage)
+
+    Example
+    -------
+    >>> import warpmesh as wm
+    >>> pts, tets, tris, on_f, info = mesh_delaunay(wm.sphere(1.0), ((-1.2,) * 3, (1.2,) * 3), 0.3)
+    >>> [q["stage"] for q in info["quality_stages"]], info["dihedral_min"] > info["quality_stages"][0]["dihedral_min"]
+    (['delaunay', 'peel', 'features', 'smooth+flips'], True)
     """
     box = np.asarray(box, dtype=np.float64)
     points, tets, on_surface, info = delaunay_tets(shape, box, h, device=device, seed=seed)
