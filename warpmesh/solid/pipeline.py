@@ -68,10 +68,17 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         ``min_angle``, ``method`` ({'global', 'triangle'}) and ``boundary`` apply there).
     bounds : ((x0, y0, z0), (x1, y1, z1)) or ((x0, y0), (x1, y1))
         The box; where the shape reaches past it, the domain is clipped and closed by caps.
-    size : float, optional
+    size : float, callable or 'curvature', optional
         3D: the lattice's cube side, the length of the long edges (short edges are
         sqrt(3)/2 of it); default: the smallest side of the box / 20. Must be positive and
-        below the smallest side of the box.
+        below the smallest side of the box. Graded meshes (stuffing): a function of position
+        (takes an (n, 3) float array, returns n positive sizes: the longest edge asked of the
+        background there), or ``'curvature'``: angle / curvature on the surface, growing with
+        the distance from it, within [side / 40, side / 6] (other bounds and angle:
+        ``size=warpmesh.solid.graded.curvature_size(shape, smallest, largest)``). The lattice
+        is then refined by longest-edge bisection (:mod:`warpmesh.solid.graded`); the dihedral
+        bound is not proven there: ``info["graded_dihedral_min"]`` and ``"graded_dihedral_max"``
+        give the range found. Other methods use the smallest size.
     method : {'stuffing', 'delaunay', 'tetgen'}, optional
         3D: isosurface stuffing (Labelle & Shewchuk 2007) on a body-centred cubic lattice
         (default); or the seed's second global variant, ``'delaunay'``: BCC lattice points
