@@ -210,7 +210,7 @@ def _part_volume() -> float:
 
 def test_curvature_size_is_small_where_the_surface_curves():
     shape = wm.ellipsoid((1.0, 0.45, 0.45))
-    bounds = ((-1.2, -0.6, -0.6), (1.2, 0.6, 0.6))
+    bounds = ((-1.2, -0.8, -0.8), (1.2, 0.8, 0.8))  # sizes in [1.6 / 40, 1.6 / 6]
     vol = wm.mesh_domain(shape, bounds=bounds, size="curvature", features=False)
     _check_graded(vol, 2)
     exact = 4.0 / 3.0 * math.pi * 1.0 * 0.45 * 0.45
