@@ -18,6 +18,13 @@ the edges' global vertex ids, so every tetrahedron holding an edge sees the same
 the refinement conforms (no hanging vertex): each face of the background lies in one or two
 tetrahedra.
 
+The bisection is Rivara's, as :func:`warpmesh.modify.refine_local.refine_local` does it for
+any simplex mesh; it is kept here because the background needs what that general routine
+does not give: exact ties (the coordinates below), the interval test that leaves the
+outside of the domain coarse (a tetrahedron is refined only where its grown bounding box
+may hold f >= 0, the octree's culling), the size sampled once per node, and the bisection
+level of every tetrahedron.
+
 Coordinates are kept in half-cube units (black nodes even, red nodes odd integers, as
 :func:`warpmesh.solid.lattice.node_coordinates`), so every midpoint is an exact dyadic
 float and equal lengths compare equal.
