@@ -80,6 +80,10 @@ RIM = 0.1
 ON_SURFACE = 1.0e-3
 #: smoothing sweeps of the optimisation at least
 SWEEPS = 2
+#: smoothing and flips act around tetrahedra with a dihedral angle below this (degrees) or
+#: above 180 minus it, ``REGION_RINGS`` rings of vertices wide
+OPTIMISE_BELOW = 30.0
+REGION_RINGS = 2
 #: further (smoothing sweeps, flips) passes after the first
 PASSES_AFTER = (1,)
 #: boundary slivers with a dihedral angle below this (degrees) are peeled off
@@ -529,6 +533,18 @@ def peel_slivers(points, tets, on_surface, field: ClippedField, h: float, *, ang
     return tets, removed
 
 
+def _region(points, tets, device) -> np.ndarray:
+    """(n,) bool: the vertices of the tetrahedra with a dihedral angle below ``OPTIMISE_BELOW``
+    or above 180 minus it, and ``REGION_RINGS`` rings of neighbours around them."""
+    q = tet_quality(points, tets, device)
+    bad = (q[:, 0] < OPTIMISE_BELOW) | (q[:, 1] > 180.0 - OPTIMISE_BELOW)
+    mark = np.zeros(len(points), bool)
+    mark[tets[bad].ravel()] = True
+    for _ in range(REGION_RINGS):
+        mark[tets[mark[tets].any(axis=1)].ravel()] = True
+    return mark
+
+
 def mesh_delaunay(shape, box, h: float, *, smooth: int = 0, features: bool = True, floor: float = DIHEDRAL_FLOOR,
                   ceiling: float = DIHEDRAL_CEILING, angle: float = FEATURE_ANGLE, device="cpu", seed: int = 0):
     """The Delaunay variant with its optimisation (already validated arguments;
@@ -589,10 +605,15 @@ def mesh_delaunay(shape, box, h: float, *, smooth: int = 0, features: bool = Tru
     moved = 0
     flips = {"flips_23": 0, "flips_32": 0, "flips_44": 0}
     for sweeps in (max(int(smooth), SWEEPS),) + PASSES_AFTER:
+        # only around the tetrahedra below OPTIMISE_BELOW (the lattice's inside is BCC already)
+        region = _region(points, tets, device)
         points, m = smooth_tets(points, tets, tris, on_f & ~crease, on_cap | crease, field.tape, sweeps=sweeps,
-                                device=device)
+                                device=device, only=region)
         moved += m
-        tets, fi = flip_tets(points, tets, tris, device=device)
+        sub = region[tets].any(axis=1)
+        # the region's own boundary (the true one and the cut) is kept by the flips
+        new, fi = flip_tets(points, tets[sub], _boundary(tets[sub], len(points)), device=device)
+        tets = np.concatenate([tets[~sub], new])
         flips = {k: flips[k] + fi[k] for k in flips}
     info.update(smooth_moved=moved, **flips, time_optimise=time.perf_counter() - t0)
     stages.append(("smooth+flips", tet_quality_summary(points, tets, device)))
