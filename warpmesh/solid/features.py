@@ -471,33 +471,34 @@ def _ring_flip(pts, tets, around, u, w, a, b, outside, v_cap, floor, ceiling, de
     the old ones with the cap (u, w, a, b) added (``outside``) or taken off.
 
     ``relax`` (vt_ptr, vt_idx, interior (n,) bool, h), optional: when no fan keeps the range,
-    the interior ring vertices of the best filling fan are relocated (:func:`_climb`, rounds of
-    ``RELAX_ROUNDS``) and the flip kept, with the relocations written into ``pts``, when every
-    new tetrahedron and every one around them is in range.
+    the interior ring vertices of the best filling fan are relocated (:func:`_relax_star`) and
+    the flip kept, with the relocations returned, when every new tetrahedron and every one
+    around them is in range.
 
     ``busy`` (n,) bool, optional: no flip when a ring vertex between a and b is busy (another flip's).
 
-    Returns (ring vertices, new tetrahedra (2 (k - 1), 4) or None, new boundary faces (2, 3))."""
+    Returns (ring vertices, new tetrahedra (2 (k - 1), 4) or None, new boundary faces (2, 3),
+    relocations {vertex: position} to apply with the flip)."""
     others = np.array([[x for x in t if x != u and x != w] for t in tets[around]])
     if others.shape != (len(around), 2):
-        return np.zeros(0, np.int64), None, None
+        return np.zeros(0, np.int64), None, None, {}
     ring = [a]
     left = list(range(len(others)))
     while ring[-1] != b and left:  # walk the chain of tetrahedra from a to b (k of them: a short loop)
         nxt = [j for j in left if ring[-1] in others[j]]
         if len(nxt) != 1:
-            return np.array(ring), None, None
+            return np.array(ring), None, None, {}
         j = nxt[0]
         left.remove(j)
         ring.append(others[j][0] if others[j][1] == ring[-1] else others[j][1])
     ring = np.array(ring)
     if ring[-1] != b or left or len(np.unique(ring)) != len(ring) or (busy is not None and busy[ring[1:-1]].any()):
-        return ring, None, None
+        return ring, None, None, {}
     k = len(ring)
     v_old = tet_quality(pts, tets[around], device)[:, 3].sum()
     v_new = v_old + (v_cap if outside else -v_cap)
     best, best_q = None, -np.inf
-    near, near_q = None, -np.inf  # the best filling fan out of range
+    near, near_q, moves = None, -np.inf, {}  # the best filling fan out of range
     for apex in range(k):  # fans of the closed ring polygon from each of its vertices
         poly = np.roll(ring, -apex)
         tri = np.stack([np.full(k - 2, poly[0]), poly[1:-1], poly[2:]], axis=1)
@@ -522,18 +523,49 @@ def _ring_flip(pts, tets, around, u, w, a, b, outside, v_cap, floor, ceiling, de
             star = np.concatenate([tets[old_t], near])  # every tetrahedron a relocation changes
             moves = _relax_star(pts, star, free, h, floor, ceiling, device)
             if moves is not None:
-                for r, x in moves.items():
-                    pts[r] = x
                 best = near
     if best is None:
-        return ring, None, None
+        return ring, None, None, {}
     # the new boundary faces: (u, a, b) and (w, a, b), each the face of its tetrahedron off the fourth vertex
     faces = []
     for t in best:
         if a in t and b in t:
             off = [j for j in range(4) if t[j] not in (a, b) and t[j] not in (u, w)][0]
             faces.append(t[list(_FACES[off])])
-    return ring, best, np.array(faces)
+    return ring, best, np.array(faces), moves if best is near else {}
+
+
+def _collapse(pts, tets, tris, u, c, floor, ceiling, device):
+    """Vertex u merged into its neighbour c (edge collapse): the tetrahedra and boundary
+    triangles holding both go, u becomes c in the others. Kept only when the changed
+    tetrahedra are positive with dihedral angles in [floor, ceiling], no tetrahedron or
+    triangle appears twice, every face around c lies in at most two tetrahedra and the faces
+    in one are exactly the boundary triangles around c.
+
+    Returns (tets, tris) with u in none of them, or None."""
+    has_u, has_c = (tets == u).any(axis=1), (tets == c).any(axis=1)
+    changed = np.where(tets[has_u & ~has_c] == u, c, tets[has_u & ~has_c])
+    q = tet_quality(pts, changed, device)
+    if not len(changed) or _margin(q, floor, ceiling).min() < 0:
+        return None
+    new_tets = np.concatenate([tets[~has_u], changed])
+    tu, tc = (tris == u).any(axis=1), (tris == c).any(axis=1)
+    new_tris = np.concatenate([tris[~tu], np.where(tris[tu & ~tc] == u, c, tris[tu & ~tc])])
+    star = new_tets[(new_tets == c).any(axis=1)]
+    n = np.int64(len(pts))
+    if len(np.unique(np.sort(star, axis=1), axis=0)) != len(star):
+        return None
+    faces = np.concatenate([star[:, list(f)] for f in _FACES])
+    fk, cnt = np.unique(_face_key(faces, n), return_counts=True)
+    if cnt.max() > 2:
+        return None
+    ring_tris = new_tris[(new_tris == c).any(axis=1)]
+    rk = _face_key(ring_tris, n)
+    outer = fk[cnt == 1]
+    outer = outer[np.isin(outer, _face_key(faces[(faces == c).any(axis=1)], n))]  # the faces through c
+    if len(np.unique(rk)) != len(rk) or not np.array_equal(np.sort(rk), outer):
+        return None
+    return new_tets, new_tris
 
 
 def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device, h=None):
@@ -584,6 +616,20 @@ def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device, h=N
         return around[(tets[around] == y).any(axis=1)]
 
     quad = np.stack([edges[:, 0], edges[:, 1], a, b], axis=1)
+    directed = set((tris[:, [0, 1, 2]] * n + tris[:, [1, 2, 0]]).ravel().tolist())  # the boundary's directed edges
+
+    def folds(faces, i):
+        """Whether new boundary faces (k, 3) in place of triangles t1[i], t2[i] would run an edge
+        the way another boundary triangle does (a fold: tetrahedra on one side of it twice);
+        else the boundary's directed edges are updated."""
+        gone = set((tris[[t1[i], t2[i]]][:, [0, 1, 2]] * n + tris[[t1[i], t2[i]]][:, [1, 2, 0]]).ravel().tolist())
+        new = (faces[:, [0, 1, 2]] * n + faces[:, [1, 2, 0]]).ravel().tolist()
+        if len(set(new)) != len(new) or any(k in directed and k not in gone for k in new):
+            return True
+        directed.difference_update(gone)
+        directed.update(new)
+        return False
+
     remove, add, drop_tris, new_tris = [], [], [], []
     busy = np.zeros(len(pts), bool)  # one flip per vertex and call: no two flips share an edge a-b
     for i in range(len(edges)):  # tens of edges
@@ -598,7 +644,7 @@ def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device, h=N
             t = tets[cap[0]]
             faces = t[list(_FACES)]
             onb = np.isin(_face_key(faces, n), _face_key(tris[[t1[i], t2[i]]], n))
-            if onb.sum() != 2 or (bkey == ab).any():
+            if onb.sum() != 2 or (bkey == ab).any() or folds(faces[~onb][:, ::-1], i):
                 continue
             remove.append(cap[0])
             new_tris.append(faces[~onb][:, ::-1])
@@ -610,9 +656,11 @@ def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device, h=N
                 # a boundary edge flip: the tetrahedra around (u, w) -> cones from u and w over a
                 # triangulation of their ring a .. b closed by the chord (2-2 with one ring vertex c)
                 v_cap = abs(_signed(pts, quad[i])) / 6.0
-                ring, new_t, faces = _ring_flip(pts, tets, around, u, w, a[i], b[i], outside, v_cap, floor, ceiling,
-                                                device, relax, busy)
-                if new_t is not None:
+                ring, new_t, faces, moves = _ring_flip(pts, tets, around, u, w, a[i], b[i], outside, v_cap, floor,
+                                                       ceiling, device, relax, busy)
+                if new_t is not None and not folds(faces, i):
+                    for r, x in moves.items():
+                        pts[r] = x
                     busy[ring] = True
                     remove += list(around)
                     add += list(new_t)
@@ -631,7 +679,7 @@ def _flip_open_edges(pts, tets, tris, edges, crease, floor, ceiling, device, h=N
                 continue
             faces = t[list(_FACES)]
             onb = np.isin(_face_key(faces, n), _face_key(tris[[t1[i], t2[i]]], n))
-            if onb.sum() != 2:
+            if onb.sum() != 2 or folds(faces[~onb], i):
                 continue
             add.append(t)
             new_tris.append(faces[~onb])
@@ -681,7 +729,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
     cos_a = float(np.cos(np.radians(angle)))
     rng = np.random.default_rng(0)
     crease = np.zeros(len(pts), bool)
-    n_corners = n_split = n_flip = rejected = n_relaxed = 0
+    n_corners = n_split = n_flip = rejected = n_relaxed = n_collapsed = 0
 
     def normals_at_boundary():
         nrm = np.zeros((len(pts), 3))
@@ -780,6 +828,37 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
             n_split += 1
             n_relaxed += 1
 
+    def collapse_near_corners():
+        nonlocal tets, tris
+        chords, opp = _crease_chords(pts, tris, crease, target, cos_a)
+        if not len(chords) or not len(corners):
+            return 0
+        mid = 0.5 * (pts[chords[:, 0]] + pts[chords[:, 1]])
+        c = crease_points(target, pts[opp[:, 0]], pts[opp[:, 1]], h, cos_a, near=mid)
+        sag = np.linalg.norm(c - mid, axis=1)
+        chords = chords[np.isfinite(sag) & (sag > SAG * h)]
+        is_corner = np.zeros(len(pts), bool)
+        is_corner[corners] = True
+        be = unique_edges(tris, TRI_EDGES)
+        to_corner = be[is_corner[be[:, 0]] ^ is_corner[be[:, 1]]]
+        to_corner = np.where(is_corner[to_corner[:, 0]][:, None], to_corner[:, ::-1], to_corner)  # (vertex, corner)
+        done, gone = 0, np.zeros(len(pts), bool)
+        for e in chords:  # few: a loop
+            cand = to_corner[np.isin(to_corner[:, 0], e) & ~is_corner[to_corner[:, 0]]]
+            if not len(cand):
+                continue
+            dist = np.linalg.norm(pts[cand[:, 0]] - pts[cand[:, 1]], axis=1)
+            u, k = cand[np.argmin(dist)]
+            if dist.min() >= MAX_MOVE * h or gone[u] or gone[k]:
+                continue
+            out = _collapse(pts, tets, tris, u, k, floor, ceiling, device)
+            if out is not None:
+                tets, tris = out
+                gone[u] = True
+                crease[u] = False
+                done += 1
+        return done
+
     bv, nrm = normals_at_boundary()
     n_cross = len(open_edges(nrm))
     # corners first: one vertex each
@@ -787,6 +866,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
     real, c_pts = _confirm_corners(target, c_pts, h)
     c_verts, c_pts = c_verts[real], c_pts[real]
     n_corners = snap(c_verts, c_pts)
+    corners = np.flatnonzero(crease)
     for k in range(passes):
         # an end of every open crossing edge onto the crease nearest it (the nearer first)
         e = open_edges(nrm)
@@ -832,10 +912,18 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
         sag = np.linalg.norm(c - mid, axis=1)
         far = np.isfinite(sag) & (sag > SAG * h)
         split(chords[far], opp[far, 0], opp[far, 1])
+        # chords still sagging that cut a corner: their end nearest a corner it neighbours
+        # (within MAX_MOVE h) is merged into the corner
+        n_collapsed += collapse_near_corners()
         # the new crease vertices may close open edges by a flip
         bv, nrm = normals_at_boundary()
         tets, tris, k_flip = _flip_open_edges(pts, tets, tris, open_edges(nrm), crease, floor, ceiling, device, h)
         n_flip += k_flip
+    used = np.zeros(len(pts), bool)
+    used[tets.ravel()] = True
+    if not used.all():  # vertices merged into corners: renumbered away
+        remap = np.cumsum(used) - 1
+        pts, crease, tets, tris = pts[used], crease[used], remap[tets], remap[tris]
     bv, nrm = normals_at_boundary()
     # the moves are judged by the dihedral angles around them only: where boundary faces now
     # cross (an under-resolved surface near a crease), the whole recovery is undone
@@ -845,7 +933,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
         crease = np.zeros(len(pts), bool)
     info = {"feature_undone": int(crossing), "feature_edges": int(n_cross), "feature_open": int(len(open_edges(nrm))),
             "feature_vertices": int(crease.sum()), "feature_corners": n_corners, "feature_splits": n_split, "feature_flips": n_flip,
-            "feature_relaxed": n_relaxed,
+            "feature_relaxed": n_relaxed, "feature_collapsed": n_collapsed,
             "feature_rejected": rejected, "feature_floor": float(floor), "feature_ceiling": float(ceiling)}
     return pts, tets, tris, crease, info
 
