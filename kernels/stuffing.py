@@ -554,8 +554,10 @@ def warp_mesh_nodes_kernel(first: int, which: int, star: wp.array(dtype=wp.int32
 
 
 @wp.func
-def mesh_tet_case(t: wp.vec4i, signs: wp.array(dtype=wp.int8)):
-    """The sign code of a background tetrahedron, or -1 when none of its nodes is inside."""
+def mesh_tet_case(t: wp.vec4i, signs: wp.array(dtype=wp.int8), local: wp.array(dtype=wp.vec3)):
+    """The stencil case of a background tetrahedron (sign code * 16 + face bits), or -1 when
+    none of its nodes is inside. Bit o is set when the face off vertex o has two inside
+    vertices p < q and one outside n, and q is closer to n than p (on the background)."""
     code = int(0)
     scale = int(1)
     plus = int(0)
@@ -565,21 +567,45 @@ def mesh_tet_case(t: wp.vec4i, signs: wp.array(dtype=wp.int8)):
         if s > 0:
             plus += 1
         scale *= 3
-    return wp.where(plus > 0, code, -1)
+    bits = int(0)
+    for o in range(4):
+        p = int(-1)
+        q = int(-1)
+        n = int(-1)
+        k_minus = int(0)
+        for v in range(4):
+            if v != o:
+                s = int(signs[t[v]])
+                if s > 0:
+                    if p < 0:
+                        p = v
+                    else:
+                        q = v
+                elif s < 0:
+                    n = v
+                    k_minus += 1
+        if q >= 0 and k_minus == 1:
+            dp = wp.length_sq(local[t[p]] - local[t[n]])
+            dq = wp.length_sq(local[t[q]] - local[t[n]])
+            if dq < dp:
+                bits = bits | (1 << o)
+    return wp.where(plus > 0, code * 16 + bits, -1)
 
 
 @wp.kernel
 def count_mesh_tets_kernel(first: int, tets: wp.array(dtype=wp.vec4i), signs: wp.array(dtype=wp.int8),
-                           count: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
+                           local: wp.array(dtype=wp.vec3), count: wp.array(dtype=wp.int32),
+                           counts: wp.array(dtype=wp.int32)):
     """One thread per background tetrahedron: the number of output tetrahedra of its stencil."""
     i = first + wp.tid()
-    counts[i] = stencil_count(mesh_tet_case(tets[i], signs), count)
+    counts[i] = stencil_count(mesh_tet_case(tets[i], signs, local), count)
 
 
 @wp.kernel
 def write_mesh_tets_kernel(first: int, n_nodes: int, tets: wp.array(dtype=wp.vec4i),
                            tet_edges: wp.array2d(dtype=wp.int32), flip: wp.array(dtype=wp.int32),
-                           signs: wp.array(dtype=wp.int8), count: wp.array(dtype=wp.int32),
+                           signs: wp.array(dtype=wp.int8), local: wp.array(dtype=wp.vec3),
+                           count: wp.array(dtype=wp.int32),
                            table: wp.array3d(dtype=wp.int32), edge_cut: wp.array(dtype=wp.int32),
                            offsets: wp.array(dtype=wp.int32), out: wp.array(dtype=wp.vec4i),
                            used: wp.array(dtype=wp.int32)):
@@ -588,7 +614,7 @@ def write_mesh_tets_kernel(first: int, n_nodes: int, tets: wp.array(dtype=wp.vec
     tetrahedron is flipped), and the keys marked used."""
     i = first + wp.tid()
     t = tets[i]
-    case = mesh_tet_case(t, signs)
+    case = mesh_tet_case(t, signs, local)
     m = stencil_count(case, count)
     k = offsets[i]
     for j in range(m):

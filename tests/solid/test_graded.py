@@ -103,31 +103,56 @@ def test_background_conforms_with_four_similarity_classes():
     assert (np.diff(np.sort(tet_edges(tets), axis=1), axis=1) > 0).all()
 
 
+def _face_bits(order, signs, pos) -> int:
+    """The fill kernel's face bits of a tetrahedron listing nodes ``order`` (by id): bit o when
+    the face off local vertex o has inside p < q and outside n, and q is closer to n."""
+    bits = 0
+    for o in range(4):
+        face = [v for v in range(4) if v != o]
+        plus = [v for v in face if signs[order[v]] > 0]
+        minus = [v for v in face if signs[order[v]] < 0]
+        if len(plus) == 2 and len(minus) == 1:
+            (p, q), n = plus, minus[0]
+            dp = np.sum((pos[order[p]] - pos[order[n]]) ** 2)
+            dq = np.sum((pos[order[q]] - pos[order[n]]) ** 2)
+            bits |= int(dq < dp) << o
+    return bits
+
+
 def test_ranked_stencils_are_positive_and_split_shared_faces_alike():
-    """Every sign pattern on random tetrahedra with random cut points: positive pieces; and two
-    tetrahedra sharing a face (vertices ranked by global id) cut that face into the same
-    triangles."""
+    """Every sign pattern and face bits on random tetrahedra with random cut points: positive
+    pieces (bits that would make a prism's diagonals cyclic are marked -1: no total order
+    gives them); and two tetrahedra sharing a face (vertices listed by global id, bits from
+    the distances) cut that face into the same triangles."""
     rng = np.random.default_rng(3)
     count, table = ranked_stencil_tables()
+    assert (count >= -1).all() and (count <= 3).all() and (count == -1).sum() < 32
     for signs in np.array(np.meshgrid(*[[-1, 0, 1]] * 4, indexing="ij")).reshape(4, -1).T:
-        code = sign_code(signs)
-        assert count[code] == len(stencil(signs, ranked=True))
-        for _ in range(5):
-            tet = REFERENCE_TET + rng.uniform(-0.2, 0.2, (4, 3))
-            t = rng.uniform(0.05, 0.95, 6)
-            pos = np.vstack([tet, [tet[a] + t[k] * (tet[b] - tet[a]) for k, (a, b) in enumerate(EDGES)]])
-            pieces = table[code, :count[code]]
-            if len(pieces):
-                assert (signed_volumes(pos, pieces) > 0).all(), signs
-    # shared faces: a random ranking of five nodes; tetrahedra (0..3) and (1..4) share face (1, 2, 3)
-    for _ in range(300):
+        for bits in range(16):
+            case = sign_code(signs) * 16 + bits
+            if count[case] < 0:
+                continue
+            assert count[case] == len(stencil(signs, bits, ranked=True))
+            for _ in range(3):
+                tet = REFERENCE_TET + rng.uniform(-0.2, 0.2, (4, 3))
+                t = rng.uniform(0.05, 0.95, 6)
+                pos = np.vstack([tet, [tet[a] + t[k] * (tet[b] - tet[a]) for k, (a, b) in enumerate(EDGES)]])
+                pieces = table[case, :count[case]]
+                if len(pieces):
+                    assert (signed_volumes(pos, pieces) > 0).all(), (signs, bits)
+    # shared faces: five random nodes ranked by a random id; tetrahedra (0..3), (1..4) share (1, 2, 3)
+    for _ in range(400):
         ids = rng.permutation(5)
         s = rng.integers(-1, 2, 5)
+        pos = rng.normal(size=(5, 3))
 
         def face_triangles(nodes):
             order = sorted(nodes, key=lambda v: ids[v])
+            bits = _face_bits(order, s, pos)
+            case = sign_code([s[v] for v in order]) * 16 + bits
+            assert count[case] >= 0, "bits from distances are never cyclic"
             out = set()
-            for piece in stencil([s[v] for v in order], ranked=True):
+            for piece in stencil([s[v] for v in order], bits, ranked=True):
                 names = []
                 for r in piece:
                     if r < 4:

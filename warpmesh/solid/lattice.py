@@ -381,13 +381,13 @@ class Background:
         tetrahedra (m, 4) int64, on_surface (n,) bool)."""
         dev = self.device
         counts = wp.empty(self.n_tets, dtype=wp.int32, device=dev)
-        self._split(K.count_mesh_tets_kernel, self.n_tets, [self.tets, self.signs, self.count], [counts])
+        self._split(K.count_mesh_tets_kernel, self.n_tets, [self.tets, self.signs, self.local, self.count], [counts])
         offsets, m = self._scan(counts)
         n_keys = self.n_nodes + self.n_cuts
         used = wp.zeros(n_keys, dtype=wp.int32, device=dev)
         tets = wp.empty(max(m, 1), dtype=wp.vec4i, device=dev)
         self._split(K.write_mesh_tets_kernel, self.n_tets,
-                    [self.n_nodes, self.tets, self.tet_edges, self.flip, self.signs, self.count, self.table,
+                    [self.n_nodes, self.tets, self.tet_edges, self.flip, self.signs, self.local, self.count, self.table,
                      self.edge_cut, offsets], [tets, used])
         ids, nv = self._scan(used)
         points = wp.empty(max(nv, 1), dtype=wp.vec3, device=dev)

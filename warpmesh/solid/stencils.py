@@ -91,12 +91,17 @@ def face_diagonal(p: int, q: int, n: int, bits: int) -> tuple[int, int]:
     raise AssertionError("every lattice face has one long edge")
 
 
-def ranked_diagonal(p: int, q: int, n: int) -> tuple[int, int]:
+def ranked_diagonal(p: int, q: int, n: int, bits: int = 0) -> tuple[int, int]:
     """The diagonal of the quadrilateral of face (p, q, n) on a graded background, whose
     tetrahedra list their vertices by increasing global id: it leaves the first of p, q (the
-    smaller id), a rule both tetrahedra sharing the face see identically. Three vertices in a
-    total order never make the diagonals of a prism cyclic."""
-    end, other = (p, q) if p < q else (q, p)
+    smaller id), or the second when bit ``o`` of ``bits`` is set, ``o`` the vertex off the
+    face. The fill kernel sets the bit when the second is closer to n (ties by id), the
+    paper's choice where one of n p, n q is long: a function of the face alone, so both
+    tetrahedra sharing it agree; and a total order (distance to n, then id), so the
+    diagonals of a prism around one outside vertex are never cyclic."""
+    first, second = (p, q) if p < q else (q, p)
+    off = 6 - p - q - n
+    end, other = (second, first) if (bits >> off) & 1 else (first, second)
     return end, _cut(other, n)
 
 
@@ -157,12 +162,12 @@ def stencil(signs, bits: int = 0, pos: np.ndarray | None = None, ranked: bool = 
 
     ``pos`` (10, 3): positions of the 10 references used to orient the output (default: the
     reference tetrahedron with every cut point at its edge's midpoint). ``ranked``: split the
-    quadrilaterals by :func:`ranked_diagonal` (graded backgrounds; ``bits`` unused) instead of
+    quadrilaterals by :func:`ranked_diagonal` (graded backgrounds, ``bits`` per face) instead of
     the BCC lattice's long edges and parity bits.
     """
 
     def diagonal(p, q, n):
-        return ranked_diagonal(p, q, n) if ranked else face_diagonal(p, q, n, bits)
+        return ranked_diagonal(p, q, n, bits) if ranked else face_diagonal(p, q, n, bits)
 
     if pos is None:
         pos = np.vstack([REFERENCE_TET, [(REFERENCE_TET[a] + REFERENCE_TET[b]) / 2 for a, b in EDGES]])
@@ -217,17 +222,24 @@ def stencil_tables() -> tuple[np.ndarray, np.ndarray]:
 
 @lru_cache(maxsize=1)
 def ranked_stencil_tables() -> tuple[np.ndarray, np.ndarray]:
-    """(count (81,), tets (81, 3, 4)) int32: the stencils of every sign pattern under
-    :func:`ranked_diagonal`, oriented on the positive ``REFERENCE_TET`` (a background
-    tetrahedron whose id-sorted vertices are negatively oriented swaps two references)."""
-    count = np.zeros(81, np.int32)
-    tets = np.zeros((81, 3, 4), np.int32)
+    """(count (81 * 16,), tets (81 * 16, 3, 4)) int32: the stencils of every sign pattern and
+    face bits under :func:`ranked_diagonal` (``case = sign_code * 16 + bits``), oriented on the
+    positive ``REFERENCE_TET`` (a background tetrahedron whose id-sorted vertices are
+    negatively oriented swaps two references). Bits whose prism diagonals would be cyclic
+    cannot come from a total order; their count is -1."""
+    count = np.zeros(81 * 16, np.int32)
+    tets = np.zeros((81 * 16, 3, 4), np.int32)
     for signs in itertools.product((-1, 0, 1), repeat=4):
-        out = stencil(signs, ranked=True)
         code = sign_code(signs)
-        count[code] = len(out)
-        for k, t in enumerate(out):
-            tets[code, k] = t
+        for bits in range(16):
+            try:
+                out = stencil(signs, bits, ranked=True)
+            except AssertionError:  # cyclic diagonals
+                count[code * 16 + bits] = -1
+                continue
+            count[code * 16 + bits] = len(out)
+            for k, t in enumerate(out):
+                tets[code * 16 + bits, k] = t
     count.setflags(write=False)
     tets.setflags(write=False)
     return count, tets
