@@ -107,6 +107,17 @@ def test_recovery_gives_up_with_a_clear_error():
         delaunay_tets(shape, np.array(box, float), 0.12, max_rounds=1)
 
 
+def test_recovery_stops_when_rounds_repeat(monkeypatch):
+    """A problem that new points never fix: the same counts three rounds in a row end it."""
+    import warpmesh.solid.delaunay as D
+
+    def stuck(field, points, tets, keep, on_surface, h):
+        return np.array([[0.0, 0.0, 1.0]]), tets[:1], {"far_faces": 1}
+    monkeypatch.setattr(D, "_recovery_targets", stuck)
+    with pytest.raises(WarpMeshError, match="no progress"):
+        delaunay_tets(wm.sphere(1.0), np.array([[-1.2] * 3, [1.2] * 3]), 0.3)
+
+
 def test_thin_is_a_maximal_separated_subset():
     rng = np.random.default_rng(3)
     p = rng.uniform(0, 1, (2000, 3))

@@ -61,6 +61,8 @@ MIN_SPACING = 0.12
 TOLERANCE = 0.1
 #: random offsets of the lattice points, times h (no cospherical octets)
 JITTER = 0.02
+#: recovery stops with an error when this many rounds in a row leave the same problems
+STALL = 3
 #: rounds of (Delaunay kernel, classification, recovery)
 MAX_ROUNDS = 16
 #: jittered surface candidates per lattice node near the surface
@@ -422,6 +424,9 @@ def delaunay_tets(shape, box, h: float, *, device="cpu", seed: int = 0, max_roun
         history.append(counts)
         if not len(cand):
             break
+        if len(history) > STALL and all(c == counts for c in history[-STALL - 1:-1]):
+            raise WarpMeshError(f"boundary recovery made no progress in rounds {rnd - STALL}-{rnd}: the same "
+                                f"problems {counts} each round; try another 'size'")
         creases = _crease_targets(target, field, points, on_surface, owners, cand, h)
         cand = np.concatenate([creases, cand])
         y, moved = field.project(cand, max_step=0.5 * h)
