@@ -61,7 +61,7 @@ CURVATURE_ANGLE = 0.2
 #: how fast the curvature size grows with the distance from the surface
 CURVATURE_GRADING = 0.5
 #: a background larger than this is refused (raise the sizes)
-MAX_BACKGROUND_TETS = 20_000_000
+MAX_BACKGROUND_TETS = 8_000_000
 #: local edges of a tetrahedron (the order of :data:`warpmesh.solid.stencils.EDGES`)
 _EDGES = np.array(((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)))
 #: edge keys a * _KEY + b
