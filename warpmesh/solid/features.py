@@ -295,9 +295,8 @@ def _relaxed_moves(pts, tets, te, verts, targets, movable, h, floor, ceiling, de
         pid = n + uo[None, :] * k + np.arange(k)[:, None]  # (k, t)
         rep = np.where(rep == u[uo][None, :, None], pid[..., None], rep)
         score = _margin(tet_quality(newp, rep.reshape(-1, 4), device), floor, ceiling).reshape(k, len(ut))
-        worst = np.full((k, len(u)), np.inf)
-        for j in range(k):  # 105 candidates: a short loop over whole arrays
-            np.minimum.at(worst[j], uo, score[j])
+        starts = np.flatnonzero(np.r_[True, uo[1:] != uo[:-1]])  # gather_rows keeps each row together
+        worst = np.minimum.reduceat(score, starts, axis=1)
         pick = np.argmax(worst, axis=0)
         better = worst[pick, np.arange(len(u))] > worst[0]
         trial[u[better]] = newp[n + np.flatnonzero(better) * k + pick[better]]
@@ -751,8 +750,10 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
         np.maximum.at(best, te[:, 1], p[te[:, 0]])
         return p[cand] >= best[cand]
 
-    def snap(verts, where):
-        """Rounds of independent moves of ``verts`` onto ``where``; returns the accepted count."""
+    def snap(verts, where, open_only=True):
+        """Rounds of independent moves of ``verts`` onto ``where``; returns the accepted count.
+        The moves refused alone are tried with relocations (only for ends of edges still open
+        when ``open_only``)."""
         nonlocal rejected, n_relaxed
         vt_ptr, vt_idx = vertex_tets(tets, len(pts))
         te = unique_edges(tets)
@@ -775,6 +776,8 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
         interior[tris.ravel()] = False
         rest = ~crease[verts]
         for _ in range(ROUNDS):
+            if open_only:  # an end of an edge another move has covered need not move
+                rest &= np.isin(verts, open_edges(normals_at_boundary()[1]).ravel())
             if not rest.any():
                 break
             idx = np.flatnonzero(rest)
@@ -865,7 +868,7 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
     c_verts, c_pts = _ring_corners(pts, bv, unique_edges(tris, TRI_EDGES), nrm, h)
     real, c_pts = _confirm_corners(target, c_pts, h)
     c_verts, c_pts = c_verts[real], c_pts[real]
-    n_corners = snap(c_verts, c_pts)
+    n_corners = snap(c_verts, c_pts, open_only=False)
     corners = np.flatnonzero(crease)
     for k in range(passes):
         # an end of every open crossing edge onto the crease nearest it (the nearer first)
