@@ -12,23 +12,36 @@ across them. Here:
    ``FEATURE_ANGLE`` crosses a crease.
 2. Corners: a vertex whose ring of boundary neighbours has normals spread in three
    directions gets the dual-contouring point of their tangent planes
-   (:func:`warpmesh.surface.adaptive.qef.qef_points`, rank 3); one vertex per corner.
+   (:func:`warpmesh.surface.adaptive.qef.qef_points`, rank 3), kept when the same test
+   passes a tenth of ``h`` around that point (a ring around a hole of radius 2 h sees the
+   wall turn by tens of degrees; close to the rim only two directions remain); one vertex
+   per corner.
 3. Creases: an end of a crossing edge gets the point of the crease nearest to it: the
    tangent planes at both ends meet in a line; then, ``REFINE_STEPS`` times, each face is
-   sampled a tenth of ``h`` beside the current point (projected onto f = 0), and the two
-   new tangent planes meet again (second-order: 2e-4 h on the part's hole rims).
+   sampled a tenth of ``h`` beside the current point (on the side whose projection onto
+   f = 0 keeps the face's normal; twice as far out where both samples fell on one face), and
+   the two new tangent planes meet again (second order: 4e-7 h on the part's hole rims, 1e-3 h
+   on its sphere of radius 6 h at size 0.08).
 4. Moves in rounds of an independent set (no two moving vertices share a tetrahedron),
    closest target first; a move is kept only when every tetrahedron around the vertex stays
    positive with dihedral angles in [``floor``, ``ceiling``] (default 10° and 165°). A
    crossing edge is covered once one of its ends sits on the crease; the ends of uncovered
    edges are tried in the next round. The covered ends form the crease's polyline: in the
    strip of triangles the crease crosses, consecutive covered vertices share a triangle.
+   A move refused alone is tried again with the interior vertices of the tetrahedra it
+   spoils relocated first (a pattern search raising their worst dihedral margin), kept when
+   every tetrahedron around them all is in range.
 5. Crossing edges still open are split at the crease point nearest their midpoint (every
    tetrahedron around the edge halved; kept only in the same dihedral range); an open edge
    whose two boundary triangles end on crease vertices a, b is flipped onto a-b (the cap
-   tetrahedron (u, w, a, b) removed, added outside, or a boundary 2-2 flip). Between passes
-   the vertices near open edges are smoothed (:func:`warpmesh.solid.smoothing.smooth_tets`,
-   crease vertices fixed). Chords of the crease that sag more than ``SAG`` h from it are split.
+   tetrahedron (u, w, a, b) removed, added outside, or the k tetrahedra around (u, w)
+   replaced by cones from u and w over a fan of their ring closed by a-b; never a flip that
+   folds the boundary). Splits and flips refused alone are tried with interior vertices
+   relocated as moves are. Between passes the vertices near open edges are smoothed
+   (:func:`warpmesh.solid.smoothing.smooth_tets`, crease vertices fixed). Chords of the
+   crease that sag more than ``SAG`` h from it are split; a sagging chord that cuts a corner
+   (from a crease vertex near the corner to the next crease) loses its end near the corner
+   by an edge collapse into it; a last flip pass follows.
 6. Moves are judged by the dihedral angles around them only: if boundary faces end up
    crossing (:func:`warpmesh.cells.intersections.find_self_intersections`), the whole
    recovery is undone and ``feature_undone`` counts the crossing pairs.
@@ -719,8 +732,10 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
     crease : (n',) bool, the vertices on a crease or corner
     info : dict, ``feature_edges`` (boundary edges crossing a crease at the start),
         ``feature_open`` (crossing at the end with no end on the crease), ``feature_vertices``,
-        ``feature_corners``, ``feature_splits``, ``feature_rejected`` (snaps refused by the
-        dihedral range), ``feature_floor``, ``feature_ceiling``
+        ``feature_corners``, ``feature_splits``, ``feature_flips``, ``feature_rejected`` (snaps
+        refused by the dihedral range alone), ``feature_relaxed`` (moves and splits kept with
+        interior vertices relocated), ``feature_collapsed`` (crease vertices merged into a
+        corner), ``feature_floor``, ``feature_ceiling``
     """
     pts = np.array(points, dtype=np.float64, copy=True)
     tets = tets_in = np.asarray(tets, dtype=np.int64)
