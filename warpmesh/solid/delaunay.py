@@ -48,8 +48,8 @@ from warpmesh.solid.features import DIHEDRAL_CEILING, DIHEDRAL_FLOOR, FEATURE_AN
 from warpmesh.solid.flips import flip_tets
 from warpmesh.solid.smoothing import smooth_tets
 
-__all__ = ["mesh_delaunay", "delaunay_tets", "peel_slivers", "ClippedField", "CLEARANCE", "SPACING", "MIN_SPACING", "TOLERANCE",
-           "MAX_ROUNDS", "SLIVER_ANGLE"]
+__all__ = ["mesh_delaunay", "delaunay_tets", "peel_slivers", "ClippedField", "CLEARANCE", "SPACING", "MIN_SPACING",
+           "TOLERANCE", "MAX_ROUNDS", "SLIVER_ANGLE"]
 
 #: lattice nodes kept as interior points: clipped distance above this times h
 CLEARANCE = 0.5
@@ -401,8 +401,8 @@ def delaunay_tets(shape, box, h: float, *, device="cpu", seed: int = 0, max_roun
     interior = nodes[d > CLEARANCE * h]
     interior = interior + rng.uniform(-JITTER * h, JITTER * h, interior.shape)
     surface, n_crease = _surface_points(field, target, nodes, d, h, rng)
-    info = {"crease_points": int(n_crease), "interior_points": int(len(interior)), "surface_points": int(len(surface)), "cube_size": float(h),
-            "time_points": time.perf_counter() - t0}
+    info = {"crease_points": int(n_crease), "interior_points": int(len(interior)), "surface_points": int(len(surface)),
+            "cube_size": float(h), "time_points": time.perf_counter() - t0}
     t_kernel = 0.0
     inserted = moved_points = 0
     history = []
@@ -461,8 +461,8 @@ def delaunay_tets(shape, box, h: float, *, device="cpu", seed: int = 0, max_roun
     used = np.zeros(len(points), bool)
     used[tets.ravel()] = True
     new_id = np.cumsum(used) - 1
-    info.update(delaunay_rounds=rnd, recovery_inserted=int(inserted), recovery_moved=int(moved_points), recovery_history=history,
-                time_delaunay=t_kernel, time_stuffing=time.perf_counter() - t0)
+    info.update(delaunay_rounds=rnd, recovery_inserted=int(inserted), recovery_moved=int(moved_points),
+                recovery_history=history, time_delaunay=t_kernel, time_stuffing=time.perf_counter() - t0)
     return points[used], new_id[tets], on_surface[used], info
 
 
