@@ -102,12 +102,11 @@ def _in_box_2d(a: wp.vec3d, b: wp.vec3d, x: wp.vec3d, i: int, j: int) -> bool:
 
 
 @wp.func
-def segments_meet_2d(p1: wp.vec3d, p2: wp.vec3d, p3: wp.vec3d, p4: wp.vec3d, i: int, j: int) -> bool:
-    """Closed segments [p1, p2] and [p3, p4] meet (coordinates i, j)."""
-    o1 = orient2d(p1, p2, p3, i, j)
-    o2 = orient2d(p1, p2, p4, i, j)
-    o3 = orient2d(p3, p4, p1, i, j)
-    o4 = orient2d(p3, p4, p2, i, j)
+def segments_meet_2d(o1: int, o2: int, o3: int, o4: int, p1: wp.vec3d, p2: wp.vec3d, p3: wp.vec3d,
+                     p4: wp.vec3d, i: int, j: int) -> bool:
+    """Closed segments [p1, p2] and [p3, p4] meet (coordinates i, j), given the orientations
+    o1 = orient2d(p1, p2, p3), o2 = orient2d(p1, p2, p4), o3 = orient2d(p3, p4, p1) and
+    o4 = orient2d(p3, p4, p2)."""
     if o1 * o2 < 0 and o3 * o4 < 0:
         return True
     if o1 == 0 and _in_box_2d(p1, p2, p3, i, j):
@@ -122,23 +121,32 @@ def segments_meet_2d(p1: wp.vec3d, p2: wp.vec3d, p3: wp.vec3d, p4: wp.vec3d, i: 
 
 
 @wp.func
-def point_in_triangle_2d(x: wp.vec3d, t: wp.mat33d, i: int, j: int) -> bool:
-    """x in the closed triangle t (rows), either orientation (coordinates i, j); a
-    triangle that projects to a segment contains everything (conservative)."""
-    s = orient2d(t[0], t[1], t[2], i, j)
-    return (orient2d(t[0], t[1], x, i, j) * s >= 0 and orient2d(t[1], t[2], x, i, j) * s >= 0
-            and orient2d(t[2], t[0], x, i, j) * s >= 0)
+def edge_sides_2d(u: wp.vec3d, w: wp.vec3d, t: wp.mat33d, i: int, j: int) -> wp.vec3i:
+    """orient2d(u, w, t[c]) for the three rows c of t."""
+    return wp.vec3i(orient2d(u, w, t[0], i, j), orient2d(u, w, t[1], i, j), orient2d(u, w, t[2], i, j))
 
 
 @wp.func
 def coplanar_overlap(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
     """Closed coplanar triangles p, q (rows) meet: some edges meet, or one holds a
-    vertex of the other (then it holds all of it)."""
+    vertex of the other (then it holds all of it); a triangle that projects to a segment
+    holds everything (conservative). Each of the 18 edge-vertex orientations is computed
+    once: op[a, c] = orient2d(p[a], p[a + 1], q[c]), oq[b, c] = orient2d(q[b], q[b + 1], p[c])."""
+    op = wp.matrix_from_rows(edge_sides_2d(p[0], p[1], q, i, j), edge_sides_2d(p[1], p[2], q, i, j),
+                             edge_sides_2d(p[2], p[0], q, i, j))
+    oq = wp.matrix_from_rows(edge_sides_2d(q[0], q[1], p, i, j), edge_sides_2d(q[1], q[2], p, i, j),
+                             edge_sides_2d(q[2], q[0], p, i, j))
     for a in range(3):
+        a1 = (a + 1) % 3
         for b in range(3):
-            if segments_meet_2d(p[a], p[(a + 1) % 3], q[b], q[(b + 1) % 3], i, j):
+            b1 = (b + 1) % 3
+            if segments_meet_2d(op[a, b], op[a, b1], oq[b, a], oq[b, a1], p[a], p[a1], q[b], q[b1], i, j):
                 return True
-    return point_in_triangle_2d(p[0], q, i, j) or point_in_triangle_2d(q[0], p, i, j)
+    sq = orient2d(q[0], q[1], q[2], i, j)  # p[0] in q
+    if oq[0, 0] * sq >= 0 and oq[1, 0] * sq >= 0 and oq[2, 0] * sq >= 0:
+        return True
+    sp = orient2d(p[0], p[1], p[2], i, j)  # q[0] in p
+    return op[0, 0] * sp >= 0 and op[1, 0] * sp >= 0 and op[2, 0] * sp >= 0
 
 
 @wp.func
@@ -538,7 +546,7 @@ def gather_faces_kernel(tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp
 #: faces per leaf box of the BVH: consecutive faces of the Morton order (a compact patch),
 #: so the tree has m / GROUP leaves (built GROUP times faster) and one query per group, not
 #: per face, finds the groups near it; faces are then screened by their own float32 boxes
-GROUP = 8
+GROUP = 16
 #: the lower corner of an empty box (its upper corner is -EMPTY): far outside the BVH's
 #: coordinates [-1, 1]^3, so it meets no box
 EMPTY = wp.constant(8.0)
@@ -592,20 +600,16 @@ def boxes_meet(lo: wp.vec3, hi: wp.vec3, a: wp.vec3, b: wp.vec3) -> bool:
 
 
 @wp.func
-def positions_intersect(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
-                        order: wp.array(dtype=wp.int32), s: int, s2: int) -> bool:
-    """:func:`pair_intersects` of the faces at positions s and s2, the one of the lower input
-    index as p (the predicate's rounding is not symmetric: always the same order)."""
-    a = s
-    b = s2
-    if order[s2] < order[s]:
-        a = s2
-        b = s
-    p, ip = load_triangle(points, tris, a)
-    q, iq = load_triangle(points, tris, b)
-    u = p[1] - p[0]
-    v = p[2] - p[0]
-    return pair_intersects(p, ip, wp.cross(u, v), _abs_cross(u, v), q, iq)
+def ordered_pair_intersects(t: wp.mat33d, it: wp.vec3i, n: wp.vec3d, na: wp.vec3d, f: int,
+                            t2: wp.mat33d, it2: wp.vec3i, f2: int) -> bool:
+    """:func:`pair_intersects` of faces f (vertices t, indices it, normal n and its permanent
+    companion na) and f2, the one of the lower input index as p (the predicate's rounding
+    is not symmetric: always the same order)."""
+    if f < f2:
+        return pair_intersects(t, it, n, na, t2, it2)
+    u = t2[1] - t2[0]
+    v = t2[2] - t2[0]
+    return pair_intersects(t2, it2, wp.cross(u, v), _abs_cross(u, v), t, it)
 
 
 @wp.func
@@ -641,13 +645,28 @@ def walk_group(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(
                     s2 = GROUP * h
                     if h == g:
                         s2 = s + 1
+                    f = order[s]
+                    loaded = bool(False)  # face s is loaded at its first candidate in h
+                    t = wp.mat33d()
+                    it = wp.vec3i()
+                    nt = wp.vec3d()
+                    na = wp.vec3d()
                     while s2 < end:
                         if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
-                            if positions_intersect(points, tris, order, s, s2):
+                            if not loaded:
+                                t, it = load_triangle(points, tris, s)
+                                u = t[1] - t[0]
+                                v = t[2] - t[0]
+                                nt = wp.cross(u, v)
+                                na = _abs_cross(u, v)
+                                loaded = True
+                            f2 = order[s2]
+                            t2, it2 = load_triangle(points, tris, s2)
+                            if ordered_pair_intersects(t, it, nt, na, f, t2, it2, f2):
                                 if n < limit:
-                                    f = wp.int64(order[s])
-                                    f2 = wp.int64(order[s2])
-                                    keys[start + wp.int64(n)] = wp.min(f, f2) * wp.int64(m) + wp.max(f, f2)
+                                    lo_f = wp.int64(wp.min(f, f2))
+                                    hi_f = wp.int64(wp.max(f, f2))
+                                    keys[start + wp.int64(n)] = lo_f * wp.int64(m) + hi_f
                                 n += 1
                         s2 += 1
     return n
