@@ -180,12 +180,12 @@ def test_graded_smooth_shapes(case):
     shape, bounds, exact, euler = {"sphere": SPHERE, "torus": TORUS}[case]
     lo, hi = (0.1, 0.3) if case == "sphere" else (0.07, 0.2)
     size = ramp(lo, hi, 0, bounds[0][0] + 0.2, bounds[1][0] - 0.2)
-    vol = wm.mesh_domain(shape, bounds=bounds, size=size)
+    vol = wm.mesh_domain(shape, bounds=bounds, size=size, features=False)  # smooth: no creases
     s = _check_graded(vol, euler)
     assert s["volume"] == pytest.approx(exact, rel=0.01)
     # fewer tetrahedra than the uniform lattice at the smallest size
     assert vol.info["size_smallest"] == pytest.approx(lo)
-    uniform = wm.mesh_domain(shape, bounds=bounds, size=lo)
+    uniform = wm.mesh_domain(shape, bounds=bounds, size=lo, features=False)
     assert len(vol.cells["tetra"]) < 0.85 * len(uniform.cells["tetra"])
     # local edge lengths follow the size: the median edge of the tetrahedra in a slab
     pts, tets = vol.points, vol.cells["tetra"]
@@ -211,7 +211,7 @@ def test_graded_part_keeps_its_topology_and_volume():
     uniform = wm.mesh_domain(part, bounds=bounds, size=0.08, features=False)
     assert len(vol.cells["tetra"]) < 0.7 * len(uniform.cells["tetra"])
     assert vol.stats()["volume"] == pytest.approx(uniform.stats()["volume"], rel=0.01)
-    # and a Monte Carlo estimate (2 M points, 0.1 % standard error): the unrecovered sharp
+    # and a Monte Carlo estimate (1 M points, 0.1 % standard error): the unrecovered sharp
     # edges are cut off, so the mesh holds a little less (1 %) at these sizes
     assert 0.975 * _part_volume() < vol.stats()["volume"] < _part_volume()
 
@@ -229,7 +229,7 @@ def test_graded_part_with_sharp_features_has_its_volume():
 def _part_volume() -> float:
     part, bounds = wm.example("part")
     lo, hi = np.array(bounds[0]), np.array(bounds[1])
-    p = lo + np.random.default_rng(0).random((2_000_000, 3)) * (hi - lo)
+    p = lo + np.random.default_rng(0).random((1_000_000, 3)) * (hi - lo)
     return float((wm.evaluate(part, p) > 0).mean() * np.prod(hi - lo))
 
 
@@ -293,7 +293,7 @@ def test_a_size_that_fails_away_from_the_samples_is_caught_while_grading():
 @given(seed=st.integers(0, 2**31 - 1))
 def test_random_size_functions_give_valid_meshes(seed):
     rng = np.random.default_rng(seed)
-    base, amp = rng.uniform(0.12, 0.2), rng.uniform(0.05, 0.25)
+    base, amp = rng.uniform(0.14, 0.2), rng.uniform(0.05, 0.25)
     k, phase = rng.normal(size=3) * 2.0, rng.uniform(0, 2 * math.pi)
 
     def size(p):
