@@ -180,17 +180,19 @@ def curvature_size(shape, smallest: float, largest: float, *, angle: float = CUR
 
 def smallest_size(size, box: np.ndarray) -> float:
     """The smallest size of a graded ``size`` over ``box``, validated (a ValueError naming
-    'size' otherwise): ``"curvature"``'s ``smallest``, or a callable's least sample on a 9³ grid.
+    'size' otherwise): ``"curvature"``'s ``smallest``, or a callable's least sample on a 9³ grid
+    (at most half the smallest side of the box: larger sizes are clamped to that).
 
     Example
     -------
     >>> smallest_size("curvature", np.array([[0.0] * 3, [2.0] * 3]))
     0.05
     """
+    extent = float(np.min(np.asarray(box)[1] - np.asarray(box)[0]))
     if isinstance(size, str):
         _check_name(size)
-        return float(np.min(np.asarray(box)[1] - np.asarray(box)[0])) / 40.0
-    return size_field(size, box).smallest
+        return extent / 40.0
+    return min(size_field(size, box).smallest, 0.5 * extent)  # larger sizes are clamped
 
 
 def _check_name(size: str) -> None:

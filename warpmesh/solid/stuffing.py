@@ -109,10 +109,12 @@ def stuff(shape, bounds, h: float, *, alpha_long: float = ALPHA_LONG, alpha_shor
 
 def coarse_size(bounds: np.ndarray, smallest: float, largest: float) -> float:
     """The cube side of the coarse lattice a graded run refines: ``smallest`` times the
-    largest power of two not above ``largest`` nor half the smallest side of the box."""
+    largest power of two not above ``largest`` nor half the smallest side of the box (sizes
+    above that half are clamped to it)."""
     cap = min(float(largest), 0.5 * float(np.min(bounds[1] - bounds[0])))
+    smallest = min(float(smallest), cap)
     k = max(0, int(math.floor(math.log2(max(cap / smallest, 1.0)))))
-    return float(smallest) * 2.0**k
+    return smallest * 2.0**k
 
 
 def _stuff_graded(shape, bounds, grading, alpha_long, alpha_short, iterations, device):
