@@ -169,7 +169,10 @@ def curvature_size(shape, smallest: float, largest: float, *, angle: float = CUR
             nrm = gq / np.where(gn > 0, gn, np.inf)[:, None]
             proj = np.eye(3) - nrm[:, :, None] * nrm[:, None, :]
             shape_op = proj @ hess @ proj / np.where(gn > 0, gn, np.inf)[:, None, None]
-            kappa = np.abs(np.linalg.eigvalsh(shape_op)).max(axis=1)
+            # eigenvalues (k1, k2, 0): k1 + k2 = trace, k1^2 + k2^2 = |S|_F^2
+            tr = np.trace(shape_op, axis1=1, axis2=2)
+            fro = np.einsum("kij,kij->k", shape_op, shape_op)
+            kappa = 0.5 * (np.abs(tr) + np.sqrt(np.maximum(2.0 * fro - tr * tr, 0.0)))
             kappa = np.where(np.isfinite(kappa), kappa, 0.0)
             s = np.clip(angle / np.maximum(kappa, 1e-300), smallest, largest)
             out[near] = np.clip(s + grading * dist[near], smallest, largest)
@@ -304,7 +307,7 @@ class _Bisection:
         frontier = np.unique(split)
         while True:
             flat = self.keys.ravel()
-            order = np.argsort(flat, kind="stable")
+            order = np.argsort(flat)
             sorted_flat = flat[order]
             while len(frontier):  # closure: the longest edges of the tetrahedra holding new keys
                 new = np.setdiff1d(frontier, pending, assume_unique=True)
