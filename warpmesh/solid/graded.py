@@ -16,7 +16,8 @@ not return to it), so the stencils' proof does not carry over: the dihedral rang
 graded mesh is measured and reported. Ties between equally long edges are broken by
 the edges' global vertex ids, so every tetrahedron holding an edge sees the same order and
 the refinement conforms (no hanging vertex): each face of the background lies in one or two
-tetrahedra.
+tetrahedra. Conforming and of four shapes, neighbours share whole faces, so their sizes
+differ by a bounded factor: the grading is balanced, as the paper's octree is.
 
 The bisection is Rivara's, as :func:`warpmesh.modify.refine_local.refine_local` does it for
 any simplex mesh; it is kept here because the background needs what that general routine
