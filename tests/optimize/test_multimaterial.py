@@ -96,3 +96,123 @@ def test_simplify_dispatches_shared_surfaces():
     via = smooth.simplify(fraction=0.4)
     assert np.array_equal(via.points, direct.points) and np.array_equal(via.triangles, direct.triangles)
     assert np.array_equal(via.cell_data["label_above"]["triangle"], direct.cell_data["label_above"]["triangle"])
+
+
+# ----------------------------------------------------------------------------- optimize_labels
+from warpmesh.cells.quality import triangle_angles, triangle_quality  # noqa: E402
+from warpmesh.optimize.label_remesh import optimize_labels  # noqa: E402
+from warpmesh.surface.multilabel import label_boundary  # noqa: E402
+
+
+def _segment_distance(x, s0, s1):
+    """Distance of each point to the nearest of the segments (s0[k], s1[k]) (brute force)."""
+    d = s1 - s0
+    w = np.clip(np.einsum("ikj,kj->ik", x[:, None] - s0[None], d) / np.einsum("kj,kj->k", d, d), 0.0, 1.0)
+    return np.linalg.norm(s0[None] + w[..., None] * d[None] - x[:, None], axis=2).min(axis=1)
+
+
+def _label_volumes(m):
+    lower, upper = _labels(m)
+    out = {}
+    for label in np.unique(np.concatenate([lower, upper])).tolist():
+        b = label_boundary(m, label)
+        c = b.points[b.cells["triangle"]]
+        out[label] = float(np.einsum("ij,ij->i", c[:, 0], np.cross(c[:, 1], c[:, 2])).sum() / 6.0)
+    return out
+
+
+def _edge_error(m, size):
+    t = m.cells["triangle"]
+    e = np.unique(np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1), axis=0)
+    return float(np.abs(np.log(np.linalg.norm(m.points[e[:, 0]] - m.points[e[:, 1]], axis=1) / size)).mean())
+
+
+def _check_optimized(before, after, volume_rtol):
+    _check_closed_oriented(after)
+    t = after.cells["triangle"]
+    assert len(np.unique(np.sort(t, axis=1), axis=0)) == len(t)  # no coincident faces
+    assert len(wm.check(after)) == 0  # no crossing
+    # vertices on feature edges (junction curves, cap rims) lie on the input's feature edges
+    lower0, upper0 = _labels(before)
+    a0, b0, f0, kind0 = classify_edges(before.cells["triangle"], lower0, upper0, before.n_points)
+    a, b, f, kind = classify_edges(t, *_labels(after), after.n_points)
+    on_curve = np.unique(np.concatenate([a[f], b[f]]))
+    assert len(on_curve)
+    dist = _segment_distance(after.points[on_curve], before.points[a0[f0]], before.points[b0[f0]])
+    assert dist.max() <= 1e-6
+    # junction vertices (3 labels or more) still separate 3 labels or more
+    sets = _vertex_label_sets(after)
+    assert all(len(sets[k]) >= 2 for k in range(after.n_points))
+    # the fixed vertices of the input are all there, unmoved
+    fixed = before.points[kind0 == 0]
+    if len(fixed):
+        kept = {tuple(q) for q in after.points.tolist()}
+        assert all(tuple(q) in kept for q in fixed.tolist())
+    # no worse
+    assert triangle_quality(after.points, t).max() <= triangle_quality(before.points, before.cells["triangle"]).max()
+    # labels carried: each label's enclosed volume (the rest's is negative: its boundary faces inwards)
+    v0, v1 = _label_volumes(before), _label_volumes(after)
+    assert v0.keys() == v1.keys()
+    for label in v0:
+        assert abs(v1[label] - v0[label]) <= volume_rtol * abs(v0[label]), (label, v0[label], v1[label])
+    info = after.info["optimize"]
+    assert info["after"]["triangles"] == after.n_cells and info["before"]["triangles"] == before.n_cells
+    assert info["after"]["q_worst"] <= info["before"]["q_worst"]
+
+
+def test_optimize_two_boxes_staircase_coarser():
+    """The raw staircase of two stacked boxes, towards twice the voxel size: every triangle
+    of the input is already right isosceles (Q_K 1.39, the worst), so the run that may make
+    triangles worse ends worse and the strict one (no triangle worse than 1.39) is kept:
+    fewer triangles, a better mean Q_K, the junction loop kept in its plane."""
+    vol = np.zeros((14, 14, 14), np.uint8)
+    vol[3:11, 3:11, 3:7] = 1
+    vol[3:11, 3:11, 7:11] = 2
+    raw = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    opt = optimize_labels(raw, size=2.0, iterations=3)
+    _check_optimized(raw, opt, volume_rtol=0.03)
+    assert opt.n_cells < raw.n_cells and opt.info["optimize"]["kept"] == "strict"
+    assert opt.info["optimize"]["after"]["q_mean"] < opt.info["optimize"]["before"]["q_mean"]
+    loop = np.array([s == (0, 1, 2) for s in _vertex_label_sets(opt)])
+    assert loop.sum() >= 4 and np.ptp(opt.points[loop, 2]) < 1e-12
+
+
+@pytest.mark.parametrize("size", [None, 1.6])
+def test_optimize_smoothed_three_labels(size):
+    """A smoothed 3-label blob volume (junction curves, their ends fixed): the worst Q_K
+    and the smallest angle get better, the edges nearer the size."""
+    smooth = wm.mesh_surface(_blobs(0, 3, shape=(12, 13, 14)), labels="all", interfaces="shared", smoothing=16)
+    opt = optimize_labels(smooth, size=size, iterations=3)
+    _check_optimized(smooth, opt, volume_rtol=0.03)
+    info = opt.info["optimize"]
+    assert info["kept"] == "final" and info["splits"] + info["collapses"] > 0 and info["flips"] > 0
+    assert info["after"]["q_worst"] < 0.5 * info["before"]["q_worst"]
+    assert triangle_angles(opt.points, opt.cells["triangle"]).min() > info["before"]["angle_min"]
+    assert info["after"]["edge_error"] < info["before"]["edge_error"]
+
+
+def test_optimize_dispatches_shared_surfaces():
+    """``Mesh.optimize`` of a shared surface without a shape is optimize_labels."""
+    smooth = wm.mesh_surface(_blobs(3, 3, shape=(10, 11, 12)), labels="all", interfaces="shared", smoothing=8)
+    direct = optimize_labels(smooth, 1.5, iterations=2)
+    via = smooth.optimize(size=1.5, iterations=2)
+    assert np.array_equal(via.points, direct.points) and np.array_equal(via.triangles, direct.triangles)
+    assert np.array_equal(via.cell_data["label_above"]["triangle"], direct.cell_data["label_above"]["triangle"])
+
+
+def test_optimize_bad_options_name_the_argument():
+    raw = wm.mesh_surface(_blobs(0, 3, shape=(8, 8, 8)), labels="all", interfaces="shared")
+    for bad in (0.0, -1.0, float("nan"), "curvature", True):
+        with pytest.raises(ValueError, match="'size'"):
+            optimize_labels(raw, bad)
+    with pytest.raises(ValueError, match="'size'"):
+        optimize_labels(raw, lambda x: -np.ones(len(x)))
+    for bad in (0.0, -1.0, "0.1"):
+        with pytest.raises(ValueError, match="'tolerance'"):
+            optimize_labels(raw, 1.5, tolerance=bad)
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="'iterations'"):
+            optimize_labels(raw, 1.5, iterations=bad)
+    with pytest.raises(ValueError, match="interfaces='shared' in 'mesh'"):
+        optimize_labels(wm.mesh_surface(_blobs(0, 3, shape=(8, 8, 8)), labels="all"), 1.5)
+

@@ -50,9 +50,9 @@ import numpy as np
 
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 from warpmesh.optimize.label_smoothing import GRID_INFO, box_sides, classify_edges, vertex_cubes, wing_cos, wing_pairs
-from warpmesh.optimize.local_ops import select_independent
+from warpmesh.optimize.local_ops import quality_of, select_independent
 
-__all__ = ["MAX_TURN", "simplify_labels"]
+__all__ = ["MAX_TURN", "collapse_round", "simplify_labels"]
 
 #: largest turn (degrees) of a triangle's normal in a collapse
 MAX_TURN = 60.0
@@ -128,8 +128,8 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
     for _ in range(MAX_ROUNDS):
         if len(t) <= goal:
             break
-        done, refused = _collapse_round(p, t, lower, upper, bits, reference, float(tolerance), counts,
-                                        room=int((len(t) - goal) // 2) + 1, refused=refused)
+        done, refused = collapse_round(p, t, lower, upper, bits, reference, float(tolerance), counts,
+                                       room=int((len(t) - goal) // 2) + 1, refused=refused)
         if done is None:
             break
         t, lower, upper = done
@@ -143,14 +143,59 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
     return type(mesh)(p[used], {"triangle": index[t]}, cell_refs={"triangle": lower}, cell_data=data, info=info)
 
 
-def _collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refused):
-    """One batch of independent half-edge collapses that pass the checks, not among the
-    ``refused`` ones (keys u * n + v). Returns ((triangles, lower, upper), or None when no
-    collapse passes; the refused keys with this batch's failures added)."""
+def collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refused, *, shorter=None,
+                   longest=None, q_limit=None):
+    """One batch of independent half-edge collapses u -> v that pass the checks (module
+    docstring), not among the ``refused`` ones (keys u * n + v).
+
+    Parameters
+    ----------
+    p : (n, 3) float
+    t : (m, 3) int
+    lower, upper : (m,) int
+        The triangles' two labels.
+    bits : (n,) int or None
+        :func:`warpmesh.optimize.label_smoothing.box_sides` of the vertices (caps), or None.
+    reference : MeshTarget
+        The surface the new faces must stay within ``tol`` of.
+    counts : dict
+        ``collapses`` and ``rejected`` are incremented here.
+    room : int
+        At most this many collapses.
+    refused : (r,) int64
+        Keys u * n + v not to try.
+    shorter : (n,) float, optional
+        Only edges shorter than ``shorter`` at both ends collapse (the remeshing of
+        :mod:`warpmesh.optimize.label_remesh`); by default any edge.
+    longest : (n,) float, optional
+        A new edge may not be longer than ``longest`` at its ends.
+    q_limit : float, optional
+        A new face's Q_K may not exceed ``max(q_limit, its Q_K before)``.
+
+    Returns
+    -------
+    ((triangles, lower, upper) or None when no collapse passes, refused keys with this
+    batch's failures added)
+
+    Example
+    -------
+    >>> import numpy as np, warpmesh as wm
+    >>> from warpmesh.frep.projection import MeshTarget
+    >>> vol = np.zeros((8, 8, 8), np.uint8); vol[2:6, 2:6, 2:6] = 1
+    >>> m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    >>> t, lo, up = m.triangles, m.cell_refs["triangle"], m.cell_data["label_above"]["triangle"]
+    >>> counts = {"collapses": 0, "rejected": 0}
+    >>> done, _ = collapse_round(m.points, t, lo, up, None, MeshTarget(m.points, t), 0.5, counts, 10,
+    ...                          np.zeros(0, np.int64))
+    >>> len(done[0]) < len(t), counts["collapses"] > 0
+    (True, True)
+    """
     n = len(p)
     a, b, feature, kind = classify_edges(t, lower, upper, n, bits)
     u, v, along = np.concatenate([a, b]), np.concatenate([b, a]), np.concatenate([feature, feature])
     ok = ((kind[u] == 2) & ~along) | ((kind[u] == 1) & along)
+    if shorter is not None:
+        ok &= np.linalg.norm(p[u] - p[v], axis=1) < np.minimum(shorter[u], shorter[v])
     u, v = u[ok], v[ok]
     fresh = ~np.isin(u * n + v, refused)
     u, v = u[fresh], v[fresh]
@@ -184,7 +229,7 @@ def _collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refu
         if len(chosen) == 0:
             break
         trial, faces, owner, keep = _apply(t, u[chosen], v[chosen], n)
-        failed = _failing(p, t, trial, faces, owner, keep, reference, tol, len(chosen))
+        failed = _failing(p, t, trial, faces, owner, keep, reference, tol, len(chosen), longest, q_limit)
         if not failed.any():
             counts["collapses"] += len(chosen)
             return (trial, lower[keep], upper[keep]), refused
@@ -223,10 +268,16 @@ def _apply(t, u, v, n):
     return trial, changed, k[keep][changed], keep
 
 
-def _failing(p, t_old, trial, faces, owner, keep, reference, tol, n_ops):
+def _failing(p, t_old, trial, faces, owner, keep, reference, tol, n_ops, longest=None, q_limit=None):
     """Which collapses fail a check (module docstring), as a (n_ops,) bool array."""
     failed = np.zeros(n_ops, bool)
     new, old = p[trial[faces]], p[t_old[keep[faces]]]
+    if longest is not None:
+        tf = trial[faces]
+        too_long = np.linalg.norm(new[:, [1, 2, 0]] - new, axis=2) > np.minimum(longest[tf], longest[tf[:, [1, 2, 0]]])
+        failed[owner[too_long.any(axis=1)]] = True
+    if q_limit is not None:
+        failed[owner[quality_of(new) > np.maximum(q_limit, quality_of(old))]] = True
     n_new = np.cross(new[:, 1] - new[:, 0], new[:, 2] - new[:, 0])
     n_old = np.cross(old[:, 1] - old[:, 0], old[:, 2] - old[:, 0])
     len_new, len_old = np.linalg.norm(n_new, axis=1), np.linalg.norm(n_old, axis=1)

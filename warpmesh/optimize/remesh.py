@@ -992,7 +992,10 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
         ``rejected`` (operations undone by the embedding checks), ``kept`` ("final",
         the pass returned because the final worst Q_K was above the input's, or
         "input", which also warns: no progress) and ``q_worst_reached`` (the final worst Q_K, returned or not);
-        ``stats()`` gives ``q_mean``, ``q_worst``.
+        ``stats()`` gives ``q_mean``, ``q_worst``. A shared multi-material surface
+        (``interfaces="shared"``) without ``shape`` goes to :func:`warpmesh.optimize.
+        label_remesh.optimize_labels` (``size``, ``tolerance``, ``iterations``; junction
+        vertices stay on their input curves).
 
     Examples
     --------
@@ -1004,6 +1007,9 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
     (-6, True)
     """
     _check_iterations(iterations)
+    if shape is None and "label_above" in getattr(mesh, "cell_data", {}):  # a shared multi-material surface
+        from warpmesh.optimize.label_remesh import optimize_labels
+        return optimize_labels(mesh, size, tolerance=tolerance, iterations=int(iterations))
     return _drive(mesh, shape, bounds=bounds, size=size, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=None, simplifying=False)
 
