@@ -103,8 +103,10 @@ def test_caps_where_the_bounds_clip_the_shape():
 
 def test_recovery_gives_up_with_a_clear_error():
     shape, box = wm.example("part")
-    with pytest.raises(WarpMeshError, match="boundary recovery"):
-        delaunay_tets(shape, np.array(box, float), 0.12, max_rounds=1)
+    pts, tets, on, info = delaunay_tets(shape, np.array(box, float), 0.2)
+    assert info["delaunay_rounds"] > 1 and info["recovery_inserted"] > 0  # it needs recovery here...
+    with pytest.raises(WarpMeshError, match="boundary recovery did not finish in 1 rounds"):
+        delaunay_tets(shape, np.array(box, float), 0.2, max_rounds=1)  # ... so one round is not enough
 
 
 def test_recovery_stops_when_rounds_repeat(monkeypatch):

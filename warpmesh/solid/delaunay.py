@@ -52,7 +52,7 @@ __all__ = ["mesh_delaunay", "delaunay_tets", "peel_slivers", "ClippedField", "CL
            "TOLERANCE", "MAX_ROUNDS", "SLIVER_ANGLE"]
 
 #: lattice nodes kept as interior points: clipped distance above this times h
-CLEARANCE = 0.5
+CLEARANCE = 0.7
 #: surface points at least this times h apart (the Poisson-disk radius)
 SPACING = 0.5
 #: recovery inserts no point closer than this times h to a surface point
