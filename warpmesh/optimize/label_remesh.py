@@ -496,6 +496,9 @@ def _flip_pass(p, t, lower, upper, bits, ref, tol, counts):
         return t
     chosen = idx[select_independent(len(idx), -gain[idx], np.concatenate([f1[idx], f2[idx]]),
                                     np.tile(np.arange(len(idx)), 2), rounds=8)]
+    # two flips of one batch may make the same new edge (c, d): one of them only
+    new_key = np.minimum(c[chosen], d[chosen]) * n + np.maximum(c[chosen], d[chosen])
+    chosen = chosen[np.sort(np.unique(new_key, return_index=True)[1])]
     far = ref.distance(0.5 * (p[c[chosen]] + p[d[chosen]])) > tol
     chosen = chosen[~far]
     counts["rejected"] += int(far.sum())
