@@ -26,10 +26,10 @@ label_smoothing.wing_cos`). Batches of collapses with disjoint stars (shortest e
 first) are made until the triangle count reaches ``fraction`` of the input's or no
 collapse passes.
 
-What is not here: remeshing towards a size field with splits, flips and relocation (the
-``optimize`` of [FG §16.4.3]) on a multi-material surface; :func:`warpmesh.optimize.
-remesh.optimize` takes edge-manifold surfaces only, and moves and splits open
-boundaries, so it cannot run per interface with the junction curves shared.
+Remeshing towards a size with splits, flips and relocation as well (the ``optimize`` of
+[FG §16.4.3]) is :func:`warpmesh.optimize.label_remesh.optimize_labels`, which makes its
+collapses with :func:`collapse_round` (``shorter``, ``longest``, ``q_limit``);
+:func:`warpmesh.optimize.remesh.optimize` hands shared surfaces to it.
 
 Example
 -------
