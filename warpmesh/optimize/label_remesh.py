@@ -93,6 +93,14 @@ COLLAPSE_ROUNDS = 4
 SMOOTH_PASSES = 2
 #: nearest feature segments of the same curve looked at when projecting onto a curve
 _CURVE_NEIGHBOURS = 8
+#: the flag, in a vertex's box-side bits, of a vertex fixed in the input: it stays fixed
+#: even where the operations around it would make it look like a curve vertex
+_PINNED = np.int64(1) << np.int64(40)
+
+
+def _sides(bits):
+    """The box-side bits of :func:`warpmesh.optimize.label_smoothing.box_sides`, without the pin."""
+    return bits & (_PINNED - 1)
 
 
 def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iterations: int = 6):
@@ -162,6 +170,8 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
         raise ValueError(f"expected a positive 'tolerance', got {tolerance!r}")
     tol = float(tolerance)
     ref = _Reference(p, t, lower, upper, bits)
+    _, _, _, kind = classify_edges(t, lower, upper, len(p), bits)
+    bits = bits | np.where(kind == 0, _PINNED, 0)  # the input's fixed vertices stay fixed whatever happens around
     before = _summary(p, t, h_of)
     counts = {"splits": 0, "collapses": 0, "flips": 0, "moves": 0, "rejected": 0}
     start = (p, t, lower, upper, bits)
@@ -385,7 +395,7 @@ def _split_pass(p, t, lower, upper, bits, h_of, ref, q_limit, counts):
     long_ = length > SPLIT_ABOVE * h_of(0.5 * (p[a] + p[b]))
     if not long_.any():
         return p, t, lower, upper, bits
-    _, _, feature, _ = classify_edges(t, lower, upper, n, bits)  # same edge order (sorted keys)
+    _, _, feature, _ = classify_edges(t, lower, upper, n, _sides(bits))  # same edge order (sorted keys)
     cand = np.flatnonzero(long_)
     rank = np.full(len(keys), -1)
     rank[cand] = np.arange(len(cand))
@@ -417,7 +427,7 @@ def _split_pass(p, t, lower, upper, bits, h_of, ref, q_limit, counts):
         failed[owner[fail_face & (owner >= 0)]] = True
         if not failed.any():
             counts["splits"] += len(edges)
-            b2 = np.concatenate([bits, bits[a[edges]] & bits[b[edges]]])
+            b2 = np.concatenate([bits, bits[a[edges]] & bits[b[edges]] & ~_PINNED])
             return p2, t2, lo2, up2, b2
         counts["rejected"] += int(failed.sum())
         edges, new = edges[~failed], new[~failed]
@@ -454,8 +464,9 @@ def _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol, q_limit, counts):
     refused = np.zeros(0, np.int64)
     sub = {"collapses": 0, "rejected": 0}
     for _ in range(COLLAPSE_ROUNDS):
-        done, refused = collapse_round(p, t, lower, upper, bits, ref, tol, sub, room=len(t), refused=refused,
-                                       shorter=COLLAPSE_BELOW * h, longest=SPLIT_ABOVE * h, q_limit=q_limit)
+        done, refused = collapse_round(p, t, lower, upper, _sides(bits), ref, tol, sub, room=len(t),
+                                       refused=refused, shorter=COLLAPSE_BELOW * h, longest=SPLIT_ABOVE * h,
+                                       q_limit=q_limit, pinned=(bits & _PINNED) != 0)
         if done is None:
             break
         t, lower, upper = done
@@ -471,7 +482,7 @@ def _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol, q_limit, counts):
 def _flip_pass(p, t, lower, upper, bits, ref, tol, counts):
     n = len(p)
     e, face, eid, keys = _edges(t, n)
-    _, _, feature, _ = classify_edges(t, lower, upper, n, bits)
+    _, _, feature, _ = classify_edges(t, lower, upper, n, _sides(bits))
     inner = np.flatnonzero(~feature)  # exactly two faces of one interface
     order = np.argsort(eid, kind="stable")
     start = np.searchsorted(eid[order], inner)
@@ -523,7 +534,8 @@ def _flip_pass(p, t, lower, upper, bits, ref, tol, counts):
 # ----------------------------------------------------------------------------- relocation
 def _relocate_pass(p, t, lower, upper, bits, ref, q_limit, counts):
     n = len(p)
-    a, b, feature, kind = classify_edges(t, lower, upper, n, bits)
+    a, b, feature, kind = classify_edges(t, lower, upper, n, _sides(bits))
+    kind = np.where((bits & _PINNED) != 0, 0, kind)
     target = p.copy()
     # interface vertices: area-weighted centroid of the ball, in the tangent plane
     nrm = _normals(p, t)

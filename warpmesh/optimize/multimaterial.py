@@ -144,7 +144,7 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
 
 
 def collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refused, *, shorter=None,
-                   longest=None, q_limit=None):
+                   longest=None, q_limit=None, pinned=None):
     """One batch of independent half-edge collapses u -> v that pass the checks (module
     docstring), not among the ``refused`` ones (keys u * n + v).
 
@@ -171,6 +171,8 @@ def collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refus
         A new edge may not be longer than ``longest`` at its ends.
     q_limit : float, optional
         A new face's Q_K may not exceed ``max(q_limit, its Q_K before)``.
+    pinned : (n,) bool, optional
+        Vertices that never go, whatever their class.
 
     Returns
     -------
@@ -194,6 +196,8 @@ def collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refus
     a, b, feature, kind = classify_edges(t, lower, upper, n, bits)
     u, v, along = np.concatenate([a, b]), np.concatenate([b, a]), np.concatenate([feature, feature])
     ok = ((kind[u] == 2) & ~along) | ((kind[u] == 1) & along)
+    if pinned is not None:
+        ok &= ~pinned[u]
     if shorter is not None:
         ok &= np.linalg.norm(p[u] - p[v], axis=1) < np.minimum(shorter[u], shorter[v])
     u, v = u[ok], v[ok]
