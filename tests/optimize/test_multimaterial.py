@@ -216,6 +216,23 @@ def test_optimize_dispatches_shared_surfaces():
     assert np.array_equal(via.cell_data["label_above"]["triangle"], direct.cell_data["label_above"]["triangle"])
 
 
+def test_optimize_graded_size():
+    """A size growing along x: the edges follow it (longer where it is larger)."""
+    smooth = wm.mesh_surface(_blobs(1, 3, shape=(16, 9, 10)), labels="all", interfaces="shared", smoothing=16)
+
+    def size(x):
+        return 0.8 + 0.12 * x[:, 0]
+
+    opt = optimize_labels(smooth, size=size, iterations=2)
+    _check_optimized(smooth, opt, volume_rtol=0.04)
+    t = opt.cells["triangle"]
+    e = np.unique(np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1), axis=0)
+    mid_x = 0.5 * (opt.points[e[:, 0], 0] + opt.points[e[:, 1], 0])
+    length = np.linalg.norm(opt.points[e[:, 0]] - opt.points[e[:, 1]], axis=1)
+    assert length[mid_x > 11].mean() > 1.3 * length[mid_x < 4].mean()
+    assert opt.info["optimize"]["after"]["edge_error"] < opt.info["optimize"]["before"]["edge_error"]
+
+
 def test_optimize_bad_options_name_the_argument():
     raw = wm.mesh_surface(_blobs(0, 3, shape=(8, 8, 8)), labels="all", interfaces="shared")
     for bad in (0.0, -1.0, float("nan"), "curvature", True):
