@@ -44,9 +44,17 @@ oriented. The result is never worse than the input: if the last iteration's wors
 above the input's, the best iteration that was not is returned, else the input (with a
 warning); ``info["optimize"]`` says which (``kept``).
 
+Measured on pyvista's frog (25 labels, ``smoothing=16``, 1.58 M triangles, default size
+0.998, 2 iterations, 2 cores, load ~1): 484 s wall / 502 CPU s; 1.85 M triangles; mean
+Q_K 1.55 -> 1.15, mean ``|log(length / size)|`` 0.20 -> 0.13, no crossing; the worst
+Q_K (1066) and smallest angle (0.062 degrees) stay: that sliver has no vertex that may move
+and no edge that may flip.
+
 What is not here: a size field from the curvature (``size="curvature"``), the polishing
 passes of :func:`warpmesh.optimize.remesh.optimize` (best-position moves, needle
-collapses), and moving fixed vertices (a curve end stays where the input has it).
+collapses), moving fixed vertices (a curve end stays where the input has it), and so any
+repair of a sliver whose vertices are all fixed or on curves (cap rims, junctions) and
+whose long edge is a feature edge.
 
 Example
 -------
