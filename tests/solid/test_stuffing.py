@@ -151,7 +151,7 @@ def test_planar_shapes_still_get_triangles():
     ({"size": 3.0}, "size"),
     ({"size": float("nan")}, "size"),
     ({"bounds": ((float("nan"), 0, 0), (1, 1, 1))}, "bounds"),
-    ({"method": "delaunay"}, "method"),
+    ({"method": "voronoi"}, "method"),
     ({"alpha": 0.3}, "alpha"),
     ({"alpha_long": 0.7}, "alpha_long"),
     ({"smooth": -1}, "smooth"),
