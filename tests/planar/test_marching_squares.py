@@ -204,8 +204,8 @@ def _bilinear(f, u, v):
 
 def test_saddle_value_is_the_stationary_value_of_the_bilinear_interpolant():
     rng = np.random.default_rng(2)
+    f = rng.normal(size=(4, 200))
     # f = f0 + b u + c v + d uv: stationary point u* = -c / d, v* = -b / d
-    # f = a + b u + c v + d uv: stationary point u* = -c / d, v* = -b / d
     b, c, d = f[1] - f[0], f[3] - f[0], f[0] - f[1] + f[2] - f[3]
     u, v = -c / d, -b / d
     assert np.allclose(ms.saddle_value(*f), _bilinear(f, u, v))
