@@ -220,7 +220,7 @@ def main(argv=None) -> None:
                 rows.append({"case": case, "n": n, "method": method, "warpmesh_s": w, "vtk_fe_s": fe,
                              "skimage_s": res.get("scikit-image", (float("nan"),))[0], "warpmesh_over_vtk": w / fe,
                              "warpmesh_cpu_s": res[f"warpmesh {method}"][1], "vtk_cpu_s": res["VTK flying edges"][1]})
-            del vol
+            vol = entries = None  # free the volume before the next size (the lambdas are done)
     print("\nsummary: warpmesh time / VTK flying edges time (target <= 1), same run")
     for r in rows:
         print(f"  {r['case']:<7} {r['n']}^3 {r['method']:<5} {r['warpmesh_s']:.3f} s / {r['vtk_fe_s']:.3f} s = "
