@@ -179,6 +179,25 @@ def test_command_line_domain_3d(tmp_path, capsys):
     assert {c.type for c in back.cells} == {"tetra", "triangle"}
 
 
+def test_command_line_domain_graded_by_curvature(capsys):
+    from warpmesh.cli.commands import main
+
+    args = ["domain", "--expr", "1 - x**2 / 0.81 - y**2 / 0.16 - z**2 / 0.16", "--bounds", "-1", "-0.5", "-0.5",
+            "1", "0.5", "0.5", "--json"]
+    assert main(args + ["--size", "curvature"]) == 0
+    graded = __import__("json").loads(capsys.readouterr().out)
+    assert main(args + ["--size", "0.05"]) == 0
+    uniform = __import__("json").loads(capsys.readouterr().out)
+    assert graded["euler"] == 2 and graded["dihedral_min"] > 0
+    assert graded["ne"] != uniform["ne"]
+    with pytest.raises(SystemExit):  # argparse refuses a word other than 'curvature'
+        main(args + ["--size", "fine"])
+    capsys.readouterr()
+    code = main(["domain", "--expr", "1 - x**2 - y**2", "--bounds", "-1.2", "-1.2", "1.2", "1.2",
+                 "--size", "curvature"])
+    assert code != 0 and "--size curvature" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_dihedral_bounds_on_random_placements(seed):
     """Spheres, ellipsoids and tori of random sizes, offsets and rotations against the lattice."""

@@ -12,9 +12,12 @@ Examples
 ``warpmesh domain --example part --size 0.04 --smooth 2 -o part.msh`` (3D: tetrahedra by
 isosurface stuffing, :mod:`warpmesh.solid`)
 ``warpmesh domain shapes.py:bracket --size 0.1 -o bracket.mesh`` (2D or 3D, by its bounds)
+``warpmesh domain --example torus --size curvature -o torus.vtu`` (3D: graded by curvature)
 """
 
 from __future__ import annotations
+
+import argparse
 
 COMMANDS = ("curve", "domain")
 #: flags by the keyword of :func:`warpmesh.mesh_curve` / :func:`warpmesh.mesh_domain` they set
@@ -39,8 +42,9 @@ def add_parsers(sub) -> None:
     d = sub.add_parser("domain", help="mesh an implicit domain f > 0: triangles in the plane, tetrahedra in 3D "
                                       "([FG §16.5.2])")
     add_shape_arguments(d, d.add_mutually_exclusive_group(required=True), dims=(2, 3))
-    d.add_argument("--size", type=float, help="target edge length (default: box diagonal / 20; 3D: the "
-                                              "smallest side / 20)")
+    d.add_argument("--size", type=_domain_size, help="target edge length (default: box diagonal / 20; 3D: the "
+                                                     "smallest side / 20), or, in 3D, 'curvature': graded by "
+                                                     "the surface's curvature")
     d.add_argument("--tolerance", type=float, help="planar: relative chord deviation of the boundary (default 1e-2)")
     d.add_argument("--min-angle", type=float, help="planar: smallest angle aimed at, degrees (default 28)")
     d.add_argument("--method", choices=["global", "triangle", "stuffing", "delaunay"],
@@ -52,6 +56,16 @@ def add_parsers(sub) -> None:
     for p in (c, d):
         p.add_argument("--json", action="store_true", help="print the whole statistics as JSON")
         p.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
+
+
+def _domain_size(text: str):
+    """``--size`` of ``domain``: a number, or the word ``curvature`` (a 3D graded size)."""
+    if text.strip().lower() == "curvature":
+        return "curvature"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or 'curvature', got {text!r}") from None
 
 
 def run(wm, args, clock) -> int:
@@ -80,6 +94,8 @@ def run(wm, args, clock) -> int:
             check_output(args.output, cells=("tetra", "triangle") if solid else ("triangle", "line"))
         if solid and (args.tolerance is not None or args.min_angle is not None):
             raise ValueError("--tolerance and --min-angle shape planar domains; 3D domains take --size and --smooth")
+        if not solid and args.size == "curvature":
+            raise ValueError("--size curvature grades 3D domains (3-value --bounds); planar domains take a number")
         if not solid and args.smooth:
             raise ValueError("--smooth applies to 3D domains (3-value --bounds); planar domains are smoothed "
                              "by their own pipeline")
