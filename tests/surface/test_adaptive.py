@@ -8,7 +8,7 @@ import pytest
 
 import warpmesh as wm
 from warpmesh.frep import expr as E
-from warpmesh.surface.adaptive.octree import ONE_SHEET
+from warpmesh.surface.adaptive.octree import ONE_SHEET, Octree, _cap_loses
 from tests.helpers.random_shapes import random_shape
 from tests.helpers.topology_oracle import CSG_PART_EXPECTED, DEGREE_SIX_EXPECTED
 
@@ -360,3 +360,23 @@ def test_a_thin_solid_against_the_bounds_is_kept():
     exact = np.pi * 0.06 ** 2 * (3 - 0.06) / 3  # the cap of height 0.06 of the unit ball
     assert s["watertight"] and s["euler"] == g.stats()["euler"] == 2 and s["components"] == 1
     assert abs(s["volume"] - exact) < 0.1 * exact
+
+
+def _corner_values(inside_corners) -> np.ndarray:
+    return np.array([[1.0 if k in inside_corners else -1.0 for k in range(8)]], np.float32)
+
+
+@pytest.mark.parametrize("inside, refine", [
+    ({0, 1, 2, 3, 4, 5}, True),  # a slab on z = 0 whose top crosses the cell: the cap hides its edge 2-6 crossing
+    ({0, 1, 2, 3}, True),  # a slab thinner than the cell: nothing left above the cap
+    ({0, 1, 4, 5}, False),  # a wall standing on the bounds: every crossing is still seen
+    (set(range(8)), False),  # solid through the whole cell: the cap only closes it
+    ({4, 5}, False),  # nothing inside on the bounds: the cap changes nothing
+])
+def test_cap_refines_the_cells_whose_crossings_it_hides(inside, refine):
+    """A cell on the bounds z = 0 (corners 0-3; corner k at (k & 1, k >> 1 & 1, k >> 2)): the cap
+    counts its corners there as outside, so an edge from an inside corner on the bounds to an
+    outside one off them loses its crossing (seed 102141 of the topology fuzz: a slab under
+    coarse leaves lost its part below the leaves' corners, and the solid gained a handle)."""
+    tree = Octree(np.zeros(3), np.full(3, 0.1), np.array([16, 16, 16]), 4, 1, True, None, None, (), None, None)
+    assert _cap_loses(tree, 2, np.array([[1, 1, 0]]), _corner_values(inside))[0] == refine

@@ -276,6 +276,26 @@ def cell_keys(level: np.ndarray, ijk: np.ndarray) -> np.ndarray:
         (ijk[:, 1] << CELL_BITS) | ijk[:, 2]
 
 
+def finest_cells(lo, hi, max_level: int):
+    """(base level, base cells per axis, finest cells per axis) of the octree on [lo, hi].
+
+    The longest side has ``2**max_level`` finest cells; the others whole base cells, so
+    their finest cells are up to 1.25x as long (a grid with these cells samples f as the
+    octree's finest level does).
+
+    Example
+    -------
+    >>> finest_cells(np.zeros(3), np.array([2.0, 1.0, 0.1]), 6)[2].tolist()
+    [64, 32, 16]
+    """
+    extent = np.asarray(hi, dtype=np.float64) - np.asarray(lo, dtype=np.float64)
+    base = min(3, max_level)
+    # at least 2 base cells per axis, so that no cell touches both ends of an axis: the cap
+    # closes a cell on one side per axis (a thin box with 1 base cell across lost half its volume)
+    n0 = np.maximum(2, np.round(extent / extent.max() * (1 << base))).astype(np.int64)
+    return base, n0, n0 << (max_level - base)
+
+
 def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, tolerance: float | None,
                  angles=None, chord: float | None = None, bound: str = "interval", lipschitz: float | None = None,
                  cap: bool = True, prune: bool = True, force=None, device="cpu") -> Octree:
@@ -283,11 +303,7 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     cells along the longest side), refining where the criteria above fail, and the cells
     whose keys (:func:`cell_keys`) are in the sorted array ``force``."""
     extent = hi - lo
-    base = min(3, max_level)
-    # at least 2 base cells per axis, so that no cell touches both ends of an axis: the cap
-    # closes a cell on one side per axis (a thin box with 1 base cell across lost half its volume)
-    n0 = np.maximum(2, np.round(extent / extent.max() * (1 << base))).astype(np.int64)
-    n_finest = n0 << (max_level - base)
+    base, n0, n_finest = finest_cells(lo, hi, max_level)
     h = extent / n_finest
     min_level = min(max_level, 5) if min_level is None else min_level
     eps1, eps2 = (4.0 * (tolerance or 0.0), 4.0 * (tolerance or 0.0)) if angles is None else angles
@@ -424,7 +440,13 @@ def _cap_loses(tree: Octree, level: int, ijk: np.ndarray, vals: np.ndarray) -> n
     capped = inside & ~on_bound
     config = (capped << np.arange(8)).sum(axis=1)
     touched = np.any(inside & on_bound, axis=1)
-    return touched & ((config == 0) | ~ONE_SHEET[config])
+    # an edge from an inside corner on the bounds to an outside corner off them: f crosses 0 on it, the
+    # capped corners do not show it (a solid sheet lying along the bounds, under the leaf)
+    outside_off = ~inside & ~on_bound
+    a, b = CUBE_EDGES[:, 0], CUBE_EDGES[:, 1]
+    hidden = np.any((inside & on_bound)[:, a] & outside_off[:, b] | (inside & on_bound)[:, b] & outside_off[:, a],
+                    axis=1)
+    return touched & ((config == 0) | ~ONE_SHEET[config] | hidden)
 
 
 _EDGE_ARRAYS: dict = {}
