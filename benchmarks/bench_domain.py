@@ -1,38 +1,55 @@
 #!/usr/bin/env python3
-"""Tetrahedral meshes of implicit domains: warpmesh's isosurface stuffing side by side with
-gmsh and TetGen on the CPU, in one run.
+"""Tetrahedral meshes of implicit domains (issue 20 part 8): warpmesh's isosurface stuffing
+side by side with gmsh, TetGen, mmg3d's level-set mode (mmgpy) and fTetWild (pytetwild) on
+the CPU, all in one run and one table.
 
-Cases: the unit sphere, the torus (R = 1, r = 0.35) and the CSG part (a plate with four
-holes and a boss: sharp edges), each at about ``--tets`` tetrahedra (default 100 k; add
-``--large`` for about 1 M too).
+Cases (``--cases``): the unit sphere, the torus (R = 1, r = 0.35), the CSG part (a plate with
+four holes and a boss: sharp edges), ``gyroid_ball`` (the gyroid's solid network, period 1,
+intersected with the unit ball: :func:`gyroid_ball`) and ``degree6`` (the degree-six solid of
+``wm.example("degree6")`` clipped by its box [-3, 3]^3, closed by caps), each at about 100 k
+tetrahedra (``--sizes 100k``, the default) and/or about 1 M (``--sizes 100k,1M``, or
+``--large``). A peer that does not import prints why and its rows say "not installed"
+(``pip install -e ".[bench]"`` brings mmgpy and pytetwild).
 
-- warpmesh: ``wm.mesh_domain(shape, bounds, size=h)`` from the shape (lattice, cut points
-  by a bracketed root search (Illinois) of the exact f, warp, stencils; boundary faces and statistics included).
-- gmsh: the same solids built with OpenCASCADE (``addSphere``, ``addTorus``, box minus
-  cylinders fused with a sphere), ``Mesh.MeshSizeMin/Max`` set so the count is close, 3D
-  Delaunay (``Mesh.Algorithm3D = 1``) with gmsh's default optimisation; timed from the
-  model to the tetrahedra (geometry, surface and volume meshing).
-- TetGen (``tetgen`` package) on warpmesh's own boundary surface (the same triangles),
-  quality switches ``minratio=1.5``, ``mindihedral=10`` and a maximum volume giving a
-  similar count.
-- warpmesh with ``features=False`` (one run): stuffing without the crease recovery (on the
-  part, the distance from the exact edges to the nearest boundary edge, in units of size).
-- warpmesh with ``method="delaunay"`` (one run, its own size for a similar count): lattice
-  and surface points, scipy's Delaunay kernel, boundary recovery, sliver peeling, smoothing
-  and flips (:mod:`warpmesh.solid.delaunay`); ``time / warpmesh`` is against stuffing.
-- warpmesh with ``smooth=2, flips=True`` (one run): the smoothing and the 2-3/3-2 flips that
-  never lower the smallest dihedral angle.
-- warpmesh with ``size="curvature"`` (one run, its own count): the lattice graded by
-  longest-edge bisection to angle / curvature on the surface, coarser inside
-  (:mod:`warpmesh.solid.graded`); the dihedral bound is not proven there, the row measures it.
+- warpmesh stuffing: ``wm.mesh_domain(shape, bounds, size=h)`` (lattice, cut points by a
+  bracketed root search of the exact f, warp, stencils, crease recovery, boundary faces and
+  statistics), best of ``--repeat`` warm runs; the reference row of the ratios.
+- warpmesh variants (``--variants``, default on, classes up to 200 k, one run each):
+  ``features=False``; ``smooth=2, flips=True``; ``size="curvature"`` (graded, its own count);
+  ``method="delaunay"`` (its own size for about the same count).
+- gmsh: the OpenCASCADE solid where one exists (sphere, torus, part: ``Mesh.MeshSizeMin/Max``
+  calibrated for the count), else a surface loop of warpmesh's optimised surface; 3D Delaunay
+  (``Mesh.Algorithm3D = 1``), one thread, timed from the model to the tetrahedra.
+- warpmesh's optimised surface (the peers' input where they need a surface, not timed):
+  ``wm.mesh_surface`` closed by caps on the bounds, then ``optimize`` on the exact shape with
+  edges a = (6 sqrt(2) V / N)^(1/3), the regular tetrahedron's edge at the target count N.
+- TetGen (``tetgen``) on that surface: ``minratio=1.5``, ``mindihedral=10``, a ``maxvolume``
+  calibrated for the count (``fixedvolume=True``: tetgen 0.8 ignores ``maxvolume`` without it).
+- mmg3d's level-set discretisation (mmgpy 0.17, ``MmgMesh3D.remesh_levelset``): the box cut in
+  Kuhn tetrahedra of the stuffing's cube side h (f sampled as finely as stuffing's lattice),
+  -f at their vertices (mmg's inside is negative), ``hsiz`` calibrated for the count and
+  ``hausd = hsiz / 10``; mmg remeshes the whole box: the inside (ref 3) is counted, the time
+  is the whole (background, f, remeshing). One run.
+- fTetWild (pytetwild 0.4, ``tetrahedralize(edge_length_abs=...)``, one thread) on the same
+  surface, the edge length calibrated for the count. One run.
 
-Sizes are calibrated once per case by a small run of each tool (count proportional to
-size^-3). Times are the best of ``--repeat`` warm runs. Columns: tetrahedra, seconds,
-tetrahedra per second, smallest and largest dihedral angle (degrees), largest
-radius-edge ratio, and the ratio of the tool's time to warpmesh's (> 1: warpmesh faster).
+Sizes are calibrated by one run per tool at an eighth of the count (count ~ size^-3).
+Columns: tetrahedra, wall and CPU seconds (process CPU, all threads), tetrahedra per wall
+second, smallest and largest dihedral angle (degrees), radius-edge ratio (largest / 99th
+percentile: one sliver makes the largest huge), the volume error against the exact volume
+(sphere, torus, and the part from its primitives) or a stratified 320^3-grid estimate
+(gyroid_ball, degree6; the run prints the estimate's own error on the exact cases), the
+boundary distance (largest |f| / |grad f| over the boundary vertices off the box's faces, in
+units of the stuffing's h; first order, so it overstates near the edges of an R-function
+intersection), and stuffing's tets/s over the tool's, by wall and by CPU (> 1: stuffing
+faster). For the ball the run prints the issue's speed acceptance line (>= 10x gmsh's tets/s
+at ~1 M with a better smallest dihedral angle).
 
-Run:  python benchmarks/bench_domain.py [--tets 100000] [--large] [--repeat 3] [--cases sphere,torus,part]
-                                        [--json results.json]
+Run:  pip install -e ".[bench]"
+      python benchmarks/bench_domain.py [--sizes 100k,1M] [--repeat 3] [--no-variants]
+                                        [--cases sphere,torus,part,gyroid_ball,degree6] [--json out.json]
+
+Last measured: see benchmarks/README.md (bench_domain).
 """
 
 from __future__ import annotations
@@ -256,10 +273,12 @@ def run_gmsh(name, size, surface=None):
 
 
 def run_tetgen(surface_points, surface_tris, max_volume):
-    """(points, tets) of TetGen on the surface, quality switches, ``maxvolume``."""
+    """(points, tets) of TetGen on the surface, quality switches, ``maxvolume`` (with
+    ``fixedvolume=True``, the -a switch: tetgen 0.8 ignores ``maxvolume`` without it)."""
     tg = tetgen.TetGen(surface_points, surface_tris.astype(np.int32))
     nodes, elems, *_ = tg.tetrahedralize(order=1, quality=True, minratio=1.5, mindihedral=10.0,
-                                         maxvolume=max_volume, steinerleft=10_000_000, quiet=True)
+                                         maxvolume=max_volume, fixedvolume=True, steinerleft=10_000_000,
+                                         quiet=True)
     return np.asarray(nodes), np.asarray(elems, dtype=np.int64)
 
 
