@@ -770,6 +770,8 @@ def recover_features(points, tets, tris, target, h: float, *, floor: float = DIH
         The moves refused alone are tried with relocations (only for ends of edges still open
         when ``open_only``)."""
         nonlocal rejected, n_relaxed
+        if not len(verts):  # nothing to move (a smooth shape has no corner): skip the adjacency
+            return 0
         vt_ptr, vt_idx = vertex_tets(tets, len(pts))
         te = unique_edges(tets)
         todo = np.ones(len(verts), bool)

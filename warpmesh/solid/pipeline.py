@@ -296,11 +296,14 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, dev
     if features:
         t0 = time.perf_counter()
         target = ImplicitTarget(shape, bounds=box, device=device)
+        before = points, tets
         points, tets, tris, crease, finfo = recover_features(points, tets, tris, target, h, floor=opts["feature_floor"],
                                                  ceiling=opts["feature_ceiling"], angle=opts["feature_angle"],
                                                  device=device)
         info.update(finfo, time_features=time.perf_counter() - t0)
-        stages.append(("features", tet_quality_summary(points, tets, device)))
+        unchanged = (points.shape == before[0].shape and tets.shape == before[1].shape
+                     and np.array_equal(points, before[0]) and np.array_equal(tets, before[1]))
+        stages.append(("features", stages[-1][1] if unchanged else tet_quality_summary(points, tets, device)))
     refs = _face_refs(points, tris, box, h)
     on_cap = np.zeros(len(points), bool)
     on_cap[tris[refs == C.CAP_REF].ravel()] = True
