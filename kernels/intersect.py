@@ -508,6 +508,18 @@ def classify_faces_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype
     degenerate[f] = flag
 
 
+@wp.kernel
+def bvh_coordinates_kernel(points: wp.array(dtype=wp.vec3d), centre: wp.vec3d, half: wp.float64,
+                           points32: wp.array(dtype=wp.vec3)):
+    """One thread per point: ((x - centre) / half) rounded to float32, coordinate by
+    coordinate (each step rounded to nearest, as numpy's float64 arithmetic then
+    ``astype(float32)``): a map monotone in each coordinate."""
+    v = wp.tid()
+    x = points[v]
+    points32[v] = wp.vec3(wp.float32((x[0] - centre[0]) / half), wp.float32((x[1] - centre[1]) / half),
+                          wp.float32((x[2] - centre[2]) / half))
+
+
 @wp.func
 def spread_bits(x: int) -> int:
     """The 10 low bits of x moved to every third bit (Morton interleave)."""
