@@ -557,6 +557,33 @@ def _agrees_with_every_pair(name, pts, tris, monkeypatch):
         assert len(ref) > 0, name  # the tie-heavy cases with genuine crossings or touchings
 
 
+def test_bvh_coordinates_kernel_matches_the_numpy_map():
+    # the float32 map behind the candidate search, bit for bit: (x - centre) / half in
+    # float64, then rounded to float32 (monotone, so boxes that meet in float64 meet)
+    import warp as wp
+
+    rng = np.random.default_rng(11)
+    grid = np.stack(np.meshgrid(*[np.arange(5.0)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    for pts in (rng.normal(size=(5000, 3)) * 3.7 + 1.1, grid / 3.0 - 0.2, np.ones((4, 3))):
+        scaled = wmi._scaled(pts)
+        got = wmi._bvh_coordinates(scaled, wp.array(scaled, dtype=wp.vec3d, device="cpu"), wp.get_device("cpu"))
+        lo, hi = scaled.min(axis=0), scaled.max(axis=0)
+        half = float(0.5 * (hi - lo).max()) or 1.0
+        assert np.array_equal(got.numpy(), ((scaled - 0.5 * (lo + hi)) / half).astype(np.float32))
+
+
+def test_profile_reports_every_stage_and_the_same_pairs():
+    m = _two_spheres(2, [0.9, 0.13, 0.071])
+    prof = wmi.profile_self_intersections(m.vertices, m.faces, workers=1)
+    stages = ["prepare", "order", "degenerate", "boxes", "bvh", "count walk", "scan", "write walk", "sort pairs"]
+    assert list(prof["cpu"]) == stages and list(prof["wall"]) == stages
+    assert all(v >= 0.0 for v in [*prof["cpu"].values(), *prof["wall"].values()])
+    assert prof["pairs"] == len(find_self_intersections(m.vertices, m.faces)) > 0
+    assert wmi.profile_self_intersections(TRI, [[0, 1, 2]])["pairs"] == 0
+    with pytest.raises(ValueError, match="'workers'"):
+        wmi.profile_self_intersections(TRI, GOOD_T, workers=0)
+
+
 def test_all_pairs_reference_refuses_large_meshes():
     with pytest.raises(ValueError, match="'triangles'"):
         wmi._all_pairs(np.zeros((3, 3)), np.zeros((10_001, 3), int))
