@@ -6,6 +6,7 @@ Usage::
     python benchmarks/bench_intersections.py --cases part,ball --resolution 512   # check / meshing
     python benchmarks/bench_intersections.py --cases sphere7,spheres7 --repeat 1   # smoke run
     python benchmarks/bench_intersections.py --json results.json
+    python benchmarks/bench_intersections.py --cases part --profile   # CPU s per stage
 
 Cases (``--cases``, comma-separated; default ``sphere7,sphere8,spheres7,spheres8,part,ball``):
 
@@ -59,7 +60,7 @@ import numpy as np  # noqa: E402
 import pymeshlab  # noqa: E402
 import trimesh  # noqa: E402
 
-from warpmesh.cells.intersections import find_self_intersections  # noqa: E402
+from warpmesh.cells.intersections import find_self_intersections, profile_self_intersections  # noqa: E402
 
 CASES = {
     "sphere7": ("icosphere, 7 subdivisions", 7, False),
@@ -92,7 +93,23 @@ def make_mesh(subdivisions: int, two: bool) -> tuple[np.ndarray, np.ndarray]:
             np.vstack([a.faces, np.asarray(b.faces) + len(a.vertices)]))
 
 
-def run_case(key: str, repeat: int, resolution: int = 512) -> dict:
+def profile_case(points, faces, repeat: int) -> list[dict]:
+    """``profile_self_intersections`` (all workers) ``repeat`` times after a warm-up: the
+    median CPU and wall seconds of each stage, printed as a table and returned as rows."""
+    profile_self_intersections(points, faces)
+    runs = [profile_self_intersections(points, faces) for _ in range(max(1, repeat))]
+    rows = [{"stage": st, "cpu_seconds": statistics.median(r["cpu"].get(st, 0.0) for r in runs),
+             "wall_seconds": statistics.median(r["wall"].get(st, 0.0) for r in runs)} for st in runs[0]["cpu"]]
+    total = sum(r["cpu_seconds"] for r in rows) or 1.0
+    print("| stage | cpu s | share | wall s |")
+    print("| --- | --- | --- | --- |")
+    for r in rows:
+        print(f"| {r['stage']} | {r['cpu_seconds']:.3f} | {100 * r['cpu_seconds'] / total:.0f} % | "
+              f"{r['wall_seconds']:.3f} |")
+    return rows
+
+
+def run_case(key: str, repeat: int, resolution: int = 512, profile: bool = False) -> dict:
     name, subdivisions, two = CASES[key]
     meshing = None
     if two is None:  # a meshed case: its mesher is timed too
@@ -154,8 +171,12 @@ def run_case(key: str, repeat: int, resolution: int = 512) -> dict:
             line += f" {r['cpu_per_meshing']:.2f} | {r['wall_per_meshing']:.2f} |"
         print(line)
     print(f"offending faces agree (warpmesh = pymeshlab, and for any workers): {'yes' if agree else 'NO'}")
-    return {"case": key, "name": name, "triangles": len(faces), "pairs": len(out["warpmesh"]), "rows": rows,
-            "agree": bool(agree)}
+    result = {"case": key, "name": name, "triangles": len(faces), "pairs": len(out["warpmesh"]), "rows": rows,
+              "agree": bool(agree)}
+    if profile:
+        print(f"warpmesh ({os.cpu_count()} workers) by stage, median of {repeat}, the device synchronised after each:")
+        result["profile"] = profile_case(points, faces, repeat)
+    return result
 
 
 def main(argv=None) -> int:
@@ -164,6 +185,7 @@ def main(argv=None) -> int:
     p.add_argument("--repeat", type=int, default=3, help="timed rounds (median; default 3)")
     p.add_argument("--resolution", type=int, default=512, help="resolution of the meshed cases (default 512)")
     p.add_argument("--json", default=None, help="write every row and sample to this file")
+    p.add_argument("--profile", action="store_true", help="also print warpmesh's CPU seconds per pipeline stage")
     p.add_argument("--default-malloc", action="store_true", help="keep glibc's default allocator (see README)")
     a = p.parse_args(argv)
     cases = [c.strip() for c in a.cases.split(",") if c.strip()]
@@ -176,7 +198,7 @@ def main(argv=None) -> int:
                         f"trimesh {version('trimesh')}")
     if a.resolution < 8:
         p.error(f"expected --resolution >= 8, got {a.resolution}")
-    results = [run_case(c, a.repeat, a.resolution) for c in cases]
+    results = [run_case(c, a.repeat, a.resolution, a.profile) for c in cases]
     finish(t_start, load0, a.json, {"results": results})
     return 0 if all(r["agree"] for r in results) else 1
 
