@@ -1,8 +1,9 @@
 """Triangle–triangle intersection tests for the self-intersection check of a surface
 mesh; the host partner is :mod:`warpmesh.cells.intersections`.
 
-Predicates run in float64 on the host's points; the BVH (a ``wp.Bvh`` over groups of
-faces) is float32 and only proposes candidates. Every sign comes from a determinant of three difference
+Predicates run in float64 on the host's points; the group tree (a complete binary tree
+of float32 boxes over groups of faces in Morton order, :func:`tree_next`) only proposes
+candidates. Every sign comes from a determinant of three difference
 vectors, compared with Shewchuk's static error bound (``errboundA``, doubled): a sign
 within its bound counts as zero, so configurations within float64 rounding of touching
 are decided as touching; a "touching" that rests on such a tie is confirmed in a 2D
@@ -624,14 +625,72 @@ def ordered_pair_intersects(t: wp.mat33d, it: wp.vec3i, n: wp.vec3d, na: wp.vec3
     return pair_intersects(t2, it2, wp.cross(u, v), _abs_cross(u, v), t, it)
 
 
+@wp.kernel
+def tree_leaves_kernel(group_lowers: wp.array(dtype=wp.vec3), group_uppers: wp.array(dtype=wp.vec3),
+                       n_groups: int, leaves: int, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3)):
+    """One thread per leaf i of the group tree (node ``leaves + i``): group i's box; an
+    inverted box (lower ``EMPTY``, upper -``EMPTY``), which meets nothing and leaves every
+    union as it is, past the last group or for a group of degenerate faces only."""
+    i = wp.tid()
+    lo = wp.vec3(EMPTY, EMPTY, EMPTY)
+    hi = -lo
+    if i < n_groups:
+        if group_lowers[i][0] < EMPTY:
+            lo = group_lowers[i]
+            hi = group_uppers[i]
+    lowers[leaves + i] = lo
+    uppers[leaves + i] = hi
+
+
+@wp.kernel
+def tree_level_kernel(first: int, lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3)):
+    """One thread per node i = first + tid of one level: the union of its children's boxes
+    (nodes 2i and 2i + 1, the level below, already done)."""
+    i = wp.tid() + first
+    lowers[i] = wp.min(lowers[2 * i], lowers[2 * i + 1])
+    uppers[i] = wp.max(uppers[2 * i], uppers[2 * i + 1])
+
+
 @wp.func
-def walk_group(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+def tree_next(lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3), depth: int,
+              qlo: wp.vec3, qhi: wp.vec3, g: int, node: int, shift: int):
+    """The walk of the group tree (a complete binary tree in heap order: root 1, node i's
+    children 2i and 2i + 1, leaves ``2**depth + h`` for the groups h in Morton order, each
+    node's box the union of its leaves'), depth first from ``node`` (its leaves are
+    ``shift`` levels down; node 0: the walk is over): the next group h >= g whose box meets
+    the query box [qlo, qhi], and where to go on, (h, node, shift); h = -1 at the end.
+    Subtrees of groups all below g are never entered: each pair of groups is met once."""
+    leaves = 1 << depth
+    while node != 0:
+        enter = bool(False)
+        if boxes_meet(qlo, qhi, lowers[node], uppers[node]):
+            enter = ((node + 1) << shift) - 1 - leaves >= g  # its last leaf is not below g
+        if enter and shift > 0:
+            node = 2 * node
+            shift -= 1
+        else:
+            found = int(-1)
+            if enter:
+                found = node - leaves
+            while (node & 1) == 1:  # up while a right child; then to the right sibling
+                node = node >> 1
+                shift += 1
+            if node != 0:
+                node += 1
+            if found >= 0:
+                return found, node, shift
+    return int(-1), int(0), int(0)
+
+
+@wp.func
+def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype=wp.vec3), depth: int, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
                face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
                group_uppers: wp.array(dtype=wp.vec3), pad: float, g: int,
                keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
     """The intersecting pairs of group g with the groups h >= g (each unordered pair of faces
-    once): one BVH query with g's box grown by ``pad``; for each group h met, each face s of
+    once): one walk of the group tree (:func:`tree_next`) with g's box grown by ``pad``;
+    for each group h >= g met, each face s of
     g whose grown box meets h's grown box, each face s2 of h (s2 > s when h == g) whose box
     meets s's grown box goes to the exact test. Returns how many pairs intersect; the
     first ``limit`` of them are written to ``keys[start:]`` as min(f, f2) m + max(f, f2)
@@ -641,9 +700,9 @@ def walk_group(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(
     first = GROUP * g
     last = wp.min(first + GROUP, m)
     n = int(0)
-    query = wp.bvh_query_aabb(bvh, group_lowers[g] - grow, group_uppers[g] + grow)
-    h = int(0)
-    while wp.bvh_query_next(query, h):
+    h, node, shift = tree_next(tree_lowers, tree_uppers, depth, group_lowers[g] - grow, group_uppers[g] + grow, g,
+                               1, depth)
+    while h >= 0:  # every h >= g
         if h >= g:
             hl = group_lowers[h] - grow
             hh = group_uppers[h] + grow
@@ -681,11 +740,14 @@ def walk_group(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(
                                     keys[start + wp.int64(n)] = lo_f * wp.int64(m) + hi_f
                                 n += 1
                         s2 += 1
+        h, node, shift = tree_next(tree_lowers, tree_uppers, depth, group_lowers[g] - grow, group_uppers[g] + grow,
+                                   g, node, shift)
     return n
 
 
 @wp.kernel
-def count_pairs_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+def count_pairs_kernel(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype=wp.vec3), depth: int,
+                       points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                        order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
                        face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
                        group_uppers: wp.array(dtype=wp.vec3), pad: float, first: int,
@@ -694,12 +756,13 @@ def count_pairs_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: w
     the faces, ``order[s]`` the input index of position s): how many pairs of its faces with
     the faces of groups h >= g intersect (:func:`walk_group`, writing nothing)."""
     g = wp.tid() + first
-    counts[g] = wp.int64(walk_group(bvh, points, tris, order, face_lowers, face_uppers, group_lowers,
+    counts[g] = wp.int64(walk_group(tree_lowers, tree_uppers, depth, points, tris, order, face_lowers, face_uppers, group_lowers,
                                     group_uppers, pad, g, unused, wp.int64(0), 0))
 
 
 @wp.kernel
-def write_pairs_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+def write_pairs_kernel(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype=wp.vec3), depth: int,
+                       points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                        order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
                        face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
                        group_uppers: wp.array(dtype=wp.vec3), pad: float, first: int,
@@ -711,7 +774,7 @@ def write_pairs_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tris: w
     n = counts[g]
     if n == wp.int64(0):
         return
-    walk_group(bvh, points, tris, order, face_lowers, face_uppers, group_lowers, group_uppers, pad, g,
+    walk_group(tree_lowers, tree_uppers, depth, points, tris, order, face_lowers, face_uppers, group_lowers, group_uppers, pad, g,
                keys, offsets[g], int(n))
 
 

@@ -575,13 +575,33 @@ def test_bvh_coordinates_kernel_matches_the_numpy_map():
 def test_profile_reports_every_stage_and_the_same_pairs():
     m = _two_spheres(2, [0.9, 0.13, 0.071])
     prof = wmi.profile_self_intersections(m.vertices, m.faces, workers=1)
-    stages = ["prepare", "order", "degenerate", "boxes", "bvh", "count walk", "scan", "write walk", "sort pairs"]
+    stages = ["prepare", "order", "degenerate", "boxes", "tree", "count walk", "scan", "write walk", "sort pairs"]
     assert list(prof["cpu"]) == stages and list(prof["wall"]) == stages
     assert all(v >= 0.0 for v in [*prof["cpu"].values(), *prof["wall"].values()])
     assert prof["pairs"] == len(find_self_intersections(m.vertices, m.faces)) > 0
     assert wmi.profile_self_intersections(TRI, [[0, 1, 2]])["pairs"] == 0
     with pytest.raises(ValueError, match="'workers'"):
         wmi.profile_self_intersections(TRI, GOOD_T, workers=0)
+
+
+def test_group_tree_of_any_size_and_with_empty_groups():
+    # the tree over groups of 16 faces is padded to a power of two leaves, and groups of
+    # degenerate faces only get empty boxes: face counts around powers of two of groups,
+    # and a cluster of 40 degenerate faces (whole groups of them), against every pair
+    m = _two_spheres(2, [0.9, 0.13, 0.071])
+    pairs = find_self_intersections(m.vertices, m.faces)
+    near = np.unique(pairs)  # faces along the crossing curve
+    rng = np.random.default_rng(5)
+    line = np.array([[0.3, 0.2, 0.1], [0.4, 0.25, 0.1], [0.5, 0.3, 0.1]])  # collinear: degenerate faces
+    pts = np.vstack([m.vertices, line])
+    n = len(m.vertices)
+    degenerate = np.tile([n, n + 1, n + 2], (40, 1))
+    for k in (2, 16, 17, 33, 48, 65, len(near)):
+        faces = m.faces[rng.choice(near, size=min(k, len(near)), replace=False)]
+        for tris in (faces, np.vstack([faces, degenerate])):
+            ref = wmi._all_pairs(pts, tris)
+            assert np.array_equal(find_self_intersections(pts, tris, workers=1), ref), (k, len(tris))
+    assert len(wmi._all_pairs(pts, faces)) > 0
 
 
 def test_all_pairs_reference_refuses_large_meshes():

@@ -9,31 +9,41 @@ validity checks run this geometric one too. The pipeline (kernels in
    triangles int32;
 2. faces in Morton order of their centroids (radix sort), degenerate faces flagged and
    given an empty box (they meet nothing), each face's float32 box stored once;
-3. one ``wp.Bvh`` (float32) over groups of ``GROUP`` = 16 consecutive faces of that order
-   (compact patches): m / 16 leaves, so the tree builds fast;
-4. one thread per group g: one BVH query with g's box (``wp.bvh_query_aabb``); for each
-   group h >= g met, the faces of g whose boxes meet h's, against the faces of h whose
-   boxes meet theirs (only later ones when h == g): so each unordered pair of faces is
-   screened and tested once, exactly in float64 with the face of the lower input index as
-   the predicate's first triangle; count per group, prefix sum (``wp.utils.array_scan``),
-   then a second walk, only for the groups with hits, writes each pair as the key
-   min(f, g) m + max(f, g) at its group's offset; a radix sort of the keys on the device
-   gives the output sorted, with no host sort (count -> scan -> allocate -> write).
+3. a tree over groups of ``GROUP`` = 16 consecutive faces of that order (compact
+   patches): a complete binary tree in heap order whose leaves are the groups in Morton
+   order (padded to a power of two with empty boxes) and whose nodes hold the union of
+   their leaves' float32 boxes, built bottom up, one launch per level;
+4. one thread per group g: a depth-first walk of the tree with g's box
+   (:func:`~warpmesh.kernels.intersect.tree_next`) that never enters a subtree of groups
+   all before g, so it meets only the groups h >= g; for each, the faces of g whose boxes
+   meet h's, against the faces of h whose boxes meet theirs (only later ones when h == g):
+   so each unordered pair of faces is screened and tested once, exactly in float64 with
+   the face of the lower input index as the predicate's first triangle; count per group,
+   prefix sum (``wp.utils.array_scan``), then a second walk, only for the groups with
+   hits, writes each pair as the key min(f, g) m + max(f, g) at its group's offset; a
+   radix sort of the keys on the device gives the output sorted, with no host sort
+   (count -> scan -> allocate -> write).
 
-The group queries are 1/16 of per-face ones and each pair is screened once instead of
-twice: on the bundled part at resolution 512 (1.5 M triangles, large grid-aligned flat
-regions) the check went from 2.8 to about 1.8 CPU s (one worker, a loaded machine); about
-a third of the walk is the BVH queries and box screens, the rest the exact tests of the
-~8 candidates per face (6 of them neighbours sharing a vertex or an edge, which the box
-screen cannot tell apart). :func:`_all_pairs`, every pair with the same predicate and no
-BVH, is the tests' reference for the candidate search.
+Where the time goes (:func:`profile_self_intersections`; the bundled part at resolution
+512, 1.5 M triangles with large grid-aligned flat regions, one worker, CPU s on a loaded
+machine): prepare 0.06, Morton order 0.06, degenerate flags 0.02, boxes 0.03, tree 0.002,
+the walk about 1.45 (its screens about 0.4 of that). The walk meets 8.3 candidate pairs
+per face: 4.5 share one vertex, 1.5 an edge, 2.2 none; about half of them are coplanar
+(the flat regions), decided by the 2D tests (about 80-110 ns a pair against about 30 for
+a pair that one plane separates). The group walk replaced per-face queries (1/16 of the
+queries, each pair screened once instead of twice: 2.8 -> 1.8 CPU s); the tree replaced
+a ``wp.Bvh`` (built in 0.002 s instead of 0.04; its walk skips the groups before g, which
+a BVH query returns and the walk drops, but that changed the walk's time by no more than
+the noise), and the float32 coordinates come from a kernel instead of numpy (0.03 s): 5 %
+of the check together. :func:`_all_pairs`, every pair with the same predicate and no tree, is the tests'
+reference for the candidate search.
 
 Warp's CPU backend runs a launch on one thread, so on the CPU launches are split into
 ranges of groups (``_CHUNKS`` per worker, dealt round-robin) run from Python threads
-(launches release the GIL); every group's result depends on the one BVH only, so the
+(launches release the GIL); every group's result depends on the one tree only, so the
 answer does not depend on ``workers``.
 
-The float32 BVH loses no candidate: the map float64 -> float32 behind both the BVH's
+The float32 tree loses no candidate: the map float64 -> float32 behind both the tree's
 boxes and the query boxes is monotone in each coordinate, so boxes that meet in float64
 meet in float32; the query boxes are grown by a few float32 ulps besides.
 """
@@ -178,7 +188,7 @@ def profile_self_intersections(points, triangles, *, device: str = "cpu", worker
 
     Stages: ``prepare`` (validation, scaling, upload, float32 BVH coordinates), ``order``
     (Morton codes, radix sort, gather), ``degenerate``, ``boxes`` (face and group boxes),
-    ``bvh`` (the build), ``count walk`` (the BVH walk with every exact test), ``scan``, and
+    ``tree`` (the group tree's build), ``count walk`` (the walk with every exact test), ``scan``, and
     when there are pairs ``write walk`` and ``sort pairs``. The synchronisations cost a
     little: the stages add up to slightly more than an unprofiled call.
 
@@ -204,7 +214,7 @@ def profile_self_intersections(points, triangles, *, device: str = "cpu", worker
     >>> square = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
     >>> prof = profile_self_intersections(square, [[0, 1, 2], [0, 2, 3]])
     >>> list(prof["cpu"]), prof["pairs"]
-    (['prepare', 'order', 'degenerate', 'boxes', 'bvh', 'count walk', 'scan'], 0)
+    (['prepare', 'order', 'degenerate', 'boxes', 'tree', 'count walk', 'scan'], 0)
     """
     cpu: dict[str, float] = {}
     wall: dict[str, float] = {}
@@ -437,9 +447,10 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     wp.launch(K.group_boxes_kernel, dim=n_groups, inputs=[face_lowers, face_uppers, m], outputs=[lowers, uppers],
               device=device)
     mark("boxes")
-    bvh = wp.Bvh(lowers, uppers)
-    mark("bvh")
-    walk = [bvh.id, points64, sorted_tris, order, face_lowers, face_uppers, lowers, uppers, _QUERY_PAD]
+    tree_lowers, tree_uppers, depth = _group_tree(lowers, uppers, device)
+    mark("tree")
+    walk = [tree_lowers, tree_uppers, depth, points64, sorted_tris, order, face_lowers, face_uppers, lowers, uppers,
+            _QUERY_PAD]
     split = _split(n_groups, m, device, n_workers)
 
     wp.load_module(K, device=device)  # compiled/loaded once here, not by two worker threads at once
@@ -482,6 +493,25 @@ def _spatial_order(points32: wp.array, tris32: wp.array, device) -> tuple[wp.arr
     sorted_tris = wp.empty(3 * m, dtype=wp.int32, device=device)
     wp.launch(K.gather_faces_kernel, dim=m, inputs=[tris32, order], outputs=[sorted_tris], device=device)
     return order, sorted_tris
+
+
+def _group_tree(lowers: wp.array, uppers: wp.array, device) -> tuple[wp.array, wp.array, int]:
+    """The boxes of a complete binary tree over the groups in their (Morton) order, in heap
+    order (:func:`~warpmesh.kernels.intersect.tree_next`): the leaves padded to a power of
+    two with empty boxes, then one launch per level, bottom up. Returns (lowers, uppers,
+    depth)."""
+    n_groups = lowers.shape[0]
+    depth = max(0, (n_groups - 1).bit_length())
+    leaves = 1 << depth
+    tree_lowers = wp.empty(2 * leaves, dtype=wp.vec3, device=device)
+    tree_uppers = wp.empty(2 * leaves, dtype=wp.vec3, device=device)
+    wp.launch(K.tree_leaves_kernel, dim=leaves, inputs=[lowers, uppers, n_groups, leaves],
+              outputs=[tree_lowers, tree_uppers], device=device)
+    level = leaves // 2
+    while level >= 1:
+        wp.launch(K.tree_level_kernel, dim=level, inputs=[level], outputs=[tree_lowers, tree_uppers], device=device)
+        level //= 2
+    return tree_lowers, tree_uppers, depth
 
 
 def _scaled(pts: np.ndarray) -> np.ndarray:
