@@ -47,7 +47,8 @@ at ~1 M with a better smallest dihedral angle).
 
 Run:  pip install -e ".[bench]"
       python benchmarks/bench_domain.py [--sizes 100k,1M] [--repeat 3] [--no-variants]
-                                        [--cases sphere,torus,part,gyroid_ball,degree6] [--json out.json]
+                                        [--cases sphere,torus,part,gyroid_ball,degree6] [--peers gmsh,tetgen,mmgpy,pytetwild]
+                                        [--json out.json]
 
 Last measured: see benchmarks/README.md (bench_domain).
 """
@@ -78,8 +79,9 @@ from warpmesh.solid.features import example_edges, feature_distance  # noqa: E40
 from warpmesh.solid.pipeline import boundary_faces  # noqa: E402
 
 #: the peers: module, or the reason it is missing (its rows then say "not installed")
+PEER_NAMES = ("gmsh", "tetgen", "mmgpy", "pytetwild")
 PEERS, MISSING = {}, {}
-for _name in ("gmsh", "tetgen", "mmgpy", "pytetwild"):
+for _name in PEER_NAMES:
     try:
         PEERS[_name] = __import__(_name)
     except ImportError as _exc:  # a missing peer is reported, never fatal
@@ -370,8 +372,8 @@ def emit(rows, case, tool, timing=None, q=None, stuffing=None, note=""):
     return row
 
 
-def run_case(name, target, repeat, rows, variants=True):
-    """All the rows of one case at about ``target`` tetrahedra."""
+def run_case(name, target, repeat, rows, variants=True, peers=PEER_NAMES):
+    """All the rows of one case at about ``target`` tetrahedra (the peers named in ``peers``)."""
     shape, bounds = case_shape(name)
     box = np.asarray(bounds, dtype=np.float64)
     vol0, vsrc = reference_volume(name)
@@ -425,7 +427,9 @@ def run_case(name, target, repeat, rows, variants=True):
                                 f"made in {w:.1f} s, not counted)"])
         return surface
     tool = "gmsh (OCC, Delaunay 3D)" if name in OCC_CASES else "gmsh (surface loop, Delaunay 3D)"
-    if "gmsh" in MISSING:
+    if "gmsh" not in peers:
+        pass
+    elif "gmsh" in MISSING:
         emit(rows, case, tool, note=f"not installed ({MISSING['gmsh']})")
     else:
         try:
@@ -446,7 +450,9 @@ def run_case(name, target, repeat, rows, variants=True):
             failed(tool, exc)
     # TetGen on the optimised surface: a maximum volume for about the same count (calibrated once)
     tool = "TetGen (on warpmesh's optimised surface)"
-    if "tetgen" in MISSING:
+    if "tetgen" not in peers:
+        pass
+    elif "tetgen" in MISSING:
         emit(rows, case, tool, note=f"not installed ({MISSING['tetgen']})")
     else:
         try:
@@ -460,7 +466,9 @@ def run_case(name, target, repeat, rows, variants=True):
             failed(tool, exc)
     # mmg3d's level-set discretisation of f on a Kuhn background of the box (one run)
     tool = "mmg3d level-set (mmgpy)"
-    if "mmgpy" in MISSING:
+    if "mmgpy" not in peers:
+        pass
+    elif "mmgpy" in MISSING:
         emit(rows, case, tool, note=f"not installed ({MISSING['mmgpy']})")
     else:
         try:
@@ -474,7 +482,9 @@ def run_case(name, target, repeat, rows, variants=True):
             failed(tool, exc)
     # fTetWild on the optimised surface (one run, one thread)
     tool = "fTetWild (pytetwild, on warpmesh's optimised surface)"
-    if "pytetwild" in MISSING:
+    if "pytetwild" not in peers:
+        pass
+    elif "pytetwild" in MISSING:
         emit(rows, case, tool, note=f"not installed ({MISSING['pytetwild']})")
     else:
         try:
@@ -512,9 +522,15 @@ def main():
     ap.add_argument("--variants", action=argparse.BooleanOptionalAction, default=True,
                     help="the warpmesh variant rows (features=False, smooth+flips, graded, delaunay), classes "
                     "up to 200 k only")
+    ap.add_argument("--peers", default=",".join(PEER_NAMES),
+                    help=f"the peers to run, comma-separated, from {','.join(PEER_NAMES)} (default all)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--default-malloc", action="store_true")
     args = ap.parse_args()
+    peers = tuple(args.peers.split(",")) if args.peers else ()
+    for peer in peers:
+        if peer not in PEER_NAMES:
+            raise SystemExit(f"unknown peer {peer!r} in '--peers'; pick from {PEER_NAMES}")
     names = args.cases.split(",")
     for name in names:
         if name not in CASES:
@@ -534,7 +550,7 @@ def main():
     for target in targets:
         for name in names:
             run_case(name, target, args.repeat if target <= 200_000 else 1, rows,
-                     variants=args.variants and target <= 200_000)
+                     variants=args.variants and target <= 200_000, peers=peers)
     _report.finish(t_start, load0, args.json, {"rows": rows, "missing": MISSING})
 
 
