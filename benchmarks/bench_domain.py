@@ -50,7 +50,41 @@ Run:  pip install -e ".[bench]"
                                         [--cases sphere,torus,part,gyroid_ball,degree6] [--peers gmsh,tetgen,mmgpy,pytetwild]
                                         [--json out.json]
 
-Last measured: see benchmarks/README.md (bench_domain).
+Last measured (2026-12-02, 2-core Intel Xeon VM, no GPU, load average 4.6-6.3 from other jobs:
+compare CPU seconds; stuffing, gmsh, TetGen best of 3 at 100 k, one run otherwise) by
+``python benchmarks/bench_domain.py`` (1489 s wall with the variants; their rows and the
+columns' full form: benchmarks/README.md) and, for the last two rows (the ball's speed
+acceptance: 45x gmsh's tets per CPU second, 40.8x per wall second, 18.4 vs 12.7 degrees),
+``--cases sphere --sizes 1M --peers gmsh``::
+
+    case              tool        tets     CPU s  wall s  dihedral     re p99  volume  bdist/h  ratio CPU
+    sphere 100 k      stuffing      95,712    0.09    0.24  20.4-150.5   1.41  -0.17%  2.9e-06  1
+    sphere 100 k      gmsh OCC      86,937    1.41    7.42  11.6-156.8   1.04  -0.13%  7.3e-07  18.1x
+    sphere 100 k      TetGen        98,921    0.75    2.26   1.8-176.9   1.07  -0.20%  0.013    8.5x
+    sphere 100 k      mmg3d -ls     87,009    7.45   40.33  15.9-154.7   1.06  -0.46%  0.031    95.5x
+    sphere 100 k      fTetWild      43,628    6.29   32.24  16.7-158.4   1.16  -0.32%  0.023    160.8x
+    torus 100 k       stuffing      95,716    0.12    0.46  18.5-143.9   1.56  -0.32%  4.8e-06  1
+    torus 100 k       gmsh OCC      93,883    2.09    5.18  11.3-157.7   1.08  -0.24%  2.2e-06  18.4x
+    torus 100 k       TetGen        99,006    0.78    1.58   1.7-176.9   1.09  -0.38%  0.028    6.5x
+    torus 100 k       mmg3d -ls     86,107   14.28   44.93  19.9-154.4   1.13  -0.85%  0.061    136.6x
+    torus 100 k       fTetWild      72,747   21.96   56.87  23.8-139.5   1.05  -0.61%  0.04     248.5x
+    part 100 k        stuffing      89,076    1.56    3.43  10.1-161.9   1.80  +0.08%  2.8e-06  1
+    part 100 k        gmsh OCC      87,069    1.44    2.92  11.3-156.5   1.14  +0.07%  1.1e-06  0.9x
+    part 100 k        TetGen        98,528    0.75    1.51   1.5-177.0   1.09  +0.11%  0.043    0.4x
+    part 100 k        mmg3d -ls    149,669   19.78   44.74   6.0-162.1   1.22  -1.70%  0.73     7.6x
+    part 100 k        fTetWild      86,910   46.44   62.70  22.1-142.4   1.11  +0.12%  0.04     30.6x
+    gyroid_ball 100 k stuffing      91,503    2.37    3.49  10.0-162.9   1.67  -0.35%  0.0052   1
+    gyroid_ball 100 k gmsh loop     56,530    0.84    2.56   3.3-173.7   1.47  -0.26%  0.72     0.6x
+    gyroid_ball 100 k TetGen       101,524    0.99    3.05   0.5-177.4   1.58  -0.26%  0.95     0.4x
+    gyroid_ball 100 k mmg3d -ls    171,737   25.49   35.52   0.1-178.9   1.48  -4.76%  3.5      5.7x
+    gyroid_ball 100 k fTetWild      56,550   77.88   85.30  14.0-155.1   1.15  -0.46%  0.99     53.1x
+    degree6 100 k     stuffing      91,440    0.55    0.55  12.0-158.8   1.94  -0.10%  0.099    1
+    degree6 100 k     gmsh loop     55,802    0.66    0.66  12.9-156.6   1.10  -0.06%  2.1e-06  2.0x
+    degree6 100 k     TetGen        97,942    0.62    0.62   1.7-176.9   1.12  -0.06%  0.068    1.0x
+    degree6 100 k     mmg3d -ls    114,911    9.16    9.16   0.4-179.0   1.32  +1.45%  0.62     13.2x
+    degree6 100 k     fTetWild      72,541   54.32   54.35  14.4-158.8   1.22  -0.06%  0.025    123.7x
+    sphere 1 M        stuffing     983,808    0.63    2.11  18.4-143.4   1.29  -0.04%  6.4e-06  1
+    sphere 1 M        gmsh OCC     979,101   28.21   85.66  12.7-160.6   0.98  -0.03%  1.6e-06  45.0x
 """
 
 from __future__ import annotations
