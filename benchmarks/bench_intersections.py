@@ -42,6 +42,23 @@ columns), ``--cases part,ball --resolution 512 --repeat 3``, CPU s of warpmesh (
 
 The part at resolution 1024 (6.0 M triangles), one script, min of 2: meshing 8.1 CPU s,
 the check 11.9 before, 7.4 after (0.91x the meshing).
+
+Second round (2026-12-02, the same command; CPU s of warpmesh with 2 workers / 1 worker
+/ pymeshlab / meshing, warpmesh (2) / meshing):
+
+- at commit b9f0bda, load 0.7-1.8: part 1.67 / 1.66 / 1.48 / 0.92 (1.81x), ball 1.49 /
+  1.48 / 2.21 / 0.71 (2.09x);
+- group tree instead of ``wp.Bvh`` and the float32 coordinates by a kernel (commit
+  3f1d6ba), load 0.8-1.3: part 1.58 / 1.48 / 1.44 / 0.92 (1.72x), ball 1.30 / 1.29 /
+  2.09 / 0.70 (1.86x). Alternating old and new in one process (``workers=1``, 7 rounds,
+  load 1-5): new / old CPU 0.96 on both. The part at 1024 (``--repeat 2``, load 3-4):
+  warpmesh 6.5, pymeshlab 6.1, meshing 3.8 CPU s (1.73x; the meshing is faster than in
+  the first round's figure).
+
+``--profile`` (same runs): the walk with its exact tests is 87-91 % of the check (part at
+512: 1.48 of 1.63 CPU s; prepare 0.06, order 0.05, degenerate flags 0.02, boxes 0.02,
+tree 0.002). The check is still well above the meshing's time; see the module docstring
+of ``warpmesh.cells.intersections`` for where the walk's time goes.
 """
 
 from __future__ import annotations
