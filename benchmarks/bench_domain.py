@@ -8,7 +8,9 @@ four holes and a boss: sharp edges), ``gyroid_ball`` (the gyroid's solid network
 intersected with the unit ball: :func:`gyroid_ball`) and ``degree6`` (the degree-six solid of
 ``wm.example("degree6")`` clipped by its box [-3, 3]^3, closed by caps), each at about 100 k
 tetrahedra (``--sizes 100k``, the default) and/or about 1 M (``--sizes 100k,1M``, or
-``--large``). A peer that does not import prints why and its rows say "not installed"
+``--large``). The 1 M class is not the default: the sphere alone with every peer took 956 s
+wall at load 5 (fTetWild 590 s, mmg 147 s, gmsh 56 s), about an hour for the five cases;
+the default run (100 k, variants on) took 1489 s wall at load 5-6. A peer that does not import prints why and its rows say "not installed"
 (``pip install -e ".[bench]"`` brings mmgpy and pytetwild).
 
 - warpmesh stuffing: ``wm.mesh_domain(shape, bounds, size=h)`` (lattice, cut points by a
