@@ -556,9 +556,11 @@ def gather_faces_kernel(tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp
     sorted_tris[3 * s + 2] = tris[3 * f + 2]
 
 
-#: faces per leaf box of the BVH: consecutive faces of the Morton order (a compact patch),
-#: so the tree has m / GROUP leaves (built GROUP times faster) and one query per group, not
-#: per face, finds the groups near it; faces are then screened by their own float32 boxes
+#: faces per leaf of the group tree: consecutive faces of the Morton order (a compact
+#: patch), so the tree has m / GROUP leaves and one walk per group, not per face, finds the
+#: groups near it; faces are then screened by their own float32 boxes (a group's faces are
+#: one bit each of an int32 mask in :func:`walk_group`: at most 31). 8 and 32 measured no
+#: faster on the part and the ball at 512.
 GROUP = 16
 #: the lower corner of an empty box (its upper corner is -EMPTY): far outside the BVH's
 #: coordinates [-1, 1]^3, so it meets no box
@@ -690,11 +692,12 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
                keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
     """The intersecting pairs of group g with the groups h >= g (each unordered pair of faces
     once): one walk of the group tree (:func:`tree_next`) with g's box grown by ``pad``;
-    for each group h >= g met, each face s of
-    g whose grown box meets h's grown box, each face s2 of h (s2 > s when h == g) whose box
-    meets s's grown box goes to the exact test. Returns how many pairs intersect; the
-    first ``limit`` of them are written to ``keys[start:]`` as min(f, f2) m + max(f, f2)
-    (f, f2 the input indices)."""
+    for each group h >= g met, each face s of g whose grown box meets h's grown box, each
+    face s2 of h (s2 > s when h == g) whose box meets s's grown box goes to the exact test
+    (the faces of h that miss g's grown box are masked out first: 17 face-face box tests a
+    face instead of 51 on the part at 512). Returns how many pairs intersect; the first
+    ``limit`` of them are written to ``keys[start:]`` as min(f, f2) m + max(f, f2) (f, f2
+    the input indices)."""
     m = order.shape[0]
     grow = wp.vec3(pad, pad, pad)
     first = GROUP * g
@@ -702,28 +705,40 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
     n = int(0)
     h, node, shift = tree_next(tree_lowers, tree_uppers, depth, group_lowers[g] - grow, group_uppers[g] + grow, g,
                                1, depth)
+    gl = group_lowers[g] - grow
+    gh = group_uppers[g] + grow
     while h >= 0:  # every h >= g
         if h >= g:
             hl = group_lowers[h] - grow
             hh = group_uppers[h] + grow
-            end = wp.min(GROUP * h + GROUP, m)
+            base = GROUP * h
+            end = wp.min(base + GROUP, m)
+            # bit k: face base + k of h meets g's grown box. A face that meets the grown box of
+            # a face of g meets it (rounding is monotone: s_hi + pad <= g_hi + pad), so the
+            # faces left out could not pass the face test below: the same candidates, fewer tests
+            mask = int(0)
+            for s2 in range(base, end):
+                if h == g or boxes_meet(gl, gh, face_lowers[s2], face_uppers[s2]):
+                    mask = mask | (1 << (s2 - base))
             for s in range(first, last):
                 lo = face_lowers[s]
                 hi = face_uppers[s]
-                if boxes_meet(hl, hh, lo, hi):
+                if mask != 0 and boxes_meet(hl, hh, lo, hi):
                     lo = lo - grow
                     hi = hi + grow
-                    s2 = GROUP * h
+                    s2 = base
+                    bits = mask
                     if h == g:
                         s2 = s + 1
+                        bits = mask >> (s2 - base)
                     f = order[s]
                     loaded = bool(False)  # face s is loaded at its first candidate in h
                     t = wp.mat33d()
                     it = wp.vec3i()
                     nt = wp.vec3d()
                     na = wp.vec3d()
-                    while s2 < end:
-                        if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
+                    while bits != 0:
+                        if (bits & 1) != 0 and boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
                             if not loaded:
                                 t, it = load_triangle(points, tris, s)
                                 u = t[1] - t[0]
@@ -740,6 +755,7 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
                                     keys[start + wp.int64(n)] = lo_f * wp.int64(m) + hi_f
                                 n += 1
                         s2 += 1
+                        bits = bits >> 1
         h, node, shift = tree_next(tree_lowers, tree_uppers, depth, group_lowers[g] - grow, group_uppers[g] + grow,
                                    g, node, shift)
     return n
