@@ -48,17 +48,19 @@ Second round (2026-12-02, the same command; CPU s of warpmesh with 2 workers / 1
 
 - at commit b9f0bda, load 0.7-1.8: part 1.67 / 1.66 / 1.48 / 0.92 (1.81x), ball 1.49 /
   1.48 / 2.21 / 0.71 (2.09x);
-- group tree instead of ``wp.Bvh`` and the float32 coordinates by a kernel (commit
-  3f1d6ba), load 0.8-1.3: part 1.58 / 1.48 / 1.44 / 0.92 (1.72x), ball 1.30 / 1.29 /
-  2.09 / 0.70 (1.86x). Alternating old and new in one process (``workers=1``, 7 rounds,
-  load 1-5): new / old CPU 0.96 on both. The part at 1024 (``--repeat 2``, load 3-4):
-  warpmesh 6.5, pymeshlab 6.1, meshing 3.8 CPU s (1.73x; the meshing is faster than in
-  the first round's figure).
+- group tree instead of ``wp.Bvh``, masked face screen, float32 coordinates by a kernel
+  and the points' bounds column by column (commit ccbe8fd), load 0.9-1.1: part 1.49 /
+  1.42 / 1.43 / 0.89 (1.67x), ball 1.26 / 1.25 / 2.16 / 0.68 (1.86x). Alternating
+  b9f0bda's pipeline and this one in one process (``workers=1``, 7 rounds, load about 1):
+  new / old CPU 0.90 (part), 0.89 (ball). The part at 1024 at commit 3f1d6ba
+  (``--repeat 2``, load 3-4): warpmesh 6.5, pymeshlab 6.1, meshing 3.8 CPU s (1.73x; the
+  meshing is faster than in the first round's figure).
 
-``--profile`` (same runs): the walk with its exact tests is 87-91 % of the check (part at
-512: 1.48 of 1.63 CPU s; prepare 0.06, order 0.05, degenerate flags 0.02, boxes 0.02,
-tree 0.002). The check is still well above the meshing's time; see the module docstring
-of ``warpmesh.cells.intersections`` for where the walk's time goes.
+``--profile`` (the last run): the walk with its exact tests is 89-92 % of the check (part
+at 512: 1.38 of 1.49 CPU s; prepare 0.03, order 0.05, degenerate flags 0.02, boxes 0.02,
+tree 0.001). The check is still well above the meshing's time (the target is well
+under it); see the module docstring of ``warpmesh.cells.intersections`` for where the
+walk's time goes and what was tried.
 """
 
 from __future__ import annotations

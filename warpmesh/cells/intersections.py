@@ -25,18 +25,20 @@ validity checks run this geometric one too. The pipeline (kernels in
    (count -> scan -> allocate -> write).
 
 Where the time goes (:func:`profile_self_intersections`; the bundled part at resolution
-512, 1.5 M triangles with large grid-aligned flat regions, one worker, CPU s on a loaded
-machine): prepare 0.06, Morton order 0.06, degenerate flags 0.02, boxes 0.03, tree 0.002,
-the walk about 1.45 (its screens about 0.4 of that). The walk meets 8.3 candidate pairs
-per face: 4.5 share one vertex, 1.5 an edge, 2.2 none; about half of them are coplanar
-(the flat regions), decided by the 2D tests (about 80-110 ns a pair against about 30 for
-a pair that one plane separates). The group walk replaced per-face queries (1/16 of the
-queries, each pair screened once instead of twice: 2.8 -> 1.8 CPU s); the tree replaced
-a ``wp.Bvh`` (built in 0.002 s instead of 0.04; its walk skips the groups before g, which
-a BVH query returns and the walk drops, but that changed the walk's time by no more than
-the noise), and the float32 coordinates come from a kernel instead of numpy (0.03 s): 5 %
-of the check together. :func:`_all_pairs`, every pair with the same predicate and no tree, is the tests'
-reference for the candidate search.
+512, 1.5 M triangles with large grid-aligned flat regions, CPU s, load about 1): prepare
+0.03, Morton order 0.05, degenerate flags 0.02, boxes 0.02, tree 0.001, the walk 1.38 (its
+screens about 0.3 of that). The walk meets 8.3 candidate pairs per face: 4.5 share one
+vertex, 1.5 an edge, 2.2 none; about half are coplanar (the flat regions) and go to the 2D
+tests (80-110 ns a pair, against about 30 for a pair that one plane separates). The group
+walk replaced per-face queries (1/16 of the queries, each pair screened once instead of
+twice: 2.8 -> 1.8 CPU s); the tree replaced a ``wp.Bvh`` (built in 0.002 s instead of
+0.04), the faces of h that miss g's box are masked out before the face-face screen, and
+the float32 coordinates come from a kernel: 0.89-0.90 of the time before, the same pairs.
+Tried and measured no faster (same-run ratios 0.99-1.07): the plane sides of the second
+face taken first in the walk and passed on to the predicate; a shortcut straight to the
+2D tests for faces of one grid plane; branch-free signs and box tests; -O3; groups of 8
+or 32; vertices renumbered in the faces' Morton order. :func:`_all_pairs`, every pair with
+the same predicate and no tree, is the tests' reference for the candidate search.
 
 Warp's CPU backend runs a launch on one thread, so on the CPU launches are split into
 ranges of groups (``_CHUNKS`` per worker, dealt round-robin) run from Python threads
