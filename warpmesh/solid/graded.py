@@ -55,7 +55,7 @@ import numpy as np
 from warpmesh.solid.lattice import lattice_tables, node_coordinates
 
 __all__ = ["CURVATURE_ANGLE", "CURVATURE_GRADING", "SizeField", "curvature_size", "size_field", "smallest_size",
-           "refine_bcc", "bcc_tetrahedra", "tet_edges", "MAX_BACKGROUND_TETS"]
+           "refine_bcc", "refine_tets", "bcc_tetrahedra", "tet_edges", "MAX_BACKGROUND_TETS"]
 
 #: the angle (radians) one boundary edge may subtend on the surface: size = angle / curvature
 CURVATURE_ANGLE = 0.2
@@ -374,17 +374,37 @@ def refine_bcc(dims, h0: float, origin: np.ndarray, field: SizeField, *, outside
     levels : (m,) int64, the bisections each tetrahedron went through
     """
     coords, tets = bcc_tetrahedra(dims)
-    mesh = _Bisection(coords, tets)
+    return refine_tets(coords, tets, h0, origin, field, outside=outside, max_rounds=max_rounds)
+
+
+def refine_tets(coords: np.ndarray, tets: np.ndarray, h0: float, origin: np.ndarray, field: SizeField, *,
+                outside=None, tet_size=None, max_rounds: int = 64):
+    """:func:`refine_bcc` from a given part of the BCC lattice: ``coords`` (n, 3) in half-cube
+    units, ``tets`` (m, 4) positive, a subset of :func:`bcc_tetrahedra`'s (or any mesh whose
+    equal edge lengths are exact). A face in one tetrahedron of ``tets`` is a boundary: the
+    refinement may split it, so a caller keeping a part of the lattice keeps a margin where
+    that does no harm (:mod:`warpmesh.solid.regions` keeps two cubes of the rest).
+
+    ``tet_size(nodes, tets)``, optional: (n, 3) world positions of the nodes and (k, 4) node
+    ids -> (k,) the size asked of each of those tetrahedra, in place of ``field``'s smallest at
+    their vertices and centroids (``field`` then only names the smallest size in errors).
+
+    Returns (coords, tets, levels) as :func:`refine_bcc`; the first n nodes are ``coords``.
+    """
+    mesh = _Bisection(np.asarray(coords, dtype=np.float64), np.asarray(tets, dtype=np.int64))
     unit = 0.5 * float(h0)
     node_size = np.empty(0)  # the size at every node, evaluated once
     for _ in range(max_rounds):
         idx = np.flatnonzero(mesh.fresh)
         mesh.fresh[:] = False
         coords = mesh.coords()
-        if len(node_size) < len(coords):
-            node_size = np.concatenate([node_size, field(origin + coords[len(node_size):] * unit)])
         pts = coords[mesh.tets[idx]]
-        want = np.minimum(node_size[mesh.tets[idx]].min(axis=1), field(origin + pts.mean(axis=1) * unit)) / unit
+        if tet_size is not None:
+            want = np.asarray(tet_size(origin + coords * unit, mesh.tets[idx]), dtype=np.float64) / unit
+        else:
+            if len(node_size) < len(coords):
+                node_size = np.concatenate([node_size, field(origin + coords[len(node_size):] * unit)])
+            want = np.minimum(node_size[mesh.tets[idx]].min(axis=1), field(origin + pts.mean(axis=1) * unit)) / unit
         marked = mesh.llen[idx] > want * (1 + 1e-9)
         if outside is not None and marked.any():
             grow = mesh.llen[idx[marked]][:, None]

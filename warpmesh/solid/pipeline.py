@@ -62,7 +62,7 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         f > 0 inside. A label volume (an integer array, a :class:`~warpmesh.io.images.Volume`,
         a pyvista ImageData or an image path) gives conforming tetrahedra of its regions by
         lattice cleaving (:func:`warpmesh.solid.regions.mesh_regions`, which takes
-        ``labels=``, ``size`` and ``snap``; no ``bounds``).
+        ``labels=``, ``size``, ``snap`` and ``min_size``; no ``bounds``).
         For a shape: a planar shape with 2-value bounds gives a planar mesh
         (:func:`warpmesh.planar.curves.mesh_domain`, whose options ``tolerance``,
         ``min_angle``, ``method`` ({'global', 'triangle'}) and ``boundary`` apply there).

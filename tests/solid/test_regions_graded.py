@@ -1,0 +1,125 @@
+"""Lattice cleaving on a background graded where the regions are thinner than its edges
+(warpmesh.solid.thin, ``mesh_regions(..., min_size=)``; issue 23)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import warpmesh as wm
+from warpmesh.solid.regions import REFINE_ERROR, mesh_regions
+from warpmesh.solid.thin import unresolved_edges
+
+from tests.solid.test_regions import check_regions
+
+
+def _layered(n=40, layer=2):
+    """Label 1 below, a layer of label 2 ``layer`` voxels thick, label 3 above, in a rest of 0."""
+    vol = np.zeros((n, n, n), np.uint8)
+    mid = n // 2
+    vol[4:n - 4, 4:n - 4, 4:mid - layer // 2] = 1
+    vol[4:n - 4, 4:n - 4, mid - layer // 2:mid - layer // 2 + layer] = 2
+    vol[4:n - 4, 4:n - 4, mid - layer // 2 + layer:n - 4] = 3
+    return vol
+
+
+def _errors(m):
+    return {k: r["error"] for k, r in m.info["region_volumes"].items()}
+
+
+def test_thin_layer_between_two_regions():
+    """A layer 2 voxels thick at size 4 voxels (min_size 2 by default). (A layer of 1 voxel is
+    not within 5 % at any min_size: +32 % measured, the limit the module docstring states.)"""
+    vol = _layered(40, 2)
+    uniform = mesh_regions(vol, size=4.0, min_size=4.0)
+    assert not uniform.info["graded"]
+    assert _errors(uniform)[2] < -0.2  # one cut point per edge: the layer loses a quarter or more
+    graded = wm.mesh_domain(vol, labels="all", size=4.0)
+    check_regions(graded, rest=0)
+    assert graded.info["graded"] and 2 in graded.info["refined_labels"]
+    assert graded.info["negative_tets"] == 0
+    for label, e in _errors(graded).items():
+        assert abs(e) < 0.05, (label, e)
+    # the layer's interfaces: 1|2 and 2|3 triangles, no 1|3 (the layer is not pinched off)
+    pairs = {tuple(p) for p in np.column_stack([graded.cell_refs["triangle"],
+                                                graded.cell_data["label_above"]["triangle"]]).tolist()}
+    assert (1, 2) in pairs and (2, 3) in pairs and (1, 3) not in pairs
+
+
+def test_small_blobs_are_found_and_closer():
+    """A 3-voxel blob is lost on the uniform lattice of 4 voxels and found on the graded one; a
+    5-voxel blob loses less. Neither reaches 5 %: a box 1-2 edges across is chamfered (the
+    limit the module docstring states)."""
+    vol = np.ones((32, 32, 32), np.uint8)
+    vol[13:16, 14:17, 11:14] = 4
+    vol[20:25, 5:10, 21:26] = 5
+    uniform = mesh_regions(vol, size=4.0, min_size=4.0)
+    graded = mesh_regions(vol, size=4.0, min_size=1.0)
+    check_regions(graded, rest=0)
+    e0, e1 = _errors(uniform), _errors(graded)
+    assert e0[4] == -1.0 and -0.2 < e1[4] < 0.0
+    assert abs(e1[5]) < 0.5 * abs(e0[5])
+    assert abs(e1[1]) < 0.01
+    assert sorted(graded.info["refined_labels"]) == [4, 5]
+
+
+def test_uniform_when_every_region_is_within_the_tolerance():
+    vol = np.zeros((24, 24, 24), np.uint8)
+    vol[3:21, 3:21, 3:12] = 1
+    vol[3:21, 3:21, 12:21] = 2
+    a = mesh_regions(vol, size=3.0)
+    b = mesh_regions(vol, size=3.0, min_size=3.0)
+    assert max(abs(e) for e in _errors(a).values()) <= REFINE_ERROR
+    assert not a.info["graded"] and "refined_labels" not in a.info
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.cells["tetra"], b.cells["tetra"])
+    np.testing.assert_array_equal(a.cells["triangle"], b.cells["triangle"])
+
+
+def test_graded_volume_with_spacing_and_a_subset():
+    vol = _layered(32, 2)
+    v = wm.Volume(vol, spacing=(0.5, 0.5, 0.5), origin=(1.0, 2.0, 3.0))
+    m = wm.mesh_domain(v, labels=[2, 3], size=2.0)  # 4 voxels; label 1 is the rest
+    check_regions(m, rest=0)
+    # the box of labels 2 and 3 (voxels [4, 28) x [4, 28) x [15, 28)) in the world frame, to the
+    # snapping of cut points (0.3 of an edge)
+    box = np.array([1.0, 2.0, 3.0]) + 0.5 * (np.array([[4, 4, 15], [28, 28, 28]]) - 0.5)
+    np.testing.assert_allclose(m.points.min(axis=0), box[0], atol=0.3 * 2.0)
+    np.testing.assert_allclose(m.points.max(axis=0), box[1], atol=0.3 * 2.0)
+    assert m.info["graded"] and sorted(m.info["region_volumes"]) == [2, 3]
+    for label, e in _errors(m).items():
+        assert abs(e) < 0.05, (label, e)
+
+
+def test_unresolved_edges():
+    vol = np.zeros((12, 4, 4), np.uint8)
+    vol[5:7] = 2  # a layer 2 voxels thick across x
+    vol[11] = 3
+
+    def at(p):
+        k = np.clip(np.rint(p).astype(int), 0, np.array(vol.shape) - 1)
+        return vol[k[:, 0], k[:, 1], k[:, 2]]
+
+    a = np.array([[1.0, 1, 1], [1.0, 1, 1], [7.5, 1, 1], [1.0, 1, 1], [5.4, 1, 1]])
+    b = np.array([[9.0, 1, 1], [4.0, 1, 1], [11.0, 1, 1], [5.0, 2, 2], [6.6, 1, 1]])
+    # across the layer (0 2 0): unresolved; in 0 only; one change 0 -> 3; one change 0 -> 2; in 2
+    assert unresolved_edges(at, a, b, np.ones(3), 4).tolist() == [True, False, False, False, False]
+    # an excursion shorter than the minimum run is no region
+    vol[5:7] = 0
+    vol[5, 1, 1] = 2
+    clip = unresolved_edges(at, np.array([[4.8, 2.0, 1.45]]), np.array([[6.0, 0.8, 1.45]]), np.ones(3), 4)
+    through = unresolved_edges(at, np.array([[4.0, 0.0, 0.0]]), np.array([[6.0, 2.0, 2.0]]), np.ones(3), 4)
+    assert clip.tolist() == [False] and through.tolist() == [True]  # 0.28 voxel of the corner; 1.7 voxels
+    focus = np.zeros(4, bool)
+    focus[3] = True  # only label 3 in focus: the layer of 2 does not count
+    vol[5:7] = 2
+    assert unresolved_edges(at, a[:1], b[:1], np.ones(3), 4, focus=focus).tolist() == [False]
+
+
+def test_bad_min_size():
+    vol = _layered(16, 2)
+    for bad in (0.0, -1.0, float("nan"), float("inf"), True, "small", [1.0]):
+        with pytest.raises(ValueError, match="'min_size'"):
+            mesh_regions(vol, size=3.0, min_size=bad)
+    with pytest.raises(ValueError, match="quarter voxel"):
+        mesh_regions(vol, size=3.0, min_size=0.1)
