@@ -123,3 +123,27 @@ def test_bad_min_size():
             mesh_regions(vol, size=3.0, min_size=bad)
     with pytest.raises(ValueError, match="quarter voxel"):
         mesh_regions(vol, size=3.0, min_size=0.1)
+
+
+def test_frog_crop_at_four_voxels():
+    """A 120 x 120 x 60 crop of pyvista's frog (18 labels) at size 4 voxels: the uniform lattice
+    misses labels 1 and 13 (2-3 voxel layers in the crop) by more than 5 % and loses three
+    specks; the graded one (the defaults) is conforming, brings every label of 1,000 voxels or
+    more within 5 % and finds two of the specks (measured: 1 -6.2 -> -2.2 %, 13 -6.7 -> -3.5 %)."""
+    pv = pytest.importorskip("pyvista")
+    frog = pv.examples.load_frog_tissues()
+    values = frog.active_scalars.reshape(frog.dimensions, order="F")
+    sub = np.ascontiguousarray(values[180:300, 150:270, 40:100])
+    vol = wm.Volume(sub, spacing=frog.spacing)
+    uniform = wm.mesh_domain(vol, labels="all", size=4.0, min_size=4.0)
+    graded = wm.mesh_domain(vol, labels="all", size=4.0)
+    check_regions(graded, rest=0)
+    assert graded.info["graded"] and graded.info["negative_tets"] == 0
+    big = [int(L) for L in np.unique(sub) if L != 0 and (sub == L).sum() >= 1000]
+    e0, e1 = _errors(uniform), _errors(graded)
+    assert max(abs(e0[L]) for L in big) > 0.05
+    for L in big:
+        assert abs(e1[L]) < 0.05, (L, e1[L])
+    lost0 = sum(e == -1.0 for e in e0.values())
+    lost1 = sum(e == -1.0 for e in e1.values())
+    assert lost1 < lost0
