@@ -46,10 +46,13 @@ cleaved again on the BCC lattice refined by conforming longest-edge bisection
 (:func:`warpmesh.solid.graded.refine_tets`) where an edge crosses that region's labels more
 than once (:mod:`warpmesh.solid.thin`), down to edges of ``min_size``. Cleaving needs nothing
 of the lattice but conforming positive tetrahedra and vertices named by their nodes, edges
-and faces, so steps 1-5 run unchanged on it. Measured (``benchmarks/bench_regions.py``):
-pyvista's frog at h = 4 voxels, labels 1 and 12 (2-3 voxels thick) -15.7 % and -9.4 % ->
--4.6 % and -2.0 %, every label of 3,891 voxels or more within 5 %, no label lost (2 before),
-at 3.9x the tetrahedra and about 20x the time. What is still lost: a layer thinner than about
+and faces, so steps 1-5 run unchanged on it. Measured (``python benchmarks/bench_regions.py
+--repeat 1 --no-tetgen``): pyvista's frog at h = 4 voxels, labels 1 and 12 (2-3 voxels thick)
+-15.7 % and -9.4 % -> -4.6 % and -2.0 %, every label of 3,891 voxels or more within 5 %, no
+label lost (2 before), 8.85 M tetrahedra instead of 2.25 M, 91 s of CPU instead of 3.2 s (77 s
+of it the bisection), dihedral angles [9.3°, 167.0°] instead of [12.8°, 159.1°]; the labels
+of 4 to 252 voxels (specks of the segmentation) stay 0-57 % off, and one of them (23, 6 voxels
+in a 54 x 5 x 31 box) goes from -19.5 % to -56.8 %. What is still lost: a layer thinner than about
 twice ``min_size`` (a 1-voxel layer at ``min_size`` 1 voxel: +32 %, the cut points' snapping
 and the pulled face and tet points are a fraction of an edge), and a region only one or two
 edges across is chamfered (a 5-voxel cube at h = 4: -28 % uniform, -11 % graded, -6 % at
