@@ -27,7 +27,6 @@ from collections.abc import Mapping
 import numpy as np
 
 from warpmesh._conventions import ALPHA_TETRA, ALPHA_TRIANGLE, INDEX_DTYPE, REAL_DTYPE, REL_TOL
-from warpmesh.cells.topology import face_areas
 
 __all__ = ["ALPHA_TETRA", "triangle_quality", "tetra_quality", "quality_summary", "triangle_angles",
            "edge_length_ratio", "quality_table", "quality_histogram", "format_table"]
@@ -91,7 +90,7 @@ def triangle_quality(points, triangles) -> np.ndarray:
     u, v, w, d = b - a, c - b, a - c, c - a
     lengths = np.sqrt(np.stack([np.einsum("ij,ij->j", e, e) for e in (u, v, w)]))
     if len(x) == 3:
-        cross = np.stack([u[1] * d[2] - u[2] * d[1], u[2] * d[0] - u[0] * d[2], u[0] * d[1] - u[1] * d[0]])
+        cross = _cross_rows(u, d)
         area = 0.5 * np.sqrt(np.einsum("ij,ij->j", cross, cross))
     else:
         area = 0.5 * np.abs(u[0] * d[1] - u[1] * d[0])
@@ -121,14 +120,25 @@ def tetra_quality(points, tetra) -> np.ndarray:
     [1.0]
     """
     pts, tet = _validate(points, tetra, 4, (3,), "tetra")
-    p = pts[tet]
-    edges = p[:, _TET_EDGES[:, 1]] - p[:, _TET_EDGES[:, 0]]
-    h_max = np.linalg.norm(edges, axis=2).max(axis=1) if len(tet) else np.zeros(0)
-    volume = np.abs(np.einsum("ij,ij->i", edges[:, 0], np.cross(edges[:, 1], edges[:, 2]))) / 6.0
-    faces = tet[:, _TET_FACES].reshape(-1, 3)
-    total_area = face_areas(pts, faces).reshape(-1, 4).sum(axis=1)
+    if not len(tet):
+        return np.zeros(0)
+    # coordinates as rows, as triangle_quality: 1.9 M tets 6.0 -> 1.0 s (equal to a few ulps)
+    x = np.ascontiguousarray(pts.T)
+    p = [x[:, tet[:, j]] for j in range(4)]
+    edges = [p[j] - p[i] for i, j in _TET_EDGES]
+    h_max = np.sqrt(np.stack([np.einsum("ij,ij->j", e, e) for e in edges])).max(axis=0)
+    volume = np.abs(np.einsum("ij,ij->j", edges[0], _cross_rows(edges[1], edges[2]))) / 6.0
+    total_area = np.zeros(len(tet))
+    for i, j, k in _TET_FACES:
+        c = _cross_rows(p[j] - p[i], p[k] - p[i])
+        total_area += 0.5 * np.sqrt(np.einsum("ij,ij->j", c, c))
     rho = 3.0 * volume / np.maximum(total_area, np.finfo(REAL_DTYPE).tiny)
     return _ratio(ALPHA_TETRA, h_max, rho, volume <= REL_TOL * h_max**3)
+
+
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of (3, m) arrays of column vectors."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 def quality_summary(points, cells) -> dict:
