@@ -84,6 +84,23 @@ def test_part_euler_and_creases(capsys):
     _report(capsys, "part 0.12", vol)
 
 
+@pytest.mark.parametrize("radius", [0.26, 0.35, 0.46])
+def test_small_spheres_with_nothing_left_to_optimise(radius):
+    """A coarse size on a small sphere: the first smoothing and flips leave no tetrahedron
+    below the optimisation threshold, so the second pass has nothing to do (it used to call
+    the flips with no tetrahedra and stop with an IndexError)."""
+    vol = wm.mesh_domain(wm.sphere(radius), bounds=((-1,) * 3, (1,) * 3), size=0.3, method="delaunay")
+    s = _check_volume_mesh(vol, 2)
+    assert s["volume"] == pytest.approx(4 / 3 * math.pi * radius**3, rel=0.2)  # a coarse inscribed polytope: 0.87-0.92
+
+
+def test_flips_of_no_tetrahedra_are_no_flips():
+    from warpmesh.solid.flips import flip_tets
+
+    tets, info = flip_tets(np.zeros((3, 3)), np.zeros((0, 4), np.int64), np.zeros((0, 3), np.int64))
+    assert tets.shape == (0, 4) and info["flips_23"] == info["flips_32"] == info["flips_44"] == 0
+
+
 def test_caps_where_the_bounds_clip_the_shape():
     box = ((-0.7, -0.7, -0.7), (0.7, 0.7, 0.6))
     h = 0.2

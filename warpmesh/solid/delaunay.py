@@ -612,6 +612,8 @@ def mesh_delaunay(shape, box, h: float, *, smooth: int = 0, features: bool = Tru
     for sweeps in (max(int(smooth), SWEEPS),) + PASSES_AFTER:
         # only around the tetrahedra below OPTIMISE_BELOW (the lattice's inside is BCC already)
         region = _region(points, tets, device)
+        if not region.any():  # nothing below OPTIMISE_BELOW is left
+            break
         points, m = smooth_tets(points, tets, tris, on_f & ~crease, on_cap | crease, field.tape, sweeps=sweeps,
                                 device=device, only=region)
         moved += m

@@ -146,6 +146,8 @@ def flip_tets(points, tets, tris, *, rounds: int = MAX_ROUNDS, device="cpu"):
     """
     pts = np.asarray(points, dtype=np.float64)
     tets = np.asarray(tets, dtype=np.int64).copy()
+    if not len(tets):  # nothing to flip (e.g. a region of bad tetrahedra that came out empty)
+        return tets.reshape(0, 4), {"flips_23": 0, "flips_32": 0, "flips_44": 0, "flip_rounds": 0}
     n = np.int64(len(pts))
     be = unique_edges(tris, TRI_EDGES)
     boundary_keys = be[:, 0] * n + be[:, 1]
