@@ -154,9 +154,22 @@ def _check_optimized(before, after, volume_rtol):
     assert len(on_curve)
     dist = _segment_distance(after.points[on_curve], before.points[a0[f0]], before.points[b0[f0]])
     assert dist.max() <= 1e-6
-    # junction vertices (3 labels or more) still separate 3 labels or more
-    sets = _vertex_label_sets(after)
-    assert all(len(sets[k]) >= 2 for k in range(after.n_points))
+    # junctions (vertices of 3 labels or more): the input's that are still there keep 3 labels
+    # or more, and every junction of the output lies on the input's feature edges or is one of
+    # the input's junctions where labels only touch at a point (a voxel corner), unmoved
+    sets, sets0 = _vertex_label_sets(after), _vertex_label_sets(before)
+    junctions = np.array([k for k in range(after.n_points) if len(sets[k]) >= 3], np.int64)
+    junctions0 = [k for k in range(before.n_points) if len(sets0[k]) >= 3]
+    assert bool(len(junctions)) == bool(junctions0)
+    if len(junctions):
+        off = junctions[_segment_distance(after.points[junctions], before.points[a0[f0]],
+                                          before.points[b0[f0]]) > 1e-6]
+        points0 = {tuple(before.points[k].tolist()) for k in junctions0}
+        assert all(tuple(after.points[k].tolist()) in points0 for k in off), after.points[off]
+    index = {tuple(q): k for k, q in enumerate(after.points.tolist())}
+    for k0 in junctions0:
+        k = index.get(tuple(before.points[k0].tolist()))
+        assert k is None or len(sets[k]) >= 3, (k0, sets0[k0], sets[k])
     # the fixed vertices of the input are all there, unmoved
     fixed = before.points[kind0 == 0]
     if len(fixed):
@@ -165,7 +178,9 @@ def _check_optimized(before, after, volume_rtol):
     # no edge inside one interface is shared by more faces than the input has on such an edge
     assert _max_faces_on_interface_edge(after) <= max(2, _max_faces_on_interface_edge(before))
     # no worse
-    assert triangle_quality(after.points, t).max() <= triangle_quality(before.points, before.cells["triangle"]).max()
+    # (equal triangles at other places differ in Q_K's last bits: a relative 1e-12 of slack)
+    worst0 = triangle_quality(before.points, before.cells["triangle"]).max()
+    assert triangle_quality(after.points, t).max() <= worst0 * (1 + 1e-12)
     # labels carried: each label's enclosed volume (the rest's is negative: its boundary faces inwards)
     v0, v1 = _label_volumes(before), _label_volumes(after)
     assert v0.keys() == v1.keys()
@@ -173,7 +188,7 @@ def _check_optimized(before, after, volume_rtol):
         assert abs(v1[label] - v0[label]) <= volume_rtol * abs(v0[label]), (label, v0[label], v1[label])
     info = after.info["optimize"]
     assert info["after"]["triangles"] == after.n_cells and info["before"]["triangles"] == before.n_cells
-    assert info["after"]["q_worst"] <= info["before"]["q_worst"]
+    assert info["after"]["q_worst"] <= info["before"]["q_worst"] * (1 + 1e-12)
 
 
 def test_optimize_two_boxes_staircase_coarser():
@@ -188,6 +203,11 @@ def test_optimize_two_boxes_staircase_coarser():
     opt = optimize_labels(raw, size=2.0, iterations=3)
     _check_optimized(raw, opt, volume_rtol=0.03)
     assert opt.n_cells < raw.n_cells and opt.info["optimize"]["kept"] == "strict"
+    # the counts are the strict run's: its collapses (each removes 2 triangles, 3 on a junction
+    # edge) made the fewer triangles; the first run's operations (many more) are reported apart
+    info = opt.info["optimize"]
+    assert info["splits"] == 0 and 2 * info["collapses"] <= raw.n_cells - opt.n_cells <= 3 * info["collapses"]
+    assert info["discarded"] > info["collapses"] + info["flips"]
     assert opt.info["optimize"]["after"]["q_mean"] < opt.info["optimize"]["before"]["q_mean"]
     loop = np.array([s == (0, 1, 2) for s in _vertex_label_sets(opt)])
     assert loop.sum() >= 4 and np.ptp(opt.points[loop, 2]) < 1e-12
@@ -202,6 +222,7 @@ def test_optimize_smoothed_three_labels(size):
     _check_optimized(smooth, opt, volume_rtol=0.03)
     info = opt.info["optimize"]
     assert info["kept"] == "final" and info["splits"] + info["collapses"] > 0 and info["flips"] > 0
+    assert info["discarded"] == 0
     assert info["after"]["q_worst"] < 0.5 * info["before"]["q_worst"]
     assert triangle_angles(opt.points, opt.cells["triangle"]).min() > info["before"]["angle_min"]
     assert info["after"]["edge_error"] < info["before"]["edge_error"]
@@ -248,6 +269,12 @@ def test_optimize_bad_options_name_the_argument():
             optimize_labels(raw, 1.5, iterations=bad)
     with pytest.raises(ValueError, match="interfaces='shared' in 'mesh'"):
         optimize_labels(wm.mesh_surface(_blobs(0, 3, shape=(8, 8, 8)), labels="all"), 1.5)
+    none = np.zeros(0, np.int64)
+    empty = raw.replace(cells={"triangle": none.reshape(0, 3)}, cell_refs={"triangle": none},
+                        cell_data={"label_above": {"triangle": none}})
+    for size in (None, 1.0):
+        with pytest.raises(ValueError, match="'mesh' with triangles"):
+            optimize_labels(empty, size)
 
 
 

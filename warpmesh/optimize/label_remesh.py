@@ -134,9 +134,10 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
     Mesh
         The remeshed surface with its two label arrays. ``info["optimize"]`` holds
         ``before`` and ``after`` (``q_worst``, ``q_mean``, ``angle_min``, ``triangles``,
-        ``edge_error``: the mean of ``|log(length / size)|``), the operator counts
-        (``splits``, ``collapses``, ``flips``, ``moves``), ``rejected`` (operations
-        undone by the checks), ``kept`` ("final"; "best": an earlier iteration, the last
+        ``edge_error``: the mean of ``|log(length / size)|``), the operator counts of
+        the state returned (``splits``, ``collapses``, ``flips``, ``moves``),
+        ``rejected`` (operations undone by the checks), ``discarded`` (operations of the
+        iterations or runs thrown away), ``kept`` ("final"; "best": an earlier iteration, the last
         one's worst Q_K being above the input's; "strict": the iterations run again from
         the input with no operation making a triangle worse than the input's worst, when
         no iteration was as good; "input", with a warning), ``q_worst_reached`` (the first
@@ -162,6 +163,8 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
     if isinstance(iterations, (bool, np.bool_)) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
         raise ValueError(f"expected a non-negative integer for 'iterations', got {iterations!r}")
     refs, above = shared_labels(mesh)
+    if not len(refs):
+        raise ValueError("expected a 'mesh' with triangles, got a shared surface of none")
     p = np.array(mesh.points, np.float64)
     t = np.asarray(mesh.cells["triangle"], np.int64).copy()
     lower, upper = np.asarray(refs).copy(), np.asarray(above).copy()
@@ -181,28 +184,31 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
     _, _, _, kind = classify_edges(t, lower, upper, len(p), bits)
     bits = bits | np.where(kind == 0, _PINNED, 0)  # the input's fixed vertices stay fixed whatever happens around
     before = _summary(p, t, h_of)
-    counts = {"splits": 0, "collapses": 0, "flips": 0, "moves": 0, "rejected": 0}
     start = (p, t, lower, upper, bits)
-    state, best, final = _iterate(start, h_of, ref, tol, int(iterations), before, counts, q_cap=np.inf)
-    kept = "final"
+    state, best, final, counts = _iterate(start, h_of, ref, tol, int(iterations), before, q_cap=np.inf)
+    kept, runs = "final", [counts]
     if final["q_worst"] > before["q_worst"]:
         if best is not None:
-            kept, state = "best", best[2]
+            kept, state, counts = "best", best[2], best[3]
         else:  # again from the input, no operation making a triangle worse than the input's worst
             kept = "strict"
-            state, _, strict = _iterate(start, h_of, ref, tol, int(iterations), before, counts,
-                                        q_cap=before["q_worst"])
+            state, _, strict, counts = _iterate(start, h_of, ref, tol, int(iterations), before,
+                                                q_cap=before["q_worst"])
+            runs.append(counts)
             if strict["q_worst"] > before["q_worst"]:
-                kept, state = "input", start
+                kept, state, counts = "input", start, dict.fromkeys(counts, 0)
                 warnings.warn(f"optimize_labels: no pass kept the worst Q_K at or below the input's "
                               f"({before['q_worst']:.3g}, reached {strict['q_worst']:.3g}); returning the input",
                               stacklevel=2)
+    # the counts are the kept state's; the operations of the runs (or iterations) thrown away apart
+    discarded = sum(sum(r[k] for k in _OPERATIONS) for r in runs) - sum(counts[k] for k in _OPERATIONS)
     p, t, lower, upper, _ = state
     used = np.unique(t)
     index = np.full(len(p), -1, np.int64)
     index[used] = np.arange(len(used))
     p, t = p[used], index[t]
-    info = {**mesh.info, "optimize": {**counts, "before": before, "after": _summary(p, t, h_of),
+    info = {**mesh.info, "optimize": {**counts, "discarded": int(discarded), "before": before,
+                                      "after": _summary(p, t, h_of),
                                       "q_worst_reached": final["q_worst"], "kept": kept,
                                       "size": float(np.median(h_of(p))), "tolerance": tol,
                                       "iterations": int(iterations), "time": time.perf_counter() - t_start}}
@@ -210,11 +216,17 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
     return type(mesh)(p, {"triangle": t}, cell_refs={"triangle": np.asarray(lower)}, cell_data=data, info=info)
 
 
-def _iterate(state, h_of, ref, tol, iterations, before, counts, q_cap):
+#: the operations counted in ``info["optimize"]``
+_OPERATIONS = ("splits", "collapses", "flips", "moves")
+
+
+def _iterate(state, h_of, ref, tol, iterations, before, q_cap):
     """The iterations from ``state``; returns (last state, the best state not worse than the
-    input as (q_worst, -angle_min, state) or None, the last state's summary). ``q_cap``
-    bounds every operation's triangles (inf: the operators' own limits)."""
+    input as (q_worst, -angle_min, state, its operation counts) or None, the last state's
+    summary, the last state's operation counts). ``q_cap`` bounds every operation's
+    triangles (inf: the operators' own limits)."""
     p, t, lower, upper, bits = state
+    counts = {"splits": 0, "collapses": 0, "flips": 0, "moves": 0, "rejected": 0}
     best, s = None, before
     for _ in range(iterations):
         p, t, lower, upper, bits = _split_pass(p, t, lower, upper, bits, h_of, ref, min(COLLAPSE_Q, q_cap), counts)
@@ -226,8 +238,8 @@ def _iterate(state, h_of, ref, tol, iterations, before, counts, q_cap):
             t = _flip_pass(p, t, lower, upper, bits, ref, tol, counts)
         s = _summary(p, t, h_of)
         if s["q_worst"] <= before["q_worst"] and (best is None or (s["q_worst"], -s["angle_min"]) <= best[:2]):
-            best = (s["q_worst"], -s["angle_min"], (p, t, lower, upper, bits))
-    return (p, t, lower, upper, bits), best, s
+            best = (s["q_worst"], -s["angle_min"], (p, t, lower, upper, bits), dict(counts))
+    return (p, t, lower, upper, bits), best, s, counts
 
 
 # ----------------------------------------------------------------------------- set-up
