@@ -96,6 +96,9 @@ def test_simplify_dispatches_shared_surfaces():
     via = smooth.simplify(fraction=0.4)
     assert np.array_equal(via.points, direct.points) and np.array_equal(via.triangles, direct.triangles)
     assert np.array_equal(via.cell_data["label_above"]["triangle"], direct.cell_data["label_above"]["triangle"])
+    for name, value in (("features", True), ("angle", 10.0), ("bounds", ((0, 0, 0), (9, 9, 9))), ("progress", True)):
+        with pytest.raises(ValueError, match=f"'{name}'"):  # options optimize_labels does not take: not ignored
+            smooth.optimize(size=1.5, **{name: value})
 
 
 # ----------------------------------------------------------------------------- optimize_labels

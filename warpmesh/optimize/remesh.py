@@ -994,8 +994,8 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
         "input", which also warns: no progress) and ``q_worst_reached`` (the final worst Q_K, returned or not);
         ``stats()`` gives ``q_mean``, ``q_worst``. A shared multi-material surface
         (``interfaces="shared"``) without ``shape`` goes to :func:`warpmesh.optimize.
-        label_remesh.optimize_labels` (``size``, ``tolerance``, ``iterations``; junction
-        vertices stay on their input curves).
+        label_remesh.optimize_labels` (``size``, ``tolerance``, ``iterations``; the other
+        options are refused there, not ignored; junction vertices stay on their input curves).
 
     Examples
     --------
@@ -1009,6 +1009,12 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
     _check_iterations(iterations)
     if shape is None and "label_above" in getattr(mesh, "cell_data", {}):  # a shared multi-material surface
         from warpmesh.optimize.label_remesh import optimize_labels
+        given = [name for name, ignored in (("bounds", bounds is not None), ("features", features is not None),
+                                            ("angle", angle is not DEFAULT_ANGLE and angle != DEFAULT_ANGLE),
+                                            ("progress", progress is not False)) if ignored]
+        if given:
+            raise ValueError(f"a shared multi-material surface is optimised by optimize_labels, which takes "
+                             f"'size', 'tolerance' and 'iterations'; got {', '.join(repr(g) for g in given)} too")
         return optimize_labels(mesh, size, tolerance=tolerance, iterations=int(iterations))
     return _drive(mesh, shape, bounds=bounds, size=size, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=None, simplifying=False)
