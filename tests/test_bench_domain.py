@@ -17,7 +17,6 @@ _PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_domain.py"
 
 @pytest.fixture(scope="module")
 def bd():
-    pytest.importorskip("gmsh")
     sys.path.insert(0, str(_PATH.parent))  # the script imports its sibling _report
     try:
         with pytest.MonkeyPatch.context() as mp:

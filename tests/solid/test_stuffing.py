@@ -190,6 +190,9 @@ def test_command_line_domain_graded_by_curvature(capsys):
     uniform = __import__("json").loads(capsys.readouterr().out)
     assert graded["euler"] == 2 and graded["dihedral_min"] > 0
     assert graded["ne"] != uniform["ne"]
+    # graded by curvature: sizes from the ends' curvature (radii 0.16^2/0.9) to the flat middle
+    assert graded["graded"] is True and not uniform.get("graded")
+    assert graded["size_smallest"] < 0.05 < graded["size_largest"] and graded["graded_dihedral_min"] > 5
     with pytest.raises(SystemExit):  # argparse refuses a word other than 'curvature'
         main(args + ["--size", "fine"])
     capsys.readouterr()
