@@ -380,7 +380,10 @@ def delaunay_tets(shape, box, h: float, *, device="cpu", seed: int = 0, max_roun
     ValueError
         No lattice node inside: nothing to mesh.
     WarpMeshError
-        Boundary recovery makes no progress, or ``max_rounds`` pass.
+        Boundary recovery makes no progress, or ``max_rounds`` pass. On random CSG shapes
+        (``tests.helpers.random_shapes``, sizes of a fifth to a twelfth of the box) this
+        happened in 10 of 38 cases that stuffing meshes: thin parts and sharp concave
+        edges the points on f = 0 do not resolve.
     """
     from scipy.spatial import Delaunay, cKDTree
 
