@@ -83,7 +83,20 @@ def bracketed_roots(n: int, p0: wp.array, p1: wp.array, f_lo: wp.array, f_hi: wp
     """(t, cut positions (local)) of ``n`` cut edges p0 -> p1 (local; the field f_lo, f_hi at
     their ends) by regula falsi with the Illinois modification (superlinear, never leaves the
     bracket) on the exact field: ``field`` maps world points (wp.array of vec3, world = worigin
-    + local) to values (float32). f_lo and f_hi are overwritten."""
+    + local) to values (float32). f_lo and f_hi are overwritten.
+
+    Example
+    -------
+    The unit sphere's field 1 - |x|^2 on the edge (0, 0, 0) -> (2, 0, 0):
+
+    >>> import numpy as np, warp as wp
+    >>> edge = [wp.array([p], dtype=wp.vec3) for p in ((0.0, 0.0, 0.0), (2.0, 0.0, 0.0))]
+    >>> field = lambda x: wp.array(1 - np.linalg.norm(x.numpy(), axis=1) ** 2, dtype=wp.float32)
+    >>> ends = [wp.array([v], dtype=wp.float32) for v in (1.0, -3.0)]
+    >>> t, pos = bracketed_roots(1, *edge, *ends, wp.vec3(0.0, 0.0, 0.0), field, 8, "cpu")
+    >>> float(t.numpy()[0]), pos.numpy()[0].tolist()
+    (0.5, [1.0, 0.0, 0.0])
+    """
     t = wp.full(max(n, 1), 0.5, dtype=wp.float32, device=device)
     t_lo = wp.zeros(max(n, 1), dtype=wp.float32, device=device)
     t_hi = wp.ones(max(n, 1), dtype=wp.float32, device=device)

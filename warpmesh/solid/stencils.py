@@ -98,7 +98,16 @@ def ranked_diagonal(p: int, q: int, n: int, bits: int = 0) -> tuple[int, int]:
     face. The fill kernel sets the bit when the second is closer to n (ties by id), the
     paper's choice where one of n p, n q is long: a function of the face alone, so both
     tetrahedra sharing it agree; and a total order (distance to n, then id), so the
-    diagonals of a prism around one outside vertex are never cyclic."""
+    diagonals of a prism around one outside vertex are never cyclic.
+
+    Example
+    -------
+    Face (0, 1, 2), vertex 3 off it: from vertex 0 (the smaller id) to the cut point of
+    edge 1-2, or from vertex 1 when bit 3 is set.
+
+    >>> ranked_diagonal(0, 1, 2), ranked_diagonal(1, 0, 2), ranked_diagonal(0, 1, 2, bits=1 << 3)
+    ((0, 7), (0, 7), (1, 5))
+    """
     first, second = (p, q) if p < q else (q, p)
     off = 6 - p - q - n
     end, other = (second, first) if (bits >> off) & 1 else (first, second)
