@@ -380,3 +380,26 @@ def test_cap_refines_the_cells_whose_crossings_it_hides(inside, refine):
     coarse leaves lost its part below the leaves' corners, and the solid gained a handle)."""
     tree = Octree(np.zeros(3), np.full(3, 0.1), np.array([16, 16, 16]), 4, 1, True, None, None, (), None, None)
     assert _cap_loses(tree, 2, np.array([[1, 1, 0]]), _corner_values(inside))[0] == refine
+
+
+def test_a_rod_beside_a_plane_in_coarse_leaves_is_kept():
+    """Two sheets in one coarse leaf that its corners do not show: a slab's flat top and, above
+    it in the same level-3 cells, a rod (0.06 across) between two balls. The rod runs along the
+    middle of the cells, so it shifts their four top corners' values alike: the crossings stay
+    coplanar and the cells pass every criterion as leaves. Only the balls' cells are refined,
+    and their finer nodes show the rod on a coarse leaf's face: that leaf's boundary holds the
+    slab's loop and the rod's. Fanning each loop on its own (no rebuild) caps the rod where it
+    enters the coarse leaves and loses it in them: the balls come apart, (6, 3). The rebuild
+    refines those leaves, which shows the rod to the next coarse leaves along it: a third
+    octree round, and the grid's (4, 2)."""
+    slab = wm.box((2.4, 2.4, 1.0), center=(0.0, 0.0, -0.42))  # top at z = 0.08, in the cells 0 < z < 0.25
+    rod = wm.capsule((-0.65, 0.125, 0.21), (0.65, 0.125, 0.21), 0.03)  # the middle of the cells 0 < y < 0.25
+    balls = [wm.sphere(0.12, center=(x, 0.125, 0.3)) for x in (-0.65, 0.65)]
+    shape = wm.union(slab, rod, *balls, method="minmax")
+    bounds = ((-1.0,) * 3, (1.0,) * 3)
+    m = wm.mesh_surface(shape, bounds=bounds, adaptive=True, max_level=7, min_level=3)
+    grid = wm.mesh_surface(shape, bounds=bounds, resolution=128).stats()
+    s = m.stats()
+    assert m.info["octree_rounds"] == 3, m.info["octree_rounds"]
+    assert (s["euler"], s["components"]) == (grid["euler"], grid["components"]) == (4, 2)
+    assert s["watertight"] and s["oriented"] and len(wm.check(m)) == 0
