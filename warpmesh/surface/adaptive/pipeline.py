@@ -31,7 +31,7 @@ NEWTON_STEPS = 4  # safeguarded Newton from the linear estimate (quadratic conve
 
 
 def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chord, bound, lipschitz, cap, prune,
-                  features, root, root_iterations, gradient, device, timings, info, force=None, rounds=1):
+                  features, root, root_iterations, gradient, device, timings, info, force=None):
     """(points, faces, triangle refs or None) of the adaptive surface; fills timings and info.
 
     Without ``cap`` the surface is the capped one less its cap triangles: an open surface
@@ -39,60 +39,68 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
 
     A leaf above ``max_level`` whose boundary (its neighbours' finer nodes included) holds
     two loops or more has two sheets, which its corners did not show: the octree is built
-    again with those leaves refined (``force``), until none is left (``info["octree_rounds"]``)."""
-    args = dict(max_level=max_level, min_level=min_level, tolerance=tolerance, angles=angles, chord=chord,
-                bound=bound, lipschitz=lipschitz, cap=cap, prune=prune, features=features, root=root,
-                root_iterations=root_iterations, gradient=gradient, device=device, timings=timings, info=info)
+    again with those leaves refined (``force``), until none is left (``info["octree_rounds"]``;
+    ``timings["octree"]`` sums the rounds)."""
     open_bounds, cap = not cap, True
-    t0 = time.perf_counter()
-    tree = build_octree(tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance,
-                        angles=angles, chord=chord, bound=bound, lipschitz=lipschitz, cap=cap, prune=prune,
-                        force=force, device=device)
-    timings["octree"] = time.perf_counter() - t0
-    fld = tree.field
+    timings["octree"], rounds = 0.0, 0
+    # The rounds end (no cap needed): a cell of ``force`` that a round reaches above max_level is
+    # refined (or culled), never a leaf, so each round's two-sheet leaves are keys not yet in
+    # ``force``, which grows strictly within the finite set of cells above max_level. That needs
+    # the union: with ``force`` replaced by the new leaves, the rod beside a slab of
+    # tests/surface/test_adaptive.py alternates between two trees forever. A rod across k coarse
+    # leaves takes about k / 2 + 1 rounds (each round shows it to the next leaves from both ends).
+    while True:
+        rounds += 1
+        t0 = time.perf_counter()
+        tree = build_octree(tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance,
+                            angles=angles, chord=chord, bound=bound, lipschitz=lipschitz, cap=cap, prune=prune,
+                            force=force, device=device)
+        timings["octree"] += time.perf_counter() - t0
+        fld = tree.field
 
-    t0 = time.perf_counter()
-    axis, origin, size, minus, plus, owner, side = OC.face_units(tree)
-    node_of, ptr, node_keys = OC.boundary_cycles(tree, axis, owner, side)
-    values, capped, vnodes, segments = OC.unit_segments(tree, axis, origin, size, node_of, ptr, node_keys)
-    timings["faces"] = time.perf_counter() - t0
-    info.update(leaves=len(tree.leaf_level), face_units=len(axis), crossings=len(vnodes))
-    if not len(segments):
-        _finish_info(tree, info, 0, 0, 0)
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), None
+        t0 = time.perf_counter()
+        axis, origin, size, minus, plus, owner, side = OC.face_units(tree)
+        node_of, ptr, node_keys = OC.boundary_cycles(tree, axis, owner, side)
+        values, capped, vnodes, segments = OC.unit_segments(tree, axis, origin, size, node_of, ptr, node_keys)
+        timings["faces"] = time.perf_counter() - t0
+        info.update(leaves=len(tree.leaf_level), face_units=len(axis), crossings=len(vnodes))
+        if not len(segments):
+            info["octree_rounds"] = rounds
+            _finish_info(tree, info, 0, 0, 0)
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int64), None
 
-    t0 = time.perf_counter()
-    # the loops need only the segments: chain them on a second thread while the roots are found
-    loops: list = []
+        t0 = time.perf_counter()
+        # the loops need only the segments: chain them on a second thread while the roots are found
+        loops: list = []
 
-    def chain_loops():
-        try:
-            loops.append(OC.leaf_loops(segments, minus, plus, len(vnodes)))
-        except BaseException as exc:  # re-raised on the calling thread below
-            loops.append(exc)
+        def chain_loops():
+            try:
+                loops.append(OC.leaf_loops(segments, minus, plus, len(vnodes)))
+            except BaseException as exc:  # re-raised on the calling thread below
+                loops.append(exc)
 
-    chain = threading.Thread(target=chain_loops)
-    chain.start()
-    p0, p1, t = OC.edge_points(tree, vnodes, node_keys, values)
-    cap_vertex = capped[vnodes].any(axis=1)
-    points = p0 + t[:, None] * (p1 - p0)
-    fg = None  # (f, grad f) at the vertices, when the root finding leaves them behind
-    if root != "linear":
-        steps = root_iterations or (12 if root == "bisection" else NEWTON_STEPS)
-        points, fg = _refine(tape, tree, p0, p1, t, values[vnodes[:, 0]] > 0, cap_vertex, root, steps,
-                             gradient, device, timings)
-        fld.counts["evaluations"] += len(points) * steps
-    timings["root"] = time.perf_counter() - t0
+        chain = threading.Thread(target=chain_loops)
+        chain.start()
+        p0, p1, t = OC.edge_points(tree, vnodes, node_keys, values)
+        cap_vertex = capped[vnodes].any(axis=1)
+        points = p0 + t[:, None] * (p1 - p0)
+        fg = None  # (f, grad f) at the vertices, when the root finding leaves them behind
+        if root != "linear":
+            steps = root_iterations or (12 if root == "bisection" else NEWTON_STEPS)
+            points, fg = _refine(tape, tree, p0, p1, t, values[vnodes[:, 0]] > 0, cap_vertex, root, steps,
+                                 gradient, device, timings)
+            fld.counts["evaluations"] += len(points) * steps
+        timings["root"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    chain.join()
-    if isinstance(loops[0], BaseException):
-        raise loops[0]
-    half, loop_of, n_loops, loop_size, nxt = loops[0]
-    two_sheets = _leaves_with_two_sheets(tree, half, loop_of, n_loops)
-    if len(two_sheets):
-        keys = np.union1d(np.zeros(0, np.int64) if force is None else force, two_sheets)
-        return mesh_adaptive(tape, lo, hi, **args, force=keys, rounds=rounds + 1)
+        t0 = time.perf_counter()
+        chain.join()
+        if isinstance(loops[0], BaseException):
+            raise loops[0]
+        half, loop_of, n_loops, loop_size, nxt = loops[0]
+        two_sheets = _leaves_with_two_sheets(tree, half, loop_of, n_loops)
+        if not len(two_sheets):
+            break
+        force = two_sheets if force is None else np.union1d(force, two_sheets)
     info["octree_rounds"] = rounds
     normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
     centres, rank = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, features)
