@@ -207,13 +207,25 @@ def test_fuzz_surfaces_long(seed):
     check_case(seed)
 
 
-@pytest.mark.parametrize("seed", [1814, 1863, 1881, 1888, 1929, 102141, 102757])
+@pytest.mark.parametrize("seed", [1863, 1888, 102141, 102757])
 def test_octree_topology_regressions(seed):
-    """Seeds where the octree gave another Euler characteristic than the grid: a solid thinner
-    than a leaf pressed against the bounds vanished under the cap (1863, 1888), coarse
-    leaves held two sheets that only their finer neighbours' nodes showed (1814, 1881, 1929),
-    and a solid lying along the bounds lost its part under coarse leaves whose crossings the
-    cap hid (102141, 102757: an inside corner on the bounds, an outside one off them)."""
+    """Seeds where the octree gave another Euler characteristic or component count than the grid;
+    each fails again with a part of the octree's cap refinement (``octree._cap_loses``) patched out:
+
+    - 1863, 1888: a solid thinner than a leaf pressed against the bounds vanished or split under
+      the cap (without ``_cap_loses``: (4, 2) against the grid's (0, 1), (0, 1) against (2, 1));
+      its test of cells the cap empties, or of crossings the cap hides, keeps them alone;
+    - 102757: a solid lying along the bounds lost its part under coarse leaves whose crossings
+      the cap hid (an inside corner on the bounds, an outside one off them): (4, 2) against
+      (2, 1) without the hidden-crossing test, whatever else ``_cap_loses`` refines;
+    - 102141: the same, (0, 1) against (2, 1) without the hidden-crossing test alone (with
+      the whole of ``_cap_loses`` out, its tree happens to come out right).
+
+    None needs the rebuild of coarse leaves with two sheets (``_leaves_with_two_sheets``, one
+    octree round each here): 1814, 1881 and 1929, listed for it before, pass with both fixes
+    patched out and were dropped. Random shapes at max_level 6 rarely need it (with min_level 5
+    only level-5 leaves can hold two sheets: of seeds 0-2999, 62 took a second round, none with
+    another topology without it); its case is tests/surface/test_adaptive.py's rod beside a slab."""
     check_topology_case(seed)
 
 
