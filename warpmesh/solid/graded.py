@@ -271,33 +271,101 @@ def _longest(coords: np.ndarray, tets: np.ndarray, keys: np.ndarray) -> tuple[np
     return cand.min(axis=1), np.sqrt(best[:, 0])
 
 
+class _Rows:
+    """A growable array (capacity doubles): ``append`` is amortised O(rows added)."""
+
+    def __init__(self, a: np.ndarray):
+        self.a = a
+        self.n = len(a)
+
+    def append(self, b: np.ndarray) -> None:
+        need = self.n + len(b)
+        if need > len(self.a):
+            grown = np.empty((max(need, 2 * len(self.a)),) + self.a.shape[1:], self.a.dtype)
+            grown[:self.n] = self.a[:self.n]
+            self.a = grown
+        self.a[self.n:need] = b
+        self.n = need
+
+    def view(self) -> np.ndarray:
+        return self.a[:self.n]
+
+
+def _entries(sorted_flat: np.ndarray, order: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """The flat positions (``order``) of the entries of ``sorted_flat`` equal to any of ``keys``."""
+    a = np.searchsorted(sorted_flat, keys, "left")
+    b = np.searchsorted(sorted_flat, keys, "right")
+    n = b - a
+    total = int(n.sum())
+    if not total:
+        return np.empty(0, order.dtype)
+    idx = np.repeat(a - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(total)
+    return order[idx]
+
+
+def _merged(sorted_flat: np.ndarray, order: np.ndarray, add: np.ndarray, where: np.ndarray):
+    """The index (``sorted_flat``, ``order``) with the sorted keys ``add`` at flat positions
+    ``where`` merged in, in time linear in its size."""
+    pos = np.searchsorted(sorted_flat, add) + np.arange(len(add))
+    total = len(sorted_flat) + len(add)
+    rest = np.ones(total, bool)
+    rest[pos] = False
+    sf = np.empty(total, np.int64)
+    sf[pos] = add
+    sf[rest] = sorted_flat
+    od = np.empty(total, np.int64)
+    od[pos] = where
+    od[rest] = order
+    return sf, od
+
+
 class _Bisection:
     """A conforming tetrahedral mesh under longest-edge bisection: nodes (half-cube units),
-    tetrahedra, their edge keys, longest edge (key, length) and bisection level."""
+    tetrahedra, their edge keys, longest edge (key, length) and bisection level.
+
+    Tetrahedra are append-only: a bisected one stays, marked dead (``alive``), its children
+    go after all others, so the living ones in order are the mesh's order. The edge keys of
+    all of them are kept sorted in two indices (sorted keys, flat positions tet * 6 + local
+    edge): the main one, sorted once, and a recent one the children's keys are merged into
+    (linear, no re-sort); the recent one is merged into the main one (dropping the dead)
+    when it reaches half its size."""
 
     def __init__(self, coords: np.ndarray, tets: np.ndarray):
-        self.chunks = [coords]
-        self.n = len(coords)
-        self.tets = tets
-        self.keys = tet_edges(tets)
-        self.lkey, self.llen = _longest(coords, tets, self.keys)
-        self.levels = np.zeros(len(tets), np.int64)
-        self.fresh = np.ones(len(tets), bool)  # not yet checked against the size field
+        keys = tet_edges(tets)
+        lkey, llen = _longest(coords, tets, keys)
+        self.nodes = _Rows(coords)
+        self._tets, self._keys, self._lkey, self._llen = _Rows(tets), _Rows(keys), _Rows(lkey), _Rows(llen)
+        self._levels = _Rows(np.zeros(len(tets), np.int64))
+        self._fresh = _Rows(np.ones(len(tets), bool))  # living, not yet checked against the size field
+        self._alive = _Rows(np.ones(len(tets), bool))
+        self.count = len(tets)  # living tetrahedra
+        flat = keys.ravel()
+        order = np.argsort(flat)
+        self.main = (flat[order], order)
+        self.recent = (np.empty(0, np.int64), np.empty(0, np.int64))
+
+    tets = property(lambda self: self._tets.view())
+    lkey = property(lambda self: self._lkey.view())
+    llen = property(lambda self: self._llen.view())
+    fresh = property(lambda self: self._fresh.view())
+    alive = property(lambda self: self._alive.view())
+
+    @property
+    def n(self) -> int:
+        return self.nodes.n
 
     def coords(self) -> np.ndarray:
-        if len(self.chunks) > 1:
-            self.chunks = [np.concatenate(self.chunks)]
-        return self.chunks[0]
+        return self.nodes.view()
 
-    def _holding(self, sorted_flat, order, keys) -> np.ndarray:
-        """The tetrahedra holding any of ``keys`` (sorted unique)."""
-        a = np.searchsorted(sorted_flat, keys, "left")
-        b = np.searchsorted(sorted_flat, keys, "right")
-        n = b - a
-        if not n.sum():
-            return np.empty(0, np.int64)
-        idx = np.repeat(a - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(n.sum())
-        return np.unique(order[idx] // 6)
+    def result(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(coords, tets, levels) of the living tetrahedra."""
+        al = self.alive
+        return self.coords(), self.tets[al], self._levels.view()[al]
+
+    def _holding(self, keys) -> np.ndarray:
+        """The living tetrahedra holding any of ``keys`` (sorted unique)."""
+        t = np.concatenate([_entries(*self.main, keys), _entries(*self.recent, keys)]) // 6
+        return np.unique(t[self.alive[t]])
 
     def bisect(self, split: np.ndarray) -> None:
         """Bisect the edges ``split`` (keys) and every longest edge the conformity closure
@@ -307,55 +375,56 @@ class _Bisection:
         mids = np.empty(0, np.int64)
         frontier = np.unique(split)
         while True:
-            flat = self.keys.ravel()
-            order = np.argsort(flat)
-            sorted_flat = flat[order]
             while len(frontier):  # closure: the longest edges of the tetrahedra holding new keys
                 new = np.setdiff1d(frontier, pending, assume_unique=True)
                 if not len(new):
                     break
                 c = self.coords()
                 a, b = new // _KEY, new % _KEY
-                self.chunks.append(0.5 * (c[a] + c[b]))
                 ids = self.n + np.arange(len(new))
-                self.n += len(new)
+                self.nodes.append(0.5 * (c[a] + c[b]))
                 k = np.concatenate([pending, new])
                 o = np.argsort(k)
                 pending, mids = k[o], np.concatenate([mids, ids])[o]
-                frontier = np.unique(self.lkey[self._holding(sorted_flat, order, new)])
-            cut = self._holding(sorted_flat, order, pending)
+                frontier = np.unique(self.lkey[self._holding(new)])
+            cut = self._holding(pending)
             if not len(cut):
-                return
-            self._split(cut, mids[np.searchsorted(pending, self.lkey[cut])])
+                break
+            # bisect the tetrahedra cut at their longest edges: two children each, appended
+            lk = self.lkey[cut]
+            mid = mids[np.searchsorted(pending, lk)]
+            t = self.tets[cut]
+            a, b = lk // _KEY, lk % _KEY
+            rows = np.arange(len(t))
+            c1, c2 = t.copy(), t.copy()
+            ia = np.argmax(t == a[:, None], axis=1)
+            ib = np.argmax(t == b[:, None], axis=1)
+            c1[rows, ia] = mid  # replacing one end of the bisected edge by its midpoint keeps the sign
+            c2[rows, ib] = mid
+            children = np.concatenate([c1, c2])
+            ck = tet_edges(children)
+            cl, cn = _longest(self.coords(), children, ck)
+            lv = np.tile(self._levels.a[cut] + 1, 2)
+            m = self._tets.n
+            self.alive[cut] = False
+            self.fresh[cut] = False
+            self.count += len(cut)  # one out, two in
+            for rows_, add in ((self._tets, children), (self._keys, ck), (self._lkey, cl), (self._llen, cn),
+                               (self._levels, lv), (self._fresh, np.ones(len(children), bool)),
+                               (self._alive, np.ones(len(children), bool))):
+                rows_.append(add)
+            flat = ck.ravel()
+            o = np.argsort(flat)
+            self.recent = _merged(*self.recent, flat[o], 6 * m + o)
             # children still holding a key to split: their longest edges join the closure
-            m = len(self.tets) - 2 * len(cut)
-            ck = self.keys[m:]
             pos = np.clip(np.searchsorted(pending, ck), 0, len(pending) - 1)
             holds = (pending[pos] == ck).any(axis=1)
-            frontier = np.unique(self.lkey[m:][holds])
-
-    def _split(self, cut: np.ndarray, mid: np.ndarray) -> None:
-        t = self.tets[cut]
-        lk = self.lkey[cut]
-        a, b = lk // _KEY, lk % _KEY
-        rows = np.arange(len(t))
-        c1, c2 = t.copy(), t.copy()
-        ia = np.argmax(t == a[:, None], axis=1)
-        ib = np.argmax(t == b[:, None], axis=1)
-        c1[rows, ia] = mid  # replacing one end of the bisected edge by its midpoint keeps the sign
-        c2[rows, ib] = mid
-        children = np.concatenate([c1, c2])
-        keep = np.ones(len(self.tets), bool)
-        keep[cut] = False
-        ck = tet_edges(children)
-        cl, cn = _longest(self.coords(), children, ck)
-        lv = np.tile(self.levels[cut] + 1, 2)
-        self.tets = np.concatenate([self.tets[keep], children])
-        self.keys = np.concatenate([self.keys[keep], ck])
-        self.lkey = np.concatenate([self.lkey[keep], cl])
-        self.llen = np.concatenate([self.llen[keep], cn])
-        self.levels = np.concatenate([self.levels[keep], lv])
-        self.fresh = np.concatenate([self.fresh[keep], np.ones(len(children), bool)])
+            frontier = np.unique(cl[holds])
+        if 2 * len(self.recent[0]) > len(self.main[0]):
+            sf, od = _merged(*self.main, *self.recent)
+            live = self.alive[od // 6]
+            self.main = (sf[live], od[live])
+            self.recent = (np.empty(0, np.int64), np.empty(0, np.int64))
 
 
 def refine_bcc(dims, h0: float, origin: np.ndarray, field: SizeField, *, outside=None, max_rounds: int = 64):
@@ -412,9 +481,9 @@ def refine_tets(coords: np.ndarray, tets: np.ndarray, h0: float, origin: np.ndar
             hi = origin + (pts[marked].max(axis=1) + grow) * unit
             marked[np.flatnonzero(marked)[np.asarray(outside(lo, hi), bool)]] = False
         if not marked.any():
-            return mesh.coords(), mesh.tets, mesh.levels
+            return mesh.result()
         mesh.bisect(mesh.lkey[idx[marked]])
-        if len(mesh.tets) > MAX_BACKGROUND_TETS:
+        if mesh.count > MAX_BACKGROUND_TETS:
             raise ValueError(f"the graded background grew past {MAX_BACKGROUND_TETS} tetrahedra; raise 'size' "
                              f"(smallest asked {field.smallest:g})")
     raise ValueError(f"the 'size' field asked for more than {max_rounds} rounds of bisection; raise 'size'")
