@@ -248,16 +248,23 @@ class Lattice:
         self._per_cell(K.write_tets_kernel, [self.dims, self.n_nodes, self.layout, self.face_bits, self.edge_slot,
                                              self.signs, self.count, self.tets, self.edge_cut,
                                              offsets], [tets, used])
-        ids, nv = self._scan(used)
-        points = wp.empty(max(nv, 1), dtype=wp.vec3, device=dev)
-        surf = wp.zeros(max(nv, 1), dtype=wp.uint8, device=dev)
-        self._launch(K.gather_vertices_kernel, n_keys, [self.n_nodes, used, ids, self.node_pos, self.cut_pos,
-                                                        self.signs], [points, surf])
-        if m:
-            self._launch(K.remap_tets_kernel, m, [ids], [tets])
-        # sync point: the result to the host
-        return (points.numpy()[:nv].astype(np.float64), tets.numpy()[:m].astype(np.int64),
-                surf.numpy()[:nv].astype(bool))
+        return _used_vertices(self, used, tets, m)
+
+
+def _used_vertices(run, used: wp.array, tets: wp.array, m: int):
+    """The vertices the ``m`` tetrahedra use (``used`` flags over nodes then cut points, of a
+    :class:`Lattice` or :class:`Background` run), numbered compactly, and the tetrahedra
+    renumbered: (points (nv, 3) float64, tets (m, 4) int64, on-surface flags (nv,) bool)."""
+    ids, nv = run._scan(used)
+    points = wp.empty(max(nv, 1), dtype=wp.vec3, device=run.device)
+    surf = wp.zeros(max(nv, 1), dtype=wp.uint8, device=run.device)
+    run._launch(K.gather_vertices_kernel, run.n_nodes + run.n_cuts, [run.n_nodes, used, ids, run.node_pos,
+                                                                     run.cut_pos, run.signs], [points, surf])
+    if m:
+        run._launch(K.remap_tets_kernel, m, [ids], [tets])
+    # sync point: the result to the host
+    return (points.numpy()[:nv].astype(np.float64), tets.numpy()[:m].astype(np.int64),
+            surf.numpy()[:nv].astype(bool))
 
 
 class Background:
@@ -402,13 +409,4 @@ class Background:
         self._split(K.write_mesh_tets_kernel, self.n_tets,
                     [self.n_nodes, self.tets, self.tet_edges, self.flip, self.signs, self.local, self.count, self.table,
                      self.edge_cut, offsets], [tets, used])
-        ids, nv = self._scan(used)
-        points = wp.empty(max(nv, 1), dtype=wp.vec3, device=dev)
-        surf = wp.zeros(max(nv, 1), dtype=wp.uint8, device=dev)
-        self._launch(K.gather_vertices_kernel, n_keys, [self.n_nodes, used, ids, self.node_pos, self.cut_pos,
-                                                        self.signs], [points, surf])
-        if m:
-            self._launch(K.remap_tets_kernel, m, [ids], [tets])
-        # sync point: the result to the host
-        return (points.numpy()[:nv].astype(np.float64), tets.numpy()[:m].astype(np.int64),
-                surf.numpy()[:nv].astype(bool))
+        return _used_vertices(self, used, tets, m)
