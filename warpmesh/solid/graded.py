@@ -55,7 +55,7 @@ import numpy as np
 from warpmesh.solid.lattice import lattice_tables, node_coordinates
 
 __all__ = ["CURVATURE_ANGLE", "CURVATURE_GRADING", "SizeField", "curvature_size", "size_field", "smallest_size",
-           "refine_bcc", "refine_tets", "bcc_tetrahedra", "tet_edges", "MAX_BACKGROUND_TETS"]
+           "refine_bcc", "refine_tets", "bcc_tetrahedra", "tet_edges", "EDGE_KEY", "MAX_BACKGROUND_TETS"]
 
 #: the angle (radians) one boundary edge may subtend on the surface: size = angle / curvature
 CURVATURE_ANGLE = 0.2
@@ -65,8 +65,8 @@ CURVATURE_GRADING = 0.5
 MAX_BACKGROUND_TETS = 8_000_000
 #: local edges of a tetrahedron (the order of :data:`warpmesh.solid.stencils.EDGES`)
 _EDGES = np.array(((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)))
-#: edge keys a * _KEY + b
-_KEY = np.int64(1) << np.int64(31)
+#: edge keys a * EDGE_KEY + b (a < b), those of :func:`tet_edges`
+EDGE_KEY = np.int64(1) << np.int64(31)
 #: samples per axis used to validate a size callable over the box
 _SAMPLES = 9
 
@@ -258,7 +258,7 @@ def tet_edges(tets: np.ndarray) -> np.ndarray:
     """(m, 6) int64: the key a * 2^31 + b (a < b) of each local edge (order ``stencils.EDGES``)."""
     a = tets[:, _EDGES[:, 0]]
     b = tets[:, _EDGES[:, 1]]
-    return np.minimum(a, b) * _KEY + np.maximum(a, b)
+    return np.minimum(a, b) * EDGE_KEY + np.maximum(a, b)
 
 
 def _longest(coords: np.ndarray, tets: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -380,7 +380,7 @@ class _Bisection:
                 if not len(new):
                     break
                 c = self.coords()
-                a, b = new // _KEY, new % _KEY
+                a, b = new // EDGE_KEY, new % EDGE_KEY
                 ids = self.n + np.arange(len(new))
                 self.nodes.append(0.5 * (c[a] + c[b]))
                 k = np.concatenate([pending, new])
@@ -394,7 +394,7 @@ class _Bisection:
             lk = self.lkey[cut]
             mid = mids[np.searchsorted(pending, lk)]
             t = self.tets[cut]
-            a, b = lk // _KEY, lk % _KEY
+            a, b = lk // EDGE_KEY, lk % EDGE_KEY
             rows = np.arange(len(t))
             c1, c2 = t.copy(), t.copy()
             ia = np.argmax(t == a[:, None], axis=1)

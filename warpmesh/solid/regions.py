@@ -220,10 +220,10 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
     info.update(graded=False, min_size=smallest)
     counts = np.bincount(codes.ravel(order="K"), minlength=len(ids))
+    voxel = float(np.prod(spacing))
+    meshed = _region_volumes(points, tets, tet_codes, len(ids))
     if smallest <= 0.5 * h:  # the regions the uniform lattice misses by more than REFINE_ERROR: grade for them
-        vols = signed_volumes(points, tets)
-        error = np.bincount(tet_codes, weights=vols, minlength=len(ids)) / np.maximum(counts * np.prod(spacing),
-                                                                                      1e-300) - 1.0
+        error = meshed / np.maximum(counts * voxel, 1e-300) - 1.0
         focus = (np.abs(error) > REFINE_ERROR) & (counts > 0)
         focus[rest] = False
         if focus.any():
@@ -233,17 +233,15 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
             if graded is not None:
                 points, tets, tet_codes, tris, lower, upper, info = graded
                 timings.update(more)
+                meshed = _region_volumes(points, tets, tet_codes, len(ids))
             info["refined_labels"] = [int(v) for v in ids[focus]]
     if not len(tets):
         raise ValueError(f"no lattice node at size {h:g} lies in a region of 'labels' {ids[ids != ids[rest]].tolist()[:20]}"
                          ": the regions are thinner than the lattice; lower 'size'")
     t0 = time.perf_counter()
-    vols = signed_volumes(points, tets)
     quality = tet_quality_summary(points, tets, device)
     timings["quality"] = time.perf_counter() - t0
     region = {}
-    voxel = float(np.prod(spacing))
-    meshed = np.bincount(tet_codes, weights=vols, minlength=len(ids))
     for c, label in enumerate(ids.tolist()):
         if c == rest:
             continue
@@ -302,6 +300,11 @@ def _check_size(size, shape, spacing: np.ndarray) -> float:
         raise ValueError(f"a lattice of {n.astype(int).tolist()} cubes is too large to index: raise 'size' "
                          f"(got {size!r})")
     return float(size)
+
+
+def _region_volumes(points: np.ndarray, tets: np.ndarray, tet_codes: np.ndarray, n_codes: int) -> np.ndarray:
+    """(n_codes,) the volume of the tetrahedra of each code."""
+    return np.bincount(tet_codes, weights=signed_volumes(points, tets), minlength=n_codes)
 
 
 def _check_min_size(min_size, spacing: np.ndarray, h: float) -> float:

@@ -48,7 +48,7 @@ from __future__ import annotations
 import numpy as np
 
 from warpmesh.errors import WarpMeshError
-from warpmesh.solid.graded import SizeField, refine_tets, tet_edges
+from warpmesh.solid.graded import EDGE_KEY, SizeField, refine_tets, tet_edges
 from warpmesh.solid.lattice import lattice_tables, node_coordinates
 
 __all__ = ["MARGIN", "MIN_RUN", "graded_background", "unresolved_edges"]
@@ -58,8 +58,6 @@ MARGIN = 2
 #: a run of labels shorter than this (voxels) inside an edge is not a region the edge crosses:
 #: a layer one voxel thick gives a run of about one voxel at any angle, a voxel's corner less
 MIN_RUN = 0.75
-#: edge keys a * _KEY + b (those of :func:`warpmesh.solid.graded.tet_edges`)
-_KEY = np.int64(1) << np.int64(31)
 
 
 def unresolved_edges(labels_at, a: np.ndarray, b: np.ndarray, spacing: np.ndarray, per_voxel: int,
@@ -122,7 +120,7 @@ class _Resolution:
         keys = tet_edges(tets)
         new = np.setdiff1d(np.unique(keys), self.keys, assume_unique=True)
         if len(new):
-            bad = unresolved_edges(self.labels_at, nodes[new // _KEY], nodes[new % _KEY], self.spacing,
+            bad = unresolved_edges(self.labels_at, nodes[new // EDGE_KEY], nodes[new % EDGE_KEY], self.spacing,
                                    self.per_voxel, focus=self.focus)
             self.sampled += len(new)
             k = np.concatenate([self.keys, new])
