@@ -3,7 +3,8 @@
 
 Every case runs in a new Python process (``python -c CODE``), ``--repeat`` times
 (default 5) in round-robin order, after one untimed round that warms the disk caches, the
-Warp kernel cache and warpmesh's table cache. Times are the parent's wall clock around
+Warp kernel cache, warpmesh's table cache and Python's bytecode cache (the children run
+without ``PYTHONDONTWRITEBYTECODE``, as an installed package has its ``.pyc`` files). Times are the parent's wall clock around
 the child (interpreter start and exit included) and the child's CPU seconds (user + sys,
 ``getrusage(RUSAGE_CHILDREN)``); the tables give medians.
 
@@ -67,7 +68,9 @@ CLI = ["-m", "warpmesh.cli", "mesh", "--example", "part", "--resolution", "128",
 
 def _child(name: str, code: str | None, baseline: str | None = None) -> tuple[float, float, dict | None]:
     """(wall s, CPU s, the CLI's printed times or None) of one fresh process."""
-    env = dict(os.environ)
+    # bytecode written and read as after `pip install` (which compiles it): a shell with
+    # PYTHONDONTWRITEBYTECODE set would make every child compile warpmesh's sources anew
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     if baseline is not None:  # the checkout first on the path, the installed (editable) finder out of the way
         env["PYTHONPATH"] = baseline
         check = ("import sys, os\nsys.meta_path[:] = [f for f in sys.meta_path if not "

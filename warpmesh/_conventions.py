@@ -64,3 +64,7 @@ DEFAULT_DEVICE = "cpu"
 #: caps that close it where it meets the bounds (CAP_REF)
 SURFACE_REF = 1
 CAP_REF = 2
+
+#: the key of ``mesh.info`` holding the sampling grid of a volume's surface (origin, spacing,
+#: shape): written by the surface stage, read by the label smoothing and optimisation
+GRID_INFO = "grid"

@@ -59,6 +59,7 @@ import time
 
 import numpy as np
 
+from warpmesh._conventions import GRID_INFO
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 
 __all__ = ["CHECK_EVERY", "DEFAULT_PASSES", "GRID_INFO", "MARGIN", "PASS_BAND", "box_sides", "classify_edges",
@@ -75,8 +76,6 @@ PASS_BAND = 0.1
 #: block of the frog (677 k triangles, 16 passes), checking every 2 / 4 / 8 / 16 passes took
 #: 31 / 14.7 / 9.3 / 6.0 CPU s for areas of 297.6 / 298.4 / 300.7 / 303.4 k (raw 417.8 k)
 CHECK_EVERY = 8
-#: the key of ``mesh.info`` holding the sampling grid: origin, spacing, shape
-GRID_INFO = "grid"
 #: two triangles sharing an edge fold when their wings (the half-planes from the edge to the
 #: opposite vertices) are closer than this cosine (the fold angle of the embedding checks)
 _WING_COS = -FOLD_COS

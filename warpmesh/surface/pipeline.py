@@ -41,7 +41,6 @@ from warpmesh.surface.continuation import Growth, grow_cells
 from warpmesh.surface.options import (AdaptiveOptions, ContinuationOptions, GridOptions, SurfaceOptions,
                                       VolumeOptions, check_choice)
 from warpmesh.surface.multilabel import LABEL_ABOVE, shared_surface
-from warpmesh.optimize.label_smoothing import GRID_INFO, smooth_labels
 from warpmesh.surface.volume import check_closed_outward, check_labels, extract_fields
 
 RAY_LINES = 32  # continuation's automatic seeds: rays along 32 grid lines per axis (every 8th at least)
@@ -317,7 +316,7 @@ def _mesh_image(image: Volume, options, covering, adaptive, device, keywords: di
                         progress=progress, **keywords)
     if moved and mesh.n_points:
         mesh = mesh.transform(placement)
-        mesh = mesh.replace(info={k: v for k, v in mesh.info.items() if k != GRID_INFO})  # not the world's grid
+        mesh = mesh.replace(info={k: v for k, v in mesh.info.items() if k != C.GRID_INFO})  # not the world's grid
     return mesh.replace(info={**mesh.info, "space": image.space})
 
 
@@ -581,12 +580,16 @@ def _mesh_shared(vol: np.ndarray, opts: VolumeOptions, device, t_start: float, p
                                                        cap=opts.cap, device=device, progress=progress, timings=timings)
     info.update({"method": "surface nets", "interfaces": "shared", "device": str(device), "evaluations": 0,
                  "vertices": len(points), "triangles": len(faces), "interface_pairs": info.pop("interfaces"),
-                 GRID_INFO: {"origin": list(opts.origin), "spacing": list(opts.spacing), "shape": list(vol.shape)}})
+                 C.GRID_INFO: {"origin": list(opts.origin), "spacing": list(opts.spacing), "shape": list(vol.shape)}})
     if opts.cap:
         info["orientation"] = "from the lower label to the higher (cell_refs: lower, cell_data['label_above'])"
     mesh = Mesh(points, {"triangle": faces}, cell_refs={"triangle": lower},
                 cell_data={LABEL_ABOVE: {"triangle": upper}}, info=info)
     if opts.smoothing:
+        # imported when asked for: its fold checks load the remeshing and intersection
+        # kernels (84 ms of a fresh process that only extracts)
+        from warpmesh.optimize.label_smoothing import smooth_labels
+
         mesh = smooth_labels(mesh, opts.smoothing)
         timings["smoothing"] = mesh.info["smoothing"]["time"]
     timings["total"] = time.perf_counter() - t_start
