@@ -15,6 +15,11 @@ four around each of its edges B(c) - B(c + e_a), given by ``layout`` (12, 4, 4):
 vertex (colour, dx, dy, dz). Vertices of the output are nodes and cut points, named by these
 ids, so the mesh is conforming by construction. Variable-size output is count -> prefix sum
 -> allocate -> write; kernels over cells take ``first`` so the host can split launches.
+
+A lattice may be a window of a larger one (a brick of a distributed run): ``offset`` is the
+global cell of its cell (0, 0, 0), so node positions are the global nodes' bit for bit, and
+only the tetrahedra of its owned black nodes (``own_lo <= c < own_hi``, window cells) are
+emitted.
 """
 
 import warp as wp
@@ -49,9 +54,11 @@ def node_valid(c: wp.vec3i, colour: int, dims: wp.vec3i):
 
 
 @wp.func
-def node_local(node: int, dims: wp.vec3i, h: float):
-    """Position of a node relative to the lattice origin."""
-    c = cell_coords(node / 2, dims)
+def node_local(node: int, dims: wp.vec3i, offset: wp.vec3i, h: float):
+    """Position of a node relative to the lattice origin; ``offset``: the global cell of the
+    window's cell (0, 0, 0) when the lattice is a window of a larger one (the position is the
+    global node's, bit for bit)."""
+    c = cell_coords(node / 2, dims) + offset
     s = 0.5 * float(node % 2)
     return wp.vec3((float(c[0]) + s) * h, (float(c[1]) + s) * h, (float(c[2]) + s) * h)
 
@@ -85,10 +92,11 @@ def slot_start(cell: int, d: int):
 
 
 @wp.kernel
-def lattice_points_kernel(dims: wp.vec3i, origin: wp.vec3, h: float, points: wp.array(dtype=wp.vec3)):
+def lattice_points_kernel(dims: wp.vec3i, offset: wp.vec3i, origin: wp.vec3, h: float,
+                          points: wp.array(dtype=wp.vec3)):
     """One thread per node: its world position (invalid red nodes too, evaluated but unused)."""
     n = wp.tid()
-    points[n] = origin + node_local(n, dims, h)
+    points[n] = origin + node_local(n, dims, offset, h)
 
 
 @wp.func
@@ -143,7 +151,7 @@ def count_cuts_kernel(first: int, dims: wp.vec3i, signs: wp.array(dtype=wp.int8)
 
 
 @wp.kernel
-def write_cuts_kernel(first: int, dims: wp.vec3i, h: float, signs: wp.array(dtype=wp.int8),
+def write_cuts_kernel(first: int, dims: wp.vec3i, offset: wp.vec3i, h: float, signs: wp.array(dtype=wp.int8),
                       values: wp.array(dtype=wp.float32), offsets: wp.array(dtype=wp.int32),
                       edge_cut: wp.array(dtype=wp.int32), cut_slot: wp.array(dtype=wp.int32),
                       p0: wp.array(dtype=wp.vec3), p1: wp.array(dtype=wp.vec3), f_lo: wp.array(dtype=wp.float32),
@@ -159,8 +167,8 @@ def write_cuts_kernel(first: int, dims: wp.vec3i, h: float, signs: wp.array(dtyp
         if is_cut(a, b, signs):
             edge_cut[slot] = k
             cut_slot[k] = slot
-            p0[k] = node_local(a, dims, h)
-            p1[k] = node_local(b, dims, h)
+            p0[k] = node_local(a, dims, offset, h)
+            p1[k] = node_local(b, dims, offset, h)
             f_lo[k] = values[a]
             f_hi[k] = values[b]
             k += 1
@@ -342,6 +350,16 @@ def tet_case(cell: int, c: wp.vec3i, t: int, dims: wp.vec3i, layout: wp.array3d(
 
 
 @wp.func
+def owned(c: wp.vec3i, own_lo: wp.vec3i, own_hi: wp.vec3i):
+    """A black node lies in the window's owned range of cells (its tetrahedra are emitted)."""
+    ok = True
+    for a in range(3):
+        if c[a] < own_lo[a] or c[a] >= own_hi[a]:
+            ok = False
+    return ok
+
+
+@wp.func
 def stencil_count(case: int, count: wp.array(dtype=wp.int32)):
     k = int(0)
     if case >= 0:
@@ -350,21 +368,23 @@ def stencil_count(case: int, count: wp.array(dtype=wp.int32)):
 
 
 @wp.kernel
-def count_tets_kernel(first: int, dims: wp.vec3i, layout: wp.array3d(dtype=wp.int32),
-                      face_bits: wp.array(dtype=wp.int32), signs: wp.array(dtype=wp.int8),
-                      count: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
-    """One thread per black node: the number of output tetrahedra of its twelve."""
+def count_tets_kernel(first: int, dims: wp.vec3i, own_lo: wp.vec3i, own_hi: wp.vec3i,
+                      layout: wp.array3d(dtype=wp.int32), face_bits: wp.array(dtype=wp.int32),
+                      signs: wp.array(dtype=wp.int8), count: wp.array(dtype=wp.int32),
+                      counts: wp.array(dtype=wp.int32)):
+    """One thread per black node: the number of output tetrahedra of its twelve (none outside
+    the owned cells ``own_lo <= c < own_hi``)."""
     cell = first + wp.tid()
     c = cell_coords(cell, dims)
     k = int(0)
-    if node_valid(c, 0, dims):
+    if node_valid(c, 0, dims) and owned(c, own_lo, own_hi):
         for t in range(_TPC):
             k += stencil_count(tet_case(cell, c, t, dims, layout, face_bits, signs), count)
     counts[cell] = k
 
 
 @wp.kernel
-def write_tets_kernel(first: int, dims: wp.vec3i, n_nodes: int, layout: wp.array3d(dtype=wp.int32),
+def write_tets_kernel(first: int, dims: wp.vec3i, own_lo: wp.vec3i, own_hi: wp.vec3i, n_nodes: int, layout: wp.array3d(dtype=wp.int32),
                       face_bits: wp.array(dtype=wp.int32), edge_slot: wp.array3d(dtype=wp.int32),
                       signs: wp.array(dtype=wp.int8), count: wp.array(dtype=wp.int32),
                       tets: wp.array3d(dtype=wp.int32), edge_cut: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32),
@@ -373,7 +393,7 @@ def write_tets_kernel(first: int, dims: wp.vec3i, n_nodes: int, layout: wp.array
     n_nodes + the index of a cut point), and the keys marked used."""
     cell = first + wp.tid()
     c = cell_coords(cell, dims)
-    if not node_valid(c, 0, dims):
+    if not (node_valid(c, 0, dims) and owned(c, own_lo, own_hi)):
         return
     k = offsets[cell]
     for t in range(_TPC):

@@ -142,10 +142,19 @@ class Lattice:
     h : float
         Cube side (the long edge).
     device : str
+    offset : (3,) int, optional
+        When this lattice is a window of a larger one: the global cell of its cell (0, 0, 0)
+        (``origin`` stays the global lattice's). Positions are then the global nodes', bit for bit.
+    own : ((3,) int, (3,) int), optional
+        The window's cells ``lo <= c < hi`` whose tetrahedra :meth:`fill` emits (default: all).
     """
 
-    def __init__(self, dims, origin, h: float, device):
+    def __init__(self, dims, origin, h: float, device, offset=(0, 0, 0), own=None):
         self.dims_np = np.asarray(dims, dtype=np.int64)
+        self.offset_np = np.asarray(offset, dtype=np.int64)
+        self.offset = wp.vec3i(*self.offset_np.tolist())
+        own_lo, own_hi = own if own is not None else ((0, 0, 0), self.dims_np)
+        self.own = tuple(wp.vec3i(*np.asarray(v, dtype=np.int64).tolist()) for v in (own_lo, own_hi))
         self.n_cells = int(np.prod(self.dims_np))
         self.n_nodes = 2 * self.n_cells
         if self.n_cells * K.SLOTS >= 2**31 - 1:
@@ -176,7 +185,7 @@ class Lattice:
     # -- stages ------------------------------------------------------------------------------
     def node_points(self) -> wp.array:
         pts = wp.empty(self.n_nodes, dtype=wp.vec3, device=self.device)
-        self._launch(K.lattice_points_kernel, self.n_nodes, [self.dims, self.worigin, self.h], [pts])
+        self._launch(K.lattice_points_kernel, self.n_nodes, [self.dims, self.offset, self.worigin, self.h], [pts])
         return pts
 
     def clip(self, points: wp.array, f: wp.array, lo, hi) -> wp.array:
@@ -191,8 +200,8 @@ class Lattice:
         bad = wp.zeros(1, dtype=wp.int32, device=self.device)
         self._launch(K.node_signs_kernel, self.n_nodes, [self.dims, values], [self.signs, bad])
         self.node_pos = wp.empty(self.n_nodes, dtype=wp.vec3, device=self.device)
-        self._launch(K.lattice_points_kernel, self.n_nodes, [self.dims, wp.vec3(0.0, 0.0, 0.0), self.h],
-                     [self.node_pos])
+        self._launch(K.lattice_points_kernel, self.n_nodes, [self.dims, self.offset, wp.vec3(0.0, 0.0, 0.0),
+                                                             self.h], [self.node_pos])
         return int(bad.numpy()[0])  # sync point: validation
 
     def cut_edges(self, values: wp.array) -> int:
@@ -209,7 +218,7 @@ class Lattice:
         self.p1 = wp.empty(max(n, 1), dtype=wp.vec3, device=dev)
         self.f_lo = wp.empty(max(n, 1), dtype=wp.float32, device=dev)
         self.f_hi = wp.empty(max(n, 1), dtype=wp.float32, device=dev)
-        self._per_cell(K.write_cuts_kernel, [self.dims, self.h, self.signs, values, offsets],
+        self._per_cell(K.write_cuts_kernel, [self.dims, self.offset, self.h, self.signs, values, offsets],
                        [self.edge_cut, self.cut_slot, self.p0, self.p1, self.f_lo, self.f_hi])
         return n
 
@@ -235,20 +244,51 @@ class Lattice:
         return int(warped.numpy().sum())  # sync point: statistics
 
     def fill(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The stencils of every background tetrahedron: (local points (n, 3) float64, tetrahedra
-        (m, 4) int64, on_surface (n,) bool)."""
+        """The stencils of every background tetrahedron (of the owned cells): (local points
+        (n, 3) float64, tetrahedra (m, 4) int64, on_surface (n,) bool)."""
+        counts, used, tets, m = self._stencils()
+        return _used_vertices(self, used, tets, m)
+
+    def fill_keyed(self, global_dims) -> tuple[np.ndarray, ...]:
+        """:meth:`fill`, and each vertex's key in the global lattice of ``global_dims`` black
+        nodes per axis (n,) int64: a node ``2 cell + colour``, a cut point ``2 cells + 14 cell
+        + slot`` (its lattice edge), so keys sort as the whole lattice numbers its vertices;
+        and each tetrahedron's global black node (m,) int64, which orders them as the whole
+        lattice does."""
+        counts, used, tets, m = self._stencils()
+        flags = used.numpy()[:self.n_nodes + self.n_cuts]  # sync point: the used keys, in vertex order
+        points, tets, surf = _used_vertices(self, used, tets, m)
+        local = np.flatnonzero(flags)
+        gd = np.asarray(global_dims, dtype=np.int64)
+        node = local < self.n_nodes
+        keys = np.empty(len(local), dtype=np.int64)
+        keys[node] = 2 * self._global_cell(local[node] // 2, gd) + local[node] % 2
+        slot = self.cut_slot.numpy()[local[~node] - self.n_nodes].astype(np.int64)
+        keys[~node] = 2 * int(np.prod(gd)) + K.SLOTS * self._global_cell(slot // K.SLOTS, gd) + slot % K.SLOTS
+        owner = np.repeat(self._global_cell(np.arange(self.n_cells, dtype=np.int64), gd), counts.numpy())
+        return points, tets, surf, keys, owner
+
+    def _global_cell(self, cell: np.ndarray, global_dims: np.ndarray) -> np.ndarray:
+        d = self.dims_np
+        x, y, z = cell % d[0] + self.offset_np[0], cell // d[0] % d[1] + self.offset_np[1], \
+            cell // (d[0] * d[1]) + self.offset_np[2]
+        return x + global_dims[0] * (y + global_dims[1] * z)
+
+    def _stencils(self):
+        """Count, scan and write the owned cells' tetrahedra (as vertex keys): (counts per cell,
+        used keys, tetrahedra, how many)."""
         dev = self.device
         counts = wp.empty(self.n_cells, dtype=wp.int32, device=dev)
-        self._per_cell(K.count_tets_kernel, [self.dims, self.layout, self.face_bits, self.signs, self.count],
-                       [counts])
+        self._per_cell(K.count_tets_kernel, [self.dims, *self.own, self.layout, self.face_bits, self.signs,
+                                             self.count], [counts])
         offsets, m = self._scan(counts)
         n_keys = self.n_nodes + self.n_cuts
         used = wp.zeros(n_keys, dtype=wp.int32, device=dev)
         tets = wp.empty(max(m, 1), dtype=wp.vec4i, device=dev)
-        self._per_cell(K.write_tets_kernel, [self.dims, self.n_nodes, self.layout, self.face_bits, self.edge_slot,
-                                             self.signs, self.count, self.tets, self.edge_cut,
+        self._per_cell(K.write_tets_kernel, [self.dims, *self.own, self.n_nodes, self.layout, self.face_bits,
+                                             self.edge_slot, self.signs, self.count, self.tets, self.edge_cut,
                                              offsets], [tets, used])
-        return _used_vertices(self, used, tets, m)
+        return counts, used, tets, m
 
 
 def _used_vertices(run, used: wp.array, tets: wp.array, m: int):

@@ -32,7 +32,7 @@ from warpmesh.solid.dihedral import tet_quality_summary
 from warpmesh.solid.graded import refine_bcc, size_field
 from warpmesh.solid.lattice import Background, Lattice
 
-__all__ = ["ALPHA_LONG", "ALPHA_SHORT", "stuff"]
+__all__ = ["ALPHA_LONG", "ALPHA_SHORT", "WINDOW_HALO", "stuff", "stuff_window"]
 
 #: the violation thresholds of Labelle & Shewchuk (2007) that prove dihedral angles in
 #: [10.7°, 164.8°]: a node is violated by a cut point closer than alpha times the edge
@@ -41,6 +41,11 @@ ALPHA_SHORT = 0.40630
 #: steps of the bracketed root search (Illinois regula falsi: superlinear on smooth fields,
 #: never leaving the bracket on kinks)
 ROOT_ITERATIONS = 12
+#: cells of lattice around a window's own black nodes (:func:`stuff_window`) for its tetrahedra
+#: to be the whole lattice's: a tetrahedron of black node c has nodes in cells c - 1 to c + 1;
+#: an inside node's warp reads its outside neighbours' signs (one edge: one cell further),
+#: whose warp reads the cut points on their edges (one more)
+WINDOW_HALO = 3
 
 
 def lattice_for(bounds: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -73,19 +78,87 @@ def stuff(shape, bounds, h: float, *, alpha_long: float = ALPHA_LONG, alpha_shor
     """
     if grading is not None:
         return _stuff_graded(shape, bounds, grading, alpha_long, alpha_short, iterations, device)
-    timings = {}
     t0 = time.perf_counter()
     bounds = np.asarray(bounds, dtype=np.float64)
-    tape = tape_of(shape)
     dims, origin = lattice_for(bounds, h)
     lat = Lattice(dims, origin, h, device)
+    info = _run_lattice(lat, tape_of(shape), bounds, alpha_long, alpha_short, iterations, device)
+    t1 = time.perf_counter()
+    points, tets, on_surface = lat.fill()
+    info["time_fill"] += time.perf_counter() - t1
+    points += origin
+    info = {"lattice": tuple(int(d) for d in dims), "cube_size": float(h), "lattice_nodes": lat.n_nodes, **info,
+            "time_stuffing": time.perf_counter() - t0}
+    return points, tets, on_surface, info
+
+
+def stuff_window(tape, bounds, h: float, lo, hi, *, alpha_long: float = ALPHA_LONG, alpha_short: float = ALPHA_SHORT,
+                 iterations: int = ROOT_ITERATIONS, device="cpu"):
+    """The tetrahedra :func:`stuff` makes from the black nodes ``lo <= c < hi`` (global cell
+    indices, per axis) of its lattice, computed on a window of that lattice with a halo of
+    :data:`WINDOW_HALO` cells: the same tetrahedra, their vertices at the same float32
+    positions, keyed by their global lattice ids (a brick of a distributed run).
+
+    Returns
+    -------
+    local : (n, 3) float64
+        Positions relative to the global lattice's ``origin`` (float32 values: the world
+        position is ``origin + local`` in float64, as :func:`stuff` adds it).
+    tets : (m, 4) int64
+        Into ``local``, in the order :func:`stuff` lists them within each black node.
+    on_surface : (n,) bool
+    keys : (n,) int64
+        Global vertex keys (:meth:`warpmesh.solid.lattice.Lattice.fill_keyed`), increasing:
+        sorted, the keys of all windows give :func:`stuff`'s vertex order.
+    owner : (m,) int64
+        Each tetrahedron's global black node, non-decreasing: a stable sort by it gives
+        :func:`stuff`'s tetrahedron order.
+    origin : (3,) float64
+    info : dict of counts and timings (the window's).
+
+    Example
+    -------
+    Two windows give the tetrahedra of the whole lattice, at the same positions:
+
+    >>> import numpy as np, warpmesh as wm
+    >>> from warpmesh.frep.tape import tape_of
+    >>> box, ball = np.array(((-1.1,) * 3, (1.1,) * 3)), wm.sphere(1.0)
+    >>> pts, tets, _, _ = stuff(ball, box, 0.25)
+    >>> dims, _ = lattice_for(box, 0.25)
+    >>> halves = [stuff_window(tape_of(ball), box, 0.25, lo, hi) for lo, hi in
+    ...           (((0, 0, 0), (6, dims[1], dims[2])), ((6, 0, 0), dims))]
+    >>> sum(len(w[1]) for w in halves) == len(tets)
+    True
+    >>> whole = {tuple(sorted(map(tuple, t))) for t in pts[tets]}
+    >>> parts = {tuple(sorted(map(tuple, t))) for w in halves for t in (w[0] + w[5])[w[1]]}
+    >>> parts == whole
+    True
+    """
+    t0 = time.perf_counter()
+    bounds = np.asarray(bounds, dtype=np.float64)
+    dims, origin = lattice_for(bounds, h)
+    lo, hi = np.asarray(lo, dtype=np.int64), np.asarray(hi, dtype=np.int64)
+    wlo, whi = np.maximum(lo - WINDOW_HALO, 0), np.minimum(hi + WINDOW_HALO, dims)
+    lat = Lattice(whi - wlo, origin, h, device, offset=wlo, own=(lo - wlo, hi - wlo))
+    info = _run_lattice(lat, tape, bounds, alpha_long, alpha_short, iterations, device)
+    t1 = time.perf_counter()
+    local, tets, on_surface, keys, owner = lat.fill_keyed(dims)
+    info["time_fill"] += time.perf_counter() - t1
+    info.update(window_nodes=lat.n_nodes, time_stuffing=time.perf_counter() - t0)
+    return local, tets, on_surface, keys, owner, origin, info
+
+
+def _run_lattice(lat: Lattice, tape, bounds: np.ndarray, alpha_long, alpha_short, iterations, device) -> dict:
+    """The stages up to the fill on a (window of a) lattice: f at the nodes clipped by the box,
+    signs, cut edges, roots, warp. Returns counts and timings."""
+    timings = {}
+    t0 = time.perf_counter()
     lo, hi = bounds[0].tolist(), bounds[1].tolist()
 
     def field(points: wp.array) -> wp.array:
         return lat.clip(points, eval_values(tape, points, device=device, evaluator="interpreter"), lo, hi)
 
-    pts = lat.node_points()
-    values = field(pts)
+    values = field(lat.node_points())
     n_bad = lat.classify(values)
     if n_bad:
         raise ValueError(f"the shape evaluates to NaN at {n_bad} lattice nodes inside 'bounds' (e.g. sqrt/log "
@@ -97,14 +170,9 @@ def stuff(shape, bounds, h: float, *, alpha_long: float = ALPHA_LONG, alpha_shor
     timings["roots"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     n_warped = lat.warp(alpha_long, alpha_short)
-    points, tets, on_surface = lat.fill()
     timings["fill"] = time.perf_counter() - t1
-    points += origin
-    info = {"lattice": tuple(int(d) for d in dims), "cube_size": float(h), "lattice_nodes": lat.n_nodes,
-            "cut_edges": n_cuts, "warped_nodes": n_warped,
-            "alpha_long": float(alpha_long), "alpha_short": float(alpha_short),
-            "time_stuffing": time.perf_counter() - t0, **{f"time_{k}": v for k, v in timings.items()}}
-    return points, tets, on_surface, info
+    return {"cut_edges": n_cuts, "warped_nodes": n_warped, "alpha_long": float(alpha_long),
+            "alpha_short": float(alpha_short), **{f"time_{k}": v for k, v in timings.items()}}
 
 
 def coarse_size(bounds: np.ndarray, smallest: float, largest: float) -> float:
