@@ -24,15 +24,6 @@ zarr = pytest.importorskip("zarr")
 EPS32 = float(np.finfo(np.float32).eps)
 
 
-@pytest.fixture(scope="module")
-def client():
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
-    client = distributed.Client(cluster)
-    yield client
-    client.close()
-    cluster.close()
-
-
 def assert_same_mesh(single: wm.Mesh, bricked: wm.Mesh) -> None:
     """The same vertices (positions within float32 rounding of the box's size), the same
     oriented triangles and the same refs. Vertices are matched by position and the smallest

@@ -76,6 +76,16 @@ def check_bricking(bricks, brick_cells) -> tuple:
     return bricks, brick_cells
 
 
+def refuse_bricking(**given) -> None:
+    """The bricking keywords (``bricks``, ``brick_cells``, ``gather``, ``output``, ``progress``)
+    mean nothing without a cluster: refuse any that is not its default."""
+    defaults = {"bricks": None, "brick_cells": None, "gather": True, "output": None, "progress": True}
+    for name, value in given.items():
+        if value is not defaults[name] and not (isinstance(value, bool) and value == defaults[name]):
+            raise ValueError(f"{name!r} applies to a run on a Dask cluster (client=...), got {name}={value!r} "
+                             "without 'client'")
+
+
 def axis_cuts(cells: int, bricks: int | None = None, brick_cells: int | None = None) -> list[int]:
     """Cell indices where the bricks of one axis start, and ``cells`` at the end; every cut
     on a block boundary.

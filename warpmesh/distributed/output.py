@@ -30,7 +30,11 @@ from pathlib import Path
 import numpy as np
 
 KEY_ARRAY = "grid_edge_key"
+#: the point array of a tetrahedral domain's pieces: the vertex's key in the global lattice
+#: (:meth:`warpmesh.solid.lattice.Lattice.fill_keyed`)
+LATTICE_KEY_ARRAY = "lattice_key"
 REF_ARRAY = "ref"
+_CELL_TYPES = {3: "triangle", 4: "tetra"}
 
 
 def output_paths(output) -> tuple[Path, str]:
@@ -49,14 +53,16 @@ def piece_path(directory: Path, name: str, index: int) -> Path:
     return Path(directory) / f"{name}_brick{index:05d}.vtu"
 
 
-def write_piece(path, points, faces, refs, keys) -> Path:
-    """One brick's triangles as a VTU file (binary, compressed), written atomically."""
+def write_piece(path, points, faces, refs, keys, key: str = KEY_ARRAY) -> Path:
+    """One brick's triangles (faces (t, 3)) or tetrahedra ((t, 4)) as a VTU file (binary,
+    compressed), written atomically; ``keys`` the point array named ``key``."""
     import meshio
 
     path = Path(path)
+    faces = np.asarray(faces, dtype=np.int64)
     cell_data = {REF_ARRAY: [np.asarray(refs, dtype=np.int64)]} if refs is not None else None
-    mesh = meshio.Mesh(np.asarray(points, dtype=np.float64), [("triangle", np.asarray(faces, dtype=np.int64))],
-                       point_data={KEY_ARRAY: np.asarray(keys, dtype=np.int64)}, cell_data=cell_data)
+    mesh = meshio.Mesh(np.asarray(points, dtype=np.float64), [(_CELL_TYPES[faces.shape[1]], faces)],
+                       point_data={key: np.asarray(keys, dtype=np.int64)}, cell_data=cell_data)
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
     try:
         meshio.write(tmp, mesh, file_format="vtu")
@@ -66,14 +72,14 @@ def write_piece(path, points, faces, refs, keys) -> Path:
     return path
 
 
-def write_pvtu(path, pieces: list[str], refs: bool) -> Path:
+def write_pvtu(path, pieces: list[str], refs: bool, key: str = KEY_ARRAY) -> Path:
     """The ``.pvtu`` listing ``pieces`` (file names relative to it), written atomically."""
     path = Path(path)
     cell = f'    <PCellData>\n      <PDataArray type="Int64" Name="{REF_ARRAY}"/>\n    </PCellData>\n' if refs else ""
     text = ('<?xml version="1.0"?>\n'
             '<VTKFile type="PUnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n'
             '  <PUnstructuredGrid GhostLevel="0">\n'
-            f'    <PPointData>\n      <PDataArray type="Int64" Name="{KEY_ARRAY}"/>\n    </PPointData>\n'
+            f'    <PPointData>\n      <PDataArray type="Int64" Name="{key}"/>\n    </PPointData>\n'
             f'{cell}'
             '    <PPoints>\n      <PDataArray type="Float64" NumberOfComponents="3"/>\n    </PPoints>\n'
             + "".join(f'    <Piece Source="{name}"/>\n' for name in pieces) +

@@ -35,7 +35,7 @@ import warp as wp
 
 from warpmesh import _conventions as C
 from warpmesh.distributed.bricks import BLOCK, Brick, edge_ends, layout, on_seams
-from warpmesh.distributed.output import output_paths, piece_path, write_piece, write_pvtu
+from warpmesh.distributed.output import KEY_ARRAY, output_paths, piece_path, write_piece, write_pvtu
 from warpmesh.distributed.seams import BrickMesh, weld
 from warpmesh.errors import WarpMeshError
 from warpmesh.frep.tape import eval_intervals, tape_of
@@ -114,6 +114,22 @@ def mesh_bricks(source, options: GridOptions | VolumeOptions, *, client, bricks=
     (True, 27)
     >>> client.close(); cluster.close()
     """
+    where = check_run(client, gather, output, progress)
+    t_start = time.perf_counter()
+    if isinstance(options, GridOptions):
+        job = _ShapeJob(source, options, str(wp.get_device(device)), bricks, brick_cells)
+    elif isinstance(options, VolumeOptions):
+        job = _VolumeJob(source, options, str(wp.get_device(device)), bricks, brick_cells, client)
+    else:
+        raise TypeError(f"bricks mesh a shape on a grid (GridOptions) or a volume (VolumeOptions), "
+                        f"got {type(options).__name__} for 'options'")
+    results, timings = run_job(client, job, where, gather, progress, t_start)
+    return job.finish(results, where, gather, timings, t_start)
+
+
+def check_run(client, gather, output, progress):
+    """The arguments of a run on a cluster, checked; returns (directory, name) of ``output``
+    or None."""
     from dask.distributed import Client
 
     if not isinstance(client, Client):
@@ -125,14 +141,13 @@ def mesh_bricks(source, options: GridOptions | VolumeOptions, *, client, bricks=
     where = output_paths(output) if output is not None else None
     if not gather and where is None:
         raise ValueError("gather=False keeps the mesh in pieces on disk: give output='name.pvtu'")
-    t_start = time.perf_counter()
-    if isinstance(options, GridOptions):
-        job = _ShapeJob(source, options, str(wp.get_device(device)), bricks, brick_cells)
-    elif isinstance(options, VolumeOptions):
-        job = _VolumeJob(source, options, str(wp.get_device(device)), bricks, brick_cells, client)
-    else:
-        raise TypeError(f"bricks mesh a shape on a grid (GridOptions) or a volume (VolumeOptions), "
-                        f"got {type(options).__name__} for 'options'")
+    return where
+
+
+def run_job(client, job, where, gather: bool, progress, t_start: float) -> tuple[dict, dict]:
+    """Submit one task per brick ``job.bricks_to_mesh()`` gives (``job.task(brick, path, gather,
+    *job.data)`` on a worker) and collect the results as they finish: ({brick id: result},
+    timings)."""
     todo = job.bricks_to_mesh()
     token = uuid.uuid4().hex[:10]
     futures = {}
@@ -141,12 +156,10 @@ def mesh_bricks(source, options: GridOptions | VolumeOptions, *, client, bricks=
         fut = client.submit(job.task, brick, path, gather, *job.data, key=f"warpmesh-brick-{token}-{brick.index}",
                             pure=False)
         futures[fut] = brick
-    results: dict[int, BrickMesh] = {}
+    results: dict = {}
     t_submitted = time.perf_counter()
     _collect(client, futures, results, where, job, progress)
-    t_done = time.perf_counter()
-    return job.finish(results, where, gather, {"layout": t_submitted - t_start, "bricks": t_done - t_submitted},
-                      t_start)
+    return results, {"layout": t_submitted - t_start, "bricks": time.perf_counter() - t_submitted}
 
 
 def _collect(client, futures: dict, results: dict, where, job, progress) -> None:
@@ -168,9 +181,9 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
             brick = futures.pop(fut)
             fut.release()  # the worker drops its copy now: it holds only the bricks in flight
             results[brick.index] = res
-            if where is not None and res.info["triangles"]:
+            if where is not None and res.info["cells"]:
                 pieces.append(piece_path(*where, brick.index).name)
-                write_pvtu(where[0] / f"{where[1]}.pvtu", sorted(pieces), refs=job.has_refs)
+                write_pvtu(where[0] / f"{where[1]}.pvtu", sorted(pieces), refs=job.has_refs, key=job.key_array)
             bar.update(1)
             if callable(progress):
                 progress(done, total)
@@ -178,7 +191,8 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
         bar.close()
 
 
-def _brick_error(brick: Brick, origin, h, exc: Exception) -> ValueError:
+def brick_error(brick: Brick, origin, h, exc: Exception) -> ValueError:
+    """``exc`` raised in ``brick``, as the error of the call: naming the brick and its box."""
     return ValueError(f"{brick.describe(origin, h)}: {exc}")
 
 
@@ -219,7 +233,7 @@ def _brick_result(brick: Brick, cells, local, frame, faces, refs, keys, path, wa
     for a in range(0, len(faces), 1 << 18):
         p0, p1, p2 = (points[faces[a:a + (1 << 18), j]] - centre for j in range(3))
         vol += float(np.einsum("ij,ij->", p0, np.cross(p1, p2))) / 6.0
-    info.update(vertices=len(points), triangles=len(faces), volume=vol)
+    info.update(vertices=len(points), cells=len(faces), volume=vol)
     if not want:
         return BrickMesh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), None, np.zeros(0, np.int64),
                          np.zeros(0, np.int64), info)
@@ -232,10 +246,18 @@ def _slack(b: np.ndarray) -> np.ndarray:
     return 1.0e-4 * np.abs(b) + 1.0e-7
 
 
+def interval_signs(shape, box_lo: np.ndarray, box_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(outside, inside) (k,) bool: the shape's interval over each box (float32 corners (k, 3))
+    proves f < 0, or f > 0, everywhere in it (rounding slack allowed)."""
+    iv = eval_intervals(tape_of(shape), wp.array(box_lo, dtype=wp.vec3), wp.array(box_hi, dtype=wp.vec3)).numpy()
+    finite = np.isfinite(iv).all(axis=1)
+    return finite & (iv[:, 1] < -_slack(iv[:, 1])), finite & (iv[:, 0] > _slack(iv[:, 0]))
+
+
 _TAPES: dict[str, object] = {}  # on a worker: run token -> the tape of its shape (the last few runs)
 
 
-def _worker_tape(token: str, shape):
+def worker_tape(token: str, shape):
     """The tape of a run's shape, compiled once per worker process and run (every task
     unpickles its own copy of the shape, whose tape would otherwise be compiled anew)."""
     tape = _TAPES.get(token)
@@ -251,6 +273,7 @@ class _ShapeJob:
     """A shape on a grid: the layout, the client-side brick culling, the worker's task, the gather."""
 
     has_refs = False
+    key_array = KEY_ARRAY  # the pieces' point array of global vertex keys
     data = ()  # task arguments that Dask resolves on the worker
 
     def __init__(self, shape, opts: GridOptions, device: str, bricks, brick_cells):
@@ -270,11 +293,7 @@ class _ShapeJob:
         lo = np.array([b.lo for b in self.bricks], dtype=np.float32)
         hi = np.array([b.hi for b in self.bricks], dtype=np.float32)
         box_lo, box_hi = o32 + lo * h32, o32 + hi * h32  # float32, rounded per operation as node_point
-        tape = tape_of(self.shape)
-        iv = eval_intervals(tape, wp.array(box_lo, dtype=wp.vec3), wp.array(box_hi, dtype=wp.vec3)).numpy()
-        finite = np.isfinite(iv).all(axis=1)
-        outside = finite & (iv[:, 1] < -_slack(iv[:, 1]))
-        inside = finite & (iv[:, 0] > _slack(iv[:, 0]))
+        outside, inside = interval_signs(self.shape, box_lo, box_hi)
         on_bounds = np.array([any(b.lo[a] == 0 or b.hi[a] == self.cells[a] for a in range(3)) for b in self.bricks])
         empty = outside | (inside & ~(on_bounds & self.opts.cap))  # inside and capped: the caps' triangles
         self.skipped = int(empty.sum())
@@ -287,7 +306,7 @@ class _ShapeJob:
         opts, cells = self.opts, self.cells
         timings: dict[str, float] = {}
         dev = wp.get_device(self.device)
-        tape = _worker_tape(self.token, self.shape)
+        tape = worker_tape(self.token, self.shape)
         lo_c, hi_c = np.array(brick.lo), np.array(brick.hi)
         lo_node = np.where(lo_c > 0, lo_c - BLOCK, 0)  # a whole block below: the same blocks as the whole grid
         hi_node = np.where(hi_c < cells, hi_c + 1, hi_c)  # one node above: the neighbours of the seam nodes
@@ -300,7 +319,7 @@ class _ShapeJob:
             grid.sample_shape(tape, opts.cull, opts.evaluator, timings)
             grid.finish_values(cap, timings)
         except ValueError as exc:
-            raise _brick_error(brick, self.lo, self.h, exc) from None
+            raise brick_error(brick, self.lo, self.h, exc) from None
         verts, tris, edges = grid.extract(opts.method, cap, timings, _core_cells(grid, lo_node, brick),
                                           clearance=opts.clearance)
         verts, tris, edges = drop_unused(verts, tris, edges)
@@ -354,6 +373,8 @@ class _Reader:
 class _VolumeJob:
     """A volume: every brick is read and meshed on a worker (no client-side culling: that
     needs the samples)."""
+
+    key_array = KEY_ARRAY
 
     def __init__(self, source, opts: VolumeOptions, device: str, bricks, brick_cells, client):
         import dask.array as da
@@ -425,7 +446,7 @@ class _VolumeJob:
             try:
                 ranges.append(grid.cull_volume(field_, self.level, self.sign, opts.cull, cap, timings))
             except ValueError as exc:
-                raise _brick_error(brick, self.lo, self.h, exc) from None
+                raise brick_error(brick, self.lo, self.h, exc) from None
             grid.finish_values(cap, timings)
             verts, faces, edges = grid.extract(opts.method, cap, timings, clearance=opts.clearance)
             p = verts.numpy().copy()  # float32, from the brick's origin
@@ -474,24 +495,36 @@ class _VolumeJob:
         return _finish(results, where, gather, timings, t_start, info, self.opts.cap, labels=self.labels is not None)
 
 
-def _finish(results: dict, where, gather: bool, timings: dict, t_start: float, info: dict, cap: bool,
-            labels: bool = False):
-    """The gathered Mesh (seams welded), or the partitioned file set."""
-    order = sorted(results)
-    per = [results[i].info for i in order]
+def summarize(results: dict, info: dict) -> list[dict]:
+    """The bricks' counts summed into ``info``; returns the bricks' infos in brick order."""
+    per = [results[i].info for i in sorted(results)]
     info["bricks_meshed"] = len(results)
     info["evaluations"] = int(sum(p.get("evaluations", 0) for p in per))
     info["brick_cpu_time"] = float(sum(p["time"]["total"] for p in per))
     used = {p.get("evaluator") for p in per} - {None}
     if used:
         info["evaluator"] = used.pop() if len(used) == 1 else "mixed"
+    return per
+
+
+def partitioned(results: dict, where, timings: dict, t_start: float, info: dict) -> PartitionedMesh:
+    """What a run with ``gather=False`` returns: the pieces the bricks wrote and their counts."""
+    per = [results[i].info for i in sorted(results)]
+    pieces = tuple(piece_path(*where, i) for i in sorted(results) if results[i].info["cells"])
+    timings["total"] = time.perf_counter() - t_start
+    info["time"] = timings
+    return PartitionedMesh(where[0] / f"{where[1]}.pvtu", pieces, int(sum(p["vertices"] for p in per)),
+                           int(sum(p["cells"] for p in per)), info)
+
+
+def _finish(results: dict, where, gather: bool, timings: dict, t_start: float, info: dict, cap: bool,
+            labels: bool = False):
+    """The gathered Mesh (seams welded), or the partitioned file set."""
+    order = sorted(results)
+    per = summarize(results, info)
     t0 = time.perf_counter()
     if not gather:
-        pieces = tuple(piece_path(*where, i) for i in order if results[i].info["triangles"])
-        timings["total"] = time.perf_counter() - t_start
-        info["time"] = timings
-        return PartitionedMesh(where[0] / f"{where[1]}.pvtu", pieces,
-                               int(sum(p["vertices"] for p in per)), int(sum(p["triangles"] for p in per)), info)
+        return partitioned(results, where, timings, t_start, info)
     points, faces, refs = weld([results[i] for i in order])
     info["seam_copies_welded"] = int(sum(p["vertices"] for p in per)) - len(points)
     if cap and not labels and len(faces):  # closed by the caps: the bricks' shares sum to the enclosed volume

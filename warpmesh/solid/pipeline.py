@@ -27,6 +27,7 @@ import numpy as np
 from warpmesh import _conventions as C
 from warpmesh._util.validate import check_device
 from warpmesh._util.validate import check_box
+from warpmesh.distributed.bricks import refuse_bricking
 from warpmesh.frep.expr import Expr
 from warpmesh.frep.shapes import Shape, as_shape
 from warpmesh.frep.tape import tape_of, value_gradient_at
@@ -53,7 +54,9 @@ _FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
 
 
 def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smooth: int = 0,
-                features: bool = True, flips: bool = False, device: str = C.DEFAULT_DEVICE, **options) -> Mesh:
+                features: bool = True, flips: bool = False, device: str = C.DEFAULT_DEVICE, client=None,
+                bricks: tuple[int, int, int] | None = None, brick_cells: int | None = None, gather: bool = True,
+                output=None, progress=True, **options) -> Mesh:
     """Mesh the domain {f > 0} inside ``bounds``: triangles in the plane, tetrahedra in 3D.
 
     Parameters
@@ -106,6 +109,28 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         ``info["quality_stages"]`` lists the quality after each stage (stuffing, features,
         smooth, flips).
     device : str
+    client : dask.distributed.Client, optional
+        3D, stuffing on a uniform lattice (the default method and a number ``size``): stuff
+        the lattice brick by brick on this Dask cluster (:mod:`warpmesh.distributed.domain`).
+        Each brick's tetrahedra are computed on a window of the global lattice, their
+        vertices keyed by global lattice ids, so the client joins them exactly and the
+        stuffed tetrahedra are those of one process (same positions, same order). The
+        stages after stuffing (boundary triangles, ``features``, ``smooth``, ``flips``) need
+        the whole mesh and run on the client, on the gathered mesh. Not bricked (refused):
+        graded sizes, ``method='delaunay'`` or ``'tetgen'``, label volumes, planar domains.
+    bricks, brick_cells : (3,) ints or int, optional
+        With ``client``: bricks per axis of the lattice, or black nodes per brick side (a
+        multiple of 8; default 128).
+    gather : bool
+        With ``client``: return one Mesh (default); with False, a
+        :class:`~warpmesh.distributed.run.PartitionedMesh` of VTU pieces holding the
+        stuffed tetrahedra (needs ``output``, and ``features=False``, ``smooth=0``,
+        ``flips=False``: those stages need the whole mesh).
+    output : str or os.PathLike, optional
+        With ``client``: a ``.pvtu`` path; one VTU piece per brick (tetrahedra, point array
+        ``lattice_key``) is written beside it as bricks finish.
+    progress : bool or callable
+        With ``client``: a progress bar over the bricks, or ``progress(done, total)``.
     **options
         3D: ``alpha_long``, ``alpha_short`` (the violation thresholds, default the paper's
         0.24776 and 0.40630 that prove dihedral angles in [10.7°, 164.8°]) and
@@ -115,12 +140,13 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
 
     Returns
     -------
-    Mesh
+    Mesh or PartitionedMesh
         3D: positive ``"tetra"`` cells (ref ``VOLUME_REF``) and the boundary ``"triangle"``
         cells, outward, ref ``SURFACE_REF`` (1) on f = 0 and ``CAP_REF`` (2) on the bounds.
         ``stats()`` adds ``dihedral_min``, ``dihedral_max`` (degrees), ``radius_edge_max``,
         ``radius_edge_mean``, ``boundary_distance`` (the largest |f|/|grad f| of a boundary
-        vertex on f = 0, in units of ``size``), counts and timings.
+        vertex on f = 0, in units of ``size``), counts and timings. With ``client`` and
+        ``gather=False``: the pieces on disk (a ``PartitionedMesh``).
 
     Raises
     ------
@@ -139,8 +165,28 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
     >>> s = vol.stats()
     >>> s["euler"], s["n_tetra"] > 10000, sorted(set(vol.cell_refs["triangle"].tolist()))
     (-6, True, [1])
+
+    On a Dask cluster (here in-process threads; a ``LocalCluster`` of processes or a remote
+    scheduler alike), the same mesh; the bricks the shape's interval proves outside are
+    never meshed:
+
+    >>> from dask.distributed import Client, LocalCluster
+    >>> cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None)
+    >>> client = Client(cluster)
+    >>> bricked = wm.mesh_domain(part, bounds=bounds, size=0.1, client=client, brick_cells=8, progress=False)
+    >>> bool((bricked.points == vol.points).all()), bricked.info["bricks"], bricked.info["bricks_culled"]
+    (True, 64, 28)
+    >>> client.close(); cluster.close()
     """
+    bricked = {"client": client, "bricks": bricks, "brick_cells": brick_cells, "gather": gather, "output": output,
+               "progress": progress}
+    if client is None:
+        refuse_bricking(**{k: v for k, v in bricked.items() if k != "client"})
+        bricked = None
     if not isinstance(shape, (Shape, Expr)):  # a label volume: its regions (lattice cleaving)
+        if bricked is not None:
+            raise ValueError("'client' stuffs the domain of a shape; a label volume's regions (lattice cleaving) "
+                             "are meshed in one process: drop 'client'")
         defaults = {"method": None, "smooth": 0, "features": True, "flips": False}
         given = {k: v for k, v in zip(defaults, (method, smooth, features, flips)) if v is not defaults[k]}
         return mesh_regions(shape, bounds, size=size, device=device, **given, **options)
@@ -150,6 +196,9 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         if as_shape(shape).dim == 3:
             raise ValueError("expected 3-value 'bounds' ((x0, y0, z0), (x1, y1, z1)) for a 3D shape, "
                              f"got {box.tolist()}")
+        if bricked is not None:
+            raise ValueError("'client' stuffs 3D domains; a planar domain (2-value 'bounds') is meshed in one "
+                             "process: drop 'client'")
         if smooth or features is not True or flips:
             raise ValueError("'smooth', 'features' and 'flips' apply to 3D domains; planar domains are smoothed by their own pipeline")
         if method is not None:
@@ -158,7 +207,7 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
     for name, value in (("features", features), ("flips", flips)):
         if not isinstance(value, bool):
             raise ValueError(f"expected True or False for {name!r}, got {value!r}")
-    return _mesh_solid(shape, box, size, method or "stuffing", smooth, (features, flips), device, options)
+    return _mesh_solid(shape, box, size, method or "stuffing", smooth, (features, flips), device, options, bricked)
 
 
 def _check_size(size, box: np.ndarray) -> float:
@@ -249,12 +298,31 @@ def _boundary_distance(tape, points: np.ndarray, on_f: np.ndarray, h: float, dev
     return float(np.max(np.abs(f) / np.where(gn > 0, gn, np.inf))) / h
 
 
-def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, device, options) -> Mesh:
+def _check_bricked(method: str, size, smooth, features: bool, flips: bool, gather) -> None:
+    """What stuffing on bricks does not do, refused naming the argument."""
+    if method != "stuffing":
+        raise ValueError(f"method={method!r} is not bricked: with 'client' use method='stuffing' (the default), "
+                         "or drop 'client'")
+    if callable(size) or isinstance(size, str):
+        raise ValueError(f"a graded 'size' ({size!r}) is not bricked: with 'client' give 'size' as a number "
+                         "(the lattice's cube side), or drop 'client'")
+    if gather is False:
+        whole = [name for name, on in (("features", features), ("smooth", smooth), ("flips", flips)) if on]
+        if whole:
+            raise ValueError(f"gather=False writes the stuffed tetrahedra in pieces; {', '.join(map(repr, whole))} "
+                             "need the whole mesh (they run on the client after a gather): give features=False, "
+                             "smooth=0 and flips=False, or gather=True")
+
+
+def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, device, options,
+                bricked: dict | None = None) -> Mesh:
     features, flips = switches
     if method not in METHODS_3D:
         raise ValueError(f"unknown method {method!r} for a 3D domain. Pick one of {list(METHODS_3D)}")
     if isinstance(smooth, bool) or not isinstance(smooth, (int, np.integer)) or smooth < 0:
         raise ValueError(f"expected a number of sweeps >= 0 for 'smooth', got {smooth!r}")
+    if bricked is not None:
+        _check_bricked(method, size, smooth, features, flips, bricked["gather"])
     h = _check_size(size, box)
     opts = _check_options(options)
     if method == "delaunay":
@@ -280,10 +348,21 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, dev
             np.arange(len(points)), tris[refs == C.SURFACE_REF]), h, device)
         return Mesh(points, {"tetra": tets, "triangle": tris},
                     cell_refs={"tetra": np.full(len(tets), VOLUME_REF), "triangle": refs}, info=info)
-    points, tets, on_surface, info = stuff(shape, box, h, alpha_long=opts["alpha_long"],
-                                           alpha_short=opts["alpha_short"], iterations=opts["root_iterations"],
-                                           grading=size if callable(size) or isinstance(size, str) else None,
-                                           device=device)
+    stuffing = {"alpha_long": opts["alpha_long"], "alpha_short": opts["alpha_short"],
+                "iterations": opts["root_iterations"]}
+    if bricked is not None:  # the lattice on a Dask cluster, gathered here (or left in pieces)
+        from warpmesh.distributed.domain import stuff_bricks
+
+        stuffed = stuff_bricks(shape, box, h, stuffing, device=device, **bricked)
+        if not bricked["gather"]:
+            if not stuffed.n_cells:
+                raise ValueError("expected a 'shape' with an inside (f > 0) in 'bounds', found no lattice node "
+                                 f"inside at size {h:g}; check the shape, move 'bounds' or lower 'size'")
+            return stuffed
+        points, tets, on_surface, info = stuffed
+    else:
+        points, tets, on_surface, info = stuff(shape, box, h, **stuffing, device=device,
+                                               grading=size if callable(size) or isinstance(size, str) else None)
     if not len(tets):
         raise ValueError("expected a 'shape' with an inside (f > 0) in 'bounds', found no lattice node "
                          f"inside at size {h:g}; check the shape, move 'bounds' or lower 'size'")

@@ -27,6 +27,7 @@ import warp as wp
 
 from warpmesh import _conventions as C
 from warpmesh._util.validate import check_device
+from warpmesh.distributed.bricks import refuse_bricking
 from warpmesh.errors import WarpMeshError
 from warpmesh.frep.expr import Expr
 from warpmesh.frep.shapes import Shape, as_shape
@@ -213,7 +214,7 @@ def mesh_surface(
     if client is not None:
         return _mesh_bricked(source, options, covering, adaptive, device, refs, keywords, t_start, client=client,
                              bricks=bricks, brick_cells=brick_cells, gather=gather, output=output, progress=progress)
-    _refuse_bricking(bricks=bricks, brick_cells=brick_cells, gather=gather, output=output)
+    refuse_bricking(bricks=bricks, brick_cells=brick_cells, gather=gather, output=output)
     image = as_volume(source)  # a Volume, an image file or a pyvista ImageData; None for arrays and shapes
     if image is not None:
         return _mesh_image(image, options, covering, adaptive, device, keywords, progress)
@@ -233,15 +234,6 @@ def mesh_surface(
     else:
         mesh = _mesh_grid(source, options, device, t_start)
     return _tag_primitives(as_shape(source), mesh) if refs == "primitives" and mesh.n_cells else mesh
-
-
-def _refuse_bricking(**given) -> None:
-    """The bricking keywords mean nothing without a cluster."""
-    defaults = {"bricks": None, "brick_cells": None, "gather": True, "output": None, "progress": True}
-    for name, value in given.items():
-        if value is not defaults[name] and not (isinstance(value, bool) and value == defaults[name]):
-            raise ValueError(f"{name!r} applies to a run on a Dask cluster (client=...), got {name}={value!r} "
-                             "without 'client'")
 
 
 def _mesh_bricked(source, options, covering, adaptive, device, refs, keywords: dict, t_start: float, **run):
