@@ -85,8 +85,11 @@ def number_levels_kernel(
                         phase = 2
                 if u >= 0:
                     m = int(0)
-                    for e in range(indptr[u], indptr[u + 1]):
+                    e = indptr[u]
+                    end = indptr[u + 1]
+                    while e < end:
                         v = indices[e]
+                        e += 1
                         if lev[v] == target:  # in the target level and not yet numbered
                             t = m  # insertion sort by (key, index): rows need not be sorted
                             kv = key[v]
@@ -109,25 +112,45 @@ def number_levels_kernel(
 @wp.kernel
 def descent_kernel(
     indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32),
-    sources: wp.array(dtype=wp.int32), level: wp.array(dtype=wp.int32), queue: wp.array(dtype=wp.int32),
+    sources: wp.array(dtype=wp.int32), comp: wp.array(dtype=wp.int32), deg: wp.array(dtype=wp.int32),
+    level: wp.array(dtype=wp.int32), queue: wp.array(dtype=wp.int32),
+    depth: wp.array(dtype=wp.int32), last: wp.array(dtype=wp.int32),
 ):
     """One thread searches breadth-first from all ``sources`` at once (one per component):
-    ``level`` (starting at -1) gets each node's distance to the source of its component."""
+    ``level`` (starting at -1) gets each node's distance to the source of its component
+    ``comp``; for each such component c, ``depth[c]`` gets its last level and ``last[c]``
+    the node of that level of smallest (``deg``, index): the next candidate end of a
+    pseudo-diameter [FG §17.4, Step 1]."""
     tail = int(0)
     for s in range(sources.shape[0]):
-        level[sources[s]] = 0
-        queue[tail] = sources[s]
+        v = sources[s]
+        level[v] = 0
+        queue[tail] = v
+        depth[comp[v]] = 0
+        last[comp[v]] = v
         tail += 1
     head = int(0)
     while head < tail:
         u = queue[head]
         head += 1
-        for e in range(indptr[u], indptr[u + 1]):
+        lv = level[u] + 1
+        e = indptr[u]
+        end = indptr[u + 1]
+        while e < end:  # a while loop: Warp's range() loops cost ~20 % more here
             v = indices[e]
+            e += 1
             if level[v] < 0:
-                level[v] = level[u] + 1
+                level[v] = lv
                 queue[tail] = v
                 tail += 1
+                c = comp[v]
+                if lv > depth[c]:
+                    depth[c] = lv
+                    last[c] = v
+                else:  # a node of the deepest level so far: keep the smaller (degree, index)
+                    w = last[c]
+                    if deg[v] < deg[w] or (deg[v] == deg[w] and v < w):
+                        last[c] = v
 
 
 @wp.kernel
@@ -152,8 +175,11 @@ def label_components_kernel(
             while head < tail:
                 u = queue[head]
                 head += 1
-                for e in range(indptr[u], indptr[u + 1]):
+                e = indptr[u]
+                end = indptr[u + 1]
+                while e < end:
                     v = indices[e]
+                    e += 1
                     if inside[v] == 1 and label[v] < 0:
                         label[v] = c
                         queue[tail] = v
@@ -200,8 +226,11 @@ def profile_kernel(
     own = num[i]
     lo = own
     hi = own
-    for e in range(indptr[i], indptr[i + 1]):
+    e = indptr[i]
+    end = indptr[i + 1]
+    while e < end:
         x = num[indices[e]]
+        e += 1
         lo = wp.min(lo, x)
         hi = wp.max(hi, x)
     delta[i] = own - lo
@@ -213,39 +242,50 @@ def search_relabel_kernel(
     indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32), start: int,
     new_of_old: wp.array(dtype=wp.int32), old_of_new: wp.array(dtype=wp.int32),
     level: wp.array(dtype=wp.int32), new_indptr: wp.array(dtype=wp.int32),
-    new_indices: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32),
+    new_indices: wp.array(dtype=wp.int32), column_count: wp.array(dtype=wp.int32),
+    count: wp.array(dtype=wp.int32),
 ):
     """One thread searches breadth-first from ``start`` and relabels as it goes: a node's
     label is its place in the search, ``level`` (by label) its level, and row r of the
     relabelled graph (``new_indptr``, ``new_indices``) is written when node r is
     taken off the queue — by then every neighbour has its label; its labels stay in
     the input row's order (unsorted). One pass over the (randomly numbered) input
-    instead of a search and then a relabelling.
-    ``new_of_old`` starts at -1; ``count`` gets the number of nodes reached."""
+    instead of a search and then a relabelling. The input is checked on the way:
+    ``column_count`` (starting at 0) gets the number of entries in each label's column
+    (a symmetric graph has as many as in its row), ``count[1]`` the number of diagonal
+    entries met. ``new_of_old`` starts at -1; ``count[0]`` gets the number of nodes reached."""
     new_of_old[start] = 0
     old_of_new[0] = start
     level[0] = 0
     new_indptr[0] = 0
     tail = int(1)
     pos = int(0)
-    for head in range(indptr.shape[0] - 1):
-        if head < tail:
-            u = old_of_new[head]
-            m = int(0)
-            for e in range(indptr[u], indptr[u + 1]):
-                v = indices[e]
-                x = new_of_old[v]
-                if x < 0:
-                    x = tail
-                    new_of_old[v] = x
-                    old_of_new[x] = v
-                    level[x] = level[head] + 1
-                    tail += 1
-                new_indices[pos + m] = x  # rows stay unsorted: sorting them cost 40 % of the pass
-                m += 1
-            pos += m
-            new_indptr[head + 1] = pos
+    head = int(0)
+    diagonal = int(0)
+    while head < tail:
+        u = old_of_new[head]
+        lv = level[head] + 1
+        e = indptr[u]
+        end = indptr[u + 1]
+        while e < end:  # a while loop: Warp's range() loops cost ~20 % more here
+            v = indices[e]
+            e += 1
+            x = new_of_old[v]
+            if x < 0:
+                x = tail
+                new_of_old[v] = x
+                old_of_new[x] = v
+                level[x] = lv
+                tail += 1
+            if x == head:
+                diagonal += 1
+            new_indices[pos] = x  # rows stay unsorted: sorting them cost 40 % of the pass
+            column_count[x] += 1
+            pos += 1
+        head += 1
+        new_indptr[head] = pos
     count[0] = tail
+    count[1] = diagonal
 
 
 @wp.kernel

@@ -179,19 +179,27 @@ def _min_index(nodes: np.ndarray, key: np.ndarray) -> int:
 def _order_by(*columns) -> np.ndarray:
     """Indices sorting by the first column, then the second, ... (non-negative ints),
     ties left in input order (a stable sort: a trailing column of positions is never
-    needed). One stable argsort of a combined key: 16 bits when it fits (numpy sorts
-    those by radix, in linear time: level numbers and degrees usually fit), else int64
+    needed), in linear time where the keys allow. The columns are combined into one key;
+    up to 16 bits numpy sorts it by radix; up to a few times the length, a counting sort
+    (scipy's coo -> csr conversion is one, stable); else one stable int64 argsort
     (np.lexsort is several times slower on large arrays)."""
+    m = len(columns[0])
     spans = [int(c.max(initial=0)) + 1 for c in columns]
     total = float(np.prod([float(s) for s in spans]))
-    if total < 2.0**62:
-        combined = np.zeros(len(columns[0]), np.int64)
+    if total >= 2.0**62:
+        return np.lexsort(columns[::-1])
+    if len(columns) == 1:
+        combined = columns[0]
+    else:
+        combined = np.zeros(m, np.int64)
         for c, s in zip(columns, spans):
             combined = combined * s + c
-        if total <= 2.0**16:
-            combined = combined.astype(np.uint16)
-        return np.argsort(combined, kind="stable")
-    return np.lexsort(columns[::-1])
+    if total <= 2.0**16:
+        return np.argsort(combined.astype(np.uint16), kind="stable")
+    if total <= 4.0 * m:
+        csr = sp.csr_matrix((np.ones(m, bool), (combined, np.arange(m))), shape=(int(total), m))
+        return csr.indices.astype(np.int64)
+    return np.argsort(combined, kind="stable")
 
 
 class _Graph:
@@ -209,25 +217,20 @@ class _Graph:
         self.indptr = _as_wp(graph.indptr.astype(np.int32, copy=False))
         self.indices = _as_wp(graph.indices.astype(np.int32, copy=False))
         self.queue = wp.empty(max(n, 1), dtype=wp.int32, device="cpu")
-        self.level = np.full(n, -1, np.int32)  # scratch of the searches
-        self.level_wp = _as_wp(self.level, copy=False)
+        self.comp_wp = _as_wp(self.comp.astype(np.int32))
+        self.deg_wp = _as_wp(self.deg.astype(np.int32))
 
-    def nodes_of(self, comps: np.ndarray) -> np.ndarray:
-        """The nodes of components ``comps`` (ascending), in order."""
-        lo, size = self.bounds[comps], np.diff(self.bounds)[comps]
-        first = np.cumsum(size) - size
-        return np.repeat(lo - first, size) + np.arange(int(size.sum()))
-
-    def first_per_component(self, nodes: np.ndarray, *keys, comps=None) -> np.ndarray:
-        """For each component (of ``comps``, ascending; default all), the one of
-        ``nodes`` (some in each, grouped by ascending component) smallest by ``keys``
-        (non-negative arrays over all nodes), ties by index."""
-        comps = np.arange(self.n_comp) if comps is None else comps
+    def first_per_component(self, nodes: np.ndarray, *keys) -> np.ndarray:
+        """For each component, the one of ``nodes`` (some in each, grouped by ascending
+        component) smallest by ``keys`` (non-negative arrays over all nodes), ties by
+        index."""
+        if self.n_comp == 1 and len(keys) == 1:  # one component: the first minimum
+            return nodes[np.argmin(keys[0][nodes])][None]
         cn = self.comp[nodes]
         spans = [int(k.max(initial=0)) + 1 for k in keys]
         if float(np.prod([float(s) for s in spans])) * self.n >= 2.0**62:  # no room for one key
             nodes = nodes[_order_by(cn, *(k[nodes] for k in keys))]
-            return nodes[np.searchsorted(self.comp[nodes], comps)]
+            return nodes[np.searchsorted(self.comp[nodes], np.arange(self.n_comp))]
         combined = np.zeros(len(nodes), np.int64)  # (keys..., node) as one int64: a minimum per run
         for k, span in zip(keys, spans):
             combined = combined * span + k[nodes]
@@ -235,38 +238,43 @@ class _Graph:
         runs = np.flatnonzero(np.r_[True, cn[1:] != cn[:-1]])  # nodes come by ascending component
         return np.minimum.reduceat(combined, runs) % self.n
 
-    def descent(self, sources: np.ndarray, nodes: np.ndarray | None = None) -> np.ndarray:
-        """Each node's level in the descent of its component's source: (n,) int64, or
-        the values at ``nodes`` (the nodes of the sources' components) when given."""
-        if nodes is None:
-            self.level[:] = -1
-        else:
-            self.level[nodes] = -1  # the search touches these only
-        wp.launch(KN.descent_kernel, dim=1, inputs=[self.indptr, self.indices, _as_wp(sources.astype(np.int32))],
-                  outputs=[self.level_wp, self.queue], device="cpu")
+    def descent(self, sources: np.ndarray) -> np.ndarray:
+        """Each node's level in the descent of its component's source (one source per
+        component, any components): (n,) int32, -1 in the components without one."""
+        return self.search(sources)[0]
+
+    def search(self, sources: np.ndarray):
+        """The descents of ``sources`` (one per component, any components), as
+        :meth:`descent`, with for each component c (indexing arrays of length n_comp,
+        meaningful for the components searched only) its number of levels and the node
+        of smallest (degree, index) of its last level."""
+        level = np.full(self.n, -1, np.int32)
+        depth, last = np.zeros(self.n_comp, np.int32), np.zeros(self.n_comp, np.int32)
+        wp.launch(KN.descent_kernel, dim=1,
+                  inputs=[self.indptr, self.indices, _as_wp(np.asarray(sources, np.int32)), self.comp_wp, self.deg_wp],
+                  outputs=[_as_wp(level, copy=False), self.queue, _as_wp(depth, copy=False), _as_wp(last, copy=False)],
+                  device="cpu")
         wp.synchronize_device("cpu")
-        return (self.level if nodes is None else self.level[nodes]).astype(np.int64)
+        return level, depth.astype(np.int64) + 1, last.astype(np.int64)
 
-    def depths(self, level: np.ndarray, comps: np.ndarray | None = None) -> np.ndarray:
-        """Number of levels of each component's descent: ``level`` over all nodes, or
-        over the nodes of ``comps`` (ascending) in order."""
-        if comps is None:
-            return np.maximum.reduceat(level, self.bounds[:-1]) + 1
-        size = np.diff(self.bounds)[comps]
-        return np.maximum.reduceat(level, np.cumsum(size) - size) + 1
+    def depths(self, level: np.ndarray) -> np.ndarray:
+        """Number of levels of each component's descent (``level`` over all nodes)."""
+        return np.maximum.reduceat(level, self.bounds[:-1]).astype(np.int64) + 1
 
-    def components(self, nodes: np.ndarray) -> np.ndarray:
-        """Component label of each of ``nodes`` (ascending) in the subgraph they induce,
-        labelled in the order of each one's smallest node."""
-        inside = np.zeros(self.n, np.int32)
-        inside[nodes] = 1
+    def components(self, inside: np.ndarray):
+        """The connected components of the subgraph induced by the nodes where ``inside``
+        ((n,) bool) holds, labelled in the order of each one's smallest node.
+
+        Returns their sizes (by label) and their nodes, component after component (each
+        in the order of a search from its smallest node)."""
+        nodes = np.flatnonzero(inside).astype(np.int32)
         label = np.full(self.n, -1, np.int32)
         count = wp.zeros(1, dtype=wp.int32, device="cpu")
         wp.launch(KN.label_components_kernel, dim=1,
-                  inputs=[self.indptr, self.indices, _as_wp(inside), _as_wp(nodes.astype(np.int32))],
+                  inputs=[self.indptr, self.indices, _as_wp(inside.view(np.int8).astype(np.int32)), _as_wp(nodes)],
                   outputs=[_as_wp(label, copy=False), self.queue, count], device="cpu")
-        wp.synchronize_device("cpu")
-        return label[nodes].astype(np.int64)
+        grouped = self.queue.numpy()[: len(nodes)].astype(np.int64)  # sync point
+        return np.bincount(label[grouped], minlength=int(count.numpy()[0])), grouped
 
     def number(self, level: np.ndarray, start: np.ndarray, key: np.ndarray) -> np.ndarray:
         """Step 3 on every component: ``level`` (n,) per node, numbering from ``start``
@@ -297,67 +305,82 @@ def _pseudo_diameters(g: _Graph, start: np.ndarray, start_level: np.ndarray):
 
     Returns P, D(P), Q, D(Q) (per component / per node), d(Q) = d(P) everywhere.
     """
-    p, p_lv = start.copy(), start_level.copy()
-    q, q_lv = np.zeros_like(p), np.full(g.n, -1, np.int64)
+    p, p_lv = start.copy(), start_level
+    q, q_lv = np.zeros_like(p), None
     depth = g.depths(p_lv)
+    cand = g.first_per_component(np.flatnonzero(p_lv == depth[g.comp] - 1), g.deg)
     active = np.arange(g.n_comp)
+    sizes = np.diff(g.bounds)
     while len(active):
-        nodes = g.nodes_of(active)
-        last = nodes[p_lv[nodes] == depth[g.comp[nodes]] - 1]
-        cand = g.first_per_component(last, g.deg, comps=active)
-        lv = g.descent(cand, nodes)
-        new_depth = g.depths(lv, active)
-        deeper = new_depth > depth[active]
-        per_node = np.repeat(deeper, np.diff(g.bounds)[active])
+        lv, new_depth, last = g.search(cand)
+        deeper = new_depth[active] > depth[active]
         q[active[~deeper]] = cand[~deeper]
-        q_lv[nodes[~per_node]] = lv[~per_node]
         go = active[deeper]
-        p[go], depth[go] = cand[deeper], new_depth[deeper]
-        p_lv[nodes[per_node]] = lv[per_node]
-        active = go
+        if len(active) == g.n_comp and not len(go):  # every component done (the usual end)
+            q_lv = lv
+        elif len(active) == g.n_comp and len(go) == g.n_comp:  # every component goes on
+            p_lv = lv
+        else:  # merge per component: lv holds -1 outside the active ones
+            flag = np.zeros(g.n_comp, np.int8)
+            flag[active] = np.where(deeper, 1, 2)
+            per_node = np.repeat(flag, sizes)
+            p_lv = np.where(per_node == 1, lv, p_lv)
+            q_lv = np.where(per_node == 2, lv, np.full(g.n, -1, np.int32) if q_lv is None else q_lv)
+        p[go], depth[go] = cand[deeper], new_depth[go]
+        cand, active = last[go], go
     return p, p_lv, q, q_lv
 
 
 def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
     """Step 2 in every component: pairs (i, j), nodes with i = j fixed, the other
     nodes' connected components placed, largest first, on the side that keeps the widest
-    level smaller (ties: the rooted structure of smaller width). Returns the levels."""
+    level smaller (ties: the rooted structure of smaller width). Returns the levels.
+
+    Levels are counted in one array over every (component, level), indexed by the
+    component's first level + the level ("flat" levels): the k-th largest piece of every
+    component is placed in round k, all at once, as pieces of different components never
+    share a flat level."""
     depth = g.depths(p_lv)
     first_level = np.concatenate([[0], np.cumsum(depth)])
-    base = first_level[g.comp]
-    i, j = p_lv, depth[g.comp] - 1 - q_lv
-    level = np.where(i == j, i, -1)
-    counts = np.bincount((base + i)[i == j], minlength=first_level[-1])
-    rest = np.flatnonzero(i != j)
-    if not len(rest):
-        return level
-    width_p = np.maximum.reduceat(np.bincount(base + p_lv, minlength=first_level[-1]), first_level[:-1])
-    width_q = np.maximum.reduceat(np.bincount(base + q_lv, minlength=first_level[-1]), first_level[:-1])
-    label = g.components(rest)
-    sizes = np.bincount(label)
-    owner = np.empty(len(sizes), np.int64)
-    owner[label] = g.comp[rest]
-    # the k-th largest piece of every component is placed in round k, all at once: pieces
-    # of different components never share a level count
-    order = _order_by(owner, sizes.max() - sizes)
+    size = int(first_level[-1])
+    one = g.n_comp == 1
+    base = 0 if one else first_level[g.comp]
+    fi = base + p_lv  # flat level of side i and of side j = d - 1 - D(Q)
+    fj = (base + int(depth[0]) - 1 if one else base + (depth - 1)[g.comp]) - q_lv
+    fixed = fi == fj
+    rest = ~fixed
+    if not rest.any():
+        return p_lv.copy()
+    counts = np.bincount(fi[fixed], minlength=size)
+    width_p = np.maximum.reduceat(np.bincount(fi, minlength=size), first_level[:-1])
+    width_q = np.maximum.reduceat(np.bincount(base + q_lv, minlength=size), first_level[:-1])
+    sizes, grouped = g.components(rest)  # the pieces, each contiguous in ``grouped``
+    starts = np.cumsum(sizes) - sizes
+    owner = g.comp[grouped[starts]]
+    by_size = _order_by(owner, sizes.max() - sizes)  # per component, largest first (ties: label)
     round_of = np.empty(len(sizes), np.int64)
-    round_of[order] = np.arange(len(sizes)) - np.searchsorted(owner[order], owner[order])
-    perm = _order_by(round_of[label], label)
-    by_round, lab = rest[perm], label[perm]
-    ends = np.searchsorted(round_of[lab], np.arange(round_of.max() + 2))
-    for k in range(len(ends) - 1):
-        nodes, piece = by_round[ends[k]: ends[k + 1]], lab[ends[k]: ends[k + 1]]
-        first = np.flatnonzero(np.r_[True, piece[1:] != piece[:-1]])  # pieces are contiguous
-        fi, fj = base[nodes] + i[nodes], base[nodes] + j[nodes]
-        size = first_level[-1]
-        h0 = np.maximum.reduceat(counts[fi] + np.bincount(fi, minlength=size)[fi], first)
-        l0 = np.maximum.reduceat(counts[fj] + np.bincount(fj, minlength=size)[fj], first)
-        own = g.comp[nodes[first]]
-        side_i = (h0 < l0) | ((h0 == l0) & (width_p[own] <= width_q[own]))
-        chosen = np.where(np.repeat(side_i, np.diff(np.r_[first, len(nodes)])), i[nodes], j[nodes])
-        level[nodes] = chosen
-        counts += np.bincount(base[nodes] + chosen, minlength=size)
-    return level
+    round_of[by_size] = np.arange(len(sizes)) - np.searchsorted(owner[by_size], owner[by_size])
+    pieces = _order_by(round_of)  # by round, then label
+    count = sizes[pieces]
+    ends = np.cumsum(count)
+    nodes_all = grouped[np.repeat(starts[pieces] - (ends - count), count) + np.arange(int(ends[-1]))]
+    piece_ends = np.searchsorted(round_of[pieces], np.arange(int(round_of.max()) + 1), side="right")
+    flat = np.where(fixed, fi, -1)
+    lo = 0
+    for hi in piece_ends:  # one round
+        ps = pieces[lo:hi]
+        nodes = nodes_all[ends[lo] - count[lo]: ends[hi - 1]]
+        ai, aj = fi[nodes], fj[nodes]
+        bi, bj = np.bincount(ai, minlength=size), np.bincount(aj, minlength=size)
+        # the widest level each side would give: over the levels the piece touches
+        h0 = np.maximum.reduceat(np.where(bi > 0, counts + bi, 0), first_level[:-1])[owner[ps]]
+        l0 = np.maximum.reduceat(np.where(bj > 0, counts + bj, 0), first_level[:-1])[owner[ps]]
+        side_i = (h0 < l0) | ((h0 == l0) & (width_p[owner[ps]] <= width_q[owner[ps]]))
+        chosen = np.where(np.repeat(side_i, sizes[ps]), ai, aj)
+        flat[nodes] = chosen
+        counts += np.bincount(chosen, minlength=size)
+        lo = hi
+    return flat - base
 
 
 def _number_components(g: _Graph, method: str, start_level=None) -> np.ndarray:
@@ -400,7 +423,7 @@ def _relabel(graph: sp.csr_matrix, seq: np.ndarray, size: int) -> sp.csr_matrix:
     _per_node(KN.relabel_rows_kernel, size,
               [_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(seq[:size].astype(np.int32)),
                _as_wp(new_of_old), _as_wp(indptr)], [_as_wp(indices, copy=False)])
-    g = sp.csr_matrix((np.ones(len(indices)), indices, indptr), shape=(size, size))
+    g = sp.csr_matrix((np.ones(len(indices), bool), indices, indptr), shape=(size, size))
     g.has_sorted_indices = True
     return g
 
@@ -409,23 +432,27 @@ def _search_relabel(graph: sp.csr_matrix, start: int):
     """Breadth-first search from ``start`` that relabels as it goes (one kernel pass).
 
     Returns the nodes reached in search order, the subgraph they span relabelled by
-    that order (csgraph format, but rows unsorted) and the level of each label."""
+    that order (csgraph format, but rows unsorted), the level of each label, and what
+    the pass saw of the input: True when every label has as many entries in its column
+    as in its row and no diagonal entry was met (else False)."""
     n = graph.shape[0]
     new_of_old = np.full(n, -1, np.int32)
     old_of_new, level = np.empty(n, np.int32), np.empty(n, np.int32)
     indptr, indices = np.zeros(n + 1, np.int32), np.empty(graph.nnz, np.int32)
-    count = wp.zeros(1, dtype=wp.int32, device="cpu")
+    columns = np.zeros(n, np.int32)
+    count = wp.zeros(2, dtype=wp.int32, device="cpu")
     wp.launch(KN.search_relabel_kernel, dim=1,
               inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), int(start)],
-              outputs=[_as_wp(a, copy=False) for a in (new_of_old, old_of_new, level, indptr, indices)]
+              outputs=[_as_wp(a, copy=False) for a in (new_of_old, old_of_new, level, indptr, indices, columns)]
               + [count], device="cpu")
-    c = int(count.numpy()[0])  # sync point
-    local = sp.csr_matrix((np.ones(int(indptr[c])), indices[: indptr[c]], indptr[: c + 1]), shape=(c, c))
+    c, diagonal = (int(x) for x in count.numpy())  # sync point
+    ok = diagonal == 0 and np.array_equal(columns[:c], np.diff(indptr[: c + 1]))
+    local = sp.csr_matrix((np.ones(int(indptr[c]), bool), indices[: indptr[c]], indptr[: c + 1]), shape=(c, c))
     local.has_sorted_indices = False  # rows in the input's order: the walks that follow need no order
-    return old_of_new[:c].astype(np.int64), local, level[:c].astype(np.int64)
+    return old_of_new[:c].astype(np.int64), local, level[:c], ok
 
 
-def _layout(graph, deg):
+def _layout(graph, deg, check: bool = False):
     """A relabelling that makes every connected component a contiguous range.
 
     Returns ``seq`` (new label -> node: the components with more than SMALL_COMPONENT
@@ -436,13 +463,19 @@ def _layout(graph, deg):
     laid out in the breadth-first order of a search, so that the walks that follow
     read memory nearly in order: on a randomly numbered mesh that alone makes them ~3x
     faster.
+
+    With ``check``, ``graph`` (CSR, int32, canonical) is also checked for symmetry
+    (:func:`_check_graph`: ValueError) and a diagonal: None is returned when it has one.
     """
     n = graph.shape[0]
     used = np.flatnonzero(deg)
     isolated = np.flatnonzero(deg == 0)
     if not len(used):
         return isolated, [], 0, None
-    reached, local, level = _search_relabel(graph, _min_index(used, deg))
+    reached, local, level, ok = _search_relabel(graph, _min_index(used, deg))
+    if check and (not ok or len(reached) != len(used)):  # the search saw part of it, or a fault
+        if not _check_graph(graph):
+            return None
     if len(reached) == len(used):
         seq = np.concatenate([reached, isolated])
         if len(used) <= SMALL_COMPONENT:
@@ -465,30 +498,36 @@ def _layout(graph, deg):
     return seq, sizes[kind == 0].tolist(), int(sizes[kind == 1].sum()), local
 
 
-def _is_csgraph(graph) -> bool:
-    """True for a CSR matrix already in csgraph format: int32 indices, sorted rows without
-    duplicates, no diagonal entry (its values are never read)."""
+_NOT_SYMMETRIC = ("expected a symmetric 'graph' (every entry (i, j) with its (j, i)); "
+                  "use g + g.T, or warpmesh.numbering.graph.node_graph")
+
+
+def _is_canonical(graph) -> bool:
+    """True for a CSR matrix with int32 indices and sorted rows without duplicates."""
     if type(graph) is not sp.csr_matrix or graph.indices.dtype != np.int32 or graph.indptr.dtype != np.int32:
         return False
-    if not graph.has_canonical_format:  # scipy checks the rows once and remembers
-        return False
+    return bool(graph.has_canonical_format)  # scipy checks the rows once and remembers
+
+
+def _check_graph(graph) -> bool:
+    """For a canonical ``graph``: ValueError when some node has more entries in its row
+    than in its column (it cannot be symmetric); else whether it has no diagonal entry."""
+    if not np.array_equal(np.diff(graph.indptr), np.bincount(graph.indices, minlength=graph.shape[0])):
+        raise ValueError(_NOT_SYMMETRIC)
     rows = np.repeat(np.arange(graph.shape[0], dtype=np.int32), np.diff(graph.indptr))
     return not bool(np.any(graph.indices == rows))
 
 
-def _as_csgraph(graph) -> sp.csr_matrix:
+def _as_csgraph(graph, *, check: bool = True) -> sp.csr_matrix:
     """The structure of ``graph`` as CSR with int32 indices, sorted rows, no duplicates
     and no diagonal: ``graph`` itself when it is so already (its values are never read),
-    else a float64 copy.
+    else a float64 copy. With ``check=False`` a canonical int32 ``graph`` is returned
+    unchecked for symmetry and a diagonal (the caller checks on the way: :func:`_layout`).
 
     Raises ValueError for a graph that cannot be symmetric (a node with more entries in
     its row than in its column) or too large for int32 indices."""
-    if _is_csgraph(graph):  # node_graph's output: nothing to change, only the symmetry to check
-        g = graph
-        if not np.array_equal(np.diff(g.indptr), np.bincount(g.indices, minlength=g.shape[0])):
-            raise ValueError("expected a symmetric 'graph' (every entry (i, j) with its (j, i)); "
-                             "use g + g.T, or warpmesh.numbering.graph.node_graph")
-        return g
+    if _is_canonical(graph) and (not check or _check_graph(graph)):  # node_graph's output
+        return graph
     g = sp.csr_matrix(graph, dtype=np.float64, copy=True)
     g.sum_duplicates()  # also sorts the rows
     if g.nnz >= np.iinfo(np.int32).max:
@@ -498,8 +537,7 @@ def _as_csgraph(graph) -> sp.csr_matrix:
         g.setdiag(0)
         g.eliminate_zeros()
     if not np.array_equal(np.diff(g.indptr), np.bincount(g.indices, minlength=g.shape[0])):
-        raise ValueError("expected a symmetric 'graph' (every entry (i, j) with its (j, i)); "
-                         "use g + g.T, or warpmesh.numbering.graph.node_graph")
+        raise ValueError(_NOT_SYMMETRIC)
     g.indices = g.indices.astype(np.int32)
     g.indptr = g.indptr.astype(np.int32)
     g.has_sorted_indices = True
@@ -546,10 +584,13 @@ def renumber_graph(
         raise ValueError(f"expected reverse=True, False or 'auto', got {reverse!r}")
     if not sp.issparse(graph) or graph.shape[0] != graph.shape[1]:
         raise ValueError(f"expected a square sparse 'graph', got {type(graph).__name__}")
-    graph = _as_csgraph(graph)
+    g = _as_csgraph(graph, check=False)
+    layout = _layout(g, degrees(g), check=g is graph)  # symmetry and diagonal checked by its search
+    if layout is None:  # a diagonal: drop it, and lay the graph out again
+        g = _as_csgraph(g)
+        layout = _layout(g, degrees(g))
+    graph, (seq, sizes, n_small, connected) = g, layout
     n = graph.shape[0]
-    deg = degrees(graph)
-    seq, sizes, n_small, connected = _layout(graph, deg)
     new_of_local = np.empty(n, np.int64)
     offset = sum(sizes)  # the large components come first, each a contiguous range
     if offset:
