@@ -14,6 +14,11 @@ Cases:
             (chunks 128^3): one process from the numpy array, 2 workers from
             ``dask.array.from_zarr`` (each brick read on its worker).
 ``scheduler`` 400 no-op tasks on the 2-worker cluster: the scheduler's cost per task.
+``domain``  the part's tetrahedral domain by isosurface stuffing at ``--domain-size`` (default
+            0.03: about 1 M tetrahedra), ``features=False`` (the stuffing alone; the stages
+            after it run on the client's gathered mesh as in one process): one process,
+            then ``mesh_domain(..., client=...)`` on 2 workers, bricks of
+            ``--domain-brick-cells`` black nodes (default 32), gathered.
 
 The shape is evaluated by ``--evaluator`` in every run (default "compiled": the kernel
 generated for the part, loaded from Warp's disk cache by each process's warm-up; with
@@ -31,6 +36,7 @@ for 8192^3 on N machines.
 
 Run:  python benchmarks/bench_distributed.py [--resolution 1024] [--brick-cells 128]
                                              [--volume 512,256,256] [--cases part,volume,scheduler]
+                                             [--domain-size 0.03] [--domain-brick-cells 32]
                                              [--json out.json]
 """
 
@@ -84,9 +90,15 @@ def gyroid(shape) -> np.ndarray:
             + np.sin(k)[None, None, :] * np.cos(i)[:, None, None]).astype(np.float32)
 
 
-def single_process(case: str, resolution: int, volume_path: str | None, evaluator: str = "compiled") -> dict:
+def single_process(case: str, resolution: int, volume_path: str | None, evaluator: str = "compiled",
+                   size: float = 0.0) -> dict:
     """One process: warm up, reset the peak, mesh once; wall, CPU, peak RSS, counts."""
-    if case == "part":
+    fn = wm.mesh_surface
+    if case == "domain":
+        part, bounds = wm.example("part")
+        wm.mesh_domain(part, bounds=bounds, size=0.2, features=False)
+        fn, source, kw = wm.mesh_domain, part, dict(bounds=bounds, size=size, features=False)
+    elif case == "part":
         part, bounds = wm.example("part")
         wm.mesh_surface(part, bounds=bounds, resolution=64, evaluator=evaluator)
         source, kw = part, dict(bounds=bounds, resolution=resolution, evaluator=evaluator)
@@ -96,16 +108,25 @@ def single_process(case: str, resolution: int, volume_path: str | None, evaluato
         kw = dict(level=0.2)
     base = _reset_peak()
     t, c = time.perf_counter(), _cpu()
-    mesh = wm.mesh_surface(source, **kw)
+    mesh = fn(source, **kw)
     wall, cpu = time.perf_counter() - t, _cpu() - c
     return {"wall": wall, "cpu": cpu, "peak_extra": _status("VmHWM") - base, "peak": _status("VmHWM"),
-            "points": mesh.n_points, "triangles": mesh.n_cells}
+            **_counts(mesh)}
 
 
-def run_in_fresh_process(case: str, resolution: int, volume_path: str | None, evaluator: str = "compiled") -> dict:
+def _counts(mesh) -> dict:
+    out = {"points": mesh.n_points, "triangles": len(mesh.cells.get("triangle", ()))}
+    if "tetra" in mesh.cells:
+        out["tets"] = len(mesh.cells["tetra"])
+    return out
+
+
+def run_in_fresh_process(case: str, resolution: int, volume_path: str | None, evaluator: str = "compiled",
+                         size: float = 0.0) -> dict:
     code = (f"import sys; sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r}); "
             f"import json, bench_distributed as b; "
-            f"print('RESULT', json.dumps(b.single_process({case!r}, {resolution}, {volume_path!r}, {evaluator!r})))")
+            f"print('RESULT', json.dumps(b.single_process({case!r}, {resolution}, {volume_path!r}, {evaluator!r}, "
+            f"{size!r})))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=3600)
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")]
     if not line:
@@ -129,19 +150,20 @@ def cluster(n_workers: int, evaluator: str = "compiled"):
     return lc, client
 
 
-def bricked(client, source, kw: dict) -> dict:
+def bricked(client, source, kw: dict, fn=wm.mesh_surface) -> dict:
     """One timed bricked run: wall, the workers' CPU and peak RSS, the mesh's counts and info."""
     client.run(_reset_peak)
     cpu0 = client.run(_cpu)
     t = time.perf_counter()
-    result = wm.mesh_surface(source, client=client, progress=False, **kw)
+    result = fn(source, client=client, progress=False, **kw)
     wall = time.perf_counter() - t
     cpu1 = client.run(_cpu)
     peaks = client.run(_status, "VmHWM")
     info = result.info
-    n_pts, n_tri = (result.n_points, result.n_cells)
+    counts = _counts(result) if isinstance(result, wm.Mesh) else {"points": result.n_points,
+                                                                  "triangles": result.n_cells}
     return {"wall": wall, "cpu": sum(cpu1[w] - cpu0[w] for w in cpu1), "peak_per_worker": sorted(peaks.values()),
-            "points": n_pts, "triangles": n_tri, "bricks": info["bricks"], "bricks_meshed": info["bricks_meshed"],
+            **counts, "bricks": info["bricks"], "bricks_meshed": info["bricks_meshed"],
             "bricks_culled": info.get("bricks_culled", 0), "brick_cpu": info["brick_cpu_time"],
             "time": info["time"], "seam_copies": info.get("seam_copies_welded")}
 
@@ -167,6 +189,8 @@ def main() -> None:
     ap.add_argument("--brick-cells", type=int, default=128)
     ap.add_argument("--volume", default="512,256,256")
     ap.add_argument("--cases", default="part,volume,scheduler")
+    ap.add_argument("--domain-size", type=float, default=0.03)
+    ap.add_argument("--domain-brick-cells", type=int, default=32)
     ap.add_argument("--evaluator", default="compiled", choices=("compiled", "interpreter", "auto"),
                     help="the shape's evaluator, the same in every run (default: the generated kernel, loaded "
                          "from Warp's cache in the warm-ups, so no compile falls in a timed run)")
@@ -254,9 +278,36 @@ def main() -> None:
             print(f"  speed-up, 2 workers over one process: {one['wall'] / r['wall']:.2f}x (wall)")
             doc["volume"] = {"shape": shape, "one": one, "2w": r}
 
+    if "domain" in cases:
+        domain(doc, args.domain_size, args.domain_brick_cells, ev)
     if "part" in cases:
         model(doc, R, B)
     finish(t_start, load0, args.json, doc)
+
+
+def domain(doc: dict, size: float, brick_cells: int, ev: str) -> None:
+    """The part's tetrahedra by stuffing: one process against 2 workers, gathered."""
+    print(f"\n(e) part's domain, stuffing at size {size:g} (features=False), bricks of {brick_cells}^3 black nodes")
+    one = run_in_fresh_process("domain", 0, None, ev, size)
+    print(f"  one process        wall {one['wall']:7.2f} s  cpu {one['cpu']:7.2f} s  peak {_gb(one['peak'])}  "
+          f"{one['tets']:,} tetrahedra")
+    part, bounds = wm.example("part")
+    lc, client = cluster(2, ev)
+    try:
+        kw = dict(bounds=bounds, features=False)
+        wm.mesh_domain(part, size=0.2, brick_cells=8, client=client, progress=False, **kw)  # warm-up
+        r = bricked(client, part, dict(size=size, brick_cells=brick_cells, **kw), fn=wm.mesh_domain)
+    finally:
+        client.close()
+        lc.close()
+    same = (r["tets"], r["points"]) == (one["tets"], one["points"])
+    print(f"  2 workers          wall {r['wall']:7.2f} s  cpu {r['cpu']:7.2f} s  peak/worker "
+          f"{', '.join(_gb(p) for p in r['peak_per_worker'])}  {r['tets']:,} tetrahedra, {r['bricks_meshed']} of "
+          f"{r['bricks']} bricks meshed, gather {r['time']['weld']:.2f} s ({r['seam_copies']:,} copies joined); "
+          f"same counts: {same}")
+    print(f"  speed-up, 2 workers over one process: {one['wall'] / r['wall']:.2f}x (wall); "
+          f"CPU 2 workers / one process: {r['cpu'] / one['cpu']:.2f}")
+    doc["domain"] = {"size": size, "brick_cells": brick_cells, "one": one, "2w": r}
 
 
 def model(doc: dict, R: int, B: int) -> None:
