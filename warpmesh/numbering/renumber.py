@@ -79,7 +79,7 @@ SMALL_COMPONENT = 2
 
 
 # ----------------------------------------------------------------------------- kernels
-_as_wp = functools.partial(wp.array, dtype=wp.int32, device="cpu")  # int32 CPU arrays (views of numpy ones)
+_as_wp = functools.partial(wp.array, dtype=wp.int32, device="cpu", copy=False)  # views of int32 numpy arrays
 
 
 def _per_node(kernel, n: int, inputs: list, outputs: list) -> None:
@@ -252,7 +252,7 @@ class _Graph:
         depth, last = np.zeros(self.n_comp, np.int32), np.zeros(self.n_comp, np.int32)
         wp.launch(KN.descent_kernel, dim=1,
                   inputs=[self.indptr, self.indices, _as_wp(np.asarray(sources, np.int32)), self.comp_wp, self.deg_wp],
-                  outputs=[_as_wp(level, copy=False), self.queue, _as_wp(depth, copy=False), _as_wp(last, copy=False)],
+                  outputs=[_as_wp(level), self.queue, _as_wp(depth), _as_wp(last)],
                   device="cpu")
         wp.synchronize_device("cpu")
         return level, depth.astype(np.int64) + 1, last.astype(np.int64)
@@ -268,11 +268,11 @@ class _Graph:
         Returns their sizes (by label) and their nodes, component after component (each
         in the order of a search from its smallest node)."""
         nodes = np.flatnonzero(inside).astype(np.int32)
-        label = np.full(self.n, -1, np.int32)
+        label = np.where(inside, np.int32(-1), np.int32(-2))
         count = wp.zeros(1, dtype=wp.int32, device="cpu")
         wp.launch(KN.label_components_kernel, dim=1,
-                  inputs=[self.indptr, self.indices, _as_wp(inside.view(np.int8).astype(np.int32)), _as_wp(nodes)],
-                  outputs=[_as_wp(label, copy=False), self.queue, count], device="cpu")
+                  inputs=[self.indptr, self.indices, _as_wp(nodes)],
+                  outputs=[_as_wp(label), self.queue, count], device="cpu")
         grouped = self.queue.numpy()[: len(nodes)].astype(np.int64)  # sync point
         return np.bincount(label[grouped], minlength=int(count.numpy()[0])), grouped
 
@@ -292,7 +292,8 @@ class _Graph:
                           _as_wp(key.astype(np.int32)), _as_wp(members.astype(np.int32)),
                           _as_wp(bounds.astype(np.int32)), _as_wp(start.astype(np.int32)),
                           _as_wp(first_level.astype(np.int32)), _as_wp(self.bounds[:-1].astype(np.int32))],
-                  outputs=[_as_wp(num, copy=False), _as_wp(out, copy=False), buf], device="cpu")
+                  outputs=[_as_wp(num), _as_wp(out), buf, wp.empty(max(self.graph.nnz, 1), dtype=wp.int32, device="cpu"),
+                           wp.empty(self.n + 1, dtype=wp.int32, device="cpu")], device="cpu")
         wp.synchronize_device("cpu")
         return out.astype(np.int64)
 
@@ -422,7 +423,7 @@ def _relabel(graph: sp.csr_matrix, seq: np.ndarray, size: int) -> sp.csr_matrix:
     indices = np.empty(int(indptr[-1]), np.int32)
     _per_node(KN.relabel_rows_kernel, size,
               [_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(seq[:size].astype(np.int32)),
-               _as_wp(new_of_old), _as_wp(indptr)], [_as_wp(indices, copy=False)])
+               _as_wp(new_of_old), _as_wp(indptr)], [_as_wp(indices)])
     g = sp.csr_matrix((np.ones(len(indices), bool), indices, indptr), shape=(size, size))
     g.has_sorted_indices = True
     return g
@@ -443,7 +444,7 @@ def _search_relabel(graph: sp.csr_matrix, start: int):
     count = wp.zeros(2, dtype=wp.int32, device="cpu")
     wp.launch(KN.search_relabel_kernel, dim=1,
               inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), int(start)],
-              outputs=[_as_wp(a, copy=False) for a in (new_of_old, old_of_new, level, indptr, indices, columns)]
+              outputs=[_as_wp(a) for a in (new_of_old, old_of_new, level, indptr, indices, columns)]
               + [count], device="cpu")
     c, diagonal = (int(x) for x in count.numpy())  # sync point
     ok = diagonal == 0 and np.array_equal(columns[:c], np.diff(indptr[: c + 1]))
@@ -486,9 +487,8 @@ def _layout(graph, deg, check: bool = False):
     label, queue = np.full(n, -1, np.int32), np.empty(n, np.int32)
     count = wp.zeros(1, dtype=wp.int32, device="cpu")
     wp.launch(KN.label_components_kernel, dim=1,
-              inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(np.ones(n, np.int32)),
-                      _as_wp(np.arange(n, dtype=np.int32))],
-              outputs=[_as_wp(label, copy=False), _as_wp(queue, copy=False), count], device="cpu")
+              inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(np.arange(n, dtype=np.int32))],
+              outputs=[_as_wp(label), _as_wp(queue), count], device="cpu")
     wp.synchronize_device("cpu")
     sizes = np.bincount(label)
     kind = np.where(sizes > SMALL_COMPONENT, 0, np.where(sizes > 1, 1, 2))
