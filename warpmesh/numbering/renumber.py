@@ -282,16 +282,18 @@ class _Graph:
         numbers ``bounds[c]:bounds[c + 1]``. Returns ``out`` (number -> node)."""
         depth = self.depths(level)
         first_level = np.concatenate([[0], np.cumsum(depth)])
-        flat = first_level[self.comp] + level  # a global index for every (component, level)
+        # a global index for every (component, level)
+        flat = (level if self.n_comp == 1 else first_level[self.comp] + level).astype(np.int32)  # a copy: overwritten
         members = _order_by(flat, key)
-        bounds = np.searchsorted(flat[members], np.arange(first_level[-1] + 1))
+        bounds = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=int(first_level[-1])))])
         num, out = np.full(self.n, -1, np.int32), np.full(self.n, -1, np.int32)
         buf = wp.empty(max(int(self.deg.max(initial=0)), 1), dtype=wp.int32, device="cpu")
         wp.launch(KN.number_levels_kernel, dim=1,
-                  inputs=[self.indptr, self.indices, _as_wp(flat.astype(np.int32)),
-                          _as_wp(key.astype(np.int32)), _as_wp(members.astype(np.int32)),
-                          _as_wp(bounds.astype(np.int32)), _as_wp(start.astype(np.int32)),
-                          _as_wp(first_level.astype(np.int32)), _as_wp(self.bounds[:-1].astype(np.int32))],
+                  inputs=[self.indptr, self.indices, _as_wp(flat),
+                          self.deg_wp if key is self.deg else _as_wp(key.astype(np.int32)),
+                          _as_wp(members.astype(np.int32, copy=False)), _as_wp(bounds.astype(np.int32)),
+                          _as_wp(start.astype(np.int32)), _as_wp(first_level.astype(np.int32)),
+                          _as_wp(self.bounds[:-1].astype(np.int32))],
                   outputs=[_as_wp(num), _as_wp(out), buf, wp.empty(max(self.graph.nnz, 1), dtype=wp.int32, device="cpu"),
                            wp.empty(self.n + 1, dtype=wp.int32, device="cpu")], device="cpu")
         wp.synchronize_device("cpu")
