@@ -364,24 +364,30 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
     round_of = np.empty(len(sizes), np.int64)
     round_of[by_size] = np.arange(len(sizes)) - np.searchsorted(owner[by_size], owner[by_size])
     pieces = _order_by(round_of)  # by round, then label
-    count = sizes[pieces]
-    ends = np.cumsum(count)
-    nodes_all = grouped[np.repeat(starts[pieces] - (ends - count), count) + np.arange(int(ends[-1]))]
     piece_ends = np.searchsorted(round_of[pieces], np.arange(int(round_of.max()) + 1), side="right")
     flat = np.where(fixed, fi, -1)
     lo = 0
     for hi in piece_ends:  # one round
         ps = pieces[lo:hi]
-        nodes = nodes_all[ends[lo] - count[lo]: ends[hi - 1]]
+        segments = [grouped[starts[c]: starts[c] + sizes[c]] for c in ps.tolist()]
+        nodes = segments[0] if len(segments) == 1 else np.concatenate(segments)
         ai, aj = fi[nodes], fj[nodes]
         bi, bj = np.bincount(ai, minlength=size), np.bincount(aj, minlength=size)
         # the widest level each side would give: over the levels the piece touches
-        h0 = np.maximum.reduceat(np.where(bi > 0, counts + bi, 0), first_level[:-1])[owner[ps]]
-        l0 = np.maximum.reduceat(np.where(bj > 0, counts + bj, 0), first_level[:-1])[owner[ps]]
-        side_i = (h0 < l0) | ((h0 == l0) & (width_p[owner[ps]] <= width_q[owner[ps]]))
-        chosen = np.where(np.repeat(side_i, sizes[ps]), ai, aj)
+        ti, tj = np.where(bi > 0, counts + bi, 0), np.where(bj > 0, counts + bj, 0)
+        own = owner[ps]
+        if one:
+            h0, l0 = ti.max(keepdims=True), tj.max(keepdims=True)
+        else:
+            h0 = np.maximum.reduceat(ti, first_level[:-1])[own]
+            l0 = np.maximum.reduceat(tj, first_level[:-1])[own]
+        side_i = (h0 < l0) | ((h0 == l0) & (width_p[own] <= width_q[own]))
+        if len(ps) == 1:
+            chosen = ai if side_i[0] else aj
+        else:
+            chosen = np.where(np.repeat(side_i, sizes[ps]), ai, aj)
         flat[nodes] = chosen
-        counts += np.bincount(chosen, minlength=size)
+        counts += bi if chosen is ai else bj if chosen is aj else np.bincount(chosen, minlength=size)
         lo = hi
     return flat - base
 
