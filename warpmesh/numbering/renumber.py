@@ -404,7 +404,10 @@ def _number_components(g: _Graph, method: str, start_level=None) -> np.ndarray:
     if method == "gibbs":
         level = _gibbs_levels(g, p_lv, q_lv)
         depth = g.depths(p_lv)
-        level = np.where(from_q[g.comp], depth[g.comp] - 1 - level, level)
+        if g.n_comp == 1:
+            level = depth[0] - 1 - level if from_q[0] else level
+        else:
+            level = np.where(from_q[g.comp], depth[g.comp] - 1 - level, level)
         return g.number(level, np.where(from_q, q, p), g.deg)
     lv = np.where(from_q[g.comp], q_lv, p_lv)
     key = g.deg if method == "rcm" else _forward_degree(g.graph, lv)
@@ -597,29 +600,27 @@ def renumber_graph(
     if layout is None:  # a diagonal: drop it, and lay the graph out again
         g = _as_csgraph(g)
         layout = _layout(g, degrees(g))
-    graph, (seq, sizes, n_small, connected) = g, layout
-    n = graph.shape[0]
-    new_of_local = np.empty(n, np.int64)
+    seq, sizes, n_small, connected = layout
+    order = seq.copy()  # small components, then isolated nodes, keep their places
     offset = sum(sizes)  # the large components come first, each a contiguous range
     if offset:
         local, start_level = connected
-        order = _number_components(_Graph(local, np.concatenate([[0], np.cumsum(sizes)])), method, start_level)
-        new_of_local[order] = np.arange(offset)
-    new_of_local[offset:] = np.arange(offset, n)  # small components, then isolated nodes
+        out = _number_components(_Graph(local, np.concatenate([[0], np.cumsum(sizes)])), method, start_level)
+        order[:offset] = seq[out]
     used = offset + n_small  # nodes in some element
     if reverse == "auto" and method != "rcm":
         # measured on the relabelled large components (memory read nearly in order): the
         # small components' profile is the same both ways
-        s = matrix_stats(local, new_of_local[:offset]) if offset else None
-        flip = s is not None and (
-            (s["profile_reversed"], s["bandwidth_reversed"]) < (s["profile"], s["bandwidth"]))
+        flip = False
+        if offset:
+            new_local = np.empty(offset, np.int32)
+            new_local[out] = np.arange(offset, dtype=np.int32)
+            s = matrix_stats(local, new_local)
+            flip = (s["profile_reversed"], s["bandwidth_reversed"]) < (s["profile"], s["bandwidth"])
     else:
         flip = bool(reverse) if method != "rcm" else reverse != False  # noqa: E712
     if flip:  # isolated nodes stay last
-        head = new_of_local < used
-        new_of_local[head] = used - 1 - new_of_local[head]
-    order = np.empty(n, np.int64)
-    order[new_of_local] = seq
+        order[:used] = order[:used][::-1].copy()
     return order
 
 
