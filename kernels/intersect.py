@@ -128,11 +128,10 @@ def edge_sides_2d(u: wp.vec3d, w: wp.vec3d, t: wp.mat33d, i: int, j: int) -> wp.
 
 
 @wp.func
-def coplanar_overlap(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
-    """Closed coplanar triangles p, q (rows) meet: some edges meet, or one holds a
-    vertex of the other (then it holds all of it); a triangle that projects to a segment
-    holds everything (conservative). Each of the 18 edge-vertex orientations is computed
-    once: op[a, c] = orient2d(p[a], p[a + 1], q[c]), oq[b, c] = orient2d(q[b], q[b + 1], p[c])."""
+def coplanar_edges_meet(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
+    """Some edge of p meets some edge of q (rows, coordinates i, j). Each of the 18
+    edge-vertex orientations is computed once: op[a, c] = orient2d(p[a], p[a + 1], q[c]),
+    oq[b, c] = orient2d(q[b], q[b + 1], p[c])."""
     op = wp.matrix_from_rows(edge_sides_2d(p[0], p[1], q, i, j), edge_sides_2d(p[1], p[2], q, i, j),
                              edge_sides_2d(p[2], p[0], q, i, j))
     oq = wp.matrix_from_rows(edge_sides_2d(q[0], q[1], p, i, j), edge_sides_2d(q[1], q[2], p, i, j),
@@ -143,11 +142,64 @@ def coplanar_overlap(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
             b1 = (b + 1) % 3
             if segments_meet_2d(op[a, b], op[a, b1], oq[b, a], oq[b, a1], p[a], p[a1], q[b], q[b1], i, j):
                 return True
-    sq = orient2d(q[0], q[1], q[2], i, j)  # p[0] in q
-    if oq[0, 0] * sq >= 0 and oq[1, 0] * sq >= 0 and oq[2, 0] * sq >= 0:
-        return True
-    sp = orient2d(p[0], p[1], p[2], i, j)  # q[0] in p
-    return op[0, 0] * sp >= 0 and op[1, 0] * sp >= 0 and op[2, 0] * sp >= 0
+    return False
+
+
+#: a distance (absolute, points scaled into [-1, 1]^3) that certifies two coplanar triangles'
+#: projections apart for :func:`coplanar_overlap`'s edge tests, which only report a pair
+#: that has a point within 8 O2_BOUND (< 1e-14) of the other triangle
+SEPARATION_GAP = wp.constant(wp.float64(2.0**-40))
+
+
+@wp.func
+def edge_separates_2d(t: wp.mat33d, other: wp.mat33d, st: int, i: int, j: int) -> bool:
+    """Some edge line of triangle t (rows; st != 0 its certified orientation on coordinates
+    i, j) has the three vertices of ``other`` on its outer side, each at a distance
+    certified above ``SEPARATION_GAP``: the determinant of :func:`orient2d` exceeds its
+    error bound by the gap times twice the edge's L1 length (an upper bound of its
+    length)."""
+    for a in range(3):
+        u = t[a]
+        w = t[(a + 1) % 3]
+        length = wp.float64(2.0) * (wp.abs(u[i] - w[i]) + wp.abs(u[j] - w[j]))
+        out = int(0)
+        for c in range(3):
+            acx = u[i] - other[c][i]
+            bcx = w[i] - other[c][i]
+            acy = u[j] - other[c][j]
+            bcy = w[j] - other[c][j]
+            l = acx * bcy
+            r = acy * bcx
+            if -(l - r) * wp.float64(st) > O2_BOUND * (wp.abs(l) + wp.abs(r)) + TINY + SEPARATION_GAP * length:
+                out += 1
+        if out == 3:
+            return True
+    return False
+
+
+@wp.func
+def coplanar_overlap(p: wp.mat33d, q: wp.mat33d, i: int, j: int) -> bool:
+    """Closed coplanar triangles p, q (rows) meet: some edges meet
+    (:func:`coplanar_edges_meet`), or one holds a vertex of the other (then it holds all
+    of it); a triangle that projects to a segment holds everything (conservative).
+
+    The edge tests are skipped when an edge line of one has the other certified outside
+    by ``SEPARATION_GAP`` (:func:`edge_separates_2d`), for then they are all false: a
+    crossing with nonzero signs is a true crossing, and a tie with the vertex in the other
+    segment's box puts the vertex within 8 O2_BOUND |segment| of it (the determinant's
+    permanent is at most 2 |segment|^2 there, and the box holds the foot of the
+    perpendicular), both impossible across a gap. The containment tests are the same
+    signs either way, so the answer is the same with or without the shortcut."""
+    sq = orient2d(q[0], q[1], q[2], i, j)
+    sp = orient2d(p[0], p[1], p[2], i, j)
+    if not ((sp != 0 and edge_separates_2d(p, q, sp, i, j)) or (sq != 0 and edge_separates_2d(q, p, sq, i, j))):
+        if coplanar_edges_meet(p, q, i, j):
+            return True
+    if (orient2d(q[0], q[1], p[0], i, j) * sq >= 0 and orient2d(q[1], q[2], p[0], i, j) * sq >= 0
+            and orient2d(q[2], q[0], p[0], i, j) * sq >= 0):
+        return True  # p[0] in q
+    return (orient2d(p[0], p[1], q[0], i, j) * sp >= 0 and orient2d(p[1], p[2], q[0], i, j) * sp >= 0
+            and orient2d(p[2], p[0], q[0], i, j) * sp >= 0)  # q[0] in p
 
 
 @wp.func
@@ -558,9 +610,9 @@ def gather_faces_kernel(tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp
 
 #: faces per leaf of the group tree: consecutive faces of the Morton order (a compact
 #: patch), so the tree has m / GROUP leaves and one walk per group, not per face, finds the
-#: groups near it; faces are then screened by their own float32 boxes (a group's faces are
-#: one bit each of an int32 mask in :func:`walk_group`: at most 31). 8 and 32 measured no
-#: faster on the part and the ball at 512.
+#: groups near it; faces are then screened by their own float32 boxes (:func:`walk_group`).
+#: 8 and 32 measured no faster on the part and the ball at 512 (with bit masks, and again
+#: with slot lists).
 GROUP = 16
 #: the lower corner of an empty box (its upper corner is -EMPTY): far outside the BVH's
 #: coordinates [-1, 1]^3, so it meets no box
@@ -684,6 +736,10 @@ def tree_next(lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3), 
     return int(-1), int(0), int(0)
 
 
+#: the positions of the faces of one group that meet a query box, in order (:func:`walk_group`)
+group_slots = wp.types.vector(length=GROUP, dtype=wp.int32)
+
+
 @wp.func
 def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype=wp.vec3), depth: int, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
@@ -692,72 +748,71 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
                keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
     """The intersecting pairs of group g with the groups h >= g (each unordered pair of faces
     once): one walk of the group tree (:func:`tree_next`) with g's box grown by ``pad``;
-    for each group h >= g met, each face s of g whose grown box meets h's grown box, each
-    face s2 of h (s2 > s when h == g) whose box meets s's grown box goes to the exact test
-    (the faces of h that miss g's grown box are masked out first: 17 face-face box tests a
-    face instead of 51 on the part at 512). Returns how many pairs intersect; the first
-    ``limit`` of them are written to ``keys[start:]`` as min(f, f2) m + max(f, f2) (f, f2
-    the input indices)."""
+    for each group h >= g met, the faces of h whose boxes meet g's grown box are listed
+    first (``group_slots``; all of them when h == g), then each face s of g whose box meets
+    h's grown box is screened against the listed faces (only those after s when h == g)
+    with its own grown box, and the faces that pass go to the exact test. A face that
+    meets the grown box of a face of g meets g's grown box (rounding is monotone:
+    s_hi + pad <= g_hi + pad), so the faces left off the list could not pass the face
+    test: the same candidates as screening every face of h, 17 face-face box tests a face
+    instead of 51 on the part at 512; a list, not a bit mask, so that the loop runs once
+    per listed face. Returns how many pairs intersect; the first ``limit`` of them are
+    written to ``keys[start:]`` as min(f, f2) m + max(f, f2) (f, f2 the input indices)."""
     m = order.shape[0]
     grow = wp.vec3(pad, pad, pad)
     first = GROUP * g
     last = wp.min(first + GROUP, m)
     n = int(0)
-    h, node, shift = tree_next(tree_lowers, tree_uppers, depth, group_lowers[g] - grow, group_uppers[g] + grow, g,
-                               1, depth)
     gl = group_lowers[g] - grow
     gh = group_uppers[g] + grow
+    h, node, shift = tree_next(tree_lowers, tree_uppers, depth, gl, gh, g, 1, depth)
     while h >= 0:  # every h >= g
         if h >= g:
             hl = group_lowers[h] - grow
             hh = group_uppers[h] + grow
             base = GROUP * h
             end = wp.min(base + GROUP, m)
-            # bit k: face base + k of h meets g's grown box. A face that meets the grown box of
-            # a face of g meets it (rounding is monotone: s_hi + pad <= g_hi + pad), so the
-            # faces left out could not pass the face test below: the same candidates, fewer tests
-            mask = int(0)
+            slots = group_slots()
+            c = int(0)
             for s2 in range(base, end):
                 if h == g or boxes_meet(gl, gh, face_lowers[s2], face_uppers[s2]):
-                    mask = mask | (1 << (s2 - base))
-            for s in range(first, last):
-                lo = face_lowers[s]
-                hi = face_uppers[s]
-                if mask != 0 and boxes_meet(hl, hh, lo, hi):
-                    lo = lo - grow
-                    hi = hi + grow
-                    s2 = base
-                    bits = mask
-                    if h == g:
-                        s2 = s + 1
-                        bits = mask >> (s2 - base)
-                    f = order[s]
-                    loaded = bool(False)  # face s is loaded at its first candidate in h
-                    t = wp.mat33d()
-                    it = wp.vec3i()
-                    nt = wp.vec3d()
-                    na = wp.vec3d()
-                    while bits != 0:
-                        if (bits & 1) != 0 and boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
-                            if not loaded:
-                                t, it = load_triangle(points, tris, s)
-                                u = t[1] - t[0]
-                                v = t[2] - t[0]
-                                nt = wp.cross(u, v)
-                                na = _abs_cross(u, v)
-                                loaded = True
-                            f2 = order[s2]
-                            t2, it2 = load_triangle(points, tris, s2)
-                            if ordered_pair_intersects(t, it, nt, na, f, t2, it2, f2):
-                                if n < limit:
-                                    lo_f = wp.int64(wp.min(f, f2))
-                                    hi_f = wp.int64(wp.max(f, f2))
-                                    keys[start + wp.int64(n)] = lo_f * wp.int64(m) + hi_f
-                                n += 1
-                        s2 += 1
-                        bits = bits >> 1
-        h, node, shift = tree_next(tree_lowers, tree_uppers, depth, group_lowers[g] - grow, group_uppers[g] + grow,
-                                   g, node, shift)
+                    slots[c] = s2
+                    c += 1
+            if c > 0:
+                for s in range(first, last):
+                    lo = face_lowers[s]
+                    hi = face_uppers[s]
+                    if boxes_meet(hl, hh, lo, hi):
+                        lo = lo - grow
+                        hi = hi + grow
+                        k0 = int(0)
+                        if h == g:
+                            k0 = s - base + 1
+                        f = order[s]
+                        loaded = bool(False)  # face s is loaded at its first candidate in h
+                        t = wp.mat33d()
+                        it = wp.vec3i()
+                        nt = wp.vec3d()
+                        na = wp.vec3d()
+                        for k in range(k0, c):
+                            s2 = slots[k]
+                            if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
+                                if not loaded:
+                                    t, it = load_triangle(points, tris, s)
+                                    u = t[1] - t[0]
+                                    v = t[2] - t[0]
+                                    nt = wp.cross(u, v)
+                                    na = _abs_cross(u, v)
+                                    loaded = True
+                                f2 = order[s2]
+                                t2, it2 = load_triangle(points, tris, s2)
+                                if ordered_pair_intersects(t, it, nt, na, f, t2, it2, f2):
+                                    if n < limit:
+                                        lo_f = wp.int64(wp.min(f, f2))
+                                        hi_f = wp.int64(wp.max(f, f2))
+                                        keys[start + wp.int64(n)] = lo_f * wp.int64(m) + hi_f
+                                    n += 1
+        h, node, shift = tree_next(tree_lowers, tree_uppers, depth, gl, gh, g, node, shift)
     return n
 
 
