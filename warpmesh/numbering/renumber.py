@@ -188,12 +188,10 @@ def _order_by(*columns) -> np.ndarray:
     total = float(np.prod([float(s) for s in spans]))
     if total >= 2.0**62:
         return np.lexsort(columns[::-1])
-    if len(columns) == 1:
-        combined = columns[0]
-    else:
-        combined = np.zeros(m, np.int64)
-        for c, s in zip(columns, spans):
-            combined = combined * s + c
+    combined = columns[0].astype(np.int64)
+    for c, s in zip(columns[1:], spans[1:]):
+        combined *= s
+        combined += c
     if total <= 2.0**16:
         return np.argsort(combined.astype(np.uint16), kind="stable")
     if total <= 4.0 * m:
@@ -212,13 +210,14 @@ class _Graph:
         self.n = n = graph.shape[0]
         self.bounds = np.asarray(bounds, np.int64)
         self.n_comp = len(self.bounds) - 1
-        self.comp = np.repeat(np.arange(self.n_comp), np.diff(self.bounds))
-        self.deg = degrees(graph)
+        self.comp = (np.zeros(n, np.int32) if self.n_comp == 1 else
+                     np.repeat(np.arange(self.n_comp, dtype=np.int32), np.diff(self.bounds)))
+        self.deg = np.diff(graph.indptr).astype(np.int32, copy=False)  # deg(P), as degrees() but int32
         self.indptr = _as_wp(graph.indptr.astype(np.int32, copy=False))
         self.indices = _as_wp(graph.indices.astype(np.int32, copy=False))
         self.queue = wp.empty(max(n, 1), dtype=wp.int32, device="cpu")
-        self.comp_wp = _as_wp(self.comp.astype(np.int32))
-        self.deg_wp = _as_wp(self.deg.astype(np.int32))
+        self.comp_wp = _as_wp(self.comp)
+        self.deg_wp = _as_wp(self.deg)
 
     def first_per_component(self, nodes: np.ndarray, *keys) -> np.ndarray:
         """For each component, the one of ``nodes`` (some in each, grouped by ascending
@@ -311,7 +310,7 @@ def _pseudo_diameters(g: _Graph, start: np.ndarray, start_level: np.ndarray):
     p, p_lv = start.copy(), start_level
     q, q_lv = np.zeros_like(p), None
     depth = g.depths(p_lv)
-    cand = g.first_per_component(np.flatnonzero(p_lv == depth[g.comp] - 1), g.deg)
+    cand = g.first_per_component(np.flatnonzero(p_lv == (depth[0] if g.n_comp == 1 else depth[g.comp]) - 1), g.deg)
     active = np.arange(g.n_comp)
     sizes = np.diff(g.bounds)
     while len(active):
@@ -395,7 +394,7 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
 def _number_components(g: _Graph, method: str, start_level=None) -> np.ndarray:
     """The order (new -> old label) of the graph by ``method``, component by component;
     ``start_level`` is the descent of each component's node of minimal degree, if known."""
-    start = g.first_per_component(np.arange(g.n), g.deg)
+    start = np.argmin(g.deg)[None] if g.n_comp == 1 else g.first_per_component(np.arange(g.n), g.deg)
     lv = g.descent(start) if start_level is None else start_level
     if method == "frontal":
         return g.number(lv, start, _forward_degree(g.graph, lv))
