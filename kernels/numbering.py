@@ -187,6 +187,34 @@ def descent_kernel(
 
 
 @wp.kernel
+def pair_levels_kernel(
+    p_level: wp.array(dtype=wp.int32), q_level: wp.array(dtype=wp.int32), comp: wp.array(dtype=wp.int32),
+    first_level: wp.array(dtype=wp.int32), depth: wp.array(dtype=wp.int32),
+    fi: wp.array(dtype=wp.int32), fj: wp.array(dtype=wp.int32), label: wp.array(dtype=wp.int32),
+    fixed_count: wp.array(dtype=wp.int32), width_p: wp.array(dtype=wp.int32), width_q: wp.array(dtype=wp.int32),
+):
+    """A thread takes one node v of Gibbs Step 2 [FG §17.4]: its pair (i, j) = (D(P),
+    d - 1 - D(Q)) as "flat" levels (its component's first level + the level) ``fi``,
+    ``fj``; ``label`` -2 when i = j (fixed, counted in ``fixed_count``), else -1 (to be
+    placed); the widths of D(P) and D(Q) counted in ``width_p``, ``width_q``. The counts
+    are atomic adds (plain adds on the CPU, where the launch runs on one thread)."""
+    v = wp.tid()
+    c = comp[v]
+    base = first_level[c]
+    a = base + p_level[v]
+    b = base + depth[c] - 1 - q_level[v]
+    fi[v] = a
+    fj[v] = b
+    wp.atomic_add(width_p, a, 1)
+    wp.atomic_add(width_q, base + q_level[v], 1)
+    if a == b:
+        wp.atomic_add(fixed_count, a, 1)
+        label[v] = -2
+    else:
+        label[v] = -1
+
+
+@wp.kernel
 def label_components_kernel(
     indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32), nodes: wp.array(dtype=wp.int32),
     label: wp.array(dtype=wp.int32), queue: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32),

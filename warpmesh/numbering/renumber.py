@@ -260,14 +260,14 @@ class _Graph:
         """Number of levels of each component's descent (``level`` over all nodes)."""
         return np.maximum.reduceat(level, self.bounds[:-1]).astype(np.int64) + 1
 
-    def components(self, inside: np.ndarray):
-        """The connected components of the subgraph induced by the nodes where ``inside``
-        ((n,) bool) holds, labelled in the order of each one's smallest node.
+    def components(self, label: np.ndarray):
+        """The connected components of the subgraph induced by the nodes where ``label``
+        ((n,) int32, overwritten) is -1 (elsewhere: another negative value), labelled in
+        the order of each one's smallest node.
 
         Returns their sizes (by label) and their nodes, component after component (each
         in the order of a search from its smallest node)."""
-        nodes = np.flatnonzero(inside).astype(np.int32)
-        label = np.where(inside, np.int32(-1), np.int32(-2))
+        nodes = np.flatnonzero(label == -1).astype(np.int32)
         count = wp.zeros(1, dtype=wp.int32, device="cpu")
         wp.launch(KN.label_components_kernel, dim=1,
                   inputs=[self.indptr, self.indices, _as_wp(nodes)],
@@ -346,17 +346,19 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
     first_level = np.concatenate([[0], np.cumsum(depth)])
     size = int(first_level[-1])
     one = g.n_comp == 1
-    base = 0 if one else first_level[g.comp]
-    fi = base + p_lv  # flat level of side i and of side j = d - 1 - D(Q)
-    fj = (base + int(depth[0]) - 1 if one else base + (depth - 1)[g.comp]) - q_lv
-    fixed = fi == fj
-    rest = ~fixed
-    if not rest.any():
+    fi, fj, label = (np.empty(g.n, np.int32) for _ in range(3))
+    counts, hist_p, hist_q = (np.zeros(size, np.int32) for _ in range(3))
+    wp.launch(KN.pair_levels_kernel, dim=g.n,  # atomic counts: one launch, never split across threads
+              inputs=[_as_wp(p_lv.astype(np.int32, copy=False)), _as_wp(q_lv.astype(np.int32, copy=False)),
+                      g.comp_wp, _as_wp(first_level.astype(np.int32)), _as_wp(depth.astype(np.int32))],
+              outputs=[_as_wp(a) for a in (fi, fj, label, counts, hist_p, hist_q)], device="cpu")
+    wp.synchronize_device("cpu")
+    if counts.sum() == g.n:  # every node fixed
         return p_lv.copy()
-    counts = np.bincount(fi[fixed], minlength=size)
-    width_p = np.maximum.reduceat(np.bincount(fi, minlength=size), first_level[:-1])
-    width_q = np.maximum.reduceat(np.bincount(base + q_lv, minlength=size), first_level[:-1])
-    sizes, grouped = g.components(rest)  # the pieces, each contiguous in ``grouped``
+    counts = counts.astype(np.int64)
+    width_p = np.maximum.reduceat(hist_p, first_level[:-1])
+    width_q = np.maximum.reduceat(hist_q, first_level[:-1])
+    sizes, grouped = g.components(label)  # the pieces, each contiguous in ``grouped``
     starts = np.cumsum(sizes) - sizes
     owner = g.comp[grouped[starts]]
     by_size = _order_by(owner, sizes.max() - sizes)  # per component, largest first (ties: label)
@@ -364,7 +366,7 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
     round_of[by_size] = np.arange(len(sizes)) - np.searchsorted(owner[by_size], owner[by_size])
     pieces = _order_by(round_of)  # by round, then label
     piece_ends = np.searchsorted(round_of[pieces], np.arange(int(round_of.max()) + 1), side="right")
-    flat = np.where(fixed, fi, -1)
+    flat = fi  # the fixed nodes' flat level; the others' is set below
     lo = 0
     for hi in piece_ends:  # one round
         ps = pieces[lo:hi]
@@ -388,7 +390,7 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
         flat[nodes] = chosen
         counts += bi if chosen is ai else bj if chosen is aj else np.bincount(chosen, minlength=size)
         lo = hi
-    return flat - base
+    return flat if one else flat - first_level[g.comp]
 
 
 def _number_components(g: _Graph, method: str, start_level=None) -> np.ndarray:
