@@ -248,11 +248,11 @@ class _Graph:
         meaningful for the components searched only) its number of levels and the node
         of smallest (degree, index) of its last level."""
         level = np.full(self.n, -1, np.int32)
-        depth, last = np.zeros(self.n_comp, np.int32), np.zeros(self.n_comp, np.int32)
+        depth, last = np.full(self.n_comp, -1, np.int32), np.zeros(self.n_comp, np.int32)
         wp.launch(KN.descent_kernel, dim=1,
                   inputs=[self.indptr, self.indices, _as_wp(np.asarray(sources, np.int32)), self.comp_wp, self.deg_wp],
-                  outputs=[_as_wp(level), self.queue, _as_wp(depth), _as_wp(last)],
-                  device="cpu")
+                  outputs=[_as_wp(level), self.queue, _as_wp(depth), _as_wp(last),
+                           _as_wp(np.zeros(self.n_comp, np.int32))], device="cpu")
         wp.synchronize_device("cpu")
         return level, depth.astype(np.int64) + 1, last.astype(np.int64)
 
