@@ -310,18 +310,16 @@ def search_relabel_kernel(
     indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32), start: int,
     new_of_old: wp.array(dtype=wp.int32), old_of_new: wp.array(dtype=wp.int32),
     level: wp.array(dtype=wp.int32), new_indptr: wp.array(dtype=wp.int32),
-    new_indices: wp.array(dtype=wp.int32), column_count: wp.array(dtype=wp.int32),
-    count: wp.array(dtype=wp.int32),
+    new_indices: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32),
 ):
     """One thread searches breadth-first from ``start`` and relabels as it goes: a node's
     label is its place in the search, ``level`` (by label) its level, and row r of the
     relabelled graph (``new_indptr``, ``new_indices``) is written when node r is
     taken off the queue — by then every neighbour has its label; its labels stay in
     the input row's order (unsorted). One pass over the (randomly numbered) input
-    instead of a search and then a relabelling. The input is checked on the way:
-    ``column_count`` (starting at 0) gets the number of entries in each label's column
-    (a symmetric graph has as many as in its row), ``count[1]`` the number of diagonal
-    entries met. ``new_of_old`` starts at -1; ``count[0]`` gets the number of nodes reached."""
+    instead of a search and then a relabelling. ``new_of_old`` starts at -1;
+    ``count[0]`` gets the number of nodes reached, ``count[1]`` the number of diagonal
+    entries met."""
     new_of_old[start] = 0
     old_of_new[0] = start
     level[0] = 0
@@ -348,12 +346,18 @@ def search_relabel_kernel(
             if x == head:
                 diagonal += 1
             new_indices[pos] = x  # rows stay unsorted: sorting them cost 40 % of the pass
-            column_count[x] += 1
             pos += 1
         head += 1
         new_indptr[head] = pos
     count[0] = tail
     count[1] = diagonal
+
+
+@wp.kernel
+def count_columns_kernel(indices: wp.array(dtype=wp.int32), columns: wp.array(dtype=wp.int32)):
+    """A thread counts one entry of a CSR graph in its column (``columns`` starts at 0;
+    atomic adds: plain adds on the CPU, where the launch runs on one thread)."""
+    wp.atomic_add(columns, indices[wp.tid()], 1)
 
 
 @wp.kernel

@@ -452,14 +452,16 @@ def _search_relabel(graph: sp.csr_matrix, start: int):
     new_of_old = np.full(n, -1, np.int32)
     old_of_new, level = np.empty(n, np.int32), np.empty(n, np.int32)
     indptr, indices = np.zeros(n + 1, np.int32), np.empty(graph.nnz, np.int32)
-    columns = np.zeros(n, np.int32)
     count = wp.zeros(2, dtype=wp.int32, device="cpu")
     wp.launch(KN.search_relabel_kernel, dim=1,
               inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), int(start)],
-              outputs=[_as_wp(a) for a in (new_of_old, old_of_new, level, indptr, indices, columns)]
-              + [count], device="cpu")
+              outputs=[_as_wp(a) for a in (new_of_old, old_of_new, level, indptr, indices)] + [count], device="cpu")
     c, diagonal = (int(x) for x in count.numpy())  # sync point
-    ok = diagonal == 0 and np.array_equal(columns[:c], np.diff(indptr[: c + 1]))
+    columns = np.zeros(c, np.int32)  # entries per column of the relabelled rows (read in order: a quick pass)
+    wp.launch(KN.count_columns_kernel, dim=int(indptr[c]), inputs=[_as_wp(indices)], outputs=[_as_wp(columns)],
+              device="cpu")  # atomic counts: one launch, never split across threads
+    wp.synchronize_device("cpu")
+    ok = diagonal == 0 and np.array_equal(columns, np.diff(indptr[: c + 1]))
     local = sp.csr_matrix((np.ones(int(indptr[c]), bool), indices[: indptr[c]], indptr[: c + 1]), shape=(c, c))
     local.has_sorted_indices = False  # rows in the input's order: the walks that follow need no order
     return old_of_new[:c].astype(np.int64), local, level[:c], ok
