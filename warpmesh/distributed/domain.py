@@ -41,14 +41,16 @@ __all__ = ["LatticeBrick", "stuff_bricks"]
 class LatticeBrick:
     """One brick's tetrahedra: points (n, 3) float32 relative to the lattice's origin,
     tetrahedra (m, 4) int32 into them, the on-surface flags (n,) bool, the vertices' global
-    keys (n,) int64 (increasing) and the tetrahedra's global black nodes (m,) int64
-    (non-decreasing); ``info`` the brick's counts and timings."""
+    keys (n,) int64 (increasing), and the tetrahedra's global black nodes as runs: the black
+    nodes (k,) int64 (increasing) and how many tetrahedra each has (k,) int64, in the order of
+    ``tets``; ``info`` the brick's counts and timings."""
 
     points: np.ndarray
     tets: np.ndarray
     on_surface: np.ndarray
     keys: np.ndarray
-    owner: np.ndarray
+    cells: np.ndarray
+    counts: np.ndarray
     info: dict = field(default_factory=dict)
 
 
@@ -92,29 +94,41 @@ def stuff_bricks(shape, box: np.ndarray, h: float, stuffing: dict, *, client, br
 def gather_keyed(pieces: list[LatticeBrick], origin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One mesh from bricks whose every vertex carries its global key: the copies of a key
     joined, the vertices numbered by increasing key and the tetrahedra ordered by their black
-    node (stable), as the whole lattice orders them. Returns points (n, 3) float64 (``origin``
-    + the float32 offsets, added in float64), tetrahedra (m, 4) int64 and on-surface flags.
+    node (each node's in the order its brick gives), as the whole lattice orders them.
+    Returns points (n, 3) float64 (``origin`` + the float32 offsets, added in float64),
+    tetrahedra (m, 4) int64 and on-surface flags.
 
     >>> import numpy as np
     >>> a = LatticeBrick(np.zeros((4, 3), np.float32), np.array([[0, 1, 2, 3]]), np.ones(4, bool),
-    ...                  np.array([2, 5, 7, 9]), np.array([4]))
+    ...                  np.array([2, 5, 7, 9]), np.array([4]), np.array([1]))
     >>> b = LatticeBrick(np.ones((4, 3), np.float32), np.array([[0, 1, 2, 3]]), np.ones(4, bool),
-    ...                  np.array([1, 2, 5, 7]), np.array([3]))
+    ...                  np.array([1, 2, 5, 7]), np.array([3]), np.array([1]))
     >>> points, tets, _ = gather_keyed([a, b], np.zeros(3))
     >>> len(points), tets.tolist()
     (5, [[0, 1, 2, 3], [1, 2, 3, 4]])
     """
-    sizes = np.array([len(p.keys) for p in pieces], dtype=np.int64)
-    starts = np.concatenate([[0], np.cumsum(sizes)])
+    starts = np.concatenate([[0], np.cumsum([len(p.keys) for p in pieces], dtype=np.int64)])
     keys = np.concatenate([p.keys for p in pieces] or [np.zeros(0, np.int64)])
     _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
     points = np.concatenate([p.points for p in pieces] or [np.zeros((0, 3), np.float32)])[first].astype(np.float64)
     points += np.asarray(origin, dtype=np.float64)
     on_surface = np.concatenate([p.on_surface for p in pieces] or [np.zeros(0, bool)])[first]
-    tets = np.concatenate([p.tets.astype(np.int64) + s for p, s in zip(pieces, starts)]
-                          or [np.zeros((0, 4), np.int64)])
-    owner = np.concatenate([p.owner for p in pieces] or [np.zeros(0, np.int64)])
-    return points, inverse.reshape(-1)[tets[np.argsort(owner, kind="stable")]], on_surface
+    # runs of one black node, moved to the black nodes' order (a node's run is in one brick)
+    cells = np.concatenate([p.cells for p in pieces] or [np.zeros(0, np.int64)])
+    counts = np.concatenate([p.counts for p in pieces] or [np.zeros(0, np.int64)]).astype(np.int64)
+    order = np.argsort(cells)
+    at = np.concatenate([[0], np.cumsum(counts)])
+    to = np.empty_like(counts)
+    to[order] = np.concatenate([[0], np.cumsum(counts[order])])[:-1]
+    shift = np.repeat(to - at[:-1], counts)  # per tetrahedron: where it goes - where it is
+    tets = np.empty((int(at[-1]), 4), dtype=np.int64)
+    done = 0
+    for p, s in zip(pieces, starts):  # one piece at a time: no copy of all the tetrahedra but the result
+        rows = np.arange(done, done + len(p.tets))
+        tets[rows + shift[rows]] = inverse[p.tets + s]
+        done += len(p.tets)
+    return points, tets, on_surface
 
 
 class _DomainJob:
@@ -165,5 +179,6 @@ class _DomainJob:
                 "time": {"stuffing": stats["time_stuffing"], "total": time.perf_counter() - t0}}
         if not want:
             return LatticeBrick(np.zeros((0, 3), np.float32), np.zeros((0, 4), np.int32), np.zeros(0, bool),
-                                np.zeros(0, np.int64), np.zeros(0, np.int64), info)
-        return LatticeBrick(points, tets.astype(np.int32), surf, keys, owner, info)
+                                np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), info)
+        cells, counts = np.unique(owner, return_counts=True)
+        return LatticeBrick(points, tets.astype(np.int32), surf, keys, cells, counts, info)
