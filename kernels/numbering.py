@@ -10,7 +10,12 @@ code runs on CUDA, on one thread.
 
 Graphs are CSR arrays (``indptr``, ``indices``: no diagonal; rows in any order), int32. The
 per-node kernels (relabelling, profile) take ``first`` so the host can split a launch
-across CPU cores.
+across CPU cores; those that count with atomic adds (Step 2's pairs, column counts) are
+one launch each (Warp's CPU atomics are plain adds, its CPU launch one thread).
+
+Inner loops over a row are ``while`` loops: Warp's ``range()`` loops cost ~20 % more in
+these walks, and so does bookkeeping (a read-modify-write per node) inside a
+random-access search, which is why candidates and counts get passes of their own.
 """
 
 import warp as wp
