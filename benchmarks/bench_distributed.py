@@ -303,7 +303,8 @@ def domain(doc: dict, size: float, brick_cells: int, ev: str) -> None:
     same = (r["tets"], r["points"]) == (one["tets"], one["points"])
     print(f"  2 workers          wall {r['wall']:7.2f} s  cpu {r['cpu']:7.2f} s  peak/worker "
           f"{', '.join(_gb(p) for p in r['peak_per_worker'])}  {r['tets']:,} tetrahedra, {r['bricks_meshed']} of "
-          f"{r['bricks']} bricks meshed, gather {r['time']['weld']:.2f} s ({r['seam_copies']:,} copies joined); "
+          f"{r['bricks']} bricks meshed; bricks done after {r['time']['bricks']:.2f} s, gather {r['time']['weld']:.2f} s "
+          f"({r['seam_copies']:,} copies joined), the client's stages after it {r['wall'] - r['time']['total']:.2f} s; "
           f"same counts: {same}")
     print(f"  speed-up, 2 workers over one process: {one['wall'] / r['wall']:.2f}x (wall); "
           f"CPU 2 workers / one process: {r['cpu'] / one['cpu']:.2f}")
