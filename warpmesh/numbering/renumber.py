@@ -373,10 +373,19 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
         segments = [grouped[starts[c]: starts[c] + sizes[c]] for c in ps.tolist()]
         nodes = segments[0] if len(segments) == 1 else np.concatenate(segments)
         ai, aj = fi[nodes], fj[nodes]
+        own = owner[ps]
+        if len(ps) == 1 and 8 * len(nodes) < size:  # a small piece: its own levels only
+            (ui, ci), (uj, cj) = np.unique(ai, return_counts=True), np.unique(aj, return_counts=True)
+            h0, l0 = (counts[ui] + ci).max(), (counts[uj] + cj).max()
+            if h0 < l0 or (h0 == l0 and width_p[own[0]] <= width_q[own[0]]):
+                flat[nodes], counts[ui] = ai, counts[ui] + ci
+            else:
+                flat[nodes], counts[uj] = aj, counts[uj] + cj
+            lo = hi
+            continue
         bi, bj = np.bincount(ai, minlength=size), np.bincount(aj, minlength=size)
         # the widest level each side would give: over the levels the piece touches
         ti, tj = np.where(bi > 0, counts + bi, 0), np.where(bj > 0, counts + bj, 0)
-        own = owner[ps]
         if one:
             h0, l0 = ti.max(keepdims=True), tj.max(keepdims=True)
         else:
