@@ -56,6 +56,22 @@ Second round (2026-12-02, the same command; CPU s of warpmesh with 2 workers / 1
   (``--repeat 2``, load 3-4): warpmesh 6.5, pymeshlab 6.1, meshing 3.8 CPU s (1.73x; the
   meshing is faster than in the first round's figure).
 
+Third round (2026-12-03, the same command; CPU s of warpmesh with 2 workers / 1 worker /
+pymeshlab / meshing, warpmesh (2) / meshing):
+
+- at commit cd59f11, load about 1: part 1.55 / 1.54 / 1.49 / 0.93 (1.67x), ball 1.30 /
+  1.29 / 2.21 / 0.72 (1.80x);
+- slot lists in the walk and the separation shortcut of the coplanar test (commit
+  ec89004), load 1.9-3.0: part 1.48 / 1.46 / 1.52 / 0.95 (1.56x), ball 1.29 / 1.28 /
+  2.25 / 0.73 (1.76x). Alternating cd59f11's count walk and this one in one process
+  (``workers=1``, 4-5 rounds, load about 3): new / old CPU 0.94 (part), 0.98 (ball), 0.96
+  (part at 1024: 5.84 -> 5.62 s). The part at 1024 (``--cases part --resolution 1024
+  --repeat 2``, load 2-2.7): warpmesh 6.00 CPU s (3.31 wall with 2 workers), pymeshlab
+  6.28, meshing 4.00 CPU s (2.33 wall): 1.50x the meshing's CPU time, 1.42x its wall
+  time. The meshing is now twice as fast as in the first round (8.1 CPU s), so the
+  check's earlier ratio at 1024 (0.91x) no longer holds; the target (well under the
+  meshing's time) is not met at 512 or 1024.
+
 ``--profile`` (the last run): the walk with its exact tests is 89-92 % of the check (part
 at 512: 1.38 of 1.49 CPU s; prepare 0.03, order 0.05, degenerate flags 0.02, boxes 0.02,
 tree 0.001). The check is still well above the meshing's time (the target is well

@@ -201,6 +201,31 @@ def test_shared_edge(name, apex, expect, device):
     assert bool(len(reference_pairs(pts, [[0, 1, 2], [0, 1, 3]]))) == expect
 
 
+#: coplanar triangles q against (0, 0), (1, 0), (0, 1) in z = 0, below its lower edge by a gap g
+#: (the edge-edge tests of coplanar_overlap are skipped when the gap is certified above 2^-40)
+COPLANAR_GAPS = {
+    "parallel edges": lambda g: [[0, -g], [1, -g], [0.5, -1]],
+    "vertex under the edge": lambda g: [[0.5, -g], [1, -1], [0, -1]],
+    "vertex past the corner": lambda g: [[1 + g, -g], [2, -1], [2, 0]],
+    "needle under the edge": lambda g: [[0.5, -g], [0.5 + 2.0**-20, -1], [0.5 - 2.0**-20, -1]],
+    "needle along the edge line": lambda g: [[1 + g, 0], [2, 2.0**-20], [2, -(2.0**-20)]],
+}
+
+
+@pytest.mark.parametrize("shape", list(COPLANAR_GAPS))
+@pytest.mark.parametrize("k", [None, 44, 41, 40, 39, 36, 20])
+def test_coplanar_gaps_around_the_separation_shortcut(shape, k, device):
+    # exact dyadic coordinates: every sign is the exact one, so the answer is the exact one on
+    # both sides of the shortcut's threshold (k = None: touching, reported)
+    g = 0.0 if k is None else 2.0**-k
+    q = np.array(COPLANAR_GAPS[shape](g), float)
+    pts = np.column_stack([np.vstack([[[0, 0], [1, 0], [0, 1]], q]), np.zeros(6)])
+    for tris in ([[0, 1, 2], [3, 4, 5]], [[3, 4, 5], [0, 1, 2]], [[0, 1, 2], [5, 4, 3]]):
+        expect = reference_pairs(pts, tris).tolist()
+        assert expect == ([[0, 1]] if k is None else [])
+        assert find_self_intersections(pts, tris, device=device).tolist() == expect, (shape, k, tris)
+
+
 def test_duplicate_faces_are_reported(device):
     pts = np.array(TRI + [[0, 0, 5]], float)
     tris = [[0, 1, 2], [1, 2, 0], [2, 1, 0], [0, 1, 3]]
