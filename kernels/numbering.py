@@ -23,21 +23,6 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 
-@wp.func
-def insert_by_key(buf: wp.array(dtype=wp.int32), first: int, m: int, v: int, key: wp.array(dtype=wp.int32)):
-    """Insert node ``v`` into ``buf[first:first + m]``, kept sorted by (key, index)."""
-    t = m
-    kv = key[v]
-    while t > 0:
-        w = buf[first + t - 1]
-        kw = key[w]
-        if kw < kv or (kw == kv and w < v):
-            break
-        buf[first + t] = w
-        t -= 1
-    buf[first + t] = v
-
-
 @wp.kernel
 def number_levels_kernel(
     indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32),
@@ -46,7 +31,6 @@ def number_levels_kernel(
     comp_start: wp.array(dtype=wp.int32), comp_levels: wp.array(dtype=wp.int32),
     comp_first: wp.array(dtype=wp.int32),
     num: wp.array(dtype=wp.int32), out: wp.array(dtype=wp.int32), buf: wp.array(dtype=wp.int32),
-    ahead: wp.array(dtype=wp.int32), ahead_ptr: wp.array(dtype=wp.int32),
 ):
     """One thread numbers every component level by level (Gibbs Step 3, Cuthill–McKee).
 
@@ -60,12 +44,6 @@ def number_levels_kernel(
     again. Then (phase 1) the level's nodes, in number order, number their neighbours
     of level k + 1. A node numbers its neighbours by increasing key (ties: index, the
     row order).
-
-    Each row is read once: a node read in phase 0 also lists its neighbours of level
-    k + 1, sorted, in ``ahead`` (none of them is numbered before phase 1, so phase 1
-    numbers those of the list still unnumbered: the same order); ``ahead_ptr`` (by
-    place in the level) bounds the lists. Only the nodes numbered after the last one
-    read in phase 0 have their rows read in phase 1.
     """
     for c in range(comp_start.shape[0]):
         nxt = comp_first[c]
@@ -79,72 +57,61 @@ def number_levels_kernel(
             size = bounds[k + 1] - bounds[k]
             scan = bounds[k]
             head = level_first
-            fill = int(0)
-            while nxt - level_first < size:  # phase 0
-                if head < nxt:
-                    u = out[head]
-                    ahead_ptr[head - level_first] = fill
+            stop = int(0)
+            phase = int(0)
+            while phase < 2:
+                u = int(-1)
+                target = k
+                if phase == 0:
+                    if nxt - level_first >= size:  # level complete: on to its next level
+                        phase = 1
+                        head = level_first
+                        stop = nxt
+                        if k + 1 >= comp_levels[c + 1]:
+                            phase = 2
+                    elif head < nxt:
+                        u = out[head]
+                        head += 1
+                    else:  # no numbered node reaches the rest: smallest key starts again
+                        while lev[members[scan]] < 0:
+                            scan += 1
+                        v = members[scan]
+                        num[v] = nxt
+                        out[nxt] = v
+                        lev[v] = -1
+                        nxt += 1
+                else:
+                    if head < stop:
+                        u = out[head]
+                        head += 1
+                        target = k + 1
+                    else:
+                        level_first = stop
+                        phase = 2
+                if u >= 0:
                     m = int(0)
-                    m2 = int(0)
                     e = indptr[u]
                     end = indptr[u + 1]
                     while e < end:
                         v = indices[e]
                         e += 1
-                        lv = lev[v]
-                        if lv == k:  # in the level and not yet numbered
-                            insert_by_key(buf, 0, m, v, key)
+                        if lev[v] == target:  # in the target level and not yet numbered
+                            t = m  # insertion sort by (key, index): rows need not be sorted
+                            kv = key[v]
+                            while t > 0:
+                                w = buf[t - 1]
+                                kw = key[w]
+                                if kw < kv or (kw == kv and w < v):
+                                    break
+                                buf[t] = w
+                                t -= 1
+                            buf[t] = v
                             m += 1
-                        elif lv == k + 1:
-                            insert_by_key(ahead, fill, m2, v, key)
-                            m2 += 1
                     for t in range(m):
-                        v = buf[t]
-                        num[v] = nxt
-                        out[nxt] = v
-                        lev[v] = -1
+                        num[buf[t]] = nxt
+                        out[nxt] = buf[t]
+                        lev[buf[t]] = -1
                         nxt += 1
-                    fill += m2
-                    head += 1
-                else:  # no numbered node reaches the rest: smallest key starts again
-                    while lev[members[scan]] < 0:
-                        scan += 1
-                    v = members[scan]
-                    num[v] = nxt
-                    out[nxt] = v
-                    lev[v] = -1
-                    nxt += 1
-            if k + 1 < comp_levels[c + 1]:  # phase 1
-                read = head
-                ahead_ptr[read - level_first] = fill
-                stop = nxt
-                for h in range(level_first, stop):
-                    if h < read:
-                        for t in range(ahead_ptr[h - level_first], ahead_ptr[h - level_first + 1]):
-                            v = ahead[t]
-                            if lev[v] == k + 1:
-                                num[v] = nxt
-                                out[nxt] = v
-                                lev[v] = -1
-                                nxt += 1
-                    else:
-                        u = out[h]
-                        m = int(0)
-                        e = indptr[u]
-                        end = indptr[u + 1]
-                        while e < end:
-                            v = indices[e]
-                            e += 1
-                            if lev[v] == k + 1:
-                                insert_by_key(buf, 0, m, v, key)
-                                m += 1
-                        for t in range(m):
-                            v = buf[t]
-                            num[v] = nxt
-                            out[nxt] = v
-                            lev[v] = -1
-                            nxt += 1
-                level_first = stop
 
 
 @wp.kernel

@@ -293,8 +293,7 @@ class _Graph:
                           _as_wp(members.astype(np.int32, copy=False)), _as_wp(bounds.astype(np.int32)),
                           _as_wp(start.astype(np.int32)), _as_wp(first_level.astype(np.int32)),
                           _as_wp(self.bounds[:-1].astype(np.int32))],
-                  outputs=[_as_wp(num), _as_wp(out), buf, wp.empty(max(self.graph.nnz, 1), dtype=wp.int32, device="cpu"),
-                           wp.empty(self.n + 1, dtype=wp.int32, device="cpu")], device="cpu")
+                  outputs=[_as_wp(num), _as_wp(out), buf], device="cpu")
         wp.synchronize_device("cpu")
         return out.astype(np.int64)
 
