@@ -61,6 +61,7 @@ def test_domain_is_the_single_process_mesh(client, name, features):
     info = bricked.info
     assert info["bricks_meshed"] + info["bricks_culled"] == info["bricks"] > 8
     assert info["seam_copies_welded"] > 0
+    assert (info["cut_edges"], info["warped_nodes"]) == (single.info["cut_edges"], single.info["warped_nodes"])
     if features:
         assert info["feature_vertices"] == single.info["feature_vertices"]  # > 0 for the part
 

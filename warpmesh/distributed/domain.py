@@ -80,6 +80,7 @@ def stuff_bricks(shape, box: np.ndarray, h: float, stuffing: dict, *, client, br
             "alpha_short": float(stuffing["alpha_short"]), "bricks": len(job.bricks), "bricks_culled": job.skipped,
             "brick_cull_time": job.cull_time}
     per = summarize(results, info)
+    info.update(cut_edges=sum(p["cut_edges"] for p in per), warped_nodes=sum(p["warped_nodes"] for p in per))
     if not gather:
         return partitioned(results, where, timings, t_start, info)
     t0 = time.perf_counter()
@@ -175,7 +176,8 @@ class _DomainJob:
         if path is not None and len(tets):
             write_piece(path, points + origin, tets, None, keys, key=LATTICE_KEY_ARRAY)
         info = {"vertices": len(points), "cells": len(tets),
-                "evaluations": stats["window_nodes"] + s["iterations"] * stats["cut_edges"],
+                "evaluations": stats["window_nodes"] + s["iterations"] * stats["window_cut_edges"],
+                "cut_edges": stats["cut_edges"], "warped_nodes": stats["warped_nodes"],
                 "time": {"stuffing": stats["time_stuffing"], "total": time.perf_counter() - t0}}
         if not want:
             return LatticeBrick(np.zeros((0, 3), np.float32), np.zeros((0, 4), np.int32), np.zeros(0, bool),

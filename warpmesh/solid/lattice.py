@@ -154,7 +154,8 @@ class Lattice:
         self.offset_np = np.asarray(offset, dtype=np.int64)
         self.offset = wp.vec3i(*self.offset_np.tolist())
         own_lo, own_hi = own if own is not None else ((0, 0, 0), self.dims_np)
-        self.own = tuple(wp.vec3i(*np.asarray(v, dtype=np.int64).tolist()) for v in (own_lo, own_hi))
+        self.own_np = tuple(np.asarray(v, dtype=np.int64) for v in (own_lo, own_hi))
+        self.own = tuple(wp.vec3i(*v.tolist()) for v in self.own_np)
         self.n_cells = int(np.prod(self.dims_np))
         self.n_nodes = 2 * self.n_cells
         if self.n_cells * K.SLOTS >= 2**31 - 1:
@@ -232,7 +233,7 @@ class Lattice:
     def warp(self, alpha_long: float, alpha_short: float, order=(-1, 1)) -> int:
         """Move violated nodes onto their nearest violating cut point, outside nodes first
         (then inside nodes whose cut points survived); returns how many moved."""
-        warped = wp.zeros(self.n_nodes, dtype=wp.int32, device=self.device)
+        self.warped = warped = wp.zeros(self.n_nodes, dtype=wp.int32, device=self.device)
         if self.n_cuts:
             for which in order:
                 jobs = [lambda a=a, b=b, w=which: self._launch(
@@ -242,6 +243,19 @@ class Lattice:
                     for a, b in parallel_ranges(self.n_nodes, self.device, min_per_worker=8192)]
                 run_parallel(jobs)
         return int(warped.numpy().sum())  # sync point: statistics
+
+    def owned_counts(self) -> tuple[int, int]:
+        """(cut edges, warped nodes) of the owned cells (an edge's owner cell, a node's cell):
+        summed over windows whose owned cells tile the lattice, the whole lattice's counts."""
+        d, (lo, hi) = self.dims_np, self.own_np
+
+        def owned(cell: np.ndarray) -> int:
+            c = np.stack([cell % d[0], cell // d[0] % d[1], cell // (d[0] * d[1])], axis=1)
+            return int(((c >= lo) & (c < hi)).all(axis=1).sum())
+
+        # sync point: statistics
+        return (owned(self.cut_slot.numpy()[:self.n_cuts].astype(np.int64) // K.SLOTS),
+                owned(np.flatnonzero(self.warped.numpy()) // 2))
 
     def fill(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The stencils of every background tetrahedron (of the owned cells): (local points

@@ -114,7 +114,9 @@ def stuff_window(tape, bounds, h: float, lo, hi, *, alpha_long: float = ALPHA_LO
         Each tetrahedron's global black node, non-decreasing: a stable sort by it gives
         :func:`stuff`'s tetrahedron order.
     origin : (3,) float64
-    info : dict of counts and timings (the window's).
+    info : dict of counts and timings: ``cut_edges`` and ``warped_nodes`` of the owned cells
+        (summed over windows that tile the lattice: :func:`stuff`'s counts), the window's
+        ``window_nodes`` and ``window_cut_edges``.
 
     Example
     -------
@@ -144,7 +146,9 @@ def stuff_window(tape, bounds, h: float, lo, hi, *, alpha_long: float = ALPHA_LO
     t1 = time.perf_counter()
     local, tets, on_surface, keys, owner = lat.fill_keyed(dims)
     info["time_fill"] += time.perf_counter() - t1
-    info.update(window_nodes=lat.n_nodes, time_stuffing=time.perf_counter() - t0)
+    cuts, warped = lat.owned_counts()
+    info.update(window_nodes=lat.n_nodes, window_cut_edges=info["cut_edges"], cut_edges=cuts, warped_nodes=warped,
+                time_stuffing=time.perf_counter() - t0)
     return local, tets, on_surface, keys, owner, origin, info
 
 
