@@ -63,14 +63,18 @@ pymeshlab / meshing, warpmesh (2) / meshing):
   1.29 / 2.21 / 0.72 (1.80x);
 - slot lists in the walk and the separation shortcut of the coplanar test (commit
   ec89004), load 1.9-3.0: part 1.48 / 1.46 / 1.52 / 0.95 (1.56x), ball 1.29 / 1.28 /
-  2.25 / 0.73 (1.76x). Alternating cd59f11's count walk and this one in one process
-  (``workers=1``, 4-5 rounds, load about 3): new / old CPU 0.94 (part), 0.98 (ball), 0.96
-  (part at 1024: 5.84 -> 5.62 s). The part at 1024 (``--cases part --resolution 1024
-  --repeat 2``, load 2-2.7): warpmesh 6.00 CPU s (3.31 wall with 2 workers), pymeshlab
-  6.28, meshing 4.00 CPU s (2.33 wall): 1.50x the meshing's CPU time, 1.42x its wall
-  time. The meshing is now twice as fast as in the first round (8.1 CPU s), so the
-  check's earlier ratio at 1024 (0.91x) no longer holds; the target (well under the
-  meshing's time) is not met at 512 or 1024.
+  2.25 / 0.73 (1.76x);
+- and face s loaded eagerly in the walk (commit 5b45499), load 2.2-2.7: part 1.41 / 1.41
+  / 1.50 / 0.95 (1.49x), ball 1.24 / 1.24 / 2.25 / 0.75 (1.66x). The part at 1024
+  (``--cases part --resolution 1024 --repeat 2``, load 2.0-2.4): warpmesh 5.76 CPU s (3.92
+  wall with 2 workers), pymeshlab 6.27, meshing 3.91 CPU s (2.91 wall): 1.47x the
+  meshing's CPU time, 1.35x its wall time.
+
+Alternating cd59f11's count walk and 5b45499's in one process (``workers=1``, 3-5 rounds,
+load about 2.4): new / old CPU 0.91 (part at 512, 1.414 -> 1.283 s), 0.94 (ball, 1.154 ->
+1.084), 0.90 (part at 1024, 5.81 -> 5.24). The meshing is now twice as fast as in the
+first round (8.1 CPU s at 1024), so the check's earlier ratio at 1024 (0.91x) no longer
+holds; the target (well under the meshing's time) is not met at 512 or 1024.
 
 ``--profile`` (the last run): the walk with its exact tests is 89-92 % of the check (part
 at 512: 1.38 of 1.49 CPU s; prepare 0.03, order 0.05, degenerate flags 0.02, boxes 0.02,
