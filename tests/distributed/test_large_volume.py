@@ -45,15 +45,6 @@ def _tsdf(block: np.ndarray, block_info=None) -> np.ndarray:
     return np.clip(out, -TRUNCATION, TRUNCATION)
 
 
-@pytest.fixture(scope="module")
-def client():
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
-    client = distributed.Client(cluster)
-    yield client
-    client.close()
-    cluster.close()
-
-
 def test_1024x512x512_zarr_volume_is_the_single_process_mesh(client, tmp_path):
     path = str(tmp_path / "tsdf.zarr")
     lazy = da.zeros(SHAPE, chunks=CHUNK, dtype=np.float32).map_blocks(_tsdf, dtype=np.float32)
