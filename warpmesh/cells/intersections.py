@@ -27,7 +27,7 @@ validity checks run this geometric one too. The pipeline (kernels in
 Where the time goes (:func:`profile_self_intersections`; the bundled part at resolution
 512, 1.5 M triangles with large grid-aligned flat regions, CPU s, load about 1): prepare
 0.03, Morton order 0.05, degenerate flags 0.02, boxes 0.02, tree 0.002, the walk about
-1.3. The walk meets 8.3 candidate pairs per face (12.4 M): 4.5 share one vertex, 1.5 an
+1.25. The walk meets 8.3 candidate pairs per face (12.4 M): 4.5 share one vertex, 1.5 an
 edge, 2.2 none; about half are coplanar (the flat regions) and go to the 2D tests. Split
 on the part and the ball at 512 (the candidates written out, then the predicate alone on
 that list): the screen (tree walk 0.05, the rest the face-level box tests) about 0.5 /
@@ -37,21 +37,22 @@ shrink about 3x for the check to take half the meshing time. The group walk repl
 per-face queries (1/16 of the queries, each pair screened once instead of twice: 2.8 ->
 1.8 CPU s); the tree replaced a ``wp.Bvh`` (built in 0.002 s instead of 0.04), the faces
 of h that miss g's box are left out before the face-face screen (a slot list since
-ec89004: 0.94 of the time on the part with the separation shortcut, 0.98 on the ball),
-and the float32 coordinates come from a kernel: 0.89-0.90 of the time before, the same
-pairs. Tried and measured no faster (same-run ratios 0.99-1.10): the plane sides of the
-second face taken first in the walk and passed on to the predicate; the predicate's
-plane-side exits in a small function of their own before the full one (ball 0.97, part
-1.11); one call site of the predicate instead of two; both faces' normals passed in, or
-read from per-face arrays; a shortcut straight to the 2D tests for faces of one grid
-plane; branch-free signs and box tests (again with slot lists: 1.03); half-group boxes
-screening 8 faces at once (1.01-1.03); -O3; groups of 8 or 32 (again with slot lists:
-1.07-1.08, 1.01-1.04); vertices renumbered in the faces' Morton order.
-:func:`_all_pairs`, every pair with the same predicate and no tree, is the tests'
-reference for the candidate search; it reports more pairs than the walk when a face is
-collinear to within rounding but not flagged degenerate (its normal ~1e-16 after a
-rotation: every side a tie, so it "touches" faces whose boxes are far from its own),
-before and after these changes.
+ec89004: 0.94 of the time on the part with the separation shortcut, 0.98 on the ball;
+face s then loaded when it meets h's box, not at its first candidate, which needed
+zeroed placeholders carried through the loop: 0.96 / 0.95 more), and the float32
+coordinates come from a kernel: 0.89-0.90 of the time before, the same pairs. Tried and
+measured no faster (same-run ratios 0.99-1.10): the plane sides of the second face taken
+first in the walk and passed on to the predicate; the predicate's plane-side exits in a
+small function of their own before the full one (ball 0.97, part 1.11); one call site of
+the predicate instead of two; both faces' normals passed in, or read from per-face
+arrays; a shortcut straight to the 2D tests for faces of one grid plane; branch-free
+signs and box tests (again with slot lists: 1.03); half-group boxes screening 8 faces at
+once (1.01-1.03); -O3; groups of 8 or 32 (again with slot lists: 1.07-1.08, 1.01-1.04);
+vertices renumbered in the faces' Morton order. :func:`_all_pairs`, every pair with the
+same predicate and no tree, is the tests' reference for the candidate search; it reports
+more pairs than the walk when a face is collinear to within rounding but not flagged
+degenerate (its normal ~1e-16 after a rotation: every side a tie, so it "touches" faces
+whose boxes are far from its own), before and after these changes.
 
 Warp's CPU backend runs a launch on one thread, so on the CPU launches are split into
 ranges of groups (``_CHUNKS`` per worker, dealt round-robin) run from Python threads
