@@ -137,3 +137,18 @@ def test_what_is_not_bricked_is_refused_naming_it(client, tmp_path):
         wm.mesh_domain(shape, bounds=bounds, client="tcp://here")
     with pytest.raises(ValueError, match="'bricks' applies to a run on a Dask cluster"):
         wm.mesh_domain(shape, bounds=bounds, bricks=(2, 2, 2))
+
+
+def test_numpy_false_gather_refuses_the_whole_mesh_stages_too(client, tmp_path):
+    # check_run takes a numpy bool for 'gather'; gather=np.False_ once skipped the refusal of
+    # features/smooth/flips and returned the pieces without running them, in silence
+    shape, bounds, size = _domain("sphere")
+    base = dict(bounds=bounds, size=size, client=client, progress=False, gather=np.False_,
+                output=tmp_path / "m.pvtu")
+    for kwargs, match in [({}, "'features'"), (dict(features=False, smooth=2), "'smooth'"),
+                          (dict(features=False, flips=True), "'flips'")]:
+        with pytest.raises(ValueError, match=match):
+            wm.mesh_domain(shape, **base, **kwargs)
+    with pytest.raises(TypeError, match="'gather'"):  # not a bool: the type error, not a stage refused
+        wm.mesh_domain(shape, **{**base, "gather": 0})
+    assert isinstance(wm.mesh_domain(shape, **base, features=False), PartitionedMesh)

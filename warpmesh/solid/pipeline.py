@@ -306,7 +306,7 @@ def _check_bricked(method: str, size, smooth, features: bool, flips: bool, gathe
     if callable(size) or isinstance(size, str):
         raise ValueError(f"a graded 'size' ({size!r}) is not bricked: with 'client' give 'size' as a number "
                          "(the lattice's cube side), or drop 'client'")
-    if gather is False:
+    if isinstance(gather, (bool, np.bool_)) and not gather:  # np.False_ too, as check_run takes it
         whole = [name for name, on in (("features", features), ("smooth", smooth), ("flips", flips)) if on]
         if whole:
             raise ValueError(f"gather=False writes the stuffed tetrahedra in pieces; {', '.join(map(repr, whole))} "
