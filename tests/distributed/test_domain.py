@@ -152,3 +152,29 @@ def test_numpy_false_gather_refuses_the_whole_mesh_stages_too(client, tmp_path):
     with pytest.raises(TypeError, match="'gather'"):  # not a bool: the type error, not a stage refused
         wm.mesh_domain(shape, **{**base, "gather": 0})
     assert isinstance(wm.mesh_domain(shape, **base, features=False), PartitionedMesh)
+
+
+def test_windows_see_a_thin_gap_at_a_seam_as_the_whole_lattice():
+    """Two slabs a gap of 0.9 h apart, the gap just past the seam of black node 8: an inside
+    node's warp there depends on its outside neighbour's warp, which reads a cut point two
+    edges further: a halo of 2 cells gives other tetrahedra (sphere, torus and part pass with
+    2), the halo of WINDOW_HALO = 3 the whole lattice's. No cluster: the windows one by one."""
+    from warpmesh.distributed.bricks import layout
+    from warpmesh.distributed.domain import LatticeBrick, gather_keyed
+    from warpmesh.frep.tape import tape_of
+    from warpmesh.solid.stuffing import lattice_for, stuff, stuff_window
+
+    box, h, gap = np.array([(-1.0,) * 3, (1.0,) * 3]), 0.1, 0.09
+    dims, origin = lattice_for(box, h)
+    x = origin[0] + 8.6 * h
+    shape = wm.union(wm.box((x + 0.9 - gap / 2, 1.6, 1.6), center=((x - gap / 2 - 0.9) / 2, 0.0, 0.0)),
+                     wm.box((0.9 - x - gap / 2, 1.6, 1.6), center=((x + gap / 2 + 0.9) / 2, 0.05, 0.0)))
+    points, tets, on_surface, _ = stuff(shape, box, h)
+    pieces = []
+    for brick in layout(dims, brick_cells=8):
+        local, t, surf, keys, owner, _, _ = stuff_window(tape_of(shape), box, h, brick.lo, brick.hi)
+        cells, counts = np.unique(owner, return_counts=True)
+        pieces.append(LatticeBrick(local.astype(np.float32), t.astype(np.int32), surf, keys, cells, counts))
+    gathered = gather_keyed(pieces, origin)
+    for a, b in zip((points, tets, on_surface), gathered):
+        assert np.array_equal(a, b)
