@@ -81,7 +81,8 @@ def mesh_bricks(source, options: GridOptions | VolumeOptions, *, client, bricks=
         :class:`PartitionedMesh` (needs ``output``), so no process holds the whole mesh.
     output : str or os.PathLike, optional
         A ``.pvtu`` path: the workers write one VTU piece per brick beside it as bricks
-        finish (:mod:`warpmesh.distributed.output`).
+        finish (:mod:`warpmesh.distributed.output`); a run that fails removes the pieces and
+        the ``.pvtu`` it wrote.
     progress : bool or callable
         A tqdm bar over the bricks (True), none (False), or ``progress(done, total)``
         called on the client as each brick finishes.
@@ -171,12 +172,15 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
     total = len(futures)
     bar = tqdm(total=total, unit="brick", desc="warpmesh bricks", disable=progress is not True)
     pieces: list[str] = []
+    submitted = list(futures.items())
     try:
         for done, fut in enumerate(as_completed(list(futures)), start=1):
             try:
                 res = fut.result()
             except BaseException:
                 client.cancel(list(futures))
+                if where is not None:
+                    _remove_output(client, submitted, where)
                 raise
             brick = futures.pop(fut)
             fut.release()  # the worker drops its copy now: it holds only the bricks in flight
@@ -189,6 +193,25 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
                 progress(done, total)
     finally:
         bar.close()
+
+
+def _remove_output(client, submitted: list, where, timeout: float = 60.0) -> None:
+    """A failed partitioned run leaves no file behind: wait until no task of the run is
+    still running (a cancelled task that is already running finishes, and writes its
+    piece, on its worker), then remove every piece of the run and the ``.pvtu``."""
+    keys = {fut.key for fut, _ in submitted}
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            running = {k for ks in client.processing().values() for k in ks}
+        except Exception:  # noqa: BLE001 - the scheduler is gone: nothing runs any more
+            break
+        if not running & keys:
+            break
+        time.sleep(0.05)
+    for _, brick in submitted:
+        piece_path(*where, brick.index).unlink(missing_ok=True)
+    (where[0] / f"{where[1]}.pvtu").unlink(missing_ok=True)
 
 
 def brick_error(brick: Brick, origin, h, exc: Exception) -> ValueError:
