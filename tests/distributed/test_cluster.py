@@ -9,8 +9,6 @@ its zarr store is written in seconds), the killed worker on the part at 128^3.
 
 from __future__ import annotations
 
-import os
-import signal
 
 import numpy as np
 import pytest
@@ -221,18 +219,10 @@ def test_bad_arguments_are_refused_naming_them(client, tmp_path):
         wm.mesh_surface(np.ones((8, 8, 8), np.uint8), interfaces="shared", client=client)
 
 
-def test_killed_worker_is_retried_and_the_mesh_is_identical(client):
+def test_killed_worker_is_retried_and_the_mesh_is_identical(client, killer):
     part, bounds = wm.example("part")
     single = wm.mesh_surface(part, bounds=bounds, resolution=128)
-    killed = []
-
-    def kill_one(done, total):
-        if done == 3 and not killed:  # a few bricks finished, many to go: kill a worker that is busy
-            busy = [addr for addr, keys in client.processing().items() if keys]
-            pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
-            killed.append(busy[0])
-            os.kill(pid, signal.SIGKILL)
-
+    kill_one, killed = killer
     bricked = wm.mesh_surface(part, bounds=bounds, resolution=128, client=client, brick_cells=16, progress=kill_one)
     assert killed and bricked.info["bricks_meshed"] > 10
     assert_same_mesh(single, bricked)

@@ -75,6 +75,18 @@ def test_flips_and_smoothing_run_on_the_gathered_mesh(client):
     assert [s["stage"] for s in bricked.info["quality_stages"]] == ["stuffing", "features", "smooth", "flips"]
 
 
+def test_killed_worker_is_retried_and_the_domain_is_identical(client, killer):
+    shape, bounds, _ = _domain("part")
+    single = wm.mesh_domain(shape, bounds=bounds, size=0.05, features=False)
+    kill_one, killed = killer
+    bricked = wm.mesh_domain(shape, bounds=bounds, size=0.05, features=False, client=client, brick_cells=8,
+                             progress=kill_one)
+    assert killed and bricked.info["bricks_meshed"] > 10
+    assert np.array_equal(single.points, bricked.points)
+    assert np.array_equal(single.cells["tetra"], bricked.cells["tetra"])
+    assert killed[0] not in client.scheduler_info()["workers"]
+
+
 def test_empty_bricks_are_never_tasks(client):
     ball = wm.sphere(0.3)
     bounds = ((-1.0,) * 3, (1.0,) * 3)
