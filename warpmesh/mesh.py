@@ -51,7 +51,7 @@ if TYPE_CHECKING:  # annotations only; the operations behind the methods are imp
 
     from warpmesh.io.files import FileFormat
 
-__all__ = ["Mesh", "load", "CELL_TYPES", "FILE_FORMATS", "REF_KEY"]
+__all__ = ["Mesh", "load", "CELL_TYPES", "FILE_FORMATS", "REF_KEY"]  # noqa: F822 - FILE_FORMATS comes from __getattr__ (lazy)
 
 
 def __getattr__(name: str):
