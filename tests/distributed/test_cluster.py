@@ -177,17 +177,21 @@ def test_nan_in_a_brick_fails_naming_the_brick_and_its_box(client):
 
 
 def test_a_failed_partitioned_run_leaves_no_file(client, tmp_path):
-    """NaN in one brick of many: the call fails naming it, and the pieces the other bricks
-    wrote (and the .pvtu listing them) are removed, so nothing half-written is left."""
-    vol = np.fromfunction(lambda i, j, k: 20.0 - np.sqrt((i - 32) ** 2 + (j - 32) ** 2 + (k - 32) ** 2), (64, 64, 64))
-    vol[60, 60, 60] = np.nan  # the last brick of 64: most bricks are written before it fails
-    with pytest.raises(ValueError, match=r"brick 63 .*finite"):
-        wm.mesh_surface(vol, client=client, brick_cells=16, progress=False, gather=False,
-                        output=tmp_path / "ball.pvtu")
-    assert sorted(p.name for p in tmp_path.iterdir()) == []
-    done = wm.mesh_surface(np.nan_to_num(vol, nan=-1.0), client=client, brick_cells=16, progress=False, gather=False,
-                           output=tmp_path / "ball.pvtu")
-    assert len(done.pieces) > 8 and all(p.exists() for p in done.pieces)  # the same run without NaN writes them
+    """NaN in the second of 27 dense bricks: the call fails naming it while the other worker
+    is still meshing (and will write) a brick; the pieces written before and after the
+    failure and the .pvtu listing them are removed, so nothing half-written is left."""
+    import time
+
+    vol = _gyroid((192, 192, 192))
+    vol[100, 5, 5] = np.nan
+    with pytest.raises(ValueError, match=r"brick 1 \(1, 0, 0\).*finite"):
+        wm.mesh_surface(vol, client=client, brick_cells=64, progress=False, gather=False, output=tmp_path / "g.pvtu")
+    assert list(tmp_path.iterdir()) == []
+    time.sleep(1.0)  # a brick cancelled while executing would have written its piece by now
+    assert list(tmp_path.iterdir()) == []
+    done = wm.mesh_surface(np.nan_to_num(vol), client=client, brick_cells=64, progress=False, gather=False,
+                           output=tmp_path / "g.pvtu")
+    assert len(done.pieces) == 27 and all(p.exists() for p in done.pieces)  # the same run without NaN writes them
 
 
 def test_bad_arguments_are_refused_naming_them(client, tmp_path):

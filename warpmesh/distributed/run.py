@@ -196,22 +196,30 @@ def _collect(client, futures: dict, results: dict, where, job, progress) -> None
 
 
 def _remove_output(client, submitted: list, where, timeout: float = 60.0) -> None:
-    """A failed partitioned run leaves no file behind: wait until no task of the run is
-    still running (a cancelled task that is already running finishes, and writes its
-    piece, on its worker), then remove every piece of the run and the ``.pvtu``."""
-    keys = {fut.key for fut, _ in submitted}
+    """A failed partitioned run leaves no file behind: wait until no worker still holds a task
+    of the run (a cancelled task that is already executing finishes, and writes its piece; the
+    scheduler forgets it at once, the worker only when it ends), then remove every piece of the
+    run and the ``.pvtu``."""
+    keys = [fut.key for fut, _ in submitted]
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         try:
-            running = {k for ks in client.processing().values() for k in ks}
-        except Exception:  # noqa: BLE001 - the scheduler is gone: nothing runs any more
+            held = client.run(_held_keys, keys)
+        except Exception:  # noqa: BLE001 - no worker answers: none is writing any more
             break
-        if not running & keys:
+        if not any(held.values()):
             break
         time.sleep(0.05)
     for _, brick in submitted:
         piece_path(*where, brick.index).unlink(missing_ok=True)
     (where[0] / f"{where[1]}.pvtu").unlink(missing_ok=True)
+
+
+def _held_keys(keys: list, dask_worker=None) -> list:
+    """On a worker (``client.run``): which of ``keys`` it still holds (queued, executing, or
+    cancelled while executing)."""
+    tasks = dask_worker.state.tasks
+    return [k for k in keys if k in tasks]
 
 
 def brick_error(brick: Brick, origin, h, exc: Exception) -> ValueError:
