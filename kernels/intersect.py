@@ -667,16 +667,44 @@ def boxes_meet(lo: wp.vec3, hi: wp.vec3, a: wp.vec3, b: wp.vec3) -> bool:
 
 
 @wp.func
+def _boxes_apart_64(p: wp.mat33d, q: wp.mat33d) -> bool:
+    """Whether the float64 boxes of triangles p and q are disjoint (comparisons are exact:
+    then the closed triangles share no point)."""
+    apart = False
+    for k in range(3):
+        if wp.max(wp.max(p[0, k], p[1, k]), p[2, k]) < wp.min(wp.min(q[0, k], q[1, k]), q[2, k]):
+            apart = True
+        if wp.max(wp.max(q[0, k], q[1, k]), q[2, k]) < wp.min(wp.min(p[0, k], p[1, k]), p[2, k]):
+            apart = True
+    return apart
+
+
+@wp.func
+def confirmed_pair_intersects(p: wp.mat33d, ip: wp.vec3i, n1: wp.vec3d, m1: wp.vec3d,
+                              q: wp.mat33d, iq: wp.vec3i) -> bool:
+    """:func:`pair_intersects`, with a "meet" dropped when the two faces' float64 boxes are
+    disjoint. The predicate is conservative on a face that is collinear to within rounding
+    but not flagged degenerate (its normal ~1e-16 of its edges after a rotation: every
+    side is a tie, so it "touches" faces far from it); the exact box test removes those
+    false meets, so the answer no longer depends on which pairs a candidate search
+    offers (the BVH walk and :func:`all_pairs_kernel` agree). Meets are rare, so the
+    box test costs nothing on a valid mesh."""
+    if not pair_intersects(p, ip, n1, m1, q, iq):
+        return False
+    return not _boxes_apart_64(p, q)
+
+
+@wp.func
 def ordered_pair_intersects(t: wp.mat33d, it: wp.vec3i, n: wp.vec3d, na: wp.vec3d, f: int,
                             t2: wp.mat33d, it2: wp.vec3i, f2: int) -> bool:
     """:func:`pair_intersects` of faces f (vertices t, indices it, normal n and its permanent
     companion na) and f2, the one of the lower input index as p (the predicate's rounding
     is not symmetric: always the same order)."""
     if f < f2:
-        return pair_intersects(t, it, n, na, t2, it2)
+        return confirmed_pair_intersects(t, it, n, na, t2, it2)
     u = t2[1] - t2[0]
     v = t2[2] - t2[0]
-    return pair_intersects(t2, it2, wp.cross(u, v), _abs_cross(u, v), t, it)
+    return confirmed_pair_intersects(t2, it2, wp.cross(u, v), _abs_cross(u, v), t, it)
 
 
 @wp.kernel
@@ -856,5 +884,5 @@ def all_pairs_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.i
         q, iq = load_triangle(points, tris, g)
         u = p[1] - p[0]
         v = p[2] - p[0]
-        if pair_intersects(p, ip, wp.cross(u, v), _abs_cross(u, v), q, iq):
+        if confirmed_pair_intersects(p, ip, wp.cross(u, v), _abs_cross(u, v), q, iq):
             hits[f, g] = wp.int8(1)
