@@ -244,14 +244,24 @@ def _mesh_bricked(source, options, covering, adaptive, device, refs, keywords: d
         raise TypeError(f"with 'client', expected a Shape, an expression or a 3D numpy, dask or zarr array for "
                         f"'source', got {type(source).__name__} (for an image, pass its values with spacing and "
                         "origin)")
-    if adaptive or covering == "continuation" or isinstance(options, (AdaptiveOptions, ContinuationOptions)):
-        raise ValueError("'client' meshes a shape on the grid (covering='grid') or a volume; adaptive=True and "
-                         "covering='continuation' are not bricked")
+    if covering == "continuation" or isinstance(options, ContinuationOptions):
+        raise ValueError("'client' meshes a shape on the grid (covering='grid') or on an octree (adaptive=True), "
+                         "or a volume; covering='continuation' is not bricked")
     if options is None:
         options = _options_from_keywords(source, covering, adaptive, keywords)
     else:
         _check_options(source, options, covering, adaptive, keywords)
     check_choice(refs, "refs", REFS)
+    if isinstance(options, AdaptiveOptions):  # the octree on the workers, the contouring on the client
+        from warpmesh.distributed.run import check_run
+
+        check_run(run["client"], run["gather"], run["output"], run["progress"])
+        if not run["gather"] or run["output"] is not None:
+            raise ValueError("adaptive=True with 'client' returns the gathered mesh (its surface is contoured and "
+                             "untangled on the client): drop gather=False and 'output' (mesh.write the result)")
+        bricked = {k: run[k] for k in ("client", "bricks", "brick_cells", "progress")}
+        mesh = _mesh_adaptive(source, options, check_device(device), t_start, bricked=bricked)
+        return _tag_primitives(as_shape(source), mesh) if refs == "primitives" and mesh.n_cells else mesh
     if isinstance(options, VolumeOptions) and refs != "surface":
         raise ValueError(f"refs={refs!r} tags the primitives of a shape; a volume's triangles carry its "
                          "labels (labels=...)")
@@ -717,8 +727,10 @@ def _ray_stride(n_nodes) -> int:
     return int(max(8, int(np.max(n_nodes)) // RAY_LINES))
 
 
-def _mesh_adaptive(source, opts: AdaptiveOptions, device, t_start: float) -> Mesh:
-    """The octree pipeline: :func:`warpmesh.surface.adaptive.pipeline.mesh_adaptive`, then the host stage."""
+def _mesh_adaptive(source, opts: AdaptiveOptions, device, t_start: float, bricked: dict | None = None) -> Mesh:
+    """The octree pipeline: :func:`warpmesh.surface.adaptive.pipeline.mesh_adaptive`, then the host stage.
+    ``bricked`` (client, bricks, brick_cells, progress): the octree built on a Dask cluster
+    (:mod:`warpmesh.distributed.adaptive`)."""
     from warpmesh.surface.adaptive.pipeline import mesh_adaptive
 
     lo, hi = (np.asarray(b, dtype=np.float64) for b in opts.bounds)
@@ -728,11 +740,18 @@ def _mesh_adaptive(source, opts: AdaptiveOptions, device, t_start: float) -> Mes
                   "chord": opts.chord, "bound": opts.bound}
     tape = tape_of(source)
     info["tape_length"] = len(tape)
+    build = None
+    if bricked is not None:
+        from warpmesh.distributed.adaptive import BrickedOctree
+
+        build = BrickedOctree(source, lo, hi, opts.finest_level, **bricked)
     points, faces, refs = mesh_adaptive(
         tape, lo, hi, max_level=opts.finest_level, min_level=opts.min_level, tolerance=tolerance,
         angles=opts.angles, chord=opts.chord, bound=opts.bound, lipschitz=opts.lipschitz, cap=opts.cap,
         prune=opts.prune, features=opts.features, root=opts.root, root_iterations=opts.root_iterations,
-        gradient=opts.gradient, device=device, timings=timings, info=info)
+        gradient=opts.gradient, device=device, timings=timings, info=info, build=build)
+    if build is not None:
+        info.update(build.info)
     if len(faces) == 0:
         warnings.warn("the surface does not cross the bounds: the mesh is empty "
                       "(check 'bounds' and the sign convention f > 0 inside)", stacklevel=3)

@@ -298,10 +298,31 @@ def finest_cells(lo, hi, max_level: int):
 
 def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, tolerance: float | None,
                  angles=None, chord: float | None = None, bound: str = "interval", lipschitz: float | None = None,
-                 cap: bool = True, prune: bool = True, force=None, device="cpu") -> Octree:
+                 cap: bool = True, prune: bool = True, force=None, window=None, last_level: int | None = None,
+                 device="cpu") -> Octree:
     """Build the covering-up of the box [lo, hi] down to ``max_level`` (2**max_level finest
     cells along the longest side), refining where the criteria above fail, and the cells
-    whose keys (:func:`cell_keys`) are in the sorted array ``force``."""
+    whose keys (:func:`cell_keys`) are in the sorted array ``force``.
+
+    Each cell's refine / cull / leaf decision depends on the cell alone (its interval, its
+    corners, ``force``), so a part of the tree can be built on its own:
+    ``window = (level, lo, hi)`` builds only the cells that meet the box of the level-``level``
+    cells ``lo <= ijk < hi`` (their ancestors, and their descendants), each decided as in the
+    whole tree; ``last_level`` stops after that level (its refined cells stay INTERNAL, without
+    children). :mod:`warpmesh.distributed.adaptive` builds the tree brick by brick with them.
+
+    Example
+    -------
+    >>> import warpmesh as wm
+    >>> from warpmesh.frep.tape import tape_of
+    >>> lo, hi = np.full(3, -1.2), np.full(3, 1.2)
+    >>> opts = dict(max_level=5, min_level=None, tolerance=None, device="cpu")
+    >>> whole = build_octree(tape_of(wm.sphere(1.0)), lo, hi, **opts)
+    >>> part = build_octree(tape_of(wm.sphere(1.0)), lo, hi, window=(3, (0, 0, 0), (2, 2, 2)), **opts)
+    >>> st, _ = whole.lookup(part.leaf_level, part.leaf_ijk)
+    >>> bool(np.all(st == LEAF)), len(part.leaf_level) < len(whole.leaf_level)
+    (True, True)
+    """
     extent = hi - lo
     base, n0, n_finest = finest_cells(lo, hi, max_level)
     h = extent / n_finest
@@ -321,8 +342,13 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     leaves_level, leaves_ijk = [], []
     all_keys, all_status, all_leaf = [], [], []
     n_leaves = 0
-    for level in range(base, max_level + 1):
+    for level in range(base, max_level + 1 if last_level is None else min(last_level, max_level) + 1):
         t0 = time.perf_counter()
+        if window is not None:  # only the cells that meet the window's box
+            keep = in_window(level, ijk, window)
+            ijk, tape_id = ijk[keep], tape_id[keep]
+            if fld.prune:  # (else ``choices`` is no longer kept per cell)
+                choices = choices[keep]
         span = int(tree.span(level))
         lat_lo = ijk * span
         box_lo = tree.world(lat_lo)
@@ -401,6 +427,21 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     order = np.argsort(keys)
     tree.status = (keys[order], np.concatenate(all_status)[order], np.concatenate(all_leaf)[order])
     return tree
+
+
+def in_window(level: int, ijk: np.ndarray, window) -> np.ndarray:
+    """Which cells ``ijk`` of ``level`` meet the box of the cells ``lo <= ijk < hi`` of
+    level ``window[0]`` (``window = (level, lo, hi)``).
+
+    >>> in_window(2, np.array([[0, 0, 0], [1, 0, 0]]), (3, (2, 0, 0), (4, 2, 2))).tolist()
+    [False, True]
+    """
+    wl, wlo, whi = window[0], np.asarray(window[1], np.int64), np.asarray(window[2], np.int64)
+    if level <= wl:  # coarser: the cell's box meets the window's
+        shift = wl - level
+        return np.all((ijk >= wlo >> shift) & (ijk <= (whi - 1) >> shift), axis=1)
+    up = ijk >> (level - wl)  # finer: its ancestor at the window's level lies in it
+    return np.all((up >= wlo) & (up < whi), axis=1)
 
 
 def _corner_keys(tree: Octree, level: int, ijk: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ NEWTON_STEPS = 4  # safeguarded Newton from the linear estimate (quadratic conve
 
 
 def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chord, bound, lipschitz, cap, prune,
-                  features, root, root_iterations, gradient, device, timings, info, force=None):
+                  features, root, root_iterations, gradient, device, timings, info, force=None, build=None):
     """(points, faces, triangle refs or None) of the adaptive surface; fills timings and info.
 
     Without ``cap`` the surface is the capped one less its cap triangles: an open surface
@@ -40,7 +40,11 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     A leaf above ``max_level`` whose boundary (its neighbours' finer nodes included) holds
     two loops or more has two sheets, which its corners did not show: the octree is built
     again with those leaves refined (``force``), until none is left (``info["octree_rounds"]``;
-    ``timings["octree"]`` sums the rounds)."""
+    ``timings["octree"]`` sums the rounds).
+
+    ``build``, when given, makes each round's tree in place of :func:`build_octree`, with
+    its arguments, and returns the tree it would (the bricked build of
+    :class:`warpmesh.distributed.adaptive.BrickedOctree`)."""
     open_bounds, cap = not cap, True
     timings["octree"], rounds = 0.0, 0
     # The rounds end (no cap needed): a cell of ``force`` that a round reaches above max_level is
@@ -52,9 +56,9 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
     while True:
         rounds += 1
         t0 = time.perf_counter()
-        tree = build_octree(tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance,
-                            angles=angles, chord=chord, bound=bound, lipschitz=lipschitz, cap=cap, prune=prune,
-                            force=force, device=device)
+        tree = (build or build_octree)(tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance,
+                                       angles=angles, chord=chord, bound=bound, lipschitz=lipschitz, cap=cap,
+                                       prune=prune, force=force, device=device)
         timings["octree"] += time.perf_counter() - t0
         fld = tree.field
 
