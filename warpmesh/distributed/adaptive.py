@@ -115,6 +115,8 @@ def brick_grid(n_base, base: int, max_level: int, bricks=None, brick_cells=None)
     >>> brick_grid((8, 8, 2), 3, 7, brick_cells=32)[0], brick_grid((8, 8, 2), 3, 7, brick_cells=8)[0]
     (3, 4)
     """
+    if bricks is not None and brick_cells is not None:
+        check_bricking(bricks, brick_cells)  # raises: not both
     bricks, _ = check_bricking(bricks, None)
     n_base = np.asarray(n_base, dtype=np.int64)
     if brick_cells is not None:
@@ -152,7 +154,8 @@ class BrickedOctree:
     """A drop-in for :func:`build_octree` in :func:`warpmesh.surface.adaptive.pipeline.mesh_adaptive`
     (``build=``): each call (one round) builds the levels down to the brick level on the
     client and the deeper ones on the cluster, brick by brick, merged into the single-process
-    tree. ``info`` counts the bricks, tasks and rounds."""
+    tree. ``info`` counts the bricks, tasks and rounds. With ``client=None`` the bricks' tasks
+    run in this process, one after another (the same tree: a check of the merge)."""
 
     def __init__(self, shape, lo, hi, max_level: int, *, client, bricks, brick_cells, progress):
         self.shape, self.client, self.progress = shape, client, progress
@@ -192,7 +195,10 @@ class BrickedOctree:
             self.info["bricks_culled"] = len(self.bricks) - len(todo)
         self.info["bricks_per_round"].append(len(todo))
         job = _OctreeJob(self, dict(todo))
-        results, _ = run_job(self.client, job, None, True, self.progress, t0)
+        if self.client is None:  # in this process, brick after brick (the tests' check of the merge)
+            results = {b.index: job.task(b, None, True) for b in job.bricks_to_mesh()}
+        else:
+            results, _ = run_job(self.client, job, None, True, self.progress, t0)
         for index, piece in results.items():
             self.results[index] = (job.force[index], piece)
         pieces = [self.results[i][1] for i in sorted(set(kept) | set(results))]
