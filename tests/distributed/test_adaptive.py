@@ -131,3 +131,15 @@ def test_bad_options_are_refused_naming_them(client, tmp_path):
         wm.mesh_surface(part, bounds=bounds, adaptive=True, max_level=6, client="tcp://nowhere:1")
     with pytest.raises(ValueError, match="continuation"):
         wm.mesh_surface(part, bounds=bounds, covering="continuation", client=client)
+
+
+def test_nan_below_the_brick_level_fails_naming_the_brick_and_its_box(client):
+    """NaN in a ball of radius 0.1 around (0.5, 0.5, 0.5), inside one level-3 cell: the client's
+    levels do not see it, the worker of brick 7 does, and the call's error names that brick
+    (its cells of the brick level) and its box."""
+    x, y, z = wm.coords()
+    nan_ball = wm.Shape(wm.log((x - 0.5) ** 2 + (y - 0.5) ** 2 + (z - 0.5) ** 2 - 0.01) - 10.0)
+    named = r"brick 7 \(1, 1, 1\): cells \[4:8, 4:8, 4:8\], box \(0, 0, 0\)-\(1, 1, 1\): .*NaN"
+    with pytest.raises(ValueError, match=named):
+        wm.mesh_surface(wm.sphere(0.4) | nan_ball, bounds=((-1,) * 3, (1,) * 3), adaptive=True, max_level=5,
+                        client=client, bricks=(2, 2, 2), progress=False)
