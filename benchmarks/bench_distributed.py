@@ -14,6 +14,10 @@ Cases:
             (chunks 128^3): one process from the numpy array, 2 workers from
             ``dask.array.from_zarr`` (each brick read on its worker).
 ``scheduler`` 400 no-op tasks on the 2-worker cluster: the scheduler's cost per task.
+``adaptive`` the part on an adaptive octree at ``--adaptive-level`` (default 10), bricks of
+            ``--adaptive-brick-cells`` finest cells (default 512): one process (fresh
+            interpreter) against ``mesh_surface(..., adaptive=True, client=...)`` on 2 workers
+            (the octree on the workers, the contouring on the client), with the stages' times.
 ``domain``  the part's tetrahedral domain by isosurface stuffing at ``--domain-size`` (default
             0.03: about 1 M tetrahedra), ``features=False`` (the stuffing alone; the stages
             after it run on the client's gathered mesh as in one process): one process,
@@ -37,6 +41,7 @@ for 8192^3 on N machines.
 Run:  python benchmarks/bench_distributed.py [--resolution 1024] [--brick-cells 128]
                                              [--volume 512,256,256] [--cases part,volume,scheduler]
                                              [--domain-size 0.03] [--domain-brick-cells 32]
+                                             [--adaptive-level 10] [--adaptive-brick-cells 512]
                                              [--json out.json]
 """
 
@@ -98,6 +103,10 @@ def single_process(case: str, resolution: int, volume_path: str | None, evaluato
         part, bounds = wm.example("part")
         wm.mesh_domain(part, bounds=bounds, size=0.2, features=False)
         fn, source, kw = wm.mesh_domain, part, dict(bounds=bounds, size=size, features=False)
+    elif case == "adaptive":
+        part, bounds = wm.example("part")
+        wm.mesh_surface(part, bounds=bounds, adaptive=True, max_level=6)
+        source, kw = part, dict(bounds=bounds, adaptive=True, max_level=resolution)
     elif case == "part":
         part, bounds = wm.example("part")
         wm.mesh_surface(part, bounds=bounds, resolution=64, evaluator=evaluator)
@@ -191,6 +200,8 @@ def main() -> None:
     ap.add_argument("--cases", default="part,volume,scheduler")
     ap.add_argument("--domain-size", type=float, default=0.03)
     ap.add_argument("--domain-brick-cells", type=int, default=32)
+    ap.add_argument("--adaptive-level", type=int, default=10)
+    ap.add_argument("--adaptive-brick-cells", type=int, default=512)
     ap.add_argument("--evaluator", default="compiled", choices=("compiled", "interpreter", "auto"),
                     help="the shape's evaluator, the same in every run (default: the generated kernel, loaded "
                          "from Warp's cache in the warm-ups, so no compile falls in a timed run)")
@@ -280,6 +291,8 @@ def main() -> None:
 
     if "domain" in cases:
         domain(doc, args.domain_size, args.domain_brick_cells, ev)
+    if "adaptive" in cases:
+        adaptive(doc, args.adaptive_level, args.adaptive_brick_cells, ev)
     if "part" in cases:
         model(doc, R, B)
     finish(t_start, load0, args.json, doc)
@@ -309,6 +322,42 @@ def domain(doc: dict, size: float, brick_cells: int, ev: str) -> None:
     print(f"  speed-up, 2 workers over one process: {one['wall'] / r['wall']:.2f}x (wall); "
           f"CPU 2 workers / one process: {r['cpu'] / one['cpu']:.2f}")
     doc["domain"] = {"size": size, "brick_cells": brick_cells, "one": one, "2w": r}
+
+
+def adaptive(doc: dict, level: int, brick_cells: int, ev: str) -> None:
+    """The part on an adaptive octree: one process against 2 workers (octree on the workers)."""
+    print(f"\n(f) part, adaptive octree at max_level {level}, bricks of {brick_cells} finest cells a side")
+    one = run_in_fresh_process("adaptive", level, None, ev)
+    print(f"  one process        wall {one['wall']:7.2f} s  cpu {one['cpu']:7.2f} s  peak {_gb(one['peak'])}  "
+          f"{one['triangles']:,} triangles")
+    part, bounds = wm.example("part")
+    lc, client = cluster(2, ev)
+    try:
+        kw = dict(bounds=bounds, adaptive=True)
+        wm.mesh_surface(part, max_level=6, client=client, progress=False, **kw)  # warm-up: the octree's kernels
+        client.run(_reset_peak)
+        cpu0, c0 = client.run(_cpu), _cpu()
+        t = time.perf_counter()
+        mesh = wm.mesh_surface(part, max_level=level, brick_cells=brick_cells, client=client, progress=False, **kw)
+        wall, client_cpu = time.perf_counter() - t, _cpu() - c0
+        cpu1, peaks = client.run(_cpu), client.run(_status, "VmHWM")
+    finally:
+        client.close()
+        lc.close()
+    info, tm = mesh.info, mesh.info["time"]
+    r = {"wall": wall, "client_cpu": client_cpu, "cpu": sum(cpu1[w] - cpu0[w] for w in cpu1),
+         "peak_per_worker": sorted(peaks.values()), **_counts(mesh),
+         **{k: info[k] for k in ("brick_level", "bricks", "bricks_culled", "brick_tasks", "bricks_per_round",
+                                 "brick_cpu_time", "octree_rounds")},
+         "time": {k: round(float(tm[k]), 3) for k in ("octree", "faces", "root", "untangle", "fans", "total")}}
+    same = (r["triangles"], r["points"]) == (one["triangles"], one["points"])
+    print(f"  2 workers          wall {wall:7.2f} s  cpu {r['cpu']:7.2f} s (workers) + {client_cpu:.2f} s (client)  "
+          f"peak/worker {', '.join(_gb(p) for p in r['peak_per_worker'])}  {r['triangles']:,} triangles; "
+          f"{r['brick_tasks']} tasks of {r['bricks']} bricks (level {r['brick_level']}, {r['bricks_culled']} culled), "
+          f"rounds {r['bricks_per_round']}; same counts: {same}")
+    print(f"  stages of the 2-worker run (s): {r['time']}")
+    print(f"  speed-up, 2 workers over one process: {one['wall'] / wall:.2f}x (wall)")
+    doc["adaptive"] = {"max_level": level, "brick_cells": brick_cells, "one": one, "2w": r}
 
 
 def model(doc: dict, R: int, B: int) -> None:

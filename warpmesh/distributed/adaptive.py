@@ -14,7 +14,7 @@ untangle) runs on the client, on the gathered tree, as in one process.
 - **A worker** builds the tree restricted to its brick (``build_octree(window=...)``): the
   cells that meet the brick, each decided by its own interval, corners and ``force``
   membership, so they are the whole tree's cells, with the same node values bit for bit.
-  It returns the status of its cells below level ``b`` and f at its leaves' corners.
+  It returns the status of its cells below level ``b`` and f at the nodes it evaluated.
 - **The gather** joins the bricks' cells (disjoint) with the client's levels, numbers the
   leaves in the order one process gives (level by level, breadth first from the base
   cells) and unions the node values: the tree is the single-process tree, array for array,
@@ -42,8 +42,8 @@ import numpy as np
 from warpmesh.distributed.bricks import DEFAULT_BRICK_CELLS, Brick, check_bricking
 from warpmesh.distributed.run import brick_error, run_job, worker_tape
 from warpmesh.errors import WarpMeshError
-from warpmesh.surface.adaptive.octree import (CELL_BITS, CORNERS, LEAF, INTERNAL, NodeStore, Octree, build_octree,
-                                              finest_cells, in_window, pack)
+from warpmesh.surface.adaptive.octree import (CELL_BITS, LEAF, INTERNAL, NodeStore, Octree, build_octree, finest_cells,
+                                              in_window)
 
 __all__ = ["OctreePiece", "BrickedOctree", "brick_grid", "merge_pieces", "breadth_first_order"]
 
@@ -51,8 +51,8 @@ __all__ = ["OctreePiece", "BrickedOctree", "brick_grid", "merge_pieces", "breadt
 @dataclass
 class OctreePiece:
     """One brick's part of the octree below the brick level: its cells' keys (sorted,
-    :func:`~warpmesh.surface.adaptive.octree.cell_keys`) and status, f at its leaves'
-    corners (sorted node keys, float32 values), the per-level statistics of its cells, and
+    :func:`~warpmesh.surface.adaptive.octree.cell_keys`) and status, f at the nodes it
+    evaluated (sorted node keys, float32 values), the per-level statistics of its cells, and
     ``info`` (counts, timings)."""
 
     keys: np.ndarray
@@ -239,13 +239,12 @@ class _OctreeJob:
             raise brick_error(brick, self.lo, self.h_level, exc) from None
         keys, status, _ = tree.status
         deep = (keys >> (3 * CELL_BITS)) > self.level
-        own = (tree.leaf_level > self.level)
-        span = tree.span(tree.leaf_level[own])
-        corners = np.unique(pack((tree.leaf_ijk[own][:, None, :] + CORNERS[None]) * span[:, None, None]))
         levels = [lv for lv in tree.levels if lv["level"] > self.level]
-        info = {"cells": int(deep.sum()), "leaves": int(own.sum()), "counts": dict(tree.field.counts),
-                "time": time.perf_counter() - t0}
-        return OctreePiece(keys[deep], status[deep], corners, tree.nodes.get(corners), levels, info)
+        info = {"cells": int(deep.sum()), "leaves": int((tree.leaf_level > self.level).sum()),
+                "counts": dict(tree.field.counts), "time": time.perf_counter() - t0}
+        # every node the brick evaluated (sorted already; sorting out its leaves' corners costs more
+        # than sending the rest)
+        return OctreePiece(keys[deep], status[deep], tree.nodes.keys, tree.nodes.values, levels, info)
 
 
 def merge_pieces(coarse: Octree, pieces: list[OctreePiece], level: int) -> Octree:
