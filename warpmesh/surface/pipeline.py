@@ -139,10 +139,13 @@ def mesh_surface(
     client : dask.distributed.Client, optional
         Mesh brick by brick on this Dask cluster (:mod:`warpmesh.distributed`): a shape on
         a grid or a volume (numpy, dask or zarr array, read brick by brick); the same
-        mesh as one process makes, seams welded on global grid-edge keys.
+        mesh as one process makes, seams welded on global grid-edge keys. With
+        ``adaptive=True`` the octree is built brick by brick on the workers and contoured on
+        the client (:mod:`warpmesh.distributed.adaptive`; ``gather=False`` and ``output``
+        refused), the same mesh too.
     bricks, brick_cells : (3,) ints or int, optional
         With ``client``: bricks per axis, or cells per brick side (a multiple of 8;
-        default 128).
+        default 128; with ``adaptive=True`` finest cells, a multiple of some level's cells).
     gather : bool
         With ``client``: return one Mesh (default), or, with False, a
         :class:`~warpmesh.distributed.run.PartitionedMesh` of the pieces on disk.
