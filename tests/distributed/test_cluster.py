@@ -207,7 +207,7 @@ def test_bad_arguments_are_refused_naming_them(client, tmp_path):
         (dict(client=client, output=tmp_path / "missing" / "m.pvtu"), ValueError, "'output'"),
         (dict(client=client, progress="yes"), TypeError, "'progress'"),
         (dict(client=client, normals=True), ValueError, "normals"),
-        (dict(client=client, adaptive=True), ValueError, "adaptive"),
+        (dict(client=client, covering="continuation"), ValueError, "continuation"),  # adaptive: test_adaptive.py
         (dict(bricks=(2, 2, 2)), ValueError, "'bricks' applies to a run on a Dask cluster"),
         (dict(output=tmp_path / "m.pvtu"), ValueError, "'output' applies"),
         (dict(gather=False), ValueError, "'gather' applies"),

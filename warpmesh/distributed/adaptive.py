@@ -195,7 +195,7 @@ class BrickedOctree:
             self.info["bricks_culled"] = len(self.bricks) - len(todo)
         self.info["bricks_per_round"].append(len(todo))
         job = _OctreeJob(self, dict(todo))
-        if self.client is None:  # in this process, brick after brick (the tests' check of the merge)
+        if self.client is None or not todo:  # in this process, brick after brick (the tests' check of the merge)
             results = {b.index: job.task(b, None, True) for b in job.bricks_to_mesh()}
         else:
             results, _ = run_job(self.client, job, None, True, self.progress, t0)
@@ -205,7 +205,7 @@ class BrickedOctree:
         self.info["brick_tasks"] += len(results)
         self.info["brick_cpu_time"] += float(sum(p.info["time"] for p in results.values()))
         counts = coarse.field.counts
-        for p in results.values():  # the evaluations made on the workers, coarse cells of windows included
+        for p in pieces:  # the evaluations of this tree's bricks (coarse cells of their windows included)
             for k in counts:
                 counts[k] += p.info["counts"][k]
         return merge_pieces(coarse, pieces, self.level)
