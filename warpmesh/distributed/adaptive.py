@@ -25,7 +25,13 @@ untangle) runs on the client, on the gathered tree, as in one process.
 
 Not distributed (yet): the faces, roots and fans of the owned leaves (1.3 of 1.9 s for the
 part at max_level 10 in one process) run on the client after the gather; ``gather=False``
-and ``output`` are refused (untangle and the feature flips need the whole surface).
+and ``output`` are refused (untangle and the feature flips need the whole surface). The
+next step: a worker also builds the one-cell collar of its brick (the cells whose closed box
+touches the brick's: every neighbour across a face, edge or corner of its leaves, so their
+hanging nodes) and returns the face units its leaves own, keyed (direction, owner leaf's
+cell key, cycle position) for the one-process unit order, with their crossings keyed by
+their two node keys (the one-process vertex order) and roots; the leaves at or above the
+brick level (one coarse leaf may span bricks) need an owner brick whose window covers them.
 
 Example: :func:`warpmesh.mesh_surface` with ``adaptive=True`` and ``client``;
 :func:`brick_grid` for the layout.
