@@ -8,7 +8,7 @@ Usage::
     python benchmarks/bench_intersections.py --json results.json
     python benchmarks/bench_intersections.py --cases part --profile   # CPU s per stage
 
-Cases (``--cases``, comma-separated; default ``sphere7,sphere8,spheres7,spheres8,part,ball``):
+Cases (``--cases``, comma-separated; default ``sphere7,sphere8,spheres7,spheres8,part,ball,part-tets``):
 
 - ``sphere7`` / ``sphere8``: a closed icosphere (``trimesh.creation.icosphere``) with 7 / 8
   subdivisions: 327,680 / 1,310,720 triangles, no crossing;
@@ -20,6 +20,12 @@ Cases (``--cases``, comma-separated; default ``sphere7,sphere8,spheres7,spheres8
   of the check). These cases add a row ``meshing``: the ``mesh_surface`` call that made the
   mesh, timed in the same rounds, and the table's last columns give each tool's time
   divided by the meshing time (CPU seconds, and wall).
+
+- ``part-tets``: the part's tetrahedra (``wm.mesh_domain(..., features=False)`` at
+  ``--tet-size``, default 0.03: about 1 M tetrahedra; without the crease recovery, the
+  fastest meshing and so the hardest ratio): ``find_tet_overlaps`` against the meshing
+  call, same rounds (no
+  peer: pymeshlab checks triangles only); the run fails if a pair is reported.
 
 Tools: warpmesh ``find_self_intersections`` (all cores, and ``workers=1``), which takes
 numpy arrays (its time includes validation and upload); pymeshlab
@@ -99,7 +105,11 @@ import numpy as np  # noqa: E402
 import pymeshlab  # noqa: E402
 import trimesh  # noqa: E402
 
-from warpmesh.cells.intersections import find_self_intersections, profile_self_intersections  # noqa: E402
+from warpmesh.cells.intersections import (  # noqa: E402
+    find_self_intersections,
+    find_tet_overlaps,
+    profile_self_intersections,
+)
 
 CASES = {
     "sphere7": ("icosphere, 7 subdivisions", 7, False),
@@ -108,6 +118,7 @@ CASES = {
     "spheres8": ("two crossing icospheres, 8 subdivisions", 8, True),
     "part": ("wm.mesh_surface of the bundled part", "part", None),
     "ball": ("wm.mesh_surface of a unit sphere", "ball", None),
+    "part-tets": ("wm.mesh_domain of the bundled part (tetrahedra)", "part", "tets"),
 }
 
 
@@ -146,6 +157,41 @@ def profile_case(points, faces, repeat: int) -> list[dict]:
         print(f"| {r['stage']} | {r['cpu_seconds']:.3f} | {100 * r['cpu_seconds'] / total:.0f} % | "
               f"{r['wall_seconds']:.3f} |")
     return rows
+
+
+def run_tet_case(key: str, repeat: int, size: float) -> dict:
+    """``find_tet_overlaps`` on the stuffed part against the ``mesh_domain`` call that made
+    it, in the same rounds (no peer checks tetrahedra: the row is the ratio to meshing)."""
+    import warpmesh as wm
+
+    shape, bounds = wm.example("part")
+    mesh = wm.mesh_domain(shape, bounds=bounds, size=size, features=False)
+    points, tets = np.asarray(mesh.points), np.asarray(mesh.cells["tetra"])
+    out = {}
+    tools = {"find_tet_overlaps": lambda: out.update(pairs=find_tet_overlaps(points, tets)),
+             "meshing": lambda: wm.mesh_domain(shape, bounds=bounds, size=size, features=False)}
+    for fn in tools.values():
+        fn()
+    times = {t: [] for t in tools}
+    cpu = {t: [] for t in tools}
+    for _ in range(repeat):
+        for tool, fn in tools.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn()
+            times[tool].append(time.perf_counter() - t0)
+            cpu[tool].append(time.process_time() - c0)
+    med = {t: statistics.median(v) for t, v in times.items()}
+    mcpu = {t: statistics.median(v) for t, v in cpu.items()}
+    rows = [{"tool": t, "seconds": med[t], "cpu_seconds": mcpu[t], "wall_per_meshing": med[t] / med["meshing"],
+             "cpu_per_meshing": mcpu[t] / mcpu["meshing"], "samples": times[t], "cpu_samples": cpu[t]} for t in tools]
+    print(f"\n{CASES[key][0]}, size {size}: {len(tets):,} tetrahedra, {len(out['pairs']):,} overlapping pairs")
+    print("| tool | seconds | cpu s | cpu / meshing cpu | wall / meshing wall |")
+    print("| --- | --- | --- | --- | --- |")
+    for r in rows:
+        print(f"| {r['tool']} | {r['seconds']:.3f} | {r['cpu_seconds']:.3f} | {r['cpu_per_meshing']:.2f} | "
+              f"{r['wall_per_meshing']:.2f} |")
+    return {"case": key, "name": CASES[key][0], "tetrahedra": len(tets), "pairs": len(out["pairs"]), "rows": rows,
+            "agree": len(out["pairs"]) == 0}
 
 
 def run_case(key: str, repeat: int, resolution: int = 512, profile: bool = False) -> dict:
@@ -224,6 +270,8 @@ def main(argv=None) -> int:
     p.add_argument("--repeat", type=int, default=3, help="timed rounds (median; default 3)")
     p.add_argument("--resolution", type=int, default=512, help="resolution of the meshed cases (default 512)")
     p.add_argument("--json", default=None, help="write every row and sample to this file")
+    p.add_argument("--tet-size", type=float, default=0.03,
+                   help="lattice size h of the part-tets case (default 0.03: about 1 M tetrahedra)")
     p.add_argument("--profile", action="store_true", help="also print warpmesh's CPU seconds per pipeline stage")
     p.add_argument("--default-malloc", action="store_true", help="keep glibc's default allocator (see README)")
     a = p.parse_args(argv)
@@ -237,7 +285,8 @@ def main(argv=None) -> int:
                         f"trimesh {version('trimesh')}")
     if a.resolution < 8:
         p.error(f"expected --resolution >= 8, got {a.resolution}")
-    results = [run_case(c, a.repeat, a.resolution, a.profile) for c in cases]
+    results = [run_tet_case(c, a.repeat, a.tet_size) if CASES[c][2] == "tets" else
+               run_case(c, a.repeat, a.resolution, a.profile) for c in cases]
     finish(t_start, load0, a.json, {"results": results})
     return 0 if all(r["agree"] for r in results) else 1
 

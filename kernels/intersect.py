@@ -562,6 +562,23 @@ def classify_faces_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype
 
 
 @wp.kernel
+def tet_signs_kernel(points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.int32),
+                     signs: wp.array(dtype=wp.int32)):
+    """One thread per tetrahedron (a, b, c, d): the filtered sign of O(a, b, c, d), positive
+    when d is on the side of (a, b, c) its right-hand normal points to (the house's
+    positive orientation); 0 when flat to within rounding or a vertex repeats."""
+    t = wp.tid()
+    a = tets[4 * t]
+    b = tets[4 * t + 1]
+    c = tets[4 * t + 2]
+    d = tets[4 * t + 3]
+    sign = int(0)
+    if a != b and a != c and a != d and b != c and b != d and c != d:
+        sign = orient3d(points[a], points[b], points[c], points[d])
+    signs[t] = sign
+
+
+@wp.kernel
 def bvh_coordinates_kernel(points: wp.array(dtype=wp.vec3d), centre: wp.vec3d, half: wp.float64,
                            points32: wp.array(dtype=wp.vec3)):
     """One thread per point: ((x - centre) / half) rounded to float32, coordinate by

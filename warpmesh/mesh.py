@@ -358,7 +358,7 @@ class Mesh:
                 s["volume"] = volume
         if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
             s["components"] = components(self._cells["line"], self.n_points)[0]
-        if len(tri) or ("line" in self._cells and self.dim == 2):
+        if len(tri) or ("line" in self._cells and self.dim == 2) or ("tetra" in self._cells and self.dim == 3):
             s["self_intersections"] = len(self._crossings)
         solids = [t for t in ("tetra", "hexahedron", "wedge", "pyramid") if t in self._cells]
         if solids and self.dim == 3:  # signed, exact for the multilinear cells
@@ -386,8 +386,9 @@ class Mesh:
         return check(self)
 
     def check(self) -> np.ndarray:
-        """The pairs of crossing cells (triangles; segments of a planar polyline):
-        :func:`warpmesh.cells.intersections.check`. Empty when the mesh is embedded.
+        """The pairs of crossing cells (overlapping or inverted tetrahedra; else triangles;
+        segments of a planar polyline): :func:`warpmesh.cells.intersections.check`. Empty
+        when the mesh is embedded.
 
         Examples
         --------
@@ -412,9 +413,9 @@ class Mesh:
             (edge-connected; for a mesh of lines only, the connected polylines), ``genus`` (total, ``(2 components - euler) / 2``, only when
             watertight, manifold and oriented), ``area``, ``volume`` (signed: of the
             closed 3D surface, or the sum of the volumes of the tetra, hexahedron, wedge
-            and pyramid cells); ``self_intersections`` (pairs of crossing triangles, or
-            of crossing segments of a planar polyline: :meth:`check`; 0 for an embedded
-            mesh); ``mean_q``, ``worst_q`` ([FG
+            and pyramid cells); ``self_intersections`` (pairs of overlapping tetrahedra,
+            else of crossing triangles, or of crossing segments of a planar polyline:
+            :meth:`check`; 0 for an embedded mesh); ``mean_q``, ``worst_q`` ([FG
             eq. 16.15] over tetra if any, else triangles); ``bounds`` (2, d). Every key of
             ``self.info`` is included too; computed keys win on a clash.
 

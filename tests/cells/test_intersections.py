@@ -16,6 +16,7 @@ import trimesh
 
 from warpmesh.cells import intersections as wmi
 from warpmesh.cells.intersections import (
+    find_tet_overlaps,
     count_self_intersecting_faces,
     find_degenerate_faces,
     find_self_intersections,
@@ -706,3 +707,156 @@ def test_meshed_surface_is_embedded():
     except (AttributeError, ImportError) as exc:  # the package mid-move
         pytest.skip(f"warpmesh.mesh_surface unavailable: {exc}")
     assert find_self_intersections(mesh.points, mesh.triangles).shape == (0, 2)
+
+
+# -- tetrahedra: find_tet_overlaps ------------------------------------------------------------
+
+
+def _overlap_depth(pts, t1, t2) -> float:
+    """The largest d such that some point has every barycentric coordinate >= d in both
+    tetrahedra (an LP, scipy's HiGHS): > 0 iff their interiors overlap, >= 0 iff they meet."""
+    from scipy.optimize import linprog
+
+    rows = []
+    for t in (t1, t2):
+        p = pts[t]
+        inv = np.linalg.inv((p[1:] - p[0]).T)  # (l_1, l_2, l_3) = inv (x - p_0), l_0 = 1 - their sum
+        a = np.vstack([-inv.sum(axis=0), inv])
+        b = np.r_[1.0 + inv.sum(axis=0) @ p[0], -inv @ p[0]]
+        rows.append((a, b))
+    # maximise d subject to a x + b >= d for both: -a x + d <= b
+    A = np.vstack([np.column_stack([-a, np.ones(4)]) for a, _ in rows])
+    B = np.concatenate([b for _, b in rows])
+    res = linprog(c=[0, 0, 0, -1], A_ub=A, b_ub=B, bounds=[(None, None)] * 3 + [(None, 1.0)], method="highs")
+    assert res.status == 0
+    return -res.fun
+
+
+def _embedded_by_lp(pts, tets) -> bool:
+    """Every tetrahedron non-flat and positive, and no two with overlapping interiors (all
+    pairs whose boxes meet, by LP): the independent oracle of find_tet_overlaps."""
+    p = pts[tets]
+    vol = np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
+    if (vol <= 1e-12).any():
+        return False
+    lo, hi = p.min(axis=1), p.max(axis=1)
+    faces = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+    for i in range(len(tets)):
+        near = np.flatnonzero(np.all(lo[i] <= hi, axis=1) & np.all(lo <= hi[i], axis=1))
+        for j in near[near > i]:
+            # a face plane of either with the other's four vertices on its outer side
+            # separates them (a shortcut only: the LP decides the rest)
+            if any(_outside_a_face(p[a], p[b], faces) for a, b in ((i, j), (j, i))):
+                continue
+            if _overlap_depth(pts, tets[i], tets[j]) > 1e-9:
+                return False
+    return True
+
+
+def _outside_a_face(t, other, faces) -> bool:
+    f = t[faces]
+    n = np.cross(f[:, 1] - f[:, 0], f[:, 2] - f[:, 0])
+    side = np.einsum("fk,vfk->fv", n, other[:, None, :] - f[None, :, 0])
+    return bool((side >= -1e-12).all(axis=1).any())
+
+
+def test_embedded_volume_meshes_have_no_overlaps():
+    import warpmesh as wm
+
+    pts, tets = _kuhn_block(3)  # exact coordinates, coplanar boundary faces, shared diagonals
+    assert find_tet_overlaps(pts, tets).shape == (0, 2)
+    assert find_tet_overlaps(_moved(pts, 5), tets).shape == (0, 2)
+    b = ((-1.2,) * 3, (1.2,) * 3)
+    for m in (wm.mesh_domain(wm.torus(0.8, 0.3), bounds=b, size=0.15),
+              wm.mesh_domain(wm.sphere(1.0) - wm.sphere(0.5), bounds=b, size=0.15),  # a cavity: two shells
+              wm.mesh_domain(wm.sphere(1.0), bounds=b, size=0.3, method="delaunay")):
+        assert m.check().shape == (0, 2)
+        assert m.stats()["self_intersections"] == 0
+
+
+def test_tetgen_meshes_have_no_overlaps():
+    # a mesher no one here wrote: TetGen's quality tetrahedra of a trimesh icosphere
+    tetgen = pytest.importorskip("tetgen")
+    s = trimesh.creation.icosphere(2)
+    pts, tets = tetgen.TetGen(s.vertices, s.faces).tetrahedralize(order=1, minratio=1.5)[:2]
+    pts, tets = np.asarray(pts, float), np.asarray(tets, np.int64)
+    p = pts[tets]
+    vol = np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
+    if (vol < 0).all():  # TetGen's own orientation convention: the house's is the opposite one
+        tets = tets[:, [0, 2, 1, 3]]
+    assert len(tets) > 100 and find_tet_overlaps(pts, tets).shape == (0, 2)
+    assert len(find_tet_overlaps(pts, tets[:, [0, 2, 1, 3]])) == len(tets)  # all inverted: (i, i) each
+
+
+def test_bad_tetrahedra_are_reported_alone():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]], float)
+    cases = {"inverted": [0, 2, 1, 3], "flat": [0, 1, 2, 4], "repeated vertex": [0, 1, 1, 3]}
+    for name, t in cases.items():
+        got = find_tet_overlaps(pts, [[0, 1, 2, 3], t] if name != "inverted" else [t])
+        want = [1, 1] if name != "inverted" else [0, 0]
+        assert want in got.tolist(), name  # the flat one also shares face (0, 1, 2) on the same side
+        assert len(got) <= 2, name
+    # nearly flat but certified positive: not reported
+    near = np.vstack([pts[:3], [[0.3, 0.3, 1e-12]]])
+    assert find_tet_overlaps(near, [[0, 1, 2, 3]]).shape == (0, 2)
+
+
+def test_faces_shared_the_wrong_way_are_reported():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0.2, 0.2, 0.5], [0, 0, -1]], float)
+    # the same face (0, 1, 2) with both tetrahedra above it; a duplicate; a face in three
+    assert find_tet_overlaps(pts, [[0, 1, 2, 3], [0, 1, 2, 4]]).tolist() == [[0, 1]]
+    assert find_tet_overlaps(pts, [[0, 1, 2, 3], [1, 2, 0, 3]]).tolist() == [[0, 1]]
+    got = find_tet_overlaps(pts, [[0, 1, 2, 3], [0, 2, 1, 5], [0, 1, 2, 4]])
+    assert {tuple(p) for p in got.tolist()} >= {(0, 2), (1, 2)}
+    assert _embedded_by_lp(pts, np.array([[0, 1, 2, 3], [0, 2, 1, 5]]))
+    assert not _embedded_by_lp(pts, np.array([[0, 1, 2, 3], [0, 1, 2, 4]]))
+
+
+def test_overlapping_copies_and_nested_shells_are_reported():
+    import warpmesh as wm
+
+    b = ((-1.2,) * 3, (1.2,) * 3)
+    ball = wm.mesh_domain(wm.sphere(1.0), bounds=b, size=0.35)
+    small = wm.mesh_domain(wm.sphere(0.4), bounds=b, size=0.2)
+    n, t = len(ball.points), ball.cells["tetra"]
+    # a copy moved by half a radius: boundaries cross, every reported pair meets (LP)
+    pts = np.vstack([ball.points, ball.points + [0.5, 0.0, 0.0]])
+    got = find_tet_overlaps(pts, np.vstack([t, t + n]))
+    assert len(got) > 0
+    tets = np.vstack([t, t + n])
+    assert all(_overlap_depth(pts, tets[i], tets[j]) >= -1e-12 for i, j in got[:40])
+    # a small ball inside the big one: no boundary crosses, the winding number is 2 inside it
+    pts = np.vstack([ball.points, small.points])
+    tets = np.vstack([t, small.cells["tetra"] + n])
+    got = find_tet_overlaps(pts, tets)
+    assert len(got) > 0 and all(_overlap_depth(pts, tets[i], tets[j]) > 1e-9 for i, j in got)
+    assert wm.Mesh(pts, {"tetra": tets}).stats()["self_intersections"] == len(got)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_moved_vertices_agree_with_the_lp_oracle(seed):
+    # the Kuhn block with interior vertices moved at random, some far enough to fold their
+    # star: the check is empty exactly when the LP oracle finds the mesh embedded
+    rng = np.random.default_rng(seed)
+    pts, tets = _kuhn_block(3)
+    inner = np.flatnonzero(np.all((pts > 0) & (pts < 1), axis=1))
+    verdicts = set()
+    for step in (0.05, 0.15, 0.3, 0.45):
+        moved = pts.copy()
+        moved[inner] += rng.uniform(-step, step, (len(inner), 3))
+        empty = len(find_tet_overlaps(moved, tets)) == 0
+        assert empty == _embedded_by_lp(moved, tets), step
+        verdicts.add(empty)
+    assert verdicts == {True, False}
+
+
+def test_tet_overlaps_refuse_bad_input():
+    with pytest.raises(ValueError, match="'tetra'"):
+        find_tet_overlaps(np.zeros((4, 3)), [[0, 1, 2]])
+    with pytest.raises(ValueError, match="'tetra'"):
+        find_tet_overlaps(np.zeros((4, 3)), [[0, 1, 2, 4]])
+    with pytest.raises(TypeError, match="'tetra'"):
+        find_tet_overlaps(np.zeros((4, 3)), [[0.0, 1.0, 2.0, 3.0]])
+    with pytest.raises(ValueError, match="'points'"):
+        find_tet_overlaps(np.full((4, 3), np.nan), [[0, 1, 2, 3]])
+    assert find_tet_overlaps(np.zeros((0, 3)), np.zeros((0, 4), int)).shape == (0, 2)

@@ -82,7 +82,7 @@ from warpmesh.cells.types import points3, require_mesh
 from warpmesh.kernels import intersect as K
 
 __all__ = ["check", "find_self_intersections", "count_self_intersecting_faces", "find_degenerate_faces",
-           "find_segment_intersections", "profile_self_intersections"]
+           "find_segment_intersections", "find_tet_overlaps", "profile_self_intersections"]
 
 #: query boxes are grown by this much, in BVH coordinates (points in [-1, 1]^3): 4 float32 ulps at 1
 _QUERY_PAD = 4.0 * 2.0**-24
@@ -302,8 +302,9 @@ def check(mesh, *, device: str = "cpu") -> np.ndarray:
     """The pairs of cells of a mesh that cross: is the mesh embedded?
 
     Closed, manifold and oriented meshes can still have triangles that pass through each
-    other; this is the geometric check. It tests the ``"triangle"`` block (a surface, or
-    a planar triangle mesh at z = 0: overlapping planar triangles are reported), else the
+    other; this is the geometric check. It tests the ``"tetra"`` block of a volume mesh
+    (:func:`find_tet_overlaps`), else the ``"triangle"`` block (a surface, or a planar
+    triangle mesh at z = 0: overlapping planar triangles are reported), else the
     ``"line"`` block of a planar polyline.
 
     Parameters
@@ -322,7 +323,7 @@ def check(mesh, *, device: str = "cpu") -> np.ndarray:
     TypeError
         ``mesh`` is not a Mesh.
     ValueError
-        No ``"triangle"`` block, and no ``"line"`` block of 2D points.
+        No ``"tetra"`` block in 3D, no ``"triangle"`` block, and no ``"line"`` block of 2D points.
 
     Examples
     --------
@@ -332,12 +333,169 @@ def check(mesh, *, device: str = "cpu") -> np.ndarray:
     0
     """
     require_mesh(mesh)
+    if "tetra" in mesh.cells and mesh.dim == 3:
+        return find_tet_overlaps(mesh.points, mesh.cells["tetra"], device=device)
     if "triangle" in mesh.cells:
         return find_self_intersections(points3(mesh), mesh.cells["triangle"], device=device)
     if "line" in mesh.cells and mesh.dim == 2:
         return find_segment_intersections(mesh.points, mesh.cells["line"])
-    raise ValueError(f"expected a 'triangle' block, or a 'line' block of 2D points, got blocks "
+    raise ValueError(f"expected a 'tetra' or 'triangle' block, or a 'line' block of 2D points, got blocks "
                      f"{list(mesh.cells)} in {mesh.dim}D")
+
+
+#: the four faces of a tetrahedron (a, b, c, d), each oriented outward when O(a, b, c, d) > 0
+_TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+
+
+def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
+    """The pairs of tetrahedra whose interiors overlap, and the tetrahedra that are flat or
+    inverted: is a volume mesh embedded?
+
+    Not one test per pair of tetrahedra (an interior tetrahedron's box meets some 90
+    others), but a certificate in O(m) plus the triangle check of the boundary. With the
+    four-tuple (a, b, c, d) counted positive when d is on the side of (a, b, c) its
+    right-hand normal points to, the tetrahedra, as a 3-chain, cover each point x not on
+    the boundary ``deg(x)`` times, and ``deg`` equals the winding number of the chain's
+    boundary around x when (1) every tetrahedron is positive and (2) every face is in at
+    most two tetrahedra, which induce opposite orientations on it (the chain's boundary
+    is then the faces in one tetrahedron). The mesh is embedded iff deg <= 1 everywhere,
+    which, given (1) and (2), holds iff (3) no two boundary faces cross or touch
+    (:func:`find_self_intersections`) and (4) just inside each boundary component the
+    winding number is 1 (it is 2 inside a shell nested in another one with the same
+    orientation: a ball meshed inside a ball, say, whose boundaries never cross).
+    What is reported:
+
+    - (i, i) for a tetrahedron i that is inverted, flat to within float64 rounding
+      (filtered orientation test) or repeats a vertex;
+    - (i, j) for the tetrahedra of a face in three or more of them, or in two with the same
+      orientation (then both lie on one side of it);
+    - (i, j) for the tetrahedra of two boundary faces that cross or touch;
+    - (i, j) for a tetrahedron i inside a boundary component where (4) fails and each
+      tetrahedron j that contains its centroid as well (winding numbers by solid angles;
+      only components whose boxes nest are compared).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    tetra : (m, 4) int
+    device : str
+        Warp device of the orientation tests and the boundary check.
+
+    Returns
+    -------
+    (k, 2) int64
+        Sorted pairs (i <= j) of tetrahedron indices; empty when the mesh is embedded.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Bad ``points`` or ``tetra`` (shape, dtype, NaN, indices out of range).
+
+    Examples
+    --------
+    >>> pts = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1], [0.2, 0.2, 0.2]]
+    >>> find_tet_overlaps(pts, [[0, 1, 2, 3], [1, 2, 3, 4]]).tolist()  # two tets sharing a face
+    []
+    >>> find_tet_overlaps(pts, [[0, 1, 2, 3], [0, 1, 2, 5]]).tolist()  # both above face (0, 1, 2)
+    [[0, 1]]
+    >>> find_tet_overlaps(pts, [[0, 1, 2, 3], [1, 2, 3, 5]]).tolist()  # the second is inverted
+    [[1, 1]]
+    """
+    pts, tets = _validate(points, tetra, 4, "tetra")
+    device = check_device(device)
+    m = len(tets)
+    if m == 0:
+        return np.zeros((0, 2), dtype=INDEX_DTYPE)
+    with wp.ScopedDevice(device):
+        dev = wp.get_device(device)
+        points64, tets32 = _device_arrays(_scaled(pts), tets, dev)
+        signs = wp.empty(m, dtype=wp.int32, device=dev)
+        wp.launch(K.tet_signs_kernel, dim=m, inputs=[points64, tets32], outputs=[signs], device=dev)
+        signs = signs.numpy()
+    ids = np.arange(m, dtype=INDEX_DTYPE)
+    bad = ids[signs <= 0]
+    pairs = [np.column_stack([bad, bad])]
+
+    faces = tets[:, _TET_FACES].reshape(-1, 3)  # row 4 t + k: face k of tetrahedron t, outward
+    srt = np.sort(faces, axis=1)
+    odd = ((faces[:, 0] > faces[:, 1]).astype(np.int8) + (faces[:, 0] > faces[:, 2]) + (faces[:, 1] > faces[:, 2])) & 1
+    if len(pts) <= 1 << 21:  # one int64 key per face: one sort instead of a lexsort over three columns
+        key = (srt[:, 0] << 42) | (srt[:, 1] << 21) | srt[:, 2]
+        order = np.argsort(key, kind="stable")
+        key = key[order]
+        start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    else:
+        order = np.lexsort((srt[:, 2], srt[:, 1], srt[:, 0]))
+        s = srt[order]
+        start = np.flatnonzero(np.r_[True, (s[1:] != s[:-1]).any(axis=1)])
+    counts = np.diff(np.r_[start, len(faces)])
+    owner = order // 4  # the tetrahedron of each sorted face row
+    # faces in two tetrahedra with the same orientation, or in three or more: every pair of them
+    two = start[counts == 2]
+    same = two[odd[order[two]] == odd[order[two + 1]]]
+    pairs.append(np.column_stack([owner[same], owner[same + 1]]))
+    for first, count in zip(start[counts > 2], counts[counts > 2]):
+        group = owner[first:first + count]
+        a, b = np.triu_indices(count, 1)
+        pairs.append(np.column_stack([group[a], group[b]]))
+    once = order[start[counts == 1]]  # boundary face rows, oriented outward
+    boundary = faces[once]
+    crossing = find_self_intersections(pts, boundary, device=device)
+    pairs.append(once[crossing] // 4)
+    if not any(len(p) for p in pairs):
+        pairs.append(_nested_shells(pts, tets, boundary, once // 4))
+    out = np.sort(np.concatenate(pairs).astype(INDEX_DTYPE), axis=1)
+    return np.unique(out, axis=0) if len(out) else out.reshape(0, 2)
+
+
+def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owners: np.ndarray) -> np.ndarray:
+    """Condition (4) of :func:`find_tet_overlaps` on a mesh that meets (1)-(3): for each
+    boundary component, the winding number of the whole boundary just inside it (its own
+    1 when it bounds its tetrahedra from outside, 0 when from inside, plus the other
+    components' winding numbers at one of its points) must be 1; where it is not, the pairs
+    of tetrahedra containing the centroid of one of its tetrahedra."""
+    from warpmesh.cells.topology import connected_components, signed_volume
+
+    if not len(boundary):
+        return np.zeros((0, 2), dtype=INDEX_DTYPE)
+    n_comp, label = connected_components(boundary, len(pts))
+    if n_comp < 2:
+        return np.zeros((0, 2), dtype=INDEX_DTYPE)
+    rows = [np.flatnonzero(label == c) for c in range(n_comp)]
+    lo = np.array([pts[boundary[r]].reshape(-1, 3).min(axis=0) for r in rows])
+    hi = np.array([pts[boundary[r]].reshape(-1, 3).max(axis=0) for r in rows])
+    out = []
+    for c, r in enumerate(rows):
+        q = pts[boundary[r[0]]].mean(axis=0)  # on component c, off the others (they do not touch it)
+        inside = np.flatnonzero(np.all(lo <= q, axis=1) & np.all(q <= hi, axis=1))
+        w = float(signed_volume(pts, boundary[r]) > 0.0)
+        for j in inside[inside != c]:
+            w += _winding_number(pts, boundary[rows[j]], q)
+        if round(w) != 1:
+            t = int(owners[r[0]])
+            hits = _tets_containing(pts, tets, pts[tets[t]].mean(axis=0))
+            hits = hits[hits != t]
+            out.append(np.column_stack([np.full(len(hits), t), hits]))
+    return np.concatenate(out) if out else np.zeros((0, 2), dtype=INDEX_DTYPE)
+
+
+def _winding_number(pts: np.ndarray, faces: np.ndarray, q: np.ndarray) -> float:
+    """Winding number of a closed oriented triangle surface around q (off it): the sum of
+    the faces' signed solid angles over 4 pi (Van Oosterom and Strackee)."""
+    a, b, c = (pts[faces[:, k]] - q for k in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    num = np.einsum("ij,ij->i", a, np.cross(b, c))
+    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
+        + np.einsum("ij,ij->i", c, a) * lb
+    return float(2.0 * np.arctan2(num, den).sum() / (4.0 * np.pi))
+
+
+def _tets_containing(pts: np.ndarray, tets: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The tetrahedra (positive ones) whose closed interior holds x, by the signs of the
+    four sub-volumes (float64; a failure path only)."""
+    p = [pts[tets[:, k]] - x for k in range(4)]
+    vol = [np.einsum("ij,ij->i", p[i], np.cross(p[j], p[k])) for i, j, k in ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))]
+    return np.flatnonzero(np.all(np.stack(vol) >= 0.0, axis=0)).astype(INDEX_DTYPE)
 
 
 def find_segment_intersections(points, segments) -> np.ndarray:
@@ -584,8 +742,8 @@ def _split(n_groups: int, m: int, device, n_workers: int):
     return run
 
 
-def _validate(points, triangles) -> tuple[np.ndarray, np.ndarray]:
-    """points as (n, 3) float64, triangles as (m, 3) int64, or a ValueError/TypeError
+def _validate(points, triangles, k: int = 3, name: str = "triangles") -> tuple[np.ndarray, np.ndarray]:
+    """points as (n, 3) float64, triangles (``name``) as (m, k) int64, or a ValueError/TypeError
     naming the argument."""
     pts = np.asarray(points)
     if pts.dtype.kind not in "iuf":
@@ -600,17 +758,17 @@ def _validate(points, triangles) -> tuple[np.ndarray, np.ndarray]:
     if tris.size == 0 and tris.dtype.kind == "f":  # an empty list: no triangles
         tris = tris.astype(INDEX_DTYPE)
     if tris.dtype.kind not in "iu":
-        raise TypeError(f"expected integer indices for 'triangles', got an array of dtype {tris.dtype}")
+        raise TypeError(f"expected integer indices for '{name}', got an array of dtype {tris.dtype}")
     if tris.size == 0:
-        tris = tris.reshape(0, 3)
-    if tris.ndim != 2 or tris.shape[1] != 3:
-        raise ValueError(f"expected an (m, 3) array for 'triangles', got shape {tris.shape}")
-    if len(pts) > _INT32_MAX or 3 * len(tris) > _INT32_MAX:
-        raise ValueError(f"expected fewer than 2**31 points and 2**31 / 3 triangles, got {len(pts)} points "
-                         f"and {len(tris)} triangles")
+        tris = tris.reshape(0, k)
+    if tris.ndim != 2 or tris.shape[1] != k:
+        raise ValueError(f"expected an (m, {k}) array for '{name}', got shape {tris.shape}")
+    if len(pts) > _INT32_MAX or k * len(tris) > _INT32_MAX:
+        raise ValueError(f"expected fewer than 2**31 points and 2**31 / {k} cells, got {len(pts)} points "
+                         f"and {len(tris)} {name}")
     if tris.size and (tris.min() < 0 or tris.max() >= len(pts)):
         bad = tris.min() if tris.min() < 0 else tris.max()
-        raise ValueError(f"expected indices in [0, {len(pts)}) for 'triangles' (the number of points), "
+        raise ValueError(f"expected indices in [0, {len(pts)}) for '{name}' (the number of points), "
                          f"got {int(bad)}")
     return pts, tris.astype(INDEX_DTYPE, copy=False)
 
