@@ -305,18 +305,11 @@ def _entries(sorted_flat: np.ndarray, order: np.ndarray, keys: np.ndarray) -> np
 
 def _merged(sorted_flat: np.ndarray, order: np.ndarray, add: np.ndarray, where: np.ndarray):
     """The index (``sorted_flat``, ``order``) with the sorted keys ``add`` at flat positions
-    ``where`` merged in, in time linear in its size."""
-    pos = np.searchsorted(sorted_flat, add) + np.arange(len(add))
-    total = len(sorted_flat) + len(add)
-    rest = np.ones(total, bool)
-    rest[pos] = False
-    sf = np.empty(total, np.int64)
-    sf[pos] = add
-    sf[rest] = sorted_flat
-    od = np.empty(total, np.int64)
-    od[pos] = where
-    od[rest] = order
-    return sf, od
+    ``where`` merged in, in time linear in its size: a stable sort of the two sorted runs
+    (numpy's timsort merges runs; ``add`` goes before equal keys of the index)."""
+    keys = np.concatenate([add, sorted_flat])
+    o = np.argsort(keys, kind="stable")
+    return keys[o], np.concatenate([where, order])[o]
 
 
 class _Bisection:
@@ -365,7 +358,9 @@ class _Bisection:
     def _holding(self, keys) -> np.ndarray:
         """The living tetrahedra holding any of ``keys`` (sorted unique)."""
         t = np.concatenate([_entries(*self.main, keys), _entries(*self.recent, keys)]) // 6
-        return np.unique(t[self.alive[t]])
+        hit = np.zeros(self._alive.n, bool)  # a mask, not a sort: the living ones, in order
+        hit[t] = True
+        return np.flatnonzero(hit & self.alive)
 
     def bisect(self, split: np.ndarray) -> None:
         """Bisect the edges ``split`` (keys) and every longest edge the conformity closure
@@ -456,20 +451,29 @@ def refine_tets(coords: np.ndarray, tets: np.ndarray, h0: float, origin: np.ndar
 
     ``tet_size(nodes, tets)``, optional: (n, 3) world positions of the nodes and (k, 4) node
     ids -> (k,) the size asked of each of those tetrahedra, in place of ``field``'s smallest at
-    their vertices and centroids (``field`` then only names the smallest size in errors).
+    their vertices and centroids (``field`` then only names the smallest size: sizes below
+    ``field.smallest`` raise ValueError, and a tetrahedron no longer than it is not asked).
 
     Returns (coords, tets, levels) as :func:`refine_bcc`; the first n nodes are ``coords``.
     """
     mesh = _Bisection(np.asarray(coords, dtype=np.float64), np.asarray(tets, dtype=np.int64))
     unit = 0.5 * float(h0)
     node_size = np.empty(0)  # the size at every node, evaluated once
+    floor = field.smallest / unit
     for _ in range(max_rounds):
         idx = np.flatnonzero(mesh.fresh)
         mesh.fresh[:] = False
         coords = mesh.coords()
-        pts = coords[mesh.tets[idx]]
+        pts = coords[mesh.tets[idx]] if tet_size is None or outside is not None else None
         if tet_size is not None:
-            want = np.asarray(tet_size(origin + coords * unit, mesh.tets[idx]), dtype=np.float64) / unit
+            # a tetrahedron no longer than the smallest size is never bisected for its size: not asked
+            want = np.full(len(idx), floor)
+            ask = np.flatnonzero(mesh.llen[idx] > floor * (1 + 1e-9))
+            if len(ask):
+                want[ask] = np.asarray(tet_size(origin + coords * unit, mesh.tets[idx[ask]]), dtype=np.float64) / unit
+                if (want[ask] < floor).any():
+                    raise ValueError(f"expected 'tet_size' to give sizes of at least the field's smallest "
+                                     f"({field.smallest:g}), got {float(want[ask].min() * unit):g}")
         else:
             if len(node_size) < len(coords):
                 node_size = np.concatenate([node_size, field(origin + coords[len(node_size):] * unit)])
