@@ -299,7 +299,7 @@ def finest_cells(lo, hi, max_level: int):
 def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, tolerance: float | None,
                  angles=None, chord: float | None = None, bound: str = "interval", lipschitz: float | None = None,
                  cap: bool = True, prune: bool = True, force=None, window=None, last_level: int | None = None,
-                 device="cpu") -> Octree:
+                 collar: bool = False, device="cpu") -> Octree:
     """Build the covering-up of the box [lo, hi] down to ``max_level`` (2**max_level finest
     cells along the longest side), refining where the criteria above fail, and the cells
     whose keys (:func:`cell_keys`) are in the sorted array ``force``.
@@ -310,6 +310,9 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     cells ``lo <= ijk < hi`` (their ancestors, and their descendants), each decided as in the
     whole tree; ``last_level`` stops after that level (its refined cells stay INTERNAL, without
     children). :mod:`warpmesh.distributed.adaptive` builds the tree brick by brick with them.
+    With ``collar`` the window's cells are joined by the cells whose closed box touches the
+    window's (every leaf across a face, edge or corner of a leaf inside it: its hanging nodes);
+    ``levels`` still counts the window's own cells.
 
     Example
     -------
@@ -344,11 +347,14 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     n_leaves = 0
     for level in range(base, max_level + 1 if last_level is None else min(last_level, max_level) + 1):
         t0 = time.perf_counter()
-        if window is not None:  # only the cells that meet the window's box
-            keep = in_window(level, ijk, window)
+        own = slice(None)  # the cells the level's statistics count
+        if window is not None:  # only the cells that meet the window's box (or touch it: collar)
+            keep = in_window(level, ijk, window, closed=collar)
             ijk, tape_id = ijk[keep], tape_id[keep]
             if fld.prune:  # (else ``choices`` is no longer kept per cell)
                 choices = choices[keep]
+            if collar:
+                own = in_window(level, ijk, window)
         span = int(tree.span(level))
         lat_lo = ijk * span
         box_lo = tree.world(lat_lo)
@@ -402,10 +408,10 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
         leaves_level.append(np.full(int(leaf.sum()), level, np.int64))
         leaves_ijk.append(ijk[leaf])
         tree.levels.append({
-            "level": level, "cells": len(ijk), "culled_inside": int((inside & ~touches).sum()),
-            "culled_outside": int(outside.sum()), "cap_leaves": int(cap_leaf.sum()),
-            "checked": int(checked.sum()), "refined": int(refine.sum()),
-            "leaves": int(leaf.sum()), "mean_tape_length": round(mean_tape, 2),
+            "level": level, "cells": len(ijk[own]), "culled_inside": int((inside & ~touches)[own].sum()),
+            "culled_outside": int(outside[own].sum()), "cap_leaves": int(cap_leaf[own].sum()),
+            "checked": int(checked[own].sum()), "refined": int(refine[own].sum()),
+            "leaves": int(leaf[own].sum()), "mean_tape_length": round(mean_tape, 2),
             "time": time.perf_counter() - t0})
         if not refine.any():
             break
@@ -429,14 +435,23 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     return tree
 
 
-def in_window(level: int, ijk: np.ndarray, window) -> np.ndarray:
+def in_window(level: int, ijk: np.ndarray, window, closed: bool = False) -> np.ndarray:
     """Which cells ``ijk`` of ``level`` meet the box of the cells ``lo <= ijk < hi`` of
-    level ``window[0]`` (``window = (level, lo, hi)``).
+    level ``window[0]`` (``window = (level, lo, hi)``); with ``closed``, whose closed box
+    touches the window's closed box (a face, edge or corner in common is enough).
 
     >>> in_window(2, np.array([[0, 0, 0], [1, 0, 0]]), (3, (2, 0, 0), (4, 2, 2))).tolist()
     [False, True]
+    >>> in_window(4, np.array([[3, 0, 0], [8, 4, 4], [9, 0, 0]]), (3, (2, 0, 0), (4, 2, 2)), closed=True).tolist()
+    [True, True, False]
     """
     wl, wlo, whi = window[0], np.asarray(window[1], np.int64), np.asarray(window[2], np.int64)
+    if closed:  # compare on the finer of the two levels' cells
+        if level <= wl:
+            shift = wl - level
+            return np.all((ijk << shift <= whi) & ((ijk + 1) << shift >= wlo), axis=1)
+        shift = level - wl
+        return np.all((ijk <= whi << shift) & (ijk + 1 >= wlo << shift), axis=1)
     if level <= wl:  # coarser: the cell's box meets the window's
         shift = wl - level
         return np.all((ijk >= wlo >> shift) & (ijk <= (whi - 1) >> shift), axis=1)

@@ -44,9 +44,16 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
 
     ``build``, when given, makes each round's tree in place of :func:`build_octree`, with
     its arguments, and returns the tree it would (the bricked build of
-    :class:`warpmesh.distributed.adaptive.BrickedOctree`)."""
+    :class:`warpmesh.distributed.adaptive.BrickedOctree`). A build with a ``join_crossings``
+    method also takes ``roots`` (the root options) and contours the leaves where it built
+    them: ``join_crossings(tree, timings)`` returns (minus, plus, segments, units, points,
+    normals, cap_vertex) as the face units, crossings, roots and normals of one process
+    would give them, array for array."""
     open_bounds, cap = not cap, True
     timings["octree"], rounds = 0.0, 0
+    joined_roots = dict(root=root, root_iterations=root_iterations, gradient=gradient)
+    # a build that contours its own leaves too (on the workers) takes the root options and joins them
+    joined = dict(roots=joined_roots) if hasattr(build, "join_crossings") else None
     # The rounds end (no cap needed): a cell of ``force`` that a round reaches above max_level is
     # refined (or culled), never a leaf, so each round's two-sheet leaves are keys not yet in
     # ``force``, which grows strictly within the finite set of cells above max_level. That needs
@@ -58,16 +65,20 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
         t0 = time.perf_counter()
         tree = (build or build_octree)(tape, lo, hi, max_level=max_level, min_level=min_level, tolerance=tolerance,
                                        angles=angles, chord=chord, bound=bound, lipschitz=lipschitz, cap=cap,
-                                       prune=prune, force=force, device=device)
+                                       prune=prune, force=force, device=device, **(joined or {}))
         timings["octree"] += time.perf_counter() - t0
-        fld = tree.field
 
         t0 = time.perf_counter()
-        axis, origin, size, minus, plus, owner, side = OC.face_units(tree)
-        node_of, ptr, node_keys = OC.boundary_cycles(tree, axis, owner, side)
-        values, capped, vnodes, segments = OC.unit_segments(tree, axis, origin, size, node_of, ptr, node_keys)
+        if joined is not None:  # the workers' face units, crossings, roots and normals, joined
+            minus, plus, segments, n_units, points, normals, cap_vertex = build.join_crossings(tree, timings)
+            n_vertices = len(points)
+        else:
+            axis, origin, size, minus, plus, owner, side = OC.face_units(tree)
+            node_of, ptr, node_keys = OC.boundary_cycles(tree, axis, owner, side)
+            values, capped, vnodes, segments = OC.unit_segments(tree, axis, origin, size, node_of, ptr, node_keys)
+            n_units, n_vertices = len(axis), len(vnodes)
         timings["faces"] = time.perf_counter() - t0
-        info.update(leaves=len(tree.leaf_level), face_units=len(axis), crossings=len(vnodes))
+        info.update(leaves=len(tree.leaf_level), face_units=n_units, crossings=n_vertices)
         if not len(segments):
             info["octree_rounds"] = rounds
             _finish_info(tree, info, 0, 0, 0)
@@ -79,21 +90,15 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
 
         def chain_loops():
             try:
-                loops.append(OC.leaf_loops(segments, minus, plus, len(vnodes)))
+                loops.append(OC.leaf_loops(segments, minus, plus, n_vertices))
             except BaseException as exc:  # re-raised on the calling thread below
                 loops.append(exc)
 
         chain = threading.Thread(target=chain_loops)
         chain.start()
-        p0, p1, t = OC.edge_points(tree, vnodes, node_keys, values)
-        cap_vertex = capped[vnodes].any(axis=1)
-        points = p0 + t[:, None] * (p1 - p0)
-        fg = None  # (f, grad f) at the vertices, when the root finding leaves them behind
-        if root != "linear":
-            steps = root_iterations or (12 if root == "bisection" else NEWTON_STEPS)
-            points, fg = _refine(tape, tree, p0, p1, t, values[vnodes[:, 0]] > 0, cap_vertex, root, steps,
-                                 gradient, device, timings)
-            fld.counts["evaluations"] += len(points) * steps
+        if joined is None:
+            points, fg, cap_vertex = crossing_roots(tape, tree, vnodes, node_keys, values, capped, device=device,
+                                                    timings=timings, **joined_roots)
         timings["root"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
@@ -106,7 +111,8 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
             break
         force = two_sheets if force is None else np.union1d(force, two_sheets)
     info["octree_rounds"] = rounds
-    normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
+    if joined is None:
+        normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
     centres, rank = OC.loop_vertices(tree, half, loop_of, n_loops, points, normals, features)
     unit_of_half = np.concatenate([segments[:, 0], segments[:, 0]])
     tris, tri_half = OC.fan_triangles(half, loop_of, loop_size, nxt, len(points), unit_of_half, rank >= 2,
@@ -165,6 +171,28 @@ def _on_one_face(tree, points: np.ndarray, tris: np.ndarray) -> np.ndarray:
     faces = ((np.abs(points - lo) <= tol) << np.arange(3)).sum(axis=1) | \
         ((np.abs(points - hi) <= tol) << np.arange(3, 6)).sum(axis=1)  # a bit per face of the bounds
     return (faces[tris[:, 0]] & faces[tris[:, 1]] & faces[tris[:, 2]]) != 0
+
+
+def crossing_roots(tape, tree, vnodes, node_keys, values, capped, *, root, root_iterations, gradient, device,
+                   timings):
+    """(points (nv, 3) float64, (f, grad f) (nv, 4) float32 or None, cap_vertex (nv,)) of the
+    crossings ``vnodes`` (indices into ``node_keys``, node values ``values``, ``capped`` nodes,
+    :func:`warpmesh.surface.adaptive.contour.unit_segments`): linear interpolation (eq. 16.12),
+    then bisection or safeguarded Newton on the exact f (cap vertices stay). Each vertex is a
+    function of its edge alone, so the workers' crossings of a bricked run are the same points.
+    The tree's field counts the evaluations.
+
+    Example: see :func:`mesh_adaptive` (the module's example runs it)."""
+    p0, p1, t = OC.edge_points(tree, vnodes, node_keys, values)
+    cap_vertex = capped[vnodes].any(axis=1)
+    points = p0 + t[:, None] * (p1 - p0)
+    fg = None  # (f, grad f) at the vertices, when the root finding leaves them behind
+    if root != "linear":
+        steps = root_iterations or (12 if root == "bisection" else NEWTON_STEPS)
+        points, fg = _refine(tape, tree, p0, p1, t, values[vnodes[:, 0]] > 0, cap_vertex, root, steps,
+                             gradient, device, timings)
+        tree.field.counts["evaluations"] += len(points) * steps
+    return points, fg, cap_vertex
 
 
 def _refine(tape, tree, p0, p1, t, p0_inside, keep, root, iterations, gradient, device, timings):
