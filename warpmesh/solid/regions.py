@@ -458,6 +458,19 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     t0 = time.perf_counter()
     n_cuts = len(keys)
 
+    # each local edge's share of its two ends (its cut's parameter from local i to local j; 0
+    # where uncut), once: a face's and the tet's weights sum them
+    on_edge, to_i, to_j = [], [], []
+    for k, (i, j) in enumerate(_EDGES):
+        e = cut_id[:, k]
+        on = e >= 0
+        te = np.where(on, ts[np.maximum(e, 0)], 0.0)
+        # ts is along lo -> hi; local i is lo when its node id is the smaller
+        t_j = np.where(T[:, i] < T[:, j], te, 1.0 - te)
+        on_edge.append(on)
+        to_i.append(np.where(on, 1.0 - t_j, 0.0))
+        to_j.append(np.where(on, t_j, 0.0))
+
     def weights_on(corners, edges):
         """Barycentric weights over ``corners`` (local vertex indices) of the mean of the cuts on
         ``edges`` (local edge indices) of each row."""
@@ -465,14 +478,9 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
         n = np.zeros((M, 1))
         for k in edges:
             i, j = _EDGES[k]
-            e = cut_id[:, k]
-            on = e >= 0
-            te = np.where(on, ts[np.maximum(e, 0)], 0.0)
-            # ts is along lo -> hi; local i is lo when its node id is the smaller
-            t_j = np.where(T[:, i] < T[:, j], te, 1.0 - te)
-            w[:, corners.index(i)] += np.where(on, 1.0 - t_j, 0.0)
-            w[:, corners.index(j)] += np.where(on, t_j, 0.0)
-            n[:, 0] += on
+            w[:, corners.index(i)] += to_i[k]
+            w[:, corners.index(j)] += to_j[k]
+            n[:, 0] += on_edge[k]
         return _interior(w / np.maximum(n, 1.0))
 
     face_vertex = np.full((M, 4), -1, np.int64)
@@ -515,8 +523,9 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     for f, face in enumerate(_FACES):
         fv = face_vertex[:, f]
         uni = fv < 0
-        sub.append(np.column_stack([tet_vertex[uni], T[uni][:, list(face)]]))
-        sub_code.append(L[uni, face[0]])
+        one = uni & (L[:, face[0]] != rest)  # a face of one meshed label (those of the rest are dropped)
+        sub.append(np.column_stack([tet_vertex[one], T[one][:, list(face)]]))
+        sub_code.append(L[one, face[0]])
         mx = np.flatnonzero(~uni)
         # the face's polygon as 6 segment slots, counter-clockwise: (k, x) and (x, k') per edge k -> k',
         # x the edge's cut point (a node when snapped or uncut); each labelled by its lattice node
@@ -529,9 +538,14 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
             start[:, 2 * q + 1], end[:, 2 * q + 1], code[:, 2 * q + 1] = x, T[mx, k2], L[mx, k2]
         valid = start != end  # a segment snapped to a point is no segment
         tp, fp = tet_vertex[mx], fv[mx]
-        r, c = np.nonzero(valid)
-        sub.append(np.column_stack([tp[r], fp[r], start[r, c], end[r, c]]))
-        sub_code.append(code[r, c])
+        # the sub-tetrahedra of the meshed labels only (those of the rest are dropped)
+        slot = np.flatnonzero(valid & (code != rest))
+        r = slot // 6
+        fan = np.empty((len(slot), 4), np.int64)
+        fan[:, 0], fan[:, 1] = tp[r], fp[r]
+        fan[:, 2], fan[:, 3] = start.ravel()[slot], end.ravel()[slot]
+        sub.append(fan)
+        sub_code.append(code.ravel()[slot])
         # the next valid slot after each (cyclically): where their codes differ, the triangle
         # (tet point, face point, shared point) lies between two regions
         nxt = np.zeros_like(start)
@@ -546,13 +560,10 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
                              np.column_stack([tp[r], end[r, c], fp[r]])))
         tri_lo.append(np.minimum(code[r, c], cn[r, c]))
         tri_hi.append(np.maximum(code[r, c], cn[r, c]))
-    sub = np.concatenate(sub)
-    sub_code = np.concatenate(sub_code)
     triangles = np.concatenate(tris)
     lower, upper = np.concatenate(tri_lo), np.concatenate(tri_hi)
-    keep = sub_code != rest
-    tets = np.concatenate([whole, sub[keep]])
-    tet_codes = np.concatenate([whole_code, sub_code[keep]]).astype(np.int64)
+    tets = np.concatenate([whole, *sub])
+    tet_codes = np.concatenate([whole_code, *sub_code]).astype(np.int64)
     timings["cleave"] = time.perf_counter() - t0
 
     # -- compact the vertex ids
