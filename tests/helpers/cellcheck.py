@@ -8,7 +8,9 @@ Checks, raising AssertionError with the first offender:
   half-shared face goes unnoticed;
 - no cell repeats a vertex;
 - embedded: no two planar triangles overlap (2D), no two triangular boundary faces cross
-  (3D) — :func:`warpmesh.cells.intersections.find_self_intersections`.
+  (3D) — :func:`warpmesh.cells.intersections.find_self_intersections`; for tetrahedra,
+  :func:`warpmesh.cells.intersections.find_tet_overlaps` also finds nothing (which adds the
+  winding number: no shell of tetrahedra nested inside another one's tetrahedra).
 
 Returns ``{"measure": total signed area/volume, "n_boundary": boundary facets,
 "boundary_measure": their total length/area, "types": [...]}``.
@@ -18,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from warpmesh.cells.intersections import find_self_intersections
+from warpmesh.cells.intersections import find_self_intersections, find_tet_overlaps
 from warpmesh.cells.reference import cell_measures, corner_jacobians, reference_cell
 
 
@@ -90,5 +92,8 @@ def check_cells(mesh, *, embedded: bool = True) -> dict:
         if embedded and tri:
             pairs = find_self_intersections(mesh.points, np.concatenate(tri))
             assert len(pairs) == 0, f"{len(pairs)} pairs of crossing boundary faces, first {pairs[0].tolist()}"
+        if embedded and list(blocks) == ["tetra"]:
+            pairs = find_tet_overlaps(mesh.points, blocks["tetra"])
+            assert len(pairs) == 0, f"{len(pairs)} pairs of overlapping tetrahedra, first {pairs[0].tolist()}"
     return {"measure": total, "n_boundary": n_boundary, "boundary_measure": bmeasure,
             "types": list(blocks)}
