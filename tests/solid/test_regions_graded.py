@@ -147,3 +147,52 @@ def test_frog_crop_at_four_voxels():
     lost0 = sum(e == -1.0 for e in e0.values())
     lost1 = sum(e == -1.0 for e in e1.values())
     assert lost1 < lost0
+
+
+def test_labels_at_is_the_same_for_every_memory_layout():
+    """The flat gather of a contiguous volume (C or Fortran order) gives the labels of the
+    strided path: every point, those outside the box (the rest) included."""
+    from warpmesh.solid.regions import _labels_at
+
+    rng = np.random.default_rng(5)
+    vol = rng.integers(1, 9, (7, 5, 6)).astype(np.uint8)
+    spacing = np.array([1.0, 0.5, 1.5])
+    pts = rng.uniform(-2.0, 1.0, (4000, 3)) * spacing + rng.uniform(0, 1, (4000, 3)) * np.array(vol.shape) * spacing
+    want = np.array([vol[tuple(k)] if ((k >= 0) & (k < vol.shape)).all() else 0
+                     for k in np.rint(pts / spacing).astype(int)], np.uint8)
+    assert 0 < (want == 0).sum() < len(want)  # some outside, most inside
+    layouts = (vol, np.asfortranarray(vol), np.ascontiguousarray(vol[:, ::-1, :])[:, ::-1, :],
+               np.concatenate([vol, vol], axis=1)[:, :5, :])
+    assert [(x.flags.c_contiguous, x.flags.f_contiguous) for x in layouts] == \
+        [(True, False), (False, True), (False, False), (False, False)]
+    for layout in layouts:
+        np.testing.assert_array_equal(_labels_at(layout, pts, spacing, 0), want)
+
+
+def test_refine_tets_asks_tet_size_only_above_the_smallest_size():
+    """A tet_size equal to the field's own rule gives the field's background bit for bit,
+    though the tetrahedra already at the smallest size are never handed to it; a size below
+    the field's smallest raises."""
+    from warpmesh.solid.graded import bcc_tetrahedra, refine_tets, size_field
+
+    coords, tets = bcc_tetrahedra((5, 5, 5))
+    h0, origin = 1.0, np.zeros(3)
+
+    def size(p):
+        return 0.3 + 0.4 * (p[:, 0] > 1.5)
+
+    field = size_field(size, np.array([[0.0] * 3, [4.0] * 3]))
+    asked = []
+
+    def tet_size(nodes, t):
+        asked.append(np.linalg.norm(nodes[t[:, :, None]] - nodes[t[:, None, :]], axis=-1).max(axis=(1, 2)))
+        return np.minimum(size(nodes[t].reshape(-1, 3)).reshape(-1, 4).min(axis=1), size(nodes[t].mean(axis=1)))
+
+    a = refine_tets(coords, tets, h0, origin, field)
+    b = refine_tets(coords, tets, h0, origin, field, tet_size=tet_size)
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+    assert (b[2] > 0).any() and len(asked) > 1
+    assert np.concatenate(asked).min() > field.smallest * (1 + 1e-9)
+    with pytest.raises(ValueError, match="tet_size"):
+        refine_tets(coords, tets, h0, origin, field, tet_size=lambda n, t: np.full(len(t), 0.5 * field.smallest))

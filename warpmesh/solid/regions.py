@@ -323,10 +323,18 @@ def _check_min_size(min_size, spacing: np.ndarray, h: float) -> float:
 
 # ----------------------------------------------------------------------------------- the lattice
 def _labels_at(codes: np.ndarray, local: np.ndarray, spacing: np.ndarray, rest: int) -> np.ndarray:
-    """The code of the voxel holding each local point (the rest outside the box)."""
+    """The code of the voxel holding each local point (the rest outside the box).
+
+    (Called on every sample of every edge the graded lattice tests: one flat gather from the
+    volume's memory where it is contiguous, one unsigned compare for both bounds.)"""
     ijk = np.rint(local / spacing).astype(np.int64)
-    shape = np.asarray(codes.shape)
-    inside = np.all((ijk >= 0) & (ijk < shape), axis=1)
+    ok = ijk.view(np.uint64) < np.asarray(codes.shape, np.uint64)  # a negative index wraps to a huge one
+    inside = ok[:, 0] & ok[:, 1] & ok[:, 2]
+    if codes.flags.f_contiguous or codes.flags.c_contiguous:
+        flat = np.ravel_multi_index(ijk.T, codes.shape, mode="clip", order="F" if codes.flags.f_contiguous else "C")
+        out = codes.ravel(order="A")[flat]  # (a copy: fancy indexing)
+        out[~inside] = rest
+        return out
     out = np.full(len(local), rest, dtype=codes.dtype)
     ii = ijk[inside]
     out[inside] = codes[ii[:, 0], ii[:, 1], ii[:, 2]]
