@@ -26,12 +26,19 @@ The operators, each iteration:
 2. **collapse** edges shorter than ``COLLAPSE_BELOW`` x size by the half-edge collapses of
    :func:`warpmesh.optimize.multimaterial.collapse_round` (the link condition; interface
    vertices into any neighbour, curve vertices only along their curve, fixed vertices
-   never), no new edge above ``SPLIT_ABOVE`` x size, no new triangle above ``COLLAPSE_Q``
+   never), no new edge above ``SPLIT_ABOVE`` x size (unless the edge it replaces was as
+   long: a needle among long edges), no new triangle above ``COLLAPSE_Q``
    (unless it was already worse), the new faces within ``tolerance`` of the input;
 3. **flip** an edge inside one interface (exactly two triangles, the same label pair,
    opposite directions: never a feature edge) when it lowers the worse Q_K of the two,
    the new edge is not an edge already and its midpoint lies within ``tolerance`` of
-   the input;
+   the input: :func:`warpmesh.optimize.junction_swap.swap_pass` (vertex-disjoint batches,
+   the candidates that cannot pass left out before a batch is chosen); then
+   **snap** the apex of a cap (Q_K above ``RESCUE_Q``) whose large angle faces a junction
+   edge onto that edge, on the input's curve (:func:`warpmesh.optimize.junction_swap.
+   snap_pass`), and **rescue** the triangles still above ``RESCUE_Q`` by collapses of their
+   own edges whatever their lengths (a cap whose apex is a curve vertex between two curve
+   edges goes by the collapse of the apex along its curve, which no flip may do);
 4. **relocate** the interface and curve vertices as above; a move that makes a triangle
    worse than ``max(SMOOTH_Q, its Q_K before)`` is undone.
 
@@ -76,6 +83,7 @@ import warnings
 import numpy as np
 
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
+from warpmesh.optimize.junction_swap import RESCUE_Q, snap_pass, swap_pass
 from warpmesh.optimize.label_smoothing import GRID_INFO, box_sides, classify_edges, vertex_cubes, wing_cos, \
     wing_pairs
 from warpmesh.optimize.local_ops import quality_of, select_independent
@@ -97,6 +105,8 @@ MAX_TURN = 45.0
 RETRIES = 6
 #: collapse batches per iteration
 COLLAPSE_ROUNDS = 4
+#: flip batches per flip pass (three passes per iteration)
+FLIP_ROUNDS = 2
 #: relocation passes per iteration
 SMOOTH_PASSES = 2
 #: nearest feature segments of the same curve looked at when projecting onto a curve
@@ -217,7 +227,7 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
 
 
 #: the operations counted in ``info["optimize"]``
-_OPERATIONS = ("splits", "collapses", "flips", "moves")
+_OPERATIONS = ("splits", "collapses", "flips", "snaps", "moves")
 
 
 def _iterate(state, h_of, ref, tol, iterations, before, q_cap):
@@ -226,13 +236,16 @@ def _iterate(state, h_of, ref, tol, iterations, before, q_cap):
     summary, the last state's operation counts). ``q_cap`` bounds every operation's
     triangles (inf: the operators' own limits)."""
     p, t, lower, upper, bits = state
-    counts = {"splits": 0, "collapses": 0, "flips": 0, "moves": 0, "rejected": 0}
+    counts = {"splits": 0, "collapses": 0, "flips": 0, "snaps": 0, "moves": 0, "rejected": 0}
     best, s = None, before
     for _ in range(iterations):
         p, t, lower, upper, bits = _split_pass(p, t, lower, upper, bits, h_of, ref, min(COLLAPSE_Q, q_cap), counts)
         p, t, lower, upper, bits = _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol,
                                                   min(COLLAPSE_Q, q_cap), counts)
         t = _flip_pass(p, t, lower, upper, bits, ref, tol, counts)
+        p, t, lower, upper = _snap_pass(p, t, lower, upper, bits, ref, tol, q_cap, counts)
+        p, t, lower, upper, bits = _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol,
+                                                  min(COLLAPSE_Q, q_cap), counts, rescue=True)
         for _ in range(SMOOTH_PASSES):
             p = _relocate_pass(p, t, lower, upper, bits, ref, min(SMOOTH_Q, q_cap), counts)
             t = _flip_pass(p, t, lower, upper, bits, ref, tol, counts)
@@ -479,14 +492,25 @@ def _apply_splits(p, t, lower, upper, eid, edges, new, n):
 
 
 # ----------------------------------------------------------------------------- collapses
-def _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol, q_limit, counts):
+def _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol, q_limit, counts, rescue=False):
+    """Collapses of the edges shorter than ``COLLAPSE_BELOW`` x size; with ``rescue``, of
+    the edges of the triangles worse than ``RESCUE_Q`` instead, whatever their lengths
+    (a cap whose apex is a curve vertex between its two curve edges, which no flip may
+    remove, goes by the collapse of the apex along its curve)."""
     h = h_of(p)
     refused = np.zeros(0, np.int64)
     sub = {"collapses": 0, "rejected": 0}
+    shorter, longest, only = COLLAPSE_BELOW * h, SPLIT_ABOVE * h, None
+    if rescue:
+        bad = t[quality_of(p[t]) > RESCUE_Q]
+        if len(bad) == 0:
+            return p, t, lower, upper, bits
+        u, v = bad.ravel(), bad[:, [1, 2, 0]].ravel()
+        shorter, longest, only = None, None, np.unique(np.concatenate([u * len(p) + v, v * len(p) + u]))
     for _ in range(COLLAPSE_ROUNDS):
         done, refused = collapse_round(p, t, lower, upper, _sides(bits), ref, tol, sub, room=len(t),
-                                       refused=refused, shorter=COLLAPSE_BELOW * h, longest=SPLIT_ABOVE * h,
-                                       q_limit=q_limit, pinned=(bits & _PINNED) != 0)
+                                       refused=refused, shorter=shorter, longest=longest,
+                                       q_limit=q_limit, pinned=(bits & _PINNED) != 0, only=only)
         if done is None:
             break
         t, lower, upper = done
@@ -500,55 +524,31 @@ def _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol, q_limit, counts):
 
 # ----------------------------------------------------------------------------- flips
 def _flip_pass(p, t, lower, upper, bits, ref, tol, counts):
-    n = len(p)
-    e, face, eid, keys = _edges(t, n)
-    _, _, feature, _ = classify_edges(t, lower, upper, n, _sides(bits))
-    inner = np.flatnonzero(~feature)  # exactly two faces of one interface
-    order = np.argsort(eid, kind="stable")
-    start = np.searchsorted(eid[order], inner)
-    fe1, fe2 = order[start], order[start + 1]  # the two face edges (face * 3 + j)
-    f1, f2 = fe1 // 3, fe2 // 3
-    j1 = fe1 % 3
-    a, b = t[f1, j1], t[f1, (j1 + 1) % 3]
-    c = t[f1, (j1 + 2) % 3]
-    d = t[f2].sum(axis=1) - a - b
-    j2 = fe2 % 3
-    opposite = (t[f2, j2] == b) & (t[f2, (j2 + 1) % 3] == a) & (c != d)
-    fresh = ~np.isin(np.minimum(c, d) * n + np.maximum(c, d), keys)
-    ok = opposite & fresh
-    f1, f2, a, b, c, d = f1[ok], f2[ok], a[ok], b[ok], c[ok], d[ok]
-    q_old = np.maximum(quality_of(p[t[f1]]), quality_of(p[t[f2]]))
-    n1, n2 = np.column_stack([a, d, c]), np.column_stack([d, b, c])
-    q_new = np.maximum(quality_of(p[n1]), quality_of(p[n2]))
-    gain = q_old - q_new
-    good = gain > 1e-3 * q_old
-    idx = np.flatnonzero(good)
-    if len(idx) == 0:
-        return t
-    chosen = idx[select_independent(len(idx), -gain[idx], np.concatenate([f1[idx], f2[idx]]),
-                                    np.tile(np.arange(len(idx)), 2), rounds=8)]
-    # two flips of one batch may make the same new edge (c, d): one of them only
-    new_key = np.minimum(c[chosen], d[chosen]) * n + np.maximum(c[chosen], d[chosen])
-    chosen = chosen[np.sort(np.unique(new_key, return_index=True)[1])]
-    far = ref.distance(0.5 * (p[c[chosen]] + p[d[chosen]])) > tol
-    chosen = chosen[~far]
-    counts["rejected"] += int(far.sum())
-    for _ in range(RETRIES):
-        if len(chosen) == 0:
-            break
-        t2 = t.copy()
-        t2[f1[chosen]], t2[f2[chosen]] = n1[chosen], n2[chosen]
-        faces = np.concatenate([f1[chosen], f2[chosen]])
-        fail_face = _embedding_failures(p, t2, faces)
-        n_avg = _normals(p, t[f1[chosen]]) + _normals(p, t[f2[chosen]])
-        turned = _turned(_normals(p, t2[f1[chosen]]), n_avg) | _turned(_normals(p, t2[f2[chosen]]), n_avg)
-        failed = fail_face[f1[chosen]] | fail_face[f2[chosen]] | turned
-        if not failed.any():
-            counts["flips"] += len(chosen)
-            return t2
-        counts["rejected"] += int(failed.sum())
-        chosen = chosen[~failed]
+    """The interface-edge flips of :func:`warpmesh.optimize.junction_swap.swap_pass`
+    (vertex-disjoint batches, the refused candidates left out of the next ones)."""
+    sub = {"flips": 0, "refused": 0}
+    t = swap_pass(p, t, lower, upper, side_bits=_sides(bits), distance=ref.distance, tolerance=tol, counts=sub,
+                  rounds=FLIP_ROUNDS)
+    counts["flips"] += sub["flips"]
+    counts["rejected"] += sub["refused"]
     return t
+
+
+def _snap_pass(p, t, lower, upper, bits, ref, tol, q_cap, counts):
+    """The junction snaps of :func:`warpmesh.optimize.junction_swap.snap_pass`, the snapped
+    vertex placed on the input's curve of its edge (the same signature)."""
+    n = len(p)
+
+    def project(x, a, b):
+        return ref.project_curve(x, _edge_signatures(t, lower, upper, n, a, b))
+
+    sub = {"snaps": 0, "refused": 0}
+    pinned = (bits & _PINNED) != 0
+    p2, t2, lo2, up2 = snap_pass(p, t, lower, upper, side_bits=_sides(bits), project=project,
+                                 distance=ref.distance, tolerance=tol, q_cap=q_cap, counts=sub, pinned=pinned)
+    counts["snaps"] += sub["snaps"]
+    counts["rejected"] += sub["refused"]
+    return p2, t2, lo2, up2
 
 
 # ----------------------------------------------------------------------------- relocation

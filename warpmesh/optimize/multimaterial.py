@@ -144,7 +144,7 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
 
 
 def collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refused, *, shorter=None,
-                   longest=None, q_limit=None, pinned=None):
+                   longest=None, q_limit=None, pinned=None, only=None):
     """One batch of independent half-edge collapses u -> v that pass the checks (module
     docstring), not among the ``refused`` ones (keys u * n + v).
 
@@ -168,11 +168,16 @@ def collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refus
         Only edges shorter than ``shorter`` at both ends collapse (the remeshing of
         :mod:`warpmesh.optimize.label_remesh`); by default any edge.
     longest : (n,) float, optional
-        A new edge may not be longer than ``longest`` at its ends.
+        A new edge may not be longer than ``longest`` at its ends, unless the edge it
+        replaces (u x for v x) was at least as long.
     q_limit : float, optional
         A new face's Q_K may not exceed ``max(q_limit, its Q_K before)``.
     pinned : (n,) bool, optional
         Vertices that never go, whatever their class.
+    only : (k,) int64, optional
+        Keys u * n + v of the only collapses to consider (those the classes allow), e.g.
+        the edges of the worst triangles (:func:`warpmesh.optimize.label_remesh.
+        optimize_labels`' rescue of the slivers along junction curves).
 
     Returns
     -------
@@ -198,6 +203,8 @@ def collapse_round(p, t, lower, upper, bits, reference, tol, counts, room, refus
     ok = ((kind[u] == 2) & ~along) | ((kind[u] == 1) & along)
     if pinned is not None:
         ok &= ~pinned[u]
+    if only is not None:
+        ok &= np.isin(u * n + v, only)
     if shorter is not None:
         ok &= np.linalg.norm(p[u] - p[v], axis=1) < np.minimum(shorter[u], shorter[v])
     u, v = u[ok], v[ok]
@@ -278,7 +285,11 @@ def _failing(p, t_old, trial, faces, owner, keep, reference, tol, n_ops, longest
     new, old = p[trial[faces]], p[t_old[keep[faces]]]
     if longest is not None:
         tf = trial[faces]
-        too_long = np.linalg.norm(new[:, [1, 2, 0]] - new, axis=2) > np.minimum(longest[tf], longest[tf[:, [1, 2, 0]]])
+        # an edge longer than the limit is refused unless it replaces one at least as long (the
+        # edge u x of a needle's collapse u -> v: without this, a needle among long edges stays)
+        limit = np.maximum(np.minimum(longest[tf], longest[tf[:, [1, 2, 0]]]),
+                           np.linalg.norm(old[:, [1, 2, 0]] - old, axis=2))
+        too_long = np.linalg.norm(new[:, [1, 2, 0]] - new, axis=2) > limit
         failed[owner[too_long.any(axis=1)]] = True
     if q_limit is not None:
         failed[owner[quality_of(new) > np.maximum(q_limit, quality_of(old))]] = True
