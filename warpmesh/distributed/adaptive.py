@@ -48,10 +48,36 @@ import numpy as np
 from warpmesh.distributed.bricks import DEFAULT_BRICK_CELLS, Brick, check_bricking
 from warpmesh.distributed.run import brick_error, run_job, worker_tape
 from warpmesh.errors import WarpMeshError
-from warpmesh.surface.adaptive.octree import (CELL_BITS, LEAF, INTERNAL, NodeStore, Octree, build_octree, finest_cells,
-                                              in_window)
+from warpmesh.surface.adaptive import contour as OC
+from warpmesh.surface.adaptive.octree import (CELL_BITS, LEAF, INTERNAL, NodeStore, Octree, build_octree, cell_keys,
+                                              finest_cells, in_window)
+from warpmesh.surface.adaptive.pipeline import crossing_roots
 
-__all__ = ["OctreePiece", "BrickedOctree", "brick_grid", "merge_pieces", "breadth_first_order"]
+__all__ = ["OctreePiece", "CrossingPiece", "BrickedOctree", "brick_grid", "merge_pieces", "breadth_first_order",
+           "contour_window", "join_crossings"]
+
+
+@dataclass
+class CrossingPiece:
+    """The contouring of the leaves one window owns, keyed for the single-process order.
+
+    Face units (u,): ``direction`` (2 axis + (side > 0), the order :func:`~warpmesh.surface.adaptive.contour.face_units`
+    makes them in), ``owner`` (cell key of the leaf whose whole face the unit is), ``minus``
+    and ``plus`` (cell keys of the leaves on its sides). Crossings (v,): ``vertex_keys``
+    (v, 2) their edge's two node keys, smaller first, ``points`` and ``normals`` (v, 3)
+    float64, ``cap_vertex``. ``segments`` (s, 3): local unit, start and end crossing, in
+    the order of the units' boundary cycles. ``evaluations``: the root finding's."""
+
+    direction: np.ndarray
+    owner: np.ndarray
+    minus: np.ndarray
+    plus: np.ndarray
+    vertex_keys: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    cap_vertex: np.ndarray
+    segments: np.ndarray
+    evaluations: int = 0
 
 
 @dataclass
@@ -67,6 +93,7 @@ class OctreePiece:
     node_values: np.ndarray
     levels: list
     info: dict = field(default_factory=dict)
+    crossings: CrossingPiece | None = None
 
 
 def split_keys(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -156,6 +183,112 @@ def brick_grid(n_base, base: int, max_level: int, bricks=None, brick_cells=None)
     return level, out
 
 
+def owned_leaves(tree: Octree, window) -> np.ndarray:
+    """Which leaves of ``tree`` a window ``(level, lo, hi)`` (or ``(level, cells)``,
+    :func:`~warpmesh.surface.adaptive.octree.in_window`) owns: those at its level or deeper
+    that lie in it (a coarser leaf may span windows: none owns it).
+
+    >>> from warpmesh.surface.adaptive.octree import Octree
+    >>> t = Octree(None, None, None, 5, 3, True, np.array([3, 4, 5]), np.array([[1, 0, 0], [1, 0, 0], [9, 0, 0]]),
+    ...            (), None, None)
+    >>> owned_leaves(t, (4, (0, 0, 0), (2, 2, 2))).tolist()
+    [False, True, False]
+    """
+    out = np.zeros(len(tree.leaf_level), bool)
+    for level in np.unique(tree.leaf_level[tree.leaf_level >= window[0]]):
+        sel = np.flatnonzero(tree.leaf_level == level)
+        out[sel] = in_window(int(level), tree.leaf_ijk[sel], window)
+    return out
+
+
+def contour_window(tape, tree: Octree, window, roots: dict, device="cpu") -> CrossingPiece:
+    """The face units, crossings, roots and normals of the leaves a window owns
+    (:func:`owned_leaves`), on a tree built with ``collar=True`` for that window (so every
+    leaf across their faces, edges and corners is there: their units and hanging nodes are
+    the whole tree's). ``roots``: the root options (root, root_iterations, gradient).
+
+    Each face unit is computed by the leaf whose whole face it is, and each crossing is a
+    function of its edge, so the pieces of all windows joined by key
+    (:func:`join_crossings`) are the single-process arrays.
+
+    Example
+    -------
+    >>> import warpmesh as wm
+    >>> from warpmesh.frep.tape import tape_of
+    >>> lo, hi, w = np.full(3, -1.2), np.full(3, 1.2), (3, (0, 0, 0), (2, 8, 8))  # x from -1.2 to -0.6
+    >>> t = build_octree(tape_of(wm.sphere(1.0)), lo, hi, max_level=5, min_level=None, tolerance=None, window=w,
+    ...                  collar=True)
+    >>> p = contour_window(tape_of(wm.sphere(1.0)), t, w, dict(root="newton", root_iterations=None, gradient="exact"))
+    >>> bool(np.all(p.points[:, 0] <= -0.6 + 1e-6)), len(p.segments) > 0
+    (True, True)
+    """
+    axis, origin, size, minus, plus, owner, side = OC.face_units(tree)
+    sel = np.flatnonzero(owned_leaves(tree, window)[owner])
+    axis, origin, size, minus, plus, owner, side = (a[sel] for a in (axis, origin, size, minus, plus, owner, side))
+    key = lambda leaf: cell_keys(tree.leaf_level[leaf], tree.leaf_ijk[leaf])  # noqa: E731
+    node_of, ptr, node_keys = OC.boundary_cycles(tree, axis, owner, side)
+    values, capped, vnodes, segments = OC.unit_segments(tree, axis, origin, size, node_of, ptr, node_keys)
+    evaluations = tree.field.counts["evaluations"]
+    if len(vnodes):
+        points, fg, _ = crossing_roots(tape, tree, vnodes, node_keys, values, capped, device=device, timings={},
+                                       **roots)
+        normals, cap_vertex = OC.vertex_normals(tree, points, vnodes, node_keys, capped, fg)
+    else:
+        points, normals, cap_vertex = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, bool)
+    return CrossingPiece((2 * axis + (side > 0)).astype(np.int8), key(owner), key(minus), key(plus),
+                         node_keys[vnodes], points, normals, cap_vertex, segments,
+                         tree.field.counts["evaluations"] - evaluations)
+
+
+def join_crossings(tree: Octree, pieces: list[CrossingPiece]):
+    """The windows' contourings joined into the single-process arrays of ``tree`` (the
+    merged tree: its leaf numbering): units sorted by (direction, owner leaf), crossings by
+    their two node keys (a crossing found by two windows must be the same point), segments
+    by unit, in cycle order. Returns (minus, plus (u,) leaf indices, segments (s, 3), u,
+    points, normals, cap_vertex, root evaluations)."""
+    keys, status, leaf_of = tree.status
+    if not pieces:
+        pieces = [CrossingPiece(*(np.zeros(0, np.int64),) * 4, np.zeros((0, 2), np.int64), np.zeros((0, 3)),
+                                np.zeros((0, 3)), np.zeros(0, bool), np.zeros((0, 3), np.int64))]
+    cat = lambda name: np.concatenate([getattr(p, name) for p in pieces])  # noqa: E731
+
+    def leaf(cells):
+        pos = np.minimum(np.searchsorted(keys, cells), len(keys) - 1)
+        if not np.all((keys[pos] == cells) & (status[pos] == LEAF)):
+            raise WarpMeshError("a brick's face unit names a cell that is no leaf of the tree (an internal error)")
+        return leaf_of[pos]
+
+    owner = leaf(cat("owner"))
+    order = np.argsort(cat("direction").astype(np.int64) * max(len(tree.leaf_level), 1) + owner, kind="stable")
+    unit_key = (cat("direction").astype(np.int64) * max(len(tree.leaf_level), 1) + owner)[order]
+    if len(unit_key) > 1 and np.any(unit_key[1:] == unit_key[:-1]):
+        raise WarpMeshError("two bricks contoured one face unit (an internal error)")
+    unit_rank = np.empty(len(order), np.int64)
+    unit_rank[order] = np.arange(len(order))
+    vk = np.concatenate([p.vertex_keys for p in pieces]).reshape(-1, 2)
+    vo = np.lexsort((vk[:, 1], vk[:, 0]))
+    new = np.ones(len(vo), bool)
+    new[1:] = np.any(vk[vo][1:] != vk[vo][:-1], axis=1)
+    vid = np.empty(len(vo), np.int64)
+    vid[vo] = np.cumsum(new) - 1
+    first = vo[new]
+    all_points = np.concatenate([p.points for p in pieces]).reshape(-1, 3)
+    points = all_points[first]
+    if not np.array_equal(all_points, points[vid]):
+        raise WarpMeshError("two bricks found different roots on one crossing edge (an internal error)")
+    normals = np.concatenate([p.normals for p in pieces]).reshape(-1, 3)[first]
+    cap_vertex = cat("cap_vertex")[first]
+    segs, u_off, v_off = [], 0, 0
+    for p in pieces:
+        segs.append(p.segments.reshape(-1, 3) + np.array([u_off, v_off, v_off]))
+        u_off, v_off = u_off + len(p.owner), v_off + len(p.points)
+    seg = np.concatenate(segs) if segs else np.zeros((0, 3), np.int64)
+    seg = np.stack([unit_rank[seg[:, 0]], vid[seg[:, 1]], vid[seg[:, 2]]], axis=1)
+    seg = seg[np.argsort(seg[:, 0], kind="stable")]
+    return (leaf(cat("minus"))[order], leaf(cat("plus"))[order], seg, len(order), points, normals, cap_vertex,
+            int(sum(p.evaluations for p in pieces)))
+
+
 class BrickedOctree:
     """A drop-in for :func:`build_octree` in :func:`warpmesh.surface.adaptive.pipeline.mesh_adaptive`
     (``build=``): each call (one round) builds the levels down to the brick level on the
@@ -173,25 +306,40 @@ class BrickedOctree:
         self.info = {"brick_level": self.level, "bricks": len(self.bricks), "bricks_culled": 0,
                      "brick_tasks": 0, "brick_cpu_time": 0.0, "bricks_per_round": []}
 
-    def __call__(self, tape, lo, hi, *, force=None, device="cpu", **build) -> Octree:
+    def __call__(self, tape, lo, hi, *, force=None, device="cpu", roots=None, **build) -> Octree:
+        """One round's tree; with ``roots`` (the root options) each task also contours the leaves
+        its brick owns (:func:`contour_window`, on its brick and the brick's collar), and the
+        leaves above the brick level are contoured here, each on its own window:
+        :meth:`join_crossings` then gives the round's face units, crossings and roots."""
         t0 = time.perf_counter()
-        self.lo, self.hi, self.build_kw, self.device = lo, hi, build, str(device)
+        settings = (tuple(np.asarray(lo, np.float64).tolist()), tuple(np.asarray(hi, np.float64).tolist()),
+                    repr(sorted(build.items())), str(device), repr(roots))
+        if settings != getattr(self, "_settings", None):  # other settings: the kept results would differ
+            self.results = {}
+        self._settings = settings
+        self.lo, self.hi, self.build_kw, self.device, self.roots = lo, hi, build, str(device), roots
         force = np.zeros(0, np.int64) if force is None else np.asarray(force, np.int64)
+        self.force = force  # the last round's forced cells
         coarse = build_octree(tape, lo, hi, **build, force=force, last_level=self.level, device=device)
         keys, status, _ = coarse.status
         lv, ijk = split_keys(keys)
-        open_cells = ijk[(lv == self.level) & (status == INTERNAL)]  # cells refined below the brick level
+        # cells refined below the brick level; contouring, also the brick level's leaves (a brick owns them)
+        open_cells = ijk[(lv == self.level) & ((status == INTERNAL) | ((status == LEAF) & (roots is not None)))]
         f_level, f_ijk = split_keys(force)
+
+        def forced_in(window):  # the forced cells that meet the window (with a collar: touch it)
+            mine = np.zeros(len(force), bool)
+            for lvl in np.unique(f_level):
+                sel = f_level == lvl
+                mine[sel] = in_window(int(lvl), f_ijk[sel], window, closed=roots is not None)
+            return force[mine]
+
         todo, kept = [], []
         for brick in self.bricks:
             window = (self.level, brick.lo, brick.hi)
             if not in_window(self.level, open_cells, window).any():
                 continue
-            mine = np.zeros(len(force), bool)
-            for lvl in np.unique(f_level):
-                sel = f_level == lvl
-                mine[sel] = in_window(int(lvl), f_ijk[sel], window)
-            forced = force[mine]
+            forced = forced_in(window)
             old = self.results.get(brick.index)
             if old is not None and np.array_equal(old[0], forced):
                 kept.append(brick.index)
@@ -208,6 +356,21 @@ class BrickedOctree:
         for index, piece in results.items():
             self.results[index] = (job.force[index], piece)
         pieces = [self.results[i][1] for i in sorted(set(kept) | set(results))]
+        self.crossing_pieces = [p.crossings for p in pieces]
+        if roots is not None:  # leaves above the brick level (cap leaves, min_level < b) may span bricks:
+            # each is contoured here on its own window (the leaf and its collar); they are few
+            # each level's together on one window of those leaves (the leaves and their collar); they are few
+            coarse_leaf = (lv < self.level) & (status == LEAF)
+            t1 = time.perf_counter()
+            for level in np.unique(lv[coarse_leaf]):
+                cells = ijk[coarse_leaf & (lv == level)]
+                own = Brick(-1 - int(level), (0, 0, 0), tuple(cells.min(axis=0).tolist()),
+                            tuple((cells.max(axis=0) + 1).tolist()))  # (the box of its cells: for errors)
+                job.windows[own.index] = (int(level), cells)
+                job.force[own.index] = forced_in((int(level), cells))
+                self.crossing_pieces.append(job.task(own, None, True).crossings)
+            self.info["coarse_leaves"] = self.info.get("coarse_leaves", 0) + int(coarse_leaf.sum())
+            self.info["coarse_leaf_time"] = self.info.get("coarse_leaf_time", 0.0) + time.perf_counter() - t1
         self.info["brick_tasks"] += len(results)
         self.info["brick_cpu_time"] += float(sum(p.info["time"] for p in results.values()))
         counts = coarse.field.counts
@@ -215,6 +378,16 @@ class BrickedOctree:
             for k in counts:
                 counts[k] += p.info["counts"][k]
         return merge_pieces(coarse, pieces, self.level)
+
+    def join_crossings(self, tree: Octree, timings: dict):
+        """The last round's contouring, joined (:func:`join_crossings`): (minus, plus, segments,
+        units, points, normals, cap_vertex) for :func:`warpmesh.surface.adaptive.pipeline.mesh_adaptive`;
+        the root evaluations are added to the tree's counts."""
+        t0 = time.perf_counter()
+        *out, evaluations = join_crossings(tree, self.crossing_pieces)
+        tree.field.counts["evaluations"] += evaluations
+        timings["join_crossings"] = timings.get("join_crossings", 0.0) + time.perf_counter() - t0
+        return tuple(out)
 
 
 class _OctreeJob:
@@ -230,27 +403,48 @@ class _OctreeJob:
         self.h_level = (owner.hi - owner.lo) / owner.n_level  # the size of the brick level's cells
         self.todo = list(todo)
         self.force = {b.index: f for b, f in todo.items()}
+        self.roots = owner.roots
+        self.windows: dict = {}  # task id -> its window, where not its brick's: (level, cells)
 
     def bricks_to_mesh(self) -> list[Brick]:
         return self.todo
 
     def task(self, brick: Brick, path, want: bool) -> OctreePiece:
-        """On a worker: the octree restricted to the brick, its cells below the brick level."""
+        """On a worker: the octree restricted to the brick, its cells below the brick level; when
+        contouring (``roots``), built with the brick's collar, and the contouring of the leaves
+        the brick owns (the node values then stay on the worker: the client needs none)."""
         t0 = time.perf_counter()
         tape = worker_tape(self.token, self.shape)
+        window = self.windows.get(brick.index, (self.level, brick.lo, brick.hi))
+        wl = window[0]
         try:
             tree = build_octree(tape, self.lo, self.hi, **self.build_kw, force=self.force[brick.index],
-                                window=(self.level, brick.lo, brick.hi), device=self.device)
+                                window=window, collar=self.roots is not None, device=self.device)
         except ValueError as exc:
-            raise brick_error(brick, self.lo, self.h_level, exc) from None
+            raise brick_error(brick, self.lo, self.h_level * (1 << (self.level - wl)), exc) from None
         keys, status, _ = tree.status
-        deep = (keys >> (3 * CELL_BITS)) > self.level
-        levels = [lv for lv in tree.levels if lv["level"] > self.level]
-        info = {"cells": int(deep.sum()), "leaves": int((tree.leaf_level > self.level).sum()),
-                "counts": dict(tree.field.counts), "time": time.perf_counter() - t0}
-        # every node the brick evaluated (sorted already; sorting out its leaves' corners costs more
-        # than sending the rest)
-        return OctreePiece(keys[deep], status[deep], tree.nodes.keys, tree.nodes.values, levels, info)
+        lv, ijk = split_keys(keys)
+        deep = np.flatnonzero(lv > self.level)
+        if self.roots is not None:  # the brick's own cells, not its collar's
+            own = np.zeros(len(deep), bool)
+            for level in np.unique(lv[deep]):
+                sel = lv[deep] == level
+                own[sel] = in_window(int(level), ijk[deep[sel]], window)
+            deep = deep[own]
+        levels = [lv_ for lv_ in tree.levels if lv_["level"] > self.level]
+        info = {"cells": len(deep), "leaves": int(owned_leaves(tree, window).sum()),
+                "counts": dict(tree.field.counts)}
+        crossings = None
+        if self.roots is not None:
+            try:
+                crossings = contour_window(tape, tree, window, self.roots, self.device)
+            except ValueError as exc:
+                raise brick_error(brick, self.lo, self.h_level * (1 << (self.level - wl)), exc) from None
+            nodes = (np.zeros(0, np.int64), np.zeros(0, np.float32))
+        else:  # every node the brick evaluated (sorted already; sorting out its leaves' corners costs more
+            nodes = (tree.nodes.keys, tree.nodes.values)  # than sending the rest)
+        info["time"] = time.perf_counter() - t0
+        return OctreePiece(keys[deep], status[deep], *nodes, levels, info, crossings)
 
 
 def merge_pieces(coarse: Octree, pieces: list[OctreePiece], level: int) -> Octree:

@@ -437,14 +437,24 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
 
 def in_window(level: int, ijk: np.ndarray, window, closed: bool = False) -> np.ndarray:
     """Which cells ``ijk`` of ``level`` meet the box of the cells ``lo <= ijk < hi`` of
-    level ``window[0]`` (``window = (level, lo, hi)``); with ``closed``, whose closed box
-    touches the window's closed box (a face, edge or corner in common is enough).
+    level ``window[0]`` (``window = (level, lo, hi)``), or one of the cells ``window =
+    (level, cells (n, 3))``; with ``closed``, whose closed box touches the window's closed
+    box, or one of its cells' (a face, edge or corner in common is enough).
 
     >>> in_window(2, np.array([[0, 0, 0], [1, 0, 0]]), (3, (2, 0, 0), (4, 2, 2))).tolist()
     [False, True]
     >>> in_window(4, np.array([[3, 0, 0], [8, 4, 4], [9, 0, 0]]), (3, (2, 0, 0), (4, 2, 2)), closed=True).tolist()
     [True, True, False]
+    >>> cells = (3, np.array([[2, 0, 0], [0, 3, 0]]))
+    >>> in_window(4, np.array([[3, 0, 0], [4, 1, 1], [2, 5, 0], [3, 8, 0]]), cells).tolist()
+    [False, True, False, False]
+    >>> in_window(4, np.array([[3, 0, 0], [4, 1, 1], [2, 5, 0], [3, 8, 0], [0, 0, 0]]), cells, closed=True).tolist()
+    [True, True, True, False, False]
+    >>> in_window(2, np.array([[1, 0, 0], [0, 1, 0], [1, 1, 1]]), cells, closed=True).tolist()
+    [True, True, False]
     """
+    if len(window) == 2:
+        return _in_cells(level, np.asarray(ijk, np.int64), window[0], np.asarray(window[1], np.int64), closed)
     wl, wlo, whi = window[0], np.asarray(window[1], np.int64), np.asarray(window[2], np.int64)
     if closed:  # compare on the finer of the two levels' cells
         if level <= wl:
@@ -457,6 +467,32 @@ def in_window(level: int, ijk: np.ndarray, window, closed: bool = False) -> np.n
         return np.all((ijk >= wlo >> shift) & (ijk <= (whi - 1) >> shift), axis=1)
     up = ijk >> (level - wl)  # finer: its ancestor at the window's level lies in it
     return np.all((up >= wlo) & (up < whi), axis=1)
+
+
+def _in_cells(level: int, ijk: np.ndarray, wl: int, cells: np.ndarray, closed: bool) -> np.ndarray:
+    """:func:`in_window` for a window of ``cells`` of level ``wl``."""
+    if not len(ijk) or not len(cells):
+        return np.zeros(len(ijk), bool)
+    if level <= wl:  # coarser cells are few: against every window cell
+        shift = wl - level
+        lo, hi = ijk[:, None, :] << shift, (ijk[:, None, :] + 1) << shift  # in window cells, half-open
+        c = cells[None]
+        hit = (c >= lo - 1) & (c <= hi) if closed else (c >= lo) & (c < hi)
+        return np.all(hit, axis=2).any(axis=1)
+    shift = level - wl
+    keys = np.unique(cell_keys(np.full(len(cells), wl), cells))
+    up = ijk >> shift
+    out = np.zeros(len(ijk), bool)
+    offsets = [(0, 0, 0)] if not closed else [(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)]
+    for off in offsets:  # the window cells among the ancestor's neighbours that the cell touches
+        c = up + np.asarray(off, np.int64)
+        ok = np.all(c >= 0, axis=1)
+        k = cell_keys(np.full(len(c), wl), np.maximum(c, 0))
+        found = ok & (keys[np.minimum(np.searchsorted(keys, k), len(keys) - 1)] == k)
+        if closed:
+            found &= np.all((ijk <= (c + 1) << shift) & (ijk + 1 >= c << shift), axis=1)
+        out |= found
+    return out
 
 
 def _corner_keys(tree: Octree, level: int, ijk: np.ndarray) -> np.ndarray:
