@@ -140,6 +140,27 @@ def test_flip_refused_where_it_would_fold_onto_a_junction_face():
     assert swap_pass(p2, t2, lo2, up2, counts={})[:2].tolist() == [[0, 3, 2], [3, 1, 2]]
 
 
+def test_a_refused_flip_does_not_block_its_neighbour():
+    """The worse sliver A (0, 1, 2) wins the first batch, fails (its flip folds onto the
+    junction face (2, 0, 4)) and is refused; its neighbour B (1, 5, 7), which shares the
+    vertex 1 and so could not be in A's batch, flips in the next batch. (The flip pass
+    before junction_swap chose the same failing batch on every call: B never flipped.)"""
+    p, t, lower, upper = _fold_case(0.08)
+    p = np.concatenate([p, [[4, 0, 0], [3, 0.1, 0], [3, -1.5, 0]]])  # 5, 6, 7
+    t = np.concatenate([t, [[1, 5, 6], [5, 1, 7]]])
+    lower, upper = np.append(lower, [1, 1]), np.append(upper, [2, 2])
+    q = triangle_quality(p, t)
+    assert q[0] > q[3] > 10  # A is worse than B
+    counts = {}
+    one = swap_pass(p, t, lower, upper, rounds=1, counts=counts)
+    assert np.array_equal(one, t) and counts["refused"] == 1
+    counts = {}
+    two = swap_pass(p, t, lower, upper, rounds=2, counts=counts)
+    assert counts == {"flips": 1, "refused": 1, "rounds": 1}
+    assert np.array_equal(two[:3], t[:3]) and two[3:].tolist() == [[1, 7, 6], [7, 5, 6]]
+    assert triangle_quality(p, two).max() == pytest.approx(q[0])
+
+
 def _junction_fan(x1):
     """A closed star of the interface (1, 2) round c = 2 (a cap (0, 1, 2) with c 0.05 off the
     junction edge 0-1), the faces (1, 0, x1) of the pair (1, 3) and (0, 1, 6) of (2, 3) on 0-1."""
