@@ -12,8 +12,9 @@ triangle carries two labels. :func:`swap_pass` flips an edge ab of the triangles
   removed nor created: the junction curves keep their edges and every vertex keeps its
   class, so each label's boundary stays closed and oriented;
 * the two old triangles are near-coplanar (their unit normals turn by at most
-  ``MAX_TURN``; ``RESCUE_TURN`` when the pair's worse Q_K is above ``RESCUE_Q``), as are the two new ones, and each new normal is within ``MAX_TURN`` of
-  the old pair's area-weighted normal (the rule of the single-material flips,
+  ``MAX_TURN``; ``RESCUE_TURN`` when the pair's worse Q_K is above ``RESCUE_Q``), as are
+  the two new ones, and each new normal is within ``MAX_TURN`` of the old pair's
+  area-weighted normal (the rule of the single-material flips,
   :meth:`warpmesh.optimize.local_ops.Surface.flip_candidates_ok`);
 * cd is not an edge already (no duplicate edge, no duplicate triangle);
 * the worse Q_K of the pair drops (by ``MIN_GAIN`` relative) and stays at most ``q_cap``;
@@ -33,7 +34,24 @@ neighbour. The flip pass of :mod:`warpmesh.optimize.label_remesh` before this mo
 its batch first (by gain, two flips not sharing a triangle) and tested afterwards: on a
 crop of pyvista's frog 441 flips were chosen, 435 failed (323 of them turning by more
 than 45 degrees), and the same batch was chosen again on every call, so a sliver of Q_K
-18.9 whose flip passes every check alone (new worst 1.68) was never flipped.
+18.9 whose flip passes every check alone (new worst 1.68) was never flipped; on the
+whole frog the last sliver of Q_K 1066 stayed so (its flip passes every check on the
+smoothed input).
+
+A cap whose large angle faces a **junction** edge cannot be flipped (the edge must stay):
+:func:`snap_pass` moves its apex, an interface vertex, onto that edge instead (the split
+of the junction edge at the apex's foot followed by the collapse of the apex into it), so
+the curve keeps its place and gains a vertex. A cap whose apex is itself a curve vertex
+between two curve edges goes by a collapse along the curve
+(:func:`warpmesh.optimize.label_remesh.optimize_labels`' rescue collapses).
+
+What is left, and why: on the frog crops and the 40^3 blobs of the tests, the worst
+triangle after ``optimize`` is a cap of Q_K 18.9 at a junction of four triangles per edge
+(a label touching itself diagonally across a voxel edge), apex a curve vertex between two
+fixed ones: its flip folds the new triangle to 26-28 degrees from a triangle of the
+other pair around the junction edge, the collapses of the apex to 22-28 degrees (the
+fold limit is 30, :data:`warpmesh.optimize.embedding.FOLD_COS`). Moving a fixed vertex
+would be needed, which the optimiser does not do.
 
 Example
 -------
