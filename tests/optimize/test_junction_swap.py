@@ -194,3 +194,12 @@ def test_bad_input_names_the_argument():
     plain = wm.Mesh(m.points, {"triangle": m.triangles})
     with pytest.raises(ValueError, match="'mesh'"):
         swap_edges(plain)
+    p, t, lower, upper = _fold_case(0.08)
+    with pytest.raises(ValueError, match="'upper'"):
+        swap_pass(p, t, lower, upper[:2])
+    with pytest.raises(ValueError, match="'t'"):
+        snap_pass(p, t[:, :2], lower, upper)
+    with pytest.raises(ValueError, match="'t'"):
+        swap_pass(p, t + 3, lower, upper)
+    with pytest.raises(ValueError, match="'rounds'"):
+        swap_pass(p, t, lower, upper, rounds=0)

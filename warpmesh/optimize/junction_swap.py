@@ -209,8 +209,9 @@ def swap_pass(p, t, lower, upper, *, side_bits=None, distance=None, tolerance: f
     >>> swap_pass(p, np.array([[0, 1, 2], [1, 0, 3]]), np.zeros(2, int), np.ones(2, int)).tolist()
     [[0, 3, 2], [3, 1, 2]]
     """
-    t = np.array(t, np.int64)
-    lower, upper = np.asarray(lower), np.asarray(upper)
+    p, t, lower, upper = _checked(p, t, lower, upper)
+    if isinstance(rounds, (bool, np.bool_)) or not isinstance(rounds, (int, np.integer)) or rounds < 1:
+        raise ValueError(f"expected a positive integer for 'rounds', got {rounds!r}")
     n = len(p)
     counts = {} if counts is None else counts
     for key in ("flips", "refused", "rounds"):
@@ -254,6 +255,23 @@ def swap_pass(p, t, lower, upper, *, side_bits=None, distance=None, tolerance: f
         counts["flips"] += done
         counts["rounds"] += 1
     return t
+
+
+def _checked(p, t, lower, upper):
+    """The arrays as float64 (n, 3) points, a new int64 (m, 3) triangles and (m,) labels."""
+    p = np.asarray(p, np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"expected (n, 3) points for 'p', got shape {p.shape}")
+    t = np.array(t, np.int64)
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise ValueError(f"expected (m, 3) triangles for 't', got shape {t.shape}")
+    if len(t) and (t.min() < 0 or t.max() >= len(p)):
+        raise ValueError(f"expected indices in [0, {len(p)}) in 't', got {t.min()}..{t.max()}")
+    lower, upper = np.asarray(lower), np.asarray(upper)
+    for name, a in (("lower", lower), ("upper", upper)):
+        if a.shape != (len(t),):
+            raise ValueError(f"expected {len(t)} labels in {name!r} (one per triangle), got shape {a.shape}")
+    return p, t, lower, upper
 
 
 def _candidates(p, t, feature_keys, bits, n, q_cap):
@@ -393,9 +411,7 @@ def snap_pass(p, t, lower, upper, *, side_bits=None, project=None, distance=None
     >>> q[2].tolist(), len(tt), sorted(tt[lo == 1].tolist())
     ([1.0, 0.0, 0.0], 6, [[0, 2, 3], [1, 2, 4], [2, 0, 4], [2, 1, 3]])
     """
-    p = np.asarray(p, np.float64)
-    t = np.array(t, np.int64)
-    lower, upper = np.asarray(lower), np.asarray(upper)
+    p, t, lower, upper = _checked(p, t, lower, upper)
     n = len(p)
     counts = {} if counts is None else counts
     for key in ("snaps", "refused"):
