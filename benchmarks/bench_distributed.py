@@ -17,7 +17,8 @@ Cases:
 ``adaptive`` the part on an adaptive octree at ``--adaptive-level`` (default 10), bricks of
             ``--adaptive-brick-cells`` finest cells (default 512): one process (fresh
             interpreter) against ``mesh_surface(..., adaptive=True, client=...)`` on 2 workers
-            (the octree on the workers, the contouring on the client), with the stages' times.
+            (the octree, face units, crossings and roots on the workers; the join, loops, fans,
+            flips and untangle on the client), with the stages' times.
 ``domain``  the part's tetrahedral domain by isosurface stuffing at ``--domain-size`` (default
             0.03: about 1 M tetrahedra), ``features=False`` (the stuffing alone; the stages
             after it run on the client's gathered mesh as in one process): one process,
@@ -119,8 +120,14 @@ def single_process(case: str, resolution: int, volume_path: str | None, evaluato
     t, c = time.perf_counter(), _cpu()
     mesh = fn(source, **kw)
     wall, cpu = time.perf_counter() - t, _cpu() - c
-    return {"wall": wall, "cpu": cpu, "peak_extra": _status("VmHWM") - base, "peak": _status("VmHWM"),
-            **_counts(mesh)}
+    out = {"wall": wall, "cpu": cpu, "peak_extra": _status("VmHWM") - base, "peak": _status("VmHWM"),
+           **_counts(mesh)}
+    if case == "adaptive":  # the stages, to set against the bricked run's
+        out["time"] = {k: round(float(v), 3) for k, v in mesh.info["time"].items() if k in ADAPTIVE_STAGES}
+    return out
+
+
+ADAPTIVE_STAGES = ("octree", "faces", "root", "untangle", "fans", "join_crossings", "total")
 
 
 def _counts(mesh) -> dict:
@@ -349,14 +356,17 @@ def adaptive(doc: dict, level: int, brick_cells: int, ev: str) -> None:
          "peak_per_worker": sorted(peaks.values()), **_counts(mesh),
          **{k: info[k] for k in ("brick_level", "bricks", "bricks_culled", "brick_tasks", "bricks_per_round",
                                  "brick_cpu_time", "octree_rounds")},
-         "time": {k: round(float(tm[k]), 3) for k in ("octree", "faces", "root", "untangle", "fans", "total")}}
+         "time": {k: round(float(tm[k]), 3) for k in ADAPTIVE_STAGES if k in tm}}
     same = (r["triangles"], r["points"]) == (one["triangles"], one["points"])
     print(f"  2 workers          wall {wall:7.2f} s  cpu {r['cpu']:7.2f} s (workers) + {client_cpu:.2f} s (client)  "
           f"peak/worker {', '.join(_gb(p) for p in r['peak_per_worker'])}  {r['triangles']:,} triangles; "
           f"{r['brick_tasks']} tasks of {r['bricks']} bricks (level {r['brick_level']}, {r['bricks_culled']} culled), "
           f"rounds {r['bricks_per_round']}; same counts: {same}")
-    print(f"  stages of the 2-worker run (s): {r['time']}")
-    print(f"  speed-up, 2 workers over one process: {one['wall'] / wall:.2f}x (wall)")
+    print(f"  stages of one process (s): {one.get('time')}")
+    print(f"  stages of the 2-worker run (s): {r['time']} (octree: the bricks' trees and contouring on the "
+          f"workers, the merge; faces: the join of their crossings)")
+    print(f"  speed-up, 2 workers over one process: {one['wall'] / wall:.2f}x (wall); client CPU "
+          f"{client_cpu / one['cpu']:.2f} of one process's, workers + client {(r['cpu'] + client_cpu) / one['cpu']:.2f}")
     doc["adaptive"] = {"max_level": level, "brick_cells": brick_cells, "one": one, "2w": r}
 
 

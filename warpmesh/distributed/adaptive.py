@@ -1,37 +1,53 @@
 """Adaptive meshing on bricks: the octree of ``mesh_surface(shape, adaptive=True, client=...)``.
 
 What runs where. The octree covering-up (:func:`warpmesh.surface.adaptive.octree.build_octree`:
-intervals, pruned tapes, corner values, refinement criteria) is built on the workers, brick
-by brick; the contouring (face units, crossings, roots, loops, fans, feature flips,
-untangle) runs on the client, on the gathered tree, as in one process.
+intervals, pruned tapes, corner values, refinement criteria) and the first half of the
+contouring (face units, boundary cycles with their hanging nodes, crossings, Newton roots on
+the exact f, normals) run on the workers, brick by brick; the client joins them and runs what
+needs the whole surface: the loops (and the two-sheet rounds they decide), fans, feature
+flips and untangle.
 
 - **Bricks** are boxes of the octree's cells at one level ``b`` (``brick_level``): the
   smallest level at or below the base level whose cells cut the domain into ``bricks`` per
   axis, or whose cells divide ``brick_cells`` finest cells.
 - **The client** builds the levels up to ``b`` itself (``build_octree(last_level=b)``: few
-  cells). A brick none of whose level-``b`` cells is refined holds no deeper cell: it never
-  becomes a task (the intervals of its ancestors or of its own cells culled it).
-- **A worker** builds the tree restricted to its brick (``build_octree(window=...)``): the
-  cells that meet the brick, each decided by its own interval, corners and ``force``
-  membership, so they are the whole tree's cells, with the same node values bit for bit.
-  It returns the status of its cells below level ``b`` and f at the nodes it evaluated.
-- **The gather** joins the bricks' cells (disjoint) with the client's levels, numbers the
-  leaves in the order one process gives (level by level, breadth first from the base
-  cells) and unions the node values: the tree is the single-process tree, array for array,
-  and so is the mesh contoured from it.
+  cells). A brick none of whose level-``b`` cells is refined or a leaf holds no leaf it owns:
+  it never becomes a task (the intervals of its ancestors or of its own cells culled it).
+- **A worker** builds the tree restricted to its brick and the brick's one-cell collar
+  (``build_octree(window=..., collar=True)``: the cells that meet the brick or whose closed box
+  touches it, each decided by its own interval, corners and ``force`` membership, so they are
+  the whole tree's cells, with the same node values bit for bit). The collar holds every leaf
+  across a face, edge or corner of the brick's leaves, so the face units of the leaves the
+  brick owns (those at level ``b`` or deeper inside it, :func:`owned_leaves`) and their hanging
+  nodes are the whole tree's: the worker computes them, their crossings, roots and normals
+  (:func:`contour_window`). It returns its own cells below level ``b`` (not the collar's, not
+  the node values: the client needs none) and the contouring, keyed (:class:`CrossingPiece`).
+- **Leaves above the brick level** (cap leaves, leaves above ``min_level``) may span bricks:
+  the client contours them, each level's on one window of those cells and their collar
+  (``window=(level, cells)``); they are few (``info["coarse_leaves"]``).
+- **The gather** joins the bricks' cells (disjoint) with the client's levels and numbers the
+  leaves in the order one process gives (level by level, breadth first from the base cells);
+  :func:`join_crossings` sorts the face units by (direction, owner leaf) as
+  :func:`~warpmesh.surface.adaptive.contour.face_units` makes them, numbers the crossings by
+  their two node keys as :func:`~warpmesh.surface.adaptive.contour.unit_segments` does (a crossing
+  on a seam, found by two bricks, must be the same point: a root is a function of its edge)
+  and the segments by unit in cycle order: the single-process arrays, so the mesh is the
+  single-process mesh.
 - **Two-sheet rounds** (``force``): after each round the client finds the leaves with two
   loops as one process does; the next round re-submits only the bricks that one of the new
-  forced cells meets (or whose coarse cells changed); the other bricks' results are kept.
+  forced cells touches (its cells or its collar's: the hanging nodes of its leaves); the other
+  bricks' results are kept.
 
-Not distributed (yet): the faces, roots and fans of the owned leaves (1.3 of 1.9 s for the
-part at max_level 10 in one process) run on the client after the gather; ``gather=False``
-and ``output`` are refused (untangle and the feature flips need the whole surface). The
-next step: a worker also builds the one-cell collar of its brick (the cells whose closed box
-touches the brick's: every neighbour across a face, edge or corner of its leaves, so their
-hanging nodes) and returns the face units its leaves own, keyed (direction, owner leaf's
-cell key, cycle position) for the one-process unit order, with their crossings keyed by
-their two node keys (the one-process vertex order) and roots; the leaves at or above the
-brick level (one coarse leaf may span bricks) need an owner brick whose window covers them.
+Measured (``python benchmarks/bench_distributed.py --cases adaptive``, the part at max_level
+10, bricks of 512 finest cells: 8 tasks, 315,472 triangles, three runs 2026-12-03 09:41-09:42
+UTC, load average 3.6 to 4.1 on the 2 cores from other engineers' jobs): the client spends
+1.36-1.43 CPU s, 0.58-0.71 of one process's 1.99-2.34 (it was 1.7-2.2 CPU s with the contouring
+on the client), the workers 1.44-1.56 CPU s; 0.27-0.28 GB per worker against 0.49 GB for one
+process. The wall times under that load say little (0.71x-1.08x one process's): the client's
+share is serial, mostly untangle's global intersection check (0.9-1.1 s) and the fans.
+Not distributed (yet): the loops, fans, feature flips and untangle (they read the whole
+surface; a brick could run them on the loops of its own leaves, with its neighbours' triangles
+for the intersection check); ``gather=False`` and ``output`` are refused.
 
 Example: :func:`warpmesh.mesh_surface` with ``adaptive=True`` and ``client``;
 :func:`brick_grid` for the layout.
@@ -50,7 +66,7 @@ from warpmesh.distributed.run import brick_error, run_job, worker_tape
 from warpmesh.errors import WarpMeshError
 from warpmesh.surface.adaptive import contour as OC
 from warpmesh.surface.adaptive.octree import (CELL_BITS, LEAF, INTERNAL, NodeStore, Octree, build_octree, cell_keys,
-                                              finest_cells, in_window)
+                                              finest_cells, in_window, search)
 from warpmesh.surface.adaptive.pipeline import crossing_roots
 
 __all__ = ["OctreePiece", "CrossingPiece", "BrickedOctree", "brick_grid", "merge_pieces", "breadth_first_order",
@@ -94,6 +110,7 @@ class OctreePiece:
     levels: list
     info: dict = field(default_factory=dict)
     crossings: CrossingPiece | None = None
+    order: np.ndarray | None = None  # the cells' breadth-first keys (:func:`breadth_first_order`), if sent
 
 
 def split_keys(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -253,7 +270,7 @@ def join_crossings(tree: Octree, pieces: list[CrossingPiece]):
     cat = lambda name: np.concatenate([getattr(p, name) for p in pieces])  # noqa: E731
 
     def leaf(cells):
-        pos = np.minimum(np.searchsorted(keys, cells), len(keys) - 1)
+        pos = np.minimum(search(keys, cells), len(keys) - 1)
         if not np.all((keys[pos] == cells) & (status[pos] == LEAF)):
             raise WarpMeshError("a brick's face unit names a cell that is no leaf of the tree (an internal error)")
         return leaf_of[pos]
@@ -285,8 +302,11 @@ def join_crossings(tree: Octree, pieces: list[CrossingPiece]):
     seg = np.concatenate(segs) if segs else np.zeros((0, 3), np.int64)
     seg = np.stack([unit_rank[seg[:, 0]], vid[seg[:, 1]], vid[seg[:, 2]]], axis=1)
     seg = seg[np.argsort(seg[:, 0], kind="stable")]
-    return (leaf(cat("minus"))[order], leaf(cat("plus"))[order], seg, len(order), points, normals, cap_vertex,
-            int(sum(p.evaluations for p in pieces)))
+    plus_side = (cat("direction") % 2 == 1)[order]  # the owner is the minus leaf of a unit on its + side
+    other = leaf(np.where(plus_side, cat("plus")[order], cat("minus")[order]))
+    mine = owner[order]
+    return (np.where(plus_side, mine, other), np.where(plus_side, other, mine), seg, len(order), points, normals,
+            cap_vertex, int(sum(p.evaluations for p in pieces)))
 
 
 class BrickedOctree:
@@ -443,8 +463,13 @@ class _OctreeJob:
             nodes = (np.zeros(0, np.int64), np.zeros(0, np.float32))
         else:  # every node the brick evaluated (sorted already; sorting out its leaves' corners costs more
             nodes = (tree.nodes.keys, tree.nodes.values)  # than sending the rest)
+        # the leaves' breadth-first keys (their order in the merged tree): worked out here, not on the client
+        order = np.full(len(deep), -1, np.int64)
+        leaf = status[deep] == LEAF
+        order[leaf] = breadth_first_order(lv[deep[leaf]], ijk[deep[leaf]], tree.base_level,
+                                          tree.n_finest >> (tree.max_level - tree.base_level))
         info["time"] = time.perf_counter() - t0
-        return OctreePiece(keys[deep], status[deep], *nodes, levels, info, crossings)
+        return OctreePiece(keys[deep], status[deep], *nodes, levels, info, crossings, order)
 
 
 def merge_pieces(coarse: Octree, pieces: list[OctreePiece], level: int) -> Octree:
@@ -462,7 +487,13 @@ def merge_pieces(coarse: Octree, pieces: list[OctreePiece], level: int) -> Octre
     leaf = np.flatnonzero(status == LEAF)
     lv, ijk = split_keys(keys[leaf])
     n0 = coarse.n_finest >> (coarse.max_level - coarse.base_level)
-    rank = np.lexsort((breadth_first_order(lv, ijk, coarse.base_level, n0), lv))
+    if pieces and all(p.order is not None for p in pieces):  # the bricks sent their leaves' keys
+        c_lv, c_ijk = split_keys(ck)
+        bfo = np.concatenate([breadth_first_order(c_lv, c_ijk, coarse.base_level, n0)] +
+                             [p.order for p in pieces])[order][leaf]
+    else:
+        bfo = breadth_first_order(lv, ijk, coarse.base_level, n0)
+    rank = np.lexsort((bfo, lv))
     leaf_of = np.full(len(keys), -1, np.int64)
     leaf_of[leaf[rank]] = np.arange(len(leaf))
     nk = np.concatenate([coarse.nodes.keys] + [p.node_keys for p in pieces])
