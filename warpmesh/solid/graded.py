@@ -369,6 +369,9 @@ class _Bisection:
         pending = np.empty(0, np.int64)
         mids = np.empty(0, np.int64)
         frontier = np.unique(split)
+        # the living tetrahedra holding a key of pending, gathered as keys join it: the others
+        # holding older keys were bisected, and their children are checked as they are made
+        holders = []
         while True:
             while len(frontier):  # closure: the longest edges of the tetrahedra holding new keys
                 new = np.setdiff1d(frontier, pending, assume_unique=True)
@@ -381,8 +384,9 @@ class _Bisection:
                 k = np.concatenate([pending, new])
                 o = np.argsort(k)
                 pending, mids = k[o], np.concatenate([mids, ids])[o]
-                frontier = np.unique(self.lkey[self._holding(new)])
-            cut = self._holding(pending)
+                holders.append(self._holding(new))
+                frontier = np.unique(self.lkey[holders[-1]])
+            cut = np.unique(np.concatenate(holders)) if holders else np.empty(0, np.int64)
             if not len(cut):
                 break
             # bisect the tetrahedra cut at their longest edges: two children each, appended
@@ -414,11 +418,12 @@ class _Bisection:
             # children still holding a key to split: their longest edges join the closure
             pos = np.clip(np.searchsorted(pending, ck), 0, len(pending) - 1)
             holds = (pending[pos] == ck).any(axis=1)
+            holders = [m + np.flatnonzero(holds)]
             frontier = np.unique(cl[holds])
-        if 2 * len(self.recent[0]) > len(self.main[0]):
-            sf, od = _merged(*self.main, *self.recent)
-            live = self.alive[od // 6]
-            self.main = (sf[live], od[live])
+        if 2 * len(self.recent[0]) > len(self.main[0]):  # the dead dropped first: less to merge
+            live = [self.alive[od // 6] for _, od in (self.main, self.recent)]
+            (mf, mo), (rf, ro) = ((sf[k], od[k]) for (sf, od), k in zip((self.main, self.recent), live))
+            self.main = _merged(mf, mo, rf, ro)
             self.recent = (np.empty(0, np.int64), np.empty(0, np.int64))
 
 
