@@ -37,7 +37,7 @@ The operators, each iteration:
    **snap** the apex of a cap (Q_K above ``RESCUE_Q``) whose large angle faces a junction
    edge onto that edge, on the input's curve (:func:`warpmesh.optimize.junction_swap.
    snap_pass`), and **rescue** the triangles still above ``RESCUE_Q`` by collapses of their
-   own edges whatever their lengths (a cap whose apex is a curve vertex between two curve
+   own edges whatever their lengths (``RESCUE_TIERS``) (a cap whose apex is a curve vertex between two curve
    edges goes by the collapse of the apex along its curve, which no flip may do);
 4. **relocate** the interface and curve vertices as above; a move that makes a triangle
    worse than ``max(SMOOTH_Q, its Q_K before)`` is undone.
@@ -105,6 +105,12 @@ MAX_TURN = 45.0
 RETRIES = 6
 #: collapse batches per iteration
 COLLAPSE_ROUNDS = 4
+#: the rescue collapses: (the triangles above this Q_K, whose edges collapse whatever their
+#: lengths, the largest Q_K of a new triangle unless its parent was worse): a collapse
+#: removes its edge's triangles, so each one of the second tier replaces a triangle above
+#: 30 by triangles of at most 10 (the frog's needle of Q_K 534, whose collapse makes a
+#: triangle of 3.4, stayed with the first tier alone)
+RESCUE_TIERS = ((RESCUE_Q, COLLAPSE_Q), (30.0, 10.0))
 #: flip batches per flip pass (three passes per iteration)
 FLIP_ROUNDS = 2
 #: relocation passes per iteration
@@ -244,8 +250,9 @@ def _iterate(state, h_of, ref, tol, iterations, before, q_cap):
                                                   min(COLLAPSE_Q, q_cap), counts)
         t = _flip_pass(p, t, lower, upper, bits, ref, tol, counts)
         p, t, lower, upper = _snap_pass(p, t, lower, upper, bits, ref, tol, q_cap, counts)
-        p, t, lower, upper, bits = _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol,
-                                                  min(COLLAPSE_Q, q_cap), counts, rescue=True)
+        for above, q_limit in RESCUE_TIERS:
+            p, t, lower, upper, bits = _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol,
+                                                      min(q_limit, q_cap), counts, rescue=above)
         for _ in range(SMOOTH_PASSES):
             p = _relocate_pass(p, t, lower, upper, bits, ref, min(SMOOTH_Q, q_cap), counts)
             t = _flip_pass(p, t, lower, upper, bits, ref, tol, counts)
@@ -492,17 +499,17 @@ def _apply_splits(p, t, lower, upper, eid, edges, new, n):
 
 
 # ----------------------------------------------------------------------------- collapses
-def _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol, q_limit, counts, rescue=False):
+def _collapse_pass(p, t, lower, upper, bits, h_of, ref, tol, q_limit, counts, rescue=None):
     """Collapses of the edges shorter than ``COLLAPSE_BELOW`` x size; with ``rescue``, of
-    the edges of the triangles worse than ``RESCUE_Q`` instead, whatever their lengths
+    the edges of the triangles worse than ``rescue`` instead, whatever their lengths
     (a cap whose apex is a curve vertex between its two curve edges, which no flip may
     remove, goes by the collapse of the apex along its curve)."""
     h = h_of(p)
     refused = np.zeros(0, np.int64)
     sub = {"collapses": 0, "rejected": 0}
     shorter, longest, only = COLLAPSE_BELOW * h, SPLIT_ABOVE * h, None
-    if rescue:
-        bad = t[quality_of(p[t]) > RESCUE_Q]
+    if rescue is not None:
+        bad = t[quality_of(p[t]) > rescue]
         if len(bad) == 0:
             return p, t, lower, upper, bits
         u, v = bad.ravel(), bad[:, [1, 2, 0]].ravel()
