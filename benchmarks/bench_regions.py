@@ -27,13 +27,17 @@ error of a region's volume against its voxel volume among the regions of at leas
 time ratio tool / warpmesh (> 1: warpmesh faster); then each warpmesh row's per-region errors.
 
 Run:  python benchmarks/bench_regions.py [--repeat 3] [--voxels 4] [--no-tetgen] [--json out.json]
-The graded frog at 4 voxels takes about 2 minutes a run: ``--repeat 1 --no-tetgen`` for a quick look.
+The graded frog at 4 voxels takes about 45 s a run: ``--repeat 1 --no-tetgen`` for a quick look
+(about 2 minutes in all).
 
-Measured here (``--repeat 1 --no-tetgen``, 2 cores, load ~2), frog at 4 voxels: defaults (graded
-to 2 voxels for labels 1, 12, 13 and the ten specks under 1,000 voxels) 8,851,938 tets, 90.6 s
-CPU, dihedral [9.28°, 167.00°], worst region of >= 1,000 voxels 4.59 % (label 1), none lost;
-uniform 2,249,597 tets, 3.2 s, [12.76°, 159.12°], 15.75 % (labels 1 -15.7 %, 12 -9.4 %), 2 lost
-(21, 27). Nested balls 128^3: nothing to grade (every region within 0.2 %), the uniform mesh.
+Measured here (``nice python benchmarks/bench_regions.py --repeat 1 --no-tetgen``, 2 cores, load
+1.9-3.0, 2026-12-03 09:49 UTC), frog at 4 voxels: defaults (graded to 2 voxels for labels 1, 12,
+13 and the ten specks under 1,000 voxels) 8,851,938 tets, 42.1 s CPU (12.0x the uniform's 3.5 s
+in the same run; 90.6 s before c474cee; 005133b's code 50.8-63.0 s against this code's
+40.2-41.1 s in one process, alternating, with bit-identical meshes), dihedral [9.28°, 167.00°],
+worst region of >= 1,000 voxels 4.59 % (label 1), none lost; uniform 2,249,597 tets, 3.5 s,
+[12.76°, 159.12°], 15.75 % (labels 1 -15.7 %, 12 -9.4 %), 2 lost (21, 27). Nested balls 128^3:
+nothing to grade (every region within 0.2 %), the uniform mesh.
 """
 
 from __future__ import annotations

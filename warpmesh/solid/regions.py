@@ -49,8 +49,10 @@ of the lattice but conforming positive tetrahedra and vertices named by their no
 and faces, so steps 1-5 run unchanged on it. Measured (``python benchmarks/bench_regions.py
 --repeat 1 --no-tetgen``): pyvista's frog at h = 4 voxels, labels 1 and 12 (2-3 voxels thick)
 -15.7 % and -9.4 % -> -4.6 % and -2.0 %, every label of 3,891 voxels or more within 5 %, no
-label lost (2 before), 8.85 M tetrahedra instead of 2.25 M, 91 s of CPU instead of 3.2 s (77 s
-of it the bisection), dihedral angles [9.3°, 167.0°] instead of [12.8°, 159.1°]; the labels
+label lost (2 before), 8.85 M tetrahedra instead of 2.25 M, 40-42 s of CPU instead of 3.4-3.5 s
+in the same run (12x; 28 s of it the graded background: 15 s testing its edges in
+:mod:`warpmesh.solid.thin`, 9-11 s the bisection), dihedral angles [9.3°, 167.0°] instead of
+[12.8°, 159.1°] (where the small ones are: Quality, below); the labels
 of 4 to 252 voxels (specks of the segmentation) stay 0-57 % off, and one of them (23, 6 voxels
 in a 54 x 5 x 31 box) goes from -19.5 % to -56.8 %. What is still lost: a layer thinner than about
 twice ``min_size`` (a 1-voxel layer at ``min_size`` 1 voxel: +32 %, the cut points' snapping
@@ -71,7 +73,17 @@ core volume -5.5 %; snap 0.3 and INTERIOR 0.2: [18.1°, 149.3°], core -4.2 %; p
 at h = 4: [0.06°, 178.5°] -> [12.8°, 159.1°], the large regions' volumes no worse. snap 0.35
 moved a plane interface (two 10 x 20 x 20 slabs, h = 3) by 7 % of a slab's volume, so the
 default stays at 0.3. Nothing here bounds the angles: they are measured, and ``info`` reports
-them.
+them. On the graded lattice (frog at h = 4 voxels, [9.3°, 167.0°]) every tetrahedron below the
+uniform mesh's 12.8° (235,161 of 8.85 M) is a piece of a cleaved background tetrahedron of the
+bisection's classes whose own smallest dihedral angle is 45° (none of a BCC one's, which is 60°;
+none a whole tetrahedron): not the transition between sizes as such, nor the snapping, but
+the fan (node, node, face point, tet point) of a face point and a tet point pulled only to
+``INTERIOR`` inside a flatter tetrahedron (46,385 of the 46,932 below 11°). Pulling further
+(face points 0.3, tet points 0.225) lifts the graded frog to [14.3°, 157.3°] (its worst large
+region 4.6 % -> 3.1 %) and uniform lattices from [16.8°, 150.0°] (nested balls 64^3) and
+[15.6°, 153.0°] (the frog's labels at unit spacing) to [24.0°, 137.0°], but a 2-voxel layer
+between two labels (``thin``'s example) goes from -0.1 % to +2.6 % and the balls' core from
++0.02 % to +0.84 %: measured (``/tmp`` scripts), not taken for now.
 
 Conventions (those of ``mesh_surface(..., interfaces="shared")``, :mod:`warpmesh.surface.multilabel`)
 -----------------------------------------------------------------------------------------------------
