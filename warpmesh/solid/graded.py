@@ -264,7 +264,8 @@ def tet_edges(tets: np.ndarray) -> np.ndarray:
 def _longest(coords: np.ndarray, tets: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(m,) the key and length of each tetrahedron's longest edge, ties to the smallest key (a
     total order of edges, so tetrahedra sharing an edge agree)."""
-    d = coords[tets[:, _EDGES[:, 0]]] - coords[tets[:, _EDGES[:, 1]]]
+    p = coords[tets]  # (m, 4, 3): one gather per vertex, not two per edge (scattered node ids)
+    d = p[:, _EDGES[:, 0]] - p[:, _EDGES[:, 1]]
     length2 = np.einsum("mek,mek->me", d, d)
     best = length2.max(axis=1, keepdims=True)
     cand = np.where(length2 == best, keys, np.iinfo(np.int64).max)
