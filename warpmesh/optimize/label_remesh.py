@@ -111,10 +111,10 @@ RETRIES = 6
 COLLAPSE_ROUNDS = 4
 #: the rescue collapses: (the triangles above this Q_K, whose edges collapse whatever their
 #: lengths, the largest Q_K of a new triangle unless its parent was worse): a collapse
-#: removes its edge's triangles, so each one of the second tier replaces a triangle above
-#: 30 by triangles of at most 10 (the frog's needle of Q_K 534, whose collapse makes a
-#: triangle of 3.4, stayed with the first tier alone)
-RESCUE_TIERS = ((RESCUE_Q, COLLAPSE_Q), (30.0, 10.0))
+#: removes its edge's triangles, so each one past the first tier at least halves the worst
+#: Q_K it touches (the frog's needles of Q_K 534 and 21.5, whose collapses make triangles of
+#: 3.4 and 8.3, stayed with the first tier alone)
+RESCUE_TIERS = ((RESCUE_Q, COLLAPSE_Q), (10.0, 5.0), (20.0, 10.0))
 #: flip batches per flip pass (three passes per iteration)
 FLIP_ROUNDS = 2
 #: relocation passes per iteration
