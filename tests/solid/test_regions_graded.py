@@ -116,6 +116,43 @@ def test_unresolved_edges():
     assert unresolved_edges(at, a[:1], b[:1], np.ones(3), 4, focus=focus).tolist() == [False]
 
 
+def test_resolution_samples_only_new_edges_and_answers_as_the_full_test():
+    """thin._Resolution samples at each call only the edges with an end added since the last
+    one (refine_tets' contract): its answers equal the test of every edge of every tetrahedron
+    asked, and it samples each distinct edge asked exactly once."""
+    from warpmesh.solid.graded import EDGE_KEY, SizeField, bcc_tetrahedra, refine_tets, tet_edges
+    from warpmesh.solid.thin import _Resolution
+
+    g = np.indices((13, 13, 13)).transpose(1, 2, 3, 0)
+    vol = np.ones((13, 13, 13), np.uint8)
+    vol[np.abs(g[..., 0] + 0.5 * g[..., 1] - 0.3 * g[..., 2] - 7.0) < 0.9] = 2  # a slanted layer
+    vol[8:10, 2:4, 8:10] = 3  # a speck
+
+    def at(p):
+        k = np.clip(np.rint(p).astype(int), 0, 12)
+        return vol[k[:, 0], k[:, 1], k[:, 2]]
+
+    h, small, one = 4.0, 1.0, np.ones(3)
+    res = _Resolution(at, one, h, small, 4, None)
+    seen, calls = set(), []
+
+    def tet_size(nodes, t):
+        got = res(nodes, t)
+        keys = tet_edges(t)
+        u = np.unique(keys)
+        bad = unresolved_edges(at, nodes[u // EDGE_KEY], nodes[u % EDGE_KEY], one, 4)
+        np.testing.assert_array_equal(got, np.where(bad[np.searchsorted(u, keys)].any(axis=1), small, h))
+        seen.update(u.tolist())
+        calls.append(int((got == small).sum()))
+        return got
+
+    coords, tets = bcc_tetrahedra((4, 4, 4))
+    _, _, levels = refine_tets(coords, tets, h, np.zeros(3), SizeField(lambda p: np.full(len(p), h), small, h),
+                               tet_size=tet_size)
+    assert len(calls) >= 3 and calls[0] > 0 and levels.max() >= 3
+    assert res.sampled == len(seen)
+
+
 def test_bad_min_size():
     vol = _layered(16, 2)
     for bad in (0.0, -1.0, float("nan"), float("inf"), True, "small", [1.0]):

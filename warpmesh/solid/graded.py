@@ -459,6 +459,11 @@ def refine_tets(coords: np.ndarray, tets: np.ndarray, h0: float, origin: np.ndar
     ids -> (k,) the size asked of each of those tetrahedra, in place of ``field``'s smallest at
     their vertices and centroids (``field`` then only names the smallest size: sizes below
     ``field.smallest`` raise ValueError, and a tetrahedron no longer than it is not asked).
+    ``tet_size`` may rely on this (:class:`warpmesh.solid.thin._Resolution` does, to test only
+    new edges): each tetrahedron is asked once; nodes are only appended; and an edge of a
+    tetrahedron asked whose two ends existed at the previous call was an edge of a tetrahedron
+    asked before (bisection makes new edges only at new midpoints, and every tetrahedron
+    bisected is longer than ``field.smallest``, so was asked when it was made).
 
     Returns (coords, tets, levels) as :func:`refine_bcc`; the first n nodes are ``coords``.
     """

@@ -107,26 +107,44 @@ def _merge_short_runs(lab: np.ndarray, min_run: int) -> np.ndarray:
 
 class _Resolution:
     """The size refine_tets asks of a tetrahedron: ``min_size`` while one of its edges is
-    unresolved, else ``h`` (edges are sampled once, then remembered by their keys)."""
+    unresolved, else ``h``.
+
+    Each edge is sampled once, when it first comes: with the contract of
+    :func:`~warpmesh.solid.graded.refine_tets` (nodes only appended; an edge of an asked
+    tetrahedron whose two ends existed at the previous call was an edge of a tetrahedron asked
+    before), the edges to sample are those with an end added since the previous call, and no
+    search of the edges seen is needed. Only the unresolved edges are remembered (sorted keys,
+    and a flag on their ends so that most edges are cleared without a search)."""
 
     def __init__(self, labels_at, spacing, h: float, min_size: float, per_voxel: int, focus):
         self.labels_at, self.spacing, self.h, self.min_size = labels_at, spacing, h, min_size
         self.per_voxel, self.focus = per_voxel, focus
-        self.keys = np.zeros(0, np.int64)  # sorted
-        self.bad = np.zeros(0, bool)
+        self.known = 0  # nodes seen at the previous call: an edge with an end at or past it is new
+        self.bad_keys = np.zeros(0, np.int64)  # sorted keys of the unresolved edges
+        self.bad_node = np.zeros(0, bool)  # True on an end of an unresolved edge
         self.sampled = 0
 
     def __call__(self, nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
         keys = tet_edges(tets)
-        new = np.setdiff1d(np.unique(keys), self.keys, assume_unique=True)
+        lo, hi = keys // EDGE_KEY, keys % EDGE_KEY
+        new = np.unique(keys[hi >= self.known])
+        if len(self.bad_node) < len(nodes):
+            self.bad_node = np.concatenate([self.bad_node, np.zeros(len(nodes) - len(self.bad_node), bool)])
+        self.known = max(self.known, len(nodes))
         if len(new):
-            bad = unresolved_edges(self.labels_at, nodes[new // EDGE_KEY], nodes[new % EDGE_KEY], self.spacing,
-                                   self.per_voxel, focus=self.focus)
+            bad = new[unresolved_edges(self.labels_at, nodes[new // EDGE_KEY], nodes[new % EDGE_KEY], self.spacing,
+                                       self.per_voxel, focus=self.focus)]
             self.sampled += len(new)
-            k = np.concatenate([self.keys, new])
-            o = np.argsort(k, kind="stable")
-            self.keys, self.bad = k[o], np.concatenate([self.bad, bad])[o]
-        unresolved = self.bad[np.searchsorted(self.keys, keys)].any(axis=1)
+            if len(bad):
+                self.bad_keys = np.sort(np.concatenate([self.bad_keys, bad]))
+                self.bad_node[bad // EDGE_KEY] = True
+                self.bad_node[bad % EDGE_KEY] = True
+        cand = np.flatnonzero((self.bad_node[lo] & self.bad_node[hi]).any(axis=1))
+        unresolved = np.zeros(len(tets), bool)
+        if len(cand) and len(self.bad_keys):
+            k = keys[cand]
+            pos = np.minimum(np.searchsorted(self.bad_keys, k), len(self.bad_keys) - 1)
+            unresolved[cand] = (self.bad_keys[pos] == k).any(axis=1)
         return np.where(unresolved, self.min_size, self.h)
 
 
