@@ -51,7 +51,9 @@ triangle after ``optimize`` is a cap of Q_K 18.9 at a junction of four triangles
 fixed ones: its flip folds the new triangle to 26-28 degrees from a triangle of the
 other pair around the junction edge, the collapses of the apex to 22-28 degrees (the
 fold limit is 30, :data:`warpmesh.optimize.embedding.FOLD_COS`). Moving a fixed vertex
-would be needed, which the optimiser does not do.
+would be needed, which the optimiser does not do. On the whole frog (``optimize``, 2
+iterations) the worst goes from 1066 to 13.0 (the module docstring of
+:mod:`warpmesh.optimize.label_remesh` has the run).
 
 Example
 -------

@@ -52,14 +52,15 @@ above the input's, the best iteration that was not is returned, else the input (
 warning); ``info["optimize"]`` says which (``kept``).
 
 Measured on pyvista's frog (25 labels, ``smoothing=16``, 1.58 M triangles, default size
-0.998, 2 iterations, 2 cores shared with other jobs, load 4-6): 1.85 M triangles; mean
-Q_K 1.55 -> 1.154, mean ``|log(length / size)|`` 0.20 -> 0.13, worst Q_K 1066 -> 21.5,
-smallest angle 0.062 -> 1.57 degrees, triangles above Q_K 10: 2176 -> 21, no crossing, every
-label's boundary closed and oriented; 566 CPU s. Before the junction-aware operations
-(the flips of :mod:`warpmesh.optimize.junction_swap`, the snaps, the rescue collapses) the
-same run gave worst Q_K 1066 (a sliver whose flip passes every check on the input, never
-chosen again after its batch failed), 80 triangles above 10, mean 1.149, in 509 CPU s.
-The worst left is a needle whose short edge (0.06) joins two vertices of a junction curve.
+0.998, 2 iterations, 2 cores shared with other jobs, load 1-4): 1.85 M triangles; mean
+Q_K 1.55 -> 1.154, mean ``|log(length / size)|`` 0.20 -> 0.13, worst Q_K 1066 -> 13.0,
+smallest angle 0.062 -> 2.63 degrees, triangles above Q_K 10: 2176 -> 17, no crossing, every
+label's boundary closed and oriented; 630 CPU s. Before the junction-aware operations
+(the flips of :mod:`warpmesh.optimize.junction_swap`, the snaps, the rescue collapses) a
+run gave worst Q_K 1066 (a sliver whose flip passes every check on the input, never
+chosen again after its batch failed), 80 triangles above 10, mean 1.149, in 509 CPU s
+(load 4-6). The worst left (Q_K 12-13) are needles whose short edge (0.06) joins two
+vertices of a junction curve, their collapses refused.
 
 What is not here: a size field from the curvature (``size="curvature"``), the polishing
 passes of :func:`warpmesh.optimize.remesh.optimize` (best-position moves, needle
