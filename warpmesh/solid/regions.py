@@ -49,10 +49,10 @@ of the lattice but conforming positive tetrahedra and vertices named by their no
 and faces, so steps 1-5 run unchanged on it. Measured (``python benchmarks/bench_regions.py
 --repeat 1 --no-tetgen``): pyvista's frog at h = 4 voxels, labels 1 and 12 (2-3 voxels thick)
 -15.7 % and -9.4 % -> -4.6 % and -2.0 %, every label of 3,891 voxels or more within 5 %, no
-label lost (2 before), 8.85 M tetrahedra instead of 2.25 M, 40-42 s of CPU instead of 3.4-3.5 s
-in the same run (12x; 28 s of it the graded background: 15 s testing its edges in
-:mod:`warpmesh.solid.thin`, 9-11 s the bisection), dihedral angles [9.3°, 167.0°] instead of
-[12.8°, 159.1°] (where the small ones are: Quality, below); the labels
+label lost (2 before), 8.85 M tetrahedra instead of 2.25 M, 29.8 s of CPU instead of 2.9 s
+in the same run (10.2x, load 1.0; 16.4 s of it the graded background: its bisection, and about
+5 s sampling its edges against the labels in :mod:`warpmesh.solid.thin`), dihedral angles
+[9.3°, 167.0°] instead of [12.8°, 159.1°] (where the small ones are: Quality, below); the labels
 of 4 to 252 voxels (specks of the segmentation) stay 0-57 % off, and one of them (23, 6 voxels
 in a 54 x 5 x 31 box) goes from -19.5 % to -56.8 %. What is still lost: a layer thinner than about
 twice ``min_size`` (a 1-voxel layer at ``min_size`` 1 voxel: +32 %, the cut points' snapping
