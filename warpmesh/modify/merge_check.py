@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from warpmesh._util.arrays import sorted_unique
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.cells.types import CELL_TYPES
 from warpmesh.cells.reference import base_type, reference_cell
@@ -55,14 +56,6 @@ def _top_blocks(mesh) -> tuple[int, list[tuple[str, np.ndarray]]]:
             p1 = base_type(t)
             out.append((p1, c[:, : len(reference_cell(p1).vertices)]))
     return top, out
-
-
-def _sorted_unique(keys: np.ndarray) -> np.ndarray:
-    """np.unique by sorting (numpy >= 2.3's hash-based np.unique is slower on large int64)."""
-    k = np.sort(keys)
-    keep = np.ones(len(k), dtype=bool)
-    keep[1:] = k[1:] != k[:-1]
-    return k[keep]
 
 
 #: sorting networks (pairs of columns to compare-exchange) for short rows
@@ -244,10 +237,10 @@ def _interface(points, ents, flag, other_keys, other_boundary, n_new) -> list[in
         pairs = [np.stack([cols[i], cols[j]], axis=1) for i in range(len(cols)) for j in range(i + 1, len(cols))]
         pairs = np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=INDEX_DTYPE)
         pairs = pairs[(pairs >= 0).all(axis=1)]
-        kept_pairs = _sorted_unique(_row_keys(_sort_rows(pairs), n_new))
+        kept_pairs = sorted_unique(_row_keys(_sort_rows(pairs), n_new))
     for k, rows in enumerate(ents[:-2] if facet_rows is not None else ents[:-1]):
         sel = rows[_all_flagged(flag, rows)]
-        keys = _sorted_unique(_row_keys(sel, n_new))
+        keys = sorted_unique(_row_keys(sel, n_new))
         keep = _member(keys, other_keys[k])
         if k == 0 and facet_rows is not None and rows.shape[1] == 2:
             keep |= _member(keys, kept_pairs)
@@ -300,7 +293,7 @@ def _euler_check(top_a, blocks_a, blocks_b, bmap, common_a, n_new, points) -> di
     ents_a, ents_b = _entities(top_a, blocks_a), _entities(top_a, blocks_b)
     keys_a, keys_b = [], []
     for ra, rb in zip(ents_a, ents_b):
-        ua, ub = _sorted_unique(_row_keys(ra, n_new)), _sorted_unique(_row_keys(rb, n_new))
+        ua, ub = sorted_unique(_row_keys(ra, n_new)), sorted_unique(_row_keys(rb, n_new))
         keys_a.append(ua)
         keys_b.append(ub)
         ta.append(len(ua))

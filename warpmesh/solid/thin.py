@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from warpmesh._util.arrays import sorted_unique
 from warpmesh.errors import WarpMeshError
 from warpmesh.solid.graded import EDGE_KEY, SizeField, refine_tets, tet_edges
 from warpmesh.solid.lattice import lattice_tables, node_coordinates
@@ -105,13 +106,6 @@ def _merge_short_runs(lab: np.ndarray, min_run: int) -> np.ndarray:
     return lab
 
 
-def _sorted_unique(keys: np.ndarray) -> np.ndarray:
-    """np.unique(keys) of a 1-D int array, by a sort (numpy >= 2.3's hash-based np.unique takes
-    3.6 s on 6 M int64 keys where sorting takes 0.09 s)."""
-    s = np.sort(keys)
-    return s[np.concatenate([[True], s[1:] != s[:-1]])] if len(s) else s
-
-
 class _Resolution:
     """The size refine_tets asks of a tetrahedron: ``min_size`` while one of its edges is
     unresolved, else ``h``.
@@ -134,7 +128,7 @@ class _Resolution:
     def __call__(self, nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
         keys = tet_edges(tets)
         lo, hi = keys // EDGE_KEY, keys % EDGE_KEY
-        new = _sorted_unique(keys[hi >= self.known])
+        new = sorted_unique(keys[hi >= self.known])
         if len(self.bad_node) < len(nodes):
             self.bad_node = np.concatenate([self.bad_node, np.zeros(len(nodes) - len(self.bad_node), bool)])
         self.known = max(self.known, len(nodes))
