@@ -61,7 +61,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from warpmesh.distributed.bricks import DEFAULT_BRICK_CELLS, Brick, check_bricking
+from warpmesh.distributed.bricks import DEFAULT_BRICK_CELLS, Brick, bricks_of_cuts, check_bricking
 from warpmesh.distributed.run import brick_error, run_job, worker_tape
 from warpmesh.errors import WarpMeshError
 from warpmesh.surface.adaptive import contour as OC
@@ -191,13 +191,7 @@ def brick_grid(n_base, base: int, max_level: int, bricks=None, brick_cells=None)
         n = n_base << (level - base)
         side = brick_cells >> (max_level - level)
         cuts = [list(range(0, int(n[a]), side)) + [int(n[a])] for a in range(3)]
-    out = []
-    for k in range(len(cuts[2]) - 1):
-        for j in range(len(cuts[1]) - 1):
-            for i in range(len(cuts[0]) - 1):
-                out.append(Brick(len(out), (i, j, k), (cuts[0][i], cuts[1][j], cuts[2][k]),
-                                 (cuts[0][i + 1], cuts[1][j + 1], cuts[2][k + 1])))
-    return level, out
+    return level, bricks_of_cuts(cuts)
 
 
 def owned_leaves(tree: Octree, window) -> np.ndarray:

@@ -110,7 +110,16 @@ def layout(cells, bricks=None, brick_cells=None) -> list[Brick]:
     bricks, brick_cells = check_bricking(bricks, brick_cells)
     if bricks is None and brick_cells is None:
         brick_cells = DEFAULT_BRICK_CELLS
-    cuts = [axis_cuts(int(c), None if bricks is None else bricks[a], brick_cells) for a, c in enumerate(cells)]
+    return bricks_of_cuts([axis_cuts(int(c), None if bricks is None else bricks[a], brick_cells)
+                           for a, c in enumerate(cells)])
+
+
+def bricks_of_cuts(cuts) -> list[Brick]:
+    """The bricks between consecutive cuts on each axis (three increasing lists), ids x fastest.
+
+    >>> [b.lo for b in bricks_of_cuts([[0, 2, 4], [0, 3], [0, 1]])]
+    [(0, 0, 0), (2, 0, 0)]
+    """
     out = []
     for k in range(len(cuts[2]) - 1):
         for j in range(len(cuts[1]) - 1):
