@@ -282,14 +282,15 @@ def test_optimize_bad_options_name_the_argument():
 
 
 @pytest.mark.slow
-def test_optimize_random_blobs_40():
-    """A ~40^3 random-blob volume with 4 labels (110 k triangles), smoothed, remeshed to
-    1.5 voxels. Its worst triangle (Q_K 799, a sliver on a cap rim) goes with the junction
-    swap's rescue collapses (18.9 left: a cap between two fixed vertices); the mean gets better."""
-    smooth = wm.mesh_surface(_blobs(5, 4, shape=(38, 40, 42)), labels="all", interfaces="shared", smoothing=16)
+def test_optimize_random_blobs_32():
+    """A ~32^3 random-blob volume with 4 labels (56 k triangles), smoothed, remeshed to
+    1.5 voxels. Its worst triangle (Q_K 5e5, a sliver) goes with the junction swap's rescue
+    collapses (6.5 left); the mean gets better. (At 40^3 the same test took 92 s; its worst,
+    799 on a cap rim, went to 18.9.)"""
+    smooth = wm.mesh_surface(_blobs(5, 4, shape=(30, 32, 34)), labels="all", interfaces="shared", smoothing=16)
     opt = optimize_labels(smooth, size=1.5, iterations=2)
     _check_optimized(smooth, opt, volume_rtol=0.02)
     info = opt.info["optimize"]
     assert info["after"]["q_mean"] < 0.7 * info["before"]["q_mean"]
     assert info["after"]["edge_error"] < info["before"]["edge_error"]
-    assert info["after"]["q_worst"] < 0.1 * info["before"]["q_worst"]  # 799 -> 18.9
+    assert info["after"]["q_worst"] < 10.0 < info["before"]["q_worst"]  # 5e5 -> 6.5
