@@ -127,18 +127,22 @@ def test_a_watched_preview_refines_when_idle_and_drops_stale_work():
     assert view.refined() is view.refined_mesh
 
     slow = _small_preview(idle=0.0)  # the refinement starts at once: an edit while it runs drops it
-    gate = threading.Event()
+    gate, entered = threading.Event(), threading.Event()
     kinds = []
     slow.watch(lambda mesh, kind: kinds.append(kind))
     original = slow._mesh
 
     def held(values, finer=False):
         if finer:
+            entered.set()
             gate.wait(30)
         return original(values, finer)
 
     slow._mesh = held
     slow.update(boss=0.4)
+    # wait until the 0.4 refinement is inside `held` (on a loaded machine its thread may not have
+    # started before the next edit, and then there is nothing stale to drop)
+    assert entered.wait(30), "the refinement never started"
     slow.update(boss=0.6)  # the 0.4 refinement is waiting in `held`: it will be stale
     gate.set()
     deadline = time.monotonic() + 60
