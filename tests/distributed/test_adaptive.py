@@ -77,6 +77,20 @@ def test_force_rounds_across_seams(client):
     assert (s["euler"], s["components"]) == (4, 2) and len(wm.check(bricked)) == 0
 
 
+def test_killed_worker_is_retried_and_the_adaptive_mesh_is_identical(client, killer):
+    """A worker SIGKILLed once 3 of the part's bricks have finished: Dask re-runs its tasks on
+    the other worker (each task depends only on its brick and the round's forced cells, so a
+    re-run gives the same keyed arrays), and the joined mesh is the single-process one."""
+    shape, bounds = wm.example("part")
+    single = wm.mesh_surface(shape, bounds=bounds, adaptive=True, max_level=6)
+    kill_one, killed = killer
+    bricked = wm.mesh_surface(shape, bounds=bounds, adaptive=True, max_level=6, client=client, brick_cells=16,
+                              progress=kill_one)
+    assert killed and bricked.info["brick_tasks"] > 10
+    assert_identical(single, bricked)
+    assert killed[0] not in client.scheduler_info()["workers"]  # it is gone (its nanny starts a new one)
+
+
 def test_culled_bricks_are_never_submitted(client):
     """A small ball around the common corner of 8 of 64 bricks: the other 56 hold no refined
     cell of the brick level (their cells' intervals culled them on the client) and never
