@@ -22,6 +22,22 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
+#: how many nodes ahead of the one it takes a search over a randomly numbered graph
+#: prefetches rows (measured on a 500 k-node plate: 4-16 alike, 51 -> 30 ms)
+PREFETCH_AHEAD = wp.constant(8)
+
+
+@wp.func_native("""
+#if !defined(__CUDA_ARCH__)
+__builtin_prefetch((const char*)a.data + (size_t)i * a.strides[0]);
+#endif
+""")
+def prefetch(a: wp.array(dtype=wp.int32), i: int):
+    """A hint that ``a[i]`` is read soon: on the CPU the cache line is fetched while
+    the thread works on (``i`` may be one past the end: a prefetch never faults); nothing
+    on CUDA."""
+    ...
+
 
 @wp.kernel
 def number_levels_kernel(
@@ -303,6 +319,11 @@ def search_relabel_kernel(
     while head < tail:
         u = old_of_new[head]
         lv = level[head] + 1
+        a = head + PREFETCH_AHEAD  # rows read later, fetched now: the input is in random order
+        if a < tail:
+            prefetch(indices, indptr[old_of_new[a]])
+            if a + PREFETCH_AHEAD < tail:
+                prefetch(indptr, old_of_new[a + PREFETCH_AHEAD])
         e = indptr[u]
         end = indptr[u + 1]
         while e < end:  # a while loop: Warp's range() loops cost ~20 % more here
