@@ -131,6 +131,34 @@ def number_levels_kernel(
 
 
 @wp.kernel
+def sort_levels_kernel(
+    level: wp.array(dtype=wp.int32), key: wp.array(dtype=wp.int32), span: int,
+    count: wp.array(dtype=wp.int32), members: wp.array(dtype=wp.int32), bounds: wp.array(dtype=wp.int32),
+):
+    """One thread sorts the nodes by (``level``, ``key``, index) with a counting sort over
+    the buckets level * ``span`` + key (``key`` < ``span``; ``count`` of length
+    levels * span + 1, starting at 0): ``members`` gets the nodes in that order and
+    ``bounds[k]`` (levels + 1 entries) where level k starts in it."""
+    n = level.shape[0]
+    v = int(0)
+    while v < n:
+        count[level[v] * span + key[v] + 1] += 1
+        v += 1
+    b = int(1)
+    while b < count.shape[0]:  # count[b]: where bucket b starts
+        count[b] += count[b - 1]
+        b += 1
+    for k in range(bounds.shape[0]):
+        bounds[k] = count[k * span]
+    v = int(0)
+    while v < n:
+        b = level[v] * span + key[v]
+        members[count[b]] = v
+        count[b] += 1
+        v += 1
+
+
+@wp.kernel
 def descent_kernel(
     indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32),
     sources: wp.array(dtype=wp.int32), comp: wp.array(dtype=wp.int32), deg: wp.array(dtype=wp.int32),

@@ -213,6 +213,7 @@ class _Graph:
         self.comp = (np.zeros(n, np.int32) if self.n_comp == 1 else
                      np.repeat(np.arange(self.n_comp, dtype=np.int32), np.diff(self.bounds)))
         self.deg = np.diff(graph.indptr).astype(np.int32, copy=False)  # deg(P), as degrees() but int32
+        self.max_deg = int(self.deg.max(initial=0))
         self.indptr = _as_wp(graph.indptr.astype(np.int32, copy=False))
         self.indices = _as_wp(graph.indices.astype(np.int32, copy=False))
         self.queue = wp.empty(max(n, 1), dtype=wp.int32, device="cpu")
@@ -283,14 +284,21 @@ class _Graph:
         first_level = np.concatenate([[0], np.cumsum(depth)])
         # a global index for every (component, level)
         flat = (level if self.n_comp == 1 else first_level[self.comp] + level).astype(np.int32)  # a copy: overwritten
-        members = _order_by(flat, key)
-        bounds = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=int(first_level[-1])))])
+        n_levels = int(first_level[-1])
+        key_wp = self.deg_wp if key is self.deg else _as_wp(key.astype(np.int32))
+        span = self.max_deg + 1 if key is self.deg else int(key.max(initial=0)) + 1
+        if n_levels * span <= 4 * self.n + 4096:  # a counting sort over (level, key) buckets, in a kernel
+            members, bounds = np.empty(self.n, np.int32), np.empty(n_levels + 1, np.int32)
+            count = np.zeros(n_levels * span + 1, np.int32)
+            wp.launch(KN.sort_levels_kernel, dim=1, inputs=[_as_wp(flat), key_wp, span],
+                      outputs=[_as_wp(count), _as_wp(members), _as_wp(bounds)], device="cpu")
+        else:
+            members = _order_by(flat, key).astype(np.int32)
+            bounds = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=n_levels))]).astype(np.int32)
         num, out = np.full(self.n, -1, np.int32), np.full(self.n, -1, np.int32)
-        buf = wp.empty(max(int(self.deg.max(initial=0)), 1), dtype=wp.int32, device="cpu")
+        buf = wp.empty(max(self.max_deg, 1), dtype=wp.int32, device="cpu")
         wp.launch(KN.number_levels_kernel, dim=1,
-                  inputs=[self.indptr, self.indices, _as_wp(flat),
-                          self.deg_wp if key is self.deg else _as_wp(key.astype(np.int32)),
-                          _as_wp(members.astype(np.int32, copy=False)), _as_wp(bounds.astype(np.int32)),
+                  inputs=[self.indptr, self.indices, _as_wp(flat), key_wp, _as_wp(members), _as_wp(bounds),
                           _as_wp(start.astype(np.int32)), _as_wp(first_level.astype(np.int32)),
                           _as_wp(self.bounds[:-1].astype(np.int32))],
                   outputs=[_as_wp(num), _as_wp(out), buf], device="cpu")
