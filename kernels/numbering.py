@@ -171,7 +171,9 @@ def descent_kernel(
     order), for each such component c: ``depth[c]`` (starting at -1) gets its last level
     and ``last[c]`` the node of that level of smallest (``deg``, index), the next
     candidate end of a pseudo-diameter [FG §17.4, Step 1]; ``finished`` (starting at 0)
-    marks the components passed. Bookkeeping inside the search loop cost a third more."""
+    marks the components passed. Bookkeeping inside the search loop cost a third more.
+    ``queue`` has n + 1 slots: every neighbour is written at the tail and kept only when
+    new (no branch on it: 17 -> 11.5 ms on a 500 k-node plate)."""
     tail = int(0)
     for s in range(sources.shape[0]):
         level[sources[s]] = 0
@@ -187,10 +189,10 @@ def descent_kernel(
         while e < end:  # a while loop: Warp's range() loops cost ~20 % more here
             v = indices[e]
             e += 1
-            if level[v] < 0:
-                level[v] = lv
-                queue[tail] = v
-                tail += 1
+            x = level[v]
+            level[v] = wp.where(x < 0, lv, x)  # branch-free (which neighbours are new is unpredictable)
+            queue[tail] = v  # kept only if new: the queue has a spare slot at its end
+            tail += int(x < 0)
     remaining = sources.shape[0]
     t = tail - 1
     while t >= 0 and remaining > 0:
@@ -244,9 +246,9 @@ def label_components_kernel(
 ):
     """One thread labels the connected components of the subgraph induced by ``nodes``
     (ascending; ``label`` starts at -1 on them, at any other negative value elsewhere),
-    numbered in the order of their smallest node. ``queue`` ends with every
-    component's nodes, one after the other, each in breadth-first order from its
-    smallest node."""
+    numbered in the order of their smallest node. ``queue`` (one slot more than the
+    nodes) ends with every component's nodes, one after the other, each in
+    breadth-first order from its smallest node."""
     c = int(0)
     tail = int(0)
     for t in range(nodes.shape[0]):
@@ -264,10 +266,10 @@ def label_components_kernel(
                 while e < end:
                     v = indices[e]
                     e += 1
-                    if label[v] == -1:
-                        label[v] = c
-                        queue[tail] = v
-                        tail += 1
+                    x = label[v]
+                    label[v] = wp.where(x == -1, c, x)  # branch-free, as in descent_kernel
+                    queue[tail] = v  # kept only if new: the queue has a spare slot at its end
+                    tail += int(x == -1)
             c += 1
     count[0] = c
 
@@ -358,7 +360,7 @@ def search_relabel_kernel(
             v = indices[e]
             e += 1
             x = new_of_old[v]
-            if x < 0:
+            if x < 0:  # a branch: branch-free writes to this randomly numbered array cost more (32 -> 42 ms)
                 x = tail
                 new_of_old[v] = x
                 old_of_new[x] = v

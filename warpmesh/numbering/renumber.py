@@ -216,7 +216,7 @@ class _Graph:
         self.max_deg = int(self.deg.max(initial=0))
         self.indptr = _as_wp(graph.indptr.astype(np.int32, copy=False))
         self.indices = _as_wp(graph.indices.astype(np.int32, copy=False))
-        self.queue = wp.empty(max(n, 1), dtype=wp.int32, device="cpu")
+        self.queue = wp.empty(n + 1, dtype=wp.int32, device="cpu")  # a spare slot for the branch-free walks
         self.comp_wp = _as_wp(self.comp)
         self.deg_wp = _as_wp(self.deg)
 
@@ -514,12 +514,13 @@ def _layout(graph, deg, check: bool = False):
         return seq, [len(used)], 0, (local, level)
     # several components: one search labels them all, each laid out contiguously in the
     # order of its search (from its smallest node; components by smallest node)
-    label, queue = np.full(n, -1, np.int32), np.empty(n, np.int32)
+    label, queue = np.full(n, -1, np.int32), np.empty(n + 1, np.int32)  # a spare slot
     count = wp.zeros(1, dtype=wp.int32, device="cpu")
     wp.launch(KN.label_components_kernel, dim=1,
               inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(np.arange(n, dtype=np.int32))],
               outputs=[_as_wp(label), _as_wp(queue), count], device="cpu")
     wp.synchronize_device("cpu")
+    queue = queue[:n]
     sizes = np.bincount(label)
     kind = np.where(sizes > SMALL_COMPONENT, 0, np.where(sizes > 1, 1, 2))
     seq = queue.astype(np.int64)[_order_by(kind[label[queue]])]
