@@ -546,19 +546,43 @@ def load_triangle(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int3
     return wp.matrix_from_rows(points[i0], points[i1], points[i2]), wp.vec3i(i0, i1, i2)
 
 
+@wp.func
+def _crossing_bits(v: wp.vec3d, a: wp.vec3d, b: wp.vec3d) -> int:
+    """Bits 2y and 2y + 1 for each coordinate y: a[y] < v[y] <= b[y], and b[y] < v[y] <= a[y]
+    (condition 4 of :func:`umbrella_certified`; branch-free: the comparisons are
+    data-dependent)."""
+    bits = int(0)
+    for y in range(3):
+        bits = bits | ((int(a[y] < v[y]) & int(v[y] <= b[y])) << (2 * y))
+        bits = bits | ((int(b[y] < v[y]) & int(v[y] <= a[y])) << (2 * y + 1))
+    return bits
+
+
 @wp.kernel
 def classify_faces_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
-                          degenerate: wp.array(dtype=wp.int32)):
-    """One thread per face: 1 when its area is zero to within float64 rounding (every
-    2D projection's orientation is filtered to 0; repeated indices included), else 0."""
+                          degenerate: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32)):
+    """One thread per face: 1 in ``degenerate`` when its area is zero to within float64
+    rounding (every 2D projection's orientation is filtered to 0; repeated indices
+    included), else 0; and its code for :func:`umbrella_certified`: bit 2k (2k + 1) when
+    its projection dropping coordinate k is certified counter-clockwise (clockwise) on the
+    coordinates (k + 1, k + 2) (none for repeated indices), and bits 6 + 6r +
+    :func:`_crossing_bits` of its rotation (v, a, b) starting at corner r."""
     f = wp.tid()
     t, it = load_triangle(points, tris, f)
     flag = int(1)
+    code = int(0)
     if it[0] != it[1] and it[1] != it[2] and it[0] != it[2]:
         for k in range(3):
-            if orient2d(t[0], t[1], t[2], (k + 1) % 3, (k + 2) % 3) != 0:
+            o = orient2d(t[0], t[1], t[2], (k + 1) % 3, (k + 2) % 3)
+            if o != 0:
                 flag = 0
+            if o > 0:
+                code = code | (1 << (2 * k))
+            if o < 0:
+                code = code | (2 << (2 * k))
+    code = code | (_crossing_bits(t[0], t[1], t[2]) << 6) | (_crossing_bits(t[1], t[2], t[0]) << 12)
     degenerate[f] = flag
+    codes[f] = code | (_crossing_bits(t[2], t[0], t[1]) << 18)
 
 
 @wp.kernel
@@ -781,6 +805,200 @@ def tree_next(lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3), 
     return int(-1), int(0), int(0)
 
 
+# -- the umbrella certificate: pairs around a vertex that need no exact test --------------------
+
+#: faces around a vertex beyond which its umbrella is not certified (the part at 512 has at most 10)
+UMBRELLA_CAP = 16
+#: the link vertices a_i (or b_i) of the faces around one vertex (:func:`umbrella_certified`)
+umbrella_ids = wp.types.vector(length=UMBRELLA_CAP, dtype=wp.int32)
+
+
+@wp.kernel
+def count_corners_kernel(tris: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
+    """One thread per corner c (entry c of the flat face array): one more corner for its
+    vertex (``counts`` zeroed beforehand)."""
+    c = wp.tid()
+    wp.atomic_add(counts, tris[c], 1)
+
+
+@wp.kernel
+def fill_corners_kernel(tris: wp.array(dtype=wp.int32), ends: wp.array(dtype=wp.int32),
+                        corners: wp.array(dtype=wp.int32)):
+    """One thread per corner c: c written into its vertex's range of ``corners``, from the
+    end down (``ends``: the inclusive prefix sum of the counts; afterwards each entry is
+    its vertex's first slot). The order within a range is whatever the atomics give:
+    :func:`umbrella_certified` does not depend on it."""
+    c = wp.tid()
+    slot = wp.atomic_sub(ends, tris[c], 1) - 1
+    corners[slot] = c
+
+
+@wp.func
+def _spread_bits6(x: int) -> int:
+    """The 6 low bits of x moved to bits 0, 5, 10, ..., 25: six 5-bit counters to add to."""
+    return ((x & 1) | ((x & 2) << 4) | ((x & 4) << 8) | ((x & 8) << 12) | ((x & 16) << 16)
+            | ((x & 32) << 20))
+
+
+@wp.func
+def _winds_once(signs: int, counts: int, k: int) -> bool:
+    """Conditions 3 and 4 of :func:`umbrella_certified` on axis k: every wedge certified
+    counter-clockwise and one upward crossing on y = (k + 2) % 3, or every wedge clockwise
+    and one crossing of the reversed wedges."""
+    y = (k + 2) % 3
+    up = (counts >> (10 * y)) & 31
+    down = (counts >> (10 * y + 5)) & 31
+    return ((signs >> (2 * k)) & 1 == 1 and up == 1) or ((signs >> (2 * k + 1)) & 1 == 1 and down == 1)
+
+
+#: the a_i and b_i of up to 8 faces, as :func:`_one_to_one8` takes them
+umbrella_ids8 = wp.types.vector(length=8, dtype=wp.int32)
+
+
+@wp.func
+def _one_to_one8(a: umbrella_ids8, b: umbrella_ids8) -> bool:
+    """Whether a_i -> b_i is a permutation: each b_k equals exactly one a_l and each a_k
+    exactly one b_l (then a and b are each without repeats and hold the same values). The
+    entries past the fan's size are a_k = b_k = -1 - k: distinct negative values, each
+    matching only itself, so they pass and change nothing. Unrolled and branch-free: 64
+    comparisons cost less than a search whose branches are data-dependent."""
+    ok = int(1)
+    for k in range(8):
+        row = int(0)
+        col = int(0)
+        for l in range(8):
+            row += int(b[k] == a[l])
+            col += int(a[k] == b[l])
+        ok = ok & int(row == 1) & int(col == 1)
+    return ok == 1
+
+
+@wp.func
+def umbrella_certified(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.int32),
+                       corners: wp.array(dtype=wp.int32), v: int, lo: int, d: int) -> bool:
+    """Whether two faces around vertex v (its d corners at ``corners[lo:lo + d]``) can only
+    meet in what they share, certified from F_v, the faces with index v, alone
+    (``codes``: the faces' signs and crossings, :func:`classify_faces_kernel`).
+
+    Each face of F_v is rotated to (v, a_i, b_i), orientation kept. Certified when:
+
+    1. 3 <= d <= ``UMBRELLA_CAP`` and no a_i or b_i is v (a repeated index);
+    2. a closed fan: a_i -> b_i is a permutation of the link (one or more cycles of
+       wedges): each b_k equals exactly one a_l and each a_k exactly one b_l;
+    3. for some coordinate axis k, in the projection dropping coordinate k (exact: it
+       drops a coordinate), every wedge (v, a_i, b_i) has a certified strict
+       :func:`orient2d` sign (the face's own, whichever vertex is first), all the same
+       sign s;
+    4. with the wedges made positive (for s < 0 each read as (v, b_i, a_i)), exactly one
+       i has y(a_i) < y(v) <= y(b_i) (y the second kept coordinate, (k + 2) % 3; exact
+       comparisons).
+
+    Proof that then any two faces of F_v meet only in their shared vertex or edge (o, A,
+    B: the projections of v, a, b; y measured from o). A positive wedge turns about o by
+    an angle in (0, pi) from A_i to B_i = A_(sigma i), so each cycle of sigma is a closed
+    polygon around o of winding number w >= 1 (a sum of turns in (0, pi), a multiple of 2
+    pi). An edge from A (y < 0) to B (y >= 0) crosses y = 0 at x = (A_x B_y - A_y B_x) /
+    (B_y - A_y) > 0 (its orientation is positive), an edge from y >= 0 to y < 0 at
+    x < 0: so the upward crossings of condition 4 are exactly the crossings of the
+    positive x-axis (points on it counted above), and their number is the total winding
+    number about o (no vertex is o: the wedges are strict). Hence winding once: the
+    wedges' angles follow each other round the circle and add up to 2 pi, and with each
+    below pi (so d >= 3) two closed wedges share only o, or, when consecutive
+    (b_i = a_j), the ray through B_i; a wedge holds its triangle's projection, which meets
+    that ray in [o, B_i] only. A point x common to faces i and j projects into both
+    projections: to o, or into [o, B_i]; each face projects one to one (its projection is
+    a proper triangle), so x is v or on the edge [v, b_i], which both faces have. The
+    faces of F_v are then non-degenerate, share exactly v or one edge (no two-cycle, no
+    duplicate: the a_i are distinct), and a pair sharing only v has no other common
+    point, a pair sharing an edge is not folded: neither intersects in the sense of
+    :func:`pair_intersects`, in exact arithmetic. A duplicate face breaks the
+    permutation; a fold inside F_v, a pinched vertex (two cones at v: two cycles) or a
+    fan folded flat fails the signs or the winding; a boundary vertex fails condition 2.
+    Nothing about other faces or their positions is assumed.
+    """
+    if d < 3 or d > UMBRELLA_CAP:
+        return False
+    a = umbrella_ids()
+    b = umbrella_ids()
+    for k in range(8):  # past d: a[k] = b[k] = -1 - k, fixed points of no index (see _one_to_one8)
+        a[k] = -1 - k
+        b[k] = -1 - k
+    signs = int(63)
+    counts = int(0)
+    for k in range(d):
+        c = corners[lo + k]
+        f = c // 3
+        r = c - 3 * f
+        ia = tris[3 * f + (r + 1) % 3]
+        ib = tris[3 * f + (r + 2) % 3]
+        if ia == v or ib == v:
+            return False
+        a[k] = ia
+        b[k] = ib
+        code = codes[f]
+        signs = signs & code
+        counts += _spread_bits6((code >> (6 + 6 * r)) & 63)
+    if not (_winds_once(signs, counts, 0) or _winds_once(signs, counts, 1) or _winds_once(signs, counts, 2)):
+        return False
+    if d <= 8:
+        return _one_to_one8(umbrella_ids8(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]),
+                            umbrella_ids8(b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]))
+    for k in range(d):
+        row = int(0)
+        col = int(0)
+        for l in range(d):
+            row += int(b[k] == a[l])
+            col += int(a[k] == b[l])
+        if row != 1 or col != 1:
+            return False
+    return True
+
+
+@wp.kernel
+def certify_umbrellas_kernel(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.int32),
+                             starts: wp.array(dtype=wp.int32), corners: wp.array(dtype=wp.int32), first: int,
+                             certified: wp.array(dtype=wp.int8)):
+    """One thread per vertex v = first + tid (its corners at ``corners[starts[v]:starts[v +
+    1]]``, the last vertex's up to the end): 1 in ``certified[c]`` for each of its corners
+    c when :func:`umbrella_certified`, else 0 (every corner belongs to one vertex: each
+    entry is written once)."""
+    v = wp.tid() + first
+    lo = starts[v]
+    hi = corners.shape[0]
+    if v + 1 < starts.shape[0]:
+        hi = starts[v + 1]
+    if hi == lo:
+        return
+    flag = wp.int8(0)
+    if umbrella_certified(codes, tris, corners, v, lo, hi - lo):
+        flag = wp.int8(1)
+    for k in range(lo, hi):
+        certified[corners[k]] = flag
+
+
+@wp.func
+def certified_indices(certified: wp.array(dtype=wp.int8), s: int, it: wp.vec3i) -> wp.vec3i:
+    """The indices of face s whose umbrellas are certified (``certified`` by corner), -1
+    for the others."""
+    out = wp.vec3i(-1, -1, -1)
+    for k in range(3):
+        if certified[3 * s + k] != wp.int8(0):
+            out[k] = it[k]
+    return out
+
+
+@wp.func
+def shares_certified(cv: wp.vec3i, j0: int, j1: int, j2: int) -> bool:
+    """Some index j of the other face is one of the certified indices cv (entries -1:
+    none; indices are >= 0)."""
+    hit = False
+    for k in range(3):
+        c = cv[k]
+        if c >= 0 and (c == j0 or c == j1 or c == j2):
+            hit = True
+    return hit
+
+
 #: the positions of the faces of one group that meet a query box, in order (:func:`walk_group`)
 group_slots = wp.types.vector(length=GROUP, dtype=wp.int32)
 
@@ -789,7 +1007,7 @@ group_slots = wp.types.vector(length=GROUP, dtype=wp.int32)
 def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype=wp.vec3), depth: int, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
                face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
-               group_uppers: wp.array(dtype=wp.vec3), pad: float, g: int,
+               group_uppers: wp.array(dtype=wp.vec3), pad: float, certified: wp.array(dtype=wp.int8), g: int,
                keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
     """The intersecting pairs of group g with the groups h >= g (each unordered pair of faces
     once): one walk of the group tree (:func:`tree_next`) with g's box grown by ``pad``;
@@ -837,6 +1055,7 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
                         # face s loaded here, not at its first candidate: no zeroed placeholders
                         # and no flag (4-5 % of the walk on the part and the ball at 512)
                         t, it = load_triangle(points, tris, s)
+                        cv = certified_indices(certified, s, it)
                         u = t[1] - t[0]
                         v = t[2] - t[0]
                         nt = wp.cross(u, v)
@@ -844,8 +1063,14 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
                         for k in range(k0, c):
                             s2 = slots[k]
                             if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
+                                j0 = tris[3 * s2]
+                                j1 = tris[3 * s2 + 1]
+                                j2 = tris[3 * s2 + 2]
+                                if shares_certified(cv, j0, j1, j2):
+                                    continue  # a certified umbrella holds both: they meet only where they share
                                 f2 = order[s2]
-                                t2, it2 = load_triangle(points, tris, s2)
+                                t2 = wp.matrix_from_rows(points[j0], points[j1], points[j2])
+                                it2 = wp.vec3i(j0, j1, j2)
                                 if ordered_pair_intersects(t, it, nt, na, f, t2, it2, f2):
                                     if n < limit:
                                         lo_f = wp.int64(wp.min(f, f2))
@@ -861,14 +1086,14 @@ def count_pairs_kernel(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.arr
                        points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                        order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
                        face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
-                       group_uppers: wp.array(dtype=wp.vec3), pad: float, first: int,
-                       unused: wp.array(dtype=wp.int64), counts: wp.array(dtype=wp.int64)):
+                       group_uppers: wp.array(dtype=wp.vec3), pad: float, certified: wp.array(dtype=wp.int8),
+                       first: int, unused: wp.array(dtype=wp.int64), counts: wp.array(dtype=wp.int64)):
     """One thread per group g = first + tid (``tris`` and ``order`` in the Morton order of
     the faces, ``order[s]`` the input index of position s): how many pairs of its faces with
     the faces of groups h >= g intersect (:func:`walk_group`, writing nothing)."""
     g = wp.tid() + first
     counts[g] = wp.int64(walk_group(tree_lowers, tree_uppers, depth, points, tris, order, face_lowers, face_uppers, group_lowers,
-                                    group_uppers, pad, g, unused, wp.int64(0), 0))
+                                    group_uppers, pad, certified, g, unused, wp.int64(0), 0))
 
 
 @wp.kernel
@@ -876,8 +1101,8 @@ def write_pairs_kernel(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.arr
                        points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                        order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
                        face_uppers: wp.array(dtype=wp.vec3), group_lowers: wp.array(dtype=wp.vec3),
-                       group_uppers: wp.array(dtype=wp.vec3), pad: float, first: int,
-                       counts: wp.array(dtype=wp.int64), offsets: wp.array(dtype=wp.int64),
+                       group_uppers: wp.array(dtype=wp.vec3), pad: float, certified: wp.array(dtype=wp.int8),
+                       first: int, counts: wp.array(dtype=wp.int64), offsets: wp.array(dtype=wp.int64),
                        keys: wp.array(dtype=wp.int64)):
     """One thread per group g = first + tid with ``counts[g] > 0``: the walk of
     :func:`count_pairs_kernel` again, writing its pairs' keys to ``keys[offsets[g]:]``."""
@@ -885,20 +1110,25 @@ def write_pairs_kernel(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.arr
     n = counts[g]
     if n == wp.int64(0):
         return
-    walk_group(tree_lowers, tree_uppers, depth, points, tris, order, face_lowers, face_uppers, group_lowers, group_uppers, pad, g,
-               keys, offsets[g], int(n))
+    walk_group(tree_lowers, tree_uppers, depth, points, tris, order, face_lowers, face_uppers, group_lowers, group_uppers, pad,
+               certified, g, keys, offsets[g], int(n))
 
 
 @wp.kernel
 def all_pairs_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
-                     degenerate: wp.array(dtype=wp.int32), hits: wp.array2d(dtype=wp.int8)):
+                     degenerate: wp.array(dtype=wp.int32), certified: wp.array(dtype=wp.int8),
+                     hits: wp.array2d(dtype=wp.int8)):
     """The reference of the candidate search (small meshes only): one thread per (f, g),
-    f < g input indices, both non-degenerate: :func:`pair_intersects` with no BVH and no
-    box screen, 1 in ``hits[f, g]`` when they intersect (else left as it was: 0)."""
+    f < g input indices, both non-degenerate and sharing no vertex whose umbrella is
+    certified (``certified`` by corner of the input faces, :func:`umbrella_certified`; all
+    0 for none): :func:`pair_intersects` with no BVH and no box screen, 1 in
+    ``hits[f, g]`` when they intersect (else left as it was: 0)."""
     f, g = wp.tid()
     if f < g and degenerate[f] == 0 and degenerate[g] == 0:
         p, ip = load_triangle(points, tris, f)
         q, iq = load_triangle(points, tris, g)
+        if shares_certified(certified_indices(certified, f, ip), iq[0], iq[1], iq[2]):
+            return
         u = p[1] - p[0]
         v = p[2] - p[0]
         if confirmed_pair_intersects(p, ip, wp.cross(u, v), _abs_cross(u, v), q, iq):

@@ -612,7 +612,8 @@ def test_bvh_coordinates_kernel_matches_the_numpy_map():
 def test_profile_reports_every_stage_and_the_same_pairs():
     m = _two_spheres(2, [0.9, 0.13, 0.071])
     prof = wmi.profile_self_intersections(m.vertices, m.faces, workers=1)
-    stages = ["prepare", "order", "degenerate", "boxes", "tree", "count walk", "scan", "write walk", "sort pairs"]
+    stages = ["prepare", "order", "degenerate", "umbrellas", "boxes", "tree", "count walk", "scan", "write walk",
+              "sort pairs"]
     assert list(prof["cpu"]) == stages and list(prof["wall"]) == stages
     assert all(v >= 0.0 for v in [*prof["cpu"].values(), *prof["wall"].values()])
     assert prof["pairs"] == len(find_self_intersections(m.vertices, m.faces)) > 0

@@ -91,6 +91,9 @@ _MIN_FACES_PER_WORKER = 1 << 13
 #: ranges of groups per CPU worker
 _CHUNKS = 8
 _INT32_MAX = np.iinfo(np.int32).max
+#: skip the pairs that share a vertex whose umbrella is certified (the kernels'
+#: ``umbrella_certified``); off only to measure or test the check without it
+_CERTIFY = True
 _TINY_LENGTH = 1.0e-30
 
 
@@ -206,7 +209,8 @@ def profile_self_intersections(points, triangles, *, device: str = "cpu", worker
     device synchronised after each stage and the clocks read there.
 
     Stages: ``prepare`` (validation, scaling, upload, float32 BVH coordinates), ``order``
-    (Morton codes, radix sort, gather), ``degenerate``, ``boxes`` (face and group boxes),
+    (Morton codes, radix sort, gather), ``degenerate`` (the faces' flags and codes),
+    ``umbrellas`` (the umbrella certificate), ``boxes`` (face and group boxes),
     ``tree`` (the group tree's build), ``count walk`` (the walk with every exact test), ``scan``, and
     when there are pairs ``write walk`` and ``sort pairs``. The synchronisations cost a
     little: the stages add up to slightly more than an unprofiled call.
@@ -233,7 +237,7 @@ def profile_self_intersections(points, triangles, *, device: str = "cpu", worker
     >>> square = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
     >>> prof = profile_self_intersections(square, [[0, 1, 2], [0, 2, 3]])
     >>> list(prof["cpu"]), prof["pairs"]
-    (['prepare', 'order', 'degenerate', 'boxes', 'tree', 'count walk', 'scan'], 0)
+    (['prepare', 'order', 'degenerate', 'umbrellas', 'boxes', 'tree', 'count walk', 'scan'], 0)
     """
     cpu: dict[str, float] = {}
     wall: dict[str, float] = {}
@@ -294,7 +298,7 @@ def find_degenerate_faces(points, triangles, *, device: str = "cpu") -> np.ndarr
     with wp.ScopedDevice(device):
         dev = wp.get_device(device)
         points64, tris32 = _device_arrays(_scaled(pts), tris, dev)
-        flags = _degenerate_flags(points64, tris32, dev)
+        flags, _ = _classify_faces(points64, tris32, dev)
         return np.flatnonzero(flags.numpy()).astype(INDEX_DTYPE)  # sync point
 
 
@@ -571,7 +575,7 @@ def find_segment_intersections(points, segments) -> np.ndarray:
     return np.column_stack([i[hit], j[hit]]).astype(INDEX_DTYPE)
 
 
-def _all_pairs(points, triangles, *, device: str = "cpu") -> np.ndarray:
+def _all_pairs(points, triangles, *, device: str = "cpu", certify: bool = True) -> np.ndarray:
     """What :func:`find_self_intersections` returns, by testing every pair of faces with the
     same predicate (no BVH, no box screen, no Morton order): the tests' reference for the
     candidate search. O(m^2) time and memory: small meshes only (m <= 10,000).
@@ -590,9 +594,11 @@ def _all_pairs(points, triangles, *, device: str = "cpu") -> np.ndarray:
     with wp.ScopedDevice(device):
         dev = wp.get_device(device)
         points64, tris32 = _device_arrays(_scaled(pts), tris, dev)
-        degenerate = _degenerate_flags(points64, tris32, dev)
+        degenerate, codes = _classify_faces(points64, tris32, dev)
+        certified = _umbrella_flags(codes, tris32, len(pts), dev, certify)
         hits = wp.zeros((m, m), dtype=wp.int8, device=dev)
-        wp.launch(K.all_pairs_kernel, dim=(m, m), inputs=[points64, tris32, degenerate], outputs=[hits], device=dev)
+        wp.launch(K.all_pairs_kernel, dim=(m, m), inputs=[points64, tris32, degenerate, certified], outputs=[hits],
+                  device=dev)
         return np.argwhere(hits.numpy()).astype(INDEX_DTYPE)  # sync point
 
 
@@ -612,8 +618,10 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     mark("prepare")
     order, sorted_tris = _spatial_order(points32, tris32, device)
     mark("order")
-    degenerate = _degenerate_flags(points64, sorted_tris, device)
+    degenerate, codes = _classify_faces(points64, sorted_tris, device)
     mark("degenerate")
+    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY)
+    mark("umbrellas")
     face_lowers = wp.empty(m, dtype=wp.vec3, device=device)
     face_uppers = wp.empty(m, dtype=wp.vec3, device=device)
     wp.launch(K.face_boxes_kernel, dim=m, inputs=[points32, sorted_tris, degenerate],
@@ -627,7 +635,7 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     tree_lowers, tree_uppers, depth = _group_tree(lowers, uppers, device)
     mark("tree")
     walk = [tree_lowers, tree_uppers, depth, points64, sorted_tris, order, face_lowers, face_uppers, lowers, uppers,
-            _QUERY_PAD]
+            _QUERY_PAD, certified]
     split = _split(n_groups, m, device, n_workers)
 
     wp.load_module(K, device=device)  # compiled/loaded once here, not by two worker threads at once
@@ -720,11 +728,34 @@ def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device) -> wp.array
     return points32
 
 
-def _degenerate_flags(points64: wp.array, tris32: wp.array, device) -> wp.array:
+def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: bool = True) -> wp.array:
+    """1 for each corner (entry of the flat face array) whose vertex has a certified
+    umbrella (:func:`~warpmesh.kernels.intersect.umbrella_certified`; ``codes`` from
+    :func:`_classify_faces`, n points), else 0; all 0 when not ``certify``. Vertex ->
+    corners on the device: counts by atomic add, inclusive scan, fill from the ends down
+    (count -> scan -> write), then one thread per vertex."""
+    corners = wp.empty(tris32.shape[0], dtype=wp.int32, device=device)
+    certified = wp.zeros(tris32.shape[0], dtype=wp.int8, device=device)
+    if not certify or n == 0:
+        return certified
+    counts = wp.zeros(n, dtype=wp.int32, device=device)
+    wp.launch(K.count_corners_kernel, dim=tris32.shape[0], inputs=[tris32], outputs=[counts], device=device)
+    starts = wp.empty(n, dtype=wp.int32, device=device)
+    wp.utils.array_scan(counts, starts, inclusive=True)
+    wp.launch(K.fill_corners_kernel, dim=tris32.shape[0], inputs=[tris32, starts], outputs=[corners], device=device)
+    wp.launch(K.certify_umbrellas_kernel, dim=n, inputs=[codes, tris32, starts, corners, 0],
+              outputs=[certified], device=device)
+    return certified
+
+
+def _classify_faces(points64: wp.array, tris32: wp.array, device) -> tuple[wp.array, wp.array]:
+    """Per face: the degenerate flag, and the code of its orientation signs and crossings
+    for the umbrella certificate (:func:`~warpmesh.kernels.intersect.classify_faces_kernel`)."""
     flags = wp.empty(tris32.shape[0] // 3, dtype=wp.int32, device=device)
-    wp.launch(K.classify_faces_kernel, dim=flags.shape[0], inputs=[points64, tris32], outputs=[flags],
+    codes = wp.empty(tris32.shape[0] // 3, dtype=wp.int32, device=device)
+    wp.launch(K.classify_faces_kernel, dim=flags.shape[0], inputs=[points64, tris32], outputs=[flags, codes],
               device=device)
-    return flags
+    return flags, codes
 
 
 def _split(n_groups: int, m: int, device, n_workers: int):
