@@ -279,7 +279,8 @@ class _Graph:
     def number(self, level: np.ndarray, start: np.ndarray, key: np.ndarray) -> np.ndarray:
         """Step 3 on every component: ``level`` (n,) per node, numbering from ``start``
         (one per component) with neighbours by increasing ``key``. Component c gets the
-        numbers ``bounds[c]:bounds[c + 1]``. Returns ``out`` (number -> node)."""
+        numbers ``bounds[c]:bounds[c + 1]``. Returns ``out`` (number -> node, int32); the
+        inverse (node -> number) is kept as ``self.numbers``."""
         depth = self.depths(level)
         first_level = np.concatenate([[0], np.cumsum(depth)])
         # a global index for every (component, level)
@@ -303,7 +304,8 @@ class _Graph:
                           _as_wp(self.bounds[:-1].astype(np.int32))],
                   outputs=[_as_wp(num), _as_wp(out), buf], device="cpu")
         wp.synchronize_device("cpu")
-        return out.astype(np.int64)
+        self.numbers = num  # node -> number, as ``out`` inverted
+        return out
 
 
 def _pseudo_diameters(g: _Graph, start: np.ndarray, start_level: np.ndarray):
@@ -499,19 +501,20 @@ def _layout(graph, deg, check: bool = False):
     (:func:`_check_graph`: ValueError) and a diagonal: None is returned when it has one.
     """
     n = graph.shape[0]
-    used = np.flatnonzero(deg)
     isolated = np.flatnonzero(deg == 0)
-    if not len(used):
+    n_used = n - len(isolated)
+    if not n_used:
         return isolated, [], 0, None
-    reached, local, level, ok = _search_relabel(graph, _min_index(used, deg))
-    if check and (not ok or len(reached) != len(used)):  # the search saw part of it, or a fault
+    start = int(np.argmin(deg)) if not len(isolated) else _min_index(np.flatnonzero(deg), deg)
+    reached, local, level, ok = _search_relabel(graph, start)
+    if check and (not ok or len(reached) != n_used):  # the search saw part of it, or a fault
         if not _check_graph(graph):
             return None
-    if len(reached) == len(used):
-        seq = np.concatenate([reached, isolated])
-        if len(used) <= SMALL_COMPONENT:
-            return seq, [], len(used), None
-        return seq, [len(used)], 0, (local, level)
+    if len(reached) == n_used:
+        seq = np.concatenate([reached, isolated]) if len(isolated) else reached
+        if n_used <= SMALL_COMPONENT:
+            return seq, [], n_used, None
+        return seq, [n_used], 0, (local, level)
     # several components: one search labels them all, each laid out contiguously in the
     # order of its search (from its smallest node; components by smallest node)
     label, queue = np.full(n, -1, np.int32), np.empty(n + 1, np.int32)  # a spare slot
@@ -621,21 +624,23 @@ def renumber_graph(
         g = _as_csgraph(g)
         layout = _layout(g, degrees(g))
     seq, sizes, n_small, connected = layout
-    order = seq.copy()  # small components, then isolated nodes, keep their places
     offset = sum(sizes)  # the large components come first, each a contiguous range
+    order = None if offset and offset == len(seq) else seq.copy()  # small components, isolated nodes keep their places
     if offset:
         local, start_level = connected
-        out = _number_components(_Graph(local, np.concatenate([[0], np.cumsum(sizes)])), method, start_level)
-        order[:offset] = seq[out]
+        walks = _Graph(local, np.concatenate([[0], np.cumsum(sizes)]))
+        out = _number_components(walks, method, start_level)
+        if order is None:
+            order = seq[out]
+        else:
+            order[:offset] = seq[out]
     used = offset + n_small  # nodes in some element
     if reverse == "auto" and method != "rcm":
         # measured on the relabelled large components (memory read nearly in order): the
         # small components' profile is the same both ways
         flip = False
         if offset:
-            new_local = np.empty(offset, np.int32)
-            new_local[out] = np.arange(offset, dtype=np.int32)
-            s = matrix_stats(local, new_local)
+            s = matrix_stats(local, walks.numbers)
             flip = (s["profile_reversed"], s["bandwidth_reversed"]) < (s["profile"], s["bandwidth"])
     else:
         flip = bool(reverse) if method != "rcm" else reverse != False  # noqa: E712
