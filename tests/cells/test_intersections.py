@@ -647,6 +647,149 @@ def test_all_pairs_reference_refuses_large_meshes():
         wmi._all_pairs(np.zeros((3, 3)), np.zeros((10_001, 3), int))
 
 
+# -- the umbrella certificate: pairs around a vertex that skip the exact test ---------------
+# A vertex whose faces form one closed fan, every wedge strictly of one orientation in a
+# coordinate projection and winding once about it, has faces that meet only where they
+# share (kernels.intersect.umbrella_certified): pairs sharing it are not tested. What it
+# skips must never be an intersection, and what it cannot prove must be left to the test.
+
+
+def _ico_integer(scale: int = 16):
+    """icosphere(1) scaled and rounded to integers: closed, embedded, exact predicates."""
+    s = trimesh.creation.icosphere(subdivisions=1)
+    return np.round(np.asarray(s.vertices) * scale), np.asarray(s.faces)
+
+
+def _star_of(tris, v) -> np.ndarray:
+    """The faces with vertex index v."""
+    return np.flatnonzero((np.asarray(tris) == v).any(axis=1))
+
+
+def test_closed_meshes_are_certified_almost_everywhere():
+    import warpmesh as wm
+
+    # measured: every vertex of the icospheres (1-3 subdivisions) and of the part meshed at
+    # 16-128 and 512 (the crease vertices too: some coordinate projection of each fan is
+    # one-to-one); any uncertified vertex here would be a fold, a pinch or valence > 16
+    for sub in (1, 3):
+        s = trimesh.creation.icosphere(subdivisions=sub)
+        assert wmi._certified_vertices(s.vertices, s.faces).all()
+    part, bounds = wm.example("part")
+    m = wm.mesh_surface(part, bounds=bounds, resolution=32)
+    cert = wmi._certified_vertices(m.points, m.triangles)
+    assert len(cert) > 2500 and cert.mean() >= 0.999
+    # flags are per vertex: every corner of a vertex agrees (face order and rotation free)
+    rng = np.random.default_rng(4)
+    faces = np.asarray(m.triangles)[rng.permutation(len(m.triangles))]
+    faces = np.array([np.roll(f, k) for f, k in zip(faces, rng.integers(0, 3, len(faces)))])
+    assert np.array_equal(wmi._certified_vertices(m.points, faces), cert)
+
+
+def test_a_vertex_pushed_through_its_umbrella_is_not_certified_and_is_reported():
+    pts, tris = _ico_integer()
+    v = int(np.argmax(pts[:, 2]))  # (0, 0, 16): its fan projects along z around (0, 0)
+    star = _star_of(tris, v)
+    link = np.unique(tris[star])
+    link = link[link != v]
+    # pushed along its normal through the far side: its fan still projects one to one along
+    # z, so it stays certified, and its faces' crossings with the far faces are reported
+    # (they do not share v)
+    deep = pts.copy()
+    deep[v] = -1.5 * pts[v]
+    assert wmi._certified_vertices(deep, tris)[v]
+    got = find_self_intersections(deep, tris)
+    assert len(got) > 0 and np.array_equal(got, reference_pairs(deep, tris))
+    # a flat fan of 8 in the tilted plane x + 2y + 3z = 0 (integer points): its centre pushed
+    # in the plane past a rim vertex folds the fan over itself: not certified, and pairs of
+    # its own faces overlap (what the certificate would have skipped)
+    e1, e2 = np.array([2, -1, 0]), np.array([3, 0, -1])
+    rim = [(3, 0), (2, 2), (0, 3), (-2, 2), (-3, 0), (-2, -2), (0, -3), (2, -2)]
+    fan = np.array([[0, 1 + i, 1 + (i + 1) % 8] for i in range(8)])
+    # (on rim vertex 1: its two faces are degenerate, so not certified, and nothing crosses)
+    for centre, certified, crossing in (((0, 0), True, False), ((1, 1), True, False), ((4, 1), False, True),
+                                        ((3, 0), False, False)):
+        ab = np.array([centre] + rim, float)
+        flat = ab[:, :1] * e1 + ab[:, 1:] * e2
+        assert wmi._certified_vertices(flat, fan)[0] == certified, centre
+        got = find_self_intersections(flat, fan)
+        assert np.array_equal(got, reference_pairs(flat, fan)), centre
+        assert (len(got) > 0) == crossing, centre
+
+
+def test_pinched_duplicate_folded_and_open_fans_are_not_certified():
+    # two cones with one apex index (a pinched vertex: two cycles of wedges); touching only
+    # at the apex: nothing to report
+    apex = [[0, 0, 0]]
+    up = [[3, 0, 2], [-2, 2, 2], [-2, -2, 2]]
+    down = [[3, 0, -2], [-2, -2, -2], [-2, 2, -2]]
+    pts = np.array(apex + up + down, float)
+    tris = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2], [0, 4, 5], [0, 5, 6], [0, 6, 4], [4, 6, 5]])
+    assert not wmi._certified_vertices(pts, tris)[0]
+    assert find_self_intersections(pts, tris).shape == (0, 2) == reference_pairs(pts, tris).shape
+    # a duplicate face (either orientation) on a closed sphere: its vertices are not certified
+    # and the pair is reported
+    p, t = _ico_integer()
+    for dup in (t[5], t[5][::-1]):
+        faces = np.vstack([t, dup])
+        cert = wmi._certified_vertices(p, faces)
+        assert np.flatnonzero(~cert).tolist() == sorted(t[5].tolist())
+        assert [5, len(t)] in find_self_intersections(p, faces).tolist()
+    # a flat fan whose link goes round twice (a pentagram, every wedge turning 144 degrees,
+    # all counter-clockwise): the winding is 2, and its wedges overlap
+    star = np.array([[0, 0, 0], [10, 0, 0], [-8, 6, 0], [3, -10, 0], [3, 10, 0], [-8, -6, 0]], float)
+    fan = np.array([[0, 1 + i, 1 + (i + 1) % 5] for i in range(5)])
+    assert not wmi._certified_vertices(star, fan).any()
+    got = find_self_intersections(star, fan)
+    assert len(got) > 0 and np.array_equal(got, reference_pairs(star, fan))
+    # an open fan: the centre is certified, the rim (boundary vertices) is not; 12 faces take
+    # the general loop (more than 8), 17 are past the cap
+    for k, centre in ((6, True), (12, True), (16, True), (17, False)):
+        p, t = _fan(k)
+        cert = wmi._certified_vertices(p, t)
+        assert cert[0] == centre and not cert[1:].any(), k
+        assert find_self_intersections(p, t).shape == (0, 2)
+
+
+@pytest.mark.parametrize("scale, noise", [(16, 0), (16, 2), (16, 4), (8, 3), (64, 16)])
+def test_jittered_closed_meshes_walk_equals_every_pair_with_and_without_certificate(scale, noise):
+    # closed spheres on an integer grid, vertices moved by integers up to `noise` (some fold):
+    # every determinant is exact, so the answer is the exact one with the certificate, with
+    # none (every pair tested) and by the Python reference
+    rng = np.random.default_rng(scale + 7 * noise)
+    base, tris = _ico_integer(scale)
+    folded = 0
+    for trial in range(8):
+        pts = base + rng.integers(-noise, noise + 1, base.shape)
+        got = find_self_intersections(pts, tris)
+        assert np.array_equal(got, wmi._all_pairs(pts, tris)), trial
+        assert np.array_equal(got, wmi._all_pairs(pts, tris, certify=False)), trial
+        if trial < 2:
+            assert np.array_equal(got, reference_pairs(pts, tris)), trial
+        folded += int(not wmi._certified_vertices(pts, tris).all())
+    assert (folded > 0) == (noise >= 3)  # the larger moves fold some umbrellas
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_jittered_float_meshes_lose_only_pairs_of_certified_umbrellas(seed):
+    # rounded coordinates: the certificate may drop a pair the conservative predicate reports
+    # within rounding, but only one that shares a certified vertex; the walk and every pair
+    # (with the same certificate) agree exactly
+    rng = np.random.default_rng(40 + seed)
+    s = trimesh.creation.icosphere(subdivisions=2)
+    tris = np.asarray(s.faces)
+    for noise in (0.0, 0.02, 0.08):
+        pts = _moved(np.asarray(s.vertices) + rng.normal(0.0, noise, s.vertices.shape), seed)
+        got = find_self_intersections(pts, tris)
+        assert np.array_equal(got, wmi._all_pairs(pts, tris)), noise
+        every = wmi._all_pairs(pts, tris, certify=False)
+        kept = {tuple(p) for p in got.tolist()}
+        assert kept <= {tuple(p) for p in every.tolist()}
+        cert = wmi._certified_vertices(pts, tris)
+        for i, j in every.tolist():
+            if (i, j) not in kept:
+                assert cert[np.intersect1d(tris[i], tris[j])].any(), (noise, i, j)
+
+
 # -- bad input: one pytest.raises each -------------------------------------------------------
 
 GOOD_T = [[0, 1, 2]]

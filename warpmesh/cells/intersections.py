@@ -602,6 +602,29 @@ def _all_pairs(points, triangles, *, device: str = "cpu", certify: bool = True) 
         return np.argwhere(hits.numpy()).astype(INDEX_DTYPE)  # sync point
 
 
+def _certified_vertices(points, triangles, *, device: str = "cpu") -> np.ndarray:
+    """Which vertices have a certified umbrella (the pairs of faces around them are not
+    tested: :func:`~warpmesh.kernels.intersect.umbrella_certified`); False for vertices in
+    no face. For tests and measurements.
+
+    >>> _certified_vertices([[0, 0, 1], [1, 0, 0], [0, 1, 0], [-1, -1, 0]],
+    ...                     [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]]).tolist()  # a tetrahedron
+    [True, True, True, True]
+    """
+    pts, tris = _validate(points, triangles)
+    device = check_device(device)
+    out = np.zeros(len(pts), dtype=bool)
+    if len(tris) == 0:
+        return out
+    with wp.ScopedDevice(device):
+        dev = wp.get_device(device)
+        points64, tris32 = _device_arrays(_scaled(pts), tris, dev)
+        _, codes = _classify_faces(points64, tris32, dev)
+        corners = _umbrella_flags(codes, tris32, len(pts), dev).numpy()  # sync point
+    out[tris.ravel()] = corners.astype(bool)
+    return out
+
+
 # -- pipeline ------------------------------------------------------------------------------
 
 
