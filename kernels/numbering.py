@@ -242,18 +242,22 @@ def pair_levels_kernel(
 @wp.kernel
 def label_components_kernel(
     indptr: wp.array(dtype=wp.int32), indices: wp.array(dtype=wp.int32), nodes: wp.array(dtype=wp.int32),
-    label: wp.array(dtype=wp.int32), queue: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32),
+    label: wp.array(dtype=wp.int32), queue: wp.array(dtype=wp.int32), starts: wp.array(dtype=wp.int32),
+    count: wp.array(dtype=wp.int32),
 ):
     """One thread labels the connected components of the subgraph induced by ``nodes``
     (ascending; ``label`` starts at -1 on them, at any other negative value elsewhere),
     numbered in the order of their smallest node. ``queue`` (one slot more than the
     nodes) ends with every component's nodes, one after the other, each in
-    breadth-first order from its smallest node."""
+    breadth-first order from its smallest node; component c is ``queue[starts[c]:
+    starts[c + 1]]`` (``starts`` as long as ``queue``); ``count[0]`` gets the number of
+    components."""
     c = int(0)
     tail = int(0)
     for t in range(nodes.shape[0]):
         s = nodes[t]
         if label[s] == -1:
+            starts[c] = tail
             label[s] = c
             queue[tail] = s
             head = tail
@@ -271,7 +275,55 @@ def label_components_kernel(
                     queue[tail] = v  # kept only if new: the queue has a spare slot at its end
                     tail += int(x == -1)
             c += 1
+    starts[c] = tail
     count[0] = c
+
+
+@wp.kernel
+def place_pieces_kernel(
+    grouped: wp.array(dtype=wp.int32), starts: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+    owner: wp.array(dtype=wp.int32), fi: wp.array(dtype=wp.int32), fj: wp.array(dtype=wp.int32),
+    width_p: wp.array(dtype=wp.int32), width_q: wp.array(dtype=wp.int32),
+    counts: wp.array(dtype=wp.int32), flat: wp.array(dtype=wp.int32),
+    ci: wp.array(dtype=wp.int32), cj: wp.array(dtype=wp.int32),
+):
+    """One thread places the pieces of Gibbs Step 2 [FG §17.4] in ``order``: piece p
+    (nodes ``grouped[starts[p]:starts[p + 1]]``, of component ``owner[p]``) goes to its
+    nodes' levels ``fi`` (side i) or ``fj`` (side j), whichever keeps the widest level it
+    touches smaller, counting the levels placed so far (``counts``, the fixed nodes to
+    begin with); ties: side i when D(P)'s width ``width_p`` is at most D(Q)'s. ``flat``
+    gets each placed node's level, ``counts`` grows; ``ci``, ``cj`` (one per level,
+    starting at 0) are scratch and end at 0."""
+    for r in range(order.shape[0]):
+        p = order[r]
+        first = starts[p]
+        stop = starts[p + 1]
+        h0 = int(0)
+        l0 = int(0)
+        t = first
+        while t < stop:  # the piece's count per level, each side, and the widest level it would give
+            v = grouped[t]
+            a = fi[v]
+            ci[a] += 1
+            h0 = wp.max(h0, counts[a] + ci[a])  # a level's last count is its largest
+            b = fj[v]
+            cj[b] += 1
+            l0 = wp.max(l0, counts[b] + cj[b])
+            t += 1
+        c = owner[p]
+        side_i = h0 < l0 or (h0 == l0 and width_p[c] <= width_q[c])
+        t = first
+        while t < stop:
+            v = grouped[t]
+            a = fi[v]
+            b = fj[v]
+            ci[a] = 0
+            cj[b] = 0
+            if not side_i:
+                a = b
+            flat[v] = a
+            counts[a] += 1
+            t += 1
 
 
 @wp.kernel

@@ -266,15 +266,16 @@ class _Graph:
         ((n,) int32, overwritten) is -1 (elsewhere: another negative value), labelled in
         the order of each one's smallest node.
 
-        Returns their sizes (by label) and their nodes, component after component (each
-        in the order of a search from its smallest node)."""
+        Returns where each starts in the next (int32, one more than there are components)
+        and their nodes (int32), component after component (each in the order of a
+        search from its smallest node)."""
         nodes = np.flatnonzero(label == -1).astype(np.int32)
+        grouped, starts = np.empty(len(nodes) + 1, np.int32), np.empty(len(nodes) + 1, np.int32)  # spare slots
         count = wp.zeros(1, dtype=wp.int32, device="cpu")
         wp.launch(KN.label_components_kernel, dim=1,
                   inputs=[self.indptr, self.indices, _as_wp(nodes)],
-                  outputs=[_as_wp(label), self.queue, count], device="cpu")
-        grouped = self.queue.numpy()[: len(nodes)].astype(np.int64)  # sync point
-        return np.bincount(label[grouped], minlength=int(count.numpy()[0])), grouped
+                  outputs=[_as_wp(label), _as_wp(grouped), _as_wp(starts), count], device="cpu")
+        return starts[: int(count.numpy()[0]) + 1], grouped[: len(nodes)]  # sync point
 
     def number(self, level: np.ndarray, start: np.ndarray, key: np.ndarray) -> np.ndarray:
         """Step 3 on every component: ``level`` (n,) per node, numbering from ``start``
@@ -348,9 +349,9 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
     level smaller (ties: the rooted structure of smaller width). Returns the levels.
 
     Levels are counted in one array over every (component, level), indexed by the
-    component's first level + the level ("flat" levels): the k-th largest piece of every
-    component is placed in round k, all at once, as pieces of different components never
-    share a flat level."""
+    component's first level + the level ("flat" levels); the pieces are placed by one
+    kernel thread, each component's largest first (pieces of different components never
+    share a flat level)."""
     depth = g.depths(p_lv)
     first_level = np.concatenate([[0], np.cumsum(depth)])
     size = int(first_level[-1])
@@ -364,50 +365,19 @@ def _gibbs_levels(g: _Graph, p_lv: np.ndarray, q_lv: np.ndarray) -> np.ndarray:
     wp.synchronize_device("cpu")
     if counts.sum() == g.n:  # every node fixed
         return p_lv.copy()
-    counts = counts.astype(np.int64)
     width_p = np.maximum.reduceat(hist_p, first_level[:-1])
     width_q = np.maximum.reduceat(hist_q, first_level[:-1])
-    sizes, grouped = g.components(label)  # the pieces, each contiguous in ``grouped``
-    starts = np.cumsum(sizes) - sizes
-    owner = g.comp[grouped[starts]]
+    starts, grouped = g.components(label)  # the pieces, each contiguous in ``grouped``
+    sizes = np.diff(starts)
+    owner = np.zeros(len(sizes), np.int32) if one else g.comp[grouped[starts[:-1]]]
     by_size = _order_by(owner, sizes.max() - sizes)  # per component, largest first (ties: label)
-    round_of = np.empty(len(sizes), np.int64)
-    round_of[by_size] = np.arange(len(sizes)) - np.searchsorted(owner[by_size], owner[by_size])
-    pieces = _order_by(round_of)  # by round, then label
-    piece_ends = np.searchsorted(round_of[pieces], np.arange(int(round_of.max()) + 1), side="right")
-    flat = fi  # the fixed nodes' flat level; the others' is set below
-    lo = 0
-    for hi in piece_ends:  # one round
-        ps = pieces[lo:hi]
-        segments = [grouped[starts[c]: starts[c] + sizes[c]] for c in ps.tolist()]
-        nodes = segments[0] if len(segments) == 1 else np.concatenate(segments)
-        ai, aj = fi[nodes], fj[nodes]
-        own = owner[ps]
-        if len(ps) == 1 and 8 * len(nodes) < size:  # a small piece: its own levels only
-            (ui, ci), (uj, cj) = np.unique(ai, return_counts=True), np.unique(aj, return_counts=True)
-            h0, l0 = (counts[ui] + ci).max(), (counts[uj] + cj).max()
-            if h0 < l0 or (h0 == l0 and width_p[own[0]] <= width_q[own[0]]):
-                flat[nodes], counts[ui] = ai, counts[ui] + ci
-            else:
-                flat[nodes], counts[uj] = aj, counts[uj] + cj
-            lo = hi
-            continue
-        bi, bj = np.bincount(ai, minlength=size), np.bincount(aj, minlength=size)
-        # the widest level each side would give: over the levels the piece touches
-        ti, tj = np.where(bi > 0, counts + bi, 0), np.where(bj > 0, counts + bj, 0)
-        if one:
-            h0, l0 = ti.max(keepdims=True), tj.max(keepdims=True)
-        else:
-            h0 = np.maximum.reduceat(ti, first_level[:-1])[own]
-            l0 = np.maximum.reduceat(tj, first_level[:-1])[own]
-        side_i = (h0 < l0) | ((h0 == l0) & (width_p[own] <= width_q[own]))
-        if len(ps) == 1:
-            chosen = ai if side_i[0] else aj
-        else:
-            chosen = np.where(np.repeat(side_i, sizes[ps]), ai, aj)
-        flat[nodes] = chosen
-        counts += bi if chosen is ai else bj if chosen is aj else np.bincount(chosen, minlength=size)
-        lo = hi
+    flat = fi  # the fixed nodes' flat level; the others' is set by the kernel
+    ci, cj = np.zeros(size, np.int32), np.zeros(size, np.int32)
+    wp.launch(KN.place_pieces_kernel, dim=1,
+              inputs=[_as_wp(grouped), _as_wp(starts), _as_wp(by_size.astype(np.int32)), _as_wp(owner), _as_wp(fi),
+                      _as_wp(fj), _as_wp(width_p), _as_wp(width_q)],
+              outputs=[_as_wp(counts), _as_wp(flat), _as_wp(ci), _as_wp(cj)], device="cpu")
+    wp.synchronize_device("cpu")
     return flat if one else flat - first_level[g.comp]
 
 
@@ -517,14 +487,13 @@ def _layout(graph, deg, check: bool = False):
         return seq, [n_used], 0, (local, level)
     # several components: one search labels them all, each laid out contiguously in the
     # order of its search (from its smallest node; components by smallest node)
-    label, queue = np.full(n, -1, np.int32), np.empty(n + 1, np.int32)  # a spare slot
+    label, queue, starts = np.full(n, -1, np.int32), np.empty(n + 1, np.int32), np.empty(n + 1, np.int32)
     count = wp.zeros(1, dtype=wp.int32, device="cpu")
     wp.launch(KN.label_components_kernel, dim=1,
               inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), _as_wp(np.arange(n, dtype=np.int32))],
-              outputs=[_as_wp(label), _as_wp(queue), count], device="cpu")
-    wp.synchronize_device("cpu")
+              outputs=[_as_wp(label), _as_wp(queue), _as_wp(starts), count], device="cpu")
     queue = queue[:n]
-    sizes = np.bincount(label)
+    sizes = np.diff(starts[: int(count.numpy()[0]) + 1])  # sync point
     kind = np.where(sizes > SMALL_COMPONENT, 0, np.where(sizes > 1, 1, 2))
     seq = queue.astype(np.int64)[_order_by(kind[label[queue]])]
     total = int(sizes[kind == 0].sum())
