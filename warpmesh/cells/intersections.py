@@ -643,7 +643,7 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     mark("order")
     degenerate, codes = _classify_faces(points64, sorted_tris, device)
     mark("degenerate")
-    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY)
+    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY, n_workers)
     mark("umbrellas")
     face_lowers = wp.empty(m, dtype=wp.vec3, device=device)
     face_uppers = wp.empty(m, dtype=wp.vec3, device=device)
@@ -751,23 +751,26 @@ def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device) -> wp.array
     return points32
 
 
-def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: bool = True) -> wp.array:
+def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: bool = True,
+                    n_workers: int = 1) -> wp.array:
     """1 for each corner (entry of the flat face array) whose vertex has a certified
     umbrella (:func:`~warpmesh.kernels.intersect.umbrella_certified`; ``codes`` from
     :func:`_classify_faces`, n points), else 0; all 0 when not ``certify``. Vertex ->
     corners on the device: counts by atomic add, inclusive scan, fill from the ends down
-    (count -> scan -> write), then one thread per vertex."""
-    corners = wp.empty(tris32.shape[0], dtype=wp.int32, device=device)
-    certified = wp.zeros(tris32.shape[0], dtype=wp.int8, device=device)
+    (count -> scan -> write), then one thread per vertex (split over ``n_workers`` CPU
+    threads like the walk: each writes its own vertices' corners only)."""
     if not certify or n == 0:
-        return certified
+        return wp.zeros(tris32.shape[0], dtype=wp.int8, device=device)
+    certified = wp.empty(tris32.shape[0], dtype=wp.int8, device=device)  # every corner is some vertex's
+    corners = wp.empty(tris32.shape[0], dtype=wp.int32, device=device)
     counts = wp.zeros(n, dtype=wp.int32, device=device)
     wp.launch(K.count_corners_kernel, dim=tris32.shape[0], inputs=[tris32], outputs=[counts], device=device)
     starts = wp.empty(n, dtype=wp.int32, device=device)
     wp.utils.array_scan(counts, starts, inclusive=True)
     wp.launch(K.fill_corners_kernel, dim=tris32.shape[0], inputs=[tris32, starts], outputs=[corners], device=device)
-    wp.launch(K.certify_umbrellas_kernel, dim=n, inputs=[codes, tris32, starts, corners, 0],
-              outputs=[certified], device=device)
+    _split(n, tris32.shape[0] // 3, device, n_workers)(
+        lambda a, b: wp.launch(K.certify_umbrellas_kernel, dim=b - a, inputs=[codes, tris32, starts, corners, a],
+                               outputs=[certified], device=device))
     return certified
 
 
