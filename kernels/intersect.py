@@ -13,7 +13,9 @@ assumes.
 
 Notation: O(a, b, c, d) = ((b - a) x (c - a)) . (d - a); a triangle's plane side of x is
 O of its vertices and x. Two triangles share k vertex *indices* (k = 0..3); see
-:func:`pair_intersects` for what counts as an intersection for each k.
+:func:`pair_intersects` for what counts as an intersection for each k. Pairs that share
+a vertex whose faces are certified to meet only where they share
+(:func:`umbrella_certified`) never reach the predicate.
 """
 
 import warp as wp
@@ -1019,7 +1021,10 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
     s_hi + pad <= g_hi + pad), so the faces left off the list could not pass the face
     test: the same candidates as screening every face of h, 17 face-face box tests a face
     instead of 51 on the part at 512; a list, not a bit mask, so that the loop runs once
-    per listed face. Returns how many pairs intersect; the first ``limit`` of them are
+    per listed face. A pair that passes the face test but shares a vertex whose umbrella
+    is certified (``certified``: by corner of the sorted faces, :func:`umbrella_certified`)
+    is skipped before the second face's points are loaded: such faces meet only where
+    they share. Returns how many pairs intersect; the first ``limit`` of them are
     written to ``keys[start:]`` as min(f, f2) m + max(f, f2) (f, f2 the input indices)."""
     m = order.shape[0]
     grow = wp.vec3(pad, pad, pad)

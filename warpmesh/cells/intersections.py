@@ -9,26 +9,45 @@ validity checks run this geometric one too. The pipeline (kernels in
    triangles int32;
 2. faces in Morton order of their centroids (radix sort), degenerate faces flagged and
    given an empty box (they meet nothing), each face's float32 box stored once;
-3. a tree over groups of ``GROUP`` = 16 consecutive faces of that order (compact
+3. the umbrella certificate: vertex -> corners on the device (counts by atomic add,
+   ``wp.utils.array_scan``, fill), then one thread per vertex v decides from F_v, its
+   faces, alone whether any two of them can meet other than in what they share
+   (:func:`~warpmesh.kernels.intersect.umbrella_certified`: one closed fan whose wedges
+   are all strictly of one orientation in some coordinate projection and wind once
+   about v; the proof is in its docstring), from per-face codes of orientation signs and
+   coordinate comparisons made with the degenerate flags; a flag per corner;
+4. a tree over groups of ``GROUP`` = 16 consecutive faces of that order (compact
    patches): a complete binary tree in heap order whose leaves are the groups in Morton
    order (padded to a power of two with empty boxes) and whose nodes hold the union of
    their leaves' float32 boxes, built bottom up, one launch per level;
-4. one thread per group g: a depth-first walk of the tree with g's box
+5. one thread per group g: a depth-first walk of the tree with g's box
    (:func:`~warpmesh.kernels.intersect.tree_next`) that never enters a subtree of groups
    all before g, so it meets only the groups h >= g; for each, the faces of g whose boxes
    meet h's, against the faces of h whose boxes meet theirs (only later ones when h == g):
    so each unordered pair of faces is screened and tested once, exactly in float64 with
-   the face of the lower input index as the predicate's first triangle; count per group,
+   the face of the lower input index as the predicate's first triangle, unless the two
+   share a vertex whose umbrella is certified (then they meet only in what they share:
+   skipped after the box test, before their points are loaded); count per group,
    prefix sum (``wp.utils.array_scan``), then a second walk, only for the groups with
    hits, writes each pair as the key min(f, g) m + max(f, g) at its group's offset; a
    radix sort of the keys on the device gives the output sorted, with no host sort
    (count -> scan -> allocate -> write).
 
-Where the time goes (:func:`profile_self_intersections`; the bundled part at resolution
-512, 1.5 M triangles with large grid-aligned flat regions, CPU s, load about 1): prepare
-0.03, Morton order 0.05, degenerate flags 0.02, boxes 0.02, tree 0.002, the walk about
-1.25. The walk meets 8.3 candidate pairs per face (12.4 M): 4.5 share one vertex, 1.5 an
-edge, 2.2 none; about half are coplanar (the flat regions) and go to the 2D tests. Split
+Where the time goes (:func:`profile_self_intersections`, ``workers=1``, median of 3, CPU
+s, load about 2.5; the bundled part at resolution 512, 1.5 M triangles with large
+grid-aligned flat regions / a ball at 512, 1.7 M): prepare 0.05 / 0.05, Morton order
+0.06 / 0.08, degenerate flags and face codes 0.04 / 0.04, umbrellas 0.09 / 0.11 (the
+per-vertex kernel 0.065 of it; the adjacency's atomics and fill 0.025), boxes 0.03 /
+0.03, tree 0.002, the walk 0.84 / 0.81 (1.36 / 1.14 with the certificate off, the same
+run). Every vertex of both is certified. The walk meets 8.3 candidate pairs per face
+(12.4 M): 4.5 share one vertex, 1.5 an edge, 2.2 none; the 6.0 that share one are now
+skipped after the face-face box test (before it: 1.07x the time, the indices of every
+listed face loaded); the 2.2 others go to the exact test, about half of them coplanar
+on the part. An unsound bound, every sharing pair skipped with no certificate at all,
+gave 1.01 s for the whole check on the part, against 1.10 with the certificate's
+0.11 s. The rest of this paragraph is from before the certificate. The walk met the
+same 8.3 pairs a face; about half are coplanar (the flat regions) and go to the 2D
+tests. Split
 on the part and the ball at 512 (the candidates written out, then the predicate alone on
 that list): the screen (tree walk 0.05, the rest the face-level box tests) about 0.5 /
 0.6, the exact tests about 0.8 / 0.5 (the part's coplanar pairs about 0.22 before the
@@ -125,6 +144,18 @@ def find_self_intersections(points, triangles, *, device: str = "cpu", workers: 
     opposite ways from a shared vertex meet only there, and coplanar triangles on
     opposite sides of a shared edge do not fold (a fan of coplanar triangles, the flat
     parts of a refined surface). This never drops an exact intersection.
+
+    Pairs that share a vertex whose umbrella is certified are decided without the
+    predicate: when the faces with that vertex index form one closed fan whose wedges,
+    projected on some coordinate plane, are all strictly of one orientation and wind once
+    about it, any two of them meet only in what they share (proved in
+    :func:`~warpmesh.kernels.intersect.umbrella_certified`), so such pairs are never
+    reported, not even when the predicate alone would call them touching within
+    rounding. The answer with the certificate is the exact one wherever the predicate's
+    is (it only drops pairs that do not intersect exactly); near-tie reports can come
+    only from pairs around uncertified vertices (a fold, a pinch, a duplicate face, a
+    boundary, more than 16 faces) or sharing no vertex. On the closed surfaces the
+    package produces, every vertex is typically certified.
 
     Parameters
     ----------
@@ -607,9 +638,15 @@ def _certified_vertices(points, triangles, *, device: str = "cpu") -> np.ndarray
     tested: :func:`~warpmesh.kernels.intersect.umbrella_certified`); False for vertices in
     no face. For tests and measurements.
 
-    >>> _certified_vertices([[0, 0, 1], [1, 0, 0], [0, 1, 0], [-1, -1, 0]],
-    ...                     [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]]).tolist()  # a tetrahedron
-    [True, True, True, True]
+    An octahedron (each fan projects one to one along its vertex's axis), then its upper
+    half alone (the rim is a boundary):
+
+    >>> octa = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+    >>> faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    >>> _certified_vertices(octa, faces).tolist()
+    [True, True, True, True, True, True]
+    >>> _certified_vertices(octa, faces[:4]).tolist()
+    [False, False, False, False, True, False]
     """
     pts, tris = _validate(points, triangles)
     device = check_device(device)
