@@ -205,6 +205,28 @@ def test_rooted_numbering_is_cuthill_mckee(small_graphs):
     assert out.tolist() == cm
 
 
+def test_level_sort_kernel_and_wide_keys_number_alike(small_graphs):
+    """Step 3 sorts each level by (key, index) with a counting-sort kernel when the (level,
+    key) buckets are few, else on the host: both give the book's numbering."""
+    for g in small_graphs:
+        adj, deg = adjacency(g.graph), g.deg
+        start = g.first_per_component(np.arange(g.n), deg)
+        p, p_lv, q, q_lv = _pseudo_diameters(g, start, g.descent(start))
+        level = _gibbs_levels(g, p_lv, q_lv)
+        key = (g.n - np.arange(g.n)) % 3  # many ties, broken by index
+        # and levels of 8 random nodes (not a level structure): most nodes start again from
+        # the level's member of smallest (key, index), so the sort decides the order
+        perm = np.random.default_rng(g.n).permutation(g.n)
+        blocks = np.empty(g.n, np.int64)
+        blocks[perm] = np.arange(g.n) // 8
+        for lv, s in ((level, int(p[0])), (blocks, int(perm[0]))):
+            expected = number_reference(adj, dict(enumerate(lv.tolist())), int(lv.max()) + 1, s, key)
+            assert g.number(lv, np.array([s]), key).tolist() == expected  # buckets: levels * 3 (the kernel)
+            wide = key * (8 * g.n + 5000)  # the same order, more buckets than 4 n + 4096 (the host)
+            assert g.number(lv, np.array([s]), wide).tolist() == expected
+            assert g.numbers.tolist() == np.argsort(expected).tolist()  # node -> number, kept by number()
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_components_at_once_equal_one_by_one(small_graphs, method):
     """Every step runs on all components together: the same as one component at a time."""
