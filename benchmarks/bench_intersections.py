@@ -82,16 +82,39 @@ load about 2.4): new / old CPU 0.91 (part at 512, 1.414 -> 1.283 s), 0.94 (ball,
 first round (8.1 CPU s at 1024), so the check's earlier ratio at 1024 (0.91x) no longer
 holds; the target (well under the meshing's time) is not met at 512 or 1024.
 
+Fourth round (2026-12-03): the umbrella certificate (pairs sharing a vertex whose faces
+provably meet only where they share skip the exact test; commits 1e594e4-bc93429). The
+same commands, CPU s of warpmesh with 2 workers / 1 worker / pymeshlab / meshing, warpmesh
+(2) / meshing:
+
+- at commit 19f0c5b (before), load 1.4-2.8: part 1.46 / 1.52 / 1.49 / 0.93 (1.56x), ball
+  1.29 / 1.32 / 2.24 / 0.73 (1.77x); the part at 1024 (``--repeat 2``, load 2.8-3.3):
+  warpmesh 6.01, pymeshlab 6.29, meshing 3.92 (1.53x);
+- at commit bc93429 (after), load 2.7-3.2: part 1.07 / 1.07 / 1.50 / 0.94 (1.14x), ball
+  1.11 / 1.10 / 2.25 / 0.73 (1.53x); the part at 1024 (load 1.8-3.4): warpmesh 4.37
+  (4.73 s wall with 2 workers), pymeshlab 6.32, meshing 3.93 (5.51 wall): 1.11x the
+  meshing's CPU time, 0.86x its wall time.
+
+Alternating 19f0c5b's ``find_self_intersections`` and bc93429's in one process
+(``workers=1``, load 2.4-2.8, /tmp scripts importing the old kernels under another
+module name): new / old CPU 0.714 (part at 512, 1.546 -> 1.104 s, 5 rounds, each round
+0.706-0.716), 0.832 (ball, 1.366 -> 1.136), 0.755 (part at 1024, 6.24 -> 4.71, 3
+rounds); the same pairs (none). Every vertex of the part and the ball is certified; the
+certificate costs 0.09-0.11 s of it and the walk drops from 1.36 to 0.84 (part) and 1.14
+to 0.81 (ball). The check is still above the meshing's CPU time (the target is well
+under it); what is left is the face-level box screen (about 0.5 s on the part) and the
+exact tests of the 2.2 pairs a face that share no vertex.
+
 Tetrahedra (2026-12-03, commit 3926e0f + find_tet_overlaps, load 2.5, ``--cases part-tets
 --repeat 3``): 1,031,312 tetrahedra, find_tet_overlaps 0.50 CPU s (0.75 s wall) against the
 ``features=False`` stuffing's 0.89 CPU s (1.36 wall): 0.56x the meshing; the face sort and
 the numpy passes over the 4 M faces are most of it, the boundary's triangle check ~0.1 s.
 
-``--profile`` (the last run): the walk with its exact tests is 89-92 % of the check (part
-at 512: 1.38 of 1.49 CPU s; prepare 0.03, order 0.05, degenerate flags 0.02, boxes 0.02,
-tree 0.001). The check is still well above the meshing's time (the target is well
-under it); see the module docstring of ``warpmesh.cells.intersections`` for where the
-walk's time goes and what was tried.
+``--profile`` (before the certificate): the walk with its exact tests was 89-92 % of the
+check (part at 512: 1.38 of 1.49 CPU s; prepare 0.03, order 0.05, degenerate flags 0.02,
+boxes 0.02, tree 0.001); with it, about 77 % (0.84 of 1.10, umbrellas 0.09); see the
+module docstring of ``warpmesh.cells.intersections`` for where the walk's time goes and
+what was tried.
 """
 
 from __future__ import annotations
