@@ -48,6 +48,7 @@ def number_levels_kernel(
     comp_start: wp.array(dtype=wp.int32), comp_levels: wp.array(dtype=wp.int32),
     comp_first: wp.array(dtype=wp.int32),
     num: wp.array(dtype=wp.int32), out: wp.array(dtype=wp.int32), buf: wp.array(dtype=wp.int32),
+    delta: wp.array(dtype=wp.int32), delta_reversed: wp.array(dtype=wp.int32), stray: wp.array(dtype=wp.int32),
 ):
     """One thread numbers every component level by level (Gibbs Step 3, Cuthill–McKee).
 
@@ -61,13 +62,28 @@ def number_levels_kernel(
     again. Then (phase 1) the level's nodes, in number order, number their neighbours
     of level k + 1. A node numbers its neighbours by increasing key (ties: index, the
     row order).
+
+    The profile of the numbering and of its reverse come on the way (``delta``,
+    ``delta_reversed``: as :func:`profile_kernel`'s, i - j_i [FG Table 17.1] per node),
+    as levels hold neighbours at most one apart: a node's smallest neighbour number is
+    the one of the node that numbered it (0 for a start), its largest the last one it
+    gives in phase 1 or, if it gives none, the largest in its row then (every neighbour
+    is numbered by then); a component's last level reads its rows once more at the
+    end. ``num`` starts at -1; ``stray[0]`` (starting at 0) counts the neighbours found
+    unnumbered in phase 1 outside level k + 1: not 0 when ``lev`` is not a level
+    structure (or a start is not in its component's first level), and then the profile
+    is not this kernel's to tell.
     """
+    strays = int(0)
     for c in range(comp_start.shape[0]):
         nxt = comp_first[c]
         start = comp_start[c]
+        if lev[start] != comp_levels[c]:
+            strays += 1
         num[start] = nxt
         out[nxt] = start
         lev[start] = -1
+        delta[start] = 0
         nxt += 1
         level_first = comp_first[c]
         for k in range(comp_levels[c], comp_levels[c + 1]):
@@ -98,6 +114,7 @@ def number_levels_kernel(
                         num[v] = nxt
                         out[nxt] = v
                         lev[v] = -1
+                        delta[v] = 0
                         nxt += 1
                 else:
                     if head < stop:
@@ -116,7 +133,8 @@ def number_levels_kernel(
                     while e < end:
                         v = indices[e]
                         e += 1
-                        if lev[v] == target:  # in the target level and not yet numbered
+                        lv = lev[v]
+                        if lv == target:  # in the target level and not yet numbered
                             t = m  # insertion sort by (key, index): rows need not be sorted
                             kv = key[v]
                             while t > 0:
@@ -128,11 +146,37 @@ def number_levels_kernel(
                                 t -= 1
                             buf[t] = v
                             m += 1
+                        elif lv >= 0 and target > k:  # unnumbered, and not by u: no level structure
+                            strays += 1
+                    own = num[u]
                     for t in range(m):
                         num[buf[t]] = nxt
                         out[nxt] = buf[t]
                         lev[buf[t]] = -1
+                        delta[buf[t]] = nxt - own
                         nxt += 1
+                    if target > k:  # phase 1: every neighbour of u has its number now
+                        hi = nxt - 1
+                        if m == 0:
+                            hi = own
+                            e = indptr[u]
+                            while e < end:
+                                hi = wp.max(hi, num[indices[e]])
+                                e += 1
+                        delta_reversed[u] = hi - own
+        h = level_first  # the last level's rows, read once more: every number is given
+        while h < nxt:
+            u = out[h]
+            h += 1
+            own = num[u]
+            hi = own
+            e = indptr[u]
+            end = indptr[u + 1]
+            while e < end:
+                hi = wp.max(hi, num[indices[e]])
+                e += 1
+            delta_reversed[u] = hi - own
+    stray[0] = strays
 
 
 @wp.kernel

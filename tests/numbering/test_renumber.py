@@ -227,6 +227,25 @@ def test_level_sort_kernel_and_wide_keys_number_alike(small_graphs):
             assert g.numbers.tolist() == np.argsort(expected).tolist()  # node -> number, kept by number()
 
 
+def test_step3_measures_the_profile_on_the_way(small_graphs):
+    """Step 3's kernel gives the profile and bandwidth of its numbering and of the reverse
+    (what renumber_graph's reverse="auto" compares) as matrix_stats measures them, for
+    every method, one component or several; on levels that are not a level structure it
+    declines (None)."""
+    blocks = [g.graph for g in small_graphs]
+    offsets = np.concatenate([[0], np.cumsum([b.shape[0] for b in blocks])])
+    graphs = small_graphs + [_Graph(_as_csgraph(sp.block_diag(blocks, format="csr")), offsets)]
+    for g in graphs:
+        for method in METHODS:
+            _number_components(g, method)
+            assert g.stats == matrix_stats(g.graph, g.numbers)
+    g = small_graphs[0]
+    levels = np.random.default_rng(1).permutation(g.n) // 8
+    start = np.flatnonzero(levels == 0)[:1]
+    g.number(levels, start, g.deg)
+    assert g.stats is None
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_components_at_once_equal_one_by_one(small_graphs, method):
     """Every step runs on all components together: the same as one component at a time."""

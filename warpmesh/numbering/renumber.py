@@ -126,8 +126,13 @@ def matrix_stats(graph: sp.csr_matrix, new: np.ndarray | None = None) -> dict:
     inputs = [_as_wp(g.indptr.astype(np.int32, copy=False)), _as_wp(g.indices.astype(np.int32, copy=False)),
               _as_wp(new.astype(np.int32, copy=False))]
     _per_node(KN.profile_kernel, n, inputs, [delta, delta_rev])
-    out = {}
-    for suffix, d in (("", delta.numpy()), ("_reversed", delta_rev.numpy())):  # sync points
+    return _delta_stats(delta.numpy(), delta_rev.numpy())  # sync points
+
+
+def _delta_stats(delta: np.ndarray, delta_reversed: np.ndarray) -> dict:
+    """:func:`matrix_stats`' figures from each row's i - j_i, both ways."""
+    n, out = len(delta), {}
+    for suffix, d in (("", delta), ("_reversed", delta_reversed)):
         out["bandwidth" + suffix] = int(d.max(initial=0))
         out["profile" + suffix] = int(d.sum(dtype=np.int64))
         out["profile_mean" + suffix] = out["profile" + suffix] / n if n else 0.0
@@ -281,7 +286,9 @@ class _Graph:
         """Step 3 on every component: ``level`` (n,) per node, numbering from ``start``
         (one per component) with neighbours by increasing ``key``. Component c gets the
         numbers ``bounds[c]:bounds[c + 1]``. Returns ``out`` (number -> node, int32); the
-        inverse (node -> number) is kept as ``self.numbers``."""
+        inverse (node -> number) is kept as ``self.numbers``, and the numbering's
+        :func:`matrix_stats` as ``self.stats`` when ``level`` is a level structure (the
+        kernel measures it on the way; else None)."""
         depth = self.depths(level)
         first_level = np.concatenate([[0], np.cumsum(depth)])
         # a global index for every (component, level)
@@ -299,13 +306,16 @@ class _Graph:
             bounds = np.concatenate([[0], np.cumsum(np.bincount(flat, minlength=n_levels))]).astype(np.int32)
         num, out = np.full(self.n, -1, np.int32), np.full(self.n, -1, np.int32)
         buf = wp.empty(max(self.max_deg, 1), dtype=wp.int32, device="cpu")
+        delta, delta_rev, stray = np.empty(self.n, np.int32), np.empty(self.n, np.int32), np.zeros(1, np.int32)
         wp.launch(KN.number_levels_kernel, dim=1,
                   inputs=[self.indptr, self.indices, _as_wp(flat), key_wp, _as_wp(members), _as_wp(bounds),
                           _as_wp(start.astype(np.int32)), _as_wp(first_level.astype(np.int32)),
                           _as_wp(self.bounds[:-1].astype(np.int32))],
-                  outputs=[_as_wp(num), _as_wp(out), buf], device="cpu")
+                  outputs=[_as_wp(num), _as_wp(out), buf, _as_wp(delta), _as_wp(delta_rev), _as_wp(stray)],
+                  device="cpu")
         wp.synchronize_device("cpu")
         self.numbers = num  # node -> number, as ``out`` inverted
+        self.stats = _delta_stats(delta, delta_rev) if stray[0] == 0 else None
         return out
 
 
@@ -609,7 +619,7 @@ def renumber_graph(
         # small components' profile is the same both ways
         flip = False
         if offset:
-            s = matrix_stats(local, walks.numbers)
+            s = walks.stats or matrix_stats(local, walks.numbers)  # measured by Step 3's kernel
             flip = (s["profile_reversed"], s["bandwidth_reversed"]) < (s["profile"], s["bandwidth"])
     else:
         flip = bool(reverse) if method != "rcm" else reverse != False  # noqa: E712
