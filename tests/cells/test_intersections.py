@@ -788,6 +788,9 @@ def test_jittered_float_meshes_lose_only_pairs_of_certified_umbrellas(seed):
         for i, j in every.tolist():
             if (i, j) not in kept:
                 assert cert[np.intersect1d(tris[i], tris[j])].any(), (noise, i, j)
+        for scale in (2.0**-600, 2.0**600):  # tiny and huge coordinates: the same flags and pairs
+            assert np.array_equal(wmi._certified_vertices(pts * scale, tris), cert)
+            assert np.array_equal(find_self_intersections(pts * scale, tris), got)
 
 
 # -- bad input: one pytest.raises each -------------------------------------------------------
