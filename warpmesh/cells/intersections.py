@@ -619,6 +619,13 @@ def _all_pairs(points, triangles, *, device: str = "cpu", certify: bool = True) 
     same predicate (no BVH, no box screen, no Morton order): the tests' reference for the
     candidate search. O(m^2) time and memory: small meshes only (m <= 10,000).
 
+    With ``certify`` (the default) it skips the same pairs as the walk, those sharing a
+    vertex whose umbrella is certified, computed here on the input order, so the two agree
+    exactly even where the predicate alone reports a pair touching within rounding;
+    ``certify=False`` tests every pair, which on exactly representable inputs (small
+    integers) must give the same answer, the certificate dropping only pairs that do not
+    intersect exactly (both are tested).
+
     >>> _all_pairs([[0, 0, 0], [2, 0, 0], [0, 2, 0], [0.5, 0.5, -1], [0.5, 0.5, 1], [1.5, 1.5, 0]],
     ...            [[0, 1, 2], [3, 4, 5]]).tolist()
     [[0, 1]]
