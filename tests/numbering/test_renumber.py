@@ -19,6 +19,7 @@ from warpmesh.numbering.renumber import (
     _ball_order,
     _gibbs_levels,
     _Graph,
+    _is_canonical,
     _layout,
     _number_components,
     _pseudo_diameters,
@@ -464,6 +465,18 @@ def test_graph_input_is_canonicalised_or_refused():
         assert np.array_equal(renumber_graph(noisy, method), renumber_graph(g, method))
     with pytest.raises(ValueError, match="symmetric"):
         renumber_graph(sp.triu(g), "gibbs")
+    # in csgraph format already, one entry (i, j) without its (j, i): the first walk of
+    # every method (the first descent, or a pass of its own for "frontal") refuses it
+    h = node_graph(m.cells, m.n_points)
+    keep = np.ones(h.nnz, bool)
+    keep[5] = False
+    rows = np.repeat(np.arange(h.shape[0]), np.diff(h.indptr))[keep]
+    h = sp.csr_matrix((h.data[keep], h.indices[keep], np.r_[0, np.cumsum(np.bincount(rows, minlength=h.shape[0]))]
+                       .astype(np.int32)), shape=h.shape)
+    assert _is_canonical(h)
+    for method in METHODS:
+        with pytest.raises(ValueError, match="symmetric"):
+            renumber_graph(h, method)
     assert np.array_equal(renumber_graph(g, "gibbs", reverse=np.True_), renumber_graph(g, "gibbs", reverse=True))
 
 

@@ -208,10 +208,13 @@ def _order_by(*columns) -> np.ndarray:
 class _Graph:
     """A relabelled graph whose connected components are the contiguous label ranges
     ``bounds[c]:bounds[c + 1]``, with the Warp views and scratch arrays of its walks
-    (kernels/numbering.py); every method works on all components at once."""
+    (kernels/numbering.py); every method works on all components at once. With
+    ``check``, the first walk also checks the graph for symmetry (as
+    :func:`_check_graph`: ValueError) before anything else reads it."""
 
-    def __init__(self, graph: sp.csr_matrix, bounds):
+    def __init__(self, graph: sp.csr_matrix, bounds, check: bool = False):
         self.graph = graph
+        self.check = check
         self.n = n = graph.shape[0]
         self.bounds = np.asarray(bounds, np.int64)
         self.n_comp = len(self.bounds) - 1
@@ -224,6 +227,22 @@ class _Graph:
         self.queue = wp.empty(n + 1, dtype=wp.int32, device="cpu")  # a spare slot for the branch-free walks
         self.comp_wp = _as_wp(self.comp)
         self.deg_wp = _as_wp(self.deg)
+        self.scratch = np.empty(n, np.int32)  # column counts nobody reads
+
+    def _columns_counted(self, columns: np.ndarray) -> None:
+        """The pending symmetry check, on each node's entries per column."""
+        self.check = False
+        if not np.array_equal(columns, self.deg):
+            raise ValueError(_NOT_SYMMETRIC)
+
+    def check_symmetry(self) -> None:
+        """The pending symmetry check (if any) by a pass of its own."""
+        if self.check:
+            columns = np.zeros(self.n, np.int32)
+            wp.launch(KN.count_columns_kernel, dim=self.graph.nnz, inputs=[self.indices], outputs=[_as_wp(columns)],
+                      device="cpu")  # atomic counts: one launch, never split across threads
+            wp.synchronize_device("cpu")
+            self._columns_counted(columns)
 
     def first_per_component(self, nodes: np.ndarray, *keys) -> np.ndarray:
         """For each component, the one of ``nodes`` (some in each, grouped by ascending
@@ -255,11 +274,15 @@ class _Graph:
         of smallest (degree, index) of its last level."""
         level = np.full(self.n, -1, np.int32)
         depth, last = np.full(self.n_comp, -1, np.int32), np.zeros(self.n_comp, np.int32)
+        check = self.check and len(sources) == self.n_comp  # every node reached: every entry counted
+        columns = np.zeros(self.n, np.int32) if check else self.scratch
         wp.launch(KN.descent_kernel, dim=1,
                   inputs=[self.indptr, self.indices, _as_wp(np.asarray(sources, np.int32)), self.comp_wp, self.deg_wp],
                   outputs=[_as_wp(level), self.queue, _as_wp(depth), _as_wp(last),
-                           _as_wp(np.zeros(self.n_comp, np.int32))], device="cpu")
+                           _as_wp(np.zeros(self.n_comp, np.int32)), _as_wp(columns)], device="cpu")
         wp.synchronize_device("cpu")
+        if check:
+            self._columns_counted(columns)
         return level, depth.astype(np.int64) + 1, last.astype(np.int64)
 
     def depths(self, level: np.ndarray) -> np.ndarray:
@@ -397,6 +420,7 @@ def _number_components(g: _Graph, method: str, start_level=None) -> np.ndarray:
     start = np.argmin(g.deg)[None] if g.n_comp == 1 else g.first_per_component(np.arange(g.n), g.deg)
     lv = g.descent(start) if start_level is None else start_level
     if method == "frontal":
+        g.check_symmetry()
         return g.number(lv, start, _forward_degree(g.graph, lv))
     p, p_lv, q, q_lv = _pseudo_diameters(g, start, lv)
     from_q = g.deg[q] < g.deg[p]  # start from the end of lower degree
@@ -443,9 +467,9 @@ def _search_relabel(graph: sp.csr_matrix, start: int):
     """Breadth-first search from ``start`` that relabels as it goes (one kernel pass).
 
     Returns the nodes reached in search order, the subgraph they span relabelled by
-    that order (csgraph format, but rows unsorted), the level of each label, and what
-    the pass saw of the input: True when every label has as many entries in its column
-    as in its row and no diagonal entry was met (else False)."""
+    that order (csgraph format, but rows unsorted), the level of each label, and
+    whether the pass met no diagonal entry (the symmetry check comes with the first
+    descent: :class:`_Graph`)."""
     n = graph.shape[0]
     new_of_old = np.full(n, -1, np.int32)
     old_of_new, level = np.empty(n, np.int32), np.empty(n, np.int32)
@@ -455,11 +479,7 @@ def _search_relabel(graph: sp.csr_matrix, start: int):
               inputs=[_as_wp(graph.indptr), _as_wp(graph.indices), int(start)],
               outputs=[_as_wp(a) for a in (new_of_old, old_of_new, level, indptr, indices)] + [count], device="cpu")
     c, diagonal = (int(x) for x in count.numpy())  # sync point
-    columns = np.zeros(c, np.int32)  # entries per column of the relabelled rows (read in order: a quick pass)
-    wp.launch(KN.count_columns_kernel, dim=int(indptr[c]), inputs=[_as_wp(indices)], outputs=[_as_wp(columns)],
-              device="cpu")  # atomic counts: one launch, never split across threads
-    wp.synchronize_device("cpu")
-    ok = diagonal == 0 and np.array_equal(columns, np.diff(indptr[: c + 1]))
+    ok = diagonal == 0
     local = sp.csr_matrix((np.ones(int(indptr[c]), bool), indices[: indptr[c]], indptr[: c + 1]), shape=(c, c))
     local.has_sorted_indices = False  # rows in the input's order: the walks that follow need no order
     return old_of_new[:c].astype(np.int64), local, level[:c], ok
@@ -472,13 +492,15 @@ def _layout(graph, deg, check: bool = False):
     nodes, then the smaller ones, then isolated nodes), the sizes of the large
     components, the number of nodes in small components and (the large components'
     relabelled graph, each label's level in the descent of its component's node of
-    minimal degree, when the graph is connected, else None). Each large component is
+    minimal degree, when the graph is connected, else None; and whether the symmetry
+    check is still to be made by the walks). Each large component is
     laid out in the breadth-first order of a search, so that the walks that follow
     read memory nearly in order: on a randomly numbered mesh that alone makes them ~3x
     faster.
 
-    With ``check``, ``graph`` (CSR, int32, canonical) is also checked for symmetry
-    (:func:`_check_graph`: ValueError) and a diagonal: None is returned when it has one.
+    With ``check``, ``graph`` (CSR, int32, canonical) is also checked for a diagonal
+    (None is returned when it has one) and for symmetry (:func:`_check_graph`:
+    ValueError), here or, when it is connected, by the first descent of its walks.
     """
     n = graph.shape[0]
     isolated = np.flatnonzero(deg == 0)
@@ -493,8 +515,10 @@ def _layout(graph, deg, check: bool = False):
     if len(reached) == n_used:
         seq = np.concatenate([reached, isolated]) if len(isolated) else reached
         if n_used <= SMALL_COMPONENT:
+            if check and not np.array_equal(np.bincount(local.indices, minlength=n_used), np.diff(local.indptr)):
+                raise ValueError(_NOT_SYMMETRIC)
             return seq, [], n_used, None
-        return seq, [n_used], 0, (local, level)
+        return seq, [n_used], 0, (local, level, check)
     # several components: one search labels them all, each laid out contiguously in the
     # order of its search (from its smallest node; components by smallest node)
     label, queue, starts = np.full(n, -1, np.int32), np.empty(n + 1, np.int32), np.empty(n + 1, np.int32)
@@ -507,7 +531,7 @@ def _layout(graph, deg, check: bool = False):
     kind = np.where(sizes > SMALL_COMPONENT, 0, np.where(sizes > 1, 1, 2))
     seq = queue.astype(np.int64)[_order_by(kind[label[queue]])]
     total = int(sizes[kind == 0].sum())
-    local = (_relabel(graph, seq, total), None) if total else None
+    local = (_relabel(graph, seq, total), None, False) if total else None
     return seq, sizes[kind == 0].tolist(), int(sizes[kind == 1].sum()), local
 
 
@@ -598,7 +622,7 @@ def renumber_graph(
     if not sp.issparse(graph) or graph.shape[0] != graph.shape[1]:
         raise ValueError(f"expected a square sparse 'graph', got {type(graph).__name__}")
     g = _as_csgraph(graph, check=False)
-    layout = _layout(g, degrees(g), check=g is graph)  # symmetry and diagonal checked by its search
+    layout = _layout(g, degrees(g), check=g is graph)  # diagonal and symmetry checked on the way
     if layout is None:  # a diagonal: drop it, and lay the graph out again
         g = _as_csgraph(g)
         layout = _layout(g, degrees(g))
@@ -606,8 +630,8 @@ def renumber_graph(
     offset = sum(sizes)  # the large components come first, each a contiguous range
     order = None if offset and offset == len(seq) else seq.copy()  # small components, isolated nodes keep their places
     if offset:
-        local, start_level = connected
-        walks = _Graph(local, np.concatenate([[0], np.cumsum(sizes)]))
+        local, start_level, pending = connected
+        walks = _Graph(local, np.concatenate([[0], np.cumsum(sizes)]), check=pending)
         out = _number_components(walks, method, start_level)
         if order is None:
             order = seq[out]
