@@ -50,6 +50,37 @@ default every mesh not marked optional):
 parameters; without it every mesh is built anew (the TetGen meshes take most of the
 run). A mesh whose generator fails is reported and skipped.
 
+Measured (issue 22, target 5: Gibbs at least scipy RCM's nodes per second on meshes of
+100 k nodes and more, profile no larger), 2026-12-03, 2 cores, load 1.5-1.8, ``--methods gibbs
+--cache /tmp/wm_renumber_cache --repeat 9 --meshes plate-h0.005,plate-h0.0036,part-R192,
+degree6-R128,ball-R40-a6.5e-6,part-tet-R64``, run twice at 19f0c5b and twice at cd6d579,
+alternating (Gibbs / scipy RCM wall time, each run's own ratio; CPU ratios the same within 0.01;
+orders, so profiles, identical before and after):
+
+=================  =======  ===================  ===================  ==================  ========
+mesh               nodes    Gibbs / RCM before   Gibbs / RCM after    M nodes/s Gibbs     pr / RCM
+                                                                      (RCM), after
+=================  =======  ===================  ===================  ==================  ========
+plate-h0.005       262,509  2.03-2.13            1.33-1.38            4.7 (6.3-6.5)       0.904
+plate-h0.0036      505,881  2.25-2.26            1.27-1.41            4.3 (5.4-6.1)       0.842
+part-R192          105,018  2.75-2.76            1.59-1.81            4.6-4.8 (7.3-8.6)   0.867
+degree6-R128       114,648  2.45-2.52            1.76-1.78            4.6 (8.1)           0.911
+ball-R40-a6.5e-6   215,671  2.16-2.23            1.47                 3.0 (4.4-4.5)       1.010
+part-tet-R64        33,518  3.46-3.68            2.67-2.71            3.1 (8.3-8.4)       0.611
+=================  =======  ===================  ===================  ==================  ========
+
+Target 5 is not met: Gibbs is 1.3-1.8x RCM's time on the meshes of 100 k nodes and more (it
+was 2.0-2.8x), and its profile is 1 % above RCM's on ball-R40 (as before: the orders did not
+change). Where Gibbs' 119 ms go on plate-h0.0036 (kernels alone, best of 15, load 0.6; at
+19f0c5b in brackets, 194 ms in all): the first search, that relabels the randomly numbered
+graph, 27 (47); the two George-Liu descents, with the symmetry check's column counts, 26 (45 +
+5); Step 2, pairs 3 (3), pieces labelled 10 (17), placed 4 (numpy rounds, ~6); Step 3, sort 4
+(numpy, ~10), numbering with both profiles on the way 28 (32 + a 7 ms profile pass); the rest
+(host numpy, launches) 17 (38). scipy's RCM (85-93 ms) walks the graph once, from a node of minimal degree; Gibbs
+walks it five times (search, two descents, pieces, numbering), and each walk is near a plain
+breadth-first search's cost here (12-13 ms on the relabelled graph, 27 ms on the random one
+with prefetching): matching RCM needs fewer walks, not faster ones.
+
 Run:  python benchmarks/bench_renumber.py [--meshes all] [--repeat 3] [--seed 0]
                                           [--methods gibbs,rcm,frontal,frontal-diameter]
                                           [--cache /tmp/wm_renumber_cache] [--json out.json]
