@@ -76,10 +76,10 @@ change). Where Gibbs' 119 ms go on plate-h0.0036 (kernels alone, best of 15, loa
 graph, 27 (47); the two George-Liu descents, with the symmetry check's column counts, 26 (45 +
 5); Step 2, pairs 3 (3), pieces labelled 10 (17), placed 4 (numpy rounds, ~6); Step 3, sort 4
 (numpy, ~10), numbering with both profiles on the way 28 (32 + a 7 ms profile pass); the rest
-(host numpy, launches) 17 (38). scipy's RCM (85-93 ms) walks the graph once, from a node of minimal degree; Gibbs
-walks it five times (search, two descents, pieces, numbering), and each walk is near a plain
-breadth-first search's cost here (12-13 ms on the relabelled graph, 27 ms on the random one
-with prefetching): matching RCM needs fewer walks, not faster ones.
+(host numpy, launches) 17 (38). scipy's RCM (85-93 ms) walks the graph once, from a node of
+minimal degree; Gibbs walks it five times (search, two descents, pieces, numbering), and each
+walk is near a plain breadth-first search's cost here (12-13 ms on the relabelled graph, 27 ms
+on the random one with prefetching): matching RCM needs fewer walks, not faster ones.
 
 Run:  python benchmarks/bench_renumber.py [--meshes all] [--repeat 3] [--seed 0]
                                           [--methods gibbs,rcm,frontal,frontal-diameter]
