@@ -227,7 +227,7 @@ class _Graph:
         self.queue = wp.empty(n + 1, dtype=wp.int32, device="cpu")  # a spare slot for the branch-free walks
         self.comp_wp = _as_wp(self.comp)
         self.deg_wp = _as_wp(self.deg)
-        self.scratch = np.empty(n, np.int32)  # column counts nobody reads
+        self.scratch = np.zeros(n, np.int32)  # column counts nobody reads (from 0: no overflow)
 
     def _columns_counted(self, columns: np.ndarray) -> None:
         """The pending symmetry check, on each node's entries per column."""
