@@ -11,6 +11,7 @@ tests/surface/test_mc33_ties.py.
 from __future__ import annotations
 
 import itertools
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -469,16 +470,18 @@ def test_complement_reverses_the_surface():
 
 def _oracle_sweep(per_config: int, resolutions, seed: int):
     rng = np.random.default_rng(seed)
+    samples = [(c, v) for c in ALL_CONFIGS for v in random_values(c, rng, per_config)]
+    # the oracle's lattice labelling releases the GIL: both cores (pytest runs on one)
+    with ThreadPoolExecutor(2) as pool:
+        truths = list(pool.map(lambda cv: oracle.decided_partition(cv[1], resolutions), samples))
     decided = undecided = 0
-    for c in ALL_CONFIGS:
-        for v in random_values(c, rng, per_config):
-            truth = oracle.decided_partition(v, resolutions)
-            if truth is None:
-                undecided += 1
-                continue
-            decided += 1
-            tris = [tuple(t) for t in m33.polygonize(v).tolist()]
-            assert mesh_partition(c, tris) == truth, (c, v.tolist())
+    for (c, v), truth in zip(samples, truths):
+        if truth is None:
+            undecided += 1
+            continue
+        decided += 1
+        tris = [tuple(t) for t in m33.polygonize(v).tolist()]
+        assert mesh_partition(c, tris) == truth, (c, v.tolist())
     return decided, undecided
 
 
