@@ -997,6 +997,19 @@ def test_moved_vertices_agree_with_the_lp_oracle(seed):
     assert verdicts == {True, False}
 
 
+def test_nested_shells_at_huge_and_tiny_scales():
+    # condition (4) on unscaled coordinates overflowed (triple products past 1e308: a tet
+    # inside another one passed at 1e103) and underflowed (two disjoint tets reported at
+    # 1e-110); every other predicate runs on points scaled by a power of two
+    unit = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    tets = np.array([[0, 1, 2, 3], [4, 5, 6, 7]])
+    nested = np.vstack([8 * unit - 1, 0.5 * unit + 0.25])  # winding number 2 in the small one
+    apart = np.vstack([unit, unit + [3, 0, 0]])
+    for s in (1.0, 1e-110, 1e-200, 1e103, 1e120, 1e300, 2.0**-1000):
+        assert find_tet_overlaps(nested * s, tets).tolist() == [[0, 1]], s
+        assert find_tet_overlaps(apart * s, tets).tolist() == [], s
+
+
 def test_tet_overlaps_refuse_bad_input():
     with pytest.raises(ValueError, match="'tetra'"):
         find_tet_overlaps(np.zeros((4, 3)), [[0, 1, 2]])

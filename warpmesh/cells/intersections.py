@@ -487,8 +487,8 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
     boundary = faces[once]
     crossing = find_self_intersections(pts, boundary, device=device)
     pairs.append(once[crossing] // 4)
-    if not any(len(p) for p in pairs):
-        pairs.append(_nested_shells(pts, tets, boundary, once // 4))
+    if not any(len(p) for p in pairs):  # scaled by a power of two (exact): no triple product over- or underflows
+        pairs.append(_nested_shells(_scaled(pts), tets, boundary, once // 4))
     out = np.sort(np.concatenate(pairs).astype(INDEX_DTYPE), axis=1)
     return np.unique(out, axis=0) if len(out) else out.reshape(0, 2)
 
@@ -500,7 +500,8 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
     components' winding number at a point q_c of c, :func:`_others_winding`) must be 1;
     where it is not, the pairs of tetrahedra containing the centroid of one of its
     tetrahedra. The components do not touch (condition 3), so the others' winding number is
-    the same at q_c as just inside c."""
+    the same at q_c as just inside c. ``pts`` must be scaled (:func:`_scaled`): the signed
+    volumes, ray signs and solid angles are products of up to three coordinates."""
     from warpmesh.cells.topology import connected_components
 
     if not len(boundary):
