@@ -1095,3 +1095,30 @@ def test_ray_windings_on_grid_lines_retry_and_fall_back(monkeypatch):
         want = [sum(round(solid(corners[label == j], q[c])) for j in range(8) if j != c) for c in range(8)]
         assert np.array_equal(got, want), (got, want)
     assert calls  # some query tied on all three axes
+
+
+def test_many_shells_in_a_row_are_not_quadratic():
+    # the (component, point) candidates of condition (4) came from the points in each box's
+    # range along x: 4,000 tets in a row along y (or a cross of three rows) gave 16 M
+    # candidates, 2.5 GB at 6,000 tets; each box now takes its narrowest axis. The count is
+    # still checked: an outer shell around all of them (winding 1 at each small one's point,
+    # 0 at the outer's)
+    import tracemalloc
+
+    unit = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    shell = unit[[[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]]  # a positive tet's faces, outward
+    n = 4000
+    rows = [np.column_stack([2.0 * np.arange(n) * (k == a) for k in range(3)]) for a in (1, 0)]
+    rows.append(np.column_stack([2.0 * (np.arange(n) % 3 == k) * (np.arange(n) // 3 + 1) for k in range(3)]))
+    for offsets in rows:  # a row along y, along x, a cross of three rows
+        big = 3.0 * offsets.max() + 10.0
+        corners = np.concatenate([(shell[None] + offsets[:, None, None]).reshape(-1, 3, 3),
+                                  (big * unit - [4.0, 4.0, 4.0])[[[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]]])
+        label = np.repeat(np.arange(n + 1), 4)
+        q = corners[4 * np.arange(n + 1)].mean(axis=1)
+        tracemalloc.start()
+        got = wmi._others_winding(corners, label, q, np.arange(4 * n + 4))
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert np.array_equal(got, np.r_[np.ones(n), 0.0])
+        assert peak < 40e6, peak  # 16 M candidates: over 500 MB

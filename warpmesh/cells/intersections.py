@@ -541,7 +541,8 @@ def _others_winding(corners: np.ndarray, label: np.ndarray, q: np.ndarray, order
     faces sorted by label), the winding number around q[c] of the faces of the other
     components: the signed count of the faces a ray from q[c] along a coordinate axis
     crosses (+1 where the face's normal points along the ray, -1 against it), over the
-    components whose box holds q[c]. O(F + pairs): the queries of each such component are
+    components whose box holds q[c] (found among the queries in the box's range along its
+    narrowest axis in queries). O(F + pairs): the queries of each such component are
     sorted along a second axis, and each face meets only those in its range there.
 
     A crossing that is not certain in float64 (the query's projection on an edge or a vertex
@@ -554,12 +555,17 @@ def _others_winding(corners: np.ndarray, label: np.ndarray, q: np.ndarray, order
     face_lo, face_hi = corners[order].min(axis=1), corners[order].max(axis=1)
     lo = np.minimum.reduceat(face_lo, starts[:-1])  # component boxes
     hi = np.maximum.reduceat(face_hi, starts[:-1])
-    # (component j, query c) with q[c] in j's box, c != j: ranges of the queries sorted along x
-    by = np.argsort(q[:, 0], kind="stable")
-    a = np.searchsorted(q[by, 0], lo[:, 0], "left")
-    n = np.searchsorted(q[by, 0], hi[:, 0], "right") - a
+    # (component j, query c) with q[c] in j's box, c != j: for each box, the range of the
+    # queries sorted along the axis where that range is shortest (along one axis for all, a
+    # row of shells along another gave n_comp^2 candidates)
+    by = np.argsort(q, axis=0, kind="stable").T  # (3, n_comp)
+    ranges = [(np.searchsorted(q[by[k], k], lo[:, k], "left"), np.searchsorted(q[by[k], k], hi[:, k], "right"))
+              for k in range(3)]
+    best = np.argmin([b - a for a, b in ranges], axis=0)
+    a = np.choose(best, [a for a, _ in ranges])
+    n = np.choose(best, [b for _, b in ranges]) - a
     comp = np.repeat(np.arange(n_comp), n)
-    query = by[np.repeat(a, n) + np.arange(len(comp)) - np.repeat(np.cumsum(n) - n, n)]
+    query = by[np.repeat(best, n), np.repeat(a, n) + np.arange(len(comp)) - np.repeat(np.cumsum(n) - n, n)]
     keep = (comp != query) & np.all(lo[comp] <= q[query], axis=1) & np.all(q[query] <= hi[comp], axis=1)
     comp, query = comp[keep], query[keep]  # sorted by component
     winding = np.zeros(n_comp)
