@@ -1122,3 +1122,47 @@ def test_many_shells_in_a_row_are_not_quadratic():
         tracemalloc.stop()
         assert np.array_equal(got, np.r_[np.ones(n), 0.0])
         assert peak < 40e6, peak  # 16 M candidates: over 500 MB
+
+
+def _kuhn_cells(nc: int, drop=()):
+    """_kuhn_block(nc) without the tetrahedra of the cells (integer lower corners) in drop."""
+    pts, tets = _kuhn_block(nc)
+    cell = np.rint(pts[tets].min(axis=1) * nc).astype(int)
+    keep = ~np.isin(cell @ [nc * nc, nc, 1], [c[0] * nc * nc + c[1] * nc + c[2] for c in drop])
+    return pts, tets[keep]
+
+
+def test_shells_nested_three_deep_on_grid_planes(monkeypatch):
+    # grid-aligned cubes (rays through edges and vertices of projected faces: ties on every
+    # axis, so solid angles decide): a hollow cube, a hollow cube in its cavity, a solid cube
+    # in that one's cavity (five boundary components, windings 1 everywhere: embedded), then
+    # with a cavity filled (winding 2 or 3: reported, every pair overlapping by the LP), and
+    # a U-shaped solid whose box holds a cube lying in its notch (not nested: embedded)
+    calls = []
+    solid_angles = wmi._winding_number_of
+    monkeypatch.setattr(wmi, "_winding_number_of", lambda f, x: calls.append(1) or solid_angles(f, x))
+    hollow = _kuhn_cells(3, drop=[(1, 1, 1)])
+    solid = _kuhn_block(3)
+    cube = _kuhn_block(1)
+
+    def joined(*parts):
+        pts, tets, n = [], [], 0
+        for (p, t), scale, shift in parts:
+            pts.append(p * scale + shift)
+            tets.append(t + n)
+            n += len(p)
+        return np.vstack(pts), np.vstack(tets)
+
+    for inner in ((cube, 0.5, 4.25), (cube, 0.375, [4.4375, 4.3125, 4.1875])):  # the second one ties
+        for outer, middle, embedded in ((hollow, hollow, True), (solid, hollow, False), (hollow, solid, False),
+                                        (solid, solid, False)):
+            pts, tets = joined((outer, 9.0, 0.0), (middle, 2.25, 3.375), inner)
+            got = find_tet_overlaps(pts, tets)
+            assert (len(got) == 0) == embedded, (embedded, got[:4])
+            assert all(_overlap_depth(pts, tets[i], tets[j]) > 1e-9 for i, j in got[:: max(1, len(got) // 6)])
+    assert calls
+    u_shape = _kuhn_cells(3, drop=[(1, 1, 0), (1, 2, 0), (1, 1, 1), (1, 2, 1), (1, 1, 2), (1, 2, 2)])
+    for shift in ([1.25, 1.25, 0.25], [1.25, 2.25, 1.25], [1.0, 1.0, 1.0]):  # in the notch; the last touches
+        pts, tets = joined((u_shape, 3.0, 0.0), (cube, 0.5, shift))
+        got = find_tet_overlaps(pts, tets)
+        assert (len(got) == 0) == (shift[0] != 1.0), shift
