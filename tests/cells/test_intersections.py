@@ -1166,3 +1166,40 @@ def test_shells_nested_three_deep_on_grid_planes(monkeypatch):
         pts, tets = joined((u_shape, 3.0, 0.0), (cube, 0.5, shift))
         got = find_tet_overlaps(pts, tets)
         assert (len(got) == 0) == (shift[0] != 1.0), shift
+
+
+def test_shells_sharing_an_edge_that_overlap_there_are_reported():
+    # boundary sheets joined by an edge of both (four boundary faces on it) were one component
+    # for condition (4), its winding taken from its total volume, and faces sharing an edge
+    # are not reported unless coplanar: two octahedra on one equator crossing each other
+    # there (B's upper half outside A, its lower half inside A), and a tet inside a cube
+    # resting on an edge of the cube's bottom passed as embedded. Now the tets around such an
+    # edge are tested for overlapping wedges (exact orientations). Sheets touching along an
+    # edge from outside stay embedded: cubes welded on an edge, a checkerboard of cells.
+    equator = [[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0]]
+    pts = np.array(equator + [[0, 0, 1], [0, 0, -1], [0, 0, 2], [0, 0, -0.5]], float)
+
+    def octahedron(top, bottom):
+        tets = np.array([[top, bottom, i, (i + 1) % 4] for i in range(4)])
+        neg = np.linalg.det(pts[tets[:, 1:]] - pts[tets[:, :1]]) < 0
+        tets[neg] = tets[neg][:, [0, 1, 3, 2]]
+        return tets
+
+    cube, cube_tets = _kuhn_block(4)
+    cube = 4.0 * cube
+    v, w = (int(np.flatnonzero(np.all(cube == p, axis=1))[0]) for p in ([1, 2, 0], [2, 2, 0]))
+    resting = np.vstack([cube, [[1.5, 2.25, 0.5], [1.5, 1.75, 0.5]]])
+    small = np.array([v, w, len(cube), len(cube) + 1])
+    small = small if np.linalg.det(resting[small[1:]] - resting[small[0]]) > 0 else small[[0, 1, 3, 2]]
+    for p, tets in ((pts, np.vstack([octahedron(4, 5), octahedron(6, 7)])),
+                    (resting, np.vstack([cube_tets, small]))):
+        got = find_tet_overlaps(p, tets)
+        assert len(got) > 0 and all(_overlap_depth(p, tets[i], tets[j]) > 1e-9 for i, j in got)
+    assert not _embedded_by_lp(pts, np.vstack([octahedron(4, 5), octahedron(6, 7)]))
+    assert find_tet_overlaps(pts, octahedron(4, 5)).shape == (0, 2)
+    c, ct = _kuhn_block(1)
+    moved = c + [1, 1, 0]
+    weld = np.array([next(iter(np.flatnonzero(np.all(c == x, axis=1))), 8 + k) for k, x in enumerate(moved)])
+    checker = _kuhn_cells(2, drop=[(0, 0, 1), (0, 1, 0), (1, 0, 0), (1, 1, 1)])
+    for p, tets in ((np.vstack([c, moved]), np.vstack([ct, weld[ct]])), checker):
+        assert find_tet_overlaps(p, tets).shape == (0, 2)

@@ -96,8 +96,10 @@ meet in float32; the query boxes are grown by a few float32 ulps besides.
 
 from __future__ import annotations
 
+import itertools
 import os
 import time
+from fractions import Fraction
 
 import numpy as np
 import warp as wp
@@ -413,6 +415,10 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
     - (i, j) for the tetrahedra of a face in three or more of them, or in two with the same
       orientation (then both lie on one side of it);
     - (i, j) for the tetrahedra of two boundary faces that cross or touch;
+    - (i, j) for two tetrahedra around a boundary edge of more than two boundary faces
+      (boundary sheets joined along an edge, which the triangle check does not report:
+      faces sharing an edge meet there) whose interiors overlap there
+      (:func:`_overlapping_fans`);
     - (i, j) for a tetrahedron i inside a boundary component where (4) fails and each
       tetrahedron j that contains its centroid as well (winding numbers by signed ray
       crossings, solid angles where every axis ties; only components whose boxes hold
@@ -488,9 +494,110 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
     crossing = find_self_intersections(pts, boundary, device=device)
     pairs.append(once[crossing] // 4)
     if not any(len(p) for p in pairs):  # scaled by a power of two (exact): no triple product over- or underflows
-        pairs.append(_nested_shells(_scaled(pts), tets, boundary, once // 4))
+        scaled = _scaled(pts)
+        pairs.append(_overlapping_fans(scaled, tets, boundary))
+        if not len(pairs[-1]):
+            pairs.append(_nested_shells(scaled, tets, boundary, once // 4))
     out = np.sort(np.concatenate(pairs).astype(INDEX_DTYPE), axis=1)
     return np.unique(out, axis=0) if len(out) else out.reshape(0, 2)
+
+
+def _tet_edge_table() -> np.ndarray:
+    """(6, 4) rows (i, j, k, l): each edge (i, j) of a tetrahedron and its two other corners in
+    the order that makes (i, j, k, l) an even permutation of (0, 1, 2, 3), so that
+    O(t_i, t_j, t_k, t_l) = O(t_0, t_1, t_2, t_3)."""
+    rows = []
+    for i, j in itertools.combinations(range(4), 2):
+        k, l = (x for x in range(4) if x not in (i, j))
+        perm = (i, j, k, l)
+        odd = sum(perm[a] > perm[b] for a in range(4) for b in range(a + 1, 4)) % 2
+        rows.append((i, j, l, k) if odd else perm)
+    return np.array(rows)
+
+
+#: every edge of a tetrahedron with its other corners in positive order (:func:`_tet_edge_table`)
+_TET_EDGES = _tet_edge_table()
+#: Shewchuk's orient3d errboundA, doubled (as the kernels' O3_BOUND)
+_O3_BOUND = 2.0 * (7.0 + 56.0 * 2.0**-53) * 2.0**-53
+
+
+def _orient3d_signs(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Exact signs of O(a, b, c, d) for rows (k, 3) of scaled points (:func:`_scaled`: no
+    product over- or underflows past the floor): float64 with Shewchuk's static bound, then
+    the rows within it in integers (every float64 is a multiple of 2^-1074)."""
+    u, v, w = b - a, c - a, d - a
+    det = np.einsum("ij,ij->i", u, np.cross(v, w))
+    perm = np.einsum("ij,ij->i", np.abs(u), np.abs(v[:, [1, 2, 0]] * w[:, [2, 0, 1]])
+                     + np.abs(v[:, [2, 0, 1]] * w[:, [1, 2, 0]]))
+    sure = np.abs(det) > _O3_BOUND * perm + 1e-290
+    out = np.where(sure, np.sign(det), 0.0).astype(np.int64)
+    tie = np.flatnonzero(~sure)
+    if len(tie):
+        def exact(x):
+            return np.array([int(Fraction(float(y)) * (1 << 1074)) for y in x[tie].ravel()], dtype=object).reshape(-1, 3)
+        ia, ib, ic, id_ = (exact(x) for x in (a, b, c, d))
+        u, v, w = ib - ia, ic - ia, id_ - ia
+        det = (u[:, 0] * (v[:, 1] * w[:, 2] - v[:, 2] * w[:, 1]) + u[:, 1] * (v[:, 2] * w[:, 0] - v[:, 0] * w[:, 2])
+               + u[:, 2] * (v[:, 0] * w[:, 1] - v[:, 1] * w[:, 0]))
+        out[tie] = (det > 0).astype(np.int64) - (det < 0).astype(np.int64)
+    return out
+
+
+def _overlapping_fans(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+    """The pairs of tetrahedra whose interiors overlap around a boundary edge in more than
+    two boundary faces (``pts`` scaled, :func:`_scaled`; ``tets`` positive).
+
+    There boundary sheets meet along an edge of both: the triangle check does not see them
+    cross (faces sharing an edge only meet there unless folded flat), and condition (4)
+    takes them as one component. Two tetrahedra with a common edge (a, b) overlap iff their
+    open wedges about it do: each tetrahedron as (a, b, c, d) with O(a, b, c, d) > 0 has the
+    wedge O(a, b, c, x) > 0 > O(a, b, d, x); two such wedges (each under pi) overlap iff an
+    edge ray of one lies inside the other or they are the same wedge. With X = O(a, b, c1,
+    c2), Y = O(a, b, c1, d2), Z = O(a, b, d1, c2), W = O(a, b, d1, d2), exact:
+    c2 in 1: X > 0 > Z; d2 in 1: Y > 0 > W; c1 in 2: X < 0 < Y; d1 in 2: Z < 0 < W; the same:
+    X = W = 0 > Z, Y > 0. Every tetrahedron around such an edge is paired with every other
+    (a few). Sheets meeting only at vertices are separate components of condition (4).
+
+    >>> cube = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    >>> pts = np.vstack([cube, [[0.2, 0.2, 0.5], [0.2, -0.5, 0.2]]])
+    >>> tets = np.array([[0, 1, 2, 3], [0, 1, 4, 5]])  # (0, 1) an edge of both, 4 inside the first
+    >>> _overlapping_fans(pts, tets, np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1],
+    ...                                         [1, 4, 5], [0, 5, 4], [0, 1, 5], [0, 4, 1]])).tolist()
+    [[0, 1]]
+    """
+    n = len(pts)
+    edges = np.sort(boundary[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
+    key = np.sort(edges[:, 0] * n + edges[:, 1])
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    shared = key[first[np.diff(np.r_[first, len(key)]) > 2]]  # boundary edges of 4, 6, ... faces
+    if not len(shared):
+        return np.zeros((0, 2), dtype=INDEX_DTYPE)
+    quads = tets[:, _TET_EDGES]  # (m, 6, 4)
+    ends = np.sort(quads[:, :, :2], axis=2)
+    tkey = ends[..., 0] * n + ends[..., 1]
+    t_id, e_id = np.nonzero(np.isin(tkey, shared))
+    quad = quads[t_id, e_id]
+    flip = quad[:, 0] > quad[:, 1]  # (b, a, c, d) even iff (a, b, d, c) is
+    quad[flip] = quad[flip][:, [1, 0, 3, 2]]
+    order = np.argsort(tkey[t_id, e_id], kind="stable")
+    quad, t_id, ek = quad[order], t_id[order], tkey[t_id, e_id][order]
+    start = np.flatnonzero(np.r_[True, ek[1:] != ek[:-1]])
+    size = np.diff(np.r_[start, len(ek)])
+    one, two = [], []
+    for k in np.unique(size[size > 1]):  # every pair of tetrahedra around each edge, by group size
+        i, j = np.triu_indices(int(k), 1)
+        s = start[size == k]
+        one.append((s[:, None] + i[None]).ravel())
+        two.append((s[:, None] + j[None]).ravel())
+    if not one:
+        return np.zeros((0, 2), dtype=INDEX_DTYPE)
+    one, two = np.concatenate(one), np.concatenate(two)
+    a, b, c1, d1 = (pts[quad[one, k]] for k in range(4))
+    c2, d2 = pts[quad[two, 2]], pts[quad[two, 3]]
+    x, y, z, w = (_orient3d_signs(a, b, p, q) for p, q in ((c1, c2), (c1, d2), (d1, c2), (d1, d2)))
+    hit = (((x > 0) & (z < 0)) | ((y > 0) & (w < 0)) | ((x < 0) & (y > 0)) | ((z < 0) & (w > 0))
+           | ((x == 0) & (w == 0) & (z < 0) & (y > 0)))
+    return np.column_stack([t_id[one[hit]], t_id[two[hit]]]).astype(INDEX_DTYPE)
 
 
 def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owners: np.ndarray) -> np.ndarray:
