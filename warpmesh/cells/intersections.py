@@ -99,7 +99,6 @@ from __future__ import annotations
 import itertools
 import os
 import time
-from fractions import Fraction
 
 import numpy as np
 import warp as wp
@@ -521,11 +520,13 @@ _TET_EDGES = _tet_edge_table()
 _O3_BOUND = 2.0 * (7.0 + 56.0 * 2.0**-53) * 2.0**-53
 
 
-def _orient3d_signs(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Exact signs of O(a, b, c, d) for rows (k, 3) of scaled points (:func:`_scaled`: no
-    product over- or underflows past the floor): float64 with Shewchuk's static bound, then
-    the rows within it in integers (every float64 is a multiple of 2^-1074)."""
-    u, v, w = b - a, c - a, d - a
+def _orient3d_signs(pts: np.ndarray, ia, ib, ic, id_) -> np.ndarray:
+    """Exact signs of O(a, b, c, d) for the points of indices ia, ib, ic, id_ (arrays (k,)) of
+    scaled points ``pts`` (:func:`_scaled`: no product over- or underflows past the floor):
+    float64 with Shewchuk's static bound, then the rows within it in Python integers, the
+    points they use written over one power-of-two denominator (the largest of theirs)."""
+    a = pts[ia]
+    u, v, w = pts[ib] - a, pts[ic] - a, pts[id_] - a
     det = np.einsum("ij,ij->i", u, np.cross(v, w))
     perm = np.einsum("ij,ij->i", np.abs(u), np.abs(v[:, [1, 2, 0]] * w[:, [2, 0, 1]])
                      + np.abs(v[:, [2, 0, 1]] * w[:, [1, 2, 0]]))
@@ -533,10 +534,12 @@ def _orient3d_signs(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) 
     out = np.where(sure, np.sign(det), 0.0).astype(np.int64)
     tie = np.flatnonzero(~sure)
     if len(tie):
-        def exact(x):
-            return np.array([int(Fraction(float(y)) * (1 << 1074)) for y in x[tie].ravel()], dtype=object).reshape(-1, 3)
-        ia, ib, ic, id_ = (exact(x) for x in (a, b, c, d))
-        u, v, w = ib - ia, ic - ia, id_ - ia
+        used, inverse = np.unique(np.concatenate([x[tie] for x in (ia, ib, ic, id_)]), return_inverse=True)
+        ratios = [y.as_integer_ratio() for y in pts[used].ravel().tolist()]
+        den = max(d for _, d in ratios)  # powers of two: each divides the largest
+        exact = np.array([n * (den // d) for n, d in ratios], dtype=object).reshape(-1, 3)
+        ea, eb, ec, ed = (exact[k] for k in inverse.reshape(4, -1))
+        u, v, w = eb - ea, ec - ea, ed - ea
         det = (u[:, 0] * (v[:, 1] * w[:, 2] - v[:, 2] * w[:, 1]) + u[:, 1] * (v[:, 2] * w[:, 0] - v[:, 0] * w[:, 2])
                + u[:, 2] * (v[:, 0] * w[:, 1] - v[:, 1] * w[:, 0]))
         out[tie] = (det > 0).astype(np.int64) - (det < 0).astype(np.int64)
@@ -572,7 +575,8 @@ def _overlapping_fans(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray) -
     shared = key[first[np.diff(np.r_[first, len(key)]) > 2]]  # boundary edges of 4, 6, ... faces
     if not len(shared):
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
-    quads = tets[:, _TET_EDGES]  # (m, 6, 4)
+    near = np.flatnonzero(np.isin(tets, np.r_[shared // n, shared % n]).sum(axis=1) >= 2)  # may hold one
+    quads = tets[near][:, _TET_EDGES]  # (k, 6, 4)
     ends = np.sort(quads[:, :, :2], axis=2)
     tkey = ends[..., 0] * n + ends[..., 1]
     t_id, e_id = np.nonzero(np.isin(tkey, shared))
@@ -592,12 +596,12 @@ def _overlapping_fans(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray) -
     if not one:
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
     one, two = np.concatenate(one), np.concatenate(two)
-    a, b, c1, d1 = (pts[quad[one, k]] for k in range(4))
-    c2, d2 = pts[quad[two, 2]], pts[quad[two, 3]]
-    x, y, z, w = (_orient3d_signs(a, b, p, q) for p, q in ((c1, c2), (c1, d2), (d1, c2), (d1, d2)))
+    a, b, c1, d1 = (quad[one, k] for k in range(4))
+    c2, d2 = quad[two, 2], quad[two, 3]
+    x, y, z, w = (_orient3d_signs(pts, a, b, p, q) for p, q in ((c1, c2), (c1, d2), (d1, c2), (d1, d2)))
     hit = (((x > 0) & (z < 0)) | ((y > 0) & (w < 0)) | ((x < 0) & (y > 0)) | ((z < 0) & (w > 0))
            | ((x == 0) & (w == 0) & (z < 0) & (y > 0)))
-    return np.column_stack([t_id[one[hit]], t_id[two[hit]]]).astype(INDEX_DTYPE)
+    return np.column_stack([near[t_id[one[hit]]], near[t_id[two[hit]]]]).astype(INDEX_DTYPE)
 
 
 def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owners: np.ndarray) -> np.ndarray:
