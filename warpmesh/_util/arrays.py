@@ -6,7 +6,19 @@ import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
 
-__all__ = ["sorted_unique", "unique_rows"]
+__all__ = ["run_ranks", "sorted_unique", "unique_rows"]
+
+
+def run_ranks(counts: np.ndarray) -> np.ndarray:
+    """``0, 1, .., counts[0] - 1, 0, 1, .., counts[1] - 1, ...``: the rank of each item within
+    its run, for runs of ``counts`` items laid end to end (with ``np.repeat(starts, counts)``,
+    the positions of ranges expanded without a Python loop).
+
+    >>> run_ranks(np.array([2, 0, 3])).tolist()
+    [0, 1, 0, 1, 2]
+    """
+    counts = np.asarray(counts)
+    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
 
 
 def sorted_unique(a: np.ndarray) -> np.ndarray:

@@ -103,6 +103,7 @@ import time
 import numpy as np
 import warp as wp
 
+from warpmesh._util.arrays import run_ranks
 from warpmesh._util.validate import check_device
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.parallel import run_parallel
@@ -676,7 +677,7 @@ def _others_winding(corners: np.ndarray, label: np.ndarray, q: np.ndarray, order
     a = np.choose(best, [a for a, _ in ranges])
     n = np.choose(best, [b for _, b in ranges]) - a
     comp = np.repeat(np.arange(n_comp), n)
-    query = by[np.repeat(best, n), np.repeat(a, n) + np.arange(len(comp)) - np.repeat(np.cumsum(n) - n, n)]
+    query = by[np.repeat(best, n), np.repeat(a, n) + run_ranks(n)]
     keep = (comp != query) & np.all(lo[comp] <= q[query], axis=1) & np.all(q[query] <= hi[comp], axis=1)
     comp, query = comp[keep], query[keep]  # sorted by component
     winding = np.zeros(n_comp)
@@ -710,7 +711,7 @@ def _ray_crossings(faces: np.ndarray, q: np.ndarray, axis: int) -> tuple[np.ndar
         a = np.searchsorted(qi, flo[:, i], "left")
         n = np.searchsorted(qi, fhi[:, i], "right") - a
         face = np.repeat(np.arange(len(f)), n)
-        which = by[np.repeat(a, n) + np.arange(len(face)) - np.repeat(np.cumsum(n) - n, n)]
+        which = by[np.repeat(a, n) + run_ranks(n)]
         x = q[which]
         keep = (flo[face, j] <= x[:, j]) & (x[:, j] <= fhi[face, j]) & (x[:, axis] <= fhi[face, axis])
         face, which, x = face[keep], which[keep], x[keep]

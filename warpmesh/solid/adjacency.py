@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from warpmesh._util.arrays import run_ranks
+
 __all__ = ["TET_EDGES", "TRI_EDGES", "unique_edges", "vertex_tets", "gather_rows"]
 
 #: local vertex pairs of the edges of a tetrahedron and of a triangle
@@ -55,5 +57,5 @@ def gather_rows(ptr, idx, rows) -> tuple[np.ndarray, np.ndarray]:
     rows = np.asarray(rows, dtype=np.int64)
     counts = ptr[rows + 1] - ptr[rows]
     owner = np.repeat(np.arange(len(rows)), counts)
-    local = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)
+    local = run_ranks(counts)
     return owner, idx[np.repeat(ptr[rows], counts) + local]

@@ -46,6 +46,7 @@ from __future__ import annotations
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh._util.arrays import run_ranks
 from warpmesh.errors import TopologyError
 from warpmesh.mesh import Mesh
 
@@ -263,11 +264,11 @@ def _nesting_depth(points, faces, comp, closed_ids, roots) -> np.ndarray:
     hits = []
     for a, b in zip([0, *cuts], [*cuts, len(cand)]):  # chunks of faces, bounded memory
         f_row = np.repeat(cand[a:b], rows[a:b])
-        row = c0[f_row, 0] + _ranks(rows[a:b])
+        row = c0[f_row, 0] + run_ranks(rows[a:b])
         first = np.searchsorted(q_sorted, row * res + c0[f_row, 1], "left")
         n_q = np.searchsorted(q_sorted, row * res + c1[f_row, 1], "right") - first
         fi = np.repeat(f_row, n_q)
-        qi = q_order[np.repeat(first, n_q) + _ranks(n_q)]
+        qi = q_order[np.repeat(first, n_q) + run_ranks(n_q)]
         keep = owner[fi] != qi
         qi, fi = qi[keep], fi[keep]
         hit = _ray_hits(q, qi, tri, tri_idx, fi)
@@ -275,11 +276,6 @@ def _nesting_depth(points, faces, comp, closed_ids, roots) -> np.ndarray:
     pairs, crossings = np.unique(np.concatenate(hits), return_counts=True)
     inside = pairs[crossings % 2 == 1]
     return np.bincount(inside // k, minlength=k).astype(INDEX_DTYPE)
-
-
-def _ranks(counts: np.ndarray) -> np.ndarray:
-    """``0, 1, .., counts[0] - 1, 0, 1, .., counts[1] - 1, ...`` (the rank within each run)."""
-    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
 
 
 # ----------------------------------------------------------------------------- public API
