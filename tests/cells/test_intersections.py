@@ -15,6 +15,7 @@ import pytest
 import trimesh
 
 from warpmesh.cells import intersections as wmi
+from warpmesh.cells import rays
 from warpmesh.cells.intersections import (
     find_tet_overlaps,
     count_self_intersecting_faces,
@@ -1091,108 +1092,6 @@ def test_tet_overlaps_refuse_bad_input():
     assert find_tet_overlaps(np.zeros((0, 3)), np.zeros((0, 4), int)).shape == (0, 2)
 
 
-def _shells(rng, n_spheres, n_cubes):
-    """Closed shells in one face list: icospheres of random centres and radii and integer
-    cubes (grid-aligned faces: the rays' ties), some turned inside out."""
-    pts, faces, label = [], [], []
-    for k in range(n_spheres + n_cubes):
-        if k < n_spheres:
-            s = trimesh.creation.icosphere(1, radius=rng.uniform(0.3, 2.0))
-            v, f = s.vertices + rng.uniform(-1.5, 1.5, 3), s.faces
-        else:
-            s = trimesh.creation.box(extents=rng.integers(1, 5, 3).astype(float))
-            v, f = s.vertices + rng.integers(-2, 3, 3) + 0.5 * (rng.integers(1, 5, 3) % 2), s.faces
-        if rng.random() < 0.3:
-            f = f[:, ::-1]
-        faces.append(f + sum(len(p) for p in pts))
-        pts.append(v)
-        label.append(np.full(len(f), k))
-    pts, faces, label = np.vstack(pts), np.vstack(faces), np.concatenate(label)
-    return pts[faces], label
-
-
-@pytest.mark.parametrize("seed", range(3))
-def test_nested_shell_windings_by_rays_equal_the_solid_angles(seed):
-    # the winding number of the other shells at a point of each shell: signed ray crossings
-    # (grid-aligned cubes tie on some axes: redone on another, or by solid angles) against
-    # the sum of solid angles; overlapping shells too, since only the count is compared
-    rng = np.random.default_rng(seed)
-    ties = 0
-    for _ in range(8):
-        corners, label = _shells(rng, 4, 4)
-        order = np.argsort(label, kind="stable")
-        first = order[np.searchsorted(label[order], np.arange(label.max() + 1))]
-        q = corners[first].mean(axis=1)
-        got = wmi._others_winding(corners, label, q, order)
-        want = [sum(wmi._winding_number_of(corners[label == j], q[c]) for j in range(len(q)) if j != c)
-                for c in range(len(q))]
-        assert np.array_equal(got, np.round(want)), (got, np.round(want))
-        ties += int(wmi._ray_crossings(corners[label >= 4], q[:4], 0)[1].any())
-        ties += sum(int(wmi._ray_crossings(corners[label == j], q, 0)[1].any()) for j in range(4, 8))
-    assert ties > 0  # the unsure path ran
-
-
-def test_ray_windings_on_grid_lines_retry_and_fall_back(monkeypatch):
-    # integer cubes and queries on their grid lines: rays along an axis run through edges and
-    # vertices of the projected faces (ties), so counts are redone along another axis or by
-    # solid angles; without the tie rule the counts are wrong
-    rng = np.random.default_rng(7)
-    calls = []
-    solid = wmi._winding_number_of
-    monkeypatch.setattr(wmi, "_winding_number_of", lambda f, x: calls.append(1) or solid(f, x))
-    # first a set-up where every axis ties: q = (0, 0, 0) is the centre of cube 1, on the
-    # diagonals that split its square faces, so the rays along x, y and z all run through an edge
-    lo0 = np.array([[5, 5, 5], [-2, -2, -2], [1, 1, 1], [-1, -1, 1], [6, 6, 6], [5, 0, 0], [0, 5, 0], [-5, -5, -5]], float)
-    hi0 = lo0 + [[1, 1, 1], [4, 4, 4], [1, 1, 1], [1, 1, 1], [1, 1, 1], [1, 1, 1], [1, 1, 1], [9, 9, 9]]
-    for trial in range(7):
-        lo = lo0 if trial == 0 else rng.integers(-3, 3, (8, 3)).astype(float)
-        hi = hi0 if trial == 0 else lo + rng.integers(1, 4, (8, 3))
-        corners, label = [], []
-        for k in range(8):
-            s = trimesh.creation.box(bounds=[lo[k], hi[k]])
-            corners.append(s.vertices[s.faces] if k % 3 else s.vertices[s.faces[:, ::-1]])
-            label.append(np.full(len(s.faces), k))
-        corners, label = np.vstack(corners), np.concatenate(label)
-        q = [] if trial else [np.zeros(3)]
-        while len(q) < 8:  # grid points (half-integers on some axes), off every cube's surface
-            x = rng.integers(-6, 12, 3) / (2.0 if len(q) % 2 else 1.0)  # half-integers, or integers
-            inside = np.all((lo <= x) & (x <= hi), axis=1)
-            if not (inside & np.any((x == lo) | (x == hi), axis=1)).any():
-                q.append(x)
-        q = np.array(q)
-        got = wmi._others_winding(corners, label, q, np.argsort(label, kind="stable"))
-        want = [sum(round(solid(corners[label == j], q[c])) for j in range(8) if j != c) for c in range(8)]
-        assert np.array_equal(got, want), (got, want)
-    assert calls  # some query tied on all three axes
-
-
-def test_many_shells_in_a_row_are_not_quadratic():
-    # the (component, point) candidates of condition (4) came from the points in each box's
-    # range along x: 4,000 tets in a row along y (or a cross of three rows) gave 16 M
-    # candidates, 2.5 GB at 6,000 tets; each box now takes its narrowest axis. The count is
-    # still checked: an outer shell around all of them (winding 1 at each small one's point,
-    # 0 at the outer's)
-    import tracemalloc
-
-    unit = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    shell = unit[[[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]]  # a positive tet's faces, outward
-    n = 4000
-    rows = [np.column_stack([2.0 * np.arange(n) * (k == a) for k in range(3)]) for a in (1, 0)]
-    rows.append(np.column_stack([2.0 * (np.arange(n) % 3 == k) * (np.arange(n) // 3 + 1) for k in range(3)]))
-    for offsets in rows:  # a row along y, along x, a cross of three rows
-        big = 3.0 * offsets.max() + 10.0
-        corners = np.concatenate([(shell[None] + offsets[:, None, None]).reshape(-1, 3, 3),
-                                  (big * unit - [4.0, 4.0, 4.0])[[[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]]]])
-        label = np.repeat(np.arange(n + 1), 4)
-        q = corners[4 * np.arange(n + 1)].mean(axis=1)
-        tracemalloc.start()
-        got = wmi._others_winding(corners, label, q, np.arange(4 * n + 4))
-        peak = tracemalloc.get_traced_memory()[1]
-        tracemalloc.stop()
-        assert np.array_equal(got, np.r_[np.ones(n), 0.0])
-        assert peak < 40e6, peak  # 16 M candidates: over 500 MB
-
-
 def _kuhn_cells(nc: int, drop=()):
     """_kuhn_block(nc) without the tetrahedra of the cells (integer lower corners) in drop."""
     pts, tets = _kuhn_block(nc)
@@ -1208,8 +1107,8 @@ def test_shells_nested_three_deep_on_grid_planes(monkeypatch):
     # with a cavity filled (winding 2 or 3: reported, every pair overlapping by the LP), and
     # a U-shaped solid whose box holds a cube lying in its notch (not nested: embedded)
     calls = []
-    solid_angles = wmi._winding_number_of
-    monkeypatch.setattr(wmi, "_winding_number_of", lambda f, x: calls.append(1) or solid_angles(f, x))
+    solid_angles = rays._solid_angle_winding
+    monkeypatch.setattr(rays, "_solid_angle_winding", lambda f, x: calls.append(1) or solid_angles(f, x))
     hollow = _kuhn_cells(3, drop=[(1, 1, 1)])
     solid = _kuhn_block(3)
     cube = _kuhn_block(1)

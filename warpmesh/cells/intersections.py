@@ -103,10 +103,10 @@ import time
 import numpy as np
 import warp as wp
 
-from warpmesh._util.arrays import run_ranks
 from warpmesh._util.validate import check_device
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.parallel import run_parallel
+from warpmesh.cells.rays import ray_windings
 from warpmesh.cells.types import points3, require_mesh
 from warpmesh.kernels import intersect as K
 
@@ -609,7 +609,7 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
     """Condition (4) of :func:`find_tet_overlaps` on a mesh that meets (1)-(3): for each
     boundary component c, the winding number of the whole boundary just inside it (its own
     1 when it bounds its tetrahedra from outside, 0 when from inside, plus the other
-    components' winding number at a point q_c of c, :func:`_others_winding`) must be 1;
+    components' winding number at a point q_c of c, :func:`~warpmesh.cells.rays.ray_windings`) must be 1;
     where it is not, the pairs of tetrahedra containing the centroid of one of its
     tetrahedra. The components do not touch (condition 3), so the others' winding number is
     the same at q_c as just inside c. ``pts`` must be scaled (:func:`_scaled`): the signed
@@ -632,7 +632,8 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
         rel = corners[lo:lo + _CHUNK_FACES] - q[label[lo:lo + _CHUNK_FACES]][:, None, :]
         own += np.bincount(label[lo:lo + _CHUNK_FACES], minlength=n_comp,
                            weights=np.einsum("ij,ij->i", rel[:, 0], np.cross(rel[:, 1], rel[:, 2])))
-    winding = (own > 0.0).astype(REAL_DTYPE) + _others_winding(corners, label, q, order)
+    point, _, others, _ = ray_windings(corners, label, q, skip=np.arange(n_comp))
+    winding = (own > 0.0).astype(REAL_DTYPE) + np.bincount(point, weights=others, minlength=n_comp)
     out = []
     for c in np.flatnonzero(np.round(winding) != 1):
         t = int(owners[first[c]])
@@ -644,113 +645,6 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
 
 #: faces per numpy pass of the nested-shell test (bounds its temporary arrays)
 _CHUNK_FACES = 1 << 18
-#: relative rounding bound of the float64 2D orientation and plane-side signs of the ray test
-_RAY_EPS = 8.0 * np.finfo(np.float64).eps
-
-
-def _others_winding(corners: np.ndarray, label: np.ndarray, q: np.ndarray, order: np.ndarray) -> np.ndarray:
-    """For each component c (faces ``corners`` (F, 3, 3) labelled ``label``, ``order`` the
-    faces sorted by label), the winding number around q[c] of the faces of the other
-    components: the signed count of the faces a ray from q[c] along a coordinate axis
-    crosses (+1 where the face's normal points along the ray, -1 against it), over the
-    components whose box holds q[c] (found among the queries in the box's range along its
-    narrowest axis in queries). O(F + pairs): the queries of each such component are
-    sorted along a second axis, and each face meets only those in its range there.
-
-    A crossing that is not certain in float64 (the query's projection on an edge or a vertex
-    of a face's projection, or on its plane, to within rounding: grid-aligned surfaces
-    give such ties) makes that component's count at that query unsure; it is redone along
-    the next axis, and after the third by the faces' solid angles (:func:`_winding_number_of`).
-    """
-    n_comp = len(q)
-    starts = np.searchsorted(label[order], np.arange(n_comp + 1))
-    face_lo, face_hi = corners[order].min(axis=1), corners[order].max(axis=1)
-    lo = np.minimum.reduceat(face_lo, starts[:-1])  # component boxes
-    hi = np.maximum.reduceat(face_hi, starts[:-1])
-    # (component j, query c) with q[c] in j's box, c != j: for each box, the range of the
-    # queries sorted along the axis where that range is shortest (along one axis for all, a
-    # row of shells along another gave n_comp^2 candidates)
-    by = np.argsort(q, axis=0, kind="stable").T  # (3, n_comp)
-    ranges = [(np.searchsorted(q[by[k], k], lo[:, k], "left"), np.searchsorted(q[by[k], k], hi[:, k], "right"))
-              for k in range(3)]
-    best = np.argmin([b - a for a, b in ranges], axis=0)
-    a = np.choose(best, [a for a, _ in ranges])
-    n = np.choose(best, [b for _, b in ranges]) - a
-    comp = np.repeat(np.arange(n_comp), n)
-    query = by[np.repeat(best, n), np.repeat(a, n) + run_ranks(n)]
-    keep = (comp != query) & np.all(lo[comp] <= q[query], axis=1) & np.all(q[query] <= hi[comp], axis=1)
-    comp, query = comp[keep], query[keep]  # sorted by component
-    winding = np.zeros(n_comp)
-    bounds = np.searchsorted(comp, np.arange(n_comp + 1))
-    for j in np.unique(comp):
-        inside = query[bounds[j]:bounds[j + 1]]
-        faces = corners[order[starts[j]:starts[j + 1]]]
-        for axis in range(4):
-            if axis == 3:  # every axis tied somewhere: solid angles
-                winding[inside] += np.round([_winding_number_of(faces, q[c]) for c in inside])
-                break
-            count, unsure = _ray_crossings(faces, q[inside], axis)
-            winding[inside[~unsure]] += count[~unsure]
-            inside = inside[unsure]
-            if not len(inside):
-                break
-    return winding
-
-
-def _ray_crossings(faces: np.ndarray, q: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
-    """Signed crossings of the rays q[i] + t e_axis (t > 0) with the triangles ``faces``
-    (F, 3, 3), and whether each count is unsure (a tie within float64 rounding)."""
-    i, j = (axis + 1) % 3, (axis + 2) % 3
-    count = np.zeros(len(q))
-    unsure = np.zeros(len(q), dtype=bool)
-    by = np.argsort(q[:, i], kind="stable")
-    qi = q[by, i]
-    for first in range(0, len(faces), _CHUNK_FACES):
-        f = faces[first:first + _CHUNK_FACES]
-        flo, fhi = f.min(axis=1), f.max(axis=1)
-        a = np.searchsorted(qi, flo[:, i], "left")
-        n = np.searchsorted(qi, fhi[:, i], "right") - a
-        face = np.repeat(np.arange(len(f)), n)
-        which = by[np.repeat(a, n) + run_ranks(n)]
-        x = q[which]
-        keep = (flo[face, j] <= x[:, j]) & (x[:, j] <= fhi[face, j]) & (x[:, axis] <= fhi[face, axis])
-        face, which, x = face[keep], which[keep], x[keep]
-        t = f[face]
-        signs = []
-        for k in range(3):  # q's side of each projected edge, certain or 0
-            u, v = t[:, k], t[:, (k + 1) % 3]
-            left = (v[:, i] - u[:, i]) * (x[:, j] - u[:, j])
-            right = (v[:, j] - u[:, j]) * (x[:, i] - u[:, i])
-            d = left - right
-            signs.append(np.where(np.abs(d) > _RAY_EPS * (np.abs(left) + np.abs(right)), np.sign(d), 0.0))
-        s = np.stack(signs)
-        inside = (s.max(axis=0) <= 0) | (s.min(axis=0) >= 0)  # no certain sign against another
-        tie = inside & (s == 0).any(axis=0)
-        hit = inside & ~tie
-        # where the ray meets the plane: beyond q iff q's side of the plane is against the
-        # normal's axis component (n_axis has the projected orientation's sign)
-        n_ = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-        terms = n_ * (x - t[:, 0])
-        side = terms.sum(axis=1)
-        plane_tie = np.abs(side) <= _RAY_EPS * np.abs(terms).sum(axis=1)
-        orient = s[0]  # all three equal on a hit
-        beyond = hit & ~plane_tie & (side * orient < 0)
-        np.add.at(count, which[beyond], orient[beyond])
-        unsure[which[tie | (hit & plane_tie)]] = True
-    return count, unsure
-
-
-def _winding_number_of(faces: np.ndarray, q: np.ndarray) -> float:
-    """Winding number of a closed oriented triangle surface (F, 3, 3) around q (off it): the
-    sum of the faces' signed solid angles over 4 pi (Van Oosterom and Strackee)."""
-    a, b, c = (faces[:, k] - q for k in range(3))
-    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-    num = np.einsum("ij,ij->i", a, np.cross(b, c))
-    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
-        + np.einsum("ij,ij->i", c, a) * lb
-    return float(2.0 * np.arctan2(num, den).sum() / (4.0 * np.pi))
-
-
 def _tets_containing(pts: np.ndarray, tets: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The tetrahedra (positive ones) whose closed interior holds x, by the signs of the
     four sub-volumes (float64; a failure path only)."""

@@ -46,16 +46,11 @@ from __future__ import annotations
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh._util.arrays import run_ranks
+from warpmesh.cells.rays import ray_windings
 from warpmesh.errors import TopologyError
 from warpmesh.mesh import Mesh
 
 __all__ = ["orient", "orient_faces"]
-
-#: largest number of (point, face) pairs or grid registrations held at once by the
-#: nesting test; bounds its memory (about 100 bytes per pair)
-_CHUNK = 1 << 22
-
 
 # ----------------------------------------------------------------------------- validation
 def _check_input(points, faces) -> tuple[np.ndarray, np.ndarray]:
@@ -190,45 +185,14 @@ def _raise_non_orientable(bad, f1, f2, comp, roots, faces) -> None:
 
 
 # ----------------------------------------------------------------------------- nesting
-def _edge_signs(p, a, b, ia, ib):
-    """Sign (+1/-1) and value of the 2D edge function of edge a -> b at points p.
-
-    The sign is 0 only for an edge that projects to a point (parallel to the ray). Each
-    edge is evaluated in the direction of increasing vertex index, so two faces sharing
-    an edge see bit-identical values; a zero is broken as if p were moved by
-    ``eps * (1, eps')`` (simulation of simplicity), so a point on an edge or vertex
-    counts in exactly one of the faces around it.
-    """
-    swap = ia > ib
-    lo = np.where(swap[:, None], b, a)
-    d = np.where(swap[:, None], a, b) - lo
-    e = d[:, 0] * (p[:, 1] - lo[:, 1]) - d[:, 1] * (p[:, 0] - lo[:, 0])
-    tie = np.where(d[:, 1] != 0, -d[:, 1], d[:, 0])
-    s = np.sign(np.where(e != 0, e, tie))
-    return np.where(swap, -s, s), np.where(swap, -e, e)
-
-
-def _ray_hits(q, qi, tri, tri_idx, fi):
-    """Mask of pairs whose ray from ``q[qi]`` along +x crosses face ``fi`` beyond the point."""
-    p = q[qi, 1:]
-    v = tri[fi]  # (k, 3, 3)
-    ids = tri_idx[fi]
-    signs, es = zip(*(_edge_signs(p, v[:, j, 1:], v[:, (j + 1) % 3, 1:], ids[:, j],
-                                  ids[:, (j + 1) % 3]) for j in range(3)))
-    inside = (signs[0] == signs[1]) & (signs[1] == signs[2])
-    total = es[0] + es[1] + es[2]  # twice the projected area; vertex j weighs es[(j+1) % 3]
-    ok = inside & (total != 0)
-    x = (es[1] * v[:, 0, 0] + es[2] * v[:, 1, 0] + es[0] * v[:, 2, 0]) / np.where(ok, total, 1)
-    return ok & (x > q[qi, 0])
-
-
-def _nesting_depth(points, faces, comp, closed_ids, roots) -> np.ndarray:
+def _nesting_depth(points, rel, comp, closed_ids, roots) -> np.ndarray:
     """For each closed component, the number of other closed components around it.
 
-    A point of each component (its first face's centroid) casts a ray along +x; the
-    parity of its crossings with another closed component says whether it is inside.
-    Points are binned on a (y, z) grid with a summed-area table, so only faces whose
-    (y, z) box holds a point meet the exact test, each with only the points it holds.
+    ``rel`` are the faces oriented like their component's first face. A point of each
+    component (its first face's centroid) is tested against every other closed component
+    by :func:`warpmesh.cells.rays.ray_windings` (signed crossings of an axis-parallel ray,
+    candidates from a 2D grid of buckets, ties redone along another axis, then solid
+    angles): it is inside when the winding number is odd.
     """
     k = len(closed_ids)
     if k < 2:
@@ -236,46 +200,9 @@ def _nesting_depth(points, faces, comp, closed_ids, roots) -> np.ndarray:
     local = np.full(int(comp.max()) + 1, -1, dtype=INDEX_DTYPE)
     local[closed_ids] = np.arange(k)
     sel = np.flatnonzero(local[comp] >= 0)
-    tri_idx, owner = faces[sel], local[comp[sel]]
-    tri = points[tri_idx]  # (M, 3, 3)
-    q = points[faces[roots[closed_ids]]].mean(axis=1)  # (k, 3) one point per component
-
-    lo, hi = tri[:, :, 1:].min(axis=1), tri[:, :, 1:].max(axis=1)
-    origin = lo.min(axis=0)
-    span = np.maximum(hi.max(axis=0) - origin, np.finfo(REAL_DTYPE).tiny)
-    res = int(min(1024, 2 ** np.ceil(np.log2(max(np.sqrt(len(sel)), 1)))))
-
-    def cell(yz):
-        return np.clip(np.floor((yz - origin) / span * res), 0, res - 1).astype(INDEX_DTYPE)
-
-    c0, c1, qc = cell(lo), cell(hi), cell(q[:, 1:])
-    qkey = qc[:, 0] * res + qc[:, 1]
-    sat = np.zeros((res + 1, res + 1), dtype=INDEX_DTYPE)  # points in cells [0, i) x [0, j)
-    sat[1:, 1:] = np.bincount(qkey, minlength=res * res).reshape(res, res).cumsum(0).cumsum(1)
-    held = sat[c1[:, 0] + 1, c1[:, 1] + 1] - sat[c0[:, 0], c1[:, 1] + 1]
-    held += sat[c0[:, 0], c0[:, 1]] - sat[c1[:, 0] + 1, c0[:, 1]]
-    cand = np.flatnonzero(held > 0)
-    q_order = np.argsort(qkey)
-    q_sorted = qkey[q_order]
-
-    rows = c1[cand, 0] - c0[cand, 0] + 1  # a face's box is one run of sorted points per row
-    ends = np.cumsum(rows)
-    cuts = np.searchsorted(ends, np.arange(_CHUNK, ends[-1] if len(ends) else 0, _CHUNK))
-    hits = []
-    for a, b in zip([0, *cuts], [*cuts, len(cand)]):  # chunks of faces, bounded memory
-        f_row = np.repeat(cand[a:b], rows[a:b])
-        row = c0[f_row, 0] + run_ranks(rows[a:b])
-        first = np.searchsorted(q_sorted, row * res + c0[f_row, 1], "left")
-        n_q = np.searchsorted(q_sorted, row * res + c1[f_row, 1], "right") - first
-        fi = np.repeat(f_row, n_q)
-        qi = q_order[np.repeat(first, n_q) + run_ranks(n_q)]
-        keep = owner[fi] != qi
-        qi, fi = qi[keep], fi[keep]
-        hit = _ray_hits(q, qi, tri, tri_idx, fi)
-        hits.append(qi[hit] * k + owner[fi[hit]])
-    pairs, crossings = np.unique(np.concatenate(hits), return_counts=True)
-    inside = pairs[crossings % 2 == 1]
-    return np.bincount(inside // k, minlength=k).astype(INDEX_DTYPE)
+    q = points[rel[roots[closed_ids]]].mean(axis=1)  # (k, 3) one point per component
+    point, _, winding, _ = ray_windings(points[rel[sel]], local[comp[sel]], q, skip=np.arange(k))
+    return np.bincount(point[winding % 2 == 1], minlength=k).astype(INDEX_DTYPE)
 
 
 # ----------------------------------------------------------------------------- public API
@@ -350,7 +277,7 @@ def orient_faces(points, faces, *, outward: bool = True) -> tuple[np.ndarray, di
             measure = np.einsum("ij,ij->i", p0, np.cross(p1 - p0, p2 - p0))  # 6 x volume
             decide = closed.copy()
             ids = np.flatnonzero(closed)
-            inner[ids] = _nesting_depth(points, faces, comp, ids, roots) % 2 == 1
+            inner[ids] = _nesting_depth(points, rel, comp, ids, roots) % 2 == 1
         else:
             d1, d2 = p1 - p0, p2 - p0
             measure = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]  # 2 x area
