@@ -350,7 +350,12 @@ def check(mesh, *, device: str = "cpu") -> np.ndarray:
     other; this is the geometric check. It tests the ``"tetra"`` block of a volume mesh
     (:func:`find_tet_overlaps`), else the ``"triangle"`` block (a surface, or a planar
     triangle mesh at z = 0: overlapping planar triangles are reported), else the
-    ``"line"`` block of a planar polyline.
+    ``"line"`` block of a planar polyline. A labelled multi-material surface (cell refs
+    and ``cell_data["label_above"]`` on its triangles, ``interfaces="shared"``) is also
+    checked about its junction edges: faces consecutive about an edge of three faces or
+    more whose labels disagree across the gap between them (sheets crossing along the
+    edge, which no pair of triangles shows) are reported as pairs too
+    (:func:`warpmesh.cells.junctions.find_junction_misorders`).
 
     Parameters
     ----------
@@ -381,7 +386,10 @@ def check(mesh, *, device: str = "cpu") -> np.ndarray:
     if "tetra" in mesh.cells and mesh.dim == 3:
         return find_tet_overlaps(mesh.points, mesh.cells["tetra"], device=device)
     if "triangle" in mesh.cells:
-        return find_self_intersections(points3(mesh), mesh.cells["triangle"], device=device)
+        from warpmesh.cells.junctions import with_junction_misorders  # which imports nothing of this module
+
+        return with_junction_misorders(mesh, find_self_intersections(points3(mesh), mesh.cells["triangle"],
+                                                                     device=device))
     if "line" in mesh.cells and mesh.dim == 2:
         return find_segment_intersections(mesh.points, mesh.cells["line"])
     raise ValueError(f"expected a 'tetra' or 'triangle' block, or a 'line' block of 2D points, got blocks "

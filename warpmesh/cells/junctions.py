@@ -227,8 +227,8 @@ def find_junction_misorders(points, triangles, lower=None, upper=None) -> Juncti
 
 def with_junction_misorders(mesh, pairs: np.ndarray) -> np.ndarray:
     """``pairs`` (crossing triangles of ``mesh``) with the pairs of
-    :func:`find_junction_misorders` added when ``mesh`` is a labelled shared surface (its
-    ``"triangle"`` block has cell refs, the lower labels, and ``cell_data["label_above"]``);
+    :func:`find_junction_misorders` added when ``mesh`` is a labelled shared surface in 3D
+    (its ``"triangle"`` block has cell refs, the lower labels, and ``cell_data["label_above"]``);
     ``pairs`` unchanged otherwise. The mesh's check (:func:`warpmesh.cells.intersections.check`)
     reports both: faces out of order about a junction edge mean sheets crossing there.
 
@@ -255,7 +255,7 @@ def with_junction_misorders(mesh, pairs: np.ndarray) -> np.ndarray:
     refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
     above = mesh.cell_data.get(LABEL_ABOVE, {}).get("triangle")
     pairs = np.asarray(pairs, dtype=INDEX_DTYPE).reshape(-1, 2)
-    if tris is None or refs is None or above is None:
+    if tris is None or refs is None or above is None or mesh.points.shape[1] != 3:
         return pairs
     found = find_junction_misorders(mesh.points, tris, refs, above).pairs
     if not len(found):
