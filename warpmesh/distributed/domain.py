@@ -30,8 +30,8 @@ import numpy as np
 
 from warpmesh.distributed.bricks import Brick, layout
 from warpmesh.distributed.output import LATTICE_KEY_ARRAY, write_piece
-from warpmesh.distributed.run import (brick_error, check_run, interval_signs, partitioned, run_job, summarize,
-                                      worker_tape)
+from warpmesh.distributed.run import (BrickJob, brick_error, check_run, interval_signs, partitioned, run_job,
+                                      summarize, worker_tape)
 from warpmesh.solid.stuffing import lattice_for, stuff_window
 
 __all__ = ["LatticeBrick", "stuff_bricks"]
@@ -132,7 +132,7 @@ def gather_keyed(pieces: list[LatticeBrick], origin) -> tuple[np.ndarray, np.nda
     return points, tets, on_surface
 
 
-class _DomainJob:
+class _DomainJob(BrickJob):
     """Stuffing on bricks of the lattice: the layout, the client-side culling, the worker's task."""
 
     has_refs = False

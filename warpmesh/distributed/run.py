@@ -44,7 +44,7 @@ from warpmesh.surface.block_grid import BlockGrid, drop_unused, refine_roots
 from warpmesh.surface.options import GridOptions, VolumeOptions
 from warpmesh.surface.volume import check_label_range, label_form
 
-__all__ = ["PartitionedMesh", "mesh_bricks"]
+__all__ = ["BrickJob", "PartitionedMesh", "mesh_bricks"]
 
 
 @dataclass(frozen=True)
@@ -255,16 +255,20 @@ def _core_cells(grid: BlockGrid, lo_node, brick: Brick) -> wp.array:
 def _brick_result(brick: Brick, cells, local, frame, faces, refs, keys, path, want: bool, info: dict,
                   centre) -> BrickMesh:
     """Write the piece (when asked) and package what the client needs (float32 positions from
-    ``frame``, int32 triangles), with the brick's share of the enclosed volume (about a centre
-    common to all bricks: the sum over a closed surface)."""
-    points = local.astype(C.REAL_DTYPE) + frame
+    ``frame``, int32 triangles), with the brick's share of the enclosed volume about ``centre``,
+    a point common to all bricks (the sum over a closed surface, which the gather checks; only
+    a capped surface is closed: None skips it, as does a run that gathers nothing)."""
     if path is not None and len(faces):
-        write_piece(path, points, faces, refs, keys)
+        write_piece(path, local.astype(C.REAL_DTYPE) + frame, faces, refs, keys)
     vol = 0.0
-    for a in range(0, len(faces), 1 << 18):
-        p0, p1, p2 = (points[faces[a:a + (1 << 18), j]] - centre for j in range(3))
-        vol += float(np.einsum("ij,ij->", p0, np.cross(p1, p2))) / 6.0
-    info.update(vertices=len(points), cells=len(faces), volume=vol)
+    if want and centre is not None and len(faces):  # the gather checks the capped surface's orientation by it
+        x, y, z = (local[:, a].astype(C.REAL_DTYPE) + (frame[a] - centre[a]) for a in range(3))
+        for a in range(0, len(faces), 1 << 18):
+            f0, f1, f2 = (faces[a:a + (1 << 18), j] for j in range(3))
+            x1, y1, z1, x2, y2, z2 = x[f1], y[f1], z[f1], x[f2], y[f2], z[f2]
+            vol += float(np.dot(x[f0], y1 * z2 - z1 * y2) + np.dot(y[f0], z1 * x2 - x1 * z2)
+                         + np.dot(z[f0], x1 * y2 - y1 * x2)) / 6.0
+    info.update(vertices=len(local), cells=len(faces), volume=vol)
     if not want:
         return BrickMesh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), None, np.zeros(0, np.int64),
                          np.zeros(0, np.int64), info)
@@ -299,8 +303,25 @@ def worker_tape(token: str, shape):
     return tape
 
 
+class BrickJob:
+    """Base of the jobs :func:`run_job` runs: every task pickles its job (the bound method
+    ``job.task``), so what only the client reads (``bricks``, the whole layout: 25 KB of 35 KB
+    per task at 1024^3 in bricks of 128^3) stays behind.
+
+    >>> import pickle
+    >>> job = BrickJob(); job.bricks, job.h = list(range(1000)), 0.5
+    >>> sorted(vars(pickle.loads(pickle.dumps(job))))
+    ['h']
+    """
+
+    client_only = ("bricks",)
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in vars(self).items() if k not in self.client_only}
+
+
 # -- a shape --------------------------------------------------------------------------------------
-class _ShapeJob:
+class _ShapeJob(BrickJob):
     """A shape on a grid: the layout, the client-side brick culling, the worker's task, the gather."""
 
     has_refs = False
@@ -377,7 +398,7 @@ class _ShapeJob:
         info = {"evaluations": grid.info.get("evaluations", 0), "active_blocks": grid.info.get("active_blocks", 0),
                 "evaluator": grid.info.get("evaluator"), "time": {**timings, "total": time.perf_counter() - t0}}
         return _brick_result(brick, cells, local, frame, faces, refs, keys, path, want, info,
-                             self.lo + 0.5 * self.cells * self.h)
+                             self.lo + 0.5 * self.cells * self.h if opts.cap else None)
 
     def finish(self, results: dict, where, gather: bool, timings: dict, t_start: float):
         info = {"method": self.opts.method, "root": self.opts.root, "device": self.device,
@@ -401,7 +422,7 @@ class _Reader:
         return np.asarray(part)
 
 
-class _VolumeJob:
+class _VolumeJob(BrickJob):
     """A volume: every brick is read and meshed on a worker (no client-side culling: that
     needs the samples)."""
 
@@ -500,7 +521,7 @@ class _VolumeJob:
         ref = np.concatenate(refs) if self.has_refs else None
         info = {"ranges": ranges, "evaluations": evaluations, "time": {**timings, "total": time.perf_counter() - t0}}
         result = _brick_result(brick, cells, points, origin, faces, ref, key, path, want, info,
-                               self.lo + 0.5 * self.cells * self.h)
+                               self.lo + 0.5 * self.cells * self.h if opts.cap and self.labels is None else None)
         if want:
             result.seam_keys = tagged[result.seam]
         return result
