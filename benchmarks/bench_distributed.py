@@ -24,6 +24,22 @@ Cases:
             after it run on the client's gathered mesh as in one process): one process,
             then ``mesh_domain(..., client=...)`` on 2 workers, bricks of
             ``--domain-brick-cells`` black nodes (default 32), gathered.
+``pinned``  one core per process (this machine's one process already uses both cores, so "2
+            workers against one process" cannot show scaling here): one process pinned to core 0
+            (``os.sched_setaffinity``, warpmesh's launches on one thread, one thread for the
+            numeric libraries) against a LocalCluster of 2 single-threaded workers pinned to cores
+            0 and 1, ``gather=False`` (VTU pieces) and ``gather=True``, for the part at
+            ``--pin-resolutions`` (768,1024) in bricks of ``--pin-brick-cells`` (128,256) and the
+            part's domain at ``--pin-domain-sizes`` (0.03,0.015; ``features=False``, bricks of
+            ``--domain-brick-cells``). ``--rounds`` rounds (3), the two configurations alternating
+            (ABBA), medians. The gathered mesh is compared with the one-process mesh once per case
+            (triangle by triangle, positions within float32 rounding; tetrahedra bit for bit). It
+            prints each worker's CPU, peak memory and time inside brick tasks (Dask's task stream),
+            the client process's CPU (client and scheduler), the scheduler's cost per brick, the idle
+            tail (one worker done, the other still busy), the tasks' time after meshing (the piece
+            written, the result packed) and the gather. The client is not pinned: on two one-core
+            machines it would share one of them, as it shares both cores here. This is the speed-up
+            two one-core machines give over one, not a 2-machine figure.
 
 The shape is evaluated by ``--evaluator`` in every run (default "compiled": the kernel
 generated for the part, loaded from Warp's disk cache by each process's warm-up; with
@@ -43,7 +59,10 @@ Run:  python benchmarks/bench_distributed.py [--resolution 1024] [--brick-cells 
                                              [--volume 512,256,256] [--cases part,volume,scheduler]
                                              [--domain-size 0.03] [--domain-brick-cells 32]
                                              [--adaptive-level 10] [--adaptive-brick-cells 512]
+                                             [--pin-resolutions 768,1024] [--pin-brick-cells 128,256]
+                                             [--pin-domain-sizes 0.03,0.015] [--rounds 3]
                                              [--json out.json]
+      python benchmarks/bench_distributed.py --cases pinned   (one core per process)
 """
 
 from __future__ import annotations
@@ -51,6 +70,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -89,6 +109,26 @@ def _cpu() -> float:
     return time.process_time()
 
 
+#: one thread for the numeric libraries of a process pinned to one core (Warp's CPU launches
+#: are single-threaded; warpmesh's per-core split is set by :func:`pin_to_core`)
+PIN_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def _one_thread(device) -> int:
+    return 1
+
+
+def pin_to_core(core: int) -> set:
+    """This process on ``core`` alone, as on a one-core machine: its affinity, and warpmesh's
+    CPU launches on one thread (``warpmesh._util.parallel.n_workers`` counts ``os.cpu_count()``,
+    which ignores the affinity: on a one-core machine it would be 1). Returns the affinity."""
+    import warpmesh._util.parallel as par
+
+    os.sched_setaffinity(0, {core})
+    par.n_workers = _one_thread
+    return os.sched_getaffinity(0)
+
+
 def gyroid(shape) -> np.ndarray:
     """sin x cos y + sin y cos z + sin z cos x, 0.11 rad per sample (a dense sheet), float32."""
     i, j, k = (np.arange(n, dtype=np.float32) * np.float32(0.11) for n in shape)
@@ -97,8 +137,11 @@ def gyroid(shape) -> np.ndarray:
 
 
 def single_process(case: str, resolution: int, volume_path: str | None, evaluator: str = "compiled",
-                   size: float = 0.0) -> dict:
-    """One process: warm up, reset the peak, mesh once; wall, CPU, peak RSS, counts."""
+                   size: float = 0.0, pin: int | None = None, save: str | None = None) -> dict:
+    """One process: warm up, reset the peak, mesh once; wall, CPU, peak RSS, counts. ``pin``: on
+    that core alone (:func:`pin_to_core`); ``save``: an .npz path for the mesh's arrays."""
+    if pin is not None:
+        pin_to_core(pin)
     fn = wm.mesh_surface
     if case == "domain":
         part, bounds = wm.example("part")
@@ -122,6 +165,8 @@ def single_process(case: str, resolution: int, volume_path: str | None, evaluato
     wall, cpu = time.perf_counter() - t, _cpu() - c
     out = {"wall": wall, "cpu": cpu, "peak_extra": _status("VmHWM") - base, "peak": _status("VmHWM"),
            **_counts(mesh)}
+    if save:
+        np.savez(save, points=mesh.points, **{k: v for k, v in mesh.cells.items()})
     if case == "adaptive":  # the stages, to set against the bricked run's
         out["time"] = {k: round(float(v), 3) for k, v in mesh.info["time"].items() if k in ADAPTIVE_STAGES}
     return out
@@ -138,12 +183,13 @@ def _counts(mesh) -> dict:
 
 
 def run_in_fresh_process(case: str, resolution: int, volume_path: str | None, evaluator: str = "compiled",
-                         size: float = 0.0) -> dict:
+                         size: float = 0.0, pin: int | None = None, save: str | None = None) -> dict:
     code = (f"import sys; sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r}); "
             f"import json, bench_distributed as b; "
             f"print('RESULT', json.dumps(b.single_process({case!r}, {resolution}, {volume_path!r}, {evaluator!r}, "
-            f"{size!r})))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=3600)
+            f"{size!r}, {pin!r}, {save!r})))")
+    env = {**os.environ, **(PIN_ENV if pin is not None else {})}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=3600, env=env)
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")]
     if not line:
         raise RuntimeError(out.stderr[-3000:])
@@ -209,6 +255,10 @@ def main() -> None:
     ap.add_argument("--domain-brick-cells", type=int, default=32)
     ap.add_argument("--adaptive-level", type=int, default=10)
     ap.add_argument("--adaptive-brick-cells", type=int, default=512)
+    ap.add_argument("--pin-resolutions", default="768,1024", help="case pinned: the part's resolutions")
+    ap.add_argument("--pin-brick-cells", default="128,256", help="case pinned: the part's brick sizes")
+    ap.add_argument("--pin-domain-sizes", default="0.03,0.015", help="case pinned: the domain's sizes ('' for none)")
+    ap.add_argument("--rounds", type=int, default=3, help="case pinned: rounds, the configurations alternating")
     ap.add_argument("--evaluator", default="compiled", choices=("compiled", "interpreter", "auto"),
                     help="the shape's evaluator, the same in every run (default: the generated kernel, loaded "
                          "from Warp's cache in the warm-ups, so no compile falls in a timed run)")
@@ -300,6 +350,10 @@ def main() -> None:
         domain(doc, args.domain_size, args.domain_brick_cells, ev)
     if "adaptive" in cases:
         adaptive(doc, args.adaptive_level, args.adaptive_brick_cells, ev)
+    if "pinned" in cases:
+        pinned(doc, [int(v) for v in args.pin_resolutions.split(",") if v],
+               [int(v) for v in args.pin_brick_cells.split(",") if v],
+               [float(v) for v in args.pin_domain_sizes.split(",") if v], args.domain_brick_cells, args.rounds, ev)
     if "part" in cases:
         model(doc, R, B)
     finish(t_start, load0, args.json, doc)
@@ -368,6 +422,207 @@ def adaptive(doc: dict, level: int, brick_cells: int, ev: str) -> None:
     print(f"  speed-up, 2 workers over one process: {one['wall'] / wall:.2f}x (wall); client CPU "
           f"{client_cpu / one['cpu']:.2f} of one process's, workers + client {(r['cpu'] + client_cpu) / one['cpu']:.2f}")
     doc["adaptive"] = {"max_level": level, "brick_cells": brick_cells, "one": one, "2w": r}
+
+
+# -- one core per worker (--cases pinned) ------------------------------------------------------------
+def _pin_worker(dask_worker=None) -> list:
+    """On a worker (``client.run``): pin it to the core of its name (LocalCluster names 0, 1, ...)."""
+    return sorted(pin_to_core(int(dask_worker.name) % CORES))
+
+
+def pinned_cluster(n_workers: int, evaluator: str = "compiled"):
+    """A LocalCluster of ``n_workers`` single-threaded worker processes, each pinned to its own
+    core (with warpmesh's launches on one thread), warmed up as :func:`cluster`'s."""
+    from dask.distributed import Client, LocalCluster
+
+    env = {**{k: os.environ[k] for k in MALLOC_ENV if k in os.environ}, **PIN_ENV}
+    lc = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                      memory_limit=0, silence_logs=50, env=env)
+    client = Client(lc)
+    cores = client.run(_pin_worker)
+    if len({tuple(c) for c in cores.values()}) != n_workers or any(len(c) != 1 for c in cores.values()):
+        raise RuntimeError(f"expected each worker on a core of its own, got {cores}")
+    part, bounds = wm.example("part")
+    wm.mesh_surface(part, bounds=bounds, resolution=64, client=client, brick_cells=32, progress=False,
+                    evaluator=evaluator)  # warm-up: loads Warp's cached kernels on every worker
+    wm.mesh_domain(part, bounds=bounds, size=0.2, features=False, brick_cells=8, client=client, progress=False)
+    return lc, client
+
+
+def pinned_bricked(client, source, kw: dict, fn=wm.mesh_surface) -> tuple[dict, object]:
+    """One timed bricked run on a pinned cluster: (figures, the result). Beyond :func:`bricked`'s:
+    the client process's CPU (the client and, in a LocalCluster, the scheduler's thread), each
+    worker's CPU and time inside brick tasks (Dask's task stream), and where the wall time goes:
+    the client's layout and culling, the bricks (until the last result is in), the gather."""
+    from dask.distributed import get_task_stream
+
+    client.run(_reset_peak)
+    cpu0, c0 = client.run(_cpu), _cpu()
+    t = time.perf_counter()
+    with get_task_stream(client) as ts:
+        result = fn(source, client=client, progress=False, **kw)
+    wall, client_cpu = time.perf_counter() - t, _cpu() - c0
+    cpu1, peaks = client.run(_cpu), client.run(_status, "VmHWM")
+    busy: dict = {}
+    for task in ts.data:
+        if "warpmesh" in str(task["key"]):  # the run's brick tasks
+            for ss in task["startstops"]:
+                if ss["action"] == "compute":
+                    w = busy.setdefault(task["worker"], [0.0, 0, np.inf, -np.inf])
+                    w[0] += ss["stop"] - ss["start"]
+                    w[1] += 1
+                    w[2], w[3] = min(w[2], ss["start"]), max(w[3], ss["stop"])
+    info, tm = result.info, result.info["time"]
+    counts = _counts(result) if isinstance(result, wm.Mesh) else {"points": result.n_points,
+                                                                  "triangles": result.n_cells}
+    ends = sorted(v[3] for v in busy.values())
+    out = {"wall": wall, "client_cpu": client_cpu, "cpu_per_worker": sorted(cpu1[w] - cpu0[w] for w in cpu1),
+           "peak_per_worker": sorted(peaks.values()), **counts, "bricks": info["bricks"],
+           "bricks_meshed": info["bricks_meshed"], "brick_cpu": info["brick_cpu_time"],
+           "task_seconds_per_worker": sorted(v[0] for v in busy.values()),
+           "tasks_per_worker": sorted(v[1] for v in busy.values()),
+           "tail": ends[-1] - ends[0] if len(ends) > 1 else 0.0,  # one worker idle at the end: imbalance
+           # in the tasks after the bricks' own meshing: the piece written (gather=False), the result packed
+           "after_meshing": sum(v[0] for v in busy.values()) - info["brick_cpu_time"],
+           "time": {k: round(float(v), 3) for k, v in tm.items()}}
+    return out, result
+
+
+def same_surface(path: str, mesh) -> tuple[bool, float]:
+    """Whether the gathered ``mesh`` is the one-process mesh saved at ``path``: the same triangles
+    (vertices matched one to one by position) and positions within float32 rounding of the box
+    (as tests/distributed compare them); and the largest distance over the box's size."""
+    from scipy.spatial import cKDTree
+
+    one = np.load(path)
+    pts, tri = one["points"], one["triangle"]
+    if (len(pts), len(tri)) != (mesh.n_points, mesh.n_cells):
+        return False, float("inf")
+    scale = float(np.abs(pts).max())
+    dist, match = cKDTree(pts).query(mesh.points)
+    if len(np.unique(match)) != len(match):
+        return False, float(dist.max()) / scale
+
+    def canonical(f):
+        f = np.asarray(f, dtype=np.int64)
+        f = np.take_along_axis(f, (np.argmin(f, axis=1)[:, None] + np.arange(3)[None]) % 3, axis=1)  # winding kept
+        return f[np.lexsort(f.T[::-1])]
+
+    same = np.array_equal(canonical(tri), canonical(match[mesh.cells["triangle"]]))
+    return bool(same and dist.max() <= 4 * np.finfo(np.float32).eps * scale), float(dist.max()) / scale
+
+
+def same_domain(path: str, mesh) -> bool:
+    """Whether the gathered tetrahedra are the one-process ones saved at ``path``: the same
+    points, bit for bit, and the same tetrahedra as sets of points (as tests/distributed)."""
+    one = np.load(path)
+    if one["points"].shape != mesh.points.shape or one["tetra"].shape != mesh.cells["tetra"].shape:
+        return False
+
+    def canonical(points, tets):
+        order = np.lexsort(points.T[::-1])
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        t = np.sort(rank[tets], axis=1)
+        return points[order], t[np.lexsort(t.T[::-1])]
+
+    a, b = canonical(one["points"], one["tetra"]), canonical(mesh.points, mesh.cells["tetra"])
+    return bool(np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]))
+
+
+def _median(rows: list, key: str) -> float:
+    return float(np.median([r[key] for r in rows]))
+
+
+def pinned(doc: dict, resolutions: list[int], brick_cells: list[int], sizes: list[float], domain_brick_cells: int,
+           rounds: int, ev: str) -> None:
+    """One process on one core against 2 workers on a core each (gather=False and True), the
+    configurations alternating round by round: the speed-up two one-core machines give over one."""
+    print(f"\n(g) one core per process: one process pinned to core 0 against 2 workers pinned to cores 0 "
+          f"and 1 (one thread each, warpmesh's launches unsplit); {rounds} rounds, the configurations "
+          "alternating; medians")
+    lc, client = pinned_cluster(2, ev)
+    doc["pinned"] = {"rounds": rounds, "brick_cells": brick_cells, "domain_brick_cells": domain_brick_cells,
+                     "cases": {}}
+    try:
+        doc["pinned"]["scheduler_s_per_task"] = sched = scheduler_cost(client)
+        print(f"  scheduler: {sched * 1e3:.2f} ms per no-op task on the pinned cluster")
+        part, bounds = wm.example("part")
+        jobs = [(f"part {R}^3, bricks {B}^3", "part", R, 0.0, dict(bounds=bounds, resolution=R, brick_cells=B,
+                                                                  evaluator=ev), wm.mesh_surface)
+                for R in resolutions for B in brick_cells]
+        jobs += [(f"domain size {s:g}", "domain", 0, s, dict(bounds=bounds, size=s, features=False,
+                                                            brick_cells=domain_brick_cells), wm.mesh_domain)
+                 for s in sizes]
+        for name, case, R, size, kw, fn in jobs:
+            doc["pinned"]["cases"][name] = _pinned_case(client, name, case, R, size, kw, fn, part, rounds, ev, sched)
+    finally:
+        client.close()
+        lc.close()
+
+
+def _pinned_case(client, name, case, R, size, kw, fn, part, rounds, ev, sched) -> dict:
+    print(f"\n  {name}, bricks of {kw['brick_cells']}^3 {'cells' if case == 'part' else 'black nodes'}")
+    rows: dict = {"one": [], "pieces": [], "gathered": []}
+    same = None
+    with tempfile.TemporaryDirectory() as d:
+        saved = os.path.join(d, "one.npz")
+        for r in range(rounds):
+            for cfg in (("one", "2w") if r % 2 == 0 else ("2w", "one")):
+                if cfg == "one":
+                    one = run_in_fresh_process(case, R, None, ev, size, pin=0, save=saved if r == 0 else None)
+                    rows["one"].append(one)
+                    print(f"  round {r}: one process, 1 core   wall {one['wall']:7.2f} s  cpu {one['cpu']:7.2f} s  "
+                          f"peak {_gb(one['peak'])}")
+                    continue
+                out = os.path.join(d, "pieces")
+                os.makedirs(out, exist_ok=True)
+                p, _ = pinned_bricked(client, part, dict(kw, gather=False, output=os.path.join(out, "m.pvtu")), fn)
+                p["bytes_on_disk"] = sum(os.path.getsize(os.path.join(out, f)) for f in os.listdir(out))
+                shutil.rmtree(out)
+                g, mesh = pinned_bricked(client, part, kw, fn)
+                rows["pieces"].append(p)
+                rows["gathered"].append(g)
+                if same is None and os.path.exists(saved):  # once: the one-process mesh of the first round
+                    same = same_surface(saved, mesh) if case == "part" else (same_domain(saved, mesh), 0.0)
+                    print(f"  the gathered mesh is the one-process mesh: {same[0]} (largest position difference "
+                          f"{same[1]:.2g} of the box)")
+                del mesh
+                for label, q in (("pieces  ", p), ("gathered", g)):
+                    print(f"  round {r}: 2 workers, {label}     wall {q['wall']:7.2f} s  cpu/worker "
+                          f"{', '.join(f'{c:.2f}' for c in q['cpu_per_worker'])} s  client {q['client_cpu']:.2f} s  "
+                          f"peak/worker {', '.join(_gb(m) for m in q['peak_per_worker'])}  in tasks "
+                          f"{', '.join(f'{c:.2f}' for c in q['task_seconds_per_worker'])} s "
+                          f"({'/'.join(str(c) for c in q['tasks_per_worker'])} tasks; of which writing/packing "
+                          f"{q['after_meshing']:.2f} s), one worker idle at the end "
+                          f"{q['tail']:.2f} s; client: layout {q['time'].get('layout', 0):.2f} s, bricks "
+                          f"{q['time'].get('bricks', 0):.2f} s, gather {q['time'].get('weld', 0):.2f} s")
+    one_wall = _median(rows["one"], "wall")
+    summary = {"one_wall": one_wall, "one_cpu": _median(rows["one"], "cpu"), "same_mesh": same[0] if same else None}
+    unit = "triangles" if case == "part" else "tets"
+    print(f"  {rows['one'][0].get(unit, rows['one'][0]['triangles']):,} {unit}; "
+          f"{rows['gathered'][0]['bricks_meshed']} of {rows['gathered'][0]['bricks']} bricks meshed")
+    for label in ("pieces", "gathered"):
+        rs = rows[label]
+        wall = _median(rs, "wall")
+        ratio = float(np.median([o["wall"] / q["wall"] for o, q in zip(rows["one"], rs)]))
+        work = float(np.median([sum(q["cpu_per_worker"]) for q in rs]))
+        per_task = float(np.median([sum(q["task_seconds_per_worker"]) for q in rs])) / rs[0]["bricks_meshed"]
+        summary[label] = {"wall": wall, "speedup": one_wall / wall, "speedup_same_round": ratio,
+                          "workers_cpu": work, "client_cpu": _median(rs, "client_cpu"),
+                          "tail": _median(rs, "tail"), "peak_per_worker": max(max(q["peak_per_worker"]) for q in rs),
+                          "task_s_per_brick": per_task, "after_meshing": _median(rs, "after_meshing"),
+                          "gather": float(np.median([q["time"].get("weld", 0.0) for q in rs])),
+                          "layout": float(np.median([q["time"].get("layout", 0.0) for q in rs]))}
+        s = summary[label]
+        print(f"  2 workers, {label}: speed-up over one core {s['speedup']:.2f}x (medians; per round "
+              f"{s['speedup_same_round']:.2f}x); workers' CPU {work:.2f} s = {work / summary['one_cpu']:.2f} of one "
+              f"process's; client+scheduler CPU {s['client_cpu']:.2f} s; scheduler {rs[0]['bricks_meshed']} bricks x "
+              f"{sched * 1e3:.2f} ms = {rs[0]['bricks_meshed'] * sched:.2f} s; in tasks after meshing (piece "
+              f"written, result packed) {s['after_meshing']:.2f} s; idle tail {s['tail']:.2f} s; "
+              f"gather {s['gather']:.2f} s; client layout {s['layout']:.2f} s; peak per worker "
+              f"{_gb(s['peak_per_worker'])}")
+    return {"rows": rows, "summary": summary}
 
 
 def model(doc: dict, R: int, B: int) -> None:
