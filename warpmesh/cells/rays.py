@@ -127,15 +127,16 @@ def ray_windings(triangles, label, points, skip=None):
     points_out, groups_out, counts_out = [], [], []
     inst = np.arange(len(pts), dtype=INDEX_DTYPE)  # the point of each query instance
     only = np.full(len(pts), -1, dtype=INDEX_DTYPE)  # -1: every group but skip
-    faces = np.arange(len(tri), dtype=INDEX_DTYPE)
-    axis = _fewest_candidates(lo, hi, pts)  # each point's first axis
+    axis, maps, holders = _plan(lo, hi, pts)  # each point's first axis; per axis the faces that may cross
     for rnd in range(3):
         tie_inst, tie_group = [], []
         for a in range(3):
             sel = np.flatnonzero(axis == a)
             if not len(sel):
                 continue
-            got = _crossings(tri, lo, hi, label, faces, pts, inst[sel], skip[sel], only[sel], n_groups, a, report)
+            faces = holders[a] if rnd == 0 else holders[a][np.isin(label[holders[a]], only[sel])]
+            got = _crossings(tri, lo, hi, label, faces, pts, inst[sel], skip[sel], only[sel], n_groups, a,
+                             maps[a], report)
             points_out.append(inst[sel][got[0]])
             groups_out.append(got[1])
             counts_out.append(got[2])
@@ -148,7 +149,6 @@ def ray_windings(triangles, label, points, skip=None):
         # only the tied pairs, only their groups' faces, along each one's next axis
         inst, only, axis = inst[tie_inst], tie_group, (axis[tie_inst] + 1) % 3
         skip = np.full(len(inst), -1, dtype=INDEX_DTYPE)
-        faces = faces[np.isin(label[faces], tie_group)]
     else:  # tied on all three axes: solid angles
         order = np.argsort(label, kind="stable")
         starts = np.searchsorted(label[order], np.arange(n_groups + 1))
@@ -204,25 +204,31 @@ def _check(triangles, label, points, skip):
 def _bands(q, i, j, n_faces):
     """The grid of buckets over coordinates i and j, as one map per coordinate from a value
     to its band: ``(origin, scale, table)``, band(x) = ``table[floor((x - origin) *
-    scale)]`` (clipped) over ``_FINE`` equal steps of the points' range. The bands are the
-    union of ``res`` equal ones (res ~ sqrt(max(faces, points)), at most ``_MAX_RES``:
-    buckets about a face's size on a surface mesh) and of ones holding equal counts of
-    points (at most ``_MAX_RES``: a row of points along one coordinate gets buckets of a
-    few points there). Monotone in x, so a face's box covers the bands of the points
-    inside it; the comparisons that decide are exact (the box filter)."""
-    res = int(min(_MAX_RES, 2 ** np.ceil(np.log2(max(np.sqrt(max(n_faces, len(q))), 1.0)))))
-    n = max(min(_MAX_RES, len(q)), 1)
+    scale)]`` (clipped) over ``_FINE`` equal steps of the points' range. Monotone in x, so
+    a face's box covers the bands of the points inside it (the exact box filter decides).
+
+    The bands are the union of ``res`` equal ones (with Q points and F faces spread over
+    the range, a pass costs about res^2 buckets + Q F / res^2 candidates, least at res^2 ~
+    sqrt(Q F)) and of ones holding equal numbers of the points' distinct fine steps, one
+    step each up to ``_MAX_RES`` of them (a row of points along one coordinate gets a band
+    per point there, whatever the other coordinate's points do).
+    """
+    res = int(min(_MAX_RES, 2 ** np.round(np.log2(max((len(q) * max(n_faces, 1)) ** 0.25, 1.0)))))
     maps = []
-    for k in (i, j):
-        s = np.sort(q[:, k])
-        origin = s[0]
-        scale = _FINE / max(s[-1] - s[0], 2.0**-900)  # |x| < 1 (scaled): no overflow
+    for k in range(2):
+        f = np.unique(_fine(q[:, (i, j)[k]], *_span(q[:, (i, j)[k]])))  # the points' distinct steps
+        n = min(_MAX_RES, len(f))
         start = np.zeros(_FINE, dtype=bool)  # fine steps that begin a band
         start[np.arange(1, res) * (_FINE // res)] = True
-        start[_fine(s[(np.arange(1, n) * len(s)) // n], origin, scale)] = True
+        start[f[(np.arange(1, n) * len(f)) // n]] = True
         start[0] = False
-        maps.append((origin, scale, np.cumsum(start)))
+        maps.append((*_span(q[:, (i, j)[k]]), np.cumsum(start)))
     return maps
+
+
+def _span(v):
+    """``(origin, scale)`` of the fine steps over the range of v."""
+    return v.min(), _FINE / max(float(v.max() - v.min()), 2.0**-900)  # |x| < 1 (scaled): no overflow
 
 
 def _fine(x, origin, scale):
@@ -234,11 +240,15 @@ def _band(m, x):
     return m[2][_fine(x, m[0], m[1])]
 
 
-def _fewest_candidates(lo, hi, pts):
-    """For each point, the axis of its rays: along which few faces' projected boxes cover
-    its bucket (the candidates it would meet); a row of shells along x casts its rays
-    along y or z. Coverage per bucket by a 2D difference array of the faces' bucket boxes."""
+def _plan(lo, hi, pts):
+    """The grids of the three axes (band maps from every point, :func:`_bands`), the
+    faces of each whose bucket box holds a point (the only ones a pass along it looks
+    at), and each point's axis: one for all (one pass over the faces) unless a point's
+    bucket is covered by more than twice as many faces' boxes (and over 16) there as
+    along its best axis (a row of shells along x casts its rays along y or z). Coverage
+    per bucket by a 2D difference array of the faces' bucket boxes."""
     cover = np.empty((3, len(pts)), dtype=INDEX_DTYPE)
+    maps, holders = [], []
     for axis in range(3):
         i, j = (axis + 1) % 3, (axis + 2) % 3
         mi, mj = _bands(pts, i, j, len(lo))
@@ -246,33 +256,34 @@ def _fewest_candidates(lo, hi, pts):
         size = (int(mi[2][-1]) + 2) * w
         a0, a1 = _band(mi, lo[:, i]), _band(mi, hi[:, i]) + 1
         b0, b1 = _band(mj, lo[:, j]), _band(mj, hi[:, j]) + 1
-        diff = np.bincount(np.concatenate([a0 * w + b0, a1 * w + b1]), minlength=size)
-        diff -= np.bincount(np.concatenate([a0 * w + b1, a1 * w + b0]), minlength=size)
-        grid = diff.reshape(-1, w).cumsum(axis=0).cumsum(axis=1)
-        cover[axis] = grid[_band(mi, pts[:, i]), _band(mj, pts[:, j])]
-    # one axis for all (one pass over the faces), but a point whose coverage there is more
-    # than twice its least (and over 16 faces) takes its own axis
+        corner = [a0 * w + b0, a1 * w + b1, a0 * w + b1, a1 * w + b0]
+        diff = np.bincount(np.concatenate(corner[:2]), minlength=size)
+        diff -= np.bincount(np.concatenate(corner[2:]), minlength=size)
+        pa, pb = _band(mi, pts[:, i]), _band(mj, pts[:, j])
+        cover[axis] = diff.reshape(-1, w).cumsum(axis=0).cumsum(axis=1)[pa, pb]
+        # points in buckets [0, a) x [0, b): the faces' boxes that hold one
+        sat = np.bincount((pa + 1) * w + pb + 1, minlength=size).reshape(-1, w).cumsum(axis=0).cumsum(axis=1).ravel()
+        held = sat[corner[1]] - sat[corner[2]] - sat[corner[3]] + sat[corner[0]]
+        maps.append((mi, mj))
+        holders.append(np.flatnonzero(held > 0))
     common = int(np.argmin(cover.sum(axis=1)))
     best = np.argmin(cover, axis=0)
-    return np.where(cover[common] > np.maximum(2 * cover[best, np.arange(len(pts))], 16), best, common)
+    axis = np.where(cover[common] > np.maximum(2 * cover[best, np.arange(len(pts))], 16), best, common)
+    return axis, maps, holders
 
 
-def _crossings(tri, lo, hi, label, faces, pts, inst, skip, only, n_groups, axis, report):
+def _crossings(tri, lo, hi, label, faces, pts, inst, skip, only, n_groups, axis, maps, report):
     """One pass along +e_axis: query instances ``inst`` (points' indices; each counted
     against every group but ``skip``, or only against ``only`` when >= 0) and the faces
-    ``faces`` (boxes ``lo``, ``hi`` of all faces). Returns the certain pairs (instance,
-    group, nonzero count) and the tied ones (instance, group)."""
+    ``faces`` (boxes ``lo``, ``hi`` of all faces; the bucket maps ``maps``). Returns the
+    certain pairs (instance, group, nonzero count) and the tied ones (instance, group)."""
     i, j = (axis + 1) % 3, (axis + 2) % 3
     empty = np.zeros(0, dtype=INDEX_DTYPE)
     q = pts[inst]
     if not len(q) or not len(faces):
         return empty, empty, empty, empty, empty
-    qlo, qhi = q.min(axis=0), q.max(axis=0)
     flo, fhi = lo[faces], hi[faces]
-    near = ((flo[:, i] <= qhi[i]) & (fhi[:, i] >= qlo[i]) & (flo[:, j] <= qhi[j]) & (fhi[:, j] >= qlo[j])
-            & (fhi[:, axis] >= qlo[axis]))
-    faces, flo, fhi = faces[near], flo[near], fhi[near]
-    mi, mj = _bands(q, i, j, len(faces))
+    mi, mj = maps
     nj = int(mj[2][-1]) + 1
     c0 = np.column_stack([_band(mi, flo[:, i]), _band(mj, flo[:, j])])
     c1 = np.column_stack([_band(mi, fhi[:, i]), _band(mj, fhi[:, j])])
