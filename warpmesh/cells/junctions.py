@@ -80,7 +80,6 @@ from typing import NamedTuple
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
-from warpmesh._util.arrays import run_ranks
 from warpmesh.cells.predicates import orient2d_signs, orient3d_signs, power_of_two_scaled
 
 __all__ = ["JunctionMisorders", "LABEL_ABOVE", "find_junction_misorders", "with_junction_misorders"]
@@ -270,25 +269,39 @@ def with_junction_misorders(mesh, pairs: np.ndarray) -> np.ndarray:
 def _junction_rows(tris: np.ndarray, n: int):
     """The half-edges of the edges in three faces or more, grouped by edge (a < b): (group,
     face, a, b, apex, forward, starts, sizes), ``forward`` where the face runs a -> b; None
-    when there are none. Half-edges of a repeated index (a, a) are left out."""
-    u, v, c = tris.ravel(), tris[:, [1, 2, 0]].ravel(), tris[:, [2, 0, 1]].ravel()
-    h = np.flatnonzero(u != v)
-    lo, hi = np.minimum(u[h], v[h]), np.maximum(u[h], v[h])
-    key = lo * n + hi
-    order = np.argsort(key)
-    key = key[order]
-    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    size = np.diff(np.r_[start, len(key)])
-    big = size >= 3
-    if not big.any():
+    when there are none. Half-edges of a repeated index (a, a) are left out.
+
+    One sort of the m x 3 edge keys (no argsort: half the time) finds the keys of three or
+    more; the half-edges with such a key are then found among those whose two ends lie on
+    such an edge (a mark per vertex), by a binary search in the few keys. On pyvista's frog
+    (1.58 M triangles, 36,642 junction edges) 0.2 CPU s against 0.7 for one argsort of all
+    the half-edges and the gathers it needs."""
+    nxt = tris[:, [1, 2, 0]]
+    key = (np.minimum(tris, nxt) * n + np.maximum(tris, nxt)).ravel()  # half-edge h = 3 f + k
+    key[(tris == nxt).ravel()] = -1
+    s = np.sort(key)
+    start = np.flatnonzero(np.r_[True, s[1:] != s[:-1]])
+    size = np.diff(np.r_[start, len(s)])
+    big = s[start[size >= 3]]
+    big = big[big >= 0]
+    if not len(big):
         return None
-    starts_old, sizes = start[big], size[big]
-    rows = np.repeat(starts_old, sizes) + run_ranks(sizes)
-    hh = h[order[rows]]
+    mark = np.zeros(n, dtype=bool)
+    mark[big // n] = True
+    mark[big % n] = True
+    ends = mark[tris]
+    h = np.flatnonzero((ends & ends[:, [1, 2, 0]]).ravel())
+    at = np.searchsorted(big, key[h])
+    at[at == len(big)] = 0
+    h = h[big[at] == key[h]]
+    h = h[np.argsort(key[h], kind="stable")]
+    k = key[h]
+    first = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+    sizes = np.diff(np.r_[first, len(k)])
+    face, corner = h // 3, h % 3
+    u, v, c = tris[face, corner], tris[face, (corner + 1) % 3], tris[face, (corner + 2) % 3]
     group = np.repeat(np.arange(len(sizes)), sizes)
-    starts = np.cumsum(sizes) - sizes
-    return (group, hh // 3, np.minimum(u[hh], v[hh]), np.maximum(u[hh], v[hh]), c[hh], u[hh] < v[hh],
-            starts, sizes)
+    return group, face, np.minimum(u, v), np.maximum(u, v), c, u < v, first, sizes
 
 
 def _pairs_within(starts: np.ndarray, sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
