@@ -14,14 +14,19 @@ oriented surface the sum is the surface's winding number about q (1 inside an ou
 surface, 0 outside), whatever the axis; its parity is the parity of the crossings for any
 orientation of the faces.
 
-Pipeline (host numpy, one pass per axis):
+Pipeline (host numpy):
 
-1. candidates from a 2D grid of buckets over (i, j): the queries are counted per cell
-   (a summed-area table), each face takes the cells its projected box covers, so it meets
-   only the queries in them (one run of queries, sorted by cell, per row of cells);
-   faces whose cells hold no query are dropped before any pair is made. Memory: the
-   faces' rows of cells plus the (face, query) pairs, in passes of at most ``_PAIRS``
-   pairs; never faces x queries;
+0. a plan, per axis: a 2D grid of buckets over (i, j) (:func:`_bands`: equal bands, and
+   bands of the points' own distinct positions, so a row of points gets one bucket each);
+   the faces whose projected box covers a bucket holding a point (summed-area table of
+   the points), the only ones that axis looks at; how many faces' boxes cover each
+   point's bucket (a difference array). All points take the axis of least total
+   coverage (one pass over the faces), except those covered over twice as much there as
+   along their best axis (shells in a row along x cast their rays along y or z);
+1. one pass per axis, candidates from its grid: each face meets only the points in the
+   buckets its projected box covers (one run of points, sorted by bucket, per row of
+   buckets). Memory: the faces' rows of buckets plus the (face, point) pairs, in passes
+   of at most ``_PAIRS``; never faces x points;
 2. the exact box filter (q inside the face's projected box, not past the face along the
    ray, not the query's own group), then the side of q of each projected edge (orient2d)
    and of the face's plane (orient3d of the face's corners and q): float64 with
@@ -204,7 +209,8 @@ def _check(triangles, label, points, skip):
 def _bands(q, i, j, n_faces):
     """The grid of buckets over coordinates i and j, as one map per coordinate from a value
     to its band: ``(origin, scale, table)``, band(x) = ``table[floor((x - origin) *
-    scale)]`` (clipped) over ``_FINE`` equal steps of the points' range. Monotone in x, so
+    scale)]`` (clipped) over equal steps of the points' range (16 per band at least,
+    ``_FINE`` at most). Monotone in x, so
     a face's box covers the bands of the points inside it (the exact box filter decides).
 
     The bands are the union of ``res`` equal ones (with Q points and F faces spread over
@@ -214,30 +220,28 @@ def _bands(q, i, j, n_faces):
     per point there, whatever the other coordinate's points do).
     """
     res = int(min(_MAX_RES, 2 ** np.round(np.log2(max((len(q) * max(n_faces, 1)) ** 0.25, 1.0)))))
+    steps = int(min(_FINE, 2 ** np.ceil(np.log2(16 * (res + min(len(q), _MAX_RES))))))  # few points: a short table
     maps = []
-    for k in range(2):
-        f = np.unique(_fine(q[:, (i, j)[k]], *_span(q[:, (i, j)[k]])))  # the points' distinct steps
+    for k in (i, j):
+        v = q[:, k]
+        origin, scale = v.min(), steps / max(float(v.max() - v.min()), 2.0**-900)  # |x| < 1 (scaled): no overflow
+        f = np.unique(_fine(v, origin, scale, steps))  # the points' distinct steps
         n = min(_MAX_RES, len(f))
-        start = np.zeros(_FINE, dtype=bool)  # fine steps that begin a band
-        start[np.arange(1, res) * (_FINE // res)] = True
+        start = np.zeros(steps, dtype=bool)  # fine steps that begin a band
+        start[np.arange(1, res) * (steps // res)] = True
         start[f[(np.arange(1, n) * len(f)) // n]] = True
         start[0] = False
-        maps.append((*_span(q[:, (i, j)[k]]), np.cumsum(start)))
+        maps.append((origin, scale, np.cumsum(start)))
     return maps
 
 
-def _span(v):
-    """``(origin, scale)`` of the fine steps over the range of v."""
-    return v.min(), _FINE / max(float(v.max() - v.min()), 2.0**-900)  # |x| < 1 (scaled): no overflow
-
-
-def _fine(x, origin, scale):
-    return np.clip(np.floor((x - origin) * scale), 0, _FINE - 1).astype(INDEX_DTYPE)
+def _fine(x, origin, scale, steps):
+    return np.clip(np.floor((x - origin) * scale), 0, steps - 1).astype(INDEX_DTYPE)
 
 
 def _band(m, x):
     """The band of each value x under the map m of :func:`_bands`."""
-    return m[2][_fine(x, m[0], m[1])]
+    return m[2][_fine(x, m[0], m[1], len(m[2]))]
 
 
 def _plan(lo, hi, pts):
