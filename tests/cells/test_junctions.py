@@ -297,6 +297,10 @@ def test_check_sees_a_turned_face_the_pairwise_check_does_not():
     assert np.array_equal(bad.check(), pairs) and bad.stats()["self_intersections"] == len(pairs)
     r = _misorders(bad)
     assert len(r.edges) == 1 and set(r.edges[0].tolist()) <= set(tris[f].tolist())
+    # labels read back from a file as whole-number floats are labels; fractional ones are not
+    above = bad.cell_data["label_above"]["triangle"]
+    assert np.array_equal(wm.check(bad.replace(cell_data={"label_above": {"triangle": above * 1.0}})), pairs)
+    assert len(wm.check(bad.replace(cell_data={"label_above": {"triangle": above + 0.5}}))) == 0
     # without the label arrays the mesh's check is the pairwise one
     plain = bad.replace(cell_refs=None, cell_data={})
     assert len(wm.check(plain)) == 0

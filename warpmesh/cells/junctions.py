@@ -228,7 +228,8 @@ def with_junction_misorders(mesh, pairs: np.ndarray) -> np.ndarray:
     """``pairs`` (crossing triangles of ``mesh``) with the pairs of
     :func:`find_junction_misorders` added when ``mesh`` is a labelled shared surface in 3D
     (its ``"triangle"`` block has cell refs, the lower labels, and ``cell_data["label_above"]``);
-    ``pairs`` unchanged otherwise. The mesh's check (:func:`warpmesh.cells.intersections.check`)
+    ``pairs`` unchanged otherwise (labels read from a file as whole-number floats count as
+    labels; fractional ones do not). The mesh's check (:func:`warpmesh.cells.intersections.check`)
     reports both: faces out of order about a junction edge mean sheets crossing there.
 
     Parameters
@@ -256,11 +257,24 @@ def with_junction_misorders(mesh, pairs: np.ndarray) -> np.ndarray:
     pairs = np.asarray(pairs, dtype=INDEX_DTYPE).reshape(-1, 2)
     if tris is None or refs is None or above is None or mesh.points.shape[1] != 3:
         return pairs
+    refs, above = _as_labels(refs), _as_labels(above)
+    if refs is None or above is None:  # not labels (fractional values): nothing to order by
+        return pairs
     found = find_junction_misorders(mesh.points, tris, refs, above).pairs
     if not len(found):
         return pairs
     both = np.concatenate([pairs, found])
     return _sorted_pairs(both[:, 0], both[:, 1], len(tris))
+
+
+def _as_labels(values) -> np.ndarray | None:
+    """Integer labels as they are, whole-number floats (a file's cell data) as int64, else None."""
+    values = np.asarray(values)
+    if values.dtype.kind in "iub":
+        return values
+    if values.dtype.kind == "f" and np.isfinite(values).all() and np.array_equal(values, np.round(values)):
+        return values.astype(INDEX_DTYPE)
+    return None
 
 
 # -- pipeline ------------------------------------------------------------------------------
