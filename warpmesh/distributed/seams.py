@@ -2,10 +2,12 @@
 
 Every brick numbers its own vertices; those on a seam (an edge lying in a face of the
 brick's core shared with a neighbour) carry the key ``node * 8 + type`` of their edge in
-the whole grid, the same in every brick that emits them. The weld keeps the first copy of
-each key (the bricks in id order, so the result does not depend on which brick finished
-first), renumbers the kept vertices in order and remaps the triangles: an exact join on
-integers, no position tolerance, touching only the seam vertices.
+the whole grid, the same in every brick that emits them. The weld keeps the last copy of
+each key in brick order (the highest brick id, so the result does not depend on which
+brick finished first: the brick that has every seam plane through the vertex as a lower
+face, which :mod:`warpmesh.distributed.run` relies on), renumbers the kept vertices in
+order and remaps the triangles: an exact join on integers, no position tolerance, touching
+only the seam vertices.
 
 Example
 -------
@@ -15,7 +17,7 @@ Example
 >>> b = BrickMesh(np.ones((3, 3)), np.array([[0, 2, 1]]), None, np.array([0, 1]), np.array([11, 10]))
 >>> points, faces, refs = weld([a, b])
 >>> len(points), faces.tolist()
-(4, [[0, 1, 2], [2, 3, 1]])
+(4, [[0, 2, 1], [1, 3, 2]])
 """
 
 from __future__ import annotations
@@ -56,9 +58,9 @@ def weld(pieces: list[BrickMesh]) -> tuple[np.ndarray, np.ndarray, np.ndarray | 
     seam = np.concatenate([p.seam.astype(np.int64) + s for p, s in zip(pieces, starts)] or [np.zeros(0, np.int64)])
     keys = np.concatenate([p.seam_keys.astype(np.int64) for p in pieces] or [np.zeros(0, np.int64)])
     remap = np.arange(n, dtype=C.INDEX_DTYPE)
-    if len(keys):
-        _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-        remap[seam] = seam[first][inverse]  # every copy of a key -> its first copy (lowest brick id)
+    if len(keys):  # every copy of a key -> its last copy (highest brick id): the first of the reversed keys
+        _, first, inverse = np.unique(keys[::-1], return_index=True, return_inverse=True)
+        remap[seam] = seam[len(keys) - 1 - first][inverse.reshape(-1)[::-1]]
     keep = remap == np.arange(n)
     new_index = np.cumsum(keep, dtype=C.INDEX_DTYPE) - 1
     points = np.empty((int(keep.sum()), 3), dtype=C.REAL_DTYPE)
