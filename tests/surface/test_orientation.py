@@ -336,6 +336,13 @@ def test_rejects_bad_points():
         orient_faces(np.zeros((3, 4)), [[0, 1, 2]])
 
 
+def test_rejects_nan_points_of_nested_closed_components():
+    points, faces = _merge(_sphere(2.0, subdivisions=1), _sphere(1.0, subdivisions=1))
+    points[faces[-1, 0]] = np.nan
+    with pytest.raises(ValueError, match=r"expected finite coordinates in 'points', got NaN or inf at a vertex of face"):
+        orient_faces(points, faces)
+
+
 def test_rejects_a_non_bool_outward():
     with pytest.raises(TypeError, match="expected a bool for 'outward', got str"):
         orient_faces([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], outward="yes")

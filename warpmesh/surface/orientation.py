@@ -200,8 +200,13 @@ def _nesting_depth(points, rel, comp, closed_ids, roots) -> np.ndarray:
     local = np.full(int(comp.max()) + 1, -1, dtype=INDEX_DTYPE)
     local[closed_ids] = np.arange(k)
     sel = np.flatnonzero(local[comp] >= 0)
+    corners = points[rel[sel]]
+    if not np.isfinite(corners).all():
+        f = int(sel[np.flatnonzero(~np.isfinite(corners).all(axis=(1, 2)))[0]])
+        raise ValueError(f"expected finite coordinates in 'points', got NaN or inf at a vertex of face {f} "
+                         f"{rel[f].tolist()}; the nesting of closed components is undefined there")
     q = points[rel[roots[closed_ids]]].mean(axis=1)  # (k, 3) one point per component
-    point, _, winding, _ = ray_windings(points[rel[sel]], local[comp[sel]], q, skip=np.arange(k))
+    point, _, winding, _ = ray_windings(corners, local[comp[sel]], q, skip=np.arange(k))
     return np.bincount(point[winding % 2 == 1], minlength=k).astype(INDEX_DTYPE)
 
 
