@@ -54,8 +54,12 @@ surface without caps meets the box). Edges of two faces are not looked at: any t
 faces are in a valid cyclic order, and their labels agreeing is the combinatorial
 orientation check.
 
-Cost: one sort of the half-edges, then exact signs for the rows of the non-manifold edges
-and the pairs of faces around each.
+Cost: one sort of the edge keys, then exact signs for the faces about the non-manifold
+edges and for the pairs of faces about each. The whole unsmoothed frog of pyvista
+(``frog_tissues``, 25 labels, 1,583,774 triangles, 36,642 junction edges of 3 or 4 faces,
+every tie settled by the shared-coordinate rule) takes 0.6 CPU s, against 2.3 for
+:func:`~warpmesh.cells.intersections.find_self_intersections` in the same run; smoothed (16
+passes), 0.5 s, 36,043 rows left to the integer stage.
 
 Example
 -------
