@@ -386,7 +386,8 @@ class Mesh:
         return check(self)
 
     def check(self) -> np.ndarray:
-        """The pairs of crossing cells (overlapping or inverted tetrahedra; else triangles;
+        """The pairs of crossing cells (overlapping or inverted tetrahedra; else triangles,
+        with the faces out of order about a junction edge of a labelled shared surface;
         segments of a planar polyline): :func:`warpmesh.cells.intersections.check`. Empty
         when the mesh is embedded.
 
@@ -414,7 +415,8 @@ class Mesh:
             watertight, manifold and oriented), ``area``, ``volume`` (signed: of the
             closed 3D surface, or the sum of the volumes of the tetra, hexahedron, wedge
             and pyramid cells); ``self_intersections`` (pairs of overlapping tetrahedra,
-            else of crossing triangles, or of crossing segments of a planar polyline:
+            else of crossing triangles and of faces out of order about a junction edge of a
+            labelled shared surface, or of crossing segments of a planar polyline:
             :meth:`check`; 0 for an embedded mesh); ``mean_q``, ``worst_q`` ([FG
             eq. 16.15] over tetra if any, else triangles); ``bounds`` (2, d). Every key of
             ``self.info`` is included too; computed keys win on a clash.
