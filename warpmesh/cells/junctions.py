@@ -96,20 +96,17 @@ _INT32_MAX = np.iinfo(np.int32).max
 
 
 class JunctionMisorders(NamedTuple):
-    """What :func:`find_junction_misorders` found.
+    """What :func:`find_junction_misorders` found: three int64 arrays, ``edges`` and
+    ``pairs`` empty for an embedded surface.
 
-    Attributes
-    ----------
-    edges : (k, 2) int64
-        The edges (a, b), a < b, around which the faces are out of order, sorted.
-    pairs : (p, 2) int64
-        Pairs (i, j), i < j, sorted: faces consecutive about such an edge with different
-        regions on the sides facing the gap between them, and faces in one half-plane
-        (they overlap; around such an edge only these are listed, the order among them
-        being undefined).
-    undecided : (u, 2) int64
-        Edges of three faces or more not judged: a degenerate face there, or labels no
-        order can satisfy.
+    - ``edges`` (k, 2): the edges (a, b), a < b, around which the faces are out of order,
+      sorted;
+    - ``pairs`` (p, 2): pairs (i, j), i < j, sorted, of faces consecutive about such an edge
+      with different regions on the sides facing the gap between them, and of faces in one
+      half-plane (they overlap; about such an edge only these are listed, the order among
+      them being undefined);
+    - ``undecided`` (u, 2): edges of three faces or more not judged, for a degenerate face
+      there or labels no order can satisfy.
     """
 
     edges: np.ndarray
@@ -140,8 +137,8 @@ def find_junction_misorders(points, triangles, lower=None, upper=None) -> Juncti
     Returns
     -------
     JunctionMisorders
-        ``edges``, ``pairs`` and ``undecided`` (k, 2) int64 arrays; all empty for an
-        embedded surface.
+        ``edges``, ``pairs`` and ``undecided`` (k, 2) int64 arrays; the first two empty
+        for an embedded surface.
 
     Raises
     ------
