@@ -15,7 +15,7 @@ import pytest
 import warpmesh as wm
 from warpmesh.cells import predicates
 from warpmesh.cells.intersections import find_self_intersections
-from warpmesh.cells.junctions import LABEL_ABOVE, find_junction_misorders
+from warpmesh.cells.junctions import LABEL_ABOVE, LABEL_BELOW, find_junction_misorders
 
 from tests.optimize.test_label_smoothing import _blobs, _noise
 from tests.surface.test_multilabel import _random_tiles
@@ -297,6 +297,10 @@ def test_check_sees_a_turned_face_the_pairwise_check_does_not():
     assert np.array_equal(bad.check(), pairs) and bad.stats()["self_intersections"] == len(pairs)
     r = _misorders(bad)
     assert len(r.edges) == 1 and set(r.edges[0].tolist()) <= set(tris[f].tolist())
+    # one ref per interface, the lower labels in cell data (as for a .msh file): the same pairs
+    from warpmesh.surface.multilabel import interface_refs
+
+    assert np.array_equal(wm.check(interface_refs(bad)), pairs)
     # labels read back from a file as whole-number floats are labels; fractional ones are not
     above = bad.cell_data["label_above"]["triangle"]
     assert np.array_equal(wm.check(bad.replace(cell_data={"label_above": {"triangle": above * 1.0}})), pairs)
@@ -306,10 +310,14 @@ def test_check_sees_a_turned_face_the_pairwise_check_does_not():
     assert len(wm.check(plain)) == 0
 
 
-def test_label_array_name_is_the_mesher_s():
+def test_label_array_names_are_the_mesher_s():
     from warpmesh.surface.multilabel import LABEL_ABOVE as mesher
+    from warpmesh.surface.multilabel import interface_refs
 
     assert LABEL_ABOVE == mesher
+    vol = np.zeros((4, 4, 4), np.uint8)
+    vol[1:3, 1:3, 1:3] = 1
+    assert LABEL_BELOW in interface_refs(wm.mesh_surface(vol, labels="all", interfaces="shared")).cell_data
 
 
 def test_bad_input_names_the_argument():

@@ -86,12 +86,15 @@ import numpy as np
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.cells.predicates import orient2d_signs, orient3d_signs, power_of_two_scaled
 
-__all__ = ["JunctionMisorders", "LABEL_ABOVE", "find_junction_misorders", "with_junction_misorders"]
+__all__ = ["JunctionMisorders", "LABEL_ABOVE", "LABEL_BELOW", "find_junction_misorders", "with_junction_misorders"]
 
 #: the cell-data array of a shared surface holding each triangle's higher label
 #: (:data:`warpmesh.surface.multilabel.LABEL_ABOVE`, which sits above this layer; the tests
 #: check the two are equal)
 LABEL_ABOVE = "label_above"
+#: the cell-data array holding the lower label when the cell refs hold something else (one ref
+#: per interface: :func:`warpmesh.surface.multilabel.interface_refs`)
+LABEL_BELOW = "label_below"
 _INT32_MAX = np.iinfo(np.int32).max
 
 
@@ -228,7 +231,8 @@ def find_junction_misorders(points, triangles, lower=None, upper=None) -> Juncti
 def with_junction_misorders(mesh, pairs: np.ndarray) -> np.ndarray:
     """``pairs`` (crossing triangles of ``mesh``) with the pairs of
     :func:`find_junction_misorders` added when ``mesh`` is a labelled shared surface in 3D
-    (its ``"triangle"`` block has cell refs, the lower labels, and ``cell_data["label_above"]``);
+    (its ``"triangle"`` block has the lower labels, as cell refs or ``cell_data["label_below"]``,
+    and the higher ones, ``cell_data["label_above"]``);
     ``pairs`` unchanged otherwise (labels read from a file as whole-number floats count as
     labels; fractional ones do not). The mesh's check (:func:`warpmesh.cells.intersections.check`)
     reports both: faces out of order about a junction edge mean sheets crossing there.
@@ -255,6 +259,7 @@ def with_junction_misorders(mesh, pairs: np.ndarray) -> np.ndarray:
     tris = mesh.cells.get("triangle")
     refs = None if mesh.cell_refs is None else mesh.cell_refs.get("triangle")
     above = mesh.cell_data.get(LABEL_ABOVE, {}).get("triangle")
+    refs = mesh.cell_data.get(LABEL_BELOW, {}).get("triangle", refs)
     pairs = np.asarray(pairs, dtype=INDEX_DTYPE).reshape(-1, 2)
     if tris is None or refs is None or above is None or mesh.points.shape[1] != 3:
         return pairs
