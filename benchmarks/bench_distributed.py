@@ -114,18 +114,11 @@ def _cpu() -> float:
 PIN_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
-def _one_thread(device) -> int:
-    return 1
-
-
 def pin_to_core(core: int) -> set:
-    """This process on ``core`` alone, as on a one-core machine: its affinity, and warpmesh's
-    CPU launches on one thread (``warpmesh._util.parallel.n_workers`` counts ``os.cpu_count()``,
-    which ignores the affinity: on a one-core machine it would be 1). Returns the affinity."""
-    import warpmesh._util.parallel as par
-
+    """This process on ``core`` alone, as on a one-core machine: its affinity (warpmesh's CPU
+    launches then run on one thread: ``warpmesh._util.parallel.n_workers`` counts the cores of
+    the affinity). Returns the affinity."""
     os.sched_setaffinity(0, {core})
-    par.n_workers = _one_thread
     return os.sched_getaffinity(0)
 
 

@@ -5,6 +5,10 @@ a sampled grid, independent of the mesher) and from the reasoning recorded there
 """
 
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -415,3 +419,15 @@ def test_random_csg_shapes_always_give_closed_oriented_manifolds():
         if trial % 4 == 0:
             dense = wm.mesh_surface(shape, bounds=bounds, resolution=res, cull=False)
             assert len(dense.cells["triangle"]) == len(mesh.cells["triangle"]), trial
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this platform")
+def test_launch_threads_follow_the_cpu_affinity():
+    """A process pinned to one core (a Dask worker's or a container's share) launches its CPU
+    kernels from one thread, not from one per core of the machine."""
+    code = ("import os; os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]}); "
+            "from warpmesh._util.parallel import n_workers, parallel_ranges; "
+            "from warpmesh.cells.intersections import _check_workers; "
+            "print(n_workers('cpu'), len(parallel_ranges(1 << 20, 'cpu')), _check_workers(None))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["1", "1", "1"]

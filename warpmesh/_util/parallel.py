@@ -18,8 +18,24 @@ __all__ = ["n_workers", "parallel_ranges", "run_parallel"]
 
 
 def n_workers(device) -> int:
-    """Threads to launch CPU kernels from: the machine's cores (at most 8); 1 on CUDA."""
-    return max(1, min(os.cpu_count() or 1, 8)) if wp.get_device(device).is_cpu else 1
+    """Threads to launch CPU kernels from: the cores this process may run on (its CPU
+    affinity where the platform has one, so a process pinned to one core, a container's
+    or a Dask worker's share, launches one thread), at most 8; 1 on CUDA."""
+    return max(1, min(usable_cores(), 8)) if wp.get_device(device).is_cpu else 1
+
+
+def usable_cores() -> int:
+    """The cores this process may run on: its affinity mask (Linux), else ``os.cpu_count()``.
+
+    Examples
+    --------
+    >>> 1 <= usable_cores() <= (os.cpu_count() or 1)
+    True
+    """
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
 
 
 def parallel_ranges(n: int, device, min_per_worker: int = 1 << 14) -> list[tuple[int, int]]:

@@ -97,7 +97,6 @@ meet in float32; the query boxes are grown by a few float32 ulps besides.
 from __future__ import annotations
 
 import itertools
-import os
 import time
 
 import numpy as np
@@ -105,7 +104,7 @@ import warp as wp
 
 from warpmesh._util.validate import check_device
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh._util.parallel import run_parallel
+from warpmesh._util.parallel import run_parallel, usable_cores
 from warpmesh.cells.rays import ray_windings
 from warpmesh.cells.types import points3, require_mesh
 from warpmesh.kernels import intersect as K
@@ -1004,7 +1003,7 @@ def _validate(points, triangles, k: int = 3, name: str = "triangles") -> tuple[n
 
 def _check_workers(workers: int | None) -> int:
     if workers is None:
-        return os.cpu_count() or 1
+        return usable_cores()
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise ValueError(f"expected a positive integer for 'workers', got {workers!r}")
     return int(workers)
