@@ -1138,3 +1138,237 @@ def all_pairs_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.i
         v = p[2] - p[0]
         if confirmed_pair_intersects(p, ip, wp.cross(u, v), _abs_cross(u, v), q, iq):
             hits[f, g] = wp.int8(1)
+
+
+# -- the cell grid: the candidate search of surfaces whose faces are about one size ------------
+
+#: cells per axis of the grid at most (10-bit coordinates: a 30-bit Morton key)
+GRID_CELLS = 1024
+#: cells per axis of a block of the two-level cell table (:func:`grid_cell_index`)
+BLOCK = 8
+
+
+@wp.func
+def grid_coordinate(x: float, inv_cell: float) -> int:
+    """The cell coordinate of a float32 BVH coordinate x (in about [-1, 1]): floor((x + 1)
+    inv_cell), clamped to [0, ``GRID_CELLS``). Monotone in x (every step is), which is all
+    the grid's soundness rests on (:func:`grid_walk_cell`)."""
+    return wp.clamp(int((x + 1.0) * inv_cell), 0, GRID_CELLS - 1)
+
+
+@wp.kernel
+def face_extents_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
+                        extents: wp.array(dtype=wp.float32)):
+    """One thread per face: the largest side of its float32 box."""
+    f = wp.tid()
+    lo, hi = face_box(points32, tris, f)
+    e = hi - lo
+    extents[f] = wp.max(wp.max(e[0], e[1]), e[2])
+
+
+@wp.kernel
+def grid_keys_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), pad: float,
+                     inv_cell: float, keys: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32),
+                     wide: wp.array(dtype=wp.int32)):
+    """One thread per face f: the Morton key of the cell of its box's lower corner (the sort
+    key; f the value), and one more in ``wide[0]`` when the cell of its upper corner grown
+    by ``pad`` is more than one cell past it along some axis (the grid then cannot be used:
+    :func:`grid_walk_cell` needs every face within two cells per axis)."""
+    f = wp.tid()
+    lo, hi = face_box(points32, tris, f)
+    q = hi + wp.vec3(pad, pad, pad)
+    x = grid_coordinate(lo[0], inv_cell)
+    y = grid_coordinate(lo[1], inv_cell)
+    z = grid_coordinate(lo[2], inv_cell)
+    if (grid_coordinate(q[0], inv_cell) > x + 1 or grid_coordinate(q[1], inv_cell) > y + 1
+            or grid_coordinate(q[2], inv_cell) > z + 1):
+        wp.atomic_add(wide, 0, 1)
+    keys[f] = (spread_bits(x) << 2) | (spread_bits(y) << 1) | spread_bits(z)
+    ids[f] = f
+
+
+@wp.kernel
+def cell_heads_kernel(keys: wp.array(dtype=wp.int32), heads: wp.array(dtype=wp.int32)):
+    """One thread per position s of the sorted keys: 1 when s starts a cell (its key differs
+    from the one before), else 0."""
+    s = wp.tid()
+    head = int(1)
+    if s > 0:
+        if keys[s] == keys[s - 1]:
+            head = 0
+    heads[s] = head
+
+
+@wp.func
+def compact_bits(x: int) -> int:
+    """Every third bit of x gathered into the 10 low bits (the inverse of :func:`spread_bits`)."""
+    x = x & 0x09249249
+    x = (x | (x >> 2)) & 0x030C30C3
+    x = (x | (x >> 4)) & 0x0300F00F
+    x = (x | (x >> 8)) & 0x030000FF
+    return (x | (x >> 16)) & 0x000003FF
+
+
+@wp.kernel
+def cell_starts_kernel(keys: wp.array(dtype=wp.int32), heads: wp.array(dtype=wp.int32),
+                       cell_of: wp.array(dtype=wp.int32), blocks_per_axis: int,
+                       starts: wp.array(dtype=wp.int32), cells: wp.array(dtype=wp.vec3i),
+                       block_used: wp.array(dtype=wp.int32)):
+    """One thread per position s that starts a cell (``cell_of``: the inclusive scan of the
+    heads, so its cell is ``cell_of[s] - 1``): the cell's first position, its coordinates
+    (from the key) and a mark on its block of ``BLOCK``^3 cells."""
+    s = wp.tid()
+    if heads[s] == 0:
+        return
+    c = cell_of[s] - 1
+    k = keys[s]
+    x = compact_bits(k >> 2)
+    y = compact_bits(k >> 1)
+    z = compact_bits(k)
+    starts[c] = s
+    cells[c] = wp.vec3i(x, y, z)
+    block_used[((x / BLOCK) * blocks_per_axis + y / BLOCK) * blocks_per_axis + z / BLOCK] = 1
+
+
+@wp.kernel
+def cell_table_kernel(cells: wp.array(dtype=wp.vec3i), blocks_per_axis: int, block_slot: wp.array(dtype=wp.int32),
+                      table: wp.array(dtype=wp.int32)):
+    """One thread per cell c: c written at its place in its block's ``BLOCK``^3 entries of
+    ``table`` (the block's slot: the exclusive scan of the used blocks)."""
+    c = wp.tid()
+    p = cells[c]
+    b = block_slot[((p[0] / BLOCK) * blocks_per_axis + p[1] / BLOCK) * blocks_per_axis + p[2] / BLOCK]
+    table[b * BLOCK * BLOCK * BLOCK + ((p[0] % BLOCK) * BLOCK + p[1] % BLOCK) * BLOCK + p[2] % BLOCK] = c
+
+
+@wp.func
+def grid_cell_index(x: int, y: int, z: int, blocks_per_axis: int, block_used: wp.array(dtype=wp.int32),
+                    block_slot: wp.array(dtype=wp.int32), table: wp.array(dtype=wp.int32)) -> int:
+    """The index of cell (x, y, z) among the occupied cells, or -1 when no face's lower
+    corner is in it (or it is off the grid): two reads, the block's slot and its entry."""
+    side = blocks_per_axis * BLOCK
+    if x < 0 or y < 0 or z < 0 or x >= side or y >= side or z >= side:
+        return -1
+    b = ((x / BLOCK) * blocks_per_axis + y / BLOCK) * blocks_per_axis + z / BLOCK
+    if block_used[b] == 0:
+        return -1
+    return table[block_slot[b] * BLOCK * BLOCK * BLOCK + ((x % BLOCK) * BLOCK + y % BLOCK) * BLOCK + z % BLOCK]
+
+
+#: a cell and its occupied upper neighbours (:func:`grid_walk_cell`)
+neighbour_cells = wp.types.vector(length=14, dtype=wp.int32)
+
+
+@wp.func
+def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.int32), blocks_per_axis: int,
+                   block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
+                   table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+                   order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
+                   face_uppers: wp.array(dtype=wp.vec3), pad: float, certified: wp.array(dtype=wp.int8), c: int,
+                   keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
+    """The intersecting pairs of the faces of cell c (positions ``starts[c]`` to the next
+    cell's start: the faces whose box's lower corner is in it) with the faces of the same
+    cell after them and with every face of the 13 neighbouring cells (dx, dy, dz) > (0, 0,
+    0) in lexicographic order. Each unordered pair of faces is met once: the pair of their
+    cells is one of these (c, c2) in exactly one order. None is missed: the cell coordinate
+    g (:func:`grid_coordinate`) is monotone, so when face b's lower corner is within face
+    a's upper corner grown by ``pad`` (as the screen below tests it), g(lo_b) <= g(hi_a +
+    pad) <= g(lo_a) + 1 (``grid_keys_kernel`` refused the grid otherwise), and the same with
+    a and b swapped: their cells are at most one apart along each axis. A pair of faces
+    then goes through the screen and tests of :func:`walk_group` (float32 boxes grown by
+    ``pad``, pairs sharing a certified vertex skipped, the exact test in float64). Returns
+    how many pairs intersect; the first ``limit`` are written to ``keys[start:]`` as
+    min(f, f2) m + max(f, f2) (f, f2 the input indices)."""
+    m = order.shape[0]
+    n_cells = cells.shape[0]
+    grow = wp.vec3(pad, pad, pad)
+    a0 = starts[c]
+    a1 = m
+    if c + 1 < n_cells:
+        a1 = starts[c + 1]
+    p = cells[c]
+    near = neighbour_cells()  # c itself, then its occupied upper neighbours
+    near[0] = c
+    n_near = int(1)
+    for d in range(14, 27):  # the 3 x 3 x 3 neighbourhood numbered 9 (dx + 1) + 3 (dy + 1) + dz + 1
+        c2 = grid_cell_index(p[0] + d / 9 - 1, p[1] + (d / 3) % 3 - 1, p[2] + d % 3 - 1, blocks_per_axis,
+                             block_used, block_slot, table)
+        if c2 >= 0:
+            near[n_near] = c2
+            n_near += 1
+    n = int(0)
+    for s in range(a0, a1):
+        lo = face_lowers[s] - grow
+        hi = face_uppers[s] + grow
+        loaded = bool(False)
+        f = order[s]
+        t = wp.mat33d()
+        it = wp.vec3i()
+        cv = wp.vec3i()
+        nt = wp.vec3d()
+        na = wp.vec3d()
+        for k in range(n_near):
+            c2 = near[k]
+            b0 = s + 1  # in c itself: the faces after s
+            if k > 0:
+                b0 = starts[c2]
+            b1 = m
+            if c2 + 1 < n_cells:
+                b1 = starts[c2 + 1]
+            for s2 in range(b0, b1):
+                if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
+                    if not loaded:  # face s loaded at its first candidate
+                        loaded = True
+                        t, it = load_triangle(points, tris, s)
+                        cv = certified_indices(certified, s, it)
+                        u = t[1] - t[0]
+                        v = t[2] - t[0]
+                        nt = wp.cross(u, v)
+                        na = _abs_cross(u, v)
+                    j0 = tris[3 * s2]
+                    j1 = tris[3 * s2 + 1]
+                    j2 = tris[3 * s2 + 2]
+                    if shares_certified(cv, j0, j1, j2):
+                        continue  # a certified umbrella holds both: they meet only where they share
+                    f2 = order[s2]
+                    t2 = wp.matrix_from_rows(points[j0], points[j1], points[j2])
+                    if ordered_pair_intersects(t, it, nt, na, f, t2, wp.vec3i(j0, j1, j2), f2):
+                        if n < limit:
+                            keys[start + wp.int64(n)] = (wp.int64(wp.min(f, f2)) * wp.int64(m)
+                                                         + wp.int64(wp.max(f, f2)))
+                        n += 1
+    return n
+
+
+@wp.kernel
+def grid_count_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.int32), blocks_per_axis: int,
+                            block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
+                            table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d),
+                            tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                            face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3), pad: float,
+                            certified: wp.array(dtype=wp.int8), first: int, unused: wp.array(dtype=wp.int64),
+                            counts: wp.array(dtype=wp.int64)):
+    """One thread per occupied cell c = first + tid: how many pairs of its faces with the
+    faces after them in it and in its 13 upper neighbours intersect (:func:`grid_walk_cell`,
+    writing nothing)."""
+    c = wp.tid() + first
+    counts[c] = wp.int64(grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, points, tris,
+                                        order, face_lowers, face_uppers, pad, certified, c, unused, wp.int64(0), 0))
+
+
+@wp.kernel
+def grid_write_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.int32), blocks_per_axis: int,
+                            block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
+                            table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d),
+                            tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                            face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3), pad: float,
+                            certified: wp.array(dtype=wp.int8), first: int, counts: wp.array(dtype=wp.int64),
+                            offsets: wp.array(dtype=wp.int64), keys: wp.array(dtype=wp.int64)):
+    """One thread per occupied cell c = first + tid with ``counts[c] > 0``: the walk of
+    :func:`grid_count_pairs_kernel` again, writing its pairs' keys to ``keys[offsets[c]:]``."""
+    c = wp.tid() + first
+    n = counts[c]
+    if n == wp.int64(0):
+        return
+    grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, points, tris, order, face_lowers,
+                   face_uppers, pad, certified, c, keys, offsets[c], int(n))

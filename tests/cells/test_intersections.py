@@ -575,11 +575,18 @@ def test_candidate_search_finds_what_every_pair_finds(monkeypatch):
 
 
 def _agrees_with_every_pair(name, pts, tris, monkeypatch):
-    monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 1 << 13)
+    # both candidate searches: the cell grid (forced even where face sizes vary: larger
+    # cells, the same pairs), the group tree, and the grid refused for a face spanning more
+    # than two cells (cells made too small: the tree takes over)
     ref = wmi._all_pairs(pts, tris)
-    assert np.array_equal(find_self_intersections(pts, tris, workers=1), ref), name
-    monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 16)  # many chunks, several threads
-    assert np.array_equal(find_self_intersections(pts, tris, workers=3), ref), name
+    for spread, scale in ((np.inf, wmi._GRID_CELL_SCALE), (0.0, wmi._GRID_CELL_SCALE), (np.inf, 0.3)):
+        monkeypatch.setattr(wmi, "_GRID_SPREAD", spread)
+        monkeypatch.setattr(wmi, "_GRID_CELL_SCALE", scale)
+        monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 1 << 13)
+        assert np.array_equal(find_self_intersections(pts, tris, workers=1), ref), (name, spread, scale)
+        monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 16)  # many chunks, several threads
+        assert np.array_equal(find_self_intersections(pts, tris, workers=3), ref), (name, spread, scale)
+    monkeypatch.undo()
     if name.startswith(("integer", "two")):
         assert len(ref) > 0, name  # the tie-heavy cases with genuine crossings or touchings
 
@@ -610,23 +617,28 @@ def test_bvh_coordinates_kernel_matches_the_numpy_map():
         assert np.array_equal(got.numpy(), ((scaled - 0.5 * (lo + hi)) / half).astype(np.float32))
 
 
-def test_profile_reports_every_stage_and_the_same_pairs():
+def test_profile_reports_every_stage_and_the_same_pairs(monkeypatch):
     m = _two_spheres(2, [0.9, 0.13, 0.071])
-    prof = wmi.profile_self_intersections(m.vertices, m.faces, workers=1)
-    stages = ["prepare", "order", "degenerate", "umbrellas", "boxes", "tree", "count walk", "scan", "write walk",
-              "sort pairs"]
-    assert list(prof["cpu"]) == stages and list(prof["wall"]) == stages
-    assert all(v >= 0.0 for v in [*prof["cpu"].values(), *prof["wall"].values()])
-    assert prof["pairs"] == len(find_self_intersections(m.vertices, m.faces)) > 0
+    for spread, search in ((wmi._GRID_SPREAD, "cells"), (0.0, "tree")):  # faces of about one size: the grid
+        monkeypatch.setattr(wmi, "_GRID_SPREAD", spread)
+        prof = wmi.profile_self_intersections(m.vertices, m.faces, workers=1)
+        stages = ["prepare", "order", "degenerate", "umbrellas", "boxes", search, "count walk", "scan", "write walk",
+                  "sort pairs"]
+        assert list(prof["cpu"]) == stages and list(prof["wall"]) == stages
+        assert all(v >= 0.0 for v in [*prof["cpu"].values(), *prof["wall"].values()])
+        assert prof["pairs"] == len(find_self_intersections(m.vertices, m.faces)) > 0
     assert wmi.profile_self_intersections(TRI, [[0, 1, 2]])["pairs"] == 0
     with pytest.raises(ValueError, match="'workers'"):
         wmi.profile_self_intersections(TRI, GOOD_T, workers=0)
 
 
-def test_group_tree_of_any_size_and_with_empty_groups():
+@pytest.mark.parametrize("spread", [0.0, np.inf])
+def test_group_tree_and_cell_grid_of_any_size_and_with_empty_groups(spread, monkeypatch):
     # the tree over groups of 16 faces is padded to a power of two leaves, and groups of
     # degenerate faces only get empty boxes: face counts around powers of two of groups,
-    # and a cluster of 40 degenerate faces (whole groups of them), against every pair
+    # and a cluster of 40 degenerate faces (whole groups of them), against every pair; the
+    # same inputs through the cell grid (a few cells, the degenerate faces in one)
+    monkeypatch.setattr(wmi, "_GRID_SPREAD", spread)
     m = _two_spheres(2, [0.9, 0.13, 0.071])
     pairs = find_self_intersections(m.vertices, m.faces)
     near = np.unique(pairs)  # faces along the crossing curve
@@ -641,6 +653,24 @@ def test_group_tree_of_any_size_and_with_empty_groups():
             ref = wmi._all_pairs(pts, tris)
             assert np.array_equal(find_self_intersections(pts, tris, workers=1), ref), (k, len(tris))
     assert len(wmi._all_pairs(pts, faces)) > 0
+
+
+def test_cell_grid_at_its_finest_and_at_its_edges(monkeypatch):
+    # faces far smaller than the range: the finest grid (1022 cells per axis), clusters of
+    # crossing faces at the corners of the range (the last cells, coordinates clamped),
+    # across block boundaries and around the centre, against every pair; the grid is the
+    # search taken (its profile stage)
+    rng = np.random.default_rng(23)
+    centres = np.vstack([np.array(list(itertools.product([-1.0, 1.0], repeat=3))),
+                         rng.uniform(-1, 1, (8, 3)), [[0.0, 0.0, 0.0], [8 / 511 - 1, 16 / 511 - 1, 0.5]]])
+    tris_pts = centres[rng.integers(0, len(centres), 700)][:, None, :] + rng.normal(0, 1.5e-3, (700, 3, 3))
+    pts = np.clip(tris_pts.reshape(-1, 3), -1.0, 1.0)
+    tris = np.arange(len(pts)).reshape(-1, 3)
+    monkeypatch.setattr(wmi, "_GRID_SPREAD", np.inf)
+    assert "cells" in wmi.profile_self_intersections(pts, tris, workers=1)["cpu"]
+    ref = wmi._all_pairs(pts, tris)
+    assert len(ref) > 20
+    assert np.array_equal(find_self_intersections(pts, tris, workers=1), ref)
 
 
 def test_all_pairs_reference_refuses_large_meshes():

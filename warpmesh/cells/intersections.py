@@ -122,6 +122,12 @@ _INT32_MAX = np.iinfo(np.int32).max
 #: skip the pairs that share a vertex whose umbrella is certified (the kernels'
 #: ``umbrella_certified``); off only to measure or test the check without it
 _CERTIFY = True
+#: the cell grid is the candidate search when the largest face box side is at most this
+#: times the mean one (:func:`_grid_cell`), else the group tree
+_GRID_SPREAD = 2.0
+#: the grid's cell side over the largest face box side (a margin for the rounding of the
+#: cell coordinates: :func:`_grid_order` falls back to the tree if a face spans more)
+_GRID_CELL_SCALE = 1.0 + 2.0**-10
 _TINY_LENGTH = 1.0e-30
 
 
@@ -810,7 +816,9 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     points64, tris32 = _device_arrays(scaled, tris, device)
     points32 = _bvh_coordinates(scaled, points64, device)
     mark("prepare")
-    order, sorted_tris = _spatial_order(points32, tris32, device)
+    inv_cell = _grid_cell(points32, tris32, device)
+    grid = None if inv_cell is None else _grid_order(points32, tris32, inv_cell, device)
+    order, sorted_tris = grid[:2] if grid is not None else _spatial_order(points32, tris32, device)
     mark("order")
     degenerate, codes = _classify_faces(points64, sorted_tris, device)
     mark("degenerate")
@@ -820,33 +828,42 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     face_uppers = wp.empty(m, dtype=wp.vec3, device=device)
     wp.launch(K.face_boxes_kernel, dim=m, inputs=[points32, sorted_tris, degenerate],
               outputs=[face_lowers, face_uppers], device=device)
-    n_groups = (m + K.GROUP - 1) // K.GROUP
-    lowers = wp.empty(n_groups, dtype=wp.vec3, device=device)
-    uppers = wp.empty(n_groups, dtype=wp.vec3, device=device)
-    wp.launch(K.group_boxes_kernel, dim=n_groups, inputs=[face_lowers, face_uppers, m], outputs=[lowers, uppers],
-              device=device)
-    mark("boxes")
-    tree_lowers, tree_uppers, depth = _group_tree(lowers, uppers, device)
-    mark("tree")
-    walk = [tree_lowers, tree_uppers, depth, points64, sorted_tris, order, face_lowers, face_uppers, lowers, uppers,
-            _QUERY_PAD, certified]
-    split = _split(n_groups, m, device, n_workers)
+    faces = [points64, sorted_tris, order, face_lowers, face_uppers, _QUERY_PAD, certified]
+    if grid is not None:  # one thread per occupied cell (K.grid_walk_cell)
+        mark("boxes")
+        walk = [*_cell_table(grid[2], inv_cell, device), *faces]
+        count_kernel, write_kernel = K.grid_count_pairs_kernel, K.grid_write_pairs_kernel
+        n_threads = walk[0].shape[0]
+        mark("cells")
+    else:  # one thread per group of GROUP faces (K.walk_group)
+        n_groups = (m + K.GROUP - 1) // K.GROUP
+        lowers = wp.empty(n_groups, dtype=wp.vec3, device=device)
+        uppers = wp.empty(n_groups, dtype=wp.vec3, device=device)
+        wp.launch(K.group_boxes_kernel, dim=n_groups, inputs=[face_lowers, face_uppers, m], outputs=[lowers, uppers],
+                  device=device)
+        mark("boxes")
+        tree_lowers, tree_uppers, depth = _group_tree(lowers, uppers, device)
+        walk = [tree_lowers, tree_uppers, depth, *faces[:5], lowers, uppers, *faces[5:]]
+        count_kernel, write_kernel = K.count_pairs_kernel, K.write_pairs_kernel
+        n_threads = n_groups
+        mark("tree")
+    split = _split(n_threads, m, device, n_workers)
 
     wp.load_module(K, device=device)  # compiled/loaded once here, not by two worker threads at once
-    counts = wp.empty(n_groups, dtype=wp.int64, device=device)
+    counts = wp.empty(n_threads, dtype=wp.int64, device=device)
     unused = wp.empty(1, dtype=wp.int64, device=device)
-    split(lambda a, b: wp.launch(K.count_pairs_kernel, dim=b - a, inputs=[*walk, a, unused], outputs=[counts],
+    split(lambda a, b: wp.launch(count_kernel, dim=b - a, inputs=[*walk, a, unused], outputs=[counts],
                                  device=device))
     mark("count walk")
-    offsets = wp.empty(n_groups, dtype=wp.int64, device=device)
+    offsets = wp.empty(n_threads, dtype=wp.int64, device=device)
     wp.utils.array_scan(counts, offsets, inclusive=False)
-    total = int(offsets[n_groups - 1:].numpy()[0] + counts[n_groups - 1:].numpy()[0])  # sync point: output size
+    total = int(offsets[n_threads - 1:].numpy()[0] + counts[n_threads - 1:].numpy()[0])  # sync point: output size
     mark("scan")
     if total == 0:
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
 
     keys = wp.empty(2 * total, dtype=wp.int64, device=device)  # radix sort's scratch: 2 total
-    split(lambda a, b: wp.launch(K.write_pairs_kernel, dim=b - a, inputs=[*walk, a, counts, offsets],
+    split(lambda a, b: wp.launch(write_kernel, dim=b - a, inputs=[*walk, a, counts, offsets],
                                  outputs=[keys], device=device))
     mark("write walk")
     values = wp.empty(2 * total, dtype=wp.int32, device=device)
@@ -872,6 +889,70 @@ def _spatial_order(points32: wp.array, tris32: wp.array, device) -> tuple[wp.arr
     sorted_tris = wp.empty(3 * m, dtype=wp.int32, device=device)
     wp.launch(K.gather_faces_kernel, dim=m, inputs=[tris32, order], outputs=[sorted_tris], device=device)
     return order, sorted_tris
+
+
+def _grid_cell(points32: wp.array, tris32: wp.array, device) -> float | None:
+    """The cell grid's inverse cell size (BVH coordinates), or None for the group tree: the
+    grid when the faces are about one size (the largest face box side at most
+    ``_GRID_SPREAD`` times the mean one: each face then meets about ten others in its cell
+    and its 13 upper neighbours), its cell the largest side grown by a margin and the
+    padding, at least 1/``K.GRID_CELLS`` - 2 of the coordinates' range [-1, 1]."""
+    m = tris32.shape[0] // 3
+    extents = wp.empty(m, dtype=wp.float32, device=device)
+    wp.launch(K.face_extents_kernel, dim=m, inputs=[points32, tris32], outputs=[extents], device=device)
+    ext = extents.numpy()  # sync point: the grid's cell size
+    largest = float(ext.max())
+    if largest > _GRID_SPREAD * float(ext.mean(dtype=np.float64)):
+        return None
+    cell = max(largest * _GRID_CELL_SCALE + 4.0 * _QUERY_PAD, 2.0 / (K.GRID_CELLS - 2))
+    return float(np.float32(1.0 / cell))
+
+
+def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device):
+    """Faces sorted by the Morton key of the grid cell of their box's lower corner
+    (:func:`~warpmesh.kernels.intersect.grid_keys_kernel`): (order, sorted faces, sorted
+    keys), or None when some face's box spans more than two cells along an axis (the
+    grid's walk would miss its pairs: the group tree is used then)."""
+    m = tris32.shape[0] // 3
+    keys = wp.empty(2 * m, dtype=wp.int32, device=device)  # radix sort's scratch: 2m
+    ids = wp.empty(2 * m, dtype=wp.int32, device=device)
+    wide = wp.zeros(1, dtype=wp.int32, device=device)
+    wp.launch(K.grid_keys_kernel, dim=m, inputs=[points32, tris32, _QUERY_PAD, inv_cell], outputs=[keys, ids, wide],
+              device=device)
+    if int(wide.numpy()[0]):  # sync point: the grid cannot hold these faces
+        return None
+    wp.utils.radix_sort_pairs(keys, ids, m)
+    order = ids[:m]
+    sorted_tris = wp.empty(3 * m, dtype=wp.int32, device=device)
+    wp.launch(K.gather_faces_kernel, dim=m, inputs=[tris32, order], outputs=[sorted_tris], device=device)
+    return order, sorted_tris, keys[:m]
+
+
+def _cell_table(keys: wp.array, inv_cell: float, device) -> list:
+    """The occupied cells of the sorted keys (:func:`_grid_order`) and a two-level table
+    from cell coordinates to cell index (blocks of ``K.BLOCK``^3 cells, a slot for each
+    used block): [cells' coordinates, first positions, blocks per axis, used blocks, block
+    slots, table], the grid walk's first arguments
+    (:func:`~warpmesh.kernels.intersect.grid_walk_cell`). Count -> scan -> write twice."""
+    m = keys.shape[0]
+    heads = wp.empty(m, dtype=wp.int32, device=device)
+    wp.launch(K.cell_heads_kernel, dim=m, inputs=[keys], outputs=[heads], device=device)
+    cell_of = wp.empty(m, dtype=wp.int32, device=device)
+    wp.utils.array_scan(heads, cell_of, inclusive=True)
+    n_cells = int(cell_of[m - 1:].numpy()[0])  # sync point: the number of cells
+    side = min(K.GRID_CELLS, int(2.0 * 1.001 * inv_cell) + 2)  # every cell coordinate is below it
+    per_axis = (side + K.BLOCK - 1) // K.BLOCK
+    starts = wp.empty(n_cells, dtype=wp.int32, device=device)
+    cells = wp.empty(n_cells, dtype=wp.vec3i, device=device)
+    used = wp.zeros(per_axis**3, dtype=wp.int32, device=device)
+    wp.launch(K.cell_starts_kernel, dim=m, inputs=[keys, heads, cell_of, per_axis], outputs=[starts, cells, used],
+              device=device)
+    slots = wp.empty(per_axis**3, dtype=wp.int32, device=device)
+    wp.utils.array_scan(used, slots, inclusive=False)
+    n_blocks = int(slots[-1:].numpy()[0] + used[-1:].numpy()[0])  # sync point: the table's size
+    table = wp.full(n_blocks * K.BLOCK**3, -1, dtype=wp.int32, device=device)
+    wp.launch(K.cell_table_kernel, dim=n_cells, inputs=[cells, per_axis, slots], outputs=[table], device=device)
+    return [cells, starts, per_axis, used, slots, table]
 
 
 def _group_tree(lowers: wp.array, uppers: wp.array, device) -> tuple[wp.array, wp.array, int]:
