@@ -273,6 +273,69 @@ def scatter_values_kernel(
             k += 1
 
 
+# -- a window: only some nodes are sampled (a brick's core and the node planes its seams read) ------
+@wp.func
+def in_window(g: wp.vec3i, boxes: wp.array(dtype=wp.vec3i)):
+    """Whether node g lies in one of the boxes (rows 2 m and 2 m + 1: inclusive low and high
+    node of box m)."""
+    r = int(0)
+    for m in range(boxes.shape[0] / 2):
+        lo = boxes[2 * m]
+        hi = boxes[2 * m + 1]
+        if g[0] >= lo[0] and g[0] <= hi[0] and g[1] >= lo[1] and g[1] <= hi[1] and g[2] >= lo[2] and g[2] <= hi[2]:
+            r = 1
+    return r != 0
+
+
+@wp.kernel
+def window_blocks_kernel(
+    nb: wp.vec3i, n: wp.vec3i, boxes: wp.array(dtype=wp.vec3i), state: wp.array(dtype=wp.int32),
+):
+    """One thread per block: CULLED unless the block owns a node of a window box (a node's
+    owner is ``min(g // BLOCK, nb - 1)`` per axis, the block whose slot every other block
+    reads it from)."""
+    b = wp.tid()
+    c = block_coords(b, nb)
+    owns = int(0)
+    for m in range(boxes.shape[0] / 2):
+        lo = boxes[2 * m]
+        hi = boxes[2 * m + 1]
+        ok = int(1)
+        for a in range(3):
+            first = c[a] * _BLOCK
+            last = first + _BLOCK - 1
+            if c[a] == nb[a] - 1:
+                last = n[a] - 1
+            if hi[a] < first or lo[a] > last:
+                ok = 0
+        owns = wp.max(owns, ok)
+    if owns == 0:
+        state[b] = CULLED
+
+
+@wp.kernel
+def window_needs_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
+    boxes: wp.array(dtype=wp.vec3i), fill: float, needs: wp.array(dtype=wp.int8),
+    values: wp.array(dtype=wp.float32), need_count: wp.array(dtype=wp.int32),
+):
+    """One thread per slot: a node outside every window box, or beyond the grid (a last
+    block's padding), is not evaluated (``fill`` where it still was to be); recounts the
+    slot's nodes to evaluate."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    count = int(0)
+    for l in range(_NODES):
+        if needs[s * _NODES + l] != wp.int8(0):
+            g = c * _BLOCK + local_coords(l)
+            if g[0] < n[0] and g[1] < n[1] and g[2] < n[2] and in_window(g, boxes):
+                count += 1
+            else:
+                needs[s * _NODES + l] = wp.int8(0)
+                values[s * _NODES + l] = fill
+    need_count[s] = count
+
+
 @wp.kernel
 def gather_volume_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, volume: wp.array3d(dtype=wp.float32),

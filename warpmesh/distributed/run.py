@@ -7,14 +7,18 @@ brick never becomes a task. Each other brick is one task: a worker builds the bl
 of its brick as a window of the global grid (``BlockGrid(global_origin=...)``: its nodes
 are sampled at the global coordinates, bit for bit), culls, samples and emits with the
 same kernels as one process, keeps the triangles of its core cells, and returns (or
-writes) its mesh with the global keys of its seam vertices. A shape's brick carries a
-halo (one block below, one node above each seam), so the clearance's lonely-node test
-sees the same neighbours as in the whole grid. A brick that writes no piece leaves the
-node above out: that node costs a whole block layer of samples and emission (a fifth of
-the bricks' work on the part at 1024^3 in bricks of 128^3), and only the copies of seam
-vertices on the brick's upper faces read it; the weld keeps the copy of the brick that
-has every seam plane through the vertex as a lower face (the highest brick id), whose
-block below holds all the vertex's neighbours. A volume's brick is read from the array
+writes) its mesh with the global keys of its seam vertices, its positions measured from
+the global grid's origin as one process measures them (so they are equal bit for bit).
+
+A shape's brick samples its core's nodes and, where the vertex placement reads the nodes
+around an edge's ends (the clearance's lonely-node test of "mc" and "mc33",
+``block_grid.reads_neighbours``; "mt" reads none), the node plane beyond each lower seam:
+the weld keeps the copy of a seam vertex from the brick that has every seam plane through
+it as a lower face (the highest brick id), which thus sees all the vertex's neighbours.
+A brick that writes a piece, whose seam copies must be the weld's, also samples the
+node plane beyond each upper seam. A plane below lies in the block below the seam, which
+gets a slot with only that plane sampled; a plane above in a block one cell thick (a
+``BlockGrid`` window, ``block_grid.node_window``). A volume's brick is read from the array
 (numpy, dask or zarr) on the worker with one node plane of overlap per seam; no worker
 holds more than the brick it meshes.
 
@@ -45,7 +49,7 @@ from warpmesh.distributed.seams import BrickMesh, weld
 from warpmesh.errors import WarpMeshError
 from warpmesh.frep.tape import eval_intervals, tape_of
 from warpmesh.mesh import Mesh
-from warpmesh.surface.block_grid import BlockGrid, drop_unused, refine_roots
+from warpmesh.surface.block_grid import BlockGrid, drop_unused, node_window, reads_neighbours, refine_roots
 from warpmesh.surface.options import GridOptions, VolumeOptions
 from warpmesh.surface.volume import check_label_range, label_form
 
@@ -365,14 +369,18 @@ class _ShapeJob(BrickJob):
         dev = wp.get_device(self.device)
         tape = worker_tape(self.token, self.shape)
         lo_c, hi_c = np.array(brick.lo), np.array(brick.hi)
-        lo_node = np.where(lo_c > 0, lo_c - BLOCK, 0)  # a whole block below: the same blocks as the whole grid
-        # one node above: the neighbours of the seam nodes, for a piece whose seam copies must be the
-        # weld's; a brick only gathered leaves it out (the weld keeps the copy from above, module docstring)
-        hi_node = np.where((hi_c < cells) & (path is not None), hi_c + 1, hi_c)
+        # the node plane below each lower seam (the lonely-node test of the seam vertices the weld
+        # keeps), and above each upper seam for a piece (whose seam copies must be the weld's): the
+        # plane lies in the block below (a slot of that block, one plane of it sampled) or in a
+        # block of one cell above; none where the placement reads no neighbour (module docstring)
+        reads = reads_neighbours(opts.method, opts.clearance)
+        below, above = (lo_c > 0) & reads, (hi_c < cells) & (path is not None) & reads
+        lo_node = np.where(below, lo_c - BLOCK, lo_c)  # block-aligned: the brick's blocks are the grid's
+        hi_node = np.where(above, hi_c + 1, hi_c)
         origin = self.lo + lo_node * self.h
         cap = _cap_mask(opts.cap, lo_node, hi_node, cells)
         grid = BlockGrid(hi_node - lo_node + 1, origin, self.h, dev, node_offset=lo_node, global_nodes=cells + 1,
-                         global_origin=self.lo)
+                         global_origin=self.lo, window=node_window(lo_c - lo_node, hi_c - lo_node, below, above))
         try:
             grid.cull_shape(tape, opts.cull, cap, timings)
             grid.sample_shape(tape, opts.cull, opts.evaluator, timings)
@@ -382,17 +390,23 @@ class _ShapeJob(BrickJob):
         verts, tris, edges = grid.extract(opts.method, cap, timings, _core_cells(grid, lo_node, brick),
                                           clearance=opts.clearance)
         verts, tris, edges = drop_unused(verts, tris, edges)
-        frame = origin  # where the float32 positions are measured from
-        if opts.root != "linear" and len(verts):
-            # the edges' ends in the global grid's frame, as one process has them: the root finder
-            # evaluates f at the same points, so the roots are the same bit for bit
+        local = np.zeros((0, 3), np.float32)
+        if len(verts):
+            # the edges' ends in the global grid's frame, as one process has them (the emission
+            # measured them from the brick's first node): a vertex is placed on them as
+            # kernels.emit.crossing places it, p0 + t (p1 - p0) rounded per operation, and a root
+            # finder evaluates f at the same points, so positions are one process's bit for bit
+            # (an "mc33" interior vertex, on no edge, is moved to the global frame: rounded once more)
             p0, p1, interior = edge_ends(edges["key"].numpy(), cells, self.h)
             p0[interior] = p1[interior] = verts.numpy()[interior] + (origin - self.lo).astype(np.float32)
-            edges["p0"], edges["p1"] = (wp.array(p, dtype=wp.vec3, device=dev) for p in (p0, p1))
-            refine_roots(tape, verts, edges, wp.vec3(*self.lo.tolist()), opts.root, opts.root_iterations, timings,
-                         opts.evaluator, opts.gradient, grid.h)
-            frame = self.lo
-        local = verts.numpy().copy()  # sync point: results to the host
+            if opts.root != "linear":
+                edges["p0"], edges["p1"] = (wp.array(p, dtype=wp.vec3, device=dev) for p in (p0, p1))
+                refine_roots(tape, verts, edges, wp.vec3(*self.lo.tolist()), opts.root, opts.root_iterations,
+                             timings, opts.evaluator, opts.gradient, grid.h)
+                local = verts.numpy().copy()  # sync point: results to the host
+            else:
+                local = p0 + edges["t"].numpy()[:, None] * (p1 - p0)  # float32, as kernels.emit.crossing
+        frame = self.lo  # where the float32 positions are measured from
         faces = tris.numpy().astype(C.INDEX_DTYPE)
         if len(faces) and faces.min() < 0:
             raise WarpMeshError(f"{brick.describe(self.lo, self.h)}: a block culled as uniform holds a crossing "

@@ -77,8 +77,14 @@ class BlockGrid:
     """The block-sparse grid of one extraction: its device arrays and the kernel launches
     (allocation, prefix sums, per-core splits), so that :func:`mesh_surface` reads as a pipeline."""
 
-    def __init__(self, n_nodes, origin, h, device, node_offset=(0, 0, 0), global_nodes=None, global_origin=None):
+    def __init__(self, n_nodes, origin, h, device, node_offset=(0, 0, 0), global_nodes=None, global_origin=None,
+                 window=None):
         self.n = np.asarray(n_nodes, dtype=np.int64)
+        # a window, (k, 2, 3) inclusive node boxes: only their nodes are sampled (and only blocks
+        # owning one get a slot); the other nodes hold no value of f (a brick: its core, and the
+        # node planes beyond its seams that the lonely-node test reads, see node_window)
+        self.window = None if window is None else \
+            wp.array(np.asarray(window, dtype=np.int32).reshape(-1, 3), dtype=wp.vec3i, device=device)
         # a slab of a larger grid: where its first node sits, and the whole grid's size
         # (vertex keys are node ids of the whole grid, so slabs weld exactly)
         self.wgoff = wp.vec3i(*[int(v) for v in node_offset])
@@ -156,6 +162,8 @@ class BlockGrid:
             state = self.block_states(tape, cap)
         else:
             state = wp.full(self.n_blocks, int(K.EVALUATE), dtype=wp.int32, device=self.device)
+        if self.window is not None:
+            self._launch(K.window_blocks_kernel, self.n_blocks, [self.wnb, self.wn, self.window], [state])
         self._compact(state)
         timings["cull"] = time.perf_counter() - t0
 
@@ -225,6 +233,9 @@ class BlockGrid:
                 states = wp.empty(ne * K.SUBS, dtype=wp.int32, device=dev)
                 self._per_slot(K.node_needs_kernel, [intervals], [states, self.values, needs, need_count], ne)
                 self.info["interval_evaluations"] += ne * K.SUBS
+            if self.window is not None:
+                self._per_slot(K.window_needs_kernel, [self.slot_block, self.wnb, self.wn, self.window, -1.0],
+                               [needs, self.values, need_count], ne)
             need_offset = wp.empty_like(need_count)
             wp.utils.array_scan(need_count, need_offset, inclusive=False)
             n_pts = int(need_offset[ne - 1:].numpy()[0] + need_count[ne - 1:].numpy()[0])  # sync point
@@ -400,7 +411,7 @@ class BlockGrid:
             local, t_min = wp.vec3(0.0), float(C.EDGE_T_MIN)
             # the lonely-node exemption (kernels.emit.lonely), looked at per vertex where it
             # can change the clamp; ``known``: one entry = every slot node known
-            crowding = int(n_types == 3 and self.lonely_nodes and clearance > t_min)
+            crowding = int(self.lonely_nodes and reads_neighbours(method, clearance))
             known = self.known if self.known is not None else wp.zeros(1, dtype=wp.uint8, device=dev)
             self._per_slot(KE.emit_vertices_kernel, [self.slot_block, self.wnb, self.wn, n_types, int(cap), local,
                                                      self.wh, t_min, clearance, self.wgoff, self.wgn, tab,
@@ -421,6 +432,38 @@ class BlockGrid:
         self.info["clearance_moved"] = int(moved.numpy().sum())  # vertices moved off a node by it
         timings["extract"] = timings.get("extract", 0.0) + time.perf_counter() - t0
         return verts, tris, edges
+
+
+def reads_neighbours(method: str, clearance: float) -> bool:
+    """Whether a shape's vertex placement reads the nodes around a crossing edge's ends (the
+    lonely-node exemption of ``kernels.emit.clamped_t``): with the axis edges alone ("mc",
+    "mc33") and a clearance above ``EDGE_T_MIN``. Otherwise a vertex is a function of its
+    edge's two end values, and a window of the grid needs no node beyond its cells'.
+
+    >>> reads_neighbours("mc33", 0.1), reads_neighbours("mt", 0.1), reads_neighbours("mc", 0.0)
+    (True, False, False)
+    """
+    return _METHOD_IDS[method][1] == 3 and clearance > C.EDGE_T_MIN
+
+
+def node_window(lo, hi, below, above) -> np.ndarray:
+    """The window (k, 2, 3) of a grid's cells ``lo <= c < hi`` (grid-local, per axis): their
+    nodes ``lo`` to ``hi``, and the node plane ``lo - 1`` on each axis where ``below`` (the
+    plane ``hi + 1`` where ``above``), over the range ``lo`` to ``hi`` on the other axes:
+    the neighbours across a face that ``reads_neighbours`` reads, no edge or corner beyond.
+
+    >>> node_window((8, 0, 0), (16, 8, 8), (True, False, False), (False, False, False)).tolist()
+    [[[8, 0, 0], [16, 8, 8]], [[7, 0, 0], [7, 8, 8]]]
+    """
+    lo, hi = np.asarray(lo, dtype=np.int64), np.asarray(hi, dtype=np.int64)
+    boxes = [(lo, hi)]
+    for a in range(3):
+        for flag, plane in ((below[a], lo[a] - 1), (above[a], hi[a] + 1)):
+            if flag:
+                b0, b1 = lo.copy(), hi.copy()
+                b0[a] = b1[a] = plane
+                boxes.append((b0, b1))
+    return np.array(boxes, dtype=np.int64)
 
 
 def check_clearance(clearance) -> float:
