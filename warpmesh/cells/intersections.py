@@ -7,8 +7,13 @@ validity checks run this geometric one too. The pipeline (kernels in
 1. validate, convert once: points float64 scaled by a power of two (exact: no product
    of the predicates over- or underflows), float32 copies in [-1, 1]^3 for the BVH,
    triangles int32;
-2. faces in Morton order of their centroids (radix sort), degenerate faces flagged and
-   given an empty box (they meet nothing), each face's float32 box stored once;
+2. the candidate search chosen (:func:`_grid_cell`): a cell grid when the faces are about
+   one size (the largest side of a face's float32 box at most ``_GRID_SPREAD`` = 2 times
+   the mean: the grid methods' surfaces, icospheres), else a tree over groups of faces
+   (adaptive meshes, a few large faces among small ones); faces sorted (radix sort) by
+   the Morton key of the grid cell of their box's lower corner, or for the tree of
+   their centroid; degenerate faces flagged and given an empty box (they meet
+   nothing), each face's float32 box stored once;
 3. the umbrella certificate: vertex -> corners on the device (counts by atomic add,
    ``wp.utils.array_scan``, fill), then one thread per vertex v decides from F_v, its
    faces, alone whether any two of them can meet other than in what they share
@@ -16,73 +21,68 @@ validity checks run this geometric one too. The pipeline (kernels in
    are all strictly of one orientation in some coordinate projection and wind once
    about v; the proof is in its docstring), from per-face codes of orientation signs and
    coordinate comparisons made with the degenerate flags; a flag per corner;
-4. a tree over groups of ``GROUP`` = 16 consecutive faces of that order (compact
-   patches): a complete binary tree in heap order whose leaves are the groups in Morton
-   order (padded to a power of two with empty boxes) and whose nodes hold the union of
-   their leaves' float32 boxes, built bottom up, one launch per level;
-5. one thread per group g: a depth-first walk of the tree with g's box
+4. the grid: the cell side is the largest box side grown by a margin and the padding
+   (each face's box then spans at most two cells per axis; a face that spans more, by
+   rounding, sends the check to the tree), at most 1022 cells per axis; the occupied
+   cells are the runs of equal keys (heads, scan), and a two-level table (blocks of 8^3
+   cells, a slot for each used block) maps cell coordinates to cells. The tree: a
+   complete binary tree over groups of ``GROUP`` = 16 consecutive faces (compact
+   patches) in heap order, leaves padded to a power of two with empty boxes, nodes
+   holding the union of their leaves' float32 boxes, built bottom up, one launch per
+   level;
+5. the grid walk (:func:`~warpmesh.kernels.intersect.grid_walk_cell`): one thread per
+   occupied cell, its faces against the later faces of the cell and every face of its
+   13 upper neighbours (each unordered pair once; none missed, the cell coordinate being
+   a monotone function of the float32 coordinate: boxes that meet have lower corners at
+   most one cell apart per axis), each face screened by its own grown box; or one
+   thread per group g: a depth-first walk of the tree with g's box
    (:func:`~warpmesh.kernels.intersect.tree_next`) that never enters a subtree of groups
    all before g, so it meets only the groups h >= g; for each, the faces of g whose boxes
    meet h's, against the faces of h whose boxes meet theirs (only later ones when h == g):
    so each unordered pair of faces is screened and tested once, exactly in float64 with
    the face of the lower input index as the predicate's first triangle, unless the two
    share a vertex whose umbrella is certified (then they meet only in what they share:
-   skipped after the box test, before their points are loaded); count per group,
-   prefix sum (``wp.utils.array_scan``), then a second walk, only for the groups with
-   hits, writes each pair as the key min(f, g) m + max(f, g) at its group's offset; a
+   skipped after the box test, before their points are loaded); count per cell or
+   group, prefix sum (``wp.utils.array_scan``), then a second walk, only for those with
+   hits, writes each pair as the key min(f, g) m + max(f, g) at its offset; a
    radix sort of the keys on the device gives the output sorted, with no host sort
    (count -> scan -> allocate -> write).
 
-Where the time goes (:func:`profile_self_intersections`, ``workers=1``, median of 3, CPU
-s, load about 2.5; the bundled part at resolution 512, 1.5 M triangles with large
-grid-aligned flat regions / a ball at 512, 1.7 M): prepare 0.05 / 0.05, Morton order
-0.06 / 0.08, degenerate flags and face codes 0.04 / 0.04, umbrellas 0.09 / 0.11 (the
-per-vertex kernel 0.065 of it; the adjacency's atomics and fill 0.025), boxes 0.03 /
-0.03, tree 0.002, the walk 0.84 / 0.81 (1.36 / 1.14 with the certificate off, the same
-run). Every vertex of both is certified. The walk meets 8.3 candidate pairs per face
-(12.4 M): 4.5 share one vertex, 1.5 an edge, 2.2 none; the 6.0 that share one are now
-skipped after the face-face box test (before it: 1.07x the time, the indices of every
-listed face loaded); the 2.2 others go to the exact test, about half of them coplanar
-on the part. An unsound bound, every sharing pair skipped with no certificate at all,
-gave 1.01 s for the whole check on the part, against 1.10 with the certificate's
-0.11 s. Certificate variants measured: the dominant axis of the summed normals only
-(not any of the three) left 304 of the part's 752,262 vertices uncertified and cost more
-(points gathered per corner: 0.13 s for the per-vertex kernel against 0.065 with per-face
-codes); the fan's permutation checked by a search loop 0.047 s, by the unrolled
-branch-free 8 x 8 comparisons 0.012; flags per vertex instead of per corner saved 0.007
-s in the kernel (not taken: the walk would then gather them). With most pairs now
-skipped, face s's points and normal loaded only when one of its candidates is left
-(a second list per face) measured 1.02 / 1.01 of the time (part / ball): not taken.
-Screen alone (the exact test stubbed out): 0.59 / 0.70 of the walk's 0.84 / 0.81. The rest of this paragraph is from before the certificate. The walk met the
-same 8.3 pairs a face; about half are coplanar (the flat regions) and go to the 2D
-tests. Split
-on the part and the ball at 512 (the candidates written out, then the predicate alone on
-that list): the screen (tree walk 0.05, the rest the face-level box tests) about 0.5 /
-0.6, the exact tests about 0.8 / 0.5 (the part's coplanar pairs about 0.22 before the
-separation shortcut of ``coplanar_overlap``, 0.16 after), so both halves would have to
-shrink about 3x for the check to take half the meshing time. The group walk replaced
-per-face queries (1/16 of the queries, each pair screened once instead of twice: 2.8 ->
-1.8 CPU s); the tree replaced a ``wp.Bvh`` (built in 0.002 s instead of 0.04), the faces
-of h that miss g's box are left out before the face-face screen (a slot list since
-ec89004: 0.94 of the time on the part with the separation shortcut, 0.98 on the ball;
-face s then loaded when it meets h's box, not at its first candidate, which needed
-zeroed placeholders carried through the loop: 0.96 / 0.95 more), and the float32
-coordinates come from a kernel: 0.89-0.90 of the time before, the same pairs. Tried and
-measured no faster (same-run ratios 0.99-1.10): the plane sides of the second face taken
-first in the walk and passed on to the predicate; the predicate's plane-side exits in a
-small function of their own before the full one (ball 0.97, part 1.11); one call site of
-the predicate instead of two; both faces' normals passed in, or read from per-face
-arrays; a shortcut straight to the 2D tests for faces of one grid plane; branch-free
-signs and box tests (again with slot lists: 1.03); half-group boxes screening 8 faces at
-once (1.01-1.03); -O3; groups of 8 or 32 (again with slot lists: 1.07-1.08, 1.01-1.04);
-vertices renumbered in the faces' Morton order. :func:`_all_pairs`, every pair with the
-same predicate and no tree, is the tests' reference for the candidate search. It used to
-report more pairs than the walk when a face is collinear to within rounding but not
-flagged degenerate (its normal ~1e-16 after a rotation: every side a tie, so the
-predicate says it "touches" faces whose boxes are far from its own): 87 of 180 rotated
-integer soups differed. A meet is now confirmed by the faces' exact float64 boxes
-(``confirmed_pair_intersects``): disjoint boxes share no point, so those false meets go,
-and the two agree on all 180; meets are rare, so the confirmation costs nothing.
+Where the time goes (:func:`profile_self_intersections`, ``workers=1``, CPU s, 2-3 runs,
+load 2.5-4.5; the bundled part at resolution 512, 1.5 M triangles with large
+grid-aligned flat regions / a ball at 512, 1.7 M; both take the grid): prepare 0.05 /
+0.06, order 0.09 / 0.11 (the face extents read back to choose the search: 0.02 of it),
+degenerate flags and face codes 0.04 / 0.04, umbrellas 0.10 / 0.11, boxes 0.02, cells
+0.035, the walk 0.47 / 0.42: 0.80 / 0.78 in all, against 1.15 / 1.29 with the group
+tree in the same runs (its walk 0.86 / 0.88). Each face meets about 10 (part) / 20
+(ball: faces smaller than the largest) faces of its cell and its 13 upper neighbours,
+against 46 face-face box tests a face in the tree walk. Screen alone (the exact test
+replaced by a constant, the second face's points still loaded): 0.21 / 0.30 of the walk,
+so the exact tests are about 0.26 / 0.12: the pairs that share no vertex, 2.2 / 1.3 a
+face (3.3 M / 2.2 M), about half of the part's coplanar (its flat regions). Every vertex
+of both is certified: the 6.0 candidates a face that share a vertex skip the exact test
+(the certificate costs 0.10 s and saved 0.5 s of the tree walk). Grid variants measured:
+face s reloaded for each neighbour cell (the cell loop outside) 0.63 against 0.47; the
+float64 boxes compared before the predicate (exact, the same pairs) 1.09 / 1.3 of the
+walk; the grid on an adaptive surface (the part adaptive at 256, 92 k faces, largest
+side 4.5 x the mean) 0.136 CPU s against the tree's 0.067, hence ``_GRID_SPREAD``.
+Estimated in numpy on the part (box tests a face): cells of one face side with each face
+in every cell it meets, 15.5, but 4.2 entries a face to sort; lower-corner cells, taken,
+10.4 at 1x the largest side, 16.8 at 1.25x, 43 at 2x. Not met: the check at half the
+meshing's CPU time; left are the exact tests (a third of the part's check), the screen,
+and the stages before the walk (0.33 s together, each already one or two launches).
+Tried on the tree walk and not kept (same-run ratios 0.99-1.10): the plane sides of the
+second face taken first and passed to the predicate; the predicate's plane-side exits in
+a function of their own; one call site of the predicate; both normals passed in or read
+from per-face arrays; a shortcut to the 2D tests for faces of one grid plane;
+branch-free signs and box tests; half-group boxes; -O3; groups of 8 or 32; vertices
+renumbered in the faces' order; the sharing pairs skipped before the box test (1.07);
+certificate variants (the dominant normal axis only: 304 of the part's 752,262 vertices
+left uncertified, and slower). :func:`_all_pairs`, every pair with the same predicate
+and no candidate search, is the tests' reference; a meet is confirmed by the faces'
+exact float64 boxes (``confirmed_pair_intersects``: a face collinear to within rounding
+but not flagged degenerate "touches" faces far from it by ties alone), so the two agree
+whatever pairs a search offers.
 
 Warp's CPU backend runs a launch on one thread, so on the CPU launches are split into
 ranges of groups (``_CHUNKS`` per worker, dealt round-robin) run from Python threads
@@ -255,9 +255,10 @@ def profile_self_intersections(points, triangles, *, device: str = "cpu", worker
     device synchronised after each stage and the clocks read there.
 
     Stages: ``prepare`` (validation, scaling, upload, float32 BVH coordinates), ``order``
-    (Morton codes, radix sort, gather), ``degenerate`` (the faces' flags and codes),
-    ``umbrellas`` (the umbrella certificate), ``boxes`` (face and group boxes),
-    ``tree`` (the group tree's build), ``count walk`` (the walk with every exact test), ``scan``, and
+    (the choice of search, Morton keys, radix sort, gather), ``degenerate`` (the faces'
+    flags and codes), ``umbrellas`` (the umbrella certificate), ``boxes`` (face boxes, and
+    group boxes for the tree), ``cells`` (the grid's cell table) or ``tree`` (the group
+    tree's build), ``count walk`` (the walk with every exact test), ``scan``, and
     when there are pairs ``write walk`` and ``sort pairs``. The synchronisations cost a
     little: the stages add up to slightly more than an unprofiled call.
 
@@ -283,7 +284,7 @@ def profile_self_intersections(points, triangles, *, device: str = "cpu", worker
     >>> square = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
     >>> prof = profile_self_intersections(square, [[0, 1, 2], [0, 2, 3]])
     >>> list(prof["cpu"]), prof["pairs"]
-    (['prepare', 'order', 'degenerate', 'umbrellas', 'boxes', 'tree', 'count walk', 'scan'], 0)
+    (['prepare', 'order', 'degenerate', 'umbrellas', 'boxes', 'cells', 'count walk', 'scan'], 0)
     """
     cpu: dict[str, float] = {}
     wall: dict[str, float] = {}
