@@ -275,15 +275,50 @@ def scatter_values_kernel(
 
 # -- a window: only some nodes are sampled (a brick's core and the node planes its seams read) ------
 @wp.func
-def in_window(g: wp.vec3i, boxes: wp.array(dtype=wp.vec3i)):
-    """Whether node g lies in one of the boxes (rows 2 m and 2 m + 1: inclusive low and high
-    node of box m)."""
+def owned_range(c: int, nb: int, n: int):
+    """The nodes ``first, last`` (inclusive) that the block at c owns on one axis (the last
+    block also owns the grid's far face)."""
+    last = c * _BLOCK + _BLOCK - 1
+    if c == nb - 1:
+        last = n - 1
+    return c * _BLOCK, last
+
+
+@wp.func
+def window_full(c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i, boxes: wp.array(dtype=wp.vec3i)):
+    """Whether the block at c meshes part of the window's first box (the cells it emits): it
+    owns a node of it (an edge of its cells) or has a cell with all its corners in it. Such a
+    block reads its own copies of its nodes' neighbours: it samples every copy in the window."""
+    lo = boxes[0]
+    hi = boxes[1]
+    owns = int(1)
+    cell = int(1)
+    for a in range(3):
+        first, last = owned_range(c[a], nb[a], n[a])
+        if hi[a] < first or lo[a] > last:
+            owns = 0
+        if wp.min(c[a] * _BLOCK + _BLOCK - 1, n[a] - 2) < lo[a] or c[a] * _BLOCK > hi[a] - 1:
+            cell = 0
+    return owns == 1 or cell == 1
+
+
+@wp.func
+def window_copy(g: wp.vec3i, c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i, boxes: wp.array(dtype=wp.vec3i), full: bool):
+    """Whether the block at c samples its copy of node g: g lies in a window box (rows 2 m and
+    2 m + 1: inclusive low and high node of box m) and the block is ``full`` (``window_full``)
+    or owns g (every other block reads g from its owner, ``kernels.emit.node_inside``)."""
     r = int(0)
-    for m in range(boxes.shape[0] / 2):
-        lo = boxes[2 * m]
-        hi = boxes[2 * m + 1]
-        if g[0] >= lo[0] and g[0] <= hi[0] and g[1] >= lo[1] and g[1] <= hi[1] and g[2] >= lo[2] and g[2] <= hi[2]:
-            r = 1
+    owner = int(1)
+    for a in range(3):
+        if wp.min(g[a] / _BLOCK, nb[a] - 1) != c[a]:
+            owner = 0
+    if full or owner == 1:
+        for m in range(boxes.shape[0] / 2):
+            lo = boxes[2 * m]
+            hi = boxes[2 * m + 1]
+            if g[0] >= lo[0] and g[0] <= hi[0] and g[1] >= lo[1] and g[1] <= hi[1] and g[2] >= lo[2] \
+                    and g[2] <= hi[2]:
+                r = 1
     return r != 0
 
 
@@ -302,10 +337,7 @@ def window_blocks_kernel(
         hi = boxes[2 * m + 1]
         ok = int(1)
         for a in range(3):
-            first = c[a] * _BLOCK
-            last = first + _BLOCK - 1
-            if c[a] == nb[a] - 1:
-                last = n[a] - 1
+            first, last = owned_range(c[a], nb[a], n[a])
             if hi[a] < first or lo[a] > last:
                 ok = 0
         owns = wp.max(owns, ok)
@@ -319,21 +351,57 @@ def window_needs_kernel(
     boxes: wp.array(dtype=wp.vec3i), fill: float, needs: wp.array(dtype=wp.int8),
     values: wp.array(dtype=wp.float32), need_count: wp.array(dtype=wp.int32),
 ):
-    """One thread per slot: a node outside every window box, or beyond the grid (a last
-    block's padding), is not evaluated (``fill`` where it still was to be); recounts the
-    slot's nodes to evaluate."""
+    """One thread per slot: a node copy the block does not sample (``window_copy``), or beyond
+    the grid (a last block's padding), is not evaluated (``fill`` where it still was to be);
+    recounts the slot's nodes to evaluate."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
+    full = window_full(c, nb, n, boxes)
     count = int(0)
     for l in range(_NODES):
         if needs[s * _NODES + l] != wp.int8(0):
             g = c * _BLOCK + local_coords(l)
-            if g[0] < n[0] and g[1] < n[1] and g[2] < n[2] and in_window(g, boxes):
+            if g[0] < n[0] and g[1] < n[1] and g[2] < n[2] and window_copy(g, c, nb, n, boxes, full):
                 count += 1
             else:
                 needs[s * _NODES + l] = wp.int8(0)
                 values[s * _NODES + l] = fill
     need_count[s] = count
+
+
+@wp.kernel
+def window_fill_kernel(
+    first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
+    boxes: wp.array(dtype=wp.vec3i), values: wp.array(dtype=wp.float32),
+):
+    """One thread per slot, after sampling: every copy the block does not sample takes the
+    value of a copy it does, g clamped into the first window box that the block owns nodes
+    of (and into those nodes). A block around a node plane of one sign is then of one sign
+    everywhere, and emits nothing (``kernels.emit.count_crossings_kernel``)."""
+    s = wp.tid() + first
+    c = block_coords(slot_block[s], nb)
+    full = window_full(c, nb, n, boxes)
+    for l in range(_NODES):
+        g = c * _BLOCK + local_coords(l)
+        if g[0] >= n[0] or g[1] >= n[1] or g[2] >= n[2] or not window_copy(g, c, nb, n, boxes, full):
+            src = int(-1)
+            for m in range(boxes.shape[0] / 2):
+                if src < 0:
+                    lo = boxes[2 * m]
+                    hi = boxes[2 * m + 1]
+                    q = wp.vec3i(0, 0, 0)
+                    ok = int(1)
+                    for a in range(3):
+                        own_lo, own_hi = owned_range(c[a], nb[a], n[a])
+                        a0 = wp.max(lo[a], own_lo)
+                        a1 = wp.min(hi[a], own_hi)
+                        if a0 > a1:
+                            ok = 0
+                        q[a] = wp.clamp(g[a], a0, a1) - own_lo
+                    if ok == 1:
+                        src = local_index(q[0], q[1], q[2])
+            if src >= 0:
+                values[s * _NODES + l] = values[s * _NODES + src]
 
 
 @wp.kernel

@@ -247,6 +247,9 @@ class BlockGrid:
             self.info["evaluator"] = used
             compact = eval_values(tape, pts[:n_pts], device=dev, evaluator=used)
             self._per_slot(K.scatter_values_kernel, [needs, need_offset, compact], [self.values], ne)
+            if self.window is not None:  # the copies not sampled, from ones that are
+                self._per_slot(K.window_fill_kernel, [self.slot_block, self.wnb, self.wn, self.window],
+                               [self.values], ne)
         if self.n_slots > ne:
             self._launch(K.fill_values_kernel, (self.n_slots - ne) * K.NODES, [ne, 1.0], [self.values])
         self.info["evaluations"] = n_pts
