@@ -627,6 +627,9 @@ def test_profile_reports_every_stage_and_the_same_pairs(monkeypatch):
         assert list(prof["cpu"]) == stages and list(prof["wall"]) == stages
         assert all(v >= 0.0 for v in [*prof["cpu"].values(), *prof["wall"].values()])
         assert prof["pairs"] == len(find_self_intersections(m.vertices, m.faces)) > 0
+    monkeypatch.setattr(wmi, "_GRID_SPREAD", np.inf)
+    monkeypatch.setattr(wmi, "_GRID_CELL_SCALE", 0.3)  # faces span three cells: the grid is refused
+    assert "tree" in wmi.profile_self_intersections(m.vertices, m.faces, workers=1)["cpu"]
     assert wmi.profile_self_intersections(TRI, [[0, 1, 2]])["pairs"] == 0
     with pytest.raises(ValueError, match="'workers'"):
         wmi.profile_self_intersections(TRI, GOOD_T, workers=0)
@@ -663,7 +666,7 @@ def test_cell_grid_at_its_finest_and_at_its_edges(monkeypatch):
     rng = np.random.default_rng(23)
     centres = np.vstack([np.array(list(itertools.product([-1.0, 1.0], repeat=3))),
                          rng.uniform(-1, 1, (8, 3)), [[0.0, 0.0, 0.0], [8 / 511 - 1, 16 / 511 - 1, 0.5]]])
-    tris_pts = centres[rng.integers(0, len(centres), 700)][:, None, :] + rng.normal(0, 1.5e-3, (700, 3, 3))
+    tris_pts = centres[rng.integers(0, len(centres), 700)][:, None, :] + rng.normal(0, 1e-4, (700, 3, 3))
     pts = np.clip(tris_pts.reshape(-1, 3), -1.0, 1.0)
     tris = np.arange(len(pts)).reshape(-1, 3)
     monkeypatch.setattr(wmi, "_GRID_SPREAD", np.inf)
