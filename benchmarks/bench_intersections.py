@@ -105,6 +105,17 @@ to 0.81 (ball). The check is still above the meshing's CPU time (the target is w
 under it); what is left is the face-level box screen (about 0.5 s on the part) and the
 exact tests of the 2.2 pairs a face that share no vertex.
 
+Fifth round (2026-12-03): the cell grid as the candidate search of surfaces whose faces are
+about one size (commit 006662e; the tree stays for the others). The same commands, load
+3.3-7.3, CPU s of warpmesh with 2 workers / 1 worker / pymeshlab / meshing, warpmesh (2) /
+meshing: part 0.74 / 0.76 / 1.58 / 0.95 (0.78x), ball 0.78 / 0.76 / 2.33 / 0.76 (1.04x);
+the part at 1024 (``--repeat 2``): 3.06 / 2.99 / 6.70 / 4.13 (0.74x; 0.66x the meshing's
+wall time). Alternating the grid and the tree in one process (``workers=1``, 3 rounds,
+load 4.4-5.0, the same pairs): grid / tree CPU 0.65 (part at 512, 1.13 -> 0.74 s), 0.67
+(ball, 1.19 -> 0.80). The icospheres and the crossing icospheres (7 and 8 subdivisions)
+still agree with pymeshlab. The target, at most half the meshing's CPU time, is not met
+(see benchmarks/README.md).
+
 Tetrahedra (2026-12-03, commit 3926e0f + find_tet_overlaps, load 2.5, ``--cases part-tets
 --repeat 3``): 1,031,312 tetrahedra, find_tet_overlaps 0.50 CPU s (0.75 s wall) against the
 ``features=False`` stuffing's 0.89 CPU s (1.36 wall): 0.56x the meshing; the face sort and
