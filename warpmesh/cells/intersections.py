@@ -895,9 +895,10 @@ def _spatial_order(points32: wp.array, tris32: wp.array, device) -> tuple[wp.arr
 def _grid_cell(points32: wp.array, tris32: wp.array, device) -> float | None:
     """The cell grid's inverse cell size (BVH coordinates), or None for the group tree: the
     grid when the faces are about one size (the largest face box side at most
-    ``_GRID_SPREAD`` times the mean one: each face then meets about ten others in its cell
+    ``_GRID_SPREAD`` times the mean one: each face then meets 10-20 others in its cell
     and its 13 upper neighbours), its cell the largest side grown by a margin and the
-    padding, at least 1/``K.GRID_CELLS`` - 2 of the coordinates' range [-1, 1]."""
+    padding, and at least 2 / (``K.GRID_CELLS`` - 2) (the coordinates span [-1, 1]: at most
+    1022 cells a side)."""
     m = tris32.shape[0] // 3
     extents = wp.empty(m, dtype=wp.float32, device=device)
     wp.launch(K.face_extents_kernel, dim=m, inputs=[points32, tris32], outputs=[extents], device=device)
