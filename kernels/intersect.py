@@ -673,12 +673,15 @@ def face_box(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), 
 
 @wp.kernel
 def face_boxes_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
-                      degenerate: wp.array(dtype=wp.int32),
+                      degenerate: wp.array(dtype=wp.int32), grow: float,
                       lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3)):
-    """One thread per face position s: its float32 box; an empty box (lower corner
+    """One thread per face position s: its float32 box, the upper corner grown by ``grow``
+    (0 for the tree walk, which grows its query boxes; the grid walk compares lower
+    corners with grown upper ones, :func:`grid_walk_cell`); an empty box (lower corner
     ``EMPTY`` above the upper one) for a degenerate face, so that it meets nothing."""
     s = wp.tid()
     lo, hi = face_box(points32, tris, s)
+    hi = hi + wp.vec3(grow, grow, grow)
     if degenerate[s] != 0:
         lo = wp.vec3(EMPTY, EMPTY, EMPTY)
         hi = -lo
@@ -1264,24 +1267,26 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
                    block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
                    table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                    order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
-                   face_uppers: wp.array(dtype=wp.vec3), pad: float, certified: wp.array(dtype=wp.int8), c: int,
+                   face_uppers: wp.array(dtype=wp.vec3), certified: wp.array(dtype=wp.int8), c: int,
                    keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
     """The intersecting pairs of the faces of cell c (positions ``starts[c]`` to the next
     cell's start: the faces whose box's lower corner is in it) with the faces of the same
     cell after them and with every face of the 13 neighbouring cells (dx, dy, dz) > (0, 0,
     0) in lexicographic order. Each unordered pair of faces is met once: the pair of their
-    cells is one of these (c, c2) in exactly one order. None is missed: the cell coordinate
-    g (:func:`grid_coordinate`) is monotone, so when face b's lower corner is within face
-    a's upper corner grown by ``pad`` (as the screen below tests it), g(lo_b) <= g(hi_a +
-    pad) <= g(lo_a) + 1 (``grid_keys_kernel`` refused the grid otherwise), and the same with
-    a and b swapped: their cells are at most one apart along each axis. A pair of faces
-    then goes through the screen and tests of :func:`walk_group` (float32 boxes grown by
-    ``pad``, pairs sharing a certified vertex skipped, the exact test in float64). Returns
+    cells is one of these (c, c2) in exactly one order. The screen compares each face's
+    lower corner with the other's upper corner grown by the padding (``face_uppers``, as
+    :func:`face_boxes_kernel` grew them: the same float32 sums as ``grid_keys_kernel``'s),
+    which is symmetric in the two faces and conservative (float32 boxes of faces that meet
+    meet before any growing). None is missed: the cell coordinate g
+    (:func:`grid_coordinate`) is monotone, so lo_b <= up_a gives g(lo_b) <= g(up_a) <=
+    g(lo_a) + 1 (``grid_keys_kernel`` refused the grid otherwise), and lo_a <= up_b gives
+    g(lo_a) <= g(lo_b) + 1: the cells of two faces that pass are at most one apart along
+    each axis. A pair that passes is then skipped if it shares a certified vertex, else
+    given the exact test in float64, as in :func:`walk_group`. Returns
     how many pairs intersect; the first ``limit`` are written to ``keys[start:]`` as
     min(f, f2) m + max(f, f2) (f, f2 the input indices)."""
     m = order.shape[0]
     n_cells = cells.shape[0]
-    grow = wp.vec3(pad, pad, pad)
     a0 = starts[c]
     a1 = m
     if c + 1 < n_cells:
@@ -1298,8 +1303,8 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
             n_near += 1
     n = int(0)
     for s in range(a0, a1):
-        lo = face_lowers[s] - grow
-        hi = face_uppers[s] + grow
+        lo = face_lowers[s]
+        hi = face_uppers[s]
         loaded = bool(False)
         f = order[s]
         t = wp.mat33d()
@@ -1345,7 +1350,7 @@ def grid_count_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
                             block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
                             table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d),
                             tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
-                            face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3), pad: float,
+                            face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3),
                             certified: wp.array(dtype=wp.int8), first: int, unused: wp.array(dtype=wp.int64),
                             counts: wp.array(dtype=wp.int64)):
     """One thread per occupied cell c = first + tid: how many pairs of its faces with the
@@ -1353,7 +1358,7 @@ def grid_count_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
     writing nothing)."""
     c = wp.tid() + first
     counts[c] = wp.int64(grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, points, tris,
-                                        order, face_lowers, face_uppers, pad, certified, c, unused, wp.int64(0), 0))
+                                        order, face_lowers, face_uppers, certified, c, unused, wp.int64(0), 0))
 
 
 @wp.kernel
@@ -1361,7 +1366,7 @@ def grid_write_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
                             block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
                             table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d),
                             tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
-                            face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3), pad: float,
+                            face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3),
                             certified: wp.array(dtype=wp.int8), first: int, counts: wp.array(dtype=wp.int64),
                             offsets: wp.array(dtype=wp.int64), keys: wp.array(dtype=wp.int64)):
     """One thread per occupied cell c = first + tid with ``counts[c] > 0``: the walk of
@@ -1371,4 +1376,4 @@ def grid_write_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
     if n == wp.int64(0):
         return
     grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, points, tris, order, face_lowers,
-                   face_uppers, pad, certified, c, keys, offsets[c], int(n))
+                   face_uppers, certified, c, keys, offsets[c], int(n))

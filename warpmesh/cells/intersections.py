@@ -91,7 +91,9 @@ answer does not depend on ``workers``.
 
 The float32 tree loses no candidate: the map float64 -> float32 behind both the tree's
 boxes and the query boxes is monotone in each coordinate, so boxes that meet in float64
-meet in float32; the query boxes are grown by a few float32 ulps besides.
+meet in float32; the query boxes are grown by a few float32 ulps besides (the grid's
+faces carry upper corners grown so, and each face's lower corner is compared with the
+other's grown upper corner: symmetric, which the grid's neighbourhood argument needs).
 """
 
 from __future__ import annotations
@@ -827,12 +829,14 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     mark("umbrellas")
     face_lowers = wp.empty(m, dtype=wp.vec3, device=device)
     face_uppers = wp.empty(m, dtype=wp.vec3, device=device)
-    wp.launch(K.face_boxes_kernel, dim=m, inputs=[points32, sorted_tris, degenerate],
+    # the grid compares lower corners with upper ones grown by the padding, the tree grows its queries
+    grow = 0.0 if grid is None else _QUERY_PAD
+    wp.launch(K.face_boxes_kernel, dim=m, inputs=[points32, sorted_tris, degenerate, grow],
               outputs=[face_lowers, face_uppers], device=device)
     faces = [points64, sorted_tris, order, face_lowers, face_uppers, _QUERY_PAD, certified]
     if grid is not None:  # one thread per occupied cell (K.grid_walk_cell)
         mark("boxes")
-        walk = [*_cell_table(grid[2], inv_cell, device), *faces]
+        walk = [*_cell_table(grid[2], inv_cell, device), *faces[:5], certified]
         count_kernel, write_kernel = K.grid_count_pairs_kernel, K.grid_write_pairs_kernel
         n_threads = walk[0].shape[0]
         mark("cells")
