@@ -303,23 +303,33 @@ def window_full(c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i, boxes: wp.array(dtype=wp
 
 
 @wp.func
-def window_copy(g: wp.vec3i, c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i, boxes: wp.array(dtype=wp.vec3i), full: bool):
-    """Whether the block at c samples its copy of node g: g lies in a window box (rows 2 m and
-    2 m + 1: inclusive low and high node of box m) and the block is ``full`` (``window_full``)
-    or owns g (every other block reads g from its owner, ``kernels.emit.node_inside``)."""
-    r = int(0)
-    owner = int(1)
+def window_covers(c: wp.vec3i, n: wp.vec3i, boxes: wp.array(dtype=wp.vec3i)):
+    """Whether the window's first box holds every node copy of the block at c, with no padding
+    beyond the grid: a core block of a brick, which samples every copy (nothing to drop)."""
+    lo = boxes[0]
+    hi = boxes[1]
+    r = int(1)
     for a in range(3):
-        if wp.min(g[a] / _BLOCK, nb[a] - 1) != c[a]:
-            owner = 0
-    if full or owner == 1:
-        for m in range(boxes.shape[0] / 2):
-            lo = boxes[2 * m]
-            hi = boxes[2 * m + 1]
-            if g[0] >= lo[0] and g[0] <= hi[0] and g[1] >= lo[1] and g[1] <= hi[1] and g[2] >= lo[2] \
-                    and g[2] <= hi[2]:
-                r = 1
-    return r != 0
+        if lo[a] > c[a] * _BLOCK or hi[a] < c[a] * _BLOCK + _BLOCK or c[a] * _BLOCK + _BLOCK > n[a] - 1:
+            r = 0
+    return r == 1
+
+
+@wp.func
+def window_range(c: wp.vec3i, nb: wp.vec3i, n: wp.vec3i, boxes: wp.array(dtype=wp.vec3i), m: int, full: bool):
+    """(lo, hi) local node indices (inclusive, empty when lo > hi on an axis) of the copies in
+    box m that the block at c samples: all its copies in the box when ``full``
+    (``window_full``), else the box's nodes it owns (every other block reads them from it)."""
+    lo = wp.vec3i(0, 0, 0)
+    hi = wp.vec3i(0, 0, 0)
+    for a in range(3):
+        r0 = c[a] * _BLOCK
+        r1 = wp.min(r0 + _BLOCK, n[a] - 1)
+        if not full:
+            r0, r1 = owned_range(c[a], nb[a], n[a])
+        lo[a] = wp.max(boxes[2 * m][a], r0) - c[a] * _BLOCK
+        hi[a] = wp.min(boxes[2 * m + 1][a], r1) - c[a] * _BLOCK
+    return lo, hi
 
 
 @wp.kernel
@@ -349,59 +359,67 @@ def window_blocks_kernel(
 def window_needs_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
     boxes: wp.array(dtype=wp.vec3i), fill: float, needs: wp.array(dtype=wp.int8),
-    values: wp.array(dtype=wp.float32), need_count: wp.array(dtype=wp.int32),
+    values: wp.array(dtype=wp.float32), need_count: wp.array(dtype=wp.int32), sampled: wp.array(dtype=wp.int8),
 ):
-    """One thread per slot: a node copy the block does not sample (``window_copy``), or beyond
-    the grid (a last block's padding), is not evaluated (``fill`` where it still was to be);
-    recounts the slot's nodes to evaluate."""
+    """One thread per slot: marks the copies the block samples (``window_range`` of every box;
+    all of them, unmarked, where ``window_covers``); a copy it does not sample is not
+    evaluated (``fill`` where it still was to be); recounts the slot's nodes to evaluate."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
+    if window_covers(c, n, boxes):
+        return
     full = window_full(c, nb, n, boxes)
+    base = s * _NODES
+    for l in range(_NODES):
+        sampled[base + l] = wp.int8(0)
+    for m in range(boxes.shape[0] / 2):
+        lo, hi = window_range(c, nb, n, boxes, m, full)
+        for k in range(lo[2], hi[2] + 1):
+            for j in range(lo[1], hi[1] + 1):
+                for i in range(lo[0], hi[0] + 1):
+                    sampled[base + local_index(i, j, k)] = wp.int8(1)
     count = int(0)
     for l in range(_NODES):
-        if needs[s * _NODES + l] != wp.int8(0):
-            g = c * _BLOCK + local_coords(l)
-            if g[0] < n[0] and g[1] < n[1] and g[2] < n[2] and window_copy(g, c, nb, n, boxes, full):
+        if needs[base + l] != wp.int8(0):
+            if sampled[base + l] != wp.int8(0):
                 count += 1
             else:
-                needs[s * _NODES + l] = wp.int8(0)
-                values[s * _NODES + l] = fill
+                needs[base + l] = wp.int8(0)
+                values[base + l] = fill
     need_count[s] = count
 
 
 @wp.kernel
 def window_fill_kernel(
     first: int, slot_block: wp.array(dtype=wp.int32), nb: wp.vec3i, n: wp.vec3i,
-    boxes: wp.array(dtype=wp.vec3i), values: wp.array(dtype=wp.float32),
+    boxes: wp.array(dtype=wp.vec3i), sampled: wp.array(dtype=wp.int8), values: wp.array(dtype=wp.float32),
 ):
-    """One thread per slot, after sampling: every copy the block does not sample takes the
-    value of a copy it does, g clamped into the first window box that the block owns nodes
-    of (and into those nodes). A block around a node plane of one sign is then of one sign
-    everywhere, and emits nothing (``kernels.emit.count_crossings_kernel``)."""
+    """One thread per slot, after sampling: every copy the block does not sample
+    (``window_needs_kernel``'s marks) takes the value of one it does, the node clamped into
+    the first box the block samples copies of. A block around a node plane of one sign is
+    then of one sign everywhere, and emits nothing (``kernels.emit.count_crossings_kernel``)."""
     s = wp.tid() + first
     c = block_coords(slot_block[s], nb)
+    if window_covers(c, n, boxes):
+        return
     full = window_full(c, nb, n, boxes)
-    for l in range(_NODES):
-        g = c * _BLOCK + local_coords(l)
-        if g[0] >= n[0] or g[1] >= n[1] or g[2] >= n[2] or not window_copy(g, c, nb, n, boxes, full):
-            src = int(-1)
-            for m in range(boxes.shape[0] / 2):
-                if src < 0:
-                    lo = boxes[2 * m]
-                    hi = boxes[2 * m + 1]
-                    q = wp.vec3i(0, 0, 0)
-                    ok = int(1)
-                    for a in range(3):
-                        own_lo, own_hi = owned_range(c[a], nb[a], n[a])
-                        a0 = wp.max(lo[a], own_lo)
-                        a1 = wp.min(hi[a], own_hi)
-                        if a0 > a1:
-                            ok = 0
-                        q[a] = wp.clamp(g[a], a0, a1) - own_lo
-                    if ok == 1:
-                        src = local_index(q[0], q[1], q[2])
-            if src >= 0:
-                values[s * _NODES + l] = values[s * _NODES + src]
+    base = s * _NODES
+    src_lo = wp.vec3i(0, 0, 0)
+    src_hi = wp.vec3i(-1, -1, -1)
+    found = int(0)
+    for m in range(boxes.shape[0] / 2):
+        lo, hi = window_range(c, nb, n, boxes, m, full)
+        if found == 0 and lo[0] <= hi[0] and lo[1] <= hi[1] and lo[2] <= hi[2]:
+            src_lo = lo
+            src_hi = hi
+            found = 1
+    if found == 1:
+        for l in range(_NODES):
+            if sampled[base + l] == wp.int8(0):
+                q = local_coords(l)
+                values[base + l] = values[base + local_index(wp.clamp(q[0], src_lo[0], src_hi[0]),
+                                                             wp.clamp(q[1], src_lo[1], src_hi[1]),
+                                                             wp.clamp(q[2], src_lo[2], src_hi[2]))]
 
 
 @wp.kernel

@@ -80,9 +80,12 @@ class BlockGrid:
     def __init__(self, n_nodes, origin, h, device, node_offset=(0, 0, 0), global_nodes=None, global_origin=None,
                  window=None):
         self.n = np.asarray(n_nodes, dtype=np.int64)
-        # a window, (k, 2, 3) inclusive node boxes: only their nodes are sampled (and only blocks
-        # owning one get a slot); the other nodes hold no value of f (a brick: its core, and the
-        # node planes beyond its seams that the lonely-node test reads, see node_window)
+        # a window, (k, 2, 3) inclusive node boxes, the first one the nodes of the cells that are
+        # emitted: only blocks owning a window node get a slot; a block meshing cells of the first
+        # box samples its copies of every window node, another block only the window nodes it
+        # owns (which the others read); a copy not sampled holds a sampled one's value, not f's
+        # (a brick: its core, and the node planes beyond its seams that the lonely-node test
+        # reads, see node_window and kernels.block_grid.window_range)
         self.window = None if window is None else \
             wp.array(np.asarray(window, dtype=np.int32).reshape(-1, 3), dtype=wp.vec3i, device=device)
         # a slab of a larger grid: where its first node sits, and the whole grid's size
@@ -233,9 +236,10 @@ class BlockGrid:
                 states = wp.empty(ne * K.SUBS, dtype=wp.int32, device=dev)
                 self._per_slot(K.node_needs_kernel, [intervals], [states, self.values, needs, need_count], ne)
                 self.info["interval_evaluations"] += ne * K.SUBS
-            if self.window is not None:
+            if self.window is not None:  # which node copies each slot samples (window_needs_kernel)
+                sampled = wp.empty(n_nodes, dtype=wp.int8, device=dev)
                 self._per_slot(K.window_needs_kernel, [self.slot_block, self.wnb, self.wn, self.window, -1.0],
-                               [needs, self.values, need_count], ne)
+                               [needs, self.values, need_count, sampled], ne)
             need_offset = wp.empty_like(need_count)
             wp.utils.array_scan(need_count, need_offset, inclusive=False)
             n_pts = int(need_offset[ne - 1:].numpy()[0] + need_count[ne - 1:].numpy()[0])  # sync point
@@ -248,7 +252,7 @@ class BlockGrid:
             compact = eval_values(tape, pts[:n_pts], device=dev, evaluator=used)
             self._per_slot(K.scatter_values_kernel, [needs, need_offset, compact], [self.values], ne)
             if self.window is not None:  # the copies not sampled, from ones that are
-                self._per_slot(K.window_fill_kernel, [self.slot_block, self.wnb, self.wn, self.window],
+                self._per_slot(K.window_fill_kernel, [self.slot_block, self.wnb, self.wn, self.window, sampled],
                                [self.values], ne)
         if self.n_slots > ne:
             self._launch(K.fill_values_kernel, (self.n_slots - ne) * K.NODES, [ne, 1.0], [self.values])
