@@ -16,6 +16,7 @@ import trimesh
 
 from warpmesh.cells import intersections as wmi
 from warpmesh.cells import rays
+from warpmesh.cells.predicates import power_of_two_scaled
 from warpmesh.cells.intersections import (
     find_tet_overlaps,
     count_self_intersecting_faces,
@@ -610,7 +611,7 @@ def test_bvh_coordinates_kernel_matches_the_numpy_map():
     rng = np.random.default_rng(11)
     grid = np.stack(np.meshgrid(*[np.arange(5.0)] * 3, indexing="ij"), -1).reshape(-1, 3)
     for pts in (rng.normal(size=(5000, 3)) * 3.7 + 1.1, grid / 3.0 - 0.2, np.ones((4, 3))):
-        scaled = wmi._scaled(pts)
+        scaled = power_of_two_scaled(pts)
         got = wmi._bvh_coordinates(scaled, wp.array(scaled, dtype=wp.vec3d, device="cpu"), wp.get_device("cpu"))
         lo, hi = scaled.min(axis=0), scaled.max(axis=0)
         half = float(0.5 * (hi - lo).max()) or 1.0

@@ -108,6 +108,7 @@ from warpmesh._util.validate import check_device
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.parallel import run_parallel, usable_cores
 from warpmesh.cells.rays import ray_windings
+from warpmesh.cells.predicates import orient3d_signs, power_of_two_scaled
 from warpmesh.cells.types import points3, require_mesh
 from warpmesh.kernels import intersect as K
 
@@ -346,7 +347,7 @@ def find_degenerate_faces(points, triangles, *, device: str = "cpu") -> np.ndarr
         return np.zeros(0, dtype=INDEX_DTYPE)
     with wp.ScopedDevice(device):
         dev = wp.get_device(device)
-        points64, tris32 = _device_arrays(_scaled(pts), tris, dev)
+        points64, tris32 = _device_arrays(power_of_two_scaled(pts), tris, dev)
         flags, _ = _classify_faces(points64, tris32, dev)
         return np.flatnonzero(flags.numpy()).astype(INDEX_DTYPE)  # sync point
 
@@ -436,10 +437,10 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
       faces sharing an edge meet there) whose interiors overlap there
       (:func:`_overlapping_fans`);
     - (i, j) for a tetrahedron i inside a boundary component where (4) fails and each
-      tetrahedron j that contains its centroid as well (winding numbers by signed ray
-      crossings, solid angles where every axis ties; only components whose boxes hold
-      the point are counted: O(faces + candidate pairs), 1.5 M boundary faces in 492
-      components of pyvista's frog in about 1.5 s).
+      tetrahedron j that contains its centroid as well (winding numbers of the other
+      components by signed ray crossings, :func:`~warpmesh.cells.rays.ray_windings`:
+      candidates from 2D buckets, ties redone on another axis, solid angles where every
+      axis ties; 1.5 M boundary faces in 492 components of pyvista's frog in about 1 s).
 
     Parameters
     ----------
@@ -475,7 +476,7 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
     with wp.ScopedDevice(device):
         dev = wp.get_device(device)
-        points64, tets32 = _device_arrays(_scaled(pts), tets, dev)
+        points64, tets32 = _device_arrays(power_of_two_scaled(pts), tets, dev)
         signs = wp.empty(m, dtype=wp.int32, device=dev)
         wp.launch(K.tet_signs_kernel, dim=m, inputs=[points64, tets32], outputs=[signs], device=dev)
         signs = signs.numpy()
@@ -510,7 +511,7 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
     crossing = find_self_intersections(pts, boundary, device=device)
     pairs.append(once[crossing] // 4)
     if not any(len(p) for p in pairs):  # scaled by a power of two (exact): no triple product over- or underflows
-        scaled = _scaled(pts)
+        scaled = power_of_two_scaled(pts)
         pairs.append(_overlapping_fans(scaled, tets, boundary))
         if not len(pairs[-1]):
             pairs.append(_nested_shells(scaled, tets, boundary, once // 4))
@@ -533,39 +534,12 @@ def _tet_edge_table() -> np.ndarray:
 
 #: every edge of a tetrahedron with its other corners in positive order (:func:`_tet_edge_table`)
 _TET_EDGES = _tet_edge_table()
-#: Shewchuk's orient3d errboundA, doubled (as the kernels' O3_BOUND)
-_O3_BOUND = 2.0 * (7.0 + 56.0 * 2.0**-53) * 2.0**-53
-
-
-def _orient3d_signs(pts: np.ndarray, ia, ib, ic, id_) -> np.ndarray:
-    """Exact signs of O(a, b, c, d) for the points of indices ia, ib, ic, id_ (arrays (k,)) of
-    scaled points ``pts`` (:func:`_scaled`: no product over- or underflows past the floor):
-    float64 with Shewchuk's static bound, then the rows within it in Python integers, the
-    points they use written over one power-of-two denominator (the largest of theirs)."""
-    a = pts[ia]
-    u, v, w = pts[ib] - a, pts[ic] - a, pts[id_] - a
-    det = np.einsum("ij,ij->i", u, np.cross(v, w))
-    perm = np.einsum("ij,ij->i", np.abs(u), np.abs(v[:, [1, 2, 0]] * w[:, [2, 0, 1]])
-                     + np.abs(v[:, [2, 0, 1]] * w[:, [1, 2, 0]]))
-    sure = np.abs(det) > _O3_BOUND * perm + 1e-290
-    out = np.where(sure, np.sign(det), 0.0).astype(np.int64)
-    tie = np.flatnonzero(~sure)
-    if len(tie):
-        used, inverse = np.unique(np.concatenate([x[tie] for x in (ia, ib, ic, id_)]), return_inverse=True)
-        ratios = [y.as_integer_ratio() for y in pts[used].ravel().tolist()]
-        den = max(d for _, d in ratios)  # powers of two: each divides the largest
-        exact = np.array([n * (den // d) for n, d in ratios], dtype=object).reshape(-1, 3)
-        ea, eb, ec, ed = (exact[k] for k in inverse.reshape(4, -1))
-        u, v, w = eb - ea, ec - ea, ed - ea
-        det = (u[:, 0] * (v[:, 1] * w[:, 2] - v[:, 2] * w[:, 1]) + u[:, 1] * (v[:, 2] * w[:, 0] - v[:, 0] * w[:, 2])
-               + u[:, 2] * (v[:, 0] * w[:, 1] - v[:, 1] * w[:, 0]))
-        out[tie] = (det > 0).astype(np.int64) - (det < 0).astype(np.int64)
-    return out
 
 
 def _overlapping_fans(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray) -> np.ndarray:
     """The pairs of tetrahedra whose interiors overlap around a boundary edge in more than
-    two boundary faces (``pts`` scaled, :func:`_scaled`; ``tets`` positive).
+    two boundary faces (``pts`` scaled by
+    :func:`~warpmesh.cells.predicates.power_of_two_scaled`; ``tets`` positive).
 
     There boundary sheets meet along an edge of both: the triangle check does not see them
     cross (faces sharing an edge only meet there unless folded flat), and condition (4)
@@ -615,7 +589,7 @@ def _overlapping_fans(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray) -
     one, two = np.concatenate(one), np.concatenate(two)
     a, b, c1, d1 = (quad[one, k] for k in range(4))
     c2, d2 = quad[two, 2], quad[two, 3]
-    x, y, z, w = (_orient3d_signs(pts, a, b, p, q) for p, q in ((c1, c2), (c1, d2), (d1, c2), (d1, d2)))
+    x, y, z, w = (orient3d_signs(pts, a, b, p, q) for p, q in ((c1, c2), (c1, d2), (d1, c2), (d1, d2)))
     hit = (((x > 0) & (z < 0)) | ((y > 0) & (w < 0)) | ((x < 0) & (y > 0)) | ((z < 0) & (w > 0))
            | ((x == 0) & (w == 0) & (z < 0) & (y > 0)))
     return np.column_stack([near[t_id[one[hit]]], near[t_id[two[hit]]]]).astype(INDEX_DTYPE)
@@ -628,8 +602,9 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
     components' winding number at a point q_c of c, :func:`~warpmesh.cells.rays.ray_windings`) must be 1;
     where it is not, the pairs of tetrahedra containing the centroid of one of its
     tetrahedra. The components do not touch (condition 3), so the others' winding number is
-    the same at q_c as just inside c. ``pts`` must be scaled (:func:`_scaled`): the signed
-    volumes, ray signs and solid angles are products of up to three coordinates."""
+    the same at q_c as just inside c. ``pts`` must be scaled
+    (:func:`~warpmesh.cells.predicates.power_of_two_scaled`): the signed volumes, ray
+    signs and solid angles are products of up to three coordinates."""
     from warpmesh.cells.topology import connected_components
 
     if not len(boundary):
@@ -767,7 +742,7 @@ def _all_pairs(points, triangles, *, device: str = "cpu", certify: bool = True) 
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
     with wp.ScopedDevice(device):
         dev = wp.get_device(device)
-        points64, tris32 = _device_arrays(_scaled(pts), tris, dev)
+        points64, tris32 = _device_arrays(power_of_two_scaled(pts), tris, dev)
         degenerate, codes = _classify_faces(points64, tris32, dev)
         certified = _umbrella_flags(codes, tris32, len(pts), dev, certify)
         hits = wp.zeros((m, m), dtype=wp.int8, device=dev)
@@ -798,7 +773,7 @@ def _certified_vertices(points, triangles, *, device: str = "cpu") -> np.ndarray
         return out
     with wp.ScopedDevice(device):
         dev = wp.get_device(device)
-        points64, tris32 = _device_arrays(_scaled(pts), tris, dev)
+        points64, tris32 = _device_arrays(power_of_two_scaled(pts), tris, dev)
         _, codes = _classify_faces(points64, tris32, dev)
         corners = _umbrella_flags(codes, tris32, len(pts), dev).numpy()  # sync point
     out[tris.ravel()] = corners.astype(bool)
@@ -815,7 +790,7 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
         def mark(stage):
             return None
     m = len(tris)
-    scaled = _scaled(pts)
+    scaled = power_of_two_scaled(pts)
     points64, tris32 = _device_arrays(scaled, tris, device)
     points32 = _bvh_coordinates(scaled, points64, device)
     mark("prepare")
@@ -978,13 +953,6 @@ def _group_tree(lowers: wp.array, uppers: wp.array, device) -> tuple[wp.array, w
         wp.launch(K.tree_level_kernel, dim=level, inputs=[level], outputs=[tree_lowers, tree_uppers], device=device)
         level //= 2
     return tree_lowers, tree_uppers, depth
-
-
-def _scaled(pts: np.ndarray) -> np.ndarray:
-    """Points scaled by a power of two (exact) so that max |x| is in [0.5, 1): no product
-    of the predicates over- or underflows, and the BVH map below cannot overflow."""
-    big = float(np.abs(pts).max()) if pts.size else 0.0
-    return np.ldexp(pts, -np.frexp(big)[1]) if big > 0.0 else pts
 
 
 def _device_arrays(scaled: np.ndarray, tris: np.ndarray, device) -> tuple[wp.array, wp.array]:
