@@ -1004,6 +1004,30 @@ def shares_certified(cv: wp.vec3i, j0: int, j1: int, j2: int) -> bool:
     return hit
 
 
+@wp.func
+def test_candidate(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                   t: wp.mat33d, it: wp.vec3i, nt: wp.vec3d, na: wp.vec3d, f: int, cv: wp.vec3i, s2: int,
+                   keys: wp.array(dtype=wp.int64), start: wp.int64, n: int, limit: int, m: int) -> int:
+    """The exact test of face f (its points t, indices it, normal nt and |u| x |v| na, its
+    certified indices cv) against the face at sorted position s2, whose box meets its own:
+    skipped when they share a certified vertex (they then meet only where they share);
+    when they intersect, the pair's key min(f, f2) m + max(f, f2) written at
+    ``keys[start + n]`` if n < ``limit``. Returns n plus one per intersecting pair (the
+    walks' count and write passes both call it)."""
+    j0 = tris[3 * s2]
+    j1 = tris[3 * s2 + 1]
+    j2 = tris[3 * s2 + 2]
+    if shares_certified(cv, j0, j1, j2):
+        return n
+    f2 = order[s2]
+    t2 = wp.matrix_from_rows(points[j0], points[j1], points[j2])
+    if not ordered_pair_intersects(t, it, nt, na, f, t2, wp.vec3i(j0, j1, j2), f2):
+        return n
+    if n < limit:
+        keys[start + wp.int64(n)] = wp.int64(wp.min(f, f2)) * wp.int64(m) + wp.int64(wp.max(f, f2))
+    return n + 1
+
+
 #: the positions of the faces of one group that meet a query box, in order (:func:`walk_group`)
 group_slots = wp.types.vector(length=GROUP, dtype=wp.int32)
 
@@ -1071,20 +1095,8 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
                         for k in range(k0, c):
                             s2 = slots[k]
                             if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
-                                j0 = tris[3 * s2]
-                                j1 = tris[3 * s2 + 1]
-                                j2 = tris[3 * s2 + 2]
-                                if shares_certified(cv, j0, j1, j2):
-                                    continue  # a certified umbrella holds both: they meet only where they share
-                                f2 = order[s2]
-                                t2 = wp.matrix_from_rows(points[j0], points[j1], points[j2])
-                                it2 = wp.vec3i(j0, j1, j2)
-                                if ordered_pair_intersects(t, it, nt, na, f, t2, it2, f2):
-                                    if n < limit:
-                                        lo_f = wp.int64(wp.min(f, f2))
-                                        hi_f = wp.int64(wp.max(f, f2))
-                                        keys[start + wp.int64(n)] = lo_f * wp.int64(m) + hi_f
-                                    n += 1
+                                n = test_candidate(points, tris, order, t, it, nt, na, f, cv, s2, keys, start, n,
+                                                   limit, m)
         h, node, shift = tree_next(tree_lowers, tree_uppers, depth, gl, gh, g, node, shift)
     return n
 
@@ -1330,18 +1342,7 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
                         v = t[2] - t[0]
                         nt = wp.cross(u, v)
                         na = _abs_cross(u, v)
-                    j0 = tris[3 * s2]
-                    j1 = tris[3 * s2 + 1]
-                    j2 = tris[3 * s2 + 2]
-                    if shares_certified(cv, j0, j1, j2):
-                        continue  # a certified umbrella holds both: they meet only where they share
-                    f2 = order[s2]
-                    t2 = wp.matrix_from_rows(points[j0], points[j1], points[j2])
-                    if ordered_pair_intersects(t, it, nt, na, f, t2, wp.vec3i(j0, j1, j2), f2):
-                        if n < limit:
-                            keys[start + wp.int64(n)] = (wp.int64(wp.min(f, f2)) * wp.int64(m)
-                                                         + wp.int64(wp.max(f, f2)))
-                        n += 1
+                    n = test_candidate(points, tris, order, t, it, nt, na, f, cv, s2, keys, start, n, limit, m)
     return n
 
 
