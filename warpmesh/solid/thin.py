@@ -21,6 +21,9 @@ it and the refinement may split that face, then lies in the rest, where cleaving
 nothing (a face whose three nodes are of the rest stays whole, and its sub-tetrahedron is
 dropped): this is checked, and a violation raises :class:`~warpmesh.errors.WarpMeshError`.
 
+Specks (small components, :class:`Specks`): the lattice is asked a size over their voxels,
+whatever its edges resolve (the regions module says why and how fine).
+
 What it does not see: a region that no background edge passes through (a speck of a voxel or
 two inside one tetrahedron, away from its edges) is not found; one that needs edges below
 ``min_size`` keeps the uniform lattice's losses there; and edges that resolve the labels do
@@ -52,7 +55,7 @@ from warpmesh.errors import WarpMeshError
 from warpmesh.solid.graded import EDGE_KEY, SizeField, refine_tets, tet_edges
 from warpmesh.solid.lattice import lattice_tables, node_coordinates
 
-__all__ = ["MARGIN", "MIN_RUN", "graded_background", "unresolved_edges"]
+__all__ = ["MARGIN", "MIN_RUN", "Specks", "graded_background", "speck_voxels", "unresolved_edges"]
 
 #: cubes of the BCC lattice kept around the meshed voxels
 MARGIN = 2
@@ -117,9 +120,9 @@ class _Resolution:
     search of the edges seen is needed. Only the unresolved edges are remembered (sorted keys,
     and a flag on their ends so that most edges are cleared without a search)."""
 
-    def __init__(self, labels_at, spacing, h: float, min_size: float, per_voxel: int, focus):
+    def __init__(self, labels_at, spacing, h: float, min_size: float, per_voxel: int, focus, specks=None):
         self.labels_at, self.spacing, self.h, self.min_size = labels_at, spacing, h, min_size
-        self.per_voxel, self.focus = per_voxel, focus
+        self.per_voxel, self.focus, self.specks = per_voxel, focus, specks
         self.known = 0  # nodes seen at the previous call: an edge with an end at or past it is new
         self.bad_keys = np.zeros(0, np.int64)  # sorted keys of the unresolved edges
         self.bad_node = np.zeros(0, bool)  # True on an end of an unresolved edge
@@ -146,7 +149,139 @@ class _Resolution:
             k = keys[cand]
             pos = np.minimum(np.searchsorted(self.bad_keys, k), len(self.bad_keys) - 1)
             unresolved[cand] = (self.bad_keys[pos] == k).any(axis=1)
-        return np.where(unresolved, self.min_size, self.h)
+        size = np.where(unresolved, self.min_size, self.h)
+        if self.specks is not None:
+            np.minimum(size, self.specks.size_of(nodes, tets), out=size)
+        return size
+
+
+class Specks:
+    """The voxels of the small components of some regions (specks), and the size the lattice
+    is asked to have over them: ``size_of(nodes, tets)`` is that size for a tetrahedron whose
+    bounding box meets a speck's voxel, ``inf`` elsewhere.
+
+    The test is exact at voxel granularity for small tetrahedra and conservative for large
+    ones: a tetrahedron whose bounding box spans at most 2^k voxels along every axis is tested
+    against the blocks of 2^k voxels holding a speck voxel (8 look-ups in sorted keys), so a
+    large tetrahedron is refined when it is within its own size of a speck, and its children are
+    tested again; a coarse dense mask of blocks first leaves out the tetrahedra nowhere near.
+
+    Parameters
+    ----------
+    voxels : (m, 3) int, the speck voxels' indices
+    sizes : (m,) float, the size asked over each (world units)
+    shape : (3,) the volume's shape
+    spacing : (3,) float
+    largest : float, the longest edge a tetrahedron asked may have (world units)
+    """
+
+    def __init__(self, voxels: np.ndarray, sizes: np.ndarray, shape, spacing: np.ndarray, largest: float):
+        self.shape = np.asarray(shape, np.int64)
+        self.spacing = np.asarray(spacing, np.float64)
+        voxels = np.asarray(voxels, np.int64).reshape(-1, 3)
+        sizes = np.asarray(sizes, np.float64)
+        self.levels = sorted(set(sizes.tolist()))  # a few distinct sizes
+        span = max(1.0, float(largest) / float(self.spacing.min()))
+        self.top = int(np.ceil(np.log2(span))) + 1  # block 2^top voxels >= any bounding box
+        self.keys = {}  # (size, k) -> sorted block keys of the voxels asking that size or less
+        for size in self.levels:
+            v = voxels[sizes <= size]
+            for k in range(self.top + 1):
+                self.keys[size, k] = sorted_unique(self._key(v >> k, k))
+        b = voxels >> self.top
+        coarse = np.zeros(tuple((self.shape >> self.top) + 3), bool)  # one block of margin each side
+        for d in np.ndindex(3, 3, 3):
+            coarse[tuple((b + np.array(d)).T)] = True  # dilated by one block
+        self.coarse = coarse
+
+    def _key(self, cells: np.ndarray, k: int) -> np.ndarray:
+        n = (self.shape >> k) + 1
+        return cells[:, 0] + n[0] * (cells[:, 1] + n[1] * cells[:, 2])
+
+    def size_of(self, nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
+        """(k,) the size asked of each tetrahedron (``inf`` where no speck is near)."""
+        out = np.full(len(tets), np.inf)
+        if not len(tets) or not self.levels:
+            return out
+        p = nodes[tets] / self.spacing  # voxel units: voxel i covers [i - 1/2, i + 1/2)
+        lo = np.floor(p.min(axis=1) + 0.5).astype(np.int64)
+        hi = np.floor(p.max(axis=1) + 0.5).astype(np.int64)
+        inside = np.all((hi >= 0) & (lo < self.shape), axis=1)
+        lo, hi = np.maximum(lo, 0), np.minimum(hi, self.shape - 1)
+        centre = (lo + hi) >> 1
+        cand = np.flatnonzero(inside)
+        cand = cand[self.coarse[tuple(((centre[cand] >> self.top) + 1).T)]]
+        if not len(cand):
+            return out
+        lo, hi = lo[cand], hi[cand]
+        span = (hi - lo).max(axis=1)
+        k = np.ceil(np.log2(np.maximum(span, 1))).astype(np.int64)
+        got = np.full(len(cand), np.inf)
+        for kk in np.unique(k):
+            r = np.flatnonzero(k == kk)
+            a, b = lo[r] >> kk, hi[r] >> kk
+            corners = [self._key(np.where(np.array(c, bool), b, a), int(kk)) for c in np.ndindex(2, 2, 2)]
+            for size in reversed(self.levels):  # the largest first: the smallest hit wins
+                keys = self.keys[size, int(kk)]
+                if not len(keys):
+                    continue
+                hit = np.zeros(len(r), bool)
+                for key in corners:
+                    pos = np.minimum(np.searchsorted(keys, key), len(keys) - 1)
+                    hit |= keys[pos] == key
+                got[r[hit]] = size
+        out[cand] = got
+        return out
+
+
+def speck_voxels(codes: np.ndarray, focus: np.ndarray, spacing: np.ndarray, most: float):
+    """The voxels of the connected components (26-connected) of the codes in ``focus`` whose
+    volume is at most ``most`` (world units): (m, 3) int64 indices, (m,) float64 the thickness
+    of each one's component (2 volume / area of its voxels' boundary, world units: 1/3 of a
+    voxel's side for a lone voxel of a cube, 1 for a layer 2 voxels thick), and the codes whose
+    every component is that small (a list).
+
+    Example
+    -------
+    >>> vol = np.ones((6, 6, 6), np.uint8)
+    >>> vol[1, 1, 1] = 2
+    >>> vol[3:5, 3:5, 3:5] = 2
+    >>> focus = np.array([False, False, True])
+    >>> voxels, thickness, whole = speck_voxels(vol, focus, np.ones(3), 8.0)
+    >>> len(voxels), sorted(set(np.round(thickness, 2).tolist())), whole
+    (9, [0.33, 0.67], [2])
+    """
+    from scipy.ndimage import find_objects, label
+
+    voxel = float(np.prod(spacing))
+    found, count, all_small = [np.zeros((0, 3), np.int64)], [np.zeros(0)], []
+    boxes = find_objects(codes)
+    for c in np.flatnonzero(focus):
+        box = boxes[c - 1] if 0 < c <= len(boxes) else tuple(slice(0, n) for n in codes.shape)
+        if box is None:
+            continue
+        comp, n = label(codes[box] == c, structure=np.ones((3, 3, 3), bool))
+        if not n:
+            continue
+        sizes = np.bincount(comp.ravel())
+        small = (sizes * voxel <= most)
+        small[0] = False
+        if not small.any():
+            continue
+        if small[1:].all():
+            all_small.append(int(c))
+        ijk = np.argwhere(small[comp])
+        found.append(ijk + np.array([b.start for b in box]))
+        area = np.zeros(n + 1)
+        padded = np.pad(comp, 1)
+        for a in range(3):  # the faces between a component's voxel and any other voxel, per component
+            lo = padded[tuple(slice(0, -1) if k == a else slice(None) for k in range(3))]
+            hi = padded[tuple(slice(1, None) if k == a else slice(None) for k in range(3))]
+            diff = lo != hi
+            face = voxel / float(spacing[a])
+            area += face * (np.bincount(lo[diff], minlength=n + 1) + np.bincount(hi[diff], minlength=n + 1))
+        count.append((2.0 * sizes * voxel / np.maximum(area, 1e-300))[comp[tuple(ijk.T)]])
+    return np.concatenate(found), np.concatenate(count), all_small
 
 
 def _meshed_cells(codes: np.ndarray, rest: int, spacing: np.ndarray, dims: np.ndarray, origin: np.ndarray,
@@ -168,7 +303,7 @@ def _meshed_cells(codes: np.ndarray, rest: int, spacing: np.ndarray, dims: np.nd
 
 
 def graded_background(codes: np.ndarray, rest: int, spacing, dims: np.ndarray, origin: np.ndarray, h: float,
-                      min_size: float, labels_at, per_voxel: int = 4, focus=None):
+                      min_size: float, labels_at, per_voxel: int = 4, focus=None, specks=None):
     """The BCC lattice near the meshed voxels, refined where its edges do not resolve the labels.
 
     Parameters
@@ -208,8 +343,9 @@ def graded_background(codes: np.ndarray, rest: int, spacing, dims: np.ndarray, o
     cell = used // 2
     ijk = np.stack([cell % dims[0], (cell // dims[0]) % dims[1], cell // (dims[0] * dims[1])], axis=1)
     coords = node_coordinates((used % 2)[:, None], ijk).astype(np.float64)  # half-cube units
-    resolution = _Resolution(labels_at, spacing, h, min_size, per_voxel, focus)
-    field = SizeField(lambda p: np.full(len(p), h), min_size, h)  # (names the smallest size in errors)
+    resolution = _Resolution(labels_at, spacing, h, min_size, per_voxel, focus, specks)
+    smallest = min([min_size] + (list(specks.levels) if specks is not None else []))
+    field = SizeField(lambda p: np.full(len(p), h), smallest, h)  # (names the smallest size in errors)
     try:
         coords, tets, levels = refine_tets(coords, tets, h, origin, field, tet_size=resolution)
     except ValueError as exc:  # the background's size limit
