@@ -24,6 +24,11 @@ Cases:
             after it run on the client's gathered mesh as in one process): one process,
             then ``mesh_domain(..., client=...)`` on 2 workers, bricks of
             ``--domain-brick-cells`` black nodes (default 32), gathered.
+``serial``  the bricks' own work: every meshed brick's task of a gathered run of the part at
+            ``--pin-resolutions`` in bricks of ``--pin-brick-cells``, one after the other in one
+            process pinned to core 0 (no cluster), then one process's mesh on the same core;
+            their CPU, evaluations and active blocks (what the halos cost, without Dask or
+            contention between workers). ``--rounds`` rounds, medians.
 ``pinned``  one core per process (this machine's one process already uses both cores, so "2
             workers against one process" cannot show scaling here): one process pinned to core 0
             (``os.sched_setaffinity``, warpmesh's launches on one thread, one thread for the
@@ -63,6 +68,7 @@ Run:  python benchmarks/bench_distributed.py [--resolution 1024] [--brick-cells 
                                              [--pin-domain-sizes 0.03,0.015] [--rounds 3]
                                              [--json out.json]
       python benchmarks/bench_distributed.py --cases pinned   (one core per process)
+      python benchmarks/bench_distributed.py --cases serial --pin-resolutions 1024   (the bricks' own work)
 """
 
 from __future__ import annotations
@@ -347,9 +353,59 @@ def main() -> None:
         pinned(doc, [int(v) for v in args.pin_resolutions.split(",") if v],
                [int(v) for v in args.pin_brick_cells.split(",") if v],
                [float(v) for v in args.pin_domain_sizes.split(",") if v], args.domain_brick_cells, args.rounds, ev)
+    if "serial" in cases:
+        serial(doc, [int(v) for v in args.pin_resolutions.split(",") if v],
+               [int(v) for v in args.pin_brick_cells.split(",") if v], args.rounds, ev)
     if "part" in cases:
         model(doc, R, B)
     finish(t_start, load0, args.json, doc)
+
+
+# -- the bricks' own work (--cases serial) -----------------------------------------------------------
+def _serial_round(R: int, B: int, ev: str) -> dict:
+    """In a fresh process pinned to core 0: every meshed brick's task of a gathered run, one after
+    the other in this process (no cluster: the bricks' work alone), then one process's mesh."""
+    code = (
+        "import json, os, sys, time; os.sched_setaffinity(0, {0})\n"
+        "import warpmesh as wm\n"
+        "from warpmesh.distributed.run import _ShapeJob\n"
+        "from warpmesh.surface.options import GridOptions\n"
+        f"R, B, ev = {R}, {B}, {ev!r}\n"
+        "part, bounds = wm.example('part')\n"
+        "wm.mesh_surface(part, bounds=bounds, resolution=64, evaluator=ev)\n"
+        "job = _ShapeJob(part, GridOptions(bounds=bounds, resolution=R, evaluator=ev), 'cpu', None, B)\n"
+        "todo = job.bricks_to_mesh(); t0 = time.process_time(); ev_n = blocks = 0\n"
+        "for b in todo:\n"
+        "    r = job.task(b, None, True); ev_n += r.info['evaluations']; blocks += r.info['active_blocks']\n"
+        "cpu = time.process_time() - t0; t0 = time.process_time()\n"
+        "one = wm.mesh_surface(part, bounds=bounds, resolution=R, evaluator=ev)\n"
+        "print(json.dumps(dict(bricks=len(todo), bricks_cpu=cpu, one_cpu=time.process_time() - t0, "
+        "evaluations=ev_n, one_evaluations=one.info['evaluations'], active_blocks=blocks, "
+        "one_active_blocks=one.info['active_blocks'])))\n")
+    env = dict(os.environ, **{k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")})
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def serial(doc: dict, resolutions: list[int], brick_cells: list[int], rounds: int, ev: str) -> None:
+    """The bricks' CPU against one process's, both on one core in one process (no Dask): what the
+    halos and the per-brick work cost, without the cluster's contention."""
+    print("\n(h) the bricks' work: every meshed brick's task of a gathered run, serial in one process "
+          "pinned to core 0, then one process's mesh on the same core; medians of the rounds")
+    doc["serial"] = {}
+    for R in resolutions:
+        for B in brick_cells:
+            rows = [_serial_round(R, B, ev) for _ in range(rounds)]
+            med = {k: float(np.median([r[k] for r in rows])) for k in ("bricks_cpu", "one_cpu")}
+            r0 = rows[0]
+            per_round = ", ".join(f"{r['bricks_cpu'] / r['one_cpu']:.2f}" for r in rows)
+            print(f"  part {R}^3, bricks of {B}^3 ({r0['bricks']} meshed): bricks {med['bricks_cpu']:.2f} CPU s, "
+                  f"one process {med['one_cpu']:.2f} CPU s ({med['bricks_cpu'] / med['one_cpu']:.2f}x; per round "
+                  f"{per_round}); evaluations "
+                  f"{r0['evaluations']:,} against {r0['one_evaluations']:,} "
+                  f"({r0['evaluations'] / r0['one_evaluations']:.2f}x), active blocks {r0['active_blocks']:,} "
+                  f"against {r0['one_active_blocks']:,}")
+            doc["serial"][f"part {R}^3, bricks {B}^3"] = {"rounds": rows, **med}
 
 
 def domain(doc: dict, size: float, brick_cells: int, ev: str) -> None:
