@@ -1005,6 +1005,17 @@ def shares_certified(cv: wp.vec3i, j0: int, j1: int, j2: int) -> bool:
 
 
 @wp.func
+def load_query(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), certified: wp.array(dtype=wp.int8),
+               s: int):
+    """Face s (sorted position) as the first face of :func:`test_candidate`: its points, indices,
+    certified indices, normal and |u| x |v|."""
+    t, it = load_triangle(points, tris, s)
+    u = t[1] - t[0]
+    v = t[2] - t[0]
+    return t, it, certified_indices(certified, s, it), wp.cross(u, v), _abs_cross(u, v)
+
+
+@wp.func
 def test_candidate(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
                    t: wp.mat33d, it: wp.vec3i, nt: wp.vec3d, na: wp.vec3d, f: int, cv: wp.vec3i, s2: int,
                    keys: wp.array(dtype=wp.int64), start: wp.int64, n: int, limit: int, m: int) -> int:
@@ -1086,12 +1097,7 @@ def walk_group(tree_lowers: wp.array(dtype=wp.vec3), tree_uppers: wp.array(dtype
                         f = order[s]
                         # face s loaded here, not at its first candidate: no zeroed placeholders
                         # and no flag (4-5 % of the walk on the part and the ball at 512)
-                        t, it = load_triangle(points, tris, s)
-                        cv = certified_indices(certified, s, it)
-                        u = t[1] - t[0]
-                        v = t[2] - t[0]
-                        nt = wp.cross(u, v)
-                        na = _abs_cross(u, v)
+                        t, it, cv, nt, na = load_query(points, tris, certified, s)
                         for k in range(k0, c):
                             s2 = slots[k]
                             if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
@@ -1336,12 +1342,7 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
                 if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
                     if not loaded:  # face s loaded at its first candidate
                         loaded = True
-                        t, it = load_triangle(points, tris, s)
-                        cv = certified_indices(certified, s, it)
-                        u = t[1] - t[0]
-                        v = t[2] - t[0]
-                        nt = wp.cross(u, v)
-                        na = _abs_cross(u, v)
+                        t, it, cv, nt, na = load_query(points, tris, certified, s)
                     n = test_candidate(points, tris, order, t, it, nt, na, f, cv, s2, keys, start, n, limit, m)
     return n
 
