@@ -173,8 +173,8 @@ SPECK_TOTAL = 16.0
 #: a speck region's interface is moved by at most this (voxels) to meet its voxel volume
 MAX_OFFSET = 0.5
 #: the false-position steps of that move, and the relative volume error they stop at
-OFFSET_STEPS = 12
-OFFSET_TOLERANCE = 0.002
+OFFSET_STEPS = 10
+OFFSET_TOLERANCE = 0.01
 #: the snapping of the cut points of a speck region's edges
 SPECK_SNAP = 0.3
 #: the lattice is shifted by this fraction of a voxel along each axis (not a dyadic fraction):
@@ -638,38 +638,46 @@ def _offset_cuts(T, L, cut_id, t, e_lo, e_hi, node_pos, node_code, snap, rest, t
                           signed_volumes(pos, np.concatenate(sub)), len(targets)) + whole
         return vol[codes] / targets[codes] - 1.0
 
-    a, b = np.full(len(codes), -MAX_OFFSET * voxel), np.full(len(codes), MAX_OFFSET * voxel)
-    ea, eb = error(a), error(b)
-    x0 = np.zeros(len(codes))
-    e0 = error(x0)
-    best, best_e = x0.copy(), e0.copy()
-    for x, e in ((a, ea), (b, eb)):
-        better = np.abs(e) < np.abs(best_e)
-        best[better], best_e[better] = x[better], e[better]
-    # bracket from the start where 0 is on one side: [a, 0] or [0, b]
-    low = e0 > 0
-    b, eb = np.where(low, x0, b), np.where(low, e0, eb)
-    a, ea = np.where(low, a, x0), np.where(low, ea, e0)
-    ok = (ea <= 0) & (eb >= 0)
+    limit = MAX_OFFSET * voxel
+    a = np.zeros(len(codes))
+    ea = error(a)
+    best, best_e = a.copy(), ea.copy()
+    b = -np.sign(ea) * 0.05 * voxel  # a first step, then secant steps until the error changes sign,
+    bracket = np.zeros(len(codes), bool)  # then false position (Illinois) inside [a, b]
     side = np.zeros(len(codes), np.int64)
-    for _ in range(OFFSET_STEPS):
-        todo = ok & (np.abs(best_e) > OFFSET_TOLERANCE)
+    eb = ea
+    for step in range(OFFSET_STEPS):
+        todo = np.abs(best_e) > OFFSET_TOLERANCE
         if not todo.any():
             break
-        den = np.where(eb != ea, eb - ea, 1.0)
-        c = np.where(eb != ea, b - eb * (b - a) / den, 0.5 * (a + b))
-        c = np.where(todo, np.clip(c, np.minimum(a, b), np.maximum(a, b)), best)
+        if step:
+            den = np.where(eb != ea, eb - ea, 1.0)
+            secant = np.where(eb != ea, b - eb * (b - a) / den, b + (b - a))
+            slope_ok = (eb - ea) * (b - a) > 0  # more distance, more volume
+            reach = 4.0 * np.abs(b - a)  # an extrapolation goes at most 4 steps
+            c = np.where(bracket, np.clip(secant, np.minimum(a, b), np.maximum(a, b)),
+                         np.where(slope_ok, b + np.clip(secant - b, -reach, reach), b + 2.0 * (b - a)))
+            c = np.where(todo, np.clip(c, -limit, limit), best)
+        else:
+            c = np.where(todo, b, best)
         ec = error(c)
         better = todo & (np.abs(ec) < np.abs(best_e))
         best[better], best_e[better] = c[better], ec[better]
-        right = todo & (ec > 0)  # the root is in [a, c]
-        left = todo & (ec <= 0)
-        # Illinois: halve the kept end's error when the same end is kept twice
-        ea = np.where(right & (side == 1), 0.5 * ea, ea)
-        eb = np.where(left & (side == -1), 0.5 * eb, eb)
-        b, eb = np.where(right, c, b), np.where(right, ec, eb)
-        a, ea = np.where(left, c, a), np.where(left, ec, ea)
-        side = np.where(right, 1, np.where(left, -1, side))
+        if not step:
+            b, eb = c, ec
+            bracket = todo & (np.sign(eb) != np.sign(ea))
+            continue
+        same = np.sign(ec) == np.sign(eb)
+        in_b = todo & bracket & same  # c replaces b; a kept (Illinois: halve ea when kept twice)
+        in_a = todo & bracket & ~same  # c replaces a; b kept
+        ea = np.where(in_b & (side == 1), 0.5 * ea, ea)
+        eb = np.where(in_a & (side == -1), 0.5 * eb, eb)
+        side = np.where(in_b, 1, np.where(in_a, -1, side))
+        free = todo & ~bracket  # not bracketed yet: the last two points
+        a, ea = np.where(free, b, np.where(in_a, c, a)), np.where(free, eb, np.where(in_a, ec, ea))
+        turned = free & ~same
+        b, eb = np.where(free | in_b, c, b), np.where(free | in_b, ec, eb)
+        bracket = bracket | turned
     d = np.zeros(len(targets))
     d[codes] = best
     return moved(d), snaps, {int(c): float(x) for c, x in zip(codes, best)}
@@ -745,6 +753,7 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
                                 np.bincount(whole_code, signed_volumes(node_pos, whole), len(targets)),
                                 float(np.min(spacing)))
         graded["speck_offsets"] = moved
+        timings["offsets"] = time.perf_counter() - t0
     cut_pos, face_pos, tet_pos, sub, sub_code, tris, lower, upper, n_snapped, n_faces = _sub_tets(
         T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings)
     t0 = time.perf_counter()
