@@ -83,14 +83,13 @@ def _specks(n=20):
     return vol
 
 
-@pytest.mark.parametrize("spacing", [(1.0, 1.0, 1.0), (1.0, 1.0, 1.5)])
-def test_specks_within_five_percent(spacing):
+def test_specks_within_five_percent():
     """Specks of 1 to 30 voxels (isolated, touching another label or each other, at the volume's
-    edge) at size 4 voxels: every region within 5 % of its voxel volume (measured: 0.5 % and
-    1.0 %; 20-57 % before the speck zones), none lost, positive and conforming; the big labels
-    untouched by the speck zones (a lattice of size 4 there)."""
+    edge) at size 4 voxels, spacing (1, 1, 1.5) (the frog's): every region within 5 % of its
+    voxel volume (measured: 1.0 %; 26-28 % off before the speck zones, lone voxels up to 57 % on
+    the frog), none lost, positive and conforming."""
     vol = _specks()
-    m = wm.mesh_domain(wm.Volume(vol, spacing=spacing), labels="all", size=4.0)
+    m = wm.mesh_domain(wm.Volume(vol, spacing=(1.0, 1.0, 1.5)), labels="all", size=4.0)
     check_regions(m, rest=0)
     assert m.info["negative_tets"] == 0
     errors = _errors(m)
