@@ -203,8 +203,10 @@ def test_bad_min_size():
 def test_frog_crop_at_four_voxels():
     """A 120 x 120 x 60 crop of pyvista's frog (18 labels) at size 4 voxels: the uniform lattice
     misses labels 1 and 13 (2-3 voxel layers in the crop) by more than 5 % and loses three
-    specks; the graded one (the defaults) is conforming, brings every label of 1,000 voxels or
-    more within 5 % and finds two of the specks (measured: 1 -6.2 -> -2.2 %, 13 -6.7 -> -3.5 %)."""
+    specks; the graded one (the defaults) is conforming and brings every label within 5 %, the
+    specks of 2 to 252 voxels in the crop included, none lost (measured: 1 -6.2 -> -0.9 %,
+    13 -6.7 -> -1.6 %, specks within 0.8 %, worst 14 at -2.7 %; before the speck zones the specks
+    were 10-100 % off)."""
     pv = pytest.importorskip("pyvista")
     frog = pv.examples.load_frog_tissues()
     values = frog.active_scalars.reshape(frog.dimensions, order="F")
@@ -220,8 +222,9 @@ def test_frog_crop_at_four_voxels():
     for L in big:
         assert abs(e1[L]) < 0.05, (L, e1[L])
     lost0 = sum(e == -1.0 for e in e0.values())
-    lost1 = sum(e == -1.0 for e in e1.values())
-    assert lost1 < lost0
+    assert lost0 > 0
+    for L, e in e1.items():
+        assert abs(e) < 0.05, (L, e)
 
 
 def test_labels_at_is_the_same_for_every_memory_layout():
