@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import warpmesh as wm
+from warpmesh._util.arrays import sorted_unique
 from warpmesh.solid.dihedral import signed_volumes
 from warpmesh.solid.regions import mesh_regions
 
@@ -50,22 +51,27 @@ def check_regions(m: wm.Mesh, rest: int) -> dict:
     n = len(pts)
     assert n < 2**21
     code = (key[:, 0] * n + key[:, 1]) * n + key[:, 2]  # one int64 per face, in the rows' lexicographic order
-    ucode, inv, counts = np.unique(code, return_inverse=True, return_counts=True)
+    # np.unique(code, return_inverse=True, return_counts=True) by one sort (numpy's hash-based
+    # unique takes several times longer on millions of faces)
+    order = np.argsort(code, kind="stable")
+    sc = code[order]
+    starts = np.r_[True, sc[1:] != sc[:-1]]
+    ucode = sc[starts]
+    grp = np.cumsum(starts) - 1  # the distinct face of each face, in sorted order (inv[order])
+    ow = owner[order]
+    counts = np.diff(np.r_[np.flatnonzero(starts), len(sc)])
     uniq = np.column_stack([ucode // (n * n), ucode // n % n, ucode % n])
     assert counts.max() <= 2, "a face in three tetrahedra or more: not conforming"
     # the labels on either side of every face
     side = np.full((len(uniq), 2), rest, np.int64)
-    order = np.argsort(inv, kind="stable")
-    first = np.ones(len(order), bool)
-    first[1:] = inv[order][1:] != inv[order][:-1]
-    side[inv[order][first], 0] = lab[owner[order][first]]
-    side[inv[order][~first], 1] = lab[owner[order][~first]]
+    side[grp[starts], 0] = lab[ow[starts]]
+    side[grp[~starts], 1] = lab[ow[~starts]]
     side.sort(axis=1)
     between = side[:, 0] != side[:, 1]
     # the triangles are exactly the faces between two different regions, once each, with their labels
     tkey = np.sort(tris, axis=1)
     tcode = (tkey[:, 0] * n + tkey[:, 1]) * n + tkey[:, 2]
-    assert len(np.unique(tcode)) == len(tris), "an interface triangle twice"
+    assert len(sorted_unique(tcode)) == len(tris), "an interface triangle twice"
     want = uniq[between]
     assert len(want) == len(tris)
     a = np.arange(len(want))  # uniq is sorted already
@@ -73,12 +79,12 @@ def check_regions(m: wm.Mesh, rest: int) -> dict:
     assert np.array_equal(want[a], tkey[b])
     assert np.array_equal(side[between][a, 0], lower[b]) and np.array_equal(side[between][a, 1], upper[b])
     # orientation: the tetrahedron of the higher label lies on the normal's side
-    srt = b
-    pos = np.minimum(np.searchsorted(tcode[srt], code), len(tcode) - 1)
-    hi_face = np.where(tcode[srt][pos] == code, srt[pos], -1)
-    sel = (hi_face >= 0) & (lab[owner] == upper[np.maximum(hi_face, 0)])
+    srt = b  # (every face, in sorted order sc, looked up among the sorted triangles)
+    pos = np.minimum(np.searchsorted(tcode[srt], sc), len(tcode) - 1)
+    hi_face = np.where(tcode[srt][pos] == sc, srt[pos], -1)
+    sel = (hi_face >= 0) & (lab[ow] == upper[np.maximum(hi_face, 0)])
     t = tris[hi_face[sel]]
-    d = pts[tets[owner[sel]]]
+    d = pts[tets[ow[sel]]]
     apex = d.sum(axis=1) - pts[t].sum(axis=1)  # the fourth vertex: the sum of four minus the three
     p = pts[t]
     det = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), apex - p[:, 0])
@@ -86,8 +92,8 @@ def check_regions(m: wm.Mesh, rest: int) -> dict:
     # the boundary with the rest is closed and encloses the volume of the tetrahedra (no gap, no overlap)
     outer = tris[lower == rest][:, ::-1]  # flipped: outward from the meshed domain
     edges = np.concatenate([outer[:, [0, 1]], outer[:, [1, 2]], outer[:, [2, 0]]])
-    fwd = np.unique(edges[:, 0] * n + edges[:, 1])
-    back = np.unique(edges[:, 1] * n + edges[:, 0])
+    fwd = sorted_unique(edges[:, 0] * n + edges[:, 1])
+    back = sorted_unique(edges[:, 1] * n + edges[:, 0])
     assert np.array_equal(fwd, back), "the outer boundary is not closed and oriented"
     q = pts[outer]
     enclosed = np.einsum("ij,ij->i", q[:, 0], np.cross(q[:, 1], q[:, 2])).sum() / 6.0
