@@ -45,7 +45,7 @@ def _dense(point, group, winding, n_points, n_groups):
 def _solid(corners, label, q, skip):
     """Every (point, group) winding number by rounded solid angles (the reference)."""
     n = int(label.max()) + 1
-    want = np.array([[round(rays._solid_angle_winding(corners[label == g], x)) for g in range(n)] for x in q])
+    want = np.rint([rays._solid_angle_windings(corners[label == g], q) for g in range(n)]).T.astype(np.int64)
     want[np.arange(len(q)), skip] = 0
     return want
 
@@ -100,6 +100,21 @@ def test_every_axis_ties_then_solid_angles():
             assert report["solid_angles"] >= 1 and min(report["ties"]) >= 1
         solid += report["solid_angles"]
     assert solid >= 1
+
+
+def test_solid_angles_in_blocks_equal_containment():
+    # the fallback's batched windings, in blocks of a few pairs and in one block, against
+    # containment in boxes (inside out: -1), for points of every block boundary
+    rng = np.random.default_rng(3)
+    for k in range(4):
+        lo = rng.integers(-3, 3, 3).astype(float)
+        hi = lo + rng.integers(1, 4, 3)
+        s = trimesh.creation.box(bounds=[lo, hi])
+        faces = s.vertices[s.faces] if k % 2 else s.vertices[s.faces[:, ::-1]]
+        q = rng.integers(-8, 16, (101, 3)) / 2.0 + 0.25  # never on a box face
+        want = np.all((lo < q) & (q < hi), axis=1).astype(np.int64) * (1 if k % 2 else -1)
+        for pairs in (1, 5 * len(faces), 1 << 20):
+            assert np.array_equal(np.rint(rays._solid_angle_windings(faces, q, pairs=pairs)).astype(np.int64), want)
 
 
 def test_signs_are_exact_or_ties():

@@ -35,8 +35,10 @@ Pipeline (host numpy):
 3. a (query, group) pair with a tie on some face is not counted on that axis: it is
    redone on the next axis (only those pairs, only the faces of their groups), and after
    the third axis by the sum of the group's signed solid angles about q (Van Oosterom
-   and Strackee), rounded. Ties come from rays through an edge or a vertex of a
-   projected face or from q on a face's plane (grid-aligned input).
+   and Strackee), rounded: every face of the group against every point tied with it, in
+   cache-sized numpy blocks (not output-sensitive: 3,375 points tied on all three axes
+   inside a 768-face box take 0.23-0.28 CPU s). Ties come from rays through an edge or a
+   vertex of a projected face or from q on a face's plane (grid-aligned input).
 
 Coordinates are scaled by a power of two (exact) so that max |x| is in [0.5, 1): no
 product of three coordinates overflows. Products that underflow are caught by an
@@ -157,11 +159,16 @@ def ray_windings(triangles, label, points, skip=None):
     else:  # tied on all three axes: solid angles
         order = np.argsort(label, kind="stable")
         starts = np.searchsorted(label[order], np.arange(n_groups + 1))
-        w = [_solid_angle_winding(tri[order[starts[g]:starts[g + 1]]], pts[p]) for p, g in zip(inst, only)]
+        w = np.empty(len(inst), dtype=REAL_DTYPE)
+        by = np.argsort(only, kind="stable")  # the tied points of one group together
+        cuts = np.r_[0, np.flatnonzero(np.diff(only[by])) + 1, len(by)]
+        for s, e in zip(cuts[:-1], cuts[1:]):
+            g = only[by[s]]
+            w[by[s:e]] = _solid_angle_windings(tri[order[starts[g]:starts[g + 1]]], pts[inst[by[s:e]]])
         report["solid_angles"] = len(inst)
         points_out.append(inst)
         groups_out.append(only)
-        counts_out.append(np.rint(np.array(w, dtype=REAL_DTYPE)).astype(INDEX_DTYPE))
+        counts_out.append(np.rint(w).astype(INDEX_DTYPE))
     empty = [np.zeros(0, dtype=INDEX_DTYPE)]
     point, group, count = (np.concatenate(empty + x).astype(INDEX_DTYPE) for x in (points_out, groups_out, counts_out))
     keep = count != 0
@@ -366,12 +373,20 @@ def _face_signs(t, x, axis):
     return out, tie
 
 
-def _solid_angle_winding(faces: np.ndarray, q: np.ndarray) -> float:
-    """Winding number of a closed oriented triangle surface (F, 3, 3) around q (off it): the
-    sum of the faces' signed solid angles over 4 pi (Van Oosterom and Strackee)."""
-    a, b, c = (faces[:, k] - q for k in range(3))
-    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-    num = np.einsum("ij,ij->i", a, np.cross(b, c))
-    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
-        + np.einsum("ij,ij->i", c, a) * lb
-    return float(2.0 * np.arctan2(num, den).sum() / (4.0 * np.pi))
+def _solid_angle_windings(faces: np.ndarray, qs: np.ndarray, pairs: int = 1 << 14) -> np.ndarray:
+    """Winding numbers of one closed oriented triangle surface (F, 3, 3) around each point of
+    qs (P, 3), all off it: the sum of the faces' signed solid angles over 4 pi (Van Oosterom
+    and Strackee), in blocks of about ``pairs`` face-point pairs (arrays of a few hundred KB,
+    in cache: 2^14 pairs 0.23 CPU s, 2^20 0.52 s for 3,375 points about 768 faces)."""
+    out = np.empty(len(qs), dtype=REAL_DTYPE)
+    step = max(1, pairs // max(len(faces), 1))
+    abc = [np.ascontiguousarray(faces[:, k].T) for k in range(3)]  # each corner's coordinates (3, faces)
+    for s in range(0, len(qs), step):
+        q = qs[s:s + step, :, None]  # (points, 3, 1) against the corners' (3, faces) coordinates
+        a, b, c = (corner[None] - q for corner in abc)  # (points, 3, faces) each
+        la, lb, lc = (np.sqrt(x[:, 0] ** 2 + x[:, 1] ** 2 + x[:, 2] ** 2) for x in (a, b, c))
+        num = a[:, 0] * (b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1]) + a[:, 1] * (b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2]) \
+            + a[:, 2] * (b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0])
+        den = la * lb * lc + (a * b).sum(axis=1) * lc + (b * c).sum(axis=1) * la + (c * a).sum(axis=1) * lb
+        out[s:s + step] = 2.0 * np.arctan2(num, den).sum(axis=1) / (4.0 * np.pi)
+    return out
