@@ -1141,8 +1141,8 @@ def test_shells_nested_three_deep_on_grid_planes(monkeypatch):
     # with a cavity filled (winding 2 or 3: reported, every pair overlapping by the LP), and
     # a U-shaped solid whose box holds a cube lying in its notch (not nested: embedded)
     calls = []
-    solid_angles = rays._solid_angle_winding
-    monkeypatch.setattr(rays, "_solid_angle_winding", lambda f, x: calls.append(1) or solid_angles(f, x))
+    solid_angles = rays._solid_angle_windings
+    monkeypatch.setattr(rays, "_solid_angle_windings", lambda f, x: calls.append(len(x)) or solid_angles(f, x))
     hollow = _kuhn_cells(3, drop=[(1, 1, 1)])
     solid = _kuhn_block(3)
     cube = _kuhn_block(1)
