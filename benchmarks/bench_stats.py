@@ -8,8 +8,9 @@ For ``wm.example("part")`` meshed by ``wm.mesh_surface`` at each ``--resolutions
 - ``stats()``: ``Mesh.stats()`` on a fresh Mesh of the same arrays (nothing cached), and
   its parts timed alone: ``topology`` (``warpmesh.cells.topology.mesh_topology``: watertight,
   manifold, oriented, Euler characteristic, components from one pass over the
-  half-edges), ``measures`` (``surface_measures``: area, volume), ``quality``
-  (``quality_summary``, [FG eq. 16.15]) and ``self-intersections`` (``Mesh.check``);
+  half-edges), ``measures`` (``surface_figures``: area, volume and each face's Q_K
+  [FG eq. 16.15] in one kernel pass, what stats() calls), ``quality`` (``quality_summary``,
+  numpy: what stats() called before) and ``self-intersections`` (``Mesh.check``);
 - ``one figure per function``: the same topology from the one-figure functions of
   ``warpmesh.cells.topology`` (``unique_edges``, ``is_vertex_manifold``,
   ``is_consistently_oriented``, ``euler_characteristic``, ``connected_components``, each
@@ -82,8 +83,8 @@ def bench(resolution: int, repeat: int) -> dict:
     meshes = [fresh() for _ in range(repeat)]
     t_stats, cpu_stats, s = _best(lambda: meshes.pop().stats(), repeat)
     t_topo, _, topo = _best(lambda: T.mesh_topology(tri, len(pts)), repeat)
-    t_meas, _, (area, volume) = _best(lambda: T.surface_measures(pts, tri), repeat)
-    t_q, _, _ = _best(lambda: quality_summary(pts, {"triangle": tri}), repeat)
+    t_meas, _, (area, volume, _) = _best(lambda: T.surface_figures(pts, tri), repeat)
+    t_q, _, _ = _best(lambda: quality_summary(pts, {"triangle": tri}), repeat)  # what stats() called before
     t_x, _, _ = _best(lambda: fresh().check(), repeat)
     t_old, _, old = _best(lambda: one_figure_functions(pts, tri), repeat)
     t_tm, _, tm = _best(lambda: with_trimesh(pts, tri), repeat)

@@ -1,5 +1,5 @@
 """Half-edge topology of triangle meshes for the mesh statistics: twins of every
-half-edge, fans around every vertex, edge-connected components, face measures.
+half-edge, fans around every vertex, edge-connected components, face measures and quality.
 
 Half-edge ``h = 3 f + j`` runs from ``faces[h]`` to ``faces[3 f + (j + 1) % 3]``
 (``faces`` flattened, the numbering of :mod:`warpmesh.cells.topology`). The host
@@ -188,14 +188,26 @@ def union_faces_kernel(rep: wp.array(dtype=wp.int32), parent: wp.array(dtype=wp.
 @wp.kernel
 def face_measures_kernel(
     first: int, points: wp.array(dtype=wp.vec3d), faces: wp.array(dtype=wp.int32), centre: wp.vec3d,
-    area: wp.array(dtype=wp.float64), volume6: wp.array(dtype=wp.float64),
+    alpha: wp.float64, rel_tol: wp.float64,
+    area: wp.array(dtype=wp.float64), volume6: wp.array(dtype=wp.float64), quality: wp.array(dtype=wp.float64),
 ):
-    """A thread takes face f = first + tid: its area |(p1 - p0) x (p2 - p0)| / 2 and six
-    times the signed volume of the tetrahedron (centre, p0, p1, p2)."""
+    """A thread takes face f = first + tid: its area |(p1 - p0) x (p2 - p0)| / 2, six
+    times the signed volume of the tetrahedron (centre, p0, p1, p2), and its shape
+    measure Q = alpha h_max / rho with rho = 2 area / perimeter [FG eq. 16.15], or -1
+    when degenerate (area <= rel_tol h_max^2; the host makes that inf)."""
     f = first + wp.tid()
     p0 = points[faces[3 * f]]
     p1 = points[faces[3 * f + 1]]
     p2 = points[faces[3 * f + 2]]
     c = wp.cross(p1 - p0, p2 - p0)
-    area[f] = wp.float64(0.5) * wp.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+    a = wp.float64(0.5) * wp.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+    area[f] = a
     volume6[f] = wp.dot(p0 - centre, wp.cross(p1 - centre, p2 - centre))
+    la = wp.length(p1 - p0)
+    lb = wp.length(p2 - p1)
+    lc = wp.length(p0 - p2)
+    h = wp.max(wp.max(la, lb), lc)
+    if a <= rel_tol * h * h:
+        quality[f] = wp.float64(-1.0)
+    else:
+        quality[f] = alpha * h * (la + lb + lc) / (wp.float64(2.0) * a)

@@ -12,6 +12,7 @@ import pytest
 import trimesh
 
 from warpmesh.cells import topology as T
+from warpmesh.cells.quality import quality_summary, triangle_quality
 from warpmesh.mesh import Mesh
 
 
@@ -187,6 +188,44 @@ def test_surface_measures_equal_the_oracle(name):
         assert volume == pytest.approx(want_volume, rel=1e-12, abs=1e-14)
     else:
         assert volume is None
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_surface_figures_quality_equals_triangle_quality(name):
+    """The kernel's Q_K per face (stats() uses it) against cells.quality's numpy one."""
+    points, faces = CASES[name]
+    area, _, q = T.surface_figures(points, faces)
+    want = triangle_quality(points, faces)
+    assert q.shape == want.shape and area == pytest.approx(T.surface_measures(points, faces)[0], rel=0)
+    assert np.array_equal(np.isinf(q), np.isinf(want))
+    assert np.allclose(q[np.isfinite(q)], want[np.isfinite(want)], rtol=1e-12, atol=0)
+
+
+def test_surface_figures_quality_of_slivers_and_degenerate_faces():
+    rng = np.random.default_rng(7)
+    points = rng.normal(size=(3000, 3))
+    faces = rng.integers(0, 3000, size=(5000, 3))
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
+    # slivers down to collinear: the third corner on the first edge, lifted by 10^-k of its length
+    a, b = points[faces[:200, 0]], points[faces[:200, 1]]
+    lift = np.cross(b - a, [0.3, 0.5, 0.7])
+    points[faces[:200, 2]] = 0.5 * (a + b) + lift * (10.0 ** -np.arange(200) / 10)[:, None]
+    points[faces[200, 2]] = points[faces[200, 0]]  # two corners at one place
+    _, _, q = T.surface_figures(points, faces)
+    want = triangle_quality(points, faces)
+    degenerate = np.isinf(want)
+    assert 0 < degenerate.sum() < 200 and np.array_equal(np.isinf(q), degenerate)
+    assert np.allclose(q[~degenerate], want[~degenerate], rtol=1e-10, atol=0)
+    right = T.surface_figures([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])[2]
+    assert right[0] == pytest.approx((1 + np.sqrt(2)) / np.sqrt(3), rel=1e-14)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_stats_quality_equals_quality_summary(name):
+    points, faces = CASES[name]
+    s, want = Mesh(points, {"triangle": faces}).stats(), quality_summary(points, faces)
+    assert s["worst_q"] == pytest.approx(want["worst_q"], rel=1e-12)
+    assert s["mean_q"] == pytest.approx(want["mean_q"], rel=1e-12)
 
 
 def test_surface_measures_refuse_indices_beyond_the_points():

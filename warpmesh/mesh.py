@@ -42,7 +42,7 @@ import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.cells import topology as _topo
-from warpmesh.cells.quality import quality_summary, tetra_quality, triangle_quality
+from warpmesh.cells.quality import quality_summary, summarize_quality, tetra_quality, triangle_quality
 from warpmesh.cells.types import CELL_TYPES, REF_KEY
 from warpmesh.planar.polyline import components
 
@@ -353,7 +353,7 @@ class Mesh:
                 s[key] = t[key]
             if s["watertight"] and s["manifold"] and s["oriented"]:
                 s["genus"] = (2 * s["components"] - s["euler"]) // 2
-            s["area"], volume = _topo.surface_measures(self._points, tri, volume=s["watertight"])
+            s["area"], volume, tri_q = _topo.surface_figures(self._points, tri, volume=s["watertight"])
             if s["watertight"] and self.dim == 3:
                 s["volume"] = volume
         if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
@@ -365,11 +365,10 @@ class Mesh:
             from warpmesh.cells.reference import cell_measures  # its Lagrange tables take 0.1 s to build
 
             s["volume"] = float(sum(cell_measures(self._points, self._cells[t], t).sum() for t in solids))
-        q = (
-            quality_summary(self._points, self._cells)
-            if ("tetra" in self._cells or len(tri))
-            else {}
-        )
+        if "tetra" in self._cells:
+            q = quality_summary(self._points, self._cells)
+        else:  # the triangles' Q_K came with their measures (one pass over the faces)
+            q = summarize_quality(tri_q) if len(tri) else {}
         s["mean_q"], s["worst_q"] = q.get("mean_q"), q.get("worst_q")
         s["q_mean"], s["q_worst"] = s["mean_q"], s["worst_q"]  # the names of issue 6 / Table 16.1
         s["bounds"] = (

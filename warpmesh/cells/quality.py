@@ -28,7 +28,8 @@ import numpy as np
 
 from warpmesh._conventions import ALPHA_TETRA, ALPHA_TRIANGLE, INDEX_DTYPE, REAL_DTYPE, REL_TOL
 
-__all__ = ["ALPHA_TETRA", "triangle_quality", "tetra_quality", "quality_summary", "triangle_angles",
+__all__ = ["ALPHA_TETRA", "triangle_quality", "tetra_quality", "quality_summary", "summarize_quality",
+           "triangle_angles",
            "edge_length_ratio", "quality_table", "quality_histogram", "format_table"]
 
 _TET_EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
@@ -173,7 +174,23 @@ def quality_summary(points, cells) -> dict:
     k = np.shape(cells)[1] if np.ndim(cells) == 2 else 0
     if k not in (3, 4):
         raise ValueError(f"expected 'cells' of shape (m, 3) or (m, 4), got shape {np.shape(cells)}")
-    q = triangle_quality(points, cells) if k == 3 else tetra_quality(points, cells)
+    return summarize_quality(triangle_quality(points, cells) if k == 3 else tetra_quality(points, cells))
+
+
+def summarize_quality(q) -> dict:
+    """The figures of :func:`quality_summary` from given per-element ``Q_K`` values
+    (``inf`` for a degenerate element), e.g. those of
+    :func:`warpmesh.cells.topology.surface_figures`.
+
+    Examples
+    --------
+    >>> s = summarize_quality([1.0, 1.5, np.inf])
+    >>> s["mean_q"], s["worst_q"], s["best_q"], s["n_degenerate"]
+    (1.25, inf, 1.0, 1)
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim != 1:
+        raise ValueError(f"expected 'q' of shape (m,), got shape {q.shape}")
     finite = q[np.isfinite(q)]
     empty = len(q) == 0
     return {

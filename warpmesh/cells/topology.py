@@ -44,6 +44,7 @@ __all__ = [
     "duplicate_faces",
     "mesh_topology",
     "surface_measures",
+    "surface_figures",
 ]
 
 
@@ -540,8 +541,8 @@ def surface_measures(points, faces, *, volume: bool = True) -> tuple[float, floa
     """Total area of a triangle mesh and, for 3D points, the signed volume it encloses.
 
     The sums of :func:`face_areas` and :func:`signed_volume` (the same centre), from one
-    pass over the faces (a Warp kernel for 3D points, split across the CPU cores); equal
-    to them up to rounding.
+    pass over the faces (:func:`surface_figures`, which also gives each face's quality);
+    equal to them up to rounding.
 
     Parameters
     ----------
@@ -563,14 +564,53 @@ def surface_measures(points, faces, *, volume: bool = True) -> tuple[float, floa
     >>> round(a, 6), round(v, 12)
     (2.366025, 0.166666666667)
     """
+    area, vol, _ = surface_figures(points, faces, volume=volume)
+    return area, vol
+
+
+def surface_figures(points, faces, *, volume: bool = True) -> tuple[float, float | None, np.ndarray]:
+    """Total area, signed volume and each face's shape measure, in one pass over the faces.
+
+    For 3D points one Warp kernel, split across the CPU cores, computes per face its
+    area, its signed volume about the centre of the used points' box and its ``Q_K``
+    [FG eq. 16.15]: what :func:`surface_measures` and
+    :func:`warpmesh.cells.quality.triangle_quality` give (equal up to rounding), without
+    a second gather of the corners or the numpy temporaries (``Mesh.stats()`` uses it).
+    2D points (and meshes beyond int32 indexing) take the numpy functions.
+
+    Parameters
+    ----------
+    points : (n, 2) or (n, 3) float
+    faces : (m, 3) int
+    volume : bool
+        Compute the volume too (3D only; meaningful for a closed surface).
+
+    Returns
+    -------
+    area : float
+    volume : float or None
+        None for 2D points or ``volume=False``.
+    quality : (m,) float64
+        ``Q_K`` of each face: 1 for an equilateral triangle, ``inf`` when degenerate.
+
+    Examples
+    --------
+    >>> tet = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]
+    >>> a, v, q = surface_figures([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], tet)
+    >>> round(v, 12), q.round(4).tolist()
+    (0.166666666667, [1.3938, 1.3938, 1.0, 1.3938])
+    """
+    from warpmesh.cells.quality import triangle_quality
+
     points, faces = _as_points(points), _as_faces(faces)
     m = len(faces)
     if points.shape[1] == 2 or m == 0 or 3 * m >= np.iinfo(np.int32).max:
         area = float(face_areas(points, faces).sum())
         vol = signed_volume(points, faces) if volume and points.shape[1] == 3 else None
-        return area, vol
+        return area, vol, triangle_quality(points, faces)
     import warp as wp
 
+    from warpmesh._conventions import ALPHA_TRIANGLE
     from warpmesh.kernels import topology as KT
 
     if int(faces.max()) >= len(points):
@@ -581,9 +621,11 @@ def surface_measures(points, faces, *, volume: bool = True) -> tuple[float, floa
     used = points if seen.all() else points[seen]
     centre = 0.5 * (used.min(axis=0) + used.max(axis=0))
     wp.load_module(KT, device="cpu")
-    area, vol6 = np.empty(m, np.float64), np.empty(m, np.float64)
+    area, vol6, quality = np.empty(m, np.float64), np.empty(m, np.float64), np.empty(m, np.float64)
     pts = wp.array(np.ascontiguousarray(points), dtype=wp.vec3d, device="cpu", copy=False)
-    _per_item(KT.face_measures_kernel, m, [pts, _wp(faces.astype(np.int32).ravel()), wp.vec3d(*centre)],
-              [_wp(area), _wp(vol6)])
-    return float(area.sum()), (float(vol6.sum() / 6.0) if volume else None)
+    _per_item(KT.face_measures_kernel, m, [pts, _wp(faces.astype(np.int32).ravel()), wp.vec3d(*centre),
+                                           float(ALPHA_TRIANGLE), float(REL_TOL)],
+              [_wp(area), _wp(vol6), _wp(quality)])
+    quality[quality < 0.0] = np.inf
+    return float(area.sum()), (float(vol6.sum() / 6.0) if volume else None), quality
 
