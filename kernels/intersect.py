@@ -561,15 +561,15 @@ def _crossing_bits(v: wp.vec3d, a: wp.vec3d, b: wp.vec3d) -> int:
 
 
 @wp.kernel
-def classify_faces_kernel(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+def classify_faces_kernel(first: int, points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                           degenerate: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32)):
-    """One thread per face: 1 in ``degenerate`` when its area is zero to within float64
+    """One thread per face f = first + tid: 1 in ``degenerate`` when its area is zero to within float64
     rounding (every 2D projection's orientation is filtered to 0; repeated indices
     included), else 0; and its code for :func:`umbrella_certified`: bit 2k (2k + 1) when
     its projection dropping coordinate k is certified counter-clockwise (clockwise) on the
     coordinates (k + 1, k + 2) (none for repeated indices), and bits 6 + 6r +
     :func:`_crossing_bits` of its rotation (v, a, b) starting at corner r."""
-    f = wp.tid()
+    f = first + wp.tid()
     t, it = load_triangle(points, tris, f)
     flag = int(1)
     code = int(0)
@@ -605,12 +605,13 @@ def tet_signs_kernel(points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.i
 
 
 @wp.kernel
-def bvh_coordinates_kernel(points: wp.array(dtype=wp.vec3d), centre: wp.vec3d, half: wp.float64,
+def bvh_coordinates_kernel(first: int, points: wp.array(dtype=wp.vec3d), centre: wp.vec3d, half: wp.float64,
                            points32: wp.array(dtype=wp.vec3)):
     """One thread per point: ((x - centre) / half) rounded to float32, coordinate by
     coordinate (each step rounded to nearest, as numpy's float64 arithmetic then
-    ``astype(float32)``): a map monotone in each coordinate."""
-    v = wp.tid()
+    ``astype(float32)``): a map monotone in each coordinate. Point v = first + tid (the
+    host splits a launch across the CPU cores, as for the kernels below that take ``first``)."""
+    v = first + wp.tid()
     x = points[v]
     points32[v] = wp.vec3(wp.float32((x[0] - centre[0]) / half), wp.float32((x[1] - centre[1]) / half),
                           wp.float32((x[2] - centre[2]) / half))
@@ -626,11 +627,11 @@ def spread_bits(x: int) -> int:
 
 
 @wp.kernel
-def morton_codes_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
+def morton_codes_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
                         keys: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32)):
-    """One thread per face: the 30-bit Morton code of its centroid (points in [-1, 1]^3)
-    as the sort key, its index as the value."""
-    f = wp.tid()
+    """One thread per face f = first + tid: the 30-bit Morton code of its centroid (points in
+    [-1, 1]^3) as the sort key, its index as the value."""
+    f = first + wp.tid()
     c = (points32[tris[3 * f]] + points32[tris[3 * f + 1]] + points32[tris[3 * f + 2]]) / 3.0
     u = (c + wp.vec3(1.0, 1.0, 1.0)) * 511.5
     x = wp.clamp(int(u[0]), 0, 1023)
@@ -641,10 +642,11 @@ def morton_codes_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=
 
 
 @wp.kernel
-def gather_faces_kernel(tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+def gather_faces_kernel(first: int, tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
                         sorted_tris: wp.array(dtype=wp.int32)):
-    """One thread per position s of the face order: the vertex indices of face order[s]."""
-    s = wp.tid()
+    """One thread per position s = first + tid of the face order: the vertex indices of face
+    order[s]."""
+    s = first + wp.tid()
     f = order[s]
     sorted_tris[3 * s] = tris[3 * f]
     sorted_tris[3 * s + 1] = tris[3 * f + 1]
@@ -672,14 +674,14 @@ def face_box(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), 
 
 
 @wp.kernel
-def face_boxes_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
+def face_boxes_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
                       degenerate: wp.array(dtype=wp.int32), grow: float,
                       lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3)):
-    """One thread per face position s: its float32 box, the upper corner grown by ``grow``
+    """One thread per face position s = first + tid: its float32 box, the upper corner grown by ``grow``
     (0 for the tree walk, which grows its query boxes; the grid walk compares lower
     corners with grown upper ones, :func:`grid_walk_cell`); an empty box (lower corner
     ``EMPTY`` above the upper one) for a degenerate face, so that it meets nothing."""
-    s = wp.tid()
+    s = first + wp.tid()
     lo, hi = face_box(points32, tris, s)
     hi = hi + wp.vec3(grow, grow, grow)
     if degenerate[s] != 0:
@@ -1178,24 +1180,26 @@ def grid_coordinate(x: float, inv_cell: float) -> int:
 
 
 @wp.kernel
-def face_extents_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
+def face_extents_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
                         extents: wp.array(dtype=wp.float32)):
-    """One thread per face: the largest side of its float32 box."""
-    f = wp.tid()
+    """One thread per face f = first + tid: the largest side of its float32 box."""
+    f = first + wp.tid()
     lo, hi = face_box(points32, tris, f)
     e = hi - lo
     extents[f] = wp.max(wp.max(e[0], e[1]), e[2])
 
 
 @wp.kernel
-def grid_keys_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), pad: float,
+def grid_keys_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), pad: float,
                      inv_cell: float, keys: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32),
                      wide: wp.array(dtype=wp.int32)):
-    """One thread per face f: the Morton key of the cell of its box's lower corner (the sort
-    key; f the value), and one more in ``wide[0]`` when the cell of its upper corner grown
+    """One thread per face f = first + tid: the Morton key of the cell of its box's lower
+    corner (the sort key; f the value), and 1 in ``wide[0]`` (a plain store of a constant:
+    no lost update matters when launches on two CPU threads both write it, where an
+    atomic add is not atomic on the CPU) when the cell of its upper corner grown
     by ``pad`` is more than one cell past it along some axis (the grid then cannot be used:
     :func:`grid_walk_cell` needs every face within two cells per axis)."""
-    f = wp.tid()
+    f = first + wp.tid()
     lo, hi = face_box(points32, tris, f)
     q = hi + wp.vec3(pad, pad, pad)
     x = grid_coordinate(lo[0], inv_cell)
@@ -1203,16 +1207,16 @@ def grid_keys_kernel(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.
     z = grid_coordinate(lo[2], inv_cell)
     if (grid_coordinate(q[0], inv_cell) > x + 1 or grid_coordinate(q[1], inv_cell) > y + 1
             or grid_coordinate(q[2], inv_cell) > z + 1):
-        wp.atomic_add(wide, 0, 1)
+        wide[0] = 1
     keys[f] = (spread_bits(x) << 2) | (spread_bits(y) << 1) | spread_bits(z)
     ids[f] = f
 
 
 @wp.kernel
-def cell_heads_kernel(keys: wp.array(dtype=wp.int32), heads: wp.array(dtype=wp.int32)):
-    """One thread per position s of the sorted keys: 1 when s starts a cell (its key differs
-    from the one before), else 0."""
-    s = wp.tid()
+def cell_heads_kernel(first: int, keys: wp.array(dtype=wp.int32), heads: wp.array(dtype=wp.int32)):
+    """One thread per position s = first + tid of the sorted keys: 1 when s starts a cell
+    (its key differs from the one before), else 0."""
+    s = first + wp.tid()
     head = int(1)
     if s > 0:
         if keys[s] == keys[s - 1]:
@@ -1231,14 +1235,15 @@ def compact_bits(x: int) -> int:
 
 
 @wp.kernel
-def cell_starts_kernel(keys: wp.array(dtype=wp.int32), heads: wp.array(dtype=wp.int32),
+def cell_starts_kernel(first: int, keys: wp.array(dtype=wp.int32), heads: wp.array(dtype=wp.int32),
                        cell_of: wp.array(dtype=wp.int32), blocks_per_axis: int,
                        starts: wp.array(dtype=wp.int32), cells: wp.array(dtype=wp.vec3i),
                        block_used: wp.array(dtype=wp.int32)):
-    """One thread per position s that starts a cell (``cell_of``: the inclusive scan of the
-    heads, so its cell is ``cell_of[s] - 1``): the cell's first position, its coordinates
-    (from the key) and a mark on its block of ``BLOCK``^3 cells."""
-    s = wp.tid()
+    """One thread per position s = first + tid that starts a cell (``cell_of``: the inclusive
+    scan of the heads, so its cell is ``cell_of[s] - 1``): the cell's first position, its
+    coordinates (from the key) and a mark on its block of ``BLOCK``^3 cells (a store of 1:
+    threads on two cores may both write it)."""
+    s = first + wp.tid()
     if heads[s] == 0:
         return
     c = cell_of[s] - 1
@@ -1252,11 +1257,11 @@ def cell_starts_kernel(keys: wp.array(dtype=wp.int32), heads: wp.array(dtype=wp.
 
 
 @wp.kernel
-def cell_table_kernel(cells: wp.array(dtype=wp.vec3i), blocks_per_axis: int, block_slot: wp.array(dtype=wp.int32),
-                      table: wp.array(dtype=wp.int32)):
-    """One thread per cell c: c written at its place in its block's ``BLOCK``^3 entries of
+def cell_table_kernel(first: int, cells: wp.array(dtype=wp.vec3i), blocks_per_axis: int,
+                      block_slot: wp.array(dtype=wp.int32), table: wp.array(dtype=wp.int32)):
+    """One thread per cell c = first + tid: c written at its place in its block's ``BLOCK``^3 entries of
     ``table`` (the block's slot: the exclusive scan of the used blocks)."""
-    c = wp.tid()
+    c = first + wp.tid()
     p = cells[c]
     b = block_slot[((p[0] / BLOCK) * blocks_per_axis + p[1] / BLOCK) * blocks_per_axis + p[2] / BLOCK]
     table[b * BLOCK * BLOCK * BLOCK + ((p[0] % BLOCK) * BLOCK + p[1] % BLOCK) * BLOCK + p[2] % BLOCK] = c

@@ -792,13 +792,13 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     m = len(tris)
     scaled = power_of_two_scaled(pts)
     points64, tris32 = _device_arrays(scaled, tris, device)
-    points32 = _bvh_coordinates(scaled, points64, device)
+    points32 = _bvh_coordinates(scaled, points64, device, n_workers)
     mark("prepare")
-    inv_cell = _grid_cell(points32, tris32, device)
-    grid = None if inv_cell is None else _grid_order(points32, tris32, inv_cell, device)
-    order, sorted_tris = grid[:2] if grid is not None else _spatial_order(points32, tris32, device)
+    inv_cell = _grid_cell(points32, tris32, device, n_workers)
+    grid = None if inv_cell is None else _grid_order(points32, tris32, inv_cell, device, n_workers)
+    order, sorted_tris = grid[:2] if grid is not None else _spatial_order(points32, tris32, device, n_workers)
     mark("order")
-    degenerate, codes = _classify_faces(points64, sorted_tris, device)
+    degenerate, codes = _classify_faces(points64, sorted_tris, device, n_workers)
     mark("degenerate")
     certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY, n_workers)
     mark("umbrellas")
@@ -806,12 +806,12 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     face_uppers = wp.empty(m, dtype=wp.vec3, device=device)
     # the grid compares lower corners with upper ones grown by the padding, the tree grows its queries
     grow = 0.0 if grid is None else _QUERY_PAD
-    wp.launch(K.face_boxes_kernel, dim=m, inputs=[points32, sorted_tris, degenerate, grow],
-              outputs=[face_lowers, face_uppers], device=device)
+    _each(K.face_boxes_kernel, m, [points32, sorted_tris, degenerate, grow], [face_lowers, face_uppers], device,
+          n_workers)
     faces = [points64, sorted_tris, order, face_lowers, face_uppers, _QUERY_PAD, certified]
     if grid is not None:  # one thread per occupied cell (K.grid_walk_cell)
         mark("boxes")
-        walk = [*_cell_table(grid[2], inv_cell, device), *faces[:5], certified]
+        walk = [*_cell_table(grid[2], inv_cell, device, n_workers), *faces[:5], certified]
         count_kernel, write_kernel = K.grid_count_pairs_kernel, K.grid_write_pairs_kernel
         n_threads = walk[0].shape[0]
         mark("cells")
@@ -855,7 +855,7 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     return pairs
 
 
-def _spatial_order(points32: wp.array, tris32: wp.array, device) -> tuple[wp.array, wp.array]:
+def _spatial_order(points32: wp.array, tris32: wp.array, device, n_workers: int = 1) -> tuple[wp.array, wp.array]:
     """Faces sorted by the Morton code of their centroid (stable): ``order[s]`` is the
     face at position s, and the faces' indices in that order. Neighbouring positions are
     neighbours in space, so a range of positions is a compact region (one BVH each) and
@@ -863,15 +863,15 @@ def _spatial_order(points32: wp.array, tris32: wp.array, device) -> tuple[wp.arr
     m = tris32.shape[0] // 3
     keys = wp.empty(2 * m, dtype=wp.int32, device=device)  # radix sort's scratch: 2m
     ids = wp.empty(2 * m, dtype=wp.int32, device=device)
-    wp.launch(K.morton_codes_kernel, dim=m, inputs=[points32, tris32], outputs=[keys, ids], device=device)
+    _each(K.morton_codes_kernel, m, [points32, tris32], [keys, ids], device, n_workers)
     wp.utils.radix_sort_pairs(keys, ids, m)
     order = ids[:m]
     sorted_tris = wp.empty(3 * m, dtype=wp.int32, device=device)
-    wp.launch(K.gather_faces_kernel, dim=m, inputs=[tris32, order], outputs=[sorted_tris], device=device)
+    _each(K.gather_faces_kernel, m, [tris32, order], [sorted_tris], device, n_workers)
     return order, sorted_tris
 
 
-def _grid_cell(points32: wp.array, tris32: wp.array, device) -> float | None:
+def _grid_cell(points32: wp.array, tris32: wp.array, device, n_workers: int = 1) -> float | None:
     """The cell grid's inverse cell size (BVH coordinates), or None for the group tree: the
     grid when the faces are about one size (the largest face box side at most
     ``_GRID_SPREAD`` times the mean one: each face then meets 10-20 others in its cell
@@ -880,7 +880,7 @@ def _grid_cell(points32: wp.array, tris32: wp.array, device) -> float | None:
     1022 cells a side)."""
     m = tris32.shape[0] // 3
     extents = wp.empty(m, dtype=wp.float32, device=device)
-    wp.launch(K.face_extents_kernel, dim=m, inputs=[points32, tris32], outputs=[extents], device=device)
+    _each(K.face_extents_kernel, m, [points32, tris32], [extents], device, n_workers)
     ext = extents.numpy()  # sync point: the grid's cell size
     largest = float(ext.max())
     if largest > _GRID_SPREAD * float(ext.mean(dtype=np.float64)):
@@ -889,7 +889,7 @@ def _grid_cell(points32: wp.array, tris32: wp.array, device) -> float | None:
     return float(np.float32(1.0 / cell))
 
 
-def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device):
+def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device, n_workers: int = 1):
     """Faces sorted by the Morton key of the grid cell of their box's lower corner
     (:func:`~warpmesh.kernels.intersect.grid_keys_kernel`): (order, sorted faces, sorted
     keys), or None when some face's box spans more than two cells along an axis (the
@@ -898,18 +898,17 @@ def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device):
     keys = wp.empty(2 * m, dtype=wp.int32, device=device)  # radix sort's scratch: 2m
     ids = wp.empty(2 * m, dtype=wp.int32, device=device)
     wide = wp.zeros(1, dtype=wp.int32, device=device)
-    wp.launch(K.grid_keys_kernel, dim=m, inputs=[points32, tris32, _QUERY_PAD, inv_cell], outputs=[keys, ids, wide],
-              device=device)
+    _each(K.grid_keys_kernel, m, [points32, tris32, _QUERY_PAD, inv_cell], [keys, ids, wide], device, n_workers)
     if int(wide.numpy()[0]):  # sync point: the grid cannot hold these faces
         return None
     wp.utils.radix_sort_pairs(keys, ids, m)
     order = ids[:m]
     sorted_tris = wp.empty(3 * m, dtype=wp.int32, device=device)
-    wp.launch(K.gather_faces_kernel, dim=m, inputs=[tris32, order], outputs=[sorted_tris], device=device)
+    _each(K.gather_faces_kernel, m, [tris32, order], [sorted_tris], device, n_workers)
     return order, sorted_tris, keys[:m]
 
 
-def _cell_table(keys: wp.array, inv_cell: float, device) -> list:
+def _cell_table(keys: wp.array, inv_cell: float, device, n_workers: int = 1) -> list:
     """The occupied cells of the sorted keys (:func:`_grid_order`) and a two-level table
     from cell coordinates to cell index (blocks of ``K.BLOCK``^3 cells, a slot for each
     used block): [cells' coordinates, first positions, blocks per axis, used blocks, block
@@ -917,7 +916,7 @@ def _cell_table(keys: wp.array, inv_cell: float, device) -> list:
     (:func:`~warpmesh.kernels.intersect.grid_walk_cell`). Count -> scan -> write twice."""
     m = keys.shape[0]
     heads = wp.empty(m, dtype=wp.int32, device=device)
-    wp.launch(K.cell_heads_kernel, dim=m, inputs=[keys], outputs=[heads], device=device)
+    _each(K.cell_heads_kernel, m, [keys], [heads], device, n_workers)
     cell_of = wp.empty(m, dtype=wp.int32, device=device)
     wp.utils.array_scan(heads, cell_of, inclusive=True)
     n_cells = int(cell_of[m - 1:].numpy()[0])  # sync point: the number of cells
@@ -926,13 +925,12 @@ def _cell_table(keys: wp.array, inv_cell: float, device) -> list:
     starts = wp.empty(n_cells, dtype=wp.int32, device=device)
     cells = wp.empty(n_cells, dtype=wp.vec3i, device=device)
     used = wp.zeros(per_axis**3, dtype=wp.int32, device=device)
-    wp.launch(K.cell_starts_kernel, dim=m, inputs=[keys, heads, cell_of, per_axis], outputs=[starts, cells, used],
-              device=device)
+    _each(K.cell_starts_kernel, m, [keys, heads, cell_of, per_axis], [starts, cells, used], device, n_workers)
     slots = wp.empty(per_axis**3, dtype=wp.int32, device=device)
     wp.utils.array_scan(used, slots, inclusive=False)
     n_blocks = int(slots[-1:].numpy()[0] + used[-1:].numpy()[0])  # sync point: the table's size
     table = wp.full(n_blocks * K.BLOCK**3, -1, dtype=wp.int32, device=device)
-    wp.launch(K.cell_table_kernel, dim=n_cells, inputs=[cells, per_axis, slots], outputs=[table], device=device)
+    _each(K.cell_table_kernel, n_cells, [cells, per_axis, slots], [table], device, n_workers)
     return [cells, starts, per_axis, used, slots, table]
 
 
@@ -961,7 +959,7 @@ def _device_arrays(scaled: np.ndarray, tris: np.ndarray, device) -> tuple[wp.arr
             wp.array(tris.astype(np.int32).ravel(), dtype=wp.int32, device=device))
 
 
-def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device) -> wp.array:
+def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device, n_workers: int = 1) -> wp.array:
     """float32 points in [-1, 1]^3 for the BVH, by a map that is monotone in each
     coordinate (centre, divide, round: :func:`~warpmesh.kernels.intersect.bvh_coordinates_kernel`),
     so boxes that meet in float64 meet in float32."""
@@ -971,9 +969,8 @@ def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device) -> wp.array
     centre = 0.5 * (lo + hi)
     half = float(0.5 * (hi - lo).max())
     points32 = wp.empty(len(scaled), dtype=wp.vec3, device=device)
-    wp.launch(K.bvh_coordinates_kernel, dim=len(scaled),
-              inputs=[points64, wp.vec3d(*centre.tolist()), half if half > 0.0 else 1.0], outputs=[points32],
-              device=device)
+    _each(K.bvh_coordinates_kernel, len(scaled), [points64, wp.vec3d(*centre.tolist()), half if half > 0.0 else 1.0],
+          [points32], device, n_workers)
     return points32
 
 
@@ -1000,14 +997,30 @@ def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: 
     return certified
 
 
-def _classify_faces(points64: wp.array, tris32: wp.array, device) -> tuple[wp.array, wp.array]:
+def _classify_faces(points64: wp.array, tris32: wp.array, device, n_workers: int = 1) -> tuple[wp.array, wp.array]:
     """Per face: the degenerate flag, and the code of its orientation signs and crossings
     for the umbrella certificate (:func:`~warpmesh.kernels.intersect.classify_faces_kernel`)."""
     flags = wp.empty(tris32.shape[0] // 3, dtype=wp.int32, device=device)
     codes = wp.empty(tris32.shape[0] // 3, dtype=wp.int32, device=device)
-    wp.launch(K.classify_faces_kernel, dim=flags.shape[0], inputs=[points64, tris32], outputs=[flags, codes],
-              device=device)
+    _each(K.classify_faces_kernel, flags.shape[0], [points64, tris32], [flags, codes], device, n_workers)
     return flags, codes
+
+
+def _each(kernel, n: int, inputs: list, outputs: list, device, n_workers: int) -> None:
+    """Launch a kernel whose first argument is ``first`` over [0, n): one launch on CUDA or
+    for small n, else one contiguous range per CPU worker, each launched from its own
+    thread (Warp's CPU launches release the GIL). The kernels so launched write only their
+    own items' entries, or constants (so no atomic is needed: on the CPU an atomic add is
+    not atomic across threads)."""
+    k = 1 if device.is_cuda else max(1, min(n_workers, n // _MIN_FACES_PER_WORKER))
+    if k == 1:
+        if n > 0:
+            wp.launch(kernel, dim=n, inputs=[0, *inputs], outputs=outputs, device=device)
+        return
+    edges = np.linspace(0, n, k + 1).astype(int)
+    run_parallel([lambda a=int(a), b=int(b): wp.launch(kernel, dim=b - a, inputs=[a, *inputs], outputs=outputs,
+                                                       device=device)
+                  for a, b in zip(edges[:-1], edges[1:]) if b > a])
 
 
 def _split(n_groups: int, m: int, device, n_workers: int):
