@@ -715,31 +715,70 @@ def boxes_meet(lo: wp.vec3, hi: wp.vec3, a: wp.vec3, b: wp.vec3) -> bool:
 
 
 @wp.func
-def _boxes_apart_64(p: wp.mat33d, q: wp.mat33d) -> bool:
-    """Whether the float64 boxes of triangles p and q are disjoint (comparisons are exact:
-    then the closed triangles share no point)."""
-    apart = False
+def _apart_on_touching_boxes(p: wp.mat33d, q: wp.mat33d) -> bool:
+    """Whether triangles p and q are proved disjoint by coordinate comparisons alone (exact
+    in float64, no rounding): their boxes are apart along an axis k, or they touch along it
+    (max of p's coordinate k equal to min of q's, or the other way round: the plane
+    x_k = c) and the parts of the two triangles in that plane are apart. A triangle on one
+    side of the plane meets it in the hull of its vertices with x_k == c (a linear function
+    on a triangle is largest on the face spanned by the vertices where it is largest), so
+    the two parts are apart when the boxes of those vertices over the other two
+    coordinates are, and every common point of p and q would lie in both parts.
+
+    This decides, before any predicate, the pairs a grid mesher makes in neighbouring
+    cells (each triangle inside its closed cell: boxes meet at most in the cells' common
+    face), e.g. coplanar triangles of a flat, grid-aligned region touching only at a cell
+    side with no vertex in common. Only a "disjoint" it proves is used; anything else goes
+    to :func:`pair_intersects`."""
     for k in range(3):
-        if wp.max(wp.max(p[0, k], p[1, k]), p[2, k]) < wp.min(wp.min(q[0, k], q[1, k]), q[2, k]):
-            apart = True
-        if wp.max(wp.max(q[0, k], q[1, k]), q[2, k]) < wp.min(wp.min(p[0, k], p[1, k]), p[2, k]):
-            apart = True
-    return apart
+        pmin = wp.min(wp.min(p[0, k], p[1, k]), p[2, k])
+        pmax = wp.max(wp.max(p[0, k], p[1, k]), p[2, k])
+        qmin = wp.min(wp.min(q[0, k], q[1, k]), q[2, k])
+        qmax = wp.max(wp.max(q[0, k], q[1, k]), q[2, k])
+        if pmax < qmin or qmax < pmin:
+            return True
+        touch = False
+        c = pmax
+        if pmax == qmin:
+            touch = True
+        elif qmax == pmin:
+            touch = True
+            c = qmax
+        if touch:
+            i = (k + 1) % 3
+            j = (k + 2) % 3
+            big = wp.float64(1.0e300)
+            plo = wp.vec2d(big, big)
+            phi = wp.vec2d(-big, -big)
+            qlo = wp.vec2d(big, big)
+            qhi = wp.vec2d(-big, -big)
+            for a in range(3):
+                if p[a, k] == c:
+                    plo = wp.min(plo, wp.vec2d(p[a, i], p[a, j]))
+                    phi = wp.max(phi, wp.vec2d(p[a, i], p[a, j]))
+                if q[a, k] == c:
+                    qlo = wp.min(qlo, wp.vec2d(q[a, i], q[a, j]))
+                    qhi = wp.max(qhi, wp.vec2d(q[a, i], q[a, j]))
+            if phi[0] < qlo[0] or qhi[0] < plo[0] or phi[1] < qlo[1] or qhi[1] < plo[1]:
+                return True
+    return False
 
 
 @wp.func
 def confirmed_pair_intersects(p: wp.mat33d, ip: wp.vec3i, n1: wp.vec3d, m1: wp.vec3d,
                               q: wp.mat33d, iq: wp.vec3i) -> bool:
-    """:func:`pair_intersects`, with a "meet" dropped when the two faces' float64 boxes are
-    disjoint. The predicate is conservative on a face that is collinear to within rounding
-    but not flagged degenerate (its normal ~1e-16 of its edges after a rotation: every
-    side is a tie, so it "touches" faces far from it); the exact box test removes those
-    false meets, so the answer no longer depends on which pairs a candidate search
-    offers (the BVH walk and :func:`all_pairs_kernel` agree). Meets are rare, so the
-    box test costs nothing on a valid mesh."""
-    if not pair_intersects(p, ip, n1, m1, q, iq):
+    """:func:`pair_intersects`, unless the two faces are proved apart by coordinate
+    comparisons first (:func:`_apart_on_touching_boxes`: float64 boxes disjoint, or
+    touching along an axis with the faces' parts in that plane apart). The comparisons are
+    exact, so this drops no intersection; it removes the predicate's false meets on a face
+    that is collinear to within rounding but not flagged degenerate (its normal ~1e-16 of
+    its edges after a rotation: every side is a tie, so it "touches" faces far from it),
+    so the answer does not depend on which pairs a candidate search offers (the walks and
+    :func:`all_pairs_kernel` agree), and it spares the predicate the pairs of neighbouring
+    grid cells."""
+    if _apart_on_touching_boxes(p, q):
         return False
-    return not _boxes_apart_64(p, q)
+    return pair_intersects(p, ip, n1, m1, q, iq)
 
 
 @wp.func

@@ -503,6 +503,46 @@ def test_integer_grid_soups_match_the_reference(seed):
     assert np.array_equal(again[np.lexsort(again.T[::-1])], ref)
 
 
+def _touching_apart(P, Q) -> bool:
+    """The check's comparison-only shortcut (kernels.intersect._apart_on_touching_boxes),
+    restated: boxes apart, or touching along an axis with the parts in that plane apart."""
+    P, Q = np.asarray(P), np.asarray(Q)
+    for k in range(3):
+        if P[:, k].max() < Q[:, k].min() or Q[:, k].max() < P[:, k].min():
+            return True
+        for lo, hi in ((P, Q), (Q, P)):
+            c = lo[:, k].max()
+            if c == hi[:, k].min():
+                a, b = lo[lo[:, k] == c][:, [(k + 1) % 3, (k + 2) % 3]], hi[hi[:, k] == c][:, [(k + 1) % 3, (k + 2) % 3]]
+                if np.any(a.max(axis=0) < b.min(axis=0)) or np.any(b.max(axis=0) < a.min(axis=0)):
+                    return True
+    return False
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_cell_soups_touching_on_cell_sides_match_the_reference(seed):
+    # each triangle inside one closed cell of a 3 x 3 x 3 block, its corners on the cell's
+    # lattice {0, 1, 2}^3: neighbouring cells' triangles touch on the cells' common sides,
+    # the pairs the comparison-only shortcut decides before any predicate; the exact
+    # reference says every pair the shortcut calls apart is apart, and the check agrees
+    rng = np.random.default_rng(300 + seed)
+    cells = rng.integers(0, 3, size=(150, 3)) * 2
+    pts = (cells[:, None, :] + rng.integers(0, 3, size=(150, 3, 3))).reshape(-1, 3).astype(float)
+    pts, inverse = np.unique(pts, axis=0, return_inverse=True)  # shared lattice points: shared vertices
+    tris = inverse.reshape(-1, 3)
+    tris = tris[(tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])]
+    ref = reference_pairs(pts, tris)
+    hit = {tuple(p) for p in ref.tolist()}
+    decided = [(i, j) for i, j in itertools.combinations(range(len(tris)), 2)
+               if _touching_apart(pts[tris[i]], pts[tris[j]])]
+    boxes_touch = [(i, j) for i, j in decided
+                   if not any(pts[tris[i]][:, k].max() < pts[tris[j]][:, k].min()
+                              or pts[tris[j]][:, k].max() < pts[tris[i]][:, k].min() for k in range(3))]
+    assert len(boxes_touch) > 100 and not hit & set(decided)
+    assert len(ref) > 10 and np.array_equal(find_self_intersections(pts, tris), ref)
+    assert np.array_equal(wmi._all_pairs(pts, tris, certify=False), ref)
+
+
 @pytest.mark.parametrize("seed, noise", [(0, 0.3), (1, 0.05), (2, 1e-7), (3, 1e-7)])
 def test_perturbed_soups_match_the_reference(seed, noise):
     # grid soups moved off the grid: generic (noise 0.3) to nearly degenerate (1e-7)
