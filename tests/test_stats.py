@@ -284,3 +284,12 @@ def test_cli_figures_are_what_the_mesh_carries(monkeypatch):
     assert mesh_figures(fresh, keys) == want
     monkeypatch.undo()
     assert mesh_figures(fresh, ["np", "watertight"]) == {"np": len(pts), "watertight": True}  # stats() for the rest
+
+
+def test_summarize_quality_names_a_wrong_shape_and_takes_empty_input():
+    from warpmesh.cells.quality import summarize_quality
+
+    with pytest.raises(ValueError, match="'q'"):
+        summarize_quality(np.ones((2, 2)))
+    s = summarize_quality([])
+    assert s["n_elements"] == 0 and np.isnan(s["worst_q"]) and np.isnan(s["mean_q"])

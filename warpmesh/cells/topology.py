@@ -541,21 +541,8 @@ def surface_measures(points, faces, *, volume: bool = True) -> tuple[float, floa
     """Total area of a triangle mesh and, for 3D points, the signed volume it encloses.
 
     The sums of :func:`face_areas` and :func:`signed_volume` (the same centre), from one
-    pass over the faces (:func:`surface_figures`, which also gives each face's quality);
-    equal to them up to rounding.
-
-    Parameters
-    ----------
-    points : (n, 2) or (n, 3) float
-    faces : (m, 3) int
-    volume : bool
-        Compute the volume too (3D only; meaningful for a closed surface).
-
-    Returns
-    -------
-    area : float
-    volume : float or None
-        None for 2D points or ``volume=False``.
+    pass over the faces: the first two results of :func:`surface_figures` (the same
+    parameters), which also gives each face's quality; equal to them up to rounding.
 
     Examples
     --------
