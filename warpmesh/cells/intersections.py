@@ -1012,20 +1012,13 @@ def _classify_faces(points64: wp.array, tris32: wp.array, device, n_workers: int
 
 
 def _each(kernel, n: int, inputs: list, outputs: list, device, n_workers: int) -> None:
-    """Launch a kernel whose first argument is ``first`` over [0, n): one launch on CUDA or
-    for small n, else one contiguous range per CPU worker, each launched from its own
-    thread (Warp's CPU launches release the GIL). The kernels so launched write only their
-    own items' entries, or constants (so no atomic is needed: on the CPU an atomic add is
-    not atomic across threads)."""
-    k = 1 if device.is_cuda else max(1, min(n_workers, n // _MIN_FACES_PER_WORKER))
-    if k == 1:
-        if n > 0:
-            wp.launch(kernel, dim=n, inputs=[0, *inputs], outputs=outputs, device=device)
-        return
-    edges = np.linspace(0, n, k + 1).astype(int)
-    run_parallel([lambda a=int(a), b=int(b): wp.launch(kernel, dim=b - a, inputs=[a, *inputs], outputs=outputs,
-                                                       device=device)
-                  for a, b in zip(edges[:-1], edges[1:]) if b > a])
+    """Launch a kernel whose first argument is ``first`` over [0, n), in the ranges of
+    :func:`_split` (one launch on CUDA or for small n). The kernels so launched write only
+    their own items' entries, or constants (so no atomic is needed: on the CPU an atomic
+    add is not atomic across threads)."""
+    if n > 0:
+        _split(n, n, device, n_workers)(lambda a, b: wp.launch(kernel, dim=b - a, inputs=[a, *inputs],
+                                                               outputs=outputs, device=device))
 
 
 def _split(n_groups: int, m: int, device, n_workers: int):
