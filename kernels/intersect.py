@@ -1327,10 +1327,11 @@ neighbour_cells = wp.types.vector(length=14, dtype=wp.int32)
 @wp.func
 def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.int32), blocks_per_axis: int,
                    block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
-                   table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
-                   order: wp.array(dtype=wp.int32), face_lowers: wp.array(dtype=wp.vec3),
-                   face_uppers: wp.array(dtype=wp.vec3), certified: wp.array(dtype=wp.int8), c: int,
-                   keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
+                   table: wp.array(dtype=wp.int32), inv_cell: float, points: wp.array(dtype=wp.vec3d),
+                   tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                   face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3),
+                   certified: wp.array(dtype=wp.int8), c: int, keys: wp.array(dtype=wp.int64), start: wp.int64,
+                   limit: int) -> int:
     """The intersecting pairs of the faces of cell c (positions ``starts[c]`` to the next
     cell's start: the faces whose box's lower corner is in it) with the faces of the same
     cell after them and with every face of the 13 neighbouring cells (dx, dy, dz) > (0, 0,
@@ -1343,7 +1344,11 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
     (:func:`grid_coordinate`) is monotone, so lo_b <= up_a gives g(lo_b) <= g(up_a) <=
     g(lo_a) + 1 (``grid_keys_kernel`` refused the grid otherwise), and lo_a <= up_b gives
     g(lo_a) <= g(lo_b) + 1: the cells of two faces that pass are at most one apart along
-    each axis. A pair that passes is then skipped if it shares a certified vertex, else
+    each axis. A face skips the neighbours one cell above it along an axis k when its
+    grown upper corner stays in its own cell along k (g(up_a) = g(lo_a)): a face b there
+    has g(lo_b) = g(lo_a) + 1 > g(up_a), so lo_b > up_a and the boxes cannot meet (about
+    half the box screens on a grid mesher's surface). A pair that passes is then
+    skipped if it shares a certified vertex, else
     given the exact test in float64, as in :func:`walk_group`. Returns
     how many pairs intersect; the first ``limit`` are written to ``keys[start:]`` as
     min(f, f2) m + max(f, f2) (f, f2 the input indices)."""
@@ -1355,13 +1360,25 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
         a1 = starts[c + 1]
     p = cells[c]
     near = neighbour_cells()  # c itself, then its occupied upper neighbours
+    needs = neighbour_cells()  # bits of the axes (x 4, y 2, z 1) along which that neighbour is one cell up
     near[0] = c
+    needs[0] = 0
     n_near = int(1)
     for d in range(14, 27):  # the 3 x 3 x 3 neighbourhood numbered 9 (dx + 1) + 3 (dy + 1) + dz + 1
-        c2 = grid_cell_index(p[0] + d / 9 - 1, p[1] + (d / 3) % 3 - 1, p[2] + d % 3 - 1, blocks_per_axis,
-                             block_used, block_slot, table)
+        dx = d / 9 - 1
+        dy = (d / 3) % 3 - 1
+        dz = d % 3 - 1
+        c2 = grid_cell_index(p[0] + dx, p[1] + dy, p[2] + dz, blocks_per_axis, block_used, block_slot, table)
         if c2 >= 0:
             near[n_near] = c2
+            need = int(0)
+            if dx == 1:
+                need = need | 4
+            if dy == 1:
+                need = need | 2
+            if dz == 1:
+                need = need | 1
+            needs[n_near] = need
             n_near += 1
     n = int(0)
     for s in range(a0, a1):
@@ -1374,7 +1391,16 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
         cv = wp.vec3i()
         nt = wp.vec3d()
         na = wp.vec3d()
+        reach = int(0)  # bits of the axes along which the face's grown box reaches the next cell up
+        if grid_coordinate(hi[0], inv_cell) > p[0]:
+            reach = reach | 4
+        if grid_coordinate(hi[1], inv_cell) > p[1]:
+            reach = reach | 2
+        if grid_coordinate(hi[2], inv_cell) > p[2]:
+            reach = reach | 1
         for k in range(n_near):
+            if (needs[k] & reach) != needs[k]:
+                continue
             c2 = near[k]
             b0 = s + 1  # in c itself: the faces after s
             if k > 0:
@@ -1394,7 +1420,7 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
 @wp.kernel
 def grid_count_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.int32), blocks_per_axis: int,
                             block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
-                            table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d),
+                            table: wp.array(dtype=wp.int32), inv_cell: float, points: wp.array(dtype=wp.vec3d),
                             tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
                             face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3),
                             certified: wp.array(dtype=wp.int8), first: int, unused: wp.array(dtype=wp.int64),
@@ -1403,14 +1429,15 @@ def grid_count_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
     faces after them in it and in its 13 upper neighbours intersect (:func:`grid_walk_cell`,
     writing nothing)."""
     c = wp.tid() + first
-    counts[c] = wp.int64(grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, points, tris,
-                                        order, face_lowers, face_uppers, certified, c, unused, wp.int64(0), 0))
+    counts[c] = wp.int64(grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, inv_cell,
+                                        points, tris, order, face_lowers, face_uppers, certified, c, unused,
+                                        wp.int64(0), 0))
 
 
 @wp.kernel
 def grid_write_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.int32), blocks_per_axis: int,
                             block_used: wp.array(dtype=wp.int32), block_slot: wp.array(dtype=wp.int32),
-                            table: wp.array(dtype=wp.int32), points: wp.array(dtype=wp.vec3d),
+                            table: wp.array(dtype=wp.int32), inv_cell: float, points: wp.array(dtype=wp.vec3d),
                             tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
                             face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3),
                             certified: wp.array(dtype=wp.int8), first: int, counts: wp.array(dtype=wp.int64),
@@ -1421,5 +1448,5 @@ def grid_write_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
     n = counts[c]
     if n == wp.int64(0):
         return
-    grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, points, tris, order, face_lowers,
-                   face_uppers, certified, c, keys, offsets[c], int(n))
+    grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, inv_cell, points, tris, order,
+                   face_lowers, face_uppers, certified, c, keys, offsets[c], int(n))

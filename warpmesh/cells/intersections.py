@@ -816,7 +816,7 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     faces = [points64, sorted_tris, order, face_lowers, face_uppers, _QUERY_PAD, certified]
     if grid is not None:  # one thread per occupied cell (K.grid_walk_cell)
         mark("boxes")
-        walk = [*_cell_table(grid[2], inv_cell, device, n_workers), *faces[:5], certified]
+        walk = [*_cell_table(grid[2], inv_cell, device, n_workers), inv_cell, *faces[:5], certified]
         count_kernel, write_kernel = K.grid_count_pairs_kernel, K.grid_write_pairs_kernel
         n_threads = walk[0].shape[0]
         mark("cells")
@@ -917,8 +917,8 @@ def _cell_table(keys: wp.array, inv_cell: float, device, n_workers: int = 1) -> 
     """The occupied cells of the sorted keys (:func:`_grid_order`) and a two-level table
     from cell coordinates to cell index (blocks of ``K.BLOCK``^3 cells, a slot for each
     used block): [cells' coordinates, first positions, blocks per axis, used blocks, block
-    slots, table], the grid walk's first arguments
-    (:func:`~warpmesh.kernels.intersect.grid_walk_cell`). Count -> scan -> write twice."""
+    slots, table], the grid walk's first arguments (its next one is the inverse cell size,
+    :func:`~warpmesh.kernels.intersect.grid_walk_cell`). Count -> scan -> write twice."""
     m = keys.shape[0]
     heads = wp.empty(m, dtype=wp.int32, device=device)
     _each(K.cell_heads_kernel, m, [keys], [heads], device, n_workers)
