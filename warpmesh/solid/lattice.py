@@ -20,7 +20,7 @@ from functools import lru_cache
 import numpy as np
 import warp as wp
 
-from warpmesh._util.parallel import parallel_ranges, run_parallel
+from warpmesh._util.parallel import launch_split
 from warpmesh.kernels import stuffing as K
 from warpmesh.solid.stencils import EDGES, LONG_FACES, ranked_stencil_tables, stencil_tables
 
@@ -174,8 +174,7 @@ class Lattice:
 
     def _per_cell(self, kernel, inputs, outputs) -> None:
         """One thread per cell, split across CPU cores."""
-        run_parallel([lambda a=a, b=b: self._launch(kernel, b - a, [a, *inputs], outputs)
-                      for a, b in parallel_ranges(self.n_cells, self.device, min_per_worker=4096)])
+        launch_split(kernel, self.n_cells, inputs, list(outputs), self.device, min_per_worker=4096)
 
     def _scan(self, counts: wp.array) -> tuple[wp.array, int]:
         offsets = wp.empty_like(counts)
@@ -236,12 +235,9 @@ class Lattice:
         self.warped = warped = wp.zeros(self.n_nodes, dtype=wp.int32, device=self.device)
         if self.n_cuts:
             for which in order:
-                jobs = [lambda a=a, b=b, w=which: self._launch(
-                    K.warp_nodes_kernel, b - a,
-                    [a, int(w), self.dims, self.h, float(alpha_long), float(alpha_short), self.edge_cut,
-                     self.cut_pos], [self.signs, self.node_pos, warped])
-                    for a, b in parallel_ranges(self.n_nodes, self.device, min_per_worker=8192)]
-                run_parallel(jobs)
+                launch_split(K.warp_nodes_kernel, self.n_nodes,
+                             [int(which), self.dims, self.h, float(alpha_long), float(alpha_short), self.edge_cut,
+                              self.cut_pos], [self.signs, self.node_pos, warped], self.device, min_per_worker=8192)
         return int(warped.numpy().sum())  # sync point: statistics
 
     def owned_counts(self) -> tuple[int, int]:
@@ -395,8 +391,7 @@ class Background:
 
     def _split(self, kernel, n, inputs, outputs, min_per_worker=4096) -> None:
         """A launch over [0, n) with ``first`` as its first input, split across CPU cores."""
-        run_parallel([lambda a=a, b=b: self._launch(kernel, b - a, [a, *inputs], outputs)
-                      for a, b in parallel_ranges(n, self.device, min_per_worker=min_per_worker)])
+        launch_split(kernel, n, inputs, list(outputs), self.device, min_per_worker=min_per_worker)
 
     def _scan(self, counts: wp.array) -> tuple[wp.array, int]:
         offsets = wp.empty_like(counts)
