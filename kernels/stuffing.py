@@ -22,6 +22,8 @@ only the tetrahedra of its owned black nodes (``own_lo <= c < own_hi``, window c
 emitted.
 """
 
+from typing import Any
+
 import warp as wp
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
@@ -782,3 +784,72 @@ def tet_edge_keys_kernel(first: int, tets: wp.array(dtype=wp.int64), key_base: w
             a = tets[4 * i + 2]
             b = tets[4 * i + 3]
         keys[6 * i + e] = wp.min(a, b) * key_base + wp.max(a, b)
+
+
+@wp.func
+def voxel_code(codes: wp.array(dtype=Any), x: wp.vec3d, spacing: wp.vec3d, shape: wp.vec3i, strides: wp.vec3l,
+               rest: int) -> int:
+    """The code of the voxel holding local point x (voxel i at i * spacing: the nearest, ties
+    to even as ``np.rint``), ``rest`` outside the volume; ``strides`` in elements of the flat
+    ``codes``."""
+    flat = wp.int64(0)
+    for k in range(3):
+        q = wp.rint(x[k] / spacing[k])
+        if not (q >= wp.float64(0.0) and q < wp.float64(shape[k])):  # NaN too
+            return rest
+        flat += wp.int64(int(q)) * strides[k]
+    return int(codes[flat])
+
+
+@wp.kernel
+def unresolved_edges_kernel(first: int, a: wp.array(dtype=wp.vec3d), b: wp.array(dtype=wp.vec3d),
+                            samples: wp.array(dtype=wp.int32), codes: wp.array(dtype=Any), spacing: wp.vec3d,
+                            shape: wp.vec3i, strides: wp.vec3l, rest: int, min_run: int,
+                            focus: wp.array(dtype=wp.int8), use_focus: int, out: wp.array(dtype=wp.int8)):
+    """One thread per edge i = first + tid, a -> b, m = ``samples[i]``: the voxel codes at
+    a + s (b - a) for s = 0, (k + 1/2) / m (k < m), 1 (:func:`voxel_code`), read as runs;
+    a run shorter than ``min_run`` samples, but the first and the last, takes the code of the
+    run before it (after that one's own merge); 1 in ``out`` when the codes then change more
+    than once along the edge (and, with ``use_focus``, some run's code has ``focus``), else
+    0. One pass, no sample stored: the host's numpy version is
+    :func:`warpmesh.solid.thin.unresolved_edges` with ``kernel=False``."""
+    i = first + wp.tid()
+    pa = a[i]
+    d = b[i] - pa
+    m = samples[i]
+    cur = voxel_code(codes, pa, spacing, shape, strides, rest)  # the open run's code, and its length
+    length = int(1)
+    runs = int(0)  # runs closed so far
+    last = int(0)  # the (merged) code of the last closed run
+    changes = int(0)
+    hit_focus = int(0)
+    for j in range(1, m + 3):  # j = m + 2: past the end, closes the last run
+        c = int(0)
+        if j <= m + 1:
+            s = wp.float64(1.0)
+            if j <= m:
+                s = (wp.float64(j - 1) + wp.float64(0.5)) / wp.float64(m)
+            c = voxel_code(codes, pa + s * d, spacing, shape, strides, rest)
+            if c == cur:
+                length += 1
+                continue
+        merged = cur
+        if runs > 0 and j <= m + 1 and length < min_run:  # neither the first run nor the last
+            merged = last
+        if runs > 0 and merged != last:
+            changes += 1
+        if use_focus != 0:
+            if focus[merged] != wp.int8(0):
+                hit_focus = 1
+        last = merged
+        runs += 1
+        cur = c
+        length = 1
+    flag = wp.int8(0)
+    if changes > 1 and (use_focus == 0 or hit_focus != 0):
+        flag = wp.int8(1)
+    out[i] = flag
+
+
+for _dtype in (wp.uint8, wp.uint16, wp.int32):  # the dtypes of multilabel.label_codes: compiled with the module
+    wp.overload(unresolved_edges_kernel, {"codes": wp.array(dtype=_dtype)})

@@ -106,3 +106,44 @@ def test_merged_index_equals_the_stable_sort(na, nb, high):
     keys, values = G._merged(flat, order, add, where)
     ref_keys, ref_values = _numpy_merged(flat, order, add, where)
     assert np.array_equal(keys, ref_keys) and np.array_equal(values, ref_values)
+
+
+@pytest.mark.parametrize("trial", range(6))
+def test_unresolved_edges_kernel_equals_the_numpy_sampling(trial):
+    from warpmesh.solid.thin import VoxelLabels, unresolved_edges
+
+    rng = np.random.default_rng(trial)
+    shape = tuple(int(x) for x in rng.integers(5, 30, 3))
+    n_codes = [2, 3, 6, 200, 300, 70_000][trial]
+    dtype = np.uint8 if n_codes <= 256 else np.uint16 if n_codes <= 65_536 else np.int32
+    codes = rng.integers(0, min(n_codes, 5) if trial % 2 else n_codes, size=shape).astype(dtype)
+    if trial % 3 == 0:
+        codes = np.asfortranarray(codes)  # the layout label_codes gives
+    spacing = rng.uniform(0.5, 2.0, 3)
+    labels = VoxelLabels(codes, spacing, int(codes.max()) + 1)
+    a = rng.uniform(-0.2, 1.2, (5_000, 3)) * np.array(shape) * spacing  # some ends outside the volume
+    b = a + rng.normal(size=(5_000, 3)) * rng.uniform(0.5, 6.0)
+    a[:50] = (np.round(a[:50] / spacing) + 0.5) * spacing  # samples on ties of the rounding
+    b[50:60] = a[50:60]  # zero-length edges
+    focus = rng.random(int(codes.max()) + 2) < 0.5
+    hits = 0
+    for fo in (None, focus):
+        for per_voxel, min_run in ((4, None), (2, 1), (4, 5)):
+            got = unresolved_edges(labels, a, b, spacing, per_voxel, min_run=min_run, focus=fo)
+            want = unresolved_edges(labels, a, b, spacing, per_voxel, min_run=min_run, focus=fo, kernel=False)
+            assert np.array_equal(got, want)
+            hits += int(got.sum())
+    assert hits > 0
+
+
+def test_voxel_labels_without_a_kernel_layout_use_numpy():
+    from warpmesh.solid.thin import VoxelLabels, labels_at, unresolved_edges
+
+    codes = np.arange(64, dtype=np.int64).reshape(4, 4, 4) % 3  # int64 codes and a strided view: no kernel
+    for c in (codes, codes.astype(np.uint8)[::2]):
+        labels = VoxelLabels(c, [1.0, 1.0, 1.0], 7)
+        assert (labels.kernel_codes() is None) == (c.dtype == np.int64 or not c.flags.c_contiguous)
+        a, b = np.zeros((3, 3)), np.array([[3.0, 0, 0], [0, 3.0, 0], [1.0, 1.0, 0]])
+        got = unresolved_edges(labels, a, b, np.ones(3), 4)
+        assert np.array_equal(got, unresolved_edges(labels, a, b, np.ones(3), 4, kernel=False))
+        np.testing.assert_array_equal(labels(a), labels_at(c, a, np.ones(3), 7))

@@ -230,7 +230,7 @@ def test_frog_crop_at_four_voxels():
 def test_labels_at_is_the_same_for_every_memory_layout():
     """The flat gather of a contiguous volume (C or Fortran order) gives the labels of the
     strided path: every point, those outside the box (the rest) included."""
-    from warpmesh.solid.regions import _labels_at
+    from warpmesh.solid.thin import labels_at as _labels_at
 
     rng = np.random.default_rng(5)
     vol = rng.integers(1, 9, (7, 5, 6)).astype(np.uint8)

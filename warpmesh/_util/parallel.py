@@ -14,7 +14,7 @@ import threading
 import numpy as np
 import warp as wp
 
-__all__ = ["launch_split", "n_workers", "parallel_ranges", "run_parallel"]
+__all__ = ["cpu_view", "launch_split", "n_workers", "parallel_ranges", "run_parallel"]
 
 
 def n_workers(device) -> int:
@@ -106,3 +106,16 @@ def launch_split(kernel, n: int, inputs: list, outputs: list, device="cpu", min_
         return
     run_parallel([lambda a=a, b=b: wp.launch(kernel, dim=b - a, inputs=[a, *inputs], outputs=outputs, device=device)
                   for a, b in parallel_ranges(n, device, min_per_worker=min_per_worker)])
+
+
+def cpu_view(a: np.ndarray, dtype) -> wp.array:
+    """A Warp CPU array of ``dtype`` over the memory of host array ``a`` (made contiguous
+    first when it is not), no copy: for :func:`launch_split`'s inputs and outputs (an output
+    must be contiguous already, or the kernel writes into a copy).
+
+    >>> out = np.zeros(3, np.int32)
+    >>> cpu_view(out, wp.int32).fill_(7)
+    >>> out.tolist()
+    [7, 7, 7]
+    """
+    return wp.array(np.ascontiguousarray(a), dtype=dtype, device="cpu", copy=False)

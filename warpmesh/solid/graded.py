@@ -53,7 +53,7 @@ import math
 import numpy as np
 import warp as wp
 
-from warpmesh._util.parallel import launch_split, n_workers
+from warpmesh._util.parallel import cpu_view, launch_split, n_workers
 from warpmesh.kernels import stuffing as K
 from warpmesh.solid.lattice import lattice_tables, node_coordinates
 
@@ -266,8 +266,8 @@ def tet_edges(tets: np.ndarray) -> np.ndarray:
     """
     t = np.ascontiguousarray(tets, dtype=np.int64).reshape(-1, 4)
     keys = np.empty((len(t), 6), np.int64)
-    launch_split(K.tet_edge_keys_kernel, len(t), [_cpu(t.reshape(-1), wp.int64), wp.int64(EDGE_KEY)],
-                 [_cpu(keys.reshape(-1), wp.int64)])
+    launch_split(K.tet_edge_keys_kernel, len(t), [cpu_view(t.reshape(-1), wp.int64), wp.int64(EDGE_KEY)],
+                 [cpu_view(keys.reshape(-1), wp.int64)])
     return keys
 
 
@@ -280,15 +280,10 @@ def _longest(coords: np.ndarray, tets: np.ndarray, keys: np.ndarray) -> tuple[np
     llen = np.empty(m, np.float64)
     if m:
         launch_split(K.longest_edges_kernel, m,
-                     [_cpu(np.ascontiguousarray(coords, np.float64), wp.vec3d), _cpu(tets.reshape(-1), wp.int64),
-                      _cpu(keys.reshape(-1), wp.int64)],
-                     [_cpu(lkey, wp.int64), _cpu(llen, wp.float64)])
+                     [cpu_view(np.asarray(coords, np.float64), wp.vec3d), cpu_view(tets.reshape(-1), wp.int64),
+                      cpu_view(keys.reshape(-1), wp.int64)],
+                     [cpu_view(lkey, wp.int64), cpu_view(llen, wp.float64)])
     return lkey, llen
-
-
-def _cpu(a: np.ndarray, dtype) -> wp.array:
-    """A Warp view of the contiguous host array ``a`` (no copy)."""
-    return wp.array(np.ascontiguousarray(a), dtype=dtype, device="cpu", copy=False)
 
 
 class _Rows:
@@ -338,11 +333,11 @@ def _merged(sorted_flat: np.ndarray, order: np.ndarray, add: np.ndarray, where: 
     runs = 8 * n_workers("cpu")
     per_run = -(-n // runs)
     launch_split(K.merge_sorted_kernel, -(-n // per_run),
-                 [per_run, _cpu(add.astype(np.int64, copy=False), wp.int64),
-                  _cpu(where.astype(np.int64, copy=False), wp.int64),
-                  _cpu(sorted_flat.astype(np.int64, copy=False), wp.int64),
-                  _cpu(order.astype(np.int64, copy=False), wp.int64)],
-                 [_cpu(keys, wp.int64), _cpu(values, wp.int64)], min_per_worker=1)
+                 [per_run, cpu_view(add.astype(np.int64, copy=False), wp.int64),
+                  cpu_view(where.astype(np.int64, copy=False), wp.int64),
+                  cpu_view(sorted_flat.astype(np.int64, copy=False), wp.int64),
+                  cpu_view(order.astype(np.int64, copy=False), wp.int64)],
+                 [cpu_view(keys, wp.int64), cpu_view(values, wp.int64)], min_per_worker=1)
     return keys, values
 
 

@@ -149,7 +149,7 @@ from warpmesh.mesh import Mesh
 from warpmesh.solid.dihedral import signed_volumes, tet_quality_summary
 from warpmesh.solid.lattice import lattice_tables
 from warpmesh.solid.stuffing import lattice_for
-from warpmesh.solid.thin import Specks, graded_background, speck_voxels
+from warpmesh.solid.thin import Specks, VoxelLabels, graded_background, labels_at, speck_voxels
 from warpmesh.surface.multilabel import LABEL_ABOVE, label_codes
 
 __all__ = ["mesh_regions", "SNAP", "REFINE_ERROR", "INTERIOR", "SAMPLES_PER_VOXEL"]
@@ -411,25 +411,6 @@ def _check_min_size(min_size, spacing: np.ndarray, h: float) -> float:
 
 
 # ----------------------------------------------------------------------------------- the lattice
-def _labels_at(codes: np.ndarray, local: np.ndarray, spacing: np.ndarray, rest: int) -> np.ndarray:
-    """The code of the voxel holding each local point (the rest outside the box).
-
-    (Called on every sample of every edge the graded lattice tests: one flat gather from the
-    volume's memory where it is contiguous, one unsigned compare for both bounds.)"""
-    ijk = np.rint(local / spacing).astype(np.int64)
-    ok = ijk.view(np.uint64) < np.asarray(codes.shape, np.uint64)  # a negative index wraps to a huge one
-    inside = ok[:, 0] & ok[:, 1] & ok[:, 2]
-    if codes.flags.f_contiguous or codes.flags.c_contiguous:
-        flat = np.ravel_multi_index(ijk.T, codes.shape, mode="clip", order="F" if codes.flags.f_contiguous else "C")
-        out = codes.ravel(order="A")[flat]  # (a copy: fancy indexing)
-        out[~inside] = rest
-        return out
-    out = np.full(len(local), rest, dtype=codes.dtype)
-    ii = ijk[inside]
-    out[inside] = codes[ii[:, 0], ii[:, 1], ii[:, 2]]
-    return out
-
-
 def _node_positions(dims: np.ndarray, origin: np.ndarray, h: float, nodes: np.ndarray) -> np.ndarray:
     cell, colour = nodes // 2, nodes % 2
     c = np.stack([cell % dims[0], (cell // dims[0]) % dims[1], cell // (dims[0] * dims[1])], axis=1)
@@ -469,7 +450,7 @@ def _edge_cuts(codes, rest, spacing, p_lo, p_hi, c_lo, c_hi, chunk: int = 65536)
     for a in range(0, len(p_lo), chunk):
         lo, hi = p_lo[a:a + chunk], p_hi[a:a + chunk]
         pts = lo[:, None, :] + s[None, :, None] * (hi - lo)[:, None, :]
-        lab = _labels_at(codes, pts.reshape(-1, 3), spacing, rest).reshape(len(lo), n)
+        lab = labels_at(codes, pts.reshape(-1, 3), spacing, rest).reshape(len(lo), n)
         first = (lab == c_lo[a:a + chunk, None]).sum(axis=1)
         last = (lab == c_hi[a:a + chunk, None]).sum(axis=1)
         t[a:a + chunk] = (first + 0.5 * (n - first - last)) / n
@@ -716,14 +697,14 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     found = None
     if min_size is not None:
         found = graded_background(codes, rest, spacing, dims, origin, h, min_size,
-                                  lambda p: _labels_at(codes, p, spacing, rest), SAMPLES_PER_VOXEL, focus, specks)
+                                  VoxelLabels(codes, spacing, rest), SAMPLES_PER_VOXEL, focus, specks)
         if found is None:
             return None
     timings["grade"] = time.perf_counter() - t0
     if found is None:  # the uniform lattice (nothing to refine, or min_size None)
         n_nodes = 2 * int(np.prod(dims))
         node_pos = _node_positions(dims, origin, h, np.arange(n_nodes))
-        node_code = _labels_at(codes, node_pos, spacing, rest)
+        node_code = labels_at(codes, node_pos, spacing, rest)
         bg = _background_tets(dims, node_code, rest)
     else:
         node_pos, node_code, bg, more = found

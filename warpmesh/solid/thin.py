@@ -49,13 +49,17 @@ Example
 from __future__ import annotations
 
 import numpy as np
+import warp as wp
 
 from warpmesh._util.arrays import sorted_unique
+from warpmesh._util.parallel import cpu_view, launch_split
 from warpmesh.errors import WarpMeshError
+from warpmesh.kernels import stuffing as K
 from warpmesh.solid.graded import EDGE_KEY, SizeField, refine_tets, tet_edges
 from warpmesh.solid.lattice import lattice_tables, node_coordinates
 
-__all__ = ["MARGIN", "MIN_RUN", "Specks", "graded_background", "speck_voxels", "unresolved_edges"]
+__all__ = ["MARGIN", "MIN_RUN", "Specks", "VoxelLabels", "graded_background", "labels_at", "speck_voxels",
+           "unresolved_edges"]
 
 #: cubes of the BCC lattice kept around the meshed voxels
 MARGIN = 2
@@ -64,19 +68,88 @@ MARGIN = 2
 MIN_RUN = 0.75
 
 
+def labels_at(codes: np.ndarray, local: np.ndarray, spacing: np.ndarray, rest: int) -> np.ndarray:
+    """The code of the voxel holding each local point (voxel i at i * spacing, the nearest,
+    ties to even), ``rest`` outside the box.
+
+    (Called on every sample of every edge the graded lattice tests: one flat gather from the
+    volume's memory where it is contiguous, one unsigned compare for both bounds.)
+
+    >>> labels_at(np.arange(8, dtype=np.uint8).reshape(2, 2, 2), np.array([[0.0, 0, 0], [2.4, 0, 0.6], [9, 0, 0]]),
+    ...           np.array([2.0, 1, 1]), 255).tolist()
+    [0, 5, 255]
+    """
+    ijk = np.rint(local / spacing).astype(np.int64)
+    ok = ijk.view(np.uint64) < np.asarray(codes.shape, np.uint64)  # a negative index wraps to a huge one
+    inside = ok[:, 0] & ok[:, 1] & ok[:, 2]
+    if codes.flags.f_contiguous or codes.flags.c_contiguous:
+        flat = np.ravel_multi_index(ijk.T, codes.shape, mode="clip", order="F" if codes.flags.f_contiguous else "C")
+        out = codes.ravel(order="A")[flat]  # (a copy: fancy indexing)
+        out[~inside] = rest
+        return out
+    out = np.full(len(local), rest, dtype=codes.dtype)
+    ii = ijk[inside]
+    out[inside] = codes[ii[:, 0], ii[:, 1], ii[:, 2]]
+    return out
+
+
+class VoxelLabels:
+    """:func:`labels_at` of one code volume as a callable (n, 3) local points -> (n,) codes,
+    the ``labels_at`` :func:`graded_background` takes; :func:`unresolved_edges` samples its
+    edges in a Warp kernel when handed one (codes uint8, uint16 or int32, contiguous).
+
+    >>> VoxelLabels(np.zeros((2, 2, 2), np.uint8), [1.0, 1, 1], 9)(np.array([[0.2, 0, 0], [5.0, 0, 0]])).tolist()
+    [0, 9]
+    """
+
+    def __init__(self, codes: np.ndarray, spacing, rest: int):
+        self.codes, self.spacing, self.rest = codes, np.asarray(spacing, np.float64), int(rest)
+
+    def __call__(self, local: np.ndarray) -> np.ndarray:
+        return labels_at(self.codes, local, self.spacing, self.rest)
+
+    def kernel_codes(self):
+        """(flat Warp view of the codes, element strides) for the kernel, or None when the
+        codes' dtype or layout has no kernel."""
+        c = self.codes
+        if c.ndim != 3 or c.dtype not in (np.uint8, np.uint16, np.int32) or not (
+                c.flags.c_contiguous or c.flags.f_contiguous):
+            return None
+        flat = c.ravel(order="A")  # a view
+        return wp.array(flat, dtype=wp.dtype_from_numpy(c.dtype), device="cpu", copy=False), \
+            wp.vec3l(*(int(st) // c.itemsize for st in c.strides))
+
+
 def unresolved_edges(labels_at, a: np.ndarray, b: np.ndarray, spacing: np.ndarray, per_voxel: int,
-                     min_run: int | None = None, focus=None, chunk: int = 1 << 21) -> np.ndarray:
+                     min_run: int | None = None, focus=None, chunk: int = 1 << 21, kernel: bool = True) -> np.ndarray:
     """(e,) bool: True where the labels along the segment a -> b (local positions (e, 3))
     change more than once, sampled ``per_voxel`` times per voxel of the smallest spacing, the
     ends included; a run of fewer than ``min_run`` samples between two others (default
     ``MIN_RUN`` voxels' worth) does not count (an edge clipping a voxel's corner). ``focus``,
-    optional: (c,) bool by code, an edge counts only when one of its runs is of a code in focus."""
+    optional: (c,) bool by code, an edge counts only when one of its runs is of a code in focus.
+
+    With a :class:`VoxelLabels` (and ``kernel``) the edges are sampled in a Warp kernel over
+    the CPU cores, one pass per edge with no sample stored
+    (:func:`~warpmesh.kernels.stuffing.unresolved_edges_kernel`); otherwise numpy, in chunks of
+    ``chunk`` samples. Both give the same answer (tested)."""
     min_run = max(1, int(round(MIN_RUN * per_voxel))) if min_run is None else int(min_run)
     out = np.zeros(len(a), bool)
     if not len(a):
         return out
     length = np.linalg.norm(b - a, axis=1)
     n = np.maximum(4, np.ceil(per_voxel * length / float(np.min(spacing))).astype(np.int64))
+    view = labels_at.kernel_codes() if kernel and isinstance(labels_at, VoxelLabels) else None
+    if view is not None:
+        flags = np.zeros(len(a), np.int8)
+        use = focus is not None
+        fo = np.ascontiguousarray(focus, dtype=np.int8) if use else np.zeros(1, np.int8)
+        shape = wp.vec3i(*(int(x) for x in labels_at.codes.shape))
+        launch_split(K.unresolved_edges_kernel, len(a),
+                     [cpu_view(np.ascontiguousarray(a, np.float64), wp.vec3d),
+                      cpu_view(np.ascontiguousarray(b, np.float64), wp.vec3d), cpu_view(n.astype(np.int32), wp.int32),
+                      view[0], wp.vec3d(*labels_at.spacing.tolist()), shape, view[1], labels_at.rest, min_run,
+                      cpu_view(fo, wp.int8), int(use)], [cpu_view(flags, wp.int8)], min_per_worker=1 << 10)
+        return flags.astype(bool)
     for m in np.unique(n):  # a few lengths in a graded lattice: one batch each
         rows = np.flatnonzero(n == m)
         s = np.concatenate([[0.0], (np.arange(m) + 0.5) / m, [1.0]])
