@@ -853,3 +853,86 @@ def unresolved_edges_kernel(first: int, a: wp.array(dtype=wp.vec3d), b: wp.array
 
 for _dtype in (wp.uint8, wp.uint16, wp.int32):  # the dtypes of multilabel.label_codes: compiled with the module
     wp.overload(unresolved_edges_kernel, {"codes": wp.array(dtype=_dtype)})
+
+
+@wp.func
+def _sorted_has(keys: wp.array(dtype=wp.int64), lo: int, end: int, key: wp.int64) -> bool:
+    """Whether ``keys[lo:end]`` (sorted) holds ``key``: a binary search."""
+    hi = end
+    while lo < hi:
+        mid = (lo + hi) / 2
+        if keys[mid] < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    found = False
+    if lo < end:
+        found = keys[lo] == key
+    return found
+
+
+@wp.kernel
+def speck_sizes_kernel(first: int, nodes: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.int64),
+                       spacing: wp.vec3d, shape: wp.vec3i, top: int, coarse: wp.array(dtype=wp.uint8),
+                       coarse_shape: wp.vec3i, keys: wp.array(dtype=wp.int64), offsets: wp.array(dtype=wp.int32),
+                       sizes: wp.array(dtype=wp.float64), out: wp.array(dtype=wp.float64)):
+    """One thread per tetrahedron i = first + tid: the smallest of ``sizes`` whose speck blocks
+    meet its bounding box, as :meth:`warpmesh.solid.thin.Specks.size_of` computes it (``out``
+    left as it is, inf, when none does). The box in voxels: floor(min or max of node / spacing
+    + 1/2), off the volume -> none, clamped to it; its centre's block of 2^top voxels must be
+    marked in ``coarse`` (flat, C order, one block of margin); then k = the least with 2^k >=
+    the box's largest span, and the 8 corners' keys of the blocks of 2^k voxels are searched
+    in the sorted keys of each size, the smallest size last: ``keys[offsets[s (top + 1) + k]:
+    offsets[s (top + 1) + k + 1]]`` for size index s."""
+    i = first + wp.tid()
+    p = wp.cw_div(nodes[int(tets[4 * i])], spacing)
+    plo = p
+    phi = p
+    for v in range(1, 4):
+        q = wp.cw_div(nodes[int(tets[4 * i + v])], spacing)
+        plo = wp.min(plo, q)
+        phi = wp.max(phi, q)
+    lo = wp.vec3i()
+    hi = wp.vec3i()
+    for a in range(3):
+        l = wp.floor(plo[a] + wp.float64(0.5))
+        h = wp.floor(phi[a] + wp.float64(0.5))
+        if h < wp.float64(0.0) or l >= wp.float64(shape[a]):
+            return
+        lo[a] = wp.max(int(l), 0)
+        hi[a] = wp.min(int(h), shape[a] - 1)
+    c0 = (((lo[0] + hi[0]) >> 1) >> top) + 1  # the centre's block, past the margin
+    c1 = (((lo[1] + hi[1]) >> 1) >> top) + 1
+    c2 = (((lo[2] + hi[2]) >> 1) >> top) + 1
+    if coarse[(c0 * coarse_shape[1] + c1) * coarse_shape[2] + c2] == wp.uint8(0):
+        return
+    span = wp.max(wp.max(hi[0] - lo[0], hi[1] - lo[1]), hi[2] - lo[2])
+    k = int(0)
+    while (1 << k) < span and k < top:  # top: blocks of 2^top voxels hold any box asked (Specks' largest)
+        k += 1
+    n0 = (shape[0] >> k) + 1
+    n1 = (shape[1] >> k) + 1
+    got = wp.float64(-1.0)
+    for s0 in range(sizes.shape[0]):
+        s = sizes.shape[0] - 1 - s0  # the largest first: the smallest hit wins
+        a = offsets[s * (top + 1) + k]
+        b = offsets[s * (top + 1) + k + 1]
+        if b > a:
+            hit = False
+            for c in range(8):
+                x = lo[0] >> k
+                if (c & 4) != 0:
+                    x = hi[0] >> k
+                y = lo[1] >> k
+                if (c & 2) != 0:
+                    y = hi[1] >> k
+                z = lo[2] >> k
+                if (c & 1) != 0:
+                    z = hi[2] >> k
+                key = wp.int64(x) + wp.int64(n0) * (wp.int64(y) + wp.int64(n1) * wp.int64(z))
+                if _sorted_has(keys, a, b, key):
+                    hit = True
+            if hit:
+                got = sizes[s]
+    if got >= wp.float64(0.0):
+        out[i] = got

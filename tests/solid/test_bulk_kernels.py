@@ -147,3 +147,28 @@ def test_voxel_labels_without_a_kernel_layout_use_numpy():
         got = unresolved_edges(labels, a, b, np.ones(3), 4)
         assert np.array_equal(got, unresolved_edges(labels, a, b, np.ones(3), 4, kernel=False))
         np.testing.assert_array_equal(labels(a), labels_at(c, a, np.ones(3), 7))
+
+
+@pytest.mark.parametrize("trial", range(6))
+def test_speck_sizes_kernel_equals_the_numpy_levels(trial):
+    from warpmesh.solid.thin import Specks
+
+    rng = np.random.default_rng(trial)
+    shape = rng.integers(8, 60, 3)
+    spacing = rng.uniform(0.5, 2.0, 3)
+    n_voxels = int(rng.integers(1, 30))
+    voxels = np.stack([rng.integers(0, s, n_voxels) for s in shape], 1)
+    sizes = rng.choice([0.7, 1.3, 2.9][: 1 + trial % 3], n_voxels)  # one to three levels
+    largest = float(rng.uniform(2, 10))
+    specks = Specks(voxels, sizes, shape, spacing, largest)
+    n = 20_000
+    centre = rng.uniform(-0.1, 1.1, (n, 3)) * shape * spacing  # some boxes off the volume
+    scale = rng.choice([0.3, 2.0, largest], (n, 1))  # boxes of every block level, none wider than largest
+    nodes = (centre[:, None, :] + rng.uniform(-0.5, 0.5, (n, 4, 3)) * scale[:, :, None]).reshape(-1, 3)
+    tets = np.arange(4 * n).reshape(n, 4)[rng.permutation(n)]
+    got = specks.size_of(nodes, tets)
+    want = specks.size_of(nodes, tets, kernel=False)
+    assert np.array_equal(got, want)
+    assert 0.002 < np.isfinite(want).mean() < 0.998  # both near and far tetrahedra (40 or more of each)
+    if trial % 3:
+        assert len(np.unique(want[np.isfinite(want)])) > 1  # several levels hit

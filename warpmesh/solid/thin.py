@@ -266,15 +266,31 @@ class Specks:
         for d in np.ndindex(3, 3, 3):
             coarse[tuple((b + np.array(d)).T)] = True  # dilated by one block
         self.coarse = coarse
+        # the same, packed for the kernel: every (size, k) run of keys in one array, size-major
+        runs = [self.keys[size, k] for size in self.levels for k in range(self.top + 1)]
+        self._packed = np.concatenate(runs + [np.zeros(0, np.int64)]).astype(np.int64)
+        self._offsets = np.concatenate([[0], np.cumsum([len(r) for r in runs], dtype=np.int64)]).astype(np.int32)
 
     def _key(self, cells: np.ndarray, k: int) -> np.ndarray:
         n = (self.shape >> k) + 1
         return cells[:, 0] + n[0] * (cells[:, 1] + n[1] * cells[:, 2])
 
-    def size_of(self, nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
-        """(k,) the size asked of each tetrahedron (``inf`` where no speck is near)."""
+    def size_of(self, nodes: np.ndarray, tets: np.ndarray, kernel: bool = True) -> np.ndarray:
+        """(k,) the size asked of each tetrahedron (``inf`` where no speck is near): one thread
+        per tetrahedron (:func:`~warpmesh.kernels.stuffing.speck_sizes_kernel`), or with
+        ``kernel=False`` numpy, by levels of block size (the reference; both are tested equal)."""
         out = np.full(len(tets), np.inf)
         if not len(tets) or not self.levels:
+            return out
+        if kernel:
+            launch_split(K.speck_sizes_kernel, len(tets),
+                         [cpu_view(np.asarray(nodes, np.float64), wp.vec3d),
+                          cpu_view(np.asarray(tets, np.int64).reshape(-1), wp.int64),
+                          wp.vec3d(*self.spacing.tolist()), wp.vec3i(*(int(x) for x in self.shape)), int(self.top),
+                          cpu_view(self.coarse.view(np.uint8).reshape(-1), wp.uint8),
+                          wp.vec3i(*self.coarse.shape), cpu_view(self._packed, wp.int64),
+                          cpu_view(self._offsets, wp.int32), cpu_view(np.asarray(self.levels, np.float64), wp.float64)],
+                         [cpu_view(out, wp.float64)])
             return out
         p = nodes[tets] / self.spacing  # voxel units: voxel i covers [i - 1/2, i + 1/2)
         lo = np.floor(p.min(axis=1) + 0.5).astype(np.int64)
