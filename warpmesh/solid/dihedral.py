@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warpmesh._util.parallel import launch_split
+from warpmesh._util.parallel import cpu_view, launch_split
 from warpmesh.kernels import stuffing as K
 
 __all__ = ["dihedral_angles", "radius_edge_ratio", "signed_volumes", "tet_quality", "tet_quality_summary"]
@@ -54,9 +54,7 @@ def signed_volumes(points, tets) -> np.ndarray:
     if int(t.min()) < 0 or int(t.max()) >= len(pts):
         raise ValueError(f"'tets' holds indices outside [0, {len(pts)}) (the points)")
     launch_split(K.signed_volumes_kernel, len(t),
-                 [wp.array(pts, dtype=wp.vec3d, device="cpu", copy=False),
-                  wp.array(t.reshape(-1), dtype=wp.int64, device="cpu", copy=False)],
-                 [wp.array(out, dtype=wp.float64, device="cpu", copy=False)])
+                 [cpu_view(pts, wp.vec3d), cpu_view(t.reshape(-1), wp.int64)], [cpu_view(out, wp.float64)])
     return out
 
 

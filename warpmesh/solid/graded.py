@@ -66,8 +66,6 @@ CURVATURE_ANGLE = 0.2
 CURVATURE_GRADING = 0.5
 #: a background larger than this is refused (raise the sizes)
 MAX_BACKGROUND_TETS = 8_000_000
-#: local edges of a tetrahedron (the order of :data:`warpmesh.solid.stencils.EDGES`)
-_EDGES = np.array(((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)))
 #: edge keys a * EDGE_KEY + b (a < b), those of :func:`tet_edges`
 EDGE_KEY = np.int64(1) << np.int64(31)
 #: samples per axis used to validate a size callable over the box

@@ -116,8 +116,7 @@ class VoxelLabels:
                 c.flags.c_contiguous or c.flags.f_contiguous):
             return None
         flat = c.ravel(order="A")  # a view
-        return wp.array(flat, dtype=wp.dtype_from_numpy(c.dtype), device="cpu", copy=False), \
-            wp.vec3l(*(int(st) // c.itemsize for st in c.strides))
+        return cpu_view(flat, wp.dtype_from_numpy(c.dtype)), wp.vec3l(*(int(st) // c.itemsize for st in c.strides))
 
 
 def unresolved_edges(labels_at, a: np.ndarray, b: np.ndarray, spacing: np.ndarray, per_voxel: int,
@@ -145,8 +144,8 @@ def unresolved_edges(labels_at, a: np.ndarray, b: np.ndarray, spacing: np.ndarra
         fo = np.ascontiguousarray(focus, dtype=np.int8) if use else np.zeros(1, np.int8)
         shape = wp.vec3i(*(int(x) for x in labels_at.codes.shape))
         launch_split(K.unresolved_edges_kernel, len(a),
-                     [cpu_view(np.ascontiguousarray(a, np.float64), wp.vec3d),
-                      cpu_view(np.ascontiguousarray(b, np.float64), wp.vec3d), cpu_view(n.astype(np.int32), wp.int32),
+                     [cpu_view(np.asarray(a, np.float64), wp.vec3d), cpu_view(np.asarray(b, np.float64), wp.vec3d),
+                      cpu_view(n.astype(np.int32), wp.int32),
                       view[0], wp.vec3d(*labels_at.spacing.tolist()), shape, view[1], labels_at.rest, min_run,
                       cpu_view(fo, wp.int8), int(use)], [cpu_view(flags, wp.int8)], min_per_worker=1 << 10)
         return flags.astype(bool)
