@@ -341,7 +341,8 @@ def _merged(sorted_flat: np.ndarray, order: np.ndarray, add: np.ndarray, where: 
 
 class _Bisection:
     """A conforming tetrahedral mesh under longest-edge bisection: nodes (half-cube units),
-    tetrahedra, their edge keys, longest edge (key, length) and bisection level.
+    tetrahedra, their longest edge (key, length) and bisection level (their edge keys are held
+    only in the two indices below).
 
     Tetrahedra are append-only: a bisected one stays, marked dead (``alive``), its children
     go after all others, so the living ones in order are the mesh's order. The edge keys of
@@ -354,7 +355,8 @@ class _Bisection:
         keys = tet_edges(tets)
         lkey, llen = _longest(coords, tets, keys)
         self.nodes = _Rows(coords)
-        self._tets, self._keys, self._lkey, self._llen = _Rows(tets), _Rows(keys), _Rows(lkey), _Rows(llen)
+        # (the edge keys are not kept per tetrahedron: the two indices hold them)
+        self._tets, self._lkey, self._llen = _Rows(tets), _Rows(lkey), _Rows(llen)
         self._levels = _Rows(np.zeros(len(tets), np.int64))
         self._fresh = _Rows(np.ones(len(tets), bool))  # living, not yet checked against the size field
         self._alive = _Rows(np.ones(len(tets), bool))
@@ -435,7 +437,7 @@ class _Bisection:
             self.alive[cut] = False
             self.fresh[cut] = False
             self.count += len(cut)  # one out, two in
-            for rows_, add in ((self._tets, children), (self._keys, ck), (self._lkey, cl), (self._llen, cn),
+            for rows_, add in ((self._tets, children), (self._lkey, cl), (self._llen, cn),
                                (self._levels, lv), (self._fresh, np.ones(len(children), bool)),
                                (self._alive, np.ones(len(children), bool))):
                 rows_.append(add)
@@ -448,9 +450,14 @@ class _Bisection:
             holders = [m + np.flatnonzero(holds)]
             frontier = np.unique(cl[holds])
         if 2 * len(self.recent[0]) > len(self.main[0]):  # the dead dropped first: less to merge
-            live = [self.alive[od // 6] for _, od in (self.main, self.recent)]
-            (mf, mo), (rf, ro) = ((sf[k], od[k]) for (sf, od), k in zip((self.main, self.recent), live))
-            self.main = _merged(mf, mo, rf, ro)
+            kept = []
+            for index in ("main", "recent"):  # each old index let go once filtered: a lower peak
+                sf, od = getattr(self, index)
+                setattr(self, index, None)
+                live = self.alive[od // 6]
+                kept.append((sf[live], od[live]))
+                del sf, od, live
+            self.main = _merged(*kept[0], *kept[1])
             self.recent = (np.empty(0, np.int64), np.empty(0, np.int64))
 
 

@@ -428,6 +428,7 @@ def graded_background(codes: np.ndarray, rest: int, spacing, dims: np.ndarray, o
     uid = 2 * (ends[..., 0] + dims[0] * (ends[..., 1] + dims[1] * ends[..., 2])) + col
     used, tets = np.unique(uid, return_inverse=True)
     tets = tets.reshape(-1, 4)
+    del ends, col, uid, ok  # (not held through the refinement)
     cell = used // 2
     ijk = np.stack([cell % dims[0], (cell // dims[0]) % dims[1], cell // (dims[0] * dims[1])], axis=1)
     coords = node_coordinates((used % 2)[:, None], ijk).astype(np.float64)  # half-cube units
