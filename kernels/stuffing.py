@@ -936,3 +936,113 @@ def speck_sizes_kernel(first: int, nodes: wp.array(dtype=wp.vec3d), tets: wp.arr
                 got = sizes[s]
     if got >= wp.float64(0.0):
         out[i] = got
+
+
+# ----------------------------------------------------------------------------------- lattice cleaving
+_vec6l = wp.types.vector(length=6, dtype=wp.int64)
+
+
+@wp.kernel
+def cleave_fans_kernel(first: int, write: int, rows: int, tets: wp.array(dtype=wp.int64),
+                       codes: wp.array(dtype=wp.int32), cut_id: wp.array(dtype=wp.int64),
+                       cut_vertex: wp.array(dtype=wp.int64), face_vertex: wp.array(dtype=wp.int64),
+                       tet_base: wp.int64, rest: int, faces: wp.array(dtype=wp.int32),
+                       edge_of: wp.array(dtype=wp.int32), tet_at: wp.array(dtype=wp.int64),
+                       tri_at: wp.array(dtype=wp.int64), out_tets: wp.array(dtype=wp.int64),
+                       out_codes: wp.array(dtype=wp.int64), out_tris: wp.array(dtype=wp.int64),
+                       out_lower: wp.array(dtype=wp.int64), out_upper: wp.array(dtype=wp.int64)):
+    """One thread per cleaved tetrahedron r = first + tid of ``rows`` (``tets`` (rows, 4) node
+    ids, ``codes`` their codes, ``cut_id`` (rows, 6) the cut of each local edge or -1,
+    ``face_vertex`` (rows, 4) each face's point, -1 where the face has one code): the
+    sub-tetrahedra from its tet point (``tet_base + r``) over its faces and the interface
+    triangles between them. Face f (corners ``faces[3 f:3 f + 3]``) of one code gives one
+    sub-tetrahedron (none for ``rest``); a face of several codes the fan of its face point over
+    the face's polygon: per corner k -> k' the segments (k, x) and (x, k'), x the edge's cut
+    point (``cut_vertex``; k' when uncut), of k's and k''s code, none where a segment is one
+    point; where two consecutive segments' codes differ, the triangle (tet point, face point,
+    their shared point) is an interface, oriented from the lower code's side.
+
+    ``write`` 0 counts: ``tet_at[(2 f + kind) rows + r]`` the sub-tetrahedra of face f (kind 0
+    of one code, 1 the fan) and ``tri_at[f rows + r]`` the triangles; ``write`` 1 writes them
+    at those entries (exclusive prefix sums of the counts, so the output goes face by face,
+    the one-code ones first, each in row order)."""
+    r = first + wp.tid()
+    tp = tet_base + wp.int64(r)
+    for f in range(4):
+        c0 = int(faces[3 * f])
+        fv = face_vertex[4 * r + f]
+        n_one = 0
+        n_fan = 0
+        n_tri = 0
+        if fv < wp.int64(0):
+            if codes[4 * r + c0] != rest:
+                n_one = 1
+                if write == 1:
+                    at = tet_at[2 * f * rows + r]
+                    o = wp.int64(4) * at
+                    out_tets[o] = tp
+                    out_tets[o + wp.int64(1)] = tets[4 * r + c0]
+                    out_tets[o + wp.int64(2)] = tets[4 * r + int(faces[3 * f + 1])]
+                    out_tets[o + wp.int64(3)] = tets[4 * r + int(faces[3 * f + 2])]
+                    out_codes[at] = wp.int64(codes[4 * r + c0])
+        else:
+            start = _vec6l()
+            end = _vec6l()
+            code = _vec6l()
+            for q in range(3):
+                a = int(faces[3 * f + q])
+                b = int(faces[3 * f + (q + 1) % 3])
+                e = cut_id[6 * r + int(edge_of[4 * a + b])]
+                x = tets[4 * r + b]
+                if e >= wp.int64(0):
+                    x = cut_vertex[e]
+                start[2 * q] = tets[4 * r + a]
+                end[2 * q] = x
+                code[2 * q] = wp.int64(codes[4 * r + a])
+                start[2 * q + 1] = x
+                end[2 * q + 1] = tets[4 * r + b]
+                code[2 * q + 1] = wp.int64(codes[4 * r + b])
+            at = wp.int64(0)
+            if write == 1:
+                at = tet_at[(2 * f + 1) * rows + r]
+            for s in range(6):
+                if start[s] != end[s] and code[s] != wp.int64(rest):
+                    if write == 1:
+                        o = wp.int64(4) * at
+                        out_tets[o] = tp
+                        out_tets[o + wp.int64(1)] = fv
+                        out_tets[o + wp.int64(2)] = start[s]
+                        out_tets[o + wp.int64(3)] = end[s]
+                        out_codes[at] = code[s]
+                        at += wp.int64(1)
+                    n_fan += 1
+            j = wp.int64(0)
+            if write == 1:
+                j = tri_at[f * rows + r]
+            for s in range(6):
+                if start[s] != end[s]:
+                    nxt = 0  # the next segment that is not a point, cyclically (there are at least three)
+                    found = 0
+                    for d in range(1, 6):
+                        c = (s + d) % 6
+                        if found == 0 and start[c] != end[c]:
+                            nxt = c
+                            found = 1
+                    if code[s] != code[nxt]:
+                        if write == 1:
+                            o = wp.int64(3) * j
+                            out_tris[o] = tp
+                            if code[s] < code[nxt]:  # (tp, fv, end) is the outward face of the slot's sub-tetrahedron
+                                out_tris[o + wp.int64(1)] = fv
+                                out_tris[o + wp.int64(2)] = end[s]
+                            else:
+                                out_tris[o + wp.int64(1)] = end[s]
+                                out_tris[o + wp.int64(2)] = fv
+                            out_lower[j] = wp.min(code[s], code[nxt])
+                            out_upper[j] = wp.max(code[s], code[nxt])
+                            j += wp.int64(1)
+                        n_tri += 1
+        if write == 0:
+            tet_at[2 * f * rows + r] = wp.int64(n_one)
+            tet_at[(2 * f + 1) * rows + r] = wp.int64(n_fan)
+            tri_at[f * rows + r] = wp.int64(n_tri)

@@ -1,7 +1,8 @@
 """The tetrahedral meshes' bulk passes that moved from numpy into Warp kernels
-(``kernels/stuffing.py``): signed volumes, edge keys, longest edges and the merge of two
-sorted edge indices give what the numpy code they replaced gives, bit for bit, on random
-input, ties and empty runs included, and refuse bad input by name."""
+(``kernels/stuffing.py``): signed volumes, edge keys, longest edges, the merge of two
+sorted edge indices, the unresolved edges, the speck sizes and the cleaving's fans give what
+the numpy code they replaced gives, bit for bit, on random input, ties and empty runs
+included, and refuse bad input by name."""
 
 from __future__ import annotations
 
@@ -175,3 +176,64 @@ def test_speck_sizes_kernel_equals_the_numpy_levels(trial):
     assert 0.002 < np.isfinite(want).mean() < 0.998  # both near and far tetrahedra (40 or more of each)
     if trial % 3:
         assert len(np.unique(want[np.isfinite(want)])) > 1  # several levels hit
+
+
+def _cleaving_inputs(trial: int):
+    """The arguments ``cleave`` hands the sub-tetrahedra (and so ``_fans``) on a random label
+    volume: a few balls and slabs of several labels, thin ones included, at a size that
+    snaps some cuts and grades where labels are thin."""
+    from warpmesh.solid import regions as R
+
+    rng = np.random.default_rng(100 + trial)
+    n = 20 + 4 * trial
+    g = np.indices((n, n, n)).astype(float)
+    vol = np.zeros((n, n, n), np.int16)
+    for label in rng.choice(np.arange(1, 30), size=3 + trial % 3, replace=False):
+        c, r = rng.uniform(0.2 * n, 0.8 * n, 3), rng.uniform(2, 0.35 * n)
+        vol[((g - c[:, None, None, None]) ** 2).sum(0) < r * r] = label
+    a = rng.integers(1, n - 4)
+    vol[a:a + 1 + trial % 2, 2:n - 2, 3:n - 3] = 31  # a slab one or two voxels thick
+    seen = []
+    orig = R._fans
+
+    def spy(*args, **kw):
+        seen.append((args, kw))
+        return orig(*args, **kw)
+
+    R._fans = spy
+    try:
+        R.mesh_regions(vol, size=float(rng.uniform(2.0, 3.5)), min_size=1.0 if trial % 2 else None)
+    finally:
+        R._fans = orig
+    return seen
+
+
+@pytest.mark.parametrize("trial", range(4))
+def test_cleave_fans_kernel_equals_the_numpy_faces(trial):
+    """Sub-tetrahedra, their codes, interface triangles and their two codes: the same arrays in
+    the same order from the kernel (count, prefix sums, write) as from the face-by-face numpy
+    code, with and without tetrahedra placed first (``lead``), on every call of a cleaving."""
+    from warpmesh.solid import regions as R
+
+    calls = _cleaving_inputs(trial)
+    assert calls and any(len(args[0]) for args, _ in calls)
+    for args, kw in calls:
+        got = R._fans(*args, **kw)
+        want = R._fans_numpy(*args, **kw)
+        for name, a, b in zip(("tets", "codes", "triangles", "lower", "upper"), got, want):
+            assert a.dtype == np.int64 and a.shape == b.shape and np.array_equal(a, b), name
+        if kw.get("lead") is not None:
+            bare = R._fans(*args)
+            assert np.array_equal(bare[0], got[0][len(kw["lead"][0]):]) and np.array_equal(bare[2], got[2])
+    tets, codes, tris, lower, upper = R._fans(*calls[-1][0])
+    assert len(tris) and (lower < upper).all()  # the volume has interfaces: the comparison saw some
+
+
+def test_cleave_fans_kernel_on_no_tetrahedra():
+    from warpmesh.solid import regions as R
+
+    lead = (np.arange(8, dtype=np.int64).reshape(2, 4), np.array([3, 4], np.int64))
+    e = np.zeros((0, 4), np.int64)
+    out = R._fans(e, e.astype(np.int32), np.zeros((0, 6), np.int64), np.zeros(0, np.int64), e, 10, 0, lead)
+    assert np.array_equal(out[0], lead[0]) and np.array_equal(out[1], lead[1])
+    assert [len(a) for a in out[2:]] == [0, 0, 0]

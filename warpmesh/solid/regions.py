@@ -142,9 +142,12 @@ import os
 import time
 
 import numpy as np
+import warp as wp
 
+from warpmesh._util.parallel import cpu_view, launch_split
 from warpmesh._util.validate import check_device
 from warpmesh.io.images import Volume, as_volume
+from warpmesh.kernels import stuffing as K
 from warpmesh.mesh import Mesh
 from warpmesh.solid.dihedral import signed_volumes, tet_quality_summary
 from warpmesh.solid.lattice import lattice_tables
@@ -281,7 +284,9 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     timings: dict[str, float] = {}
     points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
     info.update(graded=False, min_size=smallest)
-    counts = np.bincount(codes.ravel(order="K"), minlength=len(ids))
+    counts = np.zeros(len(ids), np.int64)
+    for plane in codes:  # a plane at a time: no int64 copy of the whole volume
+        counts += np.bincount(plane.ravel(), minlength=len(ids))
     voxel = float(np.prod(spacing))
     meshed = _region_volumes(points, tets, tet_codes, len(ids))
     if smallest <= 0.5 * h:  # the regions the uniform lattice misses by more than REFINE_ERROR: grade for them
@@ -292,12 +297,15 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
             timings["uniform_pass"] = time.perf_counter() - t_start
             more = {}
             specks, targets = _specks(codes, focus, spacing, h, counts * voxel, rest)
+            del points, tets, tet_codes, tris, lower, upper  # (freed for the graded pass's peak)
             graded = cleave(codes, rest, spacing, h, float(snap), more, min_size=smallest, focus=focus, specks=specks,
                             targets=targets)
-            if graded is not None:
-                points, tets, tet_codes, tris, lower, upper, info = graded
-                timings.update(more)
-                meshed = _region_volumes(points, tets, tet_codes, len(ids))
+            if graded is None:  # nothing to refine after all: the uniform mesh again
+                graded = cleave(codes, rest, spacing, h, float(snap), more)
+                graded[-1].update(graded=False, min_size=smallest)
+            points, tets, tet_codes, tris, lower, upper, info = graded
+            timings.update(more)
+            meshed = _region_volumes(points, tets, tet_codes, len(ids))
             info["refined_labels"] = [int(v) for v in ids[focus]]
             if "speck_offsets" in info:
                 info["speck_offsets"] = {int(ids[c]): d for c, d in info["speck_offsets"].items()}
@@ -316,17 +324,20 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
                               "error": float(meshed[c] / vv - 1.0) if vv else math.nan}
     # placement: world = origin + direction @ local
     d = np.asarray(image.direction, dtype=np.float64)
-    points = points @ d.T + np.asarray(image.origin)
+    points = points @ d.T
+    points += np.asarray(image.origin)
     if np.linalg.det(d) < 0:  # a reflection turns every cell over: swap two vertices back
-        tets = tets[:, [0, 2, 1, 3]]
-        tris = tris[:, [0, 2, 1]]
+        tets[:, [1, 2]] = tets[:, [2, 1]]
+        tris[:, [1, 2]] = tris[:, [2, 1]]
     timings["total"] = time.perf_counter() - t_start
     info.update(quality, method="cleaving", size=h, snap=float(snap), labels=[int(v) for v in ids if v != ids[rest]],
                 rest=int(ids[rest]), region_volumes=region, time=timings, space=image.space,
                 region_error_max=max((abs(r["error"]) for r in region.values()), default=0.0))
-    return Mesh(points, {"tetra": tets, "triangle": tris},
-                cell_refs={"tetra": ids[tet_codes], "triangle": ids[lower]},
-                cell_data={LABEL_ABOVE: {"tetra": ids[tet_codes], "triangle": ids[upper]}}, info=info)
+    tet_labels, lower, upper = ids[tet_codes], ids[lower], ids[upper]
+    for a in (points, tets, tris, tet_labels, lower, upper):  # made here, handed over: the Mesh keeps them, no copy
+        a.setflags(write=False)
+    return Mesh(points, {"tetra": tets, "triangle": tris}, cell_refs={"tetra": tet_labels, "triangle": lower},
+                cell_data={LABEL_ABOVE: {"tetra": tet_labels, "triangle": upper}}, info=info)
 
 
 # ----------------------------------------------------------------------------------- validation
@@ -441,6 +452,19 @@ def _background_tets(dims: np.ndarray, node_code: np.ndarray, rest: int, chunk: 
     return np.concatenate(out) if out else np.zeros((0, 4), np.int64)
 
 
+def _cut_edges(T: np.ndarray, L: np.ndarray, n_nodes: int):
+    """The edges of the tetrahedra ``T`` (M, 4) whose ends' codes ``L`` differ, each once:
+    their ends (e_lo < e_hi) and (M, 6) the edge of each local edge (order ``_EDGES``), -1 where
+    uncut."""
+    ei = np.array([e[0] for e in _EDGES]), np.array([e[1] for e in _EDGES])
+    a_, b_ = T[:, ei[0]], T[:, ei[1]]  # (M, 6)
+    cut = L[:, ei[0]] != L[:, ei[1]]
+    keys, edge_of = np.unique((np.minimum(a_, b_) * n_nodes + np.maximum(a_, b_))[cut], return_inverse=True)
+    cut_id = np.full((len(T), 6), -1, np.int64)
+    cut_id[cut] = edge_of.ravel()
+    return keys // n_nodes, keys % n_nodes, cut_id
+
+
 def _edge_cuts(codes, rest, spacing, p_lo, p_hi, c_lo, c_hi, chunk: int = 65536) -> np.ndarray:
     """(e,) the parameter of the label change along each edge p_lo -> p_hi."""
     n = max(4, int(math.ceil(SAMPLES_PER_VOXEL * np.max(np.linalg.norm(p_hi - p_lo, axis=1), initial=0.0)
@@ -466,12 +490,32 @@ def _interior(w: np.ndarray) -> np.ndarray:
     return (1.0 - lam) * w + lam / m
 
 
-def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings):
+def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=None, kernel=True):
     """Steps 3-5 on the cleaved background tetrahedra ``T`` (M, 4) with node codes ``L``: the
     snapped cut points (``t`` along each cut edge e_lo -> e_hi, ``cut_id`` (M, 6) the cut of each
-    local edge or -1), face and tet points, sub-tetrahedra and interface triangles. Vertex ids:
-    nodes, then cuts (n_nodes + cut), face points, tet points (one per row)."""
+    local edge or -1), face and tet points, sub-tetrahedra (one (k, 4) array, ``lead``'s (tets,
+    codes) first when given) and interface triangles (:func:`_fans`; ``kernel=False`` its numpy
+    reference). Vertex ids: nodes, then cuts (n_nodes + cut), face points, tet points (one per row)."""
     t0 = time.perf_counter()
+    # (a function of its own: its (M, 6) and (M, 4, 3) temporaries are freed before the fans)
+    cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, n_snapped = _cleave_points(
+        T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap)
+    n_faces = len(face_pos)
+    timings["points"] = time.perf_counter() - t0
+
+    # -- sub-tetrahedra: star from the tet point over the faces, fans from the face points
+    t0 = time.perf_counter()
+    sub, sub_code, tris, lower, upper = (_fans if kernel else _fans_numpy)(
+        T, L, cut_id, cut_vertex, face_vertex, n_nodes + len(t) + n_faces, rest, lead)
+    timings["cleave"] = time.perf_counter() - t0
+    return cut_pos, face_pos, tet_pos, sub, sub_code, tris, lower, upper, n_snapped, n_faces
+
+
+def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
+    """Step 3 of :func:`_sub_tets`: each cut's vertex id (its node where snapped), each row's
+    face points ((M, 4) ids, -1 where the face has one code; one per face, named by its nodes),
+    and the positions of the cuts, face points and tet points (means of the snapped cuts,
+    pulled inside); the number of cuts snapped."""
     M = len(T)
     snapped_lo, snapped_hi = t < snap, t > 1.0 - snap
     ts = np.where(snapped_lo, 0.0, np.where(snapped_hi, 1.0, t))
@@ -528,20 +572,66 @@ def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timing
             _, first, inv = np.unique(rows, axis=0, return_index=True, return_inverse=True)
     else:
         first, inv = np.zeros(0, np.int64), np.zeros(0, np.int64)
-    n_faces = len(first)
     face_vertex[mixed_face] = n_nodes + n_cuts + inv.ravel()
     fw = np.stack(face_w, axis=1)[mixed_face][first]  # one representative per face
     fn = np.stack(face_nodes, axis=1)[mixed_face][first]
     face_pos = np.einsum("kv,kvd->kd", fw, node_pos[fn])
     tw = weights_on([0, 1, 2, 3], range(6))
     tet_pos = np.einsum("kv,kvd->kd", tw, node_pos[T])
-    tet_vertex = n_nodes + n_cuts + n_faces + np.arange(M)
     cut_pos = (1.0 - t)[:, None] * node_pos[e_lo] + t[:, None] * node_pos[e_hi]
-    timings["points"] = time.perf_counter() - t0
+    return cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, int(snapped_lo.sum() + snapped_hi.sum())
 
-    # -- sub-tetrahedra: star from the tet point over the faces, fans from the face points
-    t0 = time.perf_counter()
+
+def _fan_tables() -> tuple[np.ndarray, np.ndarray]:
+    """The tables of :func:`~warpmesh.kernels.stuffing.cleave_fans_kernel`: the faces' local
+    corners (4 * 3) and the local edge of each pair of corners (4 * 4, -1 on the diagonal)."""
+    edge_of = np.full((4, 4), -1, np.int32)
+    for k, (i, j) in enumerate(_EDGES):
+        edge_of[i, j] = edge_of[j, i] = k
+    return np.array(_FACES, np.int32).ravel(), edge_of.ravel()
+
+
+def _fans(T, L, cut_id, cut_vertex, face_vertex, tet_base, rest, lead=None):
+    """The sub-tetrahedra (k, 4) and their codes (k,), the interface triangles (j, 3) and their
+    lower and upper codes of the cleaved tetrahedra ``T`` (M, 4) (codes ``L``, ``cut_id`` (M, 6),
+    ``face_vertex`` (M, 4) -1 or the face's point, tet points ``tet_base + row``), by
+    :func:`~warpmesh.kernels.stuffing.cleave_fans_kernel` (count, prefix sums, write) over the
+    CPU cores; the same arrays, in the same order, as :func:`_fans_numpy`. ``lead``: optional
+    (tets, codes) placed first in the outputs (no copy of the two afterwards)."""
+    M = len(T)
+    faces, edge_of = _fan_tables()
+    lead_tets, lead_codes = lead if lead is not None else (np.zeros((0, 4), np.int64), np.zeros(0, np.int64))
+    base = len(lead_tets)
+    ins = [M, cpu_view(np.ascontiguousarray(T, np.int64).reshape(-1), wp.int64),
+           cpu_view(np.ascontiguousarray(L, np.int32).reshape(-1), wp.int32),
+           cpu_view(np.ascontiguousarray(cut_id, np.int64).reshape(-1), wp.int64),
+           cpu_view(np.ascontiguousarray(cut_vertex, np.int64), wp.int64),
+           cpu_view(np.ascontiguousarray(face_vertex, np.int64).reshape(-1), wp.int64),
+           wp.int64(tet_base), int(rest), cpu_view(faces, wp.int32), cpu_view(edge_of, wp.int32)]
+    tet_at, tri_at = np.empty(8 * M, np.int64), np.empty(4 * M, np.int64)
+    empty = cpu_view(np.empty(0, np.int64), wp.int64)
+    launch_split(K.cleave_fans_kernel, M, [0, *ins],
+                 [cpu_view(tet_at, wp.int64), cpu_view(tri_at, wp.int64), empty, empty, empty, empty, empty])
+    n_tets, n_tris = int(tet_at.sum()), int(tri_at.sum())
+    tet_at = np.cumsum(tet_at) - tet_at + base  # exclusive prefix sums
+    tri_at = np.cumsum(tri_at) - tri_at
+    tets, codes = np.empty((base + n_tets, 4), np.int64), np.empty(base + n_tets, np.int64)
+    tets[:base], codes[:base] = lead_tets, lead_codes
+    tris, lower, upper = np.empty((n_tris, 3), np.int64), np.empty(n_tris, np.int64), np.empty(n_tris, np.int64)
+    launch_split(K.cleave_fans_kernel, M, [1, *ins],
+                 [cpu_view(tet_at, wp.int64), cpu_view(tri_at, wp.int64), cpu_view(tets.reshape(-1), wp.int64),
+                  cpu_view(codes, wp.int64), cpu_view(tris.reshape(-1), wp.int64), cpu_view(lower, wp.int64),
+                  cpu_view(upper, wp.int64)])
+    return tets, codes, tris, lower, upper
+
+
+def _fans_numpy(T, L, cut_id, cut_vertex, face_vertex, tet_base, rest, lead=None):
+    """:func:`_fans` in numpy, face by face (the reference its kernel is tested against)."""
+    tet_vertex = tet_base + np.arange(len(T))
     sub, sub_code, tris, tri_lo, tri_hi = [], [], [], [], []
+    if lead is not None:
+        sub.append(lead[0])
+        sub_code.append(lead[1])
     for f, face in enumerate(_FACES):
         fv = face_vertex[:, f]
         uni = fv < 0
@@ -582,10 +672,9 @@ def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timing
                              np.column_stack([tp[r], end[r, c], fp[r]])))
         tri_lo.append(np.minimum(code[r, c], cn[r, c]))
         tri_hi.append(np.maximum(code[r, c], cn[r, c]))
-    lower, upper = np.concatenate(tri_lo), np.concatenate(tri_hi)
-    timings["cleave"] = time.perf_counter() - t0
-    return (cut_pos, face_pos, tet_pos, sub, sub_code, tris, lower, upper,
-            int(snapped_lo.sum() + snapped_hi.sum()), n_faces)
+    return (np.concatenate(sub).astype(np.int64, copy=False), np.concatenate(sub_code).astype(np.int64),
+            np.concatenate(tris).astype(np.int64, copy=False), np.concatenate(tri_lo).astype(np.int64),
+            np.concatenate(tri_hi).astype(np.int64))
 
 
 def _offset_cuts(T, L, cut_id, t, e_lo, e_hi, node_pos, node_code, snap, rest, targets, whole, voxel):
@@ -618,8 +707,7 @@ def _offset_cuts(T, L, cut_id, t, e_lo, e_hi, node_pos, node_code, snap, rest, t
         cut_pos, face_pos, tet_pos, sub, sub_code, *_ = _sub_tets(T, L, cut_id, moved(d), e_lo, e_hi, node_pos,
                                                                   n_nodes, snaps, rest, {})
         pos = np.concatenate([node_pos, cut_pos, face_pos, tet_pos])
-        vol = np.bincount(np.concatenate(sub_code).astype(np.int64),
-                          signed_volumes(pos, np.concatenate(sub)), len(targets)) + whole
+        vol = np.bincount(sub_code, signed_volumes(pos, sub), len(targets)) + whole
         return vol[codes] / targets[codes] - 1.0
 
     limit = MAX_OFFSET * voxel
@@ -716,35 +804,24 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     mixed = np.any(lab != lab[:, :1], axis=1)
     whole, whole_code = bg[~mixed], lab[~mixed, 0]
     T, L = bg[mixed], lab[mixed]
+    n_bg = len(bg)
+    del bg, lab, mixed, found  # (the background is in whole and T now: freed for the cleaving's peak)
     timings["lattice"] += time.perf_counter() - t0
 
     # -- cut points, one per edge with two labels (named by the edge)
     t0 = time.perf_counter()
-    M = len(T)
-    ei = np.array([e[0] for e in _EDGES]), np.array([e[1] for e in _EDGES])
-    a_, b_ = T[:, ei[0]], T[:, ei[1]]  # (M, 6)
-    cut = L[:, ei[0]] != L[:, ei[1]]
-    lo, hi = np.minimum(a_, b_), np.maximum(a_, b_)
-    keys, edge_of = np.unique((lo * n_nodes + hi)[cut], return_inverse=True)
-    e_lo, e_hi = keys // n_nodes, keys % n_nodes
+    e_lo, e_hi, cut_id = _cut_edges(T, L, n_nodes)
     t = _edge_cuts(codes, rest, spacing, node_pos[e_lo], node_pos[e_hi], node_code[e_lo], node_code[e_hi])
-    cut_id = np.full((M, 6), -1, np.int64)
-    cut_id[cut] = edge_of.ravel()
     timings["cuts"] = time.perf_counter() - t0
-    n_cuts = len(keys)
+    n_cuts = len(e_lo)
     if targets is not None:  # the specks' interfaces moved until their volumes are their voxel volumes
         t, snap, moved = _offset_cuts(T, L, cut_id, t, e_lo, e_hi, node_pos, node_code, snap, rest, targets,
                                 np.bincount(whole_code, signed_volumes(node_pos, whole), len(targets)),
                                 float(np.min(spacing)))
         graded["speck_offsets"] = moved
         timings["offsets"] = time.perf_counter() - t0
-    cut_pos, face_pos, tet_pos, sub, sub_code, tris, lower, upper, n_snapped, n_faces = _sub_tets(
-        T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings)
-    t0 = time.perf_counter()
-    triangles = np.concatenate(tris)
-    tets = np.concatenate([whole, *sub])
-    tet_codes = np.concatenate([whole_code, *sub_code]).astype(np.int64)
-    timings["cleave"] += time.perf_counter() - t0
+    cut_pos, face_pos, tet_pos, tets, tet_codes, triangles, lower, upper, n_snapped, n_faces = _sub_tets(
+        T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=(whole, whole_code))
 
     # -- compact the vertex ids
     t0 = time.perf_counter()
@@ -754,10 +831,10 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     used[triangles.ravel()] = True
     new_id = np.cumsum(used) - 1
     points = all_pos[used]
-    tets_out = new_id[tets]
-    tris_out = new_id[triangles]
+    tets_out = np.take(new_id, tets, out=tets, mode="clip")  # in place ("clip": unbuffered; all ids are in range)
+    tris_out = np.take(new_id, triangles, out=triangles, mode="clip")
     timings["compact"] = time.perf_counter() - t0
-    info = {"lattice": tuple(int(x) for x in dims), "background_tets": int(len(bg)), "whole_tets": int(len(whole)),
-            "cleaved_tets": int(M), "cut_edges": int(n_cuts), "snapped_cuts": n_snapped,
+    info = {"lattice": tuple(int(x) for x in dims), "background_tets": n_bg, "whole_tets": int(len(whole)),
+            "cleaved_tets": int(len(T)), "cut_edges": int(n_cuts), "snapped_cuts": n_snapped,
             "face_points": int(n_faces), "n_interface_triangles": int(len(tris_out)), **graded}
-    return points, tets_out, tet_codes, tris_out, lower.astype(np.int64), upper.astype(np.int64), info
+    return points, tets_out, tet_codes, tris_out, lower, upper, info
