@@ -114,6 +114,24 @@ def test_uniform_when_every_region_is_within_the_tolerance():
     np.testing.assert_array_equal(a.cells["triangle"], b.cells["triangle"])
 
 
+def test_uniform_mesh_again_when_grading_finds_nothing_to_refine(monkeypatch):
+    """A region off by more than the tolerance whose edges the lattice resolves after all (the
+    graded background comes back None): the uniform mesh, remade after the uniform pass's
+    arrays were let go, is returned, the same as with ``min_size=size``."""
+    from warpmesh.solid import regions as R
+
+    vol = _layered(40, 2)
+    monkeypatch.setattr(R, "graded_background", lambda *a, **k: None)
+    a = mesh_regions(vol, size=4.0)
+    b = mesh_regions(vol, size=4.0, min_size=4.0)
+    assert not a.info["graded"] and a.info["refined_labels"] == [2] and a.info["min_size"] == 2.0
+    np.testing.assert_array_equal(a.points, b.points)
+    for kind in ("tetra", "triangle"):
+        np.testing.assert_array_equal(a.cells[kind], b.cells[kind])
+        np.testing.assert_array_equal(a.cell_refs[kind], b.cell_refs[kind])
+    assert a.info["region_volumes"] == b.info["region_volumes"]
+
+
 def test_graded_volume_with_spacing_and_a_subset():
     vol = _layered(32, 2)
     v = wm.Volume(vol, spacing=(0.5, 0.5, 0.5), origin=(1.0, 2.0, 3.0))
