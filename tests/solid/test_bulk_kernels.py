@@ -237,3 +237,23 @@ def test_cleave_fans_kernel_on_no_tetrahedra():
     out = R._fans(e, e.astype(np.int32), np.zeros((0, 6), np.int64), np.zeros(0, np.int64), e, 10, 0, lead)
     assert np.array_equal(out[0], lead[0]) and np.array_equal(out[1], lead[1])
     assert [len(a) for a in out[2:]] == [0, 0, 0]
+
+
+@pytest.mark.parametrize("chunk", [7, 1000, 1 << 20])
+def test_quality_summary_by_chunks_equals_the_whole_array(monkeypatch, chunk):
+    """tet_quality_summary reduces chunk by chunk: the extremes and the count are those of the
+    whole (m, 4) quality array, the mean within rounding, chunks of 7 to all at once (a last
+    chunk short, inverted and flat tetrahedra included)."""
+    from warpmesh.solid import dihedral as D
+
+    rng = np.random.default_rng(3)
+    pts = rng.normal(size=(400, 3))
+    tets = rng.integers(0, 400, size=(999, 4))
+    tets[5] = [1, 1, 2, 3]  # flat: zero volume
+    monkeypatch.setattr(D, "SUMMARY_CHUNK", chunk)
+    got = D.tet_quality_summary(pts, tets)
+    q = tet_quality(pts, tets)
+    assert got["dihedral_min"] == q[:, 0].min() and got["dihedral_max"] == q[:, 1].max()
+    assert got["radius_edge_max"] == q[:, 2].max() and got["min_volume"] == q[:, 3].min()
+    assert got["negative_tets"] == int((q[:, 3] <= 0).sum()) > 1
+    assert got["radius_edge_mean"] == pytest.approx(q[:, 2].mean(), rel=1e-12)

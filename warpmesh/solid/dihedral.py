@@ -18,6 +18,8 @@ import warp as wp
 from warpmesh._util.parallel import cpu_view, launch_split
 from warpmesh.kernels import stuffing as K
 
+SUMMARY_CHUNK = 1 << 20  # tetrahedra per chunk of tet_quality_summary
+
 __all__ = ["dihedral_angles", "radius_edge_ratio", "signed_volumes", "tet_quality", "tet_quality_summary"]
 
 #: local edges (i, j) of a tetrahedron and the two vertices (k, l) off each
@@ -103,13 +105,31 @@ def tet_quality(points, tets, device="cpu") -> np.ndarray:
     tets = np.ascontiguousarray(tets, dtype=np.int32).reshape(-1, 4)
     if not len(tets):
         return np.zeros((0, 4))
-    wpts = wp.array(np.ascontiguousarray(points, dtype=np.float64), dtype=wp.vec3d, device=device)
-    wtets = wp.array(tets, dtype=wp.vec4i, device=device)
-    out = wp.empty(len(tets), dtype=wp.vec4d, device=device)
-    launch_split(K.tet_quality_kernel, len(tets), [wpts, wtets], [out], device)
-    q = out.numpy()  # sync point
+    q = _quality(_device_points(points, device), tets, device)
     q[:, :2] = np.degrees(q[:, :2])
     return q
+
+
+def _device_points(points, device) -> wp.array:
+    """``points`` as float64 vectors on ``device``: the host memory itself on the CPU (no copy
+    when already contiguous float64)."""
+    pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    return cpu_view(pts, wp.vec3d) if wp.get_device(device).is_cpu else wp.array(pts, dtype=wp.vec3d, device=device)
+
+
+def _quality(wpts: wp.array, tets: np.ndarray, device, out: np.ndarray | None = None) -> np.ndarray:
+    """:func:`tet_quality` of ``tets`` ((m, 4) int32, contiguous) with the angles in radians,
+    into ``out`` ((m, 4) float64) when given."""
+    out = np.empty((len(tets), 4)) if out is None else out
+    if wp.get_device(device).is_cpu:
+        launch_split(K.tet_quality_kernel, len(tets), [wpts, cpu_view(tets, wp.vec4i)], [cpu_view(out, wp.vec4d)],
+                     device)
+    else:
+        q = wp.empty(len(tets), dtype=wp.vec4d, device=device)
+        launch_split(K.tet_quality_kernel, len(tets), [wpts, wp.array(tets, dtype=wp.vec4i, device=device)], [q],
+                     device)
+        out[:] = q.numpy()  # sync point
+    return out
 
 
 def tet_quality_summary(points, tets, device="cpu") -> dict:
@@ -125,7 +145,18 @@ def tet_quality_summary(points, tets, device="cpu") -> dict:
     if not len(tets):
         return {"dihedral_min": None, "dihedral_max": None, "radius_edge_max": None, "radius_edge_mean": None,
                 "min_volume": None, "negative_tets": 0}
-    q = tet_quality(points, tets, device)
-    return {"dihedral_min": float(q[:, 0].min()), "dihedral_max": float(q[:, 1].max()),
-            "radius_edge_max": float(q[:, 2].max()), "radius_edge_mean": float(q[:, 2].mean()),
-            "min_volume": float(q[:, 3].min()), "negative_tets": int((q[:, 3] <= 0).sum())}
+    # chunk by chunk, each reduced at once: no (m, 4) array of the whole mesh (a big mesh's
+    # quality would otherwise be its largest allocation)
+    wpts, m = _device_points(points, device), len(tets)
+    step = min(m, SUMMARY_CHUNK)
+    buffer = np.empty((step, 4))
+    lo, hi, re_max, re_sum, v_min, negative = np.inf, -np.inf, -np.inf, 0.0, np.inf, 0
+    for a in range(0, m, step):
+        chunk = np.ascontiguousarray(tets[a:a + step], dtype=np.int32).reshape(-1, 4)
+        q = _quality(wpts, chunk, device, buffer[:len(chunk)])
+        lo, hi = min(lo, float(q[:, 0].min())), max(hi, float(q[:, 1].max()))
+        re_max, re_sum = max(re_max, float(q[:, 2].max())), re_sum + float(q[:, 2].sum())
+        v_min, negative = min(v_min, float(q[:, 3].min())), negative + int((q[:, 3] <= 0).sum())
+    # (degrees of the extreme radians: the conversion is monotone, so these are the extremes in degrees)
+    return {"dihedral_min": float(np.degrees(lo)), "dihedral_max": float(np.degrees(hi)),
+            "radius_edge_max": re_max, "radius_edge_mean": re_sum / m, "min_volume": v_min, "negative_tets": negative}
