@@ -537,31 +537,28 @@ def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
         to_i.append(np.where(on, 1.0 - t_j, 0.0))
         to_j.append(np.where(on, t_j, 0.0))
 
-    def weights_on(corners, edges):
+    def weights_on(corners, edges, rows=slice(None)):
         """Barycentric weights over ``corners`` (local vertex indices) of the mean of the cuts on
-        ``edges`` (local edge indices) of each row."""
-        w = np.zeros((M, len(corners)))
-        n = np.zeros((M, 1))
+        ``edges`` (local edge indices) of each of ``rows``."""
+        k_rows = np.arange(M)[rows]
+        w = np.zeros((len(k_rows), len(corners)))
+        n = np.zeros((len(k_rows), 1))
         for k in edges:
             i, j = _EDGES[k]
-            w[:, corners.index(i)] += to_i[k]
-            w[:, corners.index(j)] += to_j[k]
-            n[:, 0] += on_edge[k]
+            w[:, corners.index(i)] += to_i[k][rows]
+            w[:, corners.index(j)] += to_j[k][rows]
+            n[:, 0] += on_edge[k][rows]
         return _interior(w / np.maximum(n, 1.0))
 
     face_vertex = np.full((M, 4), -1, np.int64)
-    face_w, face_nodes = [], []
     face_keys = []
     for f, face in enumerate(_FACES):
         fl = L[:, list(face)]
         fm = np.any(fl != fl[:, :1], axis=1)
-        edges = [_EDGE_OF[frozenset((face[q], face[(q + 1) % 3]))] for q in range(3)]
-        w = weights_on(list(face), edges)
         s = np.sort(T[:, list(face)], axis=1)
         face_keys.append(np.where(fm[:, None], s, -1))
-        face_w.append(w)
-        face_nodes.append(T[:, list(face)])
     fk = np.stack(face_keys, axis=1)  # (M, 4, 3)
+    del face_keys
     mixed_face = fk[..., 0] >= 0
     rows = fk[mixed_face]
     if len(rows):
@@ -573,8 +570,14 @@ def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
     else:
         first, inv = np.zeros(0, np.int64), np.zeros(0, np.int64)
     face_vertex[mixed_face] = n_nodes + n_cuts + inv.ravel()
-    fw = np.stack(face_w, axis=1)[mixed_face][first]  # one representative per face
-    fn = np.stack(face_nodes, axis=1)[mixed_face][first]
+    # one representative (row, face) per face point: its weights and nodes, face by face
+    at = np.flatnonzero(mixed_face.ravel())[first]
+    rep_row, rep_face = at // 4, at % 4
+    fw, fn = np.empty((len(at), 3)), np.empty((len(at), 3), np.int64)
+    for f, face in enumerate(_FACES):
+        on = rep_face == f
+        edges = [_EDGE_OF[frozenset((face[q], face[(q + 1) % 3]))] for q in range(3)]
+        fw[on], fn[on] = weights_on(list(face), edges, rep_row[on]), T[rep_row[on]][:, list(face)]
     face_pos = np.einsum("kv,kvd->kd", fw, node_pos[fn])
     tw = weights_on([0, 1, 2, 3], range(6))
     tet_pos = np.einsum("kv,kvd->kd", tw, node_pos[T])

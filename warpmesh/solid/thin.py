@@ -351,7 +351,7 @@ def speck_voxels(codes: np.ndarray, focus: np.ndarray, spacing: np.ndarray, most
         comp, n = label(codes[box] == c, structure=np.ones((3, 3, 3), bool))
         if not n:
             continue
-        sizes = np.bincount(comp.ravel())
+        sizes = np.bincount(comp[comp > 0], minlength=n + 1)  # (the component voxels only: no int64 copy of the box)
         small = (sizes * voxel <= most)
         small[0] = False
         if not small.any():
