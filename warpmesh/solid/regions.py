@@ -540,9 +540,9 @@ def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
     def weights_on(corners, edges, rows=slice(None)):
         """Barycentric weights over ``corners`` (local vertex indices) of the mean of the cuts on
         ``edges`` (local edge indices) of each of ``rows``."""
-        k_rows = np.arange(M)[rows]
-        w = np.zeros((len(k_rows), len(corners)))
-        n = np.zeros((len(k_rows), 1))
+        n_rows = M if isinstance(rows, slice) else len(rows)
+        w = np.zeros((n_rows, len(corners)))
+        n = np.zeros((n_rows, 1))
         for k in edges:
             i, j = _EDGES[k]
             w[:, corners.index(i)] += to_i[k][rows]
