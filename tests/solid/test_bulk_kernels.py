@@ -67,6 +67,20 @@ def test_signed_volumes_bad_input_names_the_argument():
         signed_volumes(np.zeros((4, 2)), [[0, 1, 2, 3]])
 
 
+@pytest.mark.parametrize("bad", [[[0, 1, 2, 4]], [[0, 1, -1, 2]], [[0, 1, 2, 2**31 + 1]]])
+def test_tet_quality_refuses_indices_outside_the_points(bad):
+    """The quality kernel reads the points in place: an index outside them (or one that int32
+    would wrap) is a ValueError naming 'tets', from the per-tetrahedron call and the summary."""
+    from warpmesh.solid.dihedral import tet_quality_summary
+
+    pts = np.eye(4, 3)
+    with pytest.raises(ValueError, match="'tets'"):
+        tet_quality(pts, bad)
+    with pytest.raises(ValueError, match="'tets'"):
+        tet_quality_summary(pts, bad)
+    assert tet_quality(pts, np.zeros((0, 4), int)).shape == (0, 4)
+
+
 def test_tet_quality_split_across_cores_is_per_tetrahedron():
     rng = np.random.default_rng(3)
     pts = rng.normal(size=(2_000, 3))

@@ -53,8 +53,7 @@ def signed_volumes(points, tets) -> np.ndarray:
     out = np.empty(len(t))
     if not len(t):
         return out
-    if int(t.min()) < 0 or int(t.max()) >= len(pts):
-        raise ValueError(f"'tets' holds indices outside [0, {len(pts)}) (the points)")
+    _check_indices(t, len(pts))
     launch_split(K.signed_volumes_kernel, len(t),
                  [cpu_view(pts, wp.vec3d), cpu_view(t.reshape(-1), wp.int64)], [cpu_view(out, wp.float64)])
     return out
@@ -99,13 +98,23 @@ def radius_edge_ratio(points, tets) -> np.ndarray:
         return np.where(det != 0, r / lengths.min(axis=1), np.inf)
 
 
+def _check_indices(tets: np.ndarray, n: int) -> None:
+    """A kernel reads ``points[tets]`` unchecked: refuse an index outside [0, n) by name."""
+    if tets.size and (int(tets.min()) < 0 or int(tets.max()) >= n):
+        raise ValueError(f"'tets' holds indices outside [0, {n}) (the points)")
+
+
 def tet_quality(points, tets, device="cpu") -> np.ndarray:
     """(m, 4) float64 per tetrahedron, computed in a Warp kernel (split across the CPU cores): smallest and largest
-    dihedral angle (degrees), radius-edge ratio, signed volume."""
+    dihedral angle (degrees), radius-edge ratio, signed volume. A ValueError names ``tets``
+    when an index lies outside the points."""
+    wpts = _device_points(points, device)
+    tets = np.asarray(tets)
+    _check_indices(tets, wpts.shape[0])
     tets = np.ascontiguousarray(tets, dtype=np.int32).reshape(-1, 4)
     if not len(tets):
         return np.zeros((0, 4))
-    q = _quality(_device_points(points, device), tets, device)
+    q = _quality(wpts, tets, device)
     q[:, :2] = np.degrees(q[:, :2])
     return q
 
@@ -147,7 +156,9 @@ def tet_quality_summary(points, tets, device="cpu") -> dict:
                 "min_volume": None, "negative_tets": 0}
     # chunk by chunk, each reduced at once: no (m, 4) array of the whole mesh (a big mesh's
     # quality would otherwise be its largest allocation)
-    wpts, m = _device_points(points, device), len(tets)
+    wpts, tets = _device_points(points, device), np.asarray(tets)
+    _check_indices(tets, wpts.shape[0])
+    m = len(tets)
     step = min(m, SUMMARY_CHUNK)
     buffer = np.empty((step, 4))
     lo, hi, re_max, re_sum, v_min, negative = np.inf, -np.inf, -np.inf, 0.0, np.inf, 0

@@ -355,7 +355,6 @@ class _Bisection:
         keys = tet_edges(tets)
         lkey, llen = _longest(coords, tets, keys)
         self.nodes = _Rows(coords)
-        # (the edge keys are not kept per tetrahedron: the two indices hold them)
         self._tets, self._lkey, self._llen = _Rows(tets), _Rows(lkey), _Rows(llen)
         self._levels = _Rows(np.zeros(len(tets), np.int64))
         self._fresh = _Rows(np.ones(len(tets), bool))  # living, not yet checked against the size field
