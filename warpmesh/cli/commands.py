@@ -46,7 +46,7 @@ import numpy as np
 def _parser() -> argparse.ArgumentParser:
     import warpmesh
     from warpmesh.cli.output import extensions_text
-    from warpmesh.cli.sources import add_shape_arguments
+    from warpmesh.cli.sources import add_shape_arguments, add_volume_arguments
 
     p = argparse.ArgumentParser(prog="warpmesh", description="Meshes from implicit geometry.")
     p.add_argument("--version", action="version", version=f"warpmesh {warpmesh.__version__}")
@@ -55,24 +55,20 @@ def _parser() -> argparse.ArgumentParser:
                                     "print statistics")
     src = m.add_mutually_exclusive_group(required=True)
     add_shape_arguments(m, src, dims=(3,))
-    src.add_argument("--volume", metavar="FILE",
-                     help="a 3D image: .vti .vtk .nii .nii.gz .nrrd .nhdr .mha .mhd .npy .npz, or a DICOM series "
-                          "folder (the medical formats need pip install 'warpmesh[images]')")
-    m.add_argument("--array", metavar="NAME",
-                   help="--volume: the array (VTK point/cell array, .npz key) or DICOM series ID to read")
+    add_volume_arguments(m, src, labels_help="integer volumes: mesh each label's region ('all' or label values)")
     m.add_argument("--resolution", type=int, help="cells along the longest side (shapes; default 128)")
     m.add_argument("--level", type=float, help="iso-level (volumes; default 0)")
     m.add_argument("--inside", choices=["above", "below"], help="inside side of the level (volumes)")
-    m.add_argument("--spacing", type=float, nargs="+",
-                   help="sample spacing, 1 or 3 values (volumes; replaces the image's own)")
-    m.add_argument("--origin", type=float, nargs=3,
-                   help="position of sample [0, 0, 0] (volumes; replaces the image's own)")
     m.add_argument("--method", choices=["mc33", "mt", "mc"], default=None,
                    help="cell triangulation: marching cubes 33 (default), marching tetrahedra, plain mc")
     m.add_argument("--covering", choices=["grid", "continuation"], default=None,
                    help="shapes: culled grid (default) or continuation from seed cells")
-    m.add_argument("--labels", nargs="+", metavar="LABEL",
-                   help="integer volumes: mesh each label's region ('all' or label values)")
+    m.add_argument("--interfaces", choices=["separate", "shared"],
+                   help="--labels: each label's own closed surface (separate, default) or one surface meshing "
+                        "each interface between two labels once (shared; surface nets)")
+    m.add_argument("--smoothing", type=int, metavar="PASSES",
+                   help="--interfaces shared: passes of constrained smoothing (vertices kept in their voxels, "
+                        "junction curves smoothed along themselves, no fold; default 0)")
     m.add_argument("--slab-voxels", type=int, help="volumes: samples per slab (default 16M)")
     m.add_argument("--root", choices=["linear", "bisection", "newton"], default=None,
                    help="vertex placement (default linear; newton with --adaptive)")
@@ -125,7 +121,8 @@ def _parser() -> argparse.ArgumentParser:
 
 #: ``mesh`` flags by the keyword of :func:`warpmesh.mesh_surface` they set
 _MESH_FLAGS = {"resolution": "--resolution", "level": "--level", "inside": "--inside", "spacing": "--spacing",
-               "origin": "--origin", "method": "--method", "labels": "--labels", "slab_voxels": "--slab-voxels",
+               "origin": "--origin", "method": "--method", "labels": "--labels", "interfaces": "--interfaces",
+               "smoothing": "--smoothing", "slab_voxels": "--slab-voxels",
                "root": "--root", "root_iterations": "--root-iterations", "gradient": "--gradient",
                "tolerance": "--tolerance", "evaluator": "--evaluator", "cap": "--no-cap", "bounds": "--bounds",
                "device": "--device"}
@@ -148,7 +145,8 @@ def _check_mesh_flags(args) -> None:
     else:
         group, what = O.GridOptions, "a shape on a grid"
     given = {"resolution": args.resolution, "level": args.level, "inside": args.inside, "spacing": args.spacing,
-             "origin": args.origin, "method": args.method, "labels": args.labels, "slab_voxels": args.slab_voxels,
+             "origin": args.origin, "method": args.method, "labels": args.labels, "interfaces": args.interfaces,
+             "smoothing": args.smoothing, "slab_voxels": args.slab_voxels,
              "root": args.root, "root_iterations": args.root_iterations, "gradient": args.gradient,
              "tolerance": args.tolerance, "evaluator": args.evaluator, "cap": args.no_cap or None,
              "bounds": args.bounds}
@@ -160,22 +158,13 @@ def _check_mesh_flags(args) -> None:
                          f"which takes {takes}")
 
 
-def _labels(values):
-    if values is None:
-        return None
-    if values == ["all"]:
-        return "all"
-    try:
-        return [int(v) for v in values]
-    except ValueError:
-        raise ValueError(f"expected --labels all or integer labels, got {' '.join(values)}") from None
-
-
 def _volume_target(wm, args, volume):
     if not volume.axis_aligned:
         raise ValueError("--optimize and --simplify take images whose axes are the world axes; this one's "
                          f"direction is {volume.direction.tolist()}")
-    labels = _labels(args.labels)
+    from warpmesh.cli.sources import parse_labels
+
+    labels = parse_labels(args.labels)
     if labels is not None:
         if labels == "all" or len(labels) != 1:
             raise ValueError("expected one label with --labels when optimising (one surface per run)")
@@ -183,19 +172,6 @@ def _volume_target(wm, args, volume):
                               origin=volume.origin, level=0.5)
     return wm.VolumeField(volume.values, spacing=volume.spacing, origin=volume.origin,
                           level=args.level or 0.0, inside=args.inside or "above")
-
-
-def _load_volume(wm, args):
-    """--volume as a Volume, with --spacing / --origin in place of the file's own."""
-    try:
-        volume = wm.load_volume(args.volume, name=args.array)
-    except (OSError, ValueError, ImportError) as exc:
-        raise ValueError(f"cannot read --volume {args.volume!r}: {exc}") from None
-    if args.spacing is not None:
-        volume = volume.replace(spacing=args.spacing if len(args.spacing) > 1 else args.spacing[0])
-    if args.origin is not None:
-        volume = volume.replace(origin=args.origin)
-    return volume
 
 
 def _improve(wm, args, mesh, bounds, target, clock):
@@ -249,16 +225,19 @@ def _mesh(wm, args, clock) -> int:
     from warpmesh.cli.flags import in_flags
     from warpmesh.cli.output import check_output, save_output
     from warpmesh.cli.report import print_report
-    from warpmesh.cli.sources import shape_source
+    from warpmesh.cli.sources import parse_labels, shape_source, volume_source
 
     if args.output:
         check_output(args.output, cells=("triangle",))  # before any work
     _check_mesh_flags(args)
     common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
-                  device=args.device, gradient=args.gradient, labels=_labels(args.labels),
+                  device=args.device, gradient=args.gradient, labels=parse_labels(args.labels),
                   slab_voxels=args.slab_voxels)
     if args.method:
         common["method"] = args.method
+    for name in ("interfaces", "smoothing"):
+        if getattr(args, name) is not None:
+            common[name] = getattr(args, name)
     if args.covering:
         common["covering"] = args.covering
     if args.adaptive or args.tolerance is not None:
@@ -279,7 +258,7 @@ def _mesh(wm, args, clock) -> int:
             raise ValueError("--bounds sets the box of a shape; a --volume's box is its grid (see --spacing, "
                              "--origin)")
         with clock.stage("read input"):
-            volume = _load_volume(wm, args)
+            volume = volume_source(args)
         bounds = None
         with clock.stage("mesh"), in_flags(_MESH_FLAGS):
             mesh = wm.mesh_surface(volume, resolution=args.resolution, level=args.level, inside=args.inside,

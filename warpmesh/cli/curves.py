@@ -13,6 +13,9 @@ Examples
 isosurface stuffing, :mod:`warpmesh.solid`)
 ``warpmesh domain shapes.py:bracket --size 0.1 -o bracket.mesh`` (2D or 3D, by its bounds)
 ``warpmesh domain --example torus --size curvature -o torus.vtu`` (3D: graded by curvature)
+``warpmesh domain --volume frog_tissues.vti --labels all --size 4 -o frog.msh`` (a label
+image: conforming tetrahedra of its regions by lattice cleaving, one physical group per
+label and per interface in the ``.msh``; :func:`warpmesh.solid.regions.mesh_regions`)
 """
 
 from __future__ import annotations
@@ -22,13 +25,20 @@ import argparse
 COMMANDS = ("curve", "domain")
 #: flags by the keyword of :func:`warpmesh.mesh_curve` / :func:`warpmesh.mesh_domain` they set
 _FLAGS = {"size": "--size", "tolerance": "--tolerance", "min_angle": "--min-angle", "method": "--method",
-          "smooth": "--smooth", "bounds": "--bounds", "resolution": "--resolution", "device": "--device"}
+          "smooth": "--smooth", "bounds": "--bounds", "resolution": "--resolution", "device": "--device",
+          "labels": "--labels", "snap": "--snap", "min_size": "--min-size", "spacing": "--spacing",
+          "origin": "--origin"}
+#: ``domain`` flags of a shape that a ``--volume`` does not take, and the other way round
+_SHAPE_ONLY = {"bounds": "--bounds", "tolerance": "--tolerance", "min_angle": "--min-angle", "method": "--method",
+               "smooth": "--smooth"}
+_VOLUME_ONLY = {"array": "--array", "spacing": "--spacing", "origin": "--origin", "labels": "--labels",
+                "snap": "--snap", "min_size": "--min-size"}
 
 
 def add_parsers(sub) -> None:
     """Add the sub-commands to the ``warpmesh`` parser's sub-parsers."""
     from warpmesh.cli.output import extensions_text
-    from warpmesh.cli.sources import add_shape_arguments
+    from warpmesh.cli.sources import add_shape_arguments, add_volume_arguments
     from warpmesh.planar.curves import CURVE_METHODS
 
     c = sub.add_parser("curve", help="mesh an implicit curve f(x, y) = 0 with line segments ([FG §16.3])")
@@ -41,10 +51,17 @@ def add_parsers(sub) -> None:
     c.add_argument("-o", "--output", help=f"mesh file to write ({extensions_text(('line',))})")
     d = sub.add_parser("domain", help="mesh an implicit domain f > 0: triangles in the plane, tetrahedra in 3D "
                                       "([FG §16.5.2])")
-    add_shape_arguments(d, d.add_mutually_exclusive_group(required=True), dims=(2, 3))
+    source = d.add_mutually_exclusive_group(required=True)
+    add_shape_arguments(d, source, dims=(2, 3))
+    add_volume_arguments(d, source, labels_help="--volume: the regions to mesh, 'all' (default: every value "
+                                                "but 0) or label values (0 included when listed)")
     d.add_argument("--size", type=_domain_size, help="target edge length (default: box diagonal / 20; 3D: the "
-                                                     "smallest side / 20), or, in 3D, 'curvature': graded by "
-                                                     "the surface's curvature")
+                                                     "smallest side / 20; --volume: 4 voxels), or, in 3D, "
+                                                     "'curvature': graded by the surface's curvature")
+    d.add_argument("--snap", type=float, help="--volume: cut points this fraction of their edge from a lattice "
+                                              "node are snapped onto it, in [0, 0.5) (default 0.3)")
+    d.add_argument("--min-size", type=float, help="--volume: smallest edge of the lattice graded where regions "
+                                                  "are thin (default --size / 2; --size or more: uniform)")
     d.add_argument("--tolerance", type=float, help="planar: relative chord deviation of the boundary (default 1e-2)")
     d.add_argument("--min-angle", type=float, help="planar: smallest angle aimed at, degrees (default 28)")
     d.add_argument("--method", choices=["global", "triangle", "stuffing", "delaunay"],
@@ -84,7 +101,10 @@ def run(wm, args, clock) -> int:
         with clock.stage("mesh"), in_flags(_FLAGS):
             mesh = wm.mesh_curve(source.shape, source.bounds, method=args.method, tolerance=args.tolerance,
                                  geometric=not args.raw, size=args.size, device=args.device, **options)
+    elif args.volume is not None:
+        mesh = _regions(wm, args, clock)
     else:
+        _refuse(args, _VOLUME_ONLY, "a shape")
         if args.output:
             check_output(args.output)  # extension and folder before any work; the cells once the bounds are known
         with clock.stage("read input"):
@@ -112,3 +132,29 @@ def run(wm, args, clock) -> int:
         stats["written"] = args.output
     print_report(mesh, stats, clock, args.json)
     return 0
+
+
+def _refuse(args, flags: dict[str, str], what: str) -> None:
+    given = [flag for name, flag in flags.items() if getattr(args, name) not in (None, 0)]
+    if given:
+        raise ValueError(f"{' '.join(given)} {'does' if len(given) == 1 else 'do'} not apply to {what}")
+
+
+def _regions(wm, args, clock):
+    """``domain --volume``: the conforming tetrahedra of the image's labels."""
+    from warpmesh.cli.flags import in_flags
+    from warpmesh.cli.output import check_output
+    from warpmesh.cli.sources import parse_labels, volume_source
+
+    if args.output:
+        check_output(args.output, cells=("tetra", "triangle"))  # before any work
+    _refuse(args, _SHAPE_ONLY, "--volume (a label image: --labels, --size, --snap, --min-size)")
+    if args.size == "curvature":
+        raise ValueError("--size curvature grades shapes; a --volume takes a number (world units)")
+    labels = parse_labels(args.labels)
+    options = {k: v for k, v in (("snap", args.snap), ("min_size", args.min_size)) if v is not None}
+    with clock.stage("read input"):
+        volume = volume_source(args)
+    with clock.stage("mesh"), in_flags(_FLAGS):
+        return wm.mesh_domain(volume, labels="all" if labels is None else labels, size=args.size,
+                              device=args.device, **options)

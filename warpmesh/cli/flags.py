@@ -19,12 +19,16 @@ def in_flags(flags: dict[str, str]):
     Traceback (most recent call last):
     ...
     ValueError: expected 1 <= --root-iterations <= 64, got -1
+    >>> with in_flags({"smoothing": "--smoothing"}):
+    ...     raise ValueError("got smoothing=3")
+    Traceback (most recent call last):
+    ...
+    ValueError: got --smoothing 3
     """
     try:
         yield
     except (ValueError, TypeError) as exc:
-        text = re.sub(r"'(\w+)'|\b(\w+)=(?!=)",
-                      lambda m: flags.get(m.group(1) or m.group(2), m.group(0)), str(exc))
+        text = re.sub(r"'(\w+)'|\b(\w+)=(?!=)", lambda m: _flag(m, flags), str(exc))
         if text == str(exc):
             raise
         try:
@@ -32,3 +36,11 @@ def in_flags(flags: dict[str, str]):
         except Exception:  # an exception class with another signature
             reworded = ValueError(text)
         raise reworded from None
+
+
+def _flag(match, flags: dict[str, str]) -> str:
+    """'name' -> --flag, name= -> '--flag ' (a flag and its value, as typed); unknown names kept."""
+    if match.group(1):
+        return flags.get(match.group(1), match.group(0))
+    flag = flags.get(match.group(2))
+    return match.group(0) if flag is None else f"{flag} "

@@ -9,7 +9,9 @@
   functions, evaluated as Python in a namespace without builtins;
 
 and ``--bounds x0 y0 z0 x1 y1 z1`` (``x0 y0 x1 y1`` in the plane), which an expression
-needs and which replaces the bounds of an example or a file.
+needs and which replaces the bounds of an example or a file. ``mesh`` and ``domain`` also
+take ``--volume FILE`` (an image :func:`warpmesh.load_volume` reads) with ``--array``,
+``--spacing``, ``--origin`` and ``--labels`` (:func:`add_volume_arguments`, :func:`volume_source`).
 
 Examples
 --------
@@ -32,7 +34,8 @@ import runpy
 import traceback
 from dataclasses import dataclass
 
-__all__ = ["ShapeSource", "add_shape_arguments", "shape_source", "is_shape_file", "expression_namespace"]
+__all__ = ["ShapeSource", "add_shape_arguments", "shape_source", "is_shape_file", "expression_namespace",
+           "add_volume_arguments", "volume_source", "parse_labels"]
 
 #: the functions an expression may call, besides the ``wm`` module itself
 _FUNCTIONS = ("sqrt", "abs", "min", "max", "sin", "cos", "exp", "log")
@@ -236,3 +239,59 @@ def shape_source(args, *, dims: tuple[int, ...], file_text: str | None = None) -
     if dim == 2 and shape.dim == 3:
         raise ValueError(f"expected a planar shape (of x, y) with 2D bounds, but {label} depends on z")
     return ShapeSource(shape, bounds, label)
+
+
+def add_volume_arguments(parser, group, *, labels_help: str) -> None:
+    """Add ``--volume`` (to ``group``, beside the shape sources), ``--array``, ``--spacing``,
+    ``--origin`` and ``--labels``."""
+    group.add_argument("--volume", metavar="FILE",
+                       help="a 3D image: .vti .vtk .nii .nii.gz .nrrd .nhdr .mha .mhd .npy .npz, or a DICOM series "
+                            "folder (the medical formats need pip install 'warpmesh[images]')")
+    parser.add_argument("--array", metavar="NAME",
+                        help="--volume: the array (VTK point/cell array, .npz key) or DICOM series ID to read")
+    parser.add_argument("--spacing", type=float, nargs="+",
+                        help="sample spacing, 1 or 3 values (volumes; replaces the image's own)")
+    parser.add_argument("--origin", type=float, nargs=3,
+                        help="position of sample [0, 0, 0] (volumes; replaces the image's own)")
+    parser.add_argument("--labels", nargs="+", metavar="LABEL", help=labels_help)
+
+
+def parse_labels(values):
+    """``--labels``: None, ``"all"`` or a list of ints.
+
+    Examples
+    --------
+    >>> parse_labels(["all"]), parse_labels(["3", "0"]), parse_labels(None)
+    ('all', [3, 0], None)
+    """
+    if values is None:
+        return None
+    if values == ["all"]:
+        return "all"
+    try:
+        return [int(v) for v in values]
+    except ValueError:
+        raise ValueError(f"expected --labels all or integer labels, got {' '.join(values)}") from None
+
+
+def volume_source(args):
+    """``--volume`` as a :class:`~warpmesh.io.images.Volume`, with ``--spacing`` / ``--origin``
+    in place of the file's own.
+
+    Raises
+    ------
+    ValueError
+        A file that is missing, does not parse, or needs a reader that is not installed
+        (the message names ``--volume`` and the path).
+    """
+    import warpmesh as wm
+
+    try:
+        volume = wm.load_volume(args.volume, name=args.array)
+    except (OSError, ValueError, ImportError) as exc:
+        raise ValueError(f"cannot read --volume {args.volume!r}: {exc}") from None
+    if args.spacing is not None:
+        volume = volume.replace(spacing=args.spacing if len(args.spacing) > 1 else args.spacing[0])
+    if args.origin is not None:
+        volume = volume.replace(origin=args.origin)
+    return volume
