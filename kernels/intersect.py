@@ -604,6 +604,134 @@ def tet_signs_kernel(points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.i
     signs[t] = sign
 
 
+@wp.func
+def tet_face(tets: wp.array(dtype=wp.int32), f: int) -> wp.vec3i:
+    """Face f = 4 t + k of tetrahedron t (a, b, c, d): the corners other than corner k, in
+    the order that makes its right-hand normal point away from corner k when O(a, b, c, d)
+    > 0 (warpmesh.cells.intersections._TET_FACES: (b, c, d), (a, d, c), (a, b, d), (a, c, b))."""
+    t = f // 4
+    k = f - 4 * t
+    a = tets[4 * t]
+    b = tets[4 * t + 1]
+    c = tets[4 * t + 2]
+    d = tets[4 * t + 3]
+    if k == 0:
+        return wp.vec3i(b, c, d)
+    if k == 1:
+        return wp.vec3i(a, d, c)
+    if k == 2:
+        return wp.vec3i(a, b, d)
+    return wp.vec3i(a, c, b)
+
+
+@wp.func
+def sorted3(v: wp.vec3i) -> wp.vec3i:
+    """The three entries in ascending order."""
+    a = wp.min(v[0], wp.min(v[1], v[2]))
+    c = wp.max(v[0], wp.max(v[1], v[2]))
+    return wp.vec3i(a, v[0] + v[1] + v[2] - a - c, c)
+
+
+@wp.func
+def odd3(v: wp.vec3i) -> int:
+    """1 when sorting the entries takes an odd permutation (the face's cyclic order is the
+    reverse of the ascending one), else 0; entries distinct."""
+    n = int(0)
+    if v[0] > v[1]:
+        n += 1
+    if v[0] > v[2]:
+        n += 1
+    if v[1] > v[2]:
+        n += 1
+    return n % 2
+
+
+#: buckets per lead corner of the tet-face matching (a power of two)
+FACE_SUB_BUCKETS = wp.constant(8)
+
+
+@wp.func
+def face_bucket(s: wp.vec3i) -> int:
+    """The bucket of a face by its sorted corners s: its largest corner's run of
+    ``FACE_SUB_BUCKETS`` buckets (neighbouring faces in neighbouring buckets), split by a
+    hash of the other two corners."""
+    return s[2] * FACE_SUB_BUCKETS + ((s[0] * 31 + s[1]) & (FACE_SUB_BUCKETS - 1))
+
+
+@wp.kernel
+def tet_face_buckets_kernel(first: int, tets: wp.array(dtype=wp.int32), bucket_of: wp.array(dtype=wp.int32)):
+    """One thread per face f = first + tid: ``bucket_of[f]``, its bucket (:func:`face_bucket`)."""
+    f = first + wp.tid()
+    bucket_of[f] = face_bucket(sorted3(tet_face(tets, f)))
+
+
+@wp.func
+def face_key(s: wp.vec3i) -> wp.int64:
+    """The two smaller sorted corners of a face (those :func:`face_bucket` does not file
+    it by), packed: s[0] * 2^32 + s[1]."""
+    return (wp.int64(s[0]) << wp.int64(32)) | wp.int64(s[1])
+
+
+@wp.kernel
+def scatter_faces_kernel(tets: wp.array(dtype=wp.int32), bucket_of: wp.array(dtype=wp.int32),
+                         cursor: wp.array(dtype=wp.int32), slots: wp.array(dtype=wp.int32),
+                         keys: wp.array(dtype=wp.int64)):
+    """One thread places every face f at its bucket's next free slot k (``cursor`` starts at
+    the CSR offsets; the faces of each bucket in ascending order): ``slots[k] = f``,
+    ``keys[k]`` its :func:`face_key` (so a bucket's scan reads one contiguous run)."""
+    for f in range(bucket_of.shape[0]):
+        u = bucket_of[f]
+        k = cursor[u]
+        slots[k] = f
+        keys[k] = face_key(sorted3(tet_face(tets, f)))
+        cursor[u] = k + 1
+
+
+@wp.kernel
+def match_tet_faces_kernel(first: int, tets: wp.array(dtype=wp.int32),
+                           offsets: wp.array(dtype=wp.int32), slots: wp.array(dtype=wp.int32),
+                           keys: wp.array(dtype=wp.int64),
+                           mate: wp.array(dtype=wp.int32), same: wp.array(dtype=wp.int8)):
+    """One thread per face f = first + tid finds the other faces with its three corners
+    among the faces of its bucket (same largest corner, same :func:`face_key`): ``mate[f]``
+    the one other face, -1 for none (a boundary face), -2 for two or more; ``same[f]`` 1
+    when the one other face has the same orientation (both tetrahedra on one side of it),
+    else 0."""
+    f = first + wp.tid()
+    v = tet_face(tets, f)
+    s = sorted3(v)
+    u = face_bucket(s)
+    key = face_key(s)
+    found = int(-1)
+    count = int(0)
+    for k in range(offsets[u], offsets[u + 1]):
+        if keys[k] == key:
+            g = slots[k]
+            if g != f:
+                count += 1
+                found = g
+    flag = wp.int8(0)
+    if count == 1:
+        if odd3(v) == odd3(tet_face(tets, found)):
+            flag = wp.int8(1)
+    if count > 1:
+        found = -2
+    mate[f] = found
+    same[f] = flag
+
+
+@wp.kernel
+def gather_tet_faces_kernel(first: int, tets: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32),
+                            out: wp.array(dtype=wp.int32)):
+    """One thread per row i = first + tid: the corners of face ``ids[i]``, outward, at
+    ``out[3 i : 3 i + 3]``."""
+    i = first + wp.tid()
+    v = tet_face(tets, ids[i])
+    out[3 * i] = v[0]
+    out[3 * i + 1] = v[1]
+    out[3 * i + 2] = v[2]
+
+
 @wp.kernel
 def bvh_coordinates_kernel(first: int, points: wp.array(dtype=wp.vec3d), centre: wp.vec3d, half: wp.float64,
                            points32: wp.array(dtype=wp.vec3)):

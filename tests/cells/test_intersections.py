@@ -1174,7 +1174,8 @@ def _kuhn_cells(nc: int, drop=()):
     return pts, tets[keep]
 
 
-def test_shells_nested_three_deep_on_grid_planes(monkeypatch):
+@pytest.mark.parametrize("matching", ["kernel", "sorted"])
+def test_shells_nested_three_deep_on_grid_planes(monkeypatch, matching):
     # grid-aligned cubes (rays through edges and vertices of projected faces: ties on every
     # axis, so solid angles decide): a hollow cube, a hollow cube in its cavity, a solid cube
     # in that one's cavity (five boundary components, windings 1 everywhere: embedded), then
@@ -1183,6 +1184,8 @@ def test_shells_nested_three_deep_on_grid_planes(monkeypatch):
     calls = []
     solid_angles = rays._solid_angle_windings
     monkeypatch.setattr(rays, "_solid_angle_windings", lambda f, x: calls.append(len(x)) or solid_angles(f, x))
+    if matching == "sorted":  # the faces matched by a sort: the boundary by corners, whose first faces tie
+        monkeypatch.setattr(wmi, "_tet_face_pairs", lambda *args: None)
     hollow = _kuhn_cells(3, drop=[(1, 1, 1)])
     solid = _kuhn_block(3)
     cube = _kuhn_block(1)
@@ -1202,7 +1205,7 @@ def test_shells_nested_three_deep_on_grid_planes(monkeypatch):
             got = find_tet_overlaps(pts, tets)
             assert (len(got) == 0) == embedded, (embedded, got[:4])
             assert all(_overlap_depth(pts, tets[i], tets[j]) > 1e-9 for i, j in got[:: max(1, len(got) // 6)])
-    assert calls
+    assert calls or matching == "kernel"  # which faces represent the shells depends on the boundary's order
     u_shape = _kuhn_cells(3, drop=[(1, 1, 0), (1, 2, 0), (1, 1, 1), (1, 2, 1), (1, 1, 2), (1, 2, 2)])
     for shift in ([1.25, 1.25, 0.25], [1.25, 2.25, 1.25], [1.0, 1.0, 1.0]):  # in the notch; the last touches
         pts, tets = joined((u_shape, 3.0, 0.0), (cube, 0.5, shift))
@@ -1245,3 +1248,86 @@ def test_shells_sharing_an_edge_that_overlap_there_are_reported():
     checker = _kuhn_cells(2, drop=[(0, 0, 1), (0, 1, 0), (1, 0, 0), (1, 1, 1)])
     for p, tets in ((np.vstack([c, moved]), np.vstack([ct, weld[ct]])), checker):
         assert find_tet_overlaps(p, tets).shape == (0, 2)
+
+
+def _face_matching(tets):
+    """Both matchings of the faces of ``tets`` (kernel, sort) as comparable sets."""
+    import warp as wp
+
+    tets = np.asarray(tets, dtype=np.int64)
+    kernel = wmi._tet_face_pairs(tets, wp.array(tets.astype(np.int32).ravel(), dtype=wp.int32, device="cpu"),
+                                 wp.get_device("cpu"))
+    sort = wmi._tet_face_pairs_sorted(tets)
+    return kernel, sort
+
+
+def _as_sets(matched):
+    once, corners, pairs = matched
+    return (dict(zip(once.tolist(), map(tuple, corners.tolist()))),
+            set(map(tuple, np.sort(pairs, axis=1).tolist())))
+
+
+@pytest.mark.parametrize("case", ["block", "shuffled", "three_on_a_face", "same_side", "degenerate"])
+def test_tet_face_matching_kernel_equals_the_sort(case):
+    pts, tets = _kuhn_block(5)
+    rng = np.random.default_rng(7)
+    if case == "shuffled":  # any numbering of points and tetrahedra, any rotation of each row's corners
+        perm = rng.permutation(len(pts))
+        tets = perm[tets][rng.permutation(len(tets))]
+        rot = rng.integers(0, 3, len(tets))  # even permutations keep the orientation
+        for r, order in ((1, [1, 2, 0, 3]), (2, [2, 0, 1, 3])):
+            tets[rot == r] = tets[rot == r][:, order]
+    elif case == "three_on_a_face":  # a face in three tetrahedra, and one with a repeated corner
+        t = tets[0]
+        tets = np.vstack([tets, [t[1], t[2], t[3], len(pts)], [t[0], t[0], t[1], t[2]]])
+    elif case == "same_side":  # the second tetrahedron of an interior face turned over
+        tets = tets.copy()
+        tets[3] = tets[3][[1, 0, 2, 3]]
+    elif case == "degenerate":
+        tets = np.vstack([tets, [0, 0, 0, 0], [1, 1, 2, 2]])
+    kernel, sort = _face_matching(tets)
+    assert kernel is not None
+    k_faces, k_pairs = _as_sets(kernel)
+    s_faces, s_pairs = _as_sets(sort)
+    assert k_faces == s_faces and k_pairs == s_pairs
+    assert np.all(np.diff(kernel[0]) > 0)  # boundary faces by id
+    if case in ("three_on_a_face", "same_side"):
+        assert k_pairs
+    if case == "block":  # the cube's 6 * 2 * 25 boundary triangles, no pair
+        assert len(k_faces) == 300 and not k_pairs
+
+
+def test_tet_face_matching_sorts_on_a_fan():
+    # 2000 tetrahedra about vertex 0 and two apexes (a double cone): each apex is the largest
+    # corner of 2000 faces, too many to scan, so the kernels give up (None) and
+    # find_tet_overlaps sorts the faces; its verdicts are the same
+    k = 1000
+    ring = np.column_stack([np.arange(1, k + 1), np.r_[np.arange(2, k + 1), 1]])
+    tets = np.vstack([np.column_stack([np.zeros(k, int), ring, np.full(k, k + 1)]),
+                      np.column_stack([np.zeros(k, int), ring[:, ::-1], np.full(k, k + 2)])])
+    angle = 2 * np.pi * np.arange(k) / k
+    pts = np.vstack([[0, 0, 0], np.column_stack([np.cos(angle), np.sin(angle), np.zeros(k)]), [0, 0, 1], [0, 0, -1]])
+    signs = np.einsum("ij,ij->i", np.cross(pts[tets[:, 1]] - pts[tets[:, 0]], pts[tets[:, 2]] - pts[tets[:, 0]]),
+                      pts[tets[:, 3]] - pts[tets[:, 0]])
+    tets[signs < 0] = tets[signs < 0][:, [1, 0, 2, 3]]
+    kernel, _ = _face_matching(tets)
+    assert kernel is None
+    assert len(find_tet_overlaps(pts, tets)) == 0
+    flipped = tets.copy()
+    flipped[5] = flipped[5][[1, 0, 2, 3]]  # inverted: reported as (5, 5), and on the same side as its neighbours
+    got = find_tet_overlaps(pts, flipped)
+    assert [5, 5] in got.tolist() and len(got) > 1
+
+
+def test_tet_face_matching_by_kernels_or_sort_gives_the_same_verdicts(monkeypatch):
+    pts, tets = _kuhn_block(4)
+    bad = tets.copy()
+    bad[7] = bad[7][[1, 0, 2, 3]]  # inverted
+    bad = np.vstack([bad, bad[20]])  # a tetrahedron twice: its faces in two on the same side
+    verdicts, default = {}, wmi._BUCKET_READS
+    for reads in (default, 0):  # 0: no scan allowed, the faces are sorted
+        monkeypatch.setattr(wmi, "_BUCKET_READS", reads)
+        assert (_face_matching(tets)[0] is None) == (reads == 0)
+        verdicts[reads] = [find_tet_overlaps(pts, t).tolist() for t in (tets, bad)]
+    assert verdicts[0] == verdicts[default]
+    assert verdicts[0][0] == [] and [7, 7] in verdicts[0][1] and [20, len(bad) - 1] in verdicts[0][1]
