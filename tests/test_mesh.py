@@ -582,3 +582,25 @@ def test_replace_info_only_shares_the_checked_arrays():
     assert r.stats()["watertight"] and r.stats()["n_triangles"] == 4 and r.stats()["b"] == 2
     with pytest.raises(TypeError, match="info"):
         m.replace(info=[1])
+
+
+def test_a_mesh_goes_through_pickle_with_its_views_and_info():
+    import pickle
+
+    import warpmesh as wm
+
+    vol = np.zeros((8, 8, 8), np.int16)
+    vol[2:6, 2:6, 2:4], vol[2:6, 2:6, 4:6] = 1, 2
+    for mesh in (wm.mesh_domain(vol, size=2.0), wm.mesh_surface(vol, labels="all", interfaces="shared")):
+        back = pickle.loads(pickle.dumps(mesh))
+        assert type(back) is Mesh and repr(back) == repr(mesh)
+        np.testing.assert_array_equal(back.points, mesh.points)
+        for t in mesh.cells:
+            np.testing.assert_array_equal(back.cells[t], mesh.cells[t])
+            np.testing.assert_array_equal(back.cell_refs[t], mesh.cell_refs[t])
+            np.testing.assert_array_equal(back.cell_data["label_above"][t], mesh.cell_data["label_above"][t])
+        a, b = back.stats(), mesh.stats()
+        for key in ("np", "n_cells", "euler", "area", "self_intersections", "labels", "region_volumes"):
+            assert a.get(key) == b.get(key), key
+        assert back.info.keys() == mesh.info.keys()
+        assert not back.points.flags.writeable

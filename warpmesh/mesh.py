@@ -314,6 +314,22 @@ class Mesh:
         args.update(changes)
         return Mesh(args.pop("points"), args.pop("cells"), **args)
 
+    def __reduce__(self):
+        """Pickle as the constructor's arguments (the read-only views as plain dicts), so a
+        mesh goes through ``pickle``, ``multiprocessing`` and Dask like its arrays.
+
+        Examples
+        --------
+        >>> import pickle
+        >>> m = Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]},
+        ...          cell_data={"q": {"triangle": [1.5]}}, info={"rows": {"a": 1}})
+        >>> pickle.loads(pickle.dumps(m)).cell_data["q"]["triangle"].tolist()
+        [1.5]
+        """
+        kwargs = {"point_data": self._point_data, "cell_data": {k: dict(v) for k, v in self._cell_data.items()},
+                  "point_refs": self._point_refs, "cell_refs": self._cell_refs, "info": _plain(self._info)}
+        return _unpickle_mesh, (self._points, self._cells, kwargs)
+
     def __repr__(self) -> str:
         blocks = ", ".join(f"{t}: {len(c)}" for t, c in self._cells.items())
         extra = "".join(
@@ -781,3 +797,17 @@ def load(path, *, file_format: FileFormat | None = None, dim: Literal[2, 3] | No
     from warpmesh.io import files as _io
 
     return _io.load(path, mesh_type=Mesh, file_format=file_format, dim=dim)
+
+
+def _plain(value):
+    """``value`` with every read-only mapping view (``MappingProxyType``) made a dict, at any depth."""
+    if isinstance(value, (dict, MappingProxyType)):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)) and any(isinstance(v, (dict, MappingProxyType, list, tuple)) for v in value):
+        return type(value)(_plain(v) for v in value)
+    return value
+
+
+def _unpickle_mesh(points, cells, kwargs) -> Mesh:
+    """A pickled :class:`Mesh` back (:meth:`Mesh.__reduce__`)."""
+    return Mesh(points, cells, **kwargs)
