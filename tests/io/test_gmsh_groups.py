@@ -317,3 +317,20 @@ def test_mesh_domain_regions_go_to_volume_groups(tmp_path):
     back = wm.load(path)
     assert sorted(zip(map(tuple, back.cells["tetra"].tolist()), back.cell_refs["tetra"].tolist())) == \
         sorted(zip(map(tuple, tets.tolist()), tet_refs.tolist()))
+
+
+@pytest.mark.parametrize("rows", [1, 5, 64])
+def test_msh41_written_in_chunks_is_the_same_file(tmp_path, monkeypatch, rows):
+    # nodes and elements are written a chunk of rows at a time (no copy of the file in
+    # memory); any chunk size gives the same bytes, which gmsh's reader (meshio) takes
+    from warpmesh.io import gmsh_groups
+
+    vol = np.zeros((10, 10, 10), np.int16)
+    vol[2:8, 2:8, 2:5], vol[2:8, 2:8, 5:8], vol[4:6, 4:6, 3:7] = 1, 2, 3
+    mesh = wm.mesh_domain(vol, size=2.0)
+    whole = gmsh_groups.write_msh41(tmp_path / "whole.msh", mesh).read_bytes()
+    monkeypatch.setattr(gmsh_groups, "_WRITE_ROWS", rows)
+    assert gmsh_groups.write_msh41(tmp_path / "chunks.msh", mesh).read_bytes() == whole
+    back = meshio.read(tmp_path / "chunks.msh")
+    assert sum(len(c.data) for c in back.cells if c.type == "tetra") == len(mesh.cells["tetra"])
+    np.testing.assert_array_equal(back.points, mesh.points)

@@ -273,10 +273,6 @@ def write_msh41(path, mesh: MeshLike) -> Path:
     def arr(values, dtype) -> bytes:
         return np.asarray(values, dtype=dtype).tobytes()
 
-    parts = [b"$MeshFormat\n4.1 1 8\n", arr([1], i32), b"\n$EndMeshFormat\n"]
-    parts.append(b"$PhysicalNames\n" + f"{len(groups)}\n".encode())
-    parts += [f'{g.dim} {g.tag} "{g.name}"\n'.encode() for g in groups]
-    parts.append(b"$EndPhysicalNames\n$Entities\n")
     # each type's cells sorted by entity once: (entity tag, element numbers, cells) runs;
     # element numbers are the cells' 1-based positions in the mesh (blocks in order), so a
     # reader can restore the order that the grouping by entity changes
@@ -286,9 +282,8 @@ def write_msh41(path, mesh: MeshLike) -> Path:
         perm = np.argsort(cell_tags[t], kind="stable")
         tags_sorted = cell_tags[t][perm]
         firsts = np.flatnonzero(np.r_[True, tags_sorted[1:] != tags_sorted[:-1]])
-        corners = pts[cells[perm]]  # (m, k, 3): one entity's bounding box is a reduceat over its run
-        lo, hi = np.minimum.reduceat(corners.min(axis=1), firsts), np.maximum.reduceat(corners.max(axis=1), firsts)
         ordered = _meshio_to_gmsh_order(t, cells[perm])
+        lo, hi = _run_boxes(pts, ordered, firsts)
         for j, (a, b) in enumerate(zip(firsts, [*firsts[1:], len(perm)])):
             key = (_dim(t), int(tags_sorted[a]))
             runs.append((key, t, base + perm[a:b], ordered[a:b]))
@@ -296,30 +291,64 @@ def write_msh41(path, mesh: MeshLike) -> Path:
             boxes[key] = (lo[j], hi[j]) if old is None else (np.minimum(old[0], lo[j]), np.maximum(old[1], hi[j]))
         base += len(cells)
     by_dim = {d: [e for e in entities if e.dim == d] for d in range(4)}
-    parts.append(arr([len(by_dim[d]) for d in range(4)], size_t))
-    for d in range(4):
-        for e in by_dim[d]:
-            lo, hi = boxes[(d, e.tag)]
-            parts.append(arr([e.tag], i32))
-            parts.append(arr(lo, f64) if d == 0 else arr(np.concatenate([lo, hi]), f64))
-            parts.append(arr([len(e.groups)], size_t) + arr(e.groups, i32))
-            if d > 0:
-                parts.append(arr([0], size_t))  # no bounding entities
-    parts.append(b"\n$EndEntities\n$Nodes\n")
-    host = max(entities, key=lambda e: (e.dim, -e.tag))
-    parts.append(arr([1, n, 1, n], size_t))
-    parts.append(arr([host.dim, host.tag, 0], i32) + arr([n], size_t))
-    parts.append(arr(np.arange(1, n + 1), size_t))
-    parts.append(pts.tobytes())
-    parts.append(b"\n$EndNodes\n$Elements\n")
-    total = base - 1
-    parts.append(arr([len(runs), total, 1, total], size_t))
-    for (d, tag), t, numbers, cells in runs:
-        parts.append(arr([d, tag, _meshio_to_gmsh_type[t]], i32) + arr([len(cells)], size_t))
-        parts.append(np.column_stack([numbers, cells + 1]).astype(size_t).tobytes())
-    parts.append(b"\n$EndElements\n")
-    path.write_bytes(b"".join(parts))
+    # written as it goes (the nodes and elements straight from their arrays): no copy of the file in memory
+    with open(path, "wb") as f:
+        f.write(b"$MeshFormat\n4.1 1 8\n" + arr([1], i32) + b"\n$EndMeshFormat\n")
+        f.write(b"$PhysicalNames\n" + f"{len(groups)}\n".encode())
+        f.write(b"".join(f'{g.dim} {g.tag} "{g.name}"\n'.encode() for g in groups))
+        f.write(b"$EndPhysicalNames\n$Entities\n")
+        f.write(arr([len(by_dim[d]) for d in range(4)], size_t))
+        for d in range(4):
+            for e in by_dim[d]:
+                lo, hi = boxes[(d, e.tag)]
+                f.write(arr([e.tag], i32))
+                f.write(arr(lo, f64) if d == 0 else arr(np.concatenate([lo, hi]), f64))
+                f.write(arr([len(e.groups)], size_t) + arr(e.groups, i32))
+                if d > 0:
+                    f.write(arr([0], size_t))  # no bounding entities
+        f.write(b"\n$EndEntities\n$Nodes\n")
+        host = max(entities, key=lambda e: (e.dim, -e.tag))
+        f.write(arr([1, n, 1, n], size_t))
+        f.write(arr([host.dim, host.tag, 0], i32) + arr([n], size_t))
+        _write_rows(f, np.arange(1, n + 1, dtype=size_t)[:, None])
+        f.write(memoryview(np.ascontiguousarray(pts)).cast("B"))
+        f.write(b"\n$EndNodes\n$Elements\n")
+        total = base - 1
+        f.write(arr([len(runs), total, 1, total], size_t))
+        for (d, tag), t, numbers, cells in runs:
+            f.write(arr([d, tag, _meshio_to_gmsh_type[t]], i32) + arr([len(cells)], size_t))
+            _write_rows(f, numbers, cells, offset=1)
+        f.write(b"\n$EndElements\n")
     return path
+
+
+#: rows a chunk of :func:`_write_rows`
+_WRITE_ROWS = 1 << 18
+
+
+def _write_rows(f, first, rest=None, offset: int = 0) -> None:
+    """Write the rows [first, rest + offset] as little-endian uint64, a chunk at a time."""
+    first = np.asarray(first).reshape(len(first), -1)
+    width = first.shape[1] + (0 if rest is None else rest.shape[1])
+    buf = np.empty((min(len(first), _WRITE_ROWS), width), dtype="<u8")
+    for lo in range(0, len(first), _WRITE_ROWS):
+        rows = buf[:min(_WRITE_ROWS, len(first) - lo)]
+        rows[:, :first.shape[1]] = first[lo:lo + len(rows)]
+        if rest is not None:
+            np.add(rest[lo:lo + len(rows)], offset, out=rows[:, first.shape[1]:], casting="unsafe")
+        f.write(memoryview(rows).cast("B"))
+
+
+def _run_boxes(pts: np.ndarray, cells: np.ndarray, firsts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bounding box (lo, hi) of the cells of each run starting at ``firsts``: corner by
+    corner, so no (m, k, 3) array of every corner's coordinates."""
+    lo = pts[cells[:, 0]]
+    hi = lo.copy()
+    for j in range(1, cells.shape[1]):
+        c = pts[cells[:, j]]
+        np.minimum(lo, c, out=lo)
+        np.maximum(hi, c, out=hi)
+    return np.minimum.reduceat(lo, firsts), np.maximum.reduceat(hi, firsts)
 
 
 _PATTERNS = (
