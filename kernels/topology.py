@@ -186,6 +186,22 @@ def union_faces_kernel(rep: wp.array(dtype=wp.int32), parent: wp.array(dtype=wp.
 
 
 @wp.kernel
+def label_faces_kernel(parent: wp.array(dtype=wp.int32), rank: wp.array(dtype=wp.int32),
+                       labels: wp.array(dtype=wp.int32), count: wp.array(dtype=wp.int32)):
+    """One thread labels every face f with its union-find root's component, the components
+    numbered 0.. in order of first appearance (``rank`` starts at -1 for every face);
+    ``count[0]`` the number of components."""
+    c = int(0)
+    for f in range(parent.shape[0]):
+        r = find_root(parent, f)
+        if rank[r] < 0:
+            rank[r] = c
+            c += 1
+        labels[f] = rank[r]
+    count[0] = c
+
+
+@wp.kernel
 def face_measures_kernel(
     first: int, points: wp.array(dtype=wp.vec3d), faces: wp.array(dtype=wp.int32), centre: wp.vec3d,
     alpha: wp.float64, rel_tol: wp.float64,

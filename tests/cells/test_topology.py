@@ -253,3 +253,26 @@ def test_check_mesh_names_each_defect(check_mesh, sphere, defect, message):
         pts, faces = _two_tets_sharing_a_vertex()
     with pytest.raises(AssertionError, match=message):
         check_mesh(pts, faces)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_components_by_kernels_equal_the_graph_search(monkeypatch, seed):
+    # random soups (non-manifold edges, isolated faces, faces in any order) and two shells
+    # joined at a vertex: the same count and the same labels, numbered by first appearance
+    from warpmesh.cells import topology
+
+    rng = np.random.default_rng(seed)
+    soups = [rng.integers(0, 40 + 30 * seed, (60 + 50 * seed, 3))]
+    tet = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    soups.append(np.vstack([tet, tet + 3, tet + 10])[rng.permutation(12)])  # 0-3 and 3-6 share vertex 3
+    for faces in soups:
+        faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
+        assert topology._kernels_apply(faces, int(faces.max()) + 1)
+        fast = topology.connected_components(faces)
+        with monkeypatch.context() as patch:
+            patch.setattr(topology, "_kernels_apply", lambda *args: False)
+            slow = topology.connected_components(faces)
+        assert fast[0] == slow[0]
+        np.testing.assert_array_equal(fast[1], slow[1])
+        assert fast[1].dtype == slow[1].dtype
+    assert fast[0] == 3

@@ -288,14 +288,13 @@ def connected_components(
     """
     faces = _as_faces(faces)
     m = len(faces)
-    if connectivity == "edge":
-        _, links, _ = unique_edges(faces)
-    elif connectivity == "vertex":
-        links = faces
-    else:
+    if connectivity not in ("edge", "vertex"):
         raise ValueError(f"expected connectivity 'edge' or 'vertex', got {connectivity!r}")
     if m == 0:
         return 0, np.zeros(0, dtype=INDEX_DTYPE)
+    if connectivity == "edge" and _kernels_apply(faces, _count(faces, n_points)):
+        return _components_by_kernels(faces, _count(faces, n_points))
+    links = unique_edges(faces)[1] if connectivity == "edge" else faces
     k = _count(links, n_points if connectivity == "vertex" else None)
     rows = np.repeat(np.arange(m), 3)  # bipartite graph: faces 0..m-1, then edges/vertices
     from scipy import sparse
@@ -452,6 +451,58 @@ def _per_item(kernel, n: int, inputs: list, outputs: list) -> None:
     wp.synchronize_device("cpu")
 
 
+def _kernels_apply(faces: np.ndarray, n: int) -> bool:
+    """Whether the half-edge kernels take these faces: three distinct corners each, and
+    half-edges and points within int32."""
+    if 3 * len(faces) >= np.iinfo(np.int32).max or n >= np.iinfo(np.int32).max:
+        return False
+    return not bool(np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])))
+
+
+def _matched_half_edges(faces: np.ndarray, n: int):
+    """The half-edges matched by their undirected edge (:func:`mesh_topology`'s first
+    pass): (flat corners, CSR offsets, half-edges by start vertex, ``rep``, ``twin``,
+    per-launch tallies) as int32 arrays."""
+    import warp as wp
+
+    from warpmesh._util.parallel import parallel_ranges, run_parallel
+    from warpmesh.kernels import topology as KT
+
+    wp.load_module(KT, device="cpu")  # once here, not in the worker threads
+    m = len(faces)
+    flat = faces.astype(np.int32).ravel()
+    dst = np.ascontiguousarray(faces[:, [1, 2, 0]], dtype=np.int32).ravel()  # where each half-edge ends
+    offsets, out_of, out_dst = _half_edge_csr(flat, dst, n)
+    rep, twin = np.empty(3 * m, np.int32), np.empty(3 * m, np.int32)
+    ranges = parallel_ranges(3 * m, "cpu")
+    tallies = np.zeros((len(ranges), 4), np.int32)  # one row per launch: no two threads add to one
+    run_parallel(lambda a=a, b=b, i=i: wp.launch(
+        KT.match_half_edges_kernel, dim=b - a,
+        inputs=[a, _wp(flat), _wp(dst), _wp(offsets), _wp(out_of), _wp(out_dst)],
+        outputs=[_wp(rep), _wp(twin), _wp(tallies[i])], device="cpu") for i, (a, b) in enumerate(ranges))
+    return flat, offsets, out_of, rep, twin, tallies
+
+
+def _components_by_kernels(faces: np.ndarray, n: int) -> tuple[int, np.ndarray]:
+    """:func:`connected_components` (edge connectivity) from the matched half-edges: faces
+    joined with their edges' representatives by union-find, labelled in order of first
+    appearance (:func:`~warpmesh.kernels.topology.label_faces_kernel`); no sort."""
+    import warp as wp
+
+    from warpmesh.kernels import topology as KT
+
+    rep = _matched_half_edges(faces, n)[3]
+    m = len(faces)
+    parent, count = np.arange(m, dtype=np.int32), np.zeros(1, np.int32)
+    wp.launch(KT.union_faces_kernel, dim=1, inputs=[_wp(rep)], outputs=[_wp(parent), _wp(count)], device="cpu")
+    del rep
+    rank, labels = np.full(m, -1, np.int32), np.empty(m, np.int32)
+    wp.launch(KT.label_faces_kernel, dim=1, inputs=[_wp(parent)], outputs=[_wp(rank), _wp(labels), _wp(count)],
+              device="cpu")
+    wp.synchronize_device("cpu")  # sync point: the host reads count
+    return int(count[0]), labels.astype(INDEX_DTYPE)
+
+
 def mesh_topology(faces, n_points: int | None = None) -> dict:
     """Every topological figure of a triangle mesh from one pass over its half-edges.
 
@@ -492,26 +543,13 @@ def mesh_topology(faces, n_points: int | None = None) -> dict:
         return {"n_vertices": 0, "n_edges": 0, "n_boundary_edges": 0, "n_nonmanifold_edges": 0,
                 "watertight": False, "edge_manifold": True, "manifold": True, "oriented": True, "euler": 0,
                 "components": 0}
-    repeated = bool(np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
-                           | (faces[:, 2] == faces[:, 0])))
-    if repeated or 3 * m >= np.iinfo(np.int32).max or n >= np.iinfo(np.int32).max:
+    if not _kernels_apply(faces, n):
         return _mesh_topology_by_functions(faces, n)
     import warp as wp
 
-    from warpmesh._util.parallel import parallel_ranges, run_parallel
     from warpmesh.kernels import topology as KT
 
-    wp.load_module(KT, device="cpu")  # once here, not in the worker threads
-    flat = faces.astype(np.int32).ravel()
-    dst = np.ascontiguousarray(faces[:, [1, 2, 0]], dtype=np.int32).ravel()  # where each half-edge ends
-    offsets, out_of, out_dst = _half_edge_csr(flat, dst, n)
-    rep, twin = np.empty(3 * m, np.int32), np.empty(3 * m, np.int32)
-    ranges = parallel_ranges(3 * m, "cpu")
-    tallies = np.zeros((len(ranges), 4), np.int32)  # one row per launch: no two threads add to one
-    run_parallel(lambda a=a, b=b, i=i: wp.launch(
-        KT.match_half_edges_kernel, dim=b - a,
-        inputs=[a, _wp(flat), _wp(dst), _wp(offsets), _wp(out_of), _wp(out_dst)],
-        outputs=[_wp(rep), _wp(twin), _wp(tallies[i])], device="cpu") for i, (a, b) in enumerate(ranges))
+    flat, offsets, out_of, rep, twin, tallies = _matched_half_edges(faces, n)
     bad = np.empty(n, np.int8)
     _per_item(KT.fan_check_kernel, n, [_wp(flat), _wp(offsets), _wp(out_of), _wp(twin)], [_wp(bad)])
     parent = np.arange(m, dtype=np.int32)
