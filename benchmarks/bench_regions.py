@@ -29,6 +29,10 @@ time ratio tool / warpmesh (> 1: warpmesh faster); then each warpmesh row's per-
 Run:  python benchmarks/bench_regions.py [--repeat 3] [--voxels 4] [--no-tetgen] [--json out.json]
 ``--fresh`` times only the graded frog's first call in a new process (after one uniform call):
 wall, user and system CPU and peak memory, which the warm rows above do not show.
+``--cli`` times only the command a user runs on the frog (``warpmesh domain --volume
+frog_tissues.vti --size h -o frog.msh``), each run a new process, with and without the
+program's allocator setting, and the saved ``.msh`` written again by warpmesh and by meshio
+(:func:`cli_runs`); about 2.5 minutes a run.
 The graded frog at 4 voxels takes about 45 s a run: ``--repeat 1 --no-tetgen`` for a quick look
 (about 2 minutes in all).
 
@@ -58,7 +62,7 @@ import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _report import finish, keep_freed_memory, load_banner, median_run, version  # noqa: E402
+from _report import MALLOC_ENV, finish, keep_freed_memory, load_banner, median_run, version  # noqa: E402
 
 if __name__ == "__main__":
     keep_freed_memory()
@@ -186,6 +190,75 @@ def fresh_run(voxels: float) -> dict:
             "stages": {k: round(v, 2) for k, v in m.info["time"].items()}}
 
 
+def cli_runs(voxels: float, repeat: int) -> dict:
+    """The whole command a user runs on the frog, each run a new process:
+    ``warpmesh domain --volume frog_tissues.vti --size h -o frog.msh --json``, with the
+    allocator setting the program makes (default) and without it
+    (``WARPMESH_KEEP_FREED_MEMORY=0``), rounds alternating: wall, user and system CPU and
+    peak memory of the child (``os.wait4``), and the stages the command prints. Then, in this
+    process, the saved mesh's ``.msh`` written again by warpmesh (gmsh 4.1 with groups) and by
+    meshio (gmsh 2.2 binary, one physical tag per cell: the peer's writer, same points and cells)."""
+    import json
+    import subprocess
+    import tempfile
+
+    import meshio
+    import pyvista as pv
+
+    import warpmesh as wm
+
+    path = os.path.join(os.path.dirname(pv.__file__), "examples", "frog_tissues.vti")
+    if not os.path.exists(path):
+        path = pv.examples.download_frog_tissues(load=False)
+    h = voxels * min(pv.read(path).spacing)
+    runs = {"keep freed memory (default)": [], "WARPMESH_KEEP_FREED_MEMORY=0": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "frog.msh")
+        cmd = [sys.executable, "-m", "warpmesh.cli", "domain", "--volume", path, "--size", str(h), "-o", out, "--json"]
+        for _ in range(max(1, repeat)):
+            for name in runs:
+                env = dict(os.environ)
+                for k in MALLOC_ENV:  # the benchmark's own allocator setting must not leak into the child
+                    env.pop(k, None)
+                if name.startswith("WARPMESH"):
+                    env["WARPMESH_KEEP_FREED_MEMORY"] = "0"
+                w0 = time.perf_counter()
+                child = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+                text = child.stdout.read()
+                _, status, usage = os.wait4(child.pid, 0)
+                wall = time.perf_counter() - w0
+                if status != 0:
+                    raise RuntimeError(f"{' '.join(cmd)} failed with status {status}")
+                doc = json.loads(text)
+                runs[name].append({"wall_s": wall, "user_s": usage.ru_utime, "system_s": usage.ru_stime,
+                                   "peak_rss_gb": usage.ru_maxrss / 2**20, "tets": doc["n_tetra"],
+                                   "self_intersections": doc["self_intersections"],
+                                   "stages": {k: round(v, 2) for k, v in doc["time"].items()}})
+        mesh = wm.load(out)
+        saves = {}
+        for tool in ("warpmesh", "meshio"):
+            target = os.path.join(tmp, f"again_{tool}.msh")
+            w0 = time.perf_counter()
+            if tool == "warpmesh":
+                mesh.save(target)
+            else:
+                meshio.write(target, meshio.Mesh(mesh.points, [(t, c) for t, c in mesh.cells.items()],
+                                                 cell_data={"gmsh:physical": [mesh.cell_refs[t] for t in mesh.cells],
+                                                            "gmsh:geometrical": [mesh.cell_refs[t]
+                                                                                 for t in mesh.cells]}),
+                             file_format="gmsh22", binary=True)
+            saves[tool] = {"wall_s": time.perf_counter() - w0, "mb": os.path.getsize(target) / 1e6}
+    for name, rows in runs.items():
+        for r in rows:
+            print(f"{name}: wall {r['wall_s']:.1f} s, user {r['user_s']:.1f} s, system {r['system_s']:.1f} s, "
+                  f"peak RSS {r['peak_rss_gb']:.2f} GB, {r['tets']} tets, self-intersections "
+                  f"{r['self_intersections']}; stages {r['stages']}")
+    for tool, r in saves.items():
+        print(f"save .msh again, {tool}: {r['wall_s']:.2f} s, {r['mb']:.0f} MB"
+              + (f" ({r['wall_s'] / saves['warpmesh']['wall_s']:.2f}x warpmesh's time)" if tool != "warpmesh" else ""))
+    return {"cli": runs, "save": saves}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
@@ -198,7 +271,19 @@ def main(argv=None) -> int:
     ap.add_argument("--default-malloc", action="store_true", help="measure with the stock allocator")
     ap.add_argument("--fresh", action="store_true",
                     help="only the graded frog's first call in a fresh process (time, system time, peak memory)")
+    ap.add_argument("--cli", action="store_true",
+                    help="only the command line on the frog (warpmesh domain --volume ... -o frog.msh) in fresh "
+                         "processes, with and without its allocator setting, and the .msh written again by "
+                         "warpmesh and meshio")
     args = ap.parse_args(argv)
+    if args.cli:
+        doc = cli_runs(args.voxels, args.repeat)
+        if args.json:
+            import json
+
+            with open(args.json, "w") as fh:
+                json.dump(doc, fh)
+        return 0
     if args.fresh:
         r = fresh_run(args.voxels)
         print(f"graded frog, first call in a fresh process: {r['tets']} tets, wall {r['wall_s']:.2f} s, "
