@@ -94,6 +94,8 @@ def test_domain_volume_bad_flags_are_named(slabs, tmp_path, capsys, extra, needl
 @pytest.mark.parametrize("extra, needle", [
     (["--labels", "1"], "--labels does not apply to a shape"),
     (["--snap", "0.2"], "--snap does not apply to a shape"),
+    (["--snap", "0"], "--snap does not apply to a shape"),
+    (["--min-size", "0"], "--min-size does not apply to a shape"),
     (["--min-size", "0.1"], "--min-size does not apply to a shape"),
     (["--spacing", "1"], "--spacing does not apply to a shape"),
 ])

@@ -135,7 +135,9 @@ def run(wm, args, clock) -> int:
 
 
 def _refuse(args, flags: dict[str, str], what: str) -> None:
-    given = [flag for name, flag in flags.items() if getattr(args, name) not in (None, 0)]
+    """A ValueError naming the ``flags`` given (``--smooth`` counts when above its default 0)."""
+    given = [flag for name, flag in flags.items()
+             if getattr(args, name) is not None and not (name == "smooth" and getattr(args, name) == 0)]
     if given:
         raise ValueError(f"{' '.join(given)} {'does' if len(given) == 1 else 'do'} not apply to {what}")
 
