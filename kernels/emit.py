@@ -492,7 +492,7 @@ def emit_vertices_kernel(
                         if (v1 > 0.0) != inside:
                             tc = clamped_t(v0, v1, g, d, t, n, cap, n_types, t_min, clearance, crowding, s, c, nb,
                                         block_slot, values, known)
-                            p, te, p0, p1 = crossing(tc, d, g, origin, h)
+                            p, te, p0, p1 = crossing(tc, d, g + goff, origin, h)
                             if te != wp.clamp(v0 / (v0 - v1), t_min, 1.0 - t_min):
                                 n_moved += 1
                             points[vid] = p
@@ -636,7 +636,7 @@ def emit_triangles_kernel(
                                     ge = li + c * _BLOCK
                                     tc = clamped_t(v0, v1, ge, d, t, n, cap, n_types, t_min, clearance, crowding, s,
                                                 c, nb, block_slot, values, known)
-                                    p, te, p0, p1 = crossing(tc, d, ge, origin, h)
+                                    p, te, p0, p1 = crossing(tc, d, ge + goff, origin, h)
                                     acc = acc + p
                                     m += 1.0
                     if (mask & 1) != 0:  # vertex 12: the mean of the edge vertices
@@ -651,9 +651,9 @@ def emit_triangles_kernel(
                         for q in range(8):
                             if ((mask >> (q + 1)) & 1) != 0:
                                 u = spoke_point(v, tab, hub, f_hub, q, gap)
-                                pq = wp.vec3(origin[0] + (float(g[0]) + float(u[0])) * h[0],
-                                             origin[1] + (float(g[1]) + float(u[1])) * h[1],
-                                             origin[2] + (float(g[2]) + float(u[2])) * h[2])
+                                pq = wp.vec3(origin[0] + (float(g[0] + goff[0]) + float(u[0])) * h[0],
+                                             origin[1] + (float(g[1] + goff[1]) + float(u[1])) * h[1],
+                                             origin[2] + (float(g[2] + goff[2]) + float(u[2])) * h[2])
                                 put_interior(center + interior_count(mask & ((2 << q) - 1)), pq,
                                              node_key(g, goff, gn), q + 1, points, edge_t, edge_p0, edge_p1,
                                              edge_flags, edge_key)

@@ -140,16 +140,6 @@ def key_nodes(keys: np.ndarray, cells) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return g, KE.TYPE_DELTA[kind].astype(np.int64), kind == KE.CENTER
 
 
-def edge_ends(keys: np.ndarray, cells, h) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """float32 ends (p0, p1) of each vertex's grid edge relative to the global grid's origin,
-    rounded operation by operation as ``kernels.emit.crossing`` computes them in one process
-    (so a root refined from them sees the same points, bit for bit); and the interior mask."""
-    g, d, interior = key_nodes(keys, cells)
-    h32 = np.asarray(h, dtype=np.float64).astype(np.float32)
-    p0 = g.astype(np.float32) * h32
-    return p0, p0 + d.astype(np.float32) * h32, interior
-
-
 def on_seams(keys: np.ndarray, brick: Brick, cells) -> np.ndarray:
     """Which vertices (by global key ``node * 8 + type``) lie on an edge in a seam plane of
     the brick: a face of its core that is not a face of the whole grid. Interior vertices

@@ -43,7 +43,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh import _conventions as C
-from warpmesh.distributed.bricks import BLOCK, Brick, edge_ends, layout, on_seams
+from warpmesh.distributed.bricks import BLOCK, Brick, layout, on_seams
 from warpmesh.distributed.output import KEY_ARRAY, output_paths, piece_path, write_piece, write_pvtu
 from warpmesh.distributed.seams import BrickMesh, weld
 from warpmesh.errors import WarpMeshError
@@ -392,20 +392,13 @@ class _ShapeJob(BrickJob):
         verts, tris, edges = drop_unused(verts, tris, edges)
         local = np.zeros((0, 3), np.float32)
         if len(verts):
-            # the edges' ends in the global grid's frame, as one process has them (the emission
-            # measured them from the brick's first node): a vertex is placed on them as
-            # kernels.emit.crossing places it, p0 + t (p1 - p0) rounded per operation, and a root
-            # finder evaluates f at the same points, so positions are one process's bit for bit
-            # (an "mc33" interior vertex, on no edge, is moved to the global frame: rounded once more)
-            p0, p1, interior = edge_ends(edges["key"].numpy(), cells, self.h)
-            p0[interior] = p1[interior] = verts.numpy()[interior] + (origin - self.lo).astype(np.float32)
+            # positions and edge ends come measured from the whole grid's node 0, as one process
+            # has them (``BlockGrid.extract``), and a root finder evaluates f at the same points,
+            # so positions are one process's bit for bit
             if opts.root != "linear":
-                edges["p0"], edges["p1"] = (wp.array(p, dtype=wp.vec3, device=dev) for p in (p0, p1))
                 refine_roots(tape, verts, edges, wp.vec3(*self.lo.tolist()), opts.root, opts.root_iterations,
                              timings, opts.evaluator, opts.gradient, grid.h)
-                local = verts.numpy().copy()  # sync point: results to the host
-            else:
-                local = p0 + edges["t"].numpy()[:, None] * (p1 - p0)  # float32, as kernels.emit.crossing
+            local = verts.numpy().copy()  # sync point: results to the host
         frame = self.lo  # where the float32 positions are measured from
         faces = tris.numpy().astype(C.INDEX_DTYPE)
         if len(faces) and faces.min() < 0:
@@ -522,7 +515,7 @@ class _VolumeJob(BrickJob):
                 raise brick_error(brick, self.lo, self.h, exc) from None
             grid.finish_values(cap, timings)
             verts, faces, edges = grid.extract(opts.method, cap, timings, clearance=opts.clearance)
-            p = verts.numpy().copy()  # float32, from the brick's origin
+            p = verts.numpy().copy()  # float32, from the whole grid's node 0 (one process's positions)
             f = faces.numpy().astype(C.INDEX_DTYPE)
             k = edges["key"].numpy().copy()
             if label is None:
@@ -541,7 +534,7 @@ class _VolumeJob(BrickJob):
         key, tagged = np.concatenate(keys), np.concatenate(seam_keys)
         ref = np.concatenate(refs) if self.has_refs else None
         info = {"ranges": ranges, "evaluations": evaluations, "time": {**timings, "total": time.perf_counter() - t0}}
-        result = _brick_result(brick, cells, points, origin, faces, ref, key, path, want, info,
+        result = _brick_result(brick, cells, points, self.lo, faces, ref, key, path, want, info,
                                self.lo + 0.5 * self.cells * self.h if opts.cap and self.labels is None else None)
         if want:
             result.seam_keys = tagged[result.seam]

@@ -384,8 +384,10 @@ class BlockGrid:
         on a shape's grid a node ending no other crossing edge that shares a cell with the
         vertex's edge); it moves vertices along their edges, never changes the connectivity
         (``info["clearance_moved"]`` counts them). Returns (vertices, triangles, edges):
-        grid-local float32 positions, vec3i triangles, and per vertex its edge (t, p0, p1,
-        flags, key) for root refinement."""
+        float32 positions, vec3i triangles, and per vertex its edge (t, p0, p1,
+        flags, key) for root refinement. Positions and edge ends are measured from the
+        *whole* grid's node (0, 0, 0), ``origin - node_offset * h`` (a slab or brick of a
+        grid places its vertices as one pass over the whole grid does, bit for bit)."""
         clearance = check_clearance(clearance)
         t0 = time.perf_counter()
         dev, ns = self.device, self.n_slots
@@ -413,8 +415,9 @@ class BlockGrid:
         moved = wp.zeros(max(ns, 1), dtype=wp.int32, device=dev)
         if nv:
             eid = wp.full(ns * K.NODES * n_types, -1, dtype=wp.int32, device=dev)
-            # positions relative to the grid origin: float32 keeps its precision far from 0;
-            # the host adds the origin in float64
+            # positions relative to the whole grid's node (0, 0, 0) (``node_offset`` added: a
+            # window of the grid places its vertices as the whole grid does, bit for bit):
+            # float32 keeps its precision far from 0; the host adds the origin in float64
             local, t_min = wp.vec3(0.0), float(C.EDGE_T_MIN)
             # the lonely-node exemption (kernels.emit.lonely), looked at per vertex where it
             # can change the clamp; ``known``: one entry = every slot node known

@@ -331,8 +331,10 @@ def extract_slabs(vol: np.ndarray, origin, spacing, *, level: float, sign: float
         verts, faces, edges = grid.extract(method, mask, timings, clearance=clearance)
         t0 = time.perf_counter()
         # sync point: copies (a CPU array's .numpy() is a view of memory freed with the slab);
-        # float32 grid-local points and int32 slab-local ids: half the memory of the result's
-        pts.append((verts.numpy().copy(), grid.origin))
+        # float32 points from the volume's node (0, 0, 0) (the emission measures them in the
+        # whole grid: the rows engine's positions, bit for bit) and int32 slab-local ids:
+        # half the memory of the result's
+        pts.append((verts.numpy().copy(), origin))
         tris.append((faces.numpy().copy(), n_verts))
         keys.append(edges["key"].numpy().copy())
         flags.append(edges["flags"].numpy().copy())
