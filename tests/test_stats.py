@@ -266,6 +266,77 @@ def test_stats_of_tetrahedra_with_boundary_triangles():
     assert s["ne"] == 2 and s["n_triangles"] == 6
 
 
+def _boundary_by_dict(tets) -> np.ndarray:
+    """The faces in one tetrahedron, oriented outward (the oracle: a dict of sorted corners)."""
+    seen = defaultdict(list)
+    for t in np.asarray(tets).tolist():
+        for f in ((t[1], t[2], t[3]), (t[0], t[3], t[2]), (t[0], t[1], t[3]), (t[0], t[2], t[1])):
+            seen[tuple(sorted(f))].append(f)
+    return np.array([fs[0] for fs in seen.values() if len(fs) == 1])
+
+
+def _two_region_blob():
+    import warpmesh as wm
+
+    labels = np.zeros((14, 12, 12), dtype=np.uint8)
+    labels[2:9, 2:10, 2:10] = 1
+    labels[7:12, 3:9, 3:9] = 2  # touches label 1: an interface, junction curves on the boundary
+    return wm.mesh_domain(labels, labels="all", size=2.0)
+
+
+def test_stats_of_a_volume_mesh_are_of_its_boundary(monkeypatch):
+    """Topology and area of a tetrahedral mesh describe the boundary of its tetrahedra, not
+    its triangle block: a two-region mesh's triangles hold the interface too (edges in three
+    faces at the junction), its boundary is one closed sphere. The faces are matched once
+    for the topology and the overlap check together."""
+    from warpmesh.cells import intersections
+
+    mesh = _two_region_blob()
+    tets = mesh.cells["tetra"]
+    assert len(set(mesh.cell_refs["tetra"].tolist())) == 2
+    block = oracle_topology(mesh.cells["triangle"])
+    assert not block["manifold"] and not block["watertight"]  # what stats() reported before
+    calls = []
+    real = intersections._matched_faces
+    monkeypatch.setattr(intersections, "_matched_faces", lambda *a: calls.append(1) or real(*a))
+    s = mesh.replace().stats()  # no cached statistics
+    assert len(calls) == 1 and s["self_intersections"] == 0
+    boundary = _boundary_by_dict(tets)
+    t = oracle_topology(boundary)
+    for key in ("watertight", "manifold", "oriented", "euler", "components"):
+        assert s[key] == t[key], key
+    assert (s["watertight"], s["oriented"], s["euler"], s["components"], s["genus"]) == (True, True, 2, 1, 0)
+    assert s["area"] == pytest.approx(oracle_measures(mesh.points, boundary)[0], rel=1e-12)
+    only = Mesh(mesh.points, {"tetra": tets}).stats()  # no triangle block: the same figures (were None)
+    assert {k: only[k] for k in ("watertight", "euler", "genus", "area")} == \
+        {k: s[k] for k in ("watertight", "euler", "genus", "area")}
+
+
+def test_tet_faces_equal_the_sorted_matching_and_the_oracle():
+    """The kernel matching (buckets) against the sort and the dict oracle: the same boundary
+    faces with the same orientation, and the same bad pairs (a duplicated tetrahedron)."""
+    from warpmesh.cells.intersections import _tet_face_pairs_sorted, tet_faces
+
+    mesh = _two_region_blob()
+    tets = np.vstack([mesh.cells["tetra"], mesh.cells["tetra"][:3]])
+    f = tet_faces(mesh.points, tets)
+    once, boundary, pairs = _tet_face_pairs_sorted(tets)
+
+    def rows(faces):
+        r = np.asarray(faces)
+        r = np.array([np.roll(x, -int(np.argmin(x))) for x in r])  # rotation kept: orientation compared
+        return sorted(map(tuple, r.tolist()))
+
+    assert rows(f.boundary) == rows(boundary) == rows(_boundary_by_dict(tets))
+    assert sorted(f.once.tolist()) == sorted(once.tolist())
+    assert sorted(map(tuple, np.sort(f.face_pairs, axis=1).tolist())) == \
+        sorted(map(tuple, np.sort(pairs, axis=1).tolist())) and len(pairs) > 0
+    with pytest.raises(ValueError, match="'tetra'"):
+        tet_faces(mesh.points, tets[:, :3])
+    with pytest.raises(ValueError, match="'tetra'"):
+        tet_faces(mesh.points[:4], tets)
+
+
 def test_cli_figures_are_what_the_mesh_carries(monkeypatch):
     """warpmesh renumber prints the renumbering's own figures: the same as stats() gives,
     read without computing the statistics."""

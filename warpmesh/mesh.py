@@ -363,13 +363,18 @@ class Mesh:
             "self_intersections",
         ):
             s[key] = None
-        if len(tri):  # every topological figure from one pass over the half-edges
-            t = _topo.mesh_topology(tri, self.n_points)
+        tets = "tetra" in self._cells and self.dim == 3
+        # the surface the topology describes: a volume mesh's boundary (the faces in one
+        # tetrahedron, outward; a multi-region mesh's triangle block holds its interfaces too,
+        # which meet at junctions: no closed surface), else the triangle block
+        surface = self._tet_faces.boundary if tets else tri
+        if len(surface):  # every topological figure from one pass over the half-edges
+            t = _topo.mesh_topology(surface, self.n_points)
             for key in ("watertight", "manifold", "oriented", "euler", "components"):
                 s[key] = t[key]
             if s["watertight"] and s["manifold"] and s["oriented"]:
                 s["genus"] = (2 * s["components"] - s["euler"]) // 2
-            s["area"], volume, tri_q = _topo.surface_figures(self._points, tri, volume=s["watertight"])
+            s["area"], volume, surface_q = _topo.surface_figures(self._points, surface, volume=s["watertight"])
             if s["watertight"] and self.dim == 3:
                 s["volume"] = volume
         if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
@@ -384,7 +389,7 @@ class Mesh:
         if "tetra" in self._cells:
             q = quality_summary(self._points, self._cells)
         else:  # the triangles' Q_K came with their measures (one pass over the faces)
-            q = summarize_quality(tri_q) if len(tri) else {}
+            q = summarize_quality(surface_q) if len(tri) else {}
         s["mean_q"], s["worst_q"] = q.get("mean_q"), q.get("worst_q")
         s["q_mean"], s["q_worst"] = s["mean_q"], s["worst_q"]  # the names of issue 6 / Table 16.1
         s["bounds"] = (
@@ -396,9 +401,17 @@ class Mesh:
 
     @cached_property
     def _crossings(self) -> np.ndarray:
-        from warpmesh.cells.intersections import check
+        from warpmesh.cells.intersections import check, find_tet_overlaps
 
+        if "tetra" in self._cells and self.dim == 3:  # the faces matched once for this and the topology
+            return find_tet_overlaps(self._points, self._cells["tetra"], faces=self._tet_faces)
         return check(self)
+
+    @cached_property
+    def _tet_faces(self):
+        from warpmesh.cells.intersections import tet_faces
+
+        return tet_faces(self._points, self._cells["tetra"])
 
     def check(self) -> np.ndarray:
         """The pairs of crossing cells (overlapping or inverted tetrahedra; else triangles,
@@ -423,7 +436,9 @@ class Mesh:
         -------
         dict
             ``np``, ``ne`` (cells of the highest topological dimension), ``n_cells``,
-            ``n_triangles``, ``n_tetra``; of the triangle block (None without one):
+            ``n_triangles``, ``n_tetra``; of the boundary of the tetrahedra (the faces in
+            one tetrahedron, oriented outward) in a 3D mesh with a ``"tetra"`` block, else
+            of the triangle block (None without either):
             ``watertight`` (every edge in two faces), ``manifold`` (edge and vertex),
             ``oriented``, ``euler`` (V - E + F over referenced vertices), ``components``
             (edge-connected; for a mesh of lines only, the connected polylines), ``genus`` (total, ``(2 components - euler) / 2``, only when

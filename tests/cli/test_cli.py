@@ -20,7 +20,7 @@ def test_mesh_example_writes_a_file_and_prints_stats(tmp_path, capsys):
     loaded = wm.load(out)
     assert loaded.stats()["euler"] == -6
     assert main(["info", str(out)]) == 0
-    assert "Euler characteristic    -6" in capsys.readouterr().out
+    assert "Euler characteristic            -6" in capsys.readouterr().out
 
 
 def test_mesh_example_adaptive(tmp_path, capsys):

@@ -105,6 +105,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from typing import NamedTuple
 
 import numpy as np
 import warp as wp
@@ -118,7 +119,8 @@ from warpmesh.cells.types import points3, require_mesh
 from warpmesh.kernels import intersect as K
 
 __all__ = ["check", "find_self_intersections", "count_self_intersecting_faces", "find_degenerate_faces",
-           "find_segment_intersections", "find_tet_overlaps", "profile_self_intersections"]
+           "find_segment_intersections", "find_tet_overlaps", "profile_self_intersections", "tet_faces",
+           "TetFaces"]
 
 #: query boxes are grown by this much, in BVH coordinates (points in [-1, 1]^3): 4 float32 ulps at 1
 _QUERY_PAD = 4.0 * 2.0**-24
@@ -414,7 +416,7 @@ def check(mesh, *, device: str = "cpu") -> np.ndarray:
 _TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
 
 
-def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
+def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | None = None) -> np.ndarray:
     """The pairs of tetrahedra whose interiors overlap, and the tetrahedra that are flat or
     inverted: is a volume mesh embedded?
 
@@ -453,6 +455,9 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
     tetra : (m, 4) int
     device : str
         Warp device of the orientation tests and the boundary check.
+    faces : TetFaces, optional
+        :func:`tet_faces` of the same ``tetra``, when the caller has it (``Mesh.stats()``
+        shares it with the boundary's topology): the faces are not matched again.
 
     Returns
     -------
@@ -486,10 +491,9 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
         wp.launch(K.tet_signs_kernel, dim=m, inputs=[points64, tets32], outputs=[signs], device=dev)
         bad = np.flatnonzero(signs.numpy() <= 0).astype(INDEX_DTYPE)
         pairs = [np.column_stack([bad, bad])]
-        matched = _tet_face_pairs(tets, tets32, dev)
-    if matched is None:  # buckets too full for a linear scan: sort instead
-        matched = _tet_face_pairs_sorted(tets)
-    once, boundary, face_pairs = matched
+        if faces is None:
+            faces = _matched_faces(tets, tets32, dev)
+    once, boundary, face_pairs = faces
     pairs.append(face_pairs)
     crossing = find_self_intersections(pts, boundary, device=device)
     pairs.append(once[crossing] // 4)
@@ -500,6 +504,64 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu") -> np.ndarray:
             pairs.append(_nested_shells(scaled, tets, boundary, once // 4))
     out = np.sort(np.concatenate(pairs).astype(INDEX_DTYPE), axis=1)
     return np.unique(out, axis=0) if len(out) else out.reshape(0, 2)
+
+
+class TetFaces(NamedTuple):
+    """The faces of a tetrahedral mesh matched by their corners (:func:`tet_faces`)."""
+
+    #: (B,) int64 ids ``4 t + k`` (face k of tetrahedron t) of the faces in one tetrahedron
+    once: np.ndarray
+    #: (B, 3) int64 their corners, oriented outward from their tetrahedron
+    boundary: np.ndarray
+    #: (k, 2) int64 tetrahedra of a face in two with the same orientation, or in three or more
+    face_pairs: np.ndarray
+
+
+def tet_faces(points, tetra, *, device: str = "cpu") -> TetFaces:
+    """The boundary of a tetrahedral mesh (the faces in exactly one tetrahedron, oriented
+    outward) and the tetrahedra whose faces do not pair up as in a conforming, oriented
+    mesh, from one matching of the 4 m faces by their corners (Warp kernels over buckets
+    of faces, or a sort when a fan fills a bucket). What :func:`find_tet_overlaps` starts
+    from; ``Mesh.stats()`` reports the boundary's topology from it.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Only checked (the indices must be below ``n``): the matching is combinatorial.
+    tetra : (m, 4) int
+    device : str
+
+    Returns
+    -------
+    TetFaces
+
+    Raises
+    ------
+    ValueError, TypeError
+        Bad ``points`` or ``tetra`` (shape, dtype, NaN, indices out of range).
+
+    Examples
+    --------
+    >>> pts = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]]
+    >>> f = tet_faces(pts, [[0, 1, 2, 3], [1, 2, 3, 4]])  # two tetrahedra sharing face (1, 2, 3)
+    >>> len(f.boundary), 0 in f.once, 7 in f.once, len(f.face_pairs)  # faces 4 * 0 + 0 and 4 * 1 + 3: shared
+    (6, False, False, 0)
+    """
+    _, tets = _validate(points, tetra, 4, "tetra")
+    device = check_device(device)
+    if len(tets) == 0:
+        empty = np.zeros(0, dtype=INDEX_DTYPE)
+        return TetFaces(empty, empty.reshape(0, 3), empty.reshape(0, 2))
+    with wp.ScopedDevice(device):
+        dev = wp.get_device(device)
+        return _matched_faces(tets, wp.array(tets.astype(np.int32).reshape(-1), dtype=wp.int32, device=dev), dev)
+
+
+def _matched_faces(tets: np.ndarray, tets32: wp.array, device) -> TetFaces:
+    matched = _tet_face_pairs(tets, tets32, device)
+    if matched is None:  # buckets too full for a linear scan: sort instead
+        matched = _tet_face_pairs_sorted(tets)
+    return TetFaces(*matched)
 
 
 #: the kernel matching of tet faces scans each face's bucket: used while the scans total at

@@ -35,7 +35,7 @@ import numpy as np
 
 __all__ = ["Clock", "human_lines", "mesh_figures", "print_report", "process_start"]
 
-_WIDTH = 24
+_WIDTH = 32  # "boundary Euler characteristic" and its value
 #: stats keys said twice (another key holds the same figure) or stale after a later stage
 _HIDDEN = {"ne", "n_cells", "n_triangles", "n_tetra", "q_mean", "q_worst", "vertices", "triangles", "edges",
            "signed_volume", "enclosed_volume", "written", "time", "optimize"}
@@ -44,6 +44,8 @@ _LEADING = {"watertight": "watertight", "manifold": "manifold", "oriented": "ori
             "orientation": "orientation", "euler": "Euler characteristic", "components": "components",
             "genus": "genus", "area": "area", "volume": "volume", "self_intersections": "self-intersections",
             "mean_q": "Q_K mean", "worst_q": "Q_K worst", "bounds": "bounds"}
+#: the leading figures of a volume mesh that describe its boundary
+_BOUNDARY = {"watertight", "manifold", "oriented", "euler", "components", "genus", "area"}
 _PLURAL = {"line": "segments", "triangle": "triangles", "quad": "quads", "tetra": "tetrahedra",
            "hexahedron": "hexahedra", "wedge": "wedges", "pyramid": "pyramids"}
 #: optimisation facts printed under the table: key -> label
@@ -200,12 +202,15 @@ def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
     for cell_type, block in mesh.cells.items():
         if not (opt and len(block) == opt["after"].get("ne")):
             lines.append(_line(_PLURAL.get(cell_type, f"{cell_type} cells"), _number(len(block))))
+    # a volume mesh's topology and area are those of its boundary (``Mesh.stats``), not of
+    # its triangle block, which may hold interfaces between regions as well
+    of_boundary = "tetra" in mesh.cells and mesh.dim == 3
     for key, label in _LEADING.items():
         if key in shown_in_table or key not in stats:
             continue
         value = _value(key, stats[key])
         if value is not None:
-            lines.append(_line(label, value))
+            lines.append(_line(f"boundary {label}" if of_boundary and key in _BOUNDARY else label, value))
     tables = []
     for key, v in stats.items():
         if key in _HIDDEN or key in _LEADING or key == "np":

@@ -27,6 +27,11 @@ side ``h``), cleaved by the labels (after Bronson, Levine & Whitaker's lattice c
    the lattice node of its polygon segment; those of the rest are dropped, degenerate ones
    (a segment snapped to a point) too.
 
+6. where an edge crosses three labels (below), the pieces of the rest near a node can be
+   closed over by the pieces of the layer around them: a cavity the labels do not hold.
+   Such pockets are filled with the label around them (:mod:`warpmesh.solid.pockets`; a
+   cavity that holds a sample of the rest is kept); ``info`` counts them.
+
 Everything in steps 2-5 is decided per edge and per face from that edge's or face's own
 nodes and labels (and the vertices are named by their edge and face), so the two
 tetrahedra on either side of a face cut it the same way: the mesh is conforming by
@@ -151,6 +156,7 @@ from warpmesh.kernels import stuffing as K
 from warpmesh.mesh import Mesh
 from warpmesh.solid.dihedral import signed_volumes, tet_quality_summary
 from warpmesh.solid.lattice import lattice_tables
+from warpmesh.solid.pockets import fill_pockets
 from warpmesh.solid.stuffing import lattice_for
 from warpmesh.solid.thin import Specks, VoxelLabels, graded_background, labels_at, speck_voxels
 from warpmesh.surface.multilabel import LABEL_ABOVE, label_codes
@@ -282,18 +288,25 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     h = _check_size(size, image.values.shape, spacing)
     smallest = _check_min_size(min_size, spacing, h)
     timings: dict[str, float] = {}
-    points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
+    may_grade = smallest <= 0.5 * h  # then the pockets are filled in the pass that is kept
+    points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings,
+                                                              fill=not may_grade)
     info.update(graded=False, min_size=smallest)
     counts = np.zeros(len(ids), np.int64)
     for plane in codes:  # a plane at a time: no int64 copy of the whole volume
         counts += np.bincount(plane.ravel(), minlength=len(ids))
     voxel = float(np.prod(spacing))
     meshed = _region_volumes(points, tets, tet_codes, len(ids))
-    if smallest <= 0.5 * h:  # the regions the uniform lattice misses by more than REFINE_ERROR: grade for them
+    if may_grade:  # the regions the uniform lattice misses by more than REFINE_ERROR: grade for them
         error = meshed / np.maximum(counts * voxel, 1e-300) - 1.0
         focus = (np.abs(error) > REFINE_ERROR) & (counts > 0)
         focus[rest] = False
-        if focus.any():
+        if not focus.any():  # the uniform mesh is the result: again, with its pockets filled
+            del points, tets, tet_codes, tris, lower, upper
+            points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
+            info.update(graded=False, min_size=smallest)
+            meshed = _region_volumes(points, tets, tet_codes, len(ids))
+        else:
             timings["uniform_pass"] = time.perf_counter() - t_start
             more = {}
             specks, targets = _specks(codes, focus, spacing, h, counts * voxel, rest)
@@ -490,12 +503,16 @@ def _interior(w: np.ndarray) -> np.ndarray:
     return (1.0 - lam) * w + lam / m
 
 
-def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=None, kernel=True):
+def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=None, kernel=True,
+              holds_rest=None):
     """Steps 3-5 on the cleaved background tetrahedra ``T`` (M, 4) with node codes ``L``: the
     snapped cut points (``t`` along each cut edge e_lo -> e_hi, ``cut_id`` (M, 6) the cut of each
     local edge or -1), face and tet points, sub-tetrahedra (one (k, 4) array, ``lead``'s (tets,
     codes) first when given) and interface triangles (:func:`_fans`; ``kernel=False`` its numpy
-    reference). Vertex ids: nodes, then cuts (n_nodes + cut), face points, tet points (one per row)."""
+    reference). Vertex ids: nodes, then cuts (n_nodes + cut), face points, tet points (one per row).
+    With ``holds_rest`` ((q, 4, 3) local corners -> whether a rest sample lies in them), the rest
+    pockets the cleaving encloses are filled (:func:`warpmesh.solid.pockets.fill_pockets`; the
+    number in ``timings["pockets_info"]``)."""
     t0 = time.perf_counter()
     # (a function of its own: its (M, 6) and (M, 4, 3) temporaries are freed before the fans)
     cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, n_snapped = _cleave_points(
@@ -505,9 +522,38 @@ def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timing
 
     # -- sub-tetrahedra: star from the tet point over the faces, fans from the face points
     t0 = time.perf_counter()
+    tet_base = n_nodes + len(t) + n_faces
     sub, sub_code, tris, lower, upper = (_fans if kernel else _fans_numpy)(
-        T, L, cut_id, cut_vertex, face_vertex, n_nodes + len(t) + n_faces, rest, lead)
+        T, L, cut_id, cut_vertex, face_vertex, tet_base, rest, lead)
     timings["cleave"] = time.perf_counter() - t0
+    if holds_rest is not None:
+        t0 = time.perf_counter()
+        bounds = np.cumsum([0, n_nodes, len(cut_pos), n_faces, len(tet_pos)])
+        blocks = (node_pos, cut_pos, face_pos, tet_pos)
+
+        def position(ids):
+            out = np.empty((len(ids), 3))
+            block = np.searchsorted(bounds, ids, side="right") - 1
+            for q in np.unique(block):
+                at = block == q
+                out[at] = blocks[q][ids[at] - bounds[q]]
+            return out
+
+        def rest_pieces(tps):
+            rows = tps - tet_base
+            pieces = _fans_numpy(T[rows], L[rows], cut_id[rows], cut_vertex, face_vertex[rows], tet_base, rest,
+                                 pieces_of="rest")[0]
+            pieces[:, 0] = tet_base + rows[pieces[:, 0] - tet_base]  # the subset's tet points are the rows'
+            return pieces, pieces[:, 0]
+
+        pieces, piece_codes, keep, lower, upper, flip, info = fill_pockets(tris, lower, upper, rest, position,
+                                                                          rest_pieces, holds_rest)
+        if len(pieces):
+            sub, sub_code = np.concatenate([sub, pieces]), np.concatenate([sub_code, piece_codes])
+            tris[flip] = tris[flip][:, [0, 2, 1]]
+            tris, lower, upper = tris[keep], lower[keep], upper[keep]
+        timings["pockets"] = time.perf_counter() - t0
+        timings["pockets_info"] = info
     return cut_pos, face_pos, tet_pos, sub, sub_code, tris, lower, upper, n_snapped, n_faces
 
 
@@ -585,6 +631,31 @@ def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
     return cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, int(snapped_lo.sum() + snapped_hi.sum())
 
 
+def _holds_rest(codes: np.ndarray, spacing: np.ndarray, rest: int, corners: np.ndarray) -> bool:
+    """Whether a sample of code ``rest`` (sample i at i * spacing) lies in one of the
+    tetrahedra ``corners`` (q, 4, 3) (its boundary included), or the tetrahedra reach outside
+    the volume's samples."""
+    lo = np.ceil(corners.reshape(-1, 3).min(axis=0) / spacing - 1e-9).astype(np.int64)
+    hi = np.floor(corners.reshape(-1, 3).max(axis=0) / spacing + 1e-9).astype(np.int64)
+    if np.any(lo < 0) or np.any(hi >= codes.shape):
+        return True
+    box = codes[lo[0]:hi[0] + 1, lo[1]:hi[1] + 1, lo[2]:hi[2] + 1]
+    at = np.argwhere(box == rest)
+    if len(at) == 0:
+        return False
+    x = (at + lo) * spacing  # (s, 3) the rest samples in the box
+    base = corners[:, 0]
+    edges = np.stack([corners[:, 1] - base, corners[:, 2] - base, corners[:, 3] - base], axis=2)  # (q, 3, 3)
+    det = np.linalg.det(edges)
+    if not np.all(det > 0.0):  # (pieces of positive tetrahedra are positive: only a flat one in rounding)
+        return True
+    inv = np.linalg.inv(edges)
+    w = np.einsum("qij,sqj->sqi", inv, x[:, None, :] - base[None])  # barycentric weights 1..3
+    tol = 1e-9
+    inside = (w >= -tol).all(axis=2) & (w.sum(axis=2) <= 1.0 + tol)
+    return bool(inside.any())
+
+
 def _fan_tables() -> tuple[np.ndarray, np.ndarray]:
     """The tables of :func:`~warpmesh.kernels.stuffing.cleave_fans_kernel`: the faces' local
     corners (4 * 3) and the local edge of each pair of corners (4 * 4, -1 on the diagonal)."""
@@ -628,8 +699,11 @@ def _fans(T, L, cut_id, cut_vertex, face_vertex, tet_base, rest, lead=None):
     return tets, codes, tris, lower, upper
 
 
-def _fans_numpy(T, L, cut_id, cut_vertex, face_vertex, tet_base, rest, lead=None):
-    """:func:`_fans` in numpy, face by face (the reference its kernel is tested against)."""
+def _fans_numpy(T, L, cut_id, cut_vertex, face_vertex, tet_base, rest, lead=None, pieces_of="meshed"):
+    """:func:`_fans` in numpy, face by face (the reference its kernel is tested against);
+    ``pieces_of="rest"``: the sub-tetrahedra of the rest instead, which cleaving drops (the
+    pockets that :mod:`warpmesh.solid.pockets` fills; the triangles are the same)."""
+    mine = (lambda code: code == rest) if pieces_of == "rest" else (lambda code: code != rest)
     tet_vertex = tet_base + np.arange(len(T))
     sub, sub_code, tris, tri_lo, tri_hi = [], [], [], [], []
     if lead is not None:
@@ -638,7 +712,7 @@ def _fans_numpy(T, L, cut_id, cut_vertex, face_vertex, tet_base, rest, lead=None
     for f, face in enumerate(_FACES):
         fv = face_vertex[:, f]
         uni = fv < 0
-        one = uni & (L[:, face[0]] != rest)  # a face of one meshed label (those of the rest are dropped)
+        one = uni & mine(L[:, face[0]])  # a face of one meshed label (those of the rest are dropped)
         sub.append(np.column_stack([tet_vertex[one], T[one][:, list(face)]]))
         sub_code.append(L[one, face[0]])
         mx = np.flatnonzero(~uni)
@@ -654,7 +728,7 @@ def _fans_numpy(T, L, cut_id, cut_vertex, face_vertex, tet_base, rest, lead=None
         valid = start != end  # a segment snapped to a point is no segment
         tp, fp = tet_vertex[mx], fv[mx]
         # the sub-tetrahedra of the meshed labels only (those of the rest are dropped)
-        slot = np.flatnonzero(valid & (code != rest))
+        slot = np.flatnonzero(valid & mine(code))
         r = slot // 6
         fan = np.empty((len(slot), 4), np.int64)
         fan[:, 0], fan[:, 1] = tp[r], fp[r]
@@ -760,8 +834,12 @@ def _offset_cuts(T, L, cut_id, t, e_lo, e_hi, node_pos, node_code, snap, rest, t
 
 # ----------------------------------------------------------------------------------- cleaving
 def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings: dict | None = None,
-           min_size: float | None = None, focus=None, specks=None, targets=None):
+           min_size: float | None = None, focus=None, specks=None, targets=None, fill: bool = True):
     """Tetrahedra of every region of ``codes`` but ``rest`` (local coordinates: sample i at i * spacing).
+
+    ``fill``: fill the pockets of the rest that the cleaving encloses and the labels do not
+    hold (:mod:`warpmesh.solid.pockets`; ``filled_pockets``, ``filled_volume`` and
+    ``kept_cavities`` in the info).
 
     ``min_size``: None keeps the lattice uniform; a size refines it where its edges do not
     resolve the labels (of the codes where ``focus``, (c,) bool, is True, when given), down to
@@ -824,7 +902,9 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
         graded["speck_offsets"] = moved
         timings["offsets"] = time.perf_counter() - t0
     cut_pos, face_pos, tet_pos, tets, tet_codes, triangles, lower, upper, n_snapped, n_faces = _sub_tets(
-        T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=(whole, whole_code))
+        T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=(whole, whole_code),
+        holds_rest=(lambda corners: _holds_rest(codes, spacing, rest, corners)) if fill else None)
+    pockets = timings.pop("pockets_info", {})
 
     # -- compact the vertex ids
     t0 = time.perf_counter()
@@ -839,5 +919,5 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     timings["compact"] = time.perf_counter() - t0
     info = {"lattice": tuple(int(x) for x in dims), "background_tets": n_bg, "whole_tets": int(len(whole)),
             "cleaved_tets": int(len(T)), "cut_edges": int(n_cuts), "snapped_cuts": n_snapped,
-            "face_points": int(n_faces), "n_interface_triangles": int(len(tris_out)), **graded}
+            "face_points": int(n_faces), "n_interface_triangles": int(len(tris_out)), **pockets, **graded}
     return points, tets_out, tet_codes, tris_out, lower, upper, info
