@@ -45,12 +45,15 @@ def winding(points: np.ndarray, tris: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def assert_no_cavity_without_rest(m: wm.Mesh, labels: np.ndarray) -> int:
-    """Every cavity of the boundary holds a rest sample (local = world coordinates here)."""
+    """Every cavity of the boundary holds a rest sample, inside or on its shell (winding
+    number 1 inside, 1/2 on a face; at one of its vertices: pyvista's frog has lone rest
+    voxels whose centres are cut points; local = world coordinates here)."""
     rest = np.argwhere(labels == 0).astype(float)
     for shell in cavities(m):
         lo, hi = m.points[shell].reshape(-1, 3).min(axis=0), m.points[shell].reshape(-1, 3).max(axis=0)
         near = rest[np.all((rest >= lo) & (rest <= hi), axis=1)]
-        assert len(near) and np.any(np.abs(winding(m.points, shell, near)) > 0.5), \
+        at_vertex = len(near) and np.linalg.norm(m.points[np.unique(shell)][None] - near[:, None], axis=2).min() < 1e-9
+        assert len(near) and (at_vertex or np.any(np.abs(winding(m.points, shell, near)) > 0.25)), \
             f"a cavity of {len(shell)} triangles around {lo} - {hi} holds no rest sample"
     return len(cavities(m))
 

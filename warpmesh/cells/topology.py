@@ -49,8 +49,9 @@ __all__ = [
 
 
 # ----------------------------------------------------------------------------- helpers
-def _as_faces(faces, name: str = "faces") -> np.ndarray:
-    """Return ``faces`` as a C-contiguous ``(m, 3)`` INDEX_DTYPE array, or raise."""
+def _as_faces(faces, name: str = "faces", keep_int32: bool = False) -> np.ndarray:
+    """Return ``faces`` as a C-contiguous ``(m, 3)`` INDEX_DTYPE array (int32 ones kept
+    with ``keep_int32``: no copy for the kernels, which read int32), or raise."""
     arr = np.asarray(faces)
     if arr.size == 0:
         return np.zeros((0, 3), dtype=INDEX_DTYPE)
@@ -60,7 +61,7 @@ def _as_faces(faces, name: str = "faces") -> np.ndarray:
         raise ValueError(f"expected '{name}' of shape (m, 3), got shape {arr.shape}")
     if arr.min() < 0:
         raise ValueError(f"expected non-negative indices in '{name}', got {arr.min()}")
-    return np.ascontiguousarray(arr, dtype=INDEX_DTYPE)
+    return np.ascontiguousarray(arr, dtype=np.int32 if keep_int32 and arr.dtype == np.int32 else INDEX_DTYPE)
 
 
 def _as_points(points, dims: tuple[int, ...] = (2, 3), name: str = "points") -> np.ndarray:
@@ -286,7 +287,7 @@ def connected_components(
     >>> connected_components(bowtie)[0], connected_components(bowtie, connectivity="vertex")[0]
     (2, 1)
     """
-    faces = _as_faces(faces)
+    faces = _as_faces(faces, keep_int32=True)
     m = len(faces)
     if connectivity not in ("edge", "vertex"):
         raise ValueError(f"expected connectivity 'edge' or 'vertex', got {connectivity!r}")
@@ -470,7 +471,7 @@ def _matched_half_edges(faces: np.ndarray, n: int):
 
     wp.load_module(KT, device="cpu")  # once here, not in the worker threads
     m = len(faces)
-    flat = faces.astype(np.int32).ravel()
+    flat = np.ascontiguousarray(faces, dtype=np.int32).ravel()  # (no copy of int32 faces)
     dst = np.ascontiguousarray(faces[:, [1, 2, 0]], dtype=np.int32).ravel()  # where each half-edge ends
     offsets, out_of, out_dst = _half_edge_csr(flat, dst, n)
     rep, twin = np.empty(3 * m, np.int32), np.empty(3 * m, np.int32)

@@ -50,10 +50,39 @@ __all__ = ["fill_pockets"]
 _PIECE_FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
 
 
+#: rounds of growing a pocket's rows across its open lattice faces
+FLOOD_ROUNDS = 8
+
+
+def _sets(pieces: np.ndarray, shell: np.ndarray):
+    """Pieces and shell triangles as the nodes of a graph, joined where a face is shared by
+    two of them: (n_p, n_t, owner of each face, its group, the groups' sizes, each node's
+    set, the number of sets, which sets are open: a face in one node, or in three or more)."""
+    n_p, n_t = len(pieces), len(shell)
+    faces = np.concatenate([pieces[:, list(f)] for f in _PIECE_FACES] + [shell])
+    owner = np.concatenate([np.tile(np.arange(n_p), 4), n_p + np.arange(n_t)])
+    used, local = np.unique(faces, return_inverse=True)  # few vertices: one int64 key per face
+    keys = np.sort(local.reshape(-1, 3), axis=1)
+    n = np.int64(len(used))
+    _, group, count = np.unique((keys[:, 0] * n + keys[:, 1]) * n + keys[:, 2], return_inverse=True,
+                                return_counts=True)
+    group = group.reshape(-1)
+    order = np.argsort(group, kind="stable")
+    pair_at = np.flatnonzero(count[group[order]] == 2)
+    pair_at = pair_at[::2]  # the first member of each group of two (a group's members are adjacent)
+    u, v = owner[order[pair_at]], owner[order[pair_at + 1]]
+    n = n_p + n_t
+    n_sets, set_of = graph_components(coo_matrix((np.ones(len(u)), (u, v)), shape=(n, n)), directed=False)
+    open_set = np.zeros(n_sets, bool)
+    open_set[set_of[owner[count[group] != 2]]] = True
+    return n_p, n_t, owner, group, count, set_of, n_sets, open_set
+
+
 def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: int,
                  position: Callable[[np.ndarray], np.ndarray],
                  rest_pieces: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
-                 holds_rest: Callable[[np.ndarray], bool]):
+                 holds_rest: Callable[[np.ndarray], bool],
+                 neighbours: Callable[[np.ndarray], np.ndarray]):
     """The rest pockets of one cleaving, filled (module docstring).
 
     Parameters
@@ -71,6 +100,8 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
         first, positive) and (p,) the tet point of each.
     holds_rest : callable
         (q, 4, 3) corners of a set of pieces -> whether a sample of the rest lies in them.
+    neighbours : callable
+        Face points (f,) -> the tet points of the cleaved tetrahedra with those faces.
 
     Returns
     -------
@@ -91,17 +122,19 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
     lower, upper = lower.copy(), upper.copy()
     keep, flip = np.ones(k, bool), np.zeros(k, bool)
     none = (np.zeros((0, 4), np.int64), np.zeros(0, np.int64), keep, lower, upper, flip,
-            {"filled_pockets": 0, "filled_volume": 0.0, "kept_cavities": 0})
+            {"filled_pockets": 0, "filled_volume": 0.0, "kept_cavities": 0, "kept_open": 0})
     on = np.flatnonzero((lower == rest) | (upper == rest))
     if len(on) == 0:
         return none
-    shell = tris[on]
-    mark = np.zeros(int(shell.max()) + 1, bool)  # the vertices numbered compactly (no sort)
-    mark[shell.reshape(-1)] = True
+    mark = np.zeros(int(tris.max()) + 1, bool)  # the vertices numbered compactly (no sort), int32
+    for j in range(3):
+        mark[tris[on, j]] = True
     used = np.flatnonzero(mark)
-    compact = np.cumsum(mark, dtype=np.int64) - 1
+    compact = np.cumsum(mark, dtype=np.int32) - 1
     del mark
-    shell = compact[shell]
+    shell = np.empty((len(on), 3), np.int32)
+    for j in range(3):
+        shell[:, j] = compact[tris[on, j]]
     del compact
     n_shells, shell_of = connected_components(shell, len(used))
     # each shell's volume, oriented out of the regions (a triangle naming the rest as its lower
@@ -121,34 +154,32 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
     in_cavity = cavity[shell_of]
     ctri = on[in_cavity]  # the cavities' triangles (ids into tris)
     cshell = shell_of[in_cavity]
-    pieces, piece_tp = rest_pieces(np.unique(tris[ctri, 0]))
-    # pieces and cavity triangles are the nodes of a graph; a face shared by two of them joins them
-    n_p, n_t = len(pieces), len(ctri)
-    faces = np.concatenate([pieces[:, list(f)] for f in _PIECE_FACES] + [tris[ctri]])
-    owner = np.concatenate([np.tile(np.arange(n_p), 4), n_p + np.arange(n_t)])
-    keys = np.sort(faces, axis=1)
-    _, group, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-    group = group.reshape(-1)
-    order = np.argsort(group, kind="stable")
-    pair_at = np.flatnonzero(count[group[order]] == 2)
-    pair_at = pair_at[::2]  # the first member of each group of two (a group's members are adjacent)
-    u, v = owner[order[pair_at]], owner[order[pair_at + 1]]
-    n = n_p + n_t
-    graph = coo_matrix((np.ones(len(u)), (u, v)), shape=(n, n))
-    n_sets, set_of = graph_components(graph, directed=False)
-    open_set = np.zeros(n_sets, bool)
-    open_set[set_of[owner[count[group] != 2]]] = True  # a face in one node, or in three or more
+    # the rest pieces of the rows whose tet points are on the cavities' shells, and of the rows
+    # across their open lattice faces (a row of the rest only, inside a pocket), until closed
+    tps = np.unique(tris[ctri, 0])
+    for _ in range(FLOOD_ROUNDS):
+        pieces = rest_pieces(tps)[0]
+        n_p, n_t, owner, group, count, set_of, n_sets, open_set = _sets(pieces, tris[ctri])
+        # a piece's face on its lattice face (f, a, b), in one node, of a set holding a cavity
+        on_face = (np.arange(len(owner)) < n_p) & (count[group] == 1)
+        on_face &= np.isin(set_of[owner], set_of[n_p:])
+        fps = np.unique(pieces[owner[on_face], 1])
+        more = np.setdiff1d(neighbours(fps), tps) if len(fps) else fps
+        if len(more) == 0:
+            break
+        tps = np.union1d(tps, more)
     piece_set, tri_set = set_of[:n_p], set_of[n_p:]
     # a set is filled when closed, holding a whole cavity (all of its shell's triangles) and
     # no rest sample; its code: the one most of its shell's triangles name besides the rest
     other = np.where(lower[ctri] == rest, upper[ctri], lower[ctri])
-    fill_pieces, fill_codes, filled, vol_sum, kept = [], [], 0, 0.0, 0
+    fill_pieces, fill_codes, filled, vol_sum, kept, kept_open = [], [], 0, 0.0, 0, 0
     for s in np.unique(tri_set):
         shells = np.unique(cshell[tri_set == s])
         whole = all(np.all(tri_set[cshell == sh] == s) for sh in shells)
         members = np.flatnonzero(piece_set == s)
         if open_set[s] or not whole or len(members) == 0:
             kept += len(shells)
+            kept_open += len(shells)
             continue
         pts = position(pieces[members].reshape(-1)).reshape(-1, 4, 3)
         if holds_rest(pts):
@@ -170,6 +201,7 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
         lower[moved] = np.minimum(code, o[o != code])
         upper[moved] = np.maximum(code, o[o != code])
     if not fill_pieces:
-        return (*none[:6], {"filled_pockets": 0, "filled_volume": 0.0, "kept_cavities": kept})
+        return (*none[:6], {"filled_pockets": 0, "filled_volume": 0.0, "kept_cavities": kept,
+                            "kept_open": kept_open})
     return (np.concatenate(fill_pieces), np.concatenate(fill_codes), keep, lower, upper, flip,
-            {"filled_pockets": filled, "filled_volume": vol_sum, "kept_cavities": kept})
+            {"filled_pockets": filled, "filled_volume": vol_sum, "kept_cavities": kept, "kept_open": kept_open})

@@ -546,10 +546,14 @@ def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timing
             pieces[:, 0] = tet_base + rows[pieces[:, 0] - tet_base]  # the subset's tet points are the rows'
             return pieces, pieces[:, 0]
 
+        def neighbours(fps):
+            rows = np.flatnonzero(np.isin(face_vertex, fps, kind="table").any(axis=1))  # (a table: no sort)
+            return tet_base + rows
+
         pieces, piece_codes, keep, lower, upper, flip, info = fill_pockets(tris, lower, upper, rest, position,
-                                                                          rest_pieces, holds_rest)
+                                                                          rest_pieces, holds_rest, neighbours)
         if len(pieces):
-            sub, sub_code = np.concatenate([sub, pieces]), np.concatenate([sub_code, piece_codes])
+            sub, sub_code = _appended(sub, pieces), _appended(sub_code, piece_codes)
             tris[flip] = tris[flip][:, [0, 2, 1]]
             tris, lower, upper = tris[keep], lower[keep], upper[keep]
         timings["pockets"] = time.perf_counter() - t0
@@ -629,6 +633,19 @@ def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
     tet_pos = np.einsum("kv,kvd->kd", tw, node_pos[T])
     cut_pos = (1.0 - t)[:, None] * node_pos[e_lo] + t[:, None] * node_pos[e_hi]
     return cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, int(snapped_lo.sum() + snapped_hi.sum())
+
+
+def _appended(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``a`` with ``rows`` after its own, grown in place where numpy can (``resize``: a
+    reallocation, which moves the pages of a large block instead of copying them), else
+    copied."""
+    n = len(a)
+    try:
+        a.resize((n + len(rows),) + a.shape[1:], refcheck=True)
+    except ValueError:  # a view of it exists: copy
+        return np.concatenate([a, rows])
+    a[n:] = rows
+    return a
 
 
 def _holds_rest(codes: np.ndarray, spacing: np.ndarray, rest: int, corners: np.ndarray) -> bool:
