@@ -312,6 +312,19 @@ def test_stats_of_a_volume_mesh_are_of_its_boundary(monkeypatch):
         {k: s[k] for k in ("watertight", "euler", "genus", "area")}
 
 
+def test_stats_of_tetrahedra_fall_back_to_the_triangles():
+    """An empty tetra block, or tetrahedra beside other solid cells: the triangle block's
+    figures, as before."""
+    pts, tri = _sphere()
+    empty = Mesh(pts, {"tetra": np.zeros((0, 4), np.int64), "triangle": tri}).stats()
+    assert (empty["watertight"], empty["euler"]) == (True, 2)
+    cube = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1.0]])
+    mixed = Mesh(np.vstack([cube, [[0.5, 0.5, 2.0]]]),
+                 {"hexahedron": [[0, 1, 2, 3, 4, 5, 6, 7]], "tetra": [[4, 5, 6, 8]],
+                  "triangle": [[0, 1, 2]]}).stats()
+    assert (mixed["watertight"], mixed["euler"], mixed["components"]) == (False, 1, 1)  # the one triangle
+
+
 def test_tet_faces_equal_the_sorted_matching_and_the_oracle():
     """The kernel matching (buckets) against the sort and the dict oracle: the same boundary
     faces with the same orientation, and the same bad pairs (a duplicated tetrahedron)."""

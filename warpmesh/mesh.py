@@ -363,7 +363,7 @@ class Mesh:
             "self_intersections",
         ):
             s[key] = None
-        tets = "tetra" in self._cells and self.dim == 3
+        tets = self._of_tetrahedra
         # the surface the topology describes: a volume mesh's boundary (the faces in one
         # tetrahedron, outward; a multi-region mesh's triangle block holds its interfaces too,
         # which meet at junctions: no closed surface), else the triangle block
@@ -407,6 +407,13 @@ class Mesh:
             return find_tet_overlaps(self._points, self._cells["tetra"], faces=self._tet_faces)
         return check(self)
 
+    @property
+    def _of_tetrahedra(self) -> bool:
+        """Whether the topology figures are those of the tetrahedra's boundary (3D, a
+        non-empty tetra block, no other solid cells)."""
+        return self.dim == 3 and len(self._cells.get("tetra", ())) > 0 and not any(
+            t in self._cells for t in ("hexahedron", "wedge", "pyramid"))
+
     @cached_property
     def _tet_faces(self):
         from warpmesh.cells.intersections import tet_faces
@@ -437,8 +444,9 @@ class Mesh:
         dict
             ``np``, ``ne`` (cells of the highest topological dimension), ``n_cells``,
             ``n_triangles``, ``n_tetra``; of the boundary of the tetrahedra (the faces in
-            one tetrahedron, oriented outward) in a 3D mesh with a ``"tetra"`` block, else
-            of the triangle block (None without either):
+            one tetrahedron, oriented outward) in a 3D mesh whose solid cells are
+            tetrahedra (a non-empty ``"tetra"`` block), else of the triangle block (None
+            without either):
             ``watertight`` (every edge in two faces), ``manifold`` (edge and vertex),
             ``oriented``, ``euler`` (V - E + F over referenced vertices), ``components``
             (edge-connected; for a mesh of lines only, the connected polylines), ``genus`` (total, ``(2 components - euler) / 2``, only when

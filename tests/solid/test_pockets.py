@@ -138,3 +138,43 @@ def test_without_filling_the_pockets_stay():
                                                                            "triangle": ids[lower]})
         got[fill] = len(cavities(m))
     assert got == {False: 12, True: 0}
+
+
+def test_pockets_when_the_rest_is_the_highest_code():
+    """Labels -1 and -2 (the rest, 0, is then the highest code): the shell triangles name the
+    rest as their upper code and the re-labelled ones are turned over. The tetrahedra's
+    boundary (matched faces) is exactly the triangles naming the rest, each oriented from
+    its region (lower) out to the rest (upper), one closed sphere; every other triangle lies
+    between two regions, oriented towards the higher label's tetrahedron."""
+    from warpmesh.cells.intersections import tet_faces
+    from warpmesh.solid.dihedral import signed_volumes
+
+    labels = -_layer().astype(np.int8)
+    m = wm.mesh_domain(labels, labels="all", size=2.0)
+    assert m.info["filled_pockets"] == 12
+    pts, tets, lab = m.points, m.cells["tetra"], m.cell_refs["tetra"]
+    assert np.all(signed_volumes(pts, tets) > 0)
+    tris, lower, upper = m.cells["triangle"], m.cell_refs["triangle"], m.cell_data["label_above"]["triangle"]
+    assert np.all(lower < upper) and set(lab.tolist()) == {-2, -1}
+
+    def rows(faces):
+        return sorted(tuple(np.roll(f, -int(np.argmin(f)))) for f in np.asarray(faces).tolist())
+
+    outer = upper == 0
+    assert rows(tris[outer]) == rows(tet_faces(pts, tets).boundary)  # rest above: the normals point out
+    s = m.stats()
+    assert (s["watertight"], s["manifold"], s["euler"], s["components"]) == (True, True, 2, 1)
+    # interfaces: the tetrahedron of the upper label lies on the normal's side
+    inner = tris[~outer]
+    key = {tuple(sorted(f)): i for i, f in enumerate(inner.tolist())}
+    side = np.zeros(len(inner), np.int64)
+    for t, code in zip(tets.tolist(), lab.tolist()):
+        for f in ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)):
+            i = key.get(tuple(sorted(t[j] for j in f)))
+            if i is not None:
+                apex = pts[sum(t) - sum(t[j] for j in f)]
+                a, b, c = pts[inner[i]]
+                above = np.dot(np.cross(b - a, c - a), apex - a) > 0
+                assert (code == upper[~outer][i]) == above
+                side[i] += 1
+    assert np.all(side == 2)

@@ -204,7 +204,8 @@ def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
             lines.append(_line(_PLURAL.get(cell_type, f"{cell_type} cells"), _number(len(block))))
     # a volume mesh's topology and area are those of its boundary (``Mesh.stats``), not of
     # its triangle block, which may hold interfaces between regions as well
-    of_boundary = "tetra" in mesh.cells and mesh.dim == 3
+    of_boundary = mesh.dim == 3 and len(mesh.cells.get("tetra", ())) > 0 and not any(
+        t in mesh.cells for t in ("hexahedron", "wedge", "pyramid"))
     for key, label in _LEADING.items():
         if key in shown_in_table or key not in stats:
             continue

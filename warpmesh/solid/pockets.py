@@ -18,7 +18,8 @@ points lie on a cavity's shell are made (the fans' segments of the rest, which c
 drops), joined through their shared faces; a set of them that the shell closes (every face
 shared by two pieces, or by a piece and a shell triangle) and that holds no sample of the
 rest (the labels say the cavity is not there: a cavity the labels do hold, a rest voxel
-inside the tissue, is kept) becomes tetrahedra of the code most of its shell faces, and the
+inside the tissue, is kept) becomes tetrahedra of the code whose triangles on its shell
+have the most area (not a tie broken by the codes' order), and the
 shell's triangles become interior (that code on both sides: dropped) or interfaces with
 the other codes around it (re-oriented from the lower code's side). Pieces of a positive
 tetrahedron's fan are positive, so the filled mesh stays positive and conforming.
@@ -61,11 +62,14 @@ def _sets(pieces: np.ndarray, shell: np.ndarray):
     n_p, n_t = len(pieces), len(shell)
     faces = np.concatenate([pieces[:, list(f)] for f in _PIECE_FACES] + [shell])
     owner = np.concatenate([np.tile(np.arange(n_p), 4), n_p + np.arange(n_t)])
-    used, local = np.unique(faces, return_inverse=True)  # few vertices: one int64 key per face
+    used, local = np.unique(faces, return_inverse=True)
     keys = np.sort(local.reshape(-1, 3), axis=1)
     n = np.int64(len(used))
-    _, group, count = np.unique((keys[:, 0] * n + keys[:, 1]) * n + keys[:, 2], return_inverse=True,
-                                return_counts=True)
+    if n < 2**21:  # one int64 key per face (three 21-bit ids)
+        _, group, count = np.unique((keys[:, 0] * n + keys[:, 1]) * n + keys[:, 2], return_inverse=True,
+                                    return_counts=True)
+    else:
+        _, group, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
     group = group.reshape(-1)
     order = np.argsort(group, kind="stable")
     pair_at = np.flatnonzero(count[group[order]] == 2)
@@ -82,7 +86,7 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
                  position: Callable[[np.ndarray], np.ndarray],
                  rest_pieces: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
                  holds_rest: Callable[[np.ndarray], bool],
-                 neighbours: Callable[[np.ndarray], np.ndarray]):
+                 neighbours: Callable[[np.ndarray], np.ndarray], largest: float = np.inf):
     """The rest pockets of one cleaving, filled (module docstring).
 
     Parameters
@@ -97,11 +101,15 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
         Vertex ids (n,) -> their (n, 3) positions.
     rest_pieces : callable
         Tet points (r,) -> the (p, 4) rest pieces of their cleaved tetrahedra (tet point
-        first, positive) and (p,) the tet point of each.
+        first, positive).
     holds_rest : callable
         (q, 4, 3) corners of a set of pieces -> whether a sample of the rest lies in them.
     neighbours : callable
-        Face points (f,) -> the tet points of the cleaved tetrahedra with those faces.
+        Vertex ids (f,) -> the tet points of the cleaved tetrahedra with those face points
+        (ids that are no face point are ignored).
+    largest : float
+        The volume of the largest background tetrahedron: a cavity of more than six of them
+        is kept without examination (a pocket is a few pieces about one node or edge).
 
     Returns
     -------
@@ -115,8 +123,9 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
     flip : (k,) bool
         The triangles to turn over (two vertices swapped).
     info : dict
-        ``filled_pockets`` (count), ``filled_volume``, ``kept_cavities`` (closed shells left:
-        the labels hold the rest there, or their pieces do not close).
+        ``filled_pockets`` (count of shells filled), ``filled_volume``, ``kept_cavities``
+        (cavity shells left: the labels hold the rest there, they are large, or their pieces
+        do not close: ``kept_open`` of them).
     """
     k = len(tris)
     lower, upper = lower.copy(), upper.copy()
@@ -149,8 +158,12 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
     six[lower[on] == rest] *= -1.0
     volume = np.bincount(shell_of, six, n_shells)
     cavity = volume < 0.0
+    n_cavities = int(cavity.sum())
+    # a pocket is a few pieces about one node or edge: a cavity larger than ``largest`` is one
+    # the labels hold (its whole tetrahedra of the rest were never cleaved), kept unexamined
+    cavity &= volume >= -6.0 * largest
     if not cavity.any():
-        return none
+        return (*none[:6], {**none[6], "kept_cavities": n_cavities})
     in_cavity = cavity[shell_of]
     ctri = on[in_cavity]  # the cavities' triangles (ids into tris)
     cshell = shell_of[in_cavity]
@@ -158,50 +171,58 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
     # across their open lattice faces (a row of the rest only, inside a pocket), until closed
     tps = np.unique(tris[ctri, 0])
     for _ in range(FLOOD_ROUNDS):
-        pieces = rest_pieces(tps)[0]
+        pieces = rest_pieces(tps)
         n_p, n_t, owner, group, count, set_of, n_sets, open_set = _sets(pieces, tris[ctri])
         # a piece's face on its lattice face (f, a, b), in one node, of a set holding a cavity
         on_face = (np.arange(len(owner)) < n_p) & (count[group] == 1)
         on_face &= np.isin(set_of[owner], set_of[n_p:])
-        fps = np.unique(pieces[owner[on_face], 1])
-        more = np.setdiff1d(neighbours(fps), tps) if len(fps) else fps
+        more = np.setdiff1d(neighbours(np.unique(pieces[owner[on_face], 1])), tps)
         if len(more) == 0:
             break
         tps = np.union1d(tps, more)
     piece_set, tri_set = set_of[:n_p], set_of[n_p:]
-    # a set is filled when closed, holding a whole cavity (all of its shell's triangles) and
-    # no rest sample; its code: the one most of its shell's triangles name besides the rest
+    # a set is filled when closed, holding whole cavities (all of their shells' triangles) and
+    # no rest sample; its code: the one whose triangles on its shells have the most area
     other = np.where(lower[ctri] == rest, upper[ctri], lower[ctri])
-    fill_pieces, fill_codes, filled, vol_sum, kept, kept_open = [], [], 0, 0.0, 0, 0
-    for s in np.unique(tri_set):
-        shells = np.unique(cshell[tri_set == s])
-        whole = all(np.all(tri_set[cshell == sh] == s) for sh in shells)
-        members = np.flatnonzero(piece_set == s)
-        if open_set[s] or not whole or len(members) == 0:
-            kept += len(shells)
-            kept_open += len(shells)
+    p = position(tris[ctri].reshape(-1)).reshape(-1, 3, 3)
+    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    pair = np.unique(np.column_stack([cshell, tri_set]), axis=0)  # (shell, set) pairs
+    split = np.bincount(pair[:, 0], minlength=n_shells) > 1  # shells whose triangles are in several sets
+    broken = np.zeros(n_sets, bool)
+    broken[pair[split[pair[:, 0]], 1]] = True
+    t_order = np.argsort(tri_set, kind="stable")
+    t_start = np.searchsorted(tri_set[t_order], np.arange(n_sets + 1))
+    p_order = np.argsort(piece_set, kind="stable")
+    p_start = np.searchsorted(piece_set[p_order], np.arange(n_sets + 1))
+    fill_pieces, fill_codes, vol_sum = [], [], 0.0
+    filled_shell, open_shell = np.zeros(n_shells, bool), np.zeros(n_shells, bool)
+    for s_ in np.unique(tri_set):
+        rows = t_order[t_start[s_]:t_start[s_ + 1]]  # this set's cavity triangles
+        members = p_order[p_start[s_]:p_start[s_ + 1]]
+        shells = np.unique(cshell[rows])
+        if open_set[s_] or broken[s_] or len(members) == 0:
+            open_shell[shells] = True
             continue
         pts = position(pieces[members].reshape(-1)).reshape(-1, 4, 3)
         if holds_rest(pts):
-            kept += len(shells)
             continue
-        codes, votes = np.unique(other[tri_set == s], return_counts=True)
-        code = int(codes[np.argmax(votes)])
+        codes, inverse = np.unique(other[rows], return_inverse=True)
+        code = int(codes[np.argmax(np.bincount(inverse.reshape(-1), area[rows]))])
         fill_pieces.append(pieces[members])
         fill_codes.append(np.full(len(members), code, np.int64))
-        filled += len(shells)
+        filled_shell[shells] = True
         d1, d2, d3 = pts[:, 1] - pts[:, 0], pts[:, 2] - pts[:, 0], pts[:, 3] - pts[:, 0]
         vol_sum += float(np.einsum("ij,ij->i", d1, np.cross(d2, d3)).sum()) / 6.0
-        t = ctri[tri_set == s]
-        o = other[tri_set == s]
+        t, o = ctri[rows], other[rows]
         pocket_was_lower = lower[t] == rest
         keep[t[o == code]] = False
-        moved = t[o != code]
-        flip[moved] = pocket_was_lower[o != code] != (code < o[o != code])
-        lower[moved] = np.minimum(code, o[o != code])
-        upper[moved] = np.maximum(code, o[o != code])
+        moved, o_moved = t[o != code], o[o != code]
+        flip[moved] = pocket_was_lower[o != code] != (code < o_moved)
+        lower[moved] = np.minimum(code, o_moved)
+        upper[moved] = np.maximum(code, o_moved)
+    filled = int(filled_shell.sum())
+    info = {"filled_pockets": filled, "filled_volume": vol_sum, "kept_cavities": n_cavities - filled,
+            "kept_open": int((open_shell & ~filled_shell).sum())}
     if not fill_pieces:
-        return (*none[:6], {"filled_pockets": 0, "filled_volume": 0.0, "kept_cavities": kept,
-                            "kept_open": kept_open})
-    return (np.concatenate(fill_pieces), np.concatenate(fill_codes), keep, lower, upper, flip,
-            {"filled_pockets": filled, "filled_volume": vol_sum, "kept_cavities": kept, "kept_open": kept_open})
+        return (*none[:6], info)
+    return np.concatenate(fill_pieces), np.concatenate(fill_codes), keep, lower, upper, flip, info

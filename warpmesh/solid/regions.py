@@ -288,25 +288,18 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     h = _check_size(size, image.values.shape, spacing)
     smallest = _check_min_size(min_size, spacing, h)
     timings: dict[str, float] = {}
-    may_grade = smallest <= 0.5 * h  # then the pockets are filled in the pass that is kept
-    points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings,
-                                                              fill=not may_grade)
+    points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
     info.update(graded=False, min_size=smallest)
     counts = np.zeros(len(ids), np.int64)
     for plane in codes:  # a plane at a time: no int64 copy of the whole volume
         counts += np.bincount(plane.ravel(), minlength=len(ids))
     voxel = float(np.prod(spacing))
     meshed = _region_volumes(points, tets, tet_codes, len(ids))
-    if may_grade:  # the regions the uniform lattice misses by more than REFINE_ERROR: grade for them
+    if smallest <= 0.5 * h:  # the regions the uniform lattice misses by more than REFINE_ERROR: grade for them
         error = meshed / np.maximum(counts * voxel, 1e-300) - 1.0
         focus = (np.abs(error) > REFINE_ERROR) & (counts > 0)
         focus[rest] = False
-        if not focus.any():  # the uniform mesh is the result: again, with its pockets filled
-            del points, tets, tet_codes, tris, lower, upper
-            points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
-            info.update(graded=False, min_size=smallest)
-            meshed = _region_volumes(points, tets, tet_codes, len(ids))
-        else:
+        if focus.any():
             timings["uniform_pass"] = time.perf_counter() - t_start
             more = {}
             specks, targets = _specks(codes, focus, spacing, h, counts * voxel, rest)
@@ -504,15 +497,16 @@ def _interior(w: np.ndarray) -> np.ndarray:
 
 
 def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=None, kernel=True,
-              holds_rest=None):
+              holds_rest=None, largest=np.inf):
     """Steps 3-5 on the cleaved background tetrahedra ``T`` (M, 4) with node codes ``L``: the
     snapped cut points (``t`` along each cut edge e_lo -> e_hi, ``cut_id`` (M, 6) the cut of each
     local edge or -1), face and tet points, sub-tetrahedra (one (k, 4) array, ``lead``'s (tets,
     codes) first when given) and interface triangles (:func:`_fans`; ``kernel=False`` its numpy
     reference). Vertex ids: nodes, then cuts (n_nodes + cut), face points, tet points (one per row).
     With ``holds_rest`` ((q, 4, 3) local corners -> whether a rest sample lies in them), the rest
-    pockets the cleaving encloses are filled (:func:`warpmesh.solid.pockets.fill_pockets`; the
-    number in ``timings["pockets_info"]``)."""
+    pockets the cleaving encloses are filled (:func:`warpmesh.solid.pockets.fill_pockets`,
+    ``largest`` the largest background tetrahedron's volume; its info in
+    ``timings["pockets_info"]``)."""
     t0 = time.perf_counter()
     # (a function of its own: its (M, 6) and (M, 4, 3) temporaries are freed before the fans)
     cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, n_snapped = _cleave_points(
@@ -544,16 +538,19 @@ def _sub_tets(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timing
             pieces = _fans_numpy(T[rows], L[rows], cut_id[rows], cut_vertex, face_vertex[rows], tet_base, rest,
                                  pieces_of="rest")[0]
             pieces[:, 0] = tet_base + rows[pieces[:, 0] - tet_base]  # the subset's tet points are the rows'
-            return pieces, pieces[:, 0]
+            return pieces
 
-        def neighbours(fps):
+        def neighbours(ids):
+            fps = ids[(ids >= n_nodes + len(t)) & (ids < tet_base)]  # the face points among them
+            if len(fps) == 0:
+                return np.zeros(0, np.int64)
             rows = np.flatnonzero(np.isin(face_vertex, fps, kind="table").any(axis=1))  # (a table: no sort)
             return tet_base + rows
 
-        pieces, piece_codes, keep, lower, upper, flip, info = fill_pockets(tris, lower, upper, rest, position,
-                                                                          rest_pieces, holds_rest, neighbours)
+        pieces, piece_codes, keep, lower, upper, flip, info = fill_pockets(
+            tris, lower, upper, rest, position, rest_pieces, holds_rest, neighbours, largest)
         if len(pieces):
-            sub, sub_code = _appended(sub, pieces), _appended(sub_code, piece_codes)
+            sub, sub_code = np.concatenate([sub, pieces]), np.concatenate([sub_code, piece_codes])
             tris[flip] = tris[flip][:, [0, 2, 1]]
             tris, lower, upper = tris[keep], lower[keep], upper[keep]
         timings["pockets"] = time.perf_counter() - t0
@@ -635,19 +632,6 @@ def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
     return cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, int(snapped_lo.sum() + snapped_hi.sum())
 
 
-def _appended(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """``a`` with ``rows`` after its own, grown in place where numpy can (``resize``: a
-    reallocation, which moves the pages of a large block instead of copying them), else
-    copied."""
-    n = len(a)
-    try:
-        a.resize((n + len(rows),) + a.shape[1:], refcheck=True)
-    except ValueError:  # a view of it exists: copy
-        return np.concatenate([a, rows])
-    a[n:] = rows
-    return a
-
-
 def _holds_rest(codes: np.ndarray, spacing: np.ndarray, rest: int, corners: np.ndarray) -> bool:
     """Whether a sample of code ``rest`` (sample i at i * spacing) lies in one of the
     tetrahedra ``corners`` (q, 4, 3) (its boundary included), or the tetrahedra reach outside
@@ -667,10 +651,13 @@ def _holds_rest(codes: np.ndarray, spacing: np.ndarray, rest: int, corners: np.n
     if not np.all(det > 0.0):  # (pieces of positive tetrahedra are positive: only a flat one in rounding)
         return True
     inv = np.linalg.inv(edges)
-    w = np.einsum("qij,sqj->sqi", inv, x[:, None, :] - base[None])  # barycentric weights 1..3
     tol = 1e-9
-    inside = (w >= -tol).all(axis=2) & (w.sum(axis=2) <= 1.0 + tol)
-    return bool(inside.any())
+    step = max(1, (1 << 22) // (3 * len(corners)))  # samples a chunk: (step, q, 3) at most 2^22 values
+    for i in range(0, len(x), step):
+        w = np.einsum("qij,sqj->sqi", inv, x[i:i + step, None, :] - base[None])  # barycentric weights 1..3
+        if np.any((w >= -tol).all(axis=2) & (w.sum(axis=2) <= 1.0 + tol)):
+            return True
+    return False
 
 
 def _fan_tables() -> tuple[np.ndarray, np.ndarray]:
@@ -920,7 +907,8 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
         timings["offsets"] = time.perf_counter() - t0
     cut_pos, face_pos, tet_pos, tets, tet_codes, triangles, lower, upper, n_snapped, n_faces = _sub_tets(
         T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=(whole, whole_code),
-        holds_rest=(lambda corners: _holds_rest(codes, spacing, rest, corners)) if fill else None)
+        holds_rest=(lambda corners: _holds_rest(codes, spacing, rest, corners)) if fill else None,
+        largest=h ** 3 / 12.0)  # (a BCC tetrahedron; bisection only makes smaller ones)
     pockets = timings.pop("pockets_info", {})
 
     # -- compact the vertex ids
