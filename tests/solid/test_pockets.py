@@ -13,6 +13,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 import warpmesh as wm
+from warpmesh.cells.intersections import find_tet_overlaps
 from tests.solid.test_regions import check_regions
 
 
@@ -102,6 +103,7 @@ def test_random_boxes_have_no_cavity_the_labels_do_not_hold(part):
     for labels in _random_boxes(12)[4 * part:4 * part + 4]:
         m = wm.mesh_domain(labels, labels="all", size=2.0)
         check_regions(m, rest=0)
+        assert len(find_tet_overlaps(m.points, m.cells["tetra"])) == 0  # filled pockets overlap nothing
         assert assert_no_cavity_without_rest(m, labels) == m.info["kept_cavities"]
         filled += m.info["filled_pockets"]
     if part == 1:
@@ -178,3 +180,22 @@ def test_pockets_when_the_rest_is_the_highest_code():
                 assert (code == upper[~outer][i]) == above
                 side[i] += 1
     assert np.all(side == 2)
+
+
+def test_clients_take_the_filled_block():
+    """TetGen tetrahedralizes the filled block's outer boundary (the triangles naming the
+    rest: one closed manifold sphere now) to the tetrahedra's volume, and scikit-fem's P1
+    mass matrix on the tetrahedra sums to it too."""
+    tetgen = pytest.importorskip("tetgen")
+    skfem = pytest.importorskip("skfem")
+    from warpmesh.solid.dihedral import signed_volumes
+
+    m = wm.mesh_domain(_layer(), labels="all", size=2.0)
+    volume = m.stats()["volume"]
+    outer = m.cells["triangle"][m.cell_refs["triangle"] == 0][:, ::-1]
+    used, inv = np.unique(outer, return_inverse=True)
+    nodes, elems = tetgen.TetGen(m.points[used], inv.reshape(-1, 3)).tetrahedralize(order=1)[:2]
+    np.testing.assert_allclose(np.abs(signed_volumes(nodes, elems)).sum(), volume, rtol=1e-5)
+    mesh = skfem.MeshTet(m.points.T.copy(), m.cells["tetra"].T.copy())
+    mass = skfem.BilinearForm(lambda u, v, w: u * v).assemble(skfem.Basis(mesh, skfem.ElementTetP1()))
+    np.testing.assert_allclose(mass.sum(), volume, rtol=1e-10)
