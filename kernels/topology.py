@@ -227,3 +227,43 @@ def face_measures_kernel(
         quality[f] = wp.float64(-1.0)
     else:
         quality[f] = alpha * h * (la + lb + lc) / (wp.float64(2.0) * a)
+
+
+@wp.func
+def twice_area(a: wp.vec3d, b: wp.vec3d) -> wp.float64:
+    """|a x b|: twice the area of the triangle spanned by a and b."""
+    c = wp.cross(a, b)
+    return wp.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+
+
+@wp.kernel
+def tet_measures_kernel(
+    first: int, points: wp.array(dtype=wp.vec3d), tets: wp.array(dtype=wp.int32), alpha: wp.float64,
+    rel_tol: wp.float64, volume6: wp.array(dtype=wp.float64), quality: wp.array(dtype=wp.float64),
+):
+    """A thread takes tetrahedron t = first + tid: six times its signed volume,
+    det(p1 - p0, p2 - p0, p3 - p0), and its shape measure Q = alpha h_max / rho with
+    rho = 3 volume / (sum of the face areas) [FG eq. 16.15], i.e. alpha h_max S2 / |det|
+    with S2 twice the total area; -1 when degenerate (volume <= rel_tol h_max^3; the host
+    makes that inf)."""
+    t = first + wp.tid()
+    p0 = points[tets[4 * t]]
+    p1 = points[tets[4 * t + 1]]
+    p2 = points[tets[4 * t + 2]]
+    p3 = points[tets[4 * t + 3]]
+    a = p1 - p0
+    b = p2 - p0
+    c = p3 - p0
+    d = p2 - p1
+    e = p3 - p1
+    f = p3 - p2
+    h2 = wp.max(wp.max(wp.max(wp.dot(a, a), wp.dot(b, b)), wp.max(wp.dot(c, c), wp.dot(d, d))),
+                wp.max(wp.dot(e, e), wp.dot(f, f)))
+    h = wp.sqrt(h2)
+    v6 = wp.dot(a, wp.cross(b, c))
+    volume6[t] = v6
+    s2 = twice_area(a, b) + twice_area(a, c) + twice_area(b, c) + twice_area(d, e)
+    if wp.abs(v6) / wp.float64(6.0) <= rel_tol * h2 * h:
+        quality[t] = wp.float64(-1.0)
+    else:
+        quality[t] = alpha * h * s2 / wp.abs(v6)
