@@ -646,78 +646,67 @@ def odd3(v: wp.vec3i) -> int:
     return n % 2
 
 
-#: buckets per lead corner of the tet-face matching (a power of two)
-FACE_SUB_BUCKETS = wp.constant(8)
-
-
-@wp.func
-def face_bucket(s: wp.vec3i) -> int:
-    """The bucket of a face by its sorted corners s: its largest corner's run of
-    ``FACE_SUB_BUCKETS`` buckets (neighbouring faces in neighbouring buckets), split by a
-    hash of the other two corners."""
-    return s[2] * FACE_SUB_BUCKETS + ((s[0] * 31 + s[1]) & (FACE_SUB_BUCKETS - 1))
-
-
 @wp.kernel
-def tet_face_buckets_kernel(first: int, tets: wp.array(dtype=wp.int32), bucket_of: wp.array(dtype=wp.int32)):
-    """One thread per face f = first + tid: ``bucket_of[f]``, its bucket (:func:`face_bucket`)."""
+def tet_face_leads_kernel(first: int, tets: wp.array(dtype=wp.int32), lead: wp.array(dtype=wp.int32)):
+    """One thread per face f = first + tid (face k of tetrahedron t is f = 4 t + k):
+    ``lead[f]``, its largest corner, the key the faces are sorted by."""
     f = first + wp.tid()
-    bucket_of[f] = face_bucket(sorted3(tet_face(tets, f)))
+    v = tet_face(tets, f)
+    lead[f] = wp.max(v[0], wp.max(v[1], v[2]))
 
 
 @wp.func
 def face_key(s: wp.vec3i) -> wp.int64:
-    """The two smaller sorted corners of a face (those :func:`face_bucket` does not file
-    it by), packed: s[0] * 2^32 + s[1]."""
+    """The two smaller sorted corners of a face (those it is not sorted by), packed:
+    s[0] * 2^32 + s[1]."""
     return (wp.int64(s[0]) << wp.int64(32)) | wp.int64(s[1])
 
 
 @wp.kernel
-def scatter_faces_kernel(tets: wp.array(dtype=wp.int32), bucket_of: wp.array(dtype=wp.int32),
-                         cursor: wp.array(dtype=wp.int32), slots: wp.array(dtype=wp.int32),
-                         keys: wp.array(dtype=wp.int64)):
-    """One thread places every face f at its bucket's next free slot k (``cursor`` starts at
-    the CSR offsets; the faces of each bucket in ascending order): ``slots[k] = f``,
-    ``keys[k]`` its :func:`face_key` (so a bucket's scan reads one contiguous run)."""
-    for f in range(bucket_of.shape[0]):
-        u = bucket_of[f]
-        k = cursor[u]
-        slots[k] = f
-        keys[k] = face_key(sorted3(tet_face(tets, f)))
-        cursor[u] = k + 1
+def gather_face_keys_kernel(first: int, tets: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                            keys: wp.array(dtype=wp.int64), odd: wp.array(dtype=wp.int8)):
+    """One thread per slot k = first + tid of the faces sorted by lead corner: the
+    :func:`face_key` of face ``order[k]`` and whether its corners are an odd permutation of
+    their sorted order (:func:`odd3`), stored by slot, so that each lead corner's scan
+    reads one contiguous run."""
+    k = first + wp.tid()
+    v = tet_face(tets, order[k])
+    keys[k] = face_key(sorted3(v))
+    odd[k] = wp.int8(odd3(v))
 
 
 @wp.kernel
-def match_tet_faces_kernel(first: int, tets: wp.array(dtype=wp.int32),
-                           offsets: wp.array(dtype=wp.int32), slots: wp.array(dtype=wp.int32),
-                           keys: wp.array(dtype=wp.int64),
-                           mate: wp.array(dtype=wp.int32), same: wp.array(dtype=wp.int8)):
-    """One thread per face f = first + tid finds the other faces with its three corners
-    among the faces of its bucket (same largest corner, same :func:`face_key`): ``mate[f]``
-    the one other face, -1 for none (a boundary face), -2 for two or more; ``same[f]`` 1
-    when the one other face has the same orientation (both tetrahedra on one side of it),
-    else 0."""
-    f = first + wp.tid()
-    v = tet_face(tets, f)
-    s = sorted3(v)
-    u = face_bucket(s)
-    key = face_key(s)
-    found = int(-1)
-    count = int(0)
-    for k in range(offsets[u], offsets[u + 1]):
-        if keys[k] == key:
-            g = slots[k]
-            if g != f:
+def match_faces_by_lead_kernel(first: int, offsets: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+                               keys: wp.array(dtype=wp.int64), odd: wp.array(dtype=wp.int8),
+                               mate: wp.array(dtype=wp.int32), same: wp.array(dtype=wp.int8)):
+    """One thread per lead corner u = first + tid matches the faces whose largest corner is
+    u among themselves (one contiguous run of the sorted faces; every face is in the run
+    of exactly one corner, so each face is written once): for face f, ``mate[f]`` the one
+    other face with its corners, -1 for none (a boundary face), -2 for two or more;
+    ``same[f]`` 1 when that one other face has the same orientation (both tetrahedra on
+    one side of it), else 0."""
+    u = first + wp.tid()
+    lo = offsets[u]
+    hi = offsets[u + 1]
+    for i in range(lo, hi):
+        key = keys[i]
+        found = int(-1)
+        count = int(0)
+        for j in range(lo, hi):
+            if j != i and keys[j] == key:
                 count += 1
-                found = g
-    flag = wp.int8(0)
-    if count == 1:
-        if odd3(v) == odd3(tet_face(tets, found)):
-            flag = wp.int8(1)
-    if count > 1:
-        found = -2
-    mate[f] = found
-    same[f] = flag
+                found = j
+        f = order[i]
+        flag = wp.int8(0)
+        if count == 1:
+            if odd[i] == odd[found]:
+                flag = wp.int8(1)
+            mate[f] = order[found]
+        elif count == 0:
+            mate[f] = -1
+        else:
+            mate[f] = -2
+        same[f] = flag
 
 
 @wp.kernel

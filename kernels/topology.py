@@ -33,23 +33,6 @@ def prev_half_edge(h: int) -> int:
 
 
 @wp.kernel
-def scatter_half_edges_kernel(
-    faces: wp.array(dtype=wp.int32), dst: wp.array(dtype=wp.int32), cursor: wp.array(dtype=wp.int32),
-    out_of: wp.array(dtype=wp.int32), out_dst: wp.array(dtype=wp.int32),
-):
-    """One thread places every half-edge h at its start vertex's next free slot k
-    (``cursor`` starts at the CSR offsets; ascending within each vertex):
-    ``out_of[k] = h``, ``out_dst[k] = dst[h]`` (its end, so that the scans of a vertex's
-    half-edges read one contiguous run)."""
-    for h in range(faces.shape[0]):
-        u = faces[h]
-        k = cursor[u]
-        out_of[k] = h
-        out_dst[k] = dst[h]
-        cursor[u] = k + 1
-
-
-@wp.kernel
 def match_half_edges_kernel(
     first: int, faces: wp.array(dtype=wp.int32), dst: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32),
     out_of: wp.array(dtype=wp.int32), out_dst: wp.array(dtype=wp.int32),
@@ -267,3 +250,25 @@ def tet_measures_kernel(
         quality[t] = wp.float64(-1.0)
     else:
         quality[t] = alpha * h * s2 / wp.abs(v6)
+
+
+@wp.kernel
+def count_keys_kernel(lo: int, hi: int, keys: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
+    """One thread counts the items of [lo, hi) by key into its own ``counts`` row (a
+    counting sort's first pass, one launch per worker; no atomics)."""
+    for i in range(lo, hi):
+        k = keys[i]
+        counts[k] = counts[k] + 1
+
+
+@wp.kernel
+def scatter_keys_kernel(lo: int, hi: int, keys: wp.array(dtype=wp.int32), cursor: wp.array(dtype=wp.int32),
+                        order: wp.array(dtype=wp.int32)):
+    """One thread places the items of [lo, hi) at their key's next free slot (``cursor``:
+    this worker's own start of each key's run, advanced as it goes): ``order[slot] = i``,
+    so each key's run holds its items in ascending order."""
+    for i in range(lo, hi):
+        k = keys[i]
+        s = cursor[k]
+        order[s] = i
+        cursor[k] = s + 1

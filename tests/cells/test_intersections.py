@@ -1267,11 +1267,11 @@ def _as_sets(matched):
             set(map(tuple, np.sort(pairs, axis=1).tolist())))
 
 
-@pytest.mark.parametrize("case", ["block", "shuffled", "three_on_a_face", "same_side", "degenerate"])
+@pytest.mark.parametrize("case", ["block", "shuffled", "three_on_a_face", "same_side", "degenerate", "large"])
 def test_tet_face_matching_kernel_equals_the_sort(case):
-    pts, tets = _kuhn_block(5)
+    pts, tets = _kuhn_block(30 if case == "large" else 5)  # large: 648,000 faces, sorted by two workers
     rng = np.random.default_rng(7)
-    if case == "shuffled":  # any numbering of points and tetrahedra, any rotation of each row's corners
+    if case in ("shuffled", "large"):  # any numbering of points and tetrahedra, any rotation of each row's corners
         perm = rng.permutation(len(pts))
         tets = perm[tets][rng.permutation(len(tets))]
         rot = rng.integers(0, 3, len(tets))  # even permutations keep the orientation

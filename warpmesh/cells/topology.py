@@ -419,18 +419,12 @@ def duplicate_faces(faces) -> np.ndarray:
 # ----------------------------------------------------------------------------- all at once
 def _half_edge_csr(flat: np.ndarray, dst: np.ndarray, n: int):
     """(offsets, out_of, out_dst): the half-edges leaving each vertex, ascending, and
-    where each ends, by a counting sort (one bincount, one prefix sum, one scatter pass)."""
-    import warp as wp
+    where each ends, by a counting sort split across the cores
+    (:func:`~warpmesh._util.counting_sort.counting_sort`)."""
+    from warpmesh._util.counting_sort import counting_sort
 
-    from warpmesh.kernels import topology as KT
-
-    offsets = np.zeros(n + 1, np.int32)
-    np.cumsum(np.bincount(flat, minlength=n), out=offsets[1:])
-    out_of, out_dst = np.empty(len(flat), np.int32), np.empty(len(flat), np.int32)
-    cursor = offsets[:-1].copy()
-    wp.launch(KT.scatter_half_edges_kernel, dim=1, inputs=[_wp(flat), _wp(dst), _wp(cursor)],
-              outputs=[_wp(out_of), _wp(out_dst)], device="cpu")
-    return offsets, out_of, out_dst
+    offsets, out_of = counting_sort(flat, n)
+    return offsets, out_of, np.take(dst, out_of)
 
 
 def _wp(a: np.ndarray):
