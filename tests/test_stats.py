@@ -136,6 +136,10 @@ CASES = _cases()
 def test_mesh_topology_equals_the_oracle(name):
     points, faces = CASES[name]
     assert T.mesh_topology(faces, len(points)) == oracle_topology(faces)
+    labelled = T.mesh_topology(faces, len(points), labels=True)  # + each face's component
+    n, labels = T.connected_components(faces, len(points))
+    np.testing.assert_array_equal(labelled.pop("labels"), labels)
+    assert labelled == oracle_topology(faces) and labelled["components"] == n == len(set(labels.tolist()))
 
 
 @pytest.mark.parametrize("seed", range(6))

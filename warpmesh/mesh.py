@@ -369,7 +369,9 @@ class Mesh:
         # which meet at junctions: no closed surface), else the triangle block
         surface = self._tet_faces.boundary if tets else tri
         if len(surface):  # every topological figure from one pass over the half-edges
-            t = _topo.mesh_topology(surface, self.n_points)
+            t = _topo.mesh_topology(surface, self.n_points, labels=tets)
+            if tets:  # the boundary's components, for the overlap check's nested shells
+                self._tet_faces = self._tet_faces._replace(components=(t["components"], t.pop("labels")))
             for key in ("watertight", "manifold", "oriented", "euler", "components"):
                 s[key] = t[key]
             if s["watertight"] and s["manifold"] and s["oriented"]:

@@ -1331,3 +1331,34 @@ def test_tet_face_matching_by_kernels_or_sort_gives_the_same_verdicts(monkeypatc
         verdicts[reads] = [find_tet_overlaps(pts, t).tolist() for t in (tets, bad)]
     assert verdicts[0] == verdicts[default]
     assert verdicts[0][0] == [] and [7, 7] in verdicts[0][1] and [20, len(bad) - 1] in verdicts[0][1]
+
+
+def test_stats_share_the_boundary_components_with_the_nested_shell_test(monkeypatch):
+    # Mesh.stats() labels the boundary's components once (mesh_topology(labels=True)) and the
+    # overlap check's condition (4) reads them: no second matching of the half-edges, and
+    # the same verdicts as find_tet_overlaps labelling them itself (embedded: a hollow cube,
+    # a hollow cube in its cavity, a cube in that one's cavity; not embedded: the middle
+    # one solid, so the innermost cube lies inside its tetrahedra)
+    from warpmesh.cells import topology as wmt
+    from warpmesh.mesh import Mesh
+
+    hollow, solid, cube = _kuhn_cells(3, drop=[(1, 1, 1)]), _kuhn_block(3), _kuhn_block(1)
+    calls = []
+    real = wmt.connected_components
+    monkeypatch.setattr(wmt, "connected_components", lambda *a, **k: calls.append(1) or real(*a, **k))
+    for middle, embedded in ((hollow, True), (solid, False)):
+        parts = ((hollow, 9.0, 0.0), (middle, 2.25, 3.375), (cube, 0.5, 4.25))
+        pts = np.vstack([p * scale + shift for (p, _), scale, shift in parts])
+        offsets = np.cumsum([0] + [len(p) for (p, _), _, _ in parts])
+        tets = np.vstack([t + o for ((_, t), _, _), o in zip(parts, offsets)])
+        calls.clear()
+        direct = find_tet_overlaps(pts, tets)
+        assert len(calls) == 1 and (len(direct) == 0) == embedded
+        calls.clear()
+        mesh = Mesh(pts, {"tetra": tets})
+        s = mesh.stats()
+        assert calls == [] and s["components"] == (5 if embedded else 4)
+        assert s["self_intersections"] == len(direct)
+        np.testing.assert_array_equal(mesh.check(), direct)
+        labels = wmt.mesh_topology(mesh._tet_faces.boundary, len(pts), labels=True)["labels"]
+        np.testing.assert_array_equal(labels, real(mesh._tet_faces.boundary, len(pts))[1])

@@ -493,15 +493,15 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | N
         pairs = [np.column_stack([bad, bad])]
         if faces is None:
             faces = _matched_faces(tets, tets32, dev)
-    once, boundary, face_pairs = faces
-    pairs.append(face_pairs)
+    once, boundary = faces.once, faces.boundary
+    pairs.append(faces.face_pairs)
     crossing = find_self_intersections(pts, boundary, device=device)
     pairs.append(once[crossing] // 4)
     if not any(len(p) for p in pairs):  # scaled by a power of two (exact): no triple product over- or underflows
         scaled = power_of_two_scaled(pts)
         pairs.append(_overlapping_fans(scaled, tets, boundary))
         if not len(pairs[-1]):
-            pairs.append(_nested_shells(scaled, tets, boundary, once // 4))
+            pairs.append(_nested_shells(scaled, tets, boundary, once // 4, faces.components))
     out = np.sort(np.concatenate(pairs).astype(INDEX_DTYPE), axis=1)
     return np.unique(out, axis=0) if len(out) else out.reshape(0, 2)
 
@@ -515,6 +515,9 @@ class TetFaces(NamedTuple):
     boundary: np.ndarray
     #: (k, 2) int64 tetrahedra of a face in two with the same orientation, or in three or more
     face_pairs: np.ndarray
+    #: (count, (B,) int64 labels) of the boundary's edge-connected components when already
+    #: known (``Mesh.stats()`` has them from the boundary's topology), else None
+    components: tuple | None = None
 
 
 def tet_faces(points, tetra, *, device: str = "cpu") -> TetFaces:
@@ -754,7 +757,8 @@ def _overlapping_fans(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray) -
     return np.column_stack([near[t_id[one[hit]]], near[t_id[two[hit]]]]).astype(INDEX_DTYPE)
 
 
-def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owners: np.ndarray) -> np.ndarray:
+def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owners: np.ndarray,
+                   components: tuple | None = None) -> np.ndarray:
     """Condition (4) of :func:`find_tet_overlaps` on a mesh that meets (1)-(3): for each
     boundary component c, the winding number of the whole boundary just inside it (its own
     1 when it bounds its tetrahedra from outside, 0 when from inside, plus the other
@@ -763,12 +767,13 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
     tetrahedra. The components do not touch (condition 3), so the others' winding number is
     the same at q_c as just inside c. ``pts`` must be scaled
     (:func:`~warpmesh.cells.predicates.power_of_two_scaled`): the signed volumes, ray
-    signs and solid angles are products of up to three coordinates."""
+    signs and solid angles are products of up to three coordinates. ``components``: the
+    boundary's (count, labels) when the caller has them (:attr:`TetFaces.components`)."""
     from warpmesh.cells.topology import connected_components
 
     if not len(boundary):
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
-    n_comp, label = connected_components(boundary, len(pts))
+    n_comp, label = connected_components(boundary, len(pts)) if components is None else components
     if n_comp < 2:
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
     label = np.asarray(label, INDEX_DTYPE)

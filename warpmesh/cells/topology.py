@@ -491,6 +491,18 @@ def _components_by_kernels(faces: np.ndarray, n: int) -> tuple[int, np.ndarray]:
     parent, count = np.arange(m, dtype=np.int32), np.zeros(1, np.int32)
     wp.launch(KT.union_faces_kernel, dim=1, inputs=[_wp(rep)], outputs=[_wp(parent), _wp(count)], device="cpu")
     del rep
+    return _face_labels(parent)
+
+
+def _face_labels(parent: np.ndarray) -> tuple[int, np.ndarray]:
+    """(components, each face's component in order of first appearance) from the faces'
+    union-find forest ``parent`` (:func:`~warpmesh.kernels.topology.label_faces_kernel`)."""
+    import warp as wp
+
+    from warpmesh.kernels import topology as KT
+
+    m = len(parent)
+    count = np.zeros(1, np.int32)
     rank, labels = np.full(m, -1, np.int32), np.empty(m, np.int32)
     wp.launch(KT.label_faces_kernel, dim=1, inputs=[_wp(parent)], outputs=[_wp(rank), _wp(labels), _wp(count)],
               device="cpu")
@@ -498,7 +510,7 @@ def _components_by_kernels(faces: np.ndarray, n: int) -> tuple[int, np.ndarray]:
     return int(count[0]), labels.astype(INDEX_DTYPE)
 
 
-def mesh_topology(faces, n_points: int | None = None) -> dict:
+def mesh_topology(faces, n_points: int | None = None, *, labels: bool = False) -> dict:
     """Every topological figure of a triangle mesh from one pass over its half-edges.
 
     The half-edges are gathered per start vertex by a counting sort; each finds the
@@ -515,6 +527,10 @@ def mesh_topology(faces, n_points: int | None = None) -> dict:
     faces : (m, 3) int
     n_points : int, optional
         Number of points (default: largest index + 1).
+    labels : bool
+        Also return each face's component (one more pass over the union-find forest the
+        count comes from): what :func:`connected_components` gives, without matching the
+        half-edges again.
 
     Returns
     -------
@@ -523,7 +539,8 @@ def mesh_topology(faces, n_points: int | None = None) -> dict:
         ``n_boundary_edges`` (in one face), ``n_nonmanifold_edges`` (in more than two),
         ``watertight`` (every edge in two faces; False without faces), ``edge_manifold``,
         ``manifold`` (edges and vertices), ``oriented``, ``euler`` (V - E + F),
-        ``components`` (edge-connected).
+        ``components`` (edge-connected); with ``labels``, ``labels`` ((m,) int64, the
+        component of each face numbered in order of first appearance).
 
     Examples
     --------
@@ -537,9 +554,12 @@ def mesh_topology(faces, n_points: int | None = None) -> dict:
     if m == 0:
         return {"n_vertices": 0, "n_edges": 0, "n_boundary_edges": 0, "n_nonmanifold_edges": 0,
                 "watertight": False, "edge_manifold": True, "manifold": True, "oriented": True, "euler": 0,
-                "components": 0}
+                "components": 0, **({"labels": np.zeros(0, dtype=INDEX_DTYPE)} if labels else {})}
     if not _kernels_apply(faces, n):
-        return _mesh_topology_by_functions(faces, n)
+        out = _mesh_topology_by_functions(faces, n)
+        if labels:
+            out["labels"] = connected_components(faces, n)[1]
+        return out
     import warp as wp
 
     from warpmesh.kernels import topology as KT
@@ -553,10 +573,14 @@ def mesh_topology(faces, n_points: int | None = None) -> dict:
     wp.synchronize_device("cpu")  # sync point: the host reads count and the tallies
     n_edges, n_boundary, heavy, repeats = (int(x) for x in tallies.sum(axis=0))
     n_vertices = int(np.count_nonzero(offsets[1:] != offsets[:-1]))
-    return {"n_vertices": n_vertices, "n_edges": n_edges, "n_boundary_edges": n_boundary,
-            "n_nonmanifold_edges": heavy, "watertight": n_boundary == 0 and heavy == 0,
-            "edge_manifold": heavy == 0, "manifold": heavy == 0 and not bool(bad.any()), "oriented": repeats == 0,
-            "euler": n_vertices - n_edges + m, "components": int(count[0])}
+    out = {"n_vertices": n_vertices, "n_edges": n_edges, "n_boundary_edges": n_boundary,
+           "n_nonmanifold_edges": heavy, "watertight": n_boundary == 0 and heavy == 0,
+           "edge_manifold": heavy == 0, "manifold": heavy == 0 and not bool(bad.any()), "oriented": repeats == 0,
+           "euler": n_vertices - n_edges + m, "components": int(count[0])}
+    if labels:
+        del flat, offsets, out_of, rep, twin, bad
+        out["labels"] = _face_labels(parent)[1]
+    return out
 
 
 def _mesh_topology_by_functions(faces: np.ndarray, n: int) -> dict:
