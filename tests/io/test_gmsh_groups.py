@@ -334,3 +334,32 @@ def test_msh41_written_in_chunks_is_the_same_file(tmp_path, monkeypatch, rows):
     back = meshio.read(tmp_path / "chunks.msh")
     assert sum(len(c.data) for c in back.cells if c.type == "tetra") == len(mesh.cells["tetra"])
     np.testing.assert_array_equal(back.points, mesh.points)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_entity_keys_by_counting_equal_the_sorted_unique_rows(seed):
+    from warpmesh._util.arrays import unique_rows
+    from warpmesh.io import gmsh_groups as gg
+
+    rng = np.random.default_rng(seed)
+    for keys in (rng.integers(0, 30, (5000, 2)), rng.integers(0, 7, (300, 1)), rng.integers(5, 9, (40, 2))):
+        uniq, inverse = gg._small_unique_rows(keys)
+        ref, _, ref_inverse, _ = unique_rows(keys)
+        np.testing.assert_array_equal(uniq, ref)
+        np.testing.assert_array_equal(inverse, ref_inverse)
+    assert gg._small_unique_rows(np.array([[-1, 2], [3, 4]])) is None  # negative refs: sorted instead
+    assert gg._small_unique_rows(np.array([[0, 0], [1 << 12, 1 << 11]])) is None  # range beyond the table
+
+
+def test_entity_boxes_equal_the_boxes_of_the_runs():
+    from warpmesh.io import gmsh_groups as gg
+
+    rng = np.random.default_rng(5)
+    pts = rng.normal(size=(200, 3))
+    cells = rng.integers(0, 200, (1000, 4))
+    firsts = np.array([0, 3, 4, 500, 999])
+    lo, hi = gg._run_boxes(pts, cells, firsts)
+    for k, (a, b) in enumerate(zip(firsts, [*firsts[1:], len(cells)])):
+        corners = pts[cells[a:b].ravel()]
+        np.testing.assert_array_equal(lo[k], corners.min(axis=0))
+        np.testing.assert_array_equal(hi[k], corners.max(axis=0))

@@ -143,7 +143,7 @@ def _entities(mesh: MeshLike) -> tuple[dict, dict]:
     for t in mesh.cells:
         pairs = _pairs(mesh, t)
         keys = pairs if pairs is not None else block_refs(mesh, t)[:, None]
-        uniq, _, inverse, _ = unique_rows(keys)
+        uniq, inverse = _small_unique_rows(keys) or unique_rows(keys)[::2]
         per_block[t] = (uniq, inverse)
         keys_by_dim.setdefault(_dim(t), set()).update(map(tuple, uniq.tolist()))
     tags = {}
@@ -155,6 +155,32 @@ def _entities(mesh: MeshLike) -> tuple[dict, dict]:
         lookup = np.array([tags[(_dim(t), tuple(u))] for u in uniq.tolist()], dtype=np.int32)
         cell_tags[t] = lookup[inverse.ravel()]
     return tags, cell_tags
+
+
+#: largest key range :func:`_small_unique_rows` counts in (bytes of its table: 8 a key)
+_SMALL_KEYS = 1 << 22
+
+
+def _small_unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(distinct rows in lexicographic order, each row's index among them) of an (m, k)
+    array of refs or label pairs by counting, without a sort (12.7 M tetrahedra's refs:
+    one pass instead of a 1 s sort); None when the values are negative or their ranges'
+    product exceeds :data:`_SMALL_KEYS` (then :func:`unique_rows` sorts).
+
+    >>> u, inv = _small_unique_rows(np.array([[3, 1], [0, 2], [3, 1]]))
+    >>> u.tolist(), inv.tolist()
+    ([[0, 2], [3, 1]], [1, 0, 1])
+    """
+    if not keys.size or keys.min() < 0:
+        return None
+    dims = tuple(int(x) + 1 for x in keys.max(axis=0))
+    if int(np.prod(dims, dtype=np.float64)) > _SMALL_KEYS:
+        return None
+    code = np.ravel_multi_index(tuple(keys.T), dims)  # row-major: lexicographic order
+    present = np.bincount(code, minlength=int(np.prod(dims))) > 0
+    rank = np.cumsum(present) - 1
+    codes = np.flatnonzero(present)
+    return np.column_stack(np.unravel_index(codes, dims)).astype(keys.dtype), rank[code]
 
 
 def _name_of_ref(mesh: MeshLike, d: int, r: int, top: int) -> str:
@@ -279,7 +305,8 @@ def write_msh41(path, mesh: MeshLike) -> Path:
     runs, boxes, base = [], {}, 1
     for t, cells in mesh.cells.items():
         cells = np.asarray(cells)
-        perm = np.argsort(cell_tags[t], kind="stable")
+        tags = cell_tags[t]  # entity tags: 16 bits or less sort by radix (linear)
+        perm = np.argsort(tags.astype(np.uint16) if tags.max(initial=0) < 1 << 16 else tags, kind="stable")
         tags_sorted = cell_tags[t][perm]
         firsts = np.flatnonzero(np.r_[True, tags_sorted[1:] != tags_sorted[:-1]])
         ordered = _meshio_to_gmsh_order(t, cells[perm])
@@ -340,15 +367,20 @@ def _write_rows(f, first, rest=None, offset: int = 0) -> None:
 
 
 def _run_boxes(pts: np.ndarray, cells: np.ndarray, firsts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The bounding box (lo, hi) of the cells of each run starting at ``firsts``: corner by
-    corner, so no (m, k, 3) array of every corner's coordinates."""
-    lo = pts[cells[:, 0]]
-    hi = lo.copy()
-    for j in range(1, cells.shape[1]):
-        c = pts[cells[:, j]]
-        np.minimum(lo, c, out=lo)
-        np.maximum(hi, c, out=hi)
-    return np.minimum.reduceat(lo, firsts), np.maximum.reduceat(hi, firsts)
+    """The bounding box (lo, hi) of the cells of each run starting at ``firsts``: one
+    corner's indices at a time (copied contiguous), each coordinate gathered from a
+    contiguous column into one reused buffer and reduced per run, so no (m, 3) or
+    (m, k, 3) array of coordinates (12.7 M tetrahedra: 6.0 -> 2.9 s)."""
+    lo, hi = np.full((len(firsts), 3), np.inf), np.full((len(firsts), 3), -np.inf)
+    columns = [np.ascontiguousarray(pts[:, a]) for a in range(3)]
+    index, buf = np.empty(len(cells), dtype=cells.dtype), np.empty(len(cells))
+    for j in range(cells.shape[1]):
+        index[:] = cells[:, j]
+        for a, x in enumerate(columns):
+            np.take(x, index, out=buf)
+            np.minimum(lo[:, a], np.minimum.reduceat(buf, firsts), out=lo[:, a])
+            np.maximum(hi[:, a], np.maximum.reduceat(buf, firsts), out=hi[:, a])
+    return lo, hi
 
 
 _PATTERNS = (
