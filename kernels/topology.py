@@ -272,3 +272,19 @@ def scatter_keys_kernel(lo: int, hi: int, keys: wp.array(dtype=wp.int32), cursor
         s = cursor[k]
         order[s] = i
         cursor[k] = s + 1
+
+
+@wp.kernel
+def cell_extents_kernel(first: int, x: wp.array(dtype=wp.float64), cells: wp.array(dtype=wp.int64), k: int,
+                        lo: wp.array(dtype=wp.float64), hi: wp.array(dtype=wp.float64)):
+    """A thread takes cell c = first + tid of k corners (``cells[k c : k c + k]``): the
+    smallest and largest of the coordinate ``x`` over its corners."""
+    c = first + wp.tid()
+    a = x[cells[k * c]]
+    b = a
+    for j in range(1, k):
+        v = x[cells[k * c + j]]
+        a = wp.min(a, v)
+        b = wp.max(b, v)
+    lo[c] = a
+    hi[c] = b

@@ -368,18 +368,29 @@ def _write_rows(f, first, rest=None, offset: int = 0) -> None:
 
 def _run_boxes(pts: np.ndarray, cells: np.ndarray, firsts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The bounding box (lo, hi) of the cells of each run starting at ``firsts``: one
-    corner's indices at a time (copied contiguous), each coordinate gathered from a
-    contiguous column into one reused buffer and reduced per run, so no (m, 3) or
-    (m, k, 3) array of coordinates (12.7 M tetrahedra: 6.0 -> 2.9 s)."""
-    lo, hi = np.full((len(firsts), 3), np.inf), np.full((len(firsts), 3), -np.inf)
-    columns = [np.ascontiguousarray(pts[:, a]) for a in range(3)]
-    index, buf = np.empty(len(cells), dtype=cells.dtype), np.empty(len(cells))
-    for j in range(cells.shape[1]):
-        index[:] = cells[:, j]
-        for a, x in enumerate(columns):
-            np.take(x, index, out=buf)
-            np.minimum(lo[:, a], np.minimum.reduceat(buf, firsts), out=lo[:, a])
-            np.maximum(hi[:, a], np.maximum.reduceat(buf, firsts), out=hi[:, a])
+    coordinate at a time, each cell's extent along it from a Warp kernel split across the
+    cores (:func:`~warpmesh.kernels.topology.cell_extents_kernel`, reading a contiguous
+    column) into two reused buffers, reduced per run; no (m, 3) or (m, k, 3) array of
+    coordinates (12.7 M tetrahedra: 6.0 s with numpy's (m, 3) gathers, 1.1 s)."""
+    import warp as wp
+
+    from warpmesh._util.parallel import cpu_view, launch_split
+    from warpmesh.kernels import topology as KT
+
+    lo, hi = np.empty((len(firsts), 3)), np.empty((len(firsts), 3))
+    if not len(cells):
+        return lo, hi
+    flat = np.ascontiguousarray(cells, dtype=np.int64).reshape(-1)
+    cell_lo, cell_hi = np.empty(len(cells)), np.empty(len(cells))
+    wp.load_module(KT, device="cpu")  # once here, not in the worker threads
+    for a in range(3):
+        x = np.ascontiguousarray(pts[:, a], dtype=np.float64)
+        launch_split(KT.cell_extents_kernel, len(cells), [cpu_view(x, wp.float64), cpu_view(flat, wp.int64),
+                                                           cells.shape[1]],
+                     [cpu_view(cell_lo, wp.float64), cpu_view(cell_hi, wp.float64)])
+        wp.synchronize_device("cpu")
+        lo[:, a] = np.minimum.reduceat(cell_lo, firsts)
+        hi[:, a] = np.maximum.reduceat(cell_hi, firsts)
     return lo, hi
 
 
