@@ -32,56 +32,6 @@ def prev_half_edge(h: int) -> int:
     return h - 1
 
 
-@wp.kernel
-def match_half_edges_kernel(
-    first: int, faces: wp.array(dtype=wp.int32), dst: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32),
-    out_of: wp.array(dtype=wp.int32), out_dst: wp.array(dtype=wp.int32),
-    rep: wp.array(dtype=wp.int32), twin: wp.array(dtype=wp.int32), tally: wp.array(dtype=wp.int32),
-):
-    """A thread takes half-edge h = first + tid, u -> v, and finds the other half-edges
-    of its undirected edge among those leaving u and v: ``rep[h]``, the smallest of
-    them (h == rep[h] once per edge), and ``twin[h]``, the other one when the edge has
-    two faces, -1 when it has one, -2 when more. ``tally`` (this launch's own) counts
-    edges, edges in one face, edges in more than two, and half-edges that repeat a
-    direction (inconsistent orientation)."""
-    h = first + wp.tid()
-    u = faces[h]
-    v = dst[h]
-    m = int(0)
-    s = int(0)
-    r = h
-    t = int(-1)
-    for k in range(offsets[u], offsets[u + 1]):
-        if out_dst[k] == v:
-            g = out_of[k]
-            m += 1
-            s += 1
-            r = wp.min(r, g)
-            if g != h:
-                t = g
-    for k in range(offsets[v], offsets[v + 1]):
-        if out_dst[k] == u:
-            g = out_of[k]
-            m += 1
-            r = wp.min(r, g)
-            t = g
-    rep[h] = r
-    if m == 2:
-        twin[h] = t
-    elif m == 1:
-        twin[h] = -1
-    else:
-        twin[h] = -2
-    if r == h:
-        wp.atomic_add(tally, 0, 1)
-        if m == 1:
-            wp.atomic_add(tally, 1, 1)
-        if m > 2:
-            wp.atomic_add(tally, 2, 1)
-    if s > 1:
-        wp.atomic_add(tally, 3, 1)
-
-
 @wp.func
 def walk_fan(faces: wp.array(dtype=wp.int32), twin: wp.array(dtype=wp.int32), v: int, start: int, leave: int,
              limit: int) -> wp.vec2i:
@@ -288,3 +238,53 @@ def cell_extents_kernel(first: int, x: wp.array(dtype=wp.float64), cells: wp.arr
         b = wp.max(b, v)
     lo[c] = a
     hi[c] = b
+
+
+@wp.kernel
+def match_half_edges_by_lead_kernel(
+    first: int, offsets: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
+    other: wp.array(dtype=wp.int32), forward: wp.array(dtype=wp.int8),
+    rep: wp.array(dtype=wp.int32), twin: wp.array(dtype=wp.int32), tally: wp.array(dtype=wp.int32),
+):
+    """A thread takes vertex w = first + tid and matches the half-edges whose smaller end
+    is w among themselves (one contiguous run of the half-edges sorted by smaller end,
+    ``order``; ``other`` their larger end, ``forward`` 1 when they run from w): for each
+    such half-edge h, ``rep[h]`` the smallest half-edge of its undirected edge and
+    ``twin[h]`` the other one when the edge has two, -1 when one, -2 when more (as
+    the undirected edges of a triangle mesh). ``tally`` (this launch's own) counts edges, edges in
+    one face, edges in more than two, and half-edges that repeat a direction."""
+    w = first + wp.tid()
+    lo = offsets[w]
+    hi = offsets[w + 1]
+    for i in range(lo, hi):
+        x = other[i]
+        d = forward[i]
+        h = order[i]
+        m = int(0)
+        s = int(0)
+        r = h
+        t = int(-1)
+        for j in range(lo, hi):
+            if other[j] == x:
+                g = order[j]
+                m += 1
+                if forward[j] == d:
+                    s += 1
+                r = wp.min(r, g)
+                if g != h:
+                    t = g
+        rep[h] = r
+        if m == 2:
+            twin[h] = t
+        elif m == 1:
+            twin[h] = -1
+        else:
+            twin[h] = -2
+        if r == h:
+            tally[0] = tally[0] + 1
+            if m == 1:
+                tally[1] = tally[1] + 1
+            if m > 2:
+                tally[2] = tally[2] + 1
+        if s > 1:
+            tally[3] = tally[3] + 1

@@ -381,3 +381,20 @@ def test_summarize_quality_names_a_wrong_shape_and_takes_empty_input():
         summarize_quality(np.ones((2, 2)))
     s = summarize_quality([])
     assert s["n_elements"] == 0 and np.isnan(s["worst_q"]) and np.isnan(s["mean_q"])
+
+
+def test_mesh_topology_split_across_workers_equals_the_oracle():
+    """Over 2^15 vertices, so the matching's launches are split (one tally row each): a
+    sphere with faces removed, flipped and repeated, renumbered at random."""
+    sphere = trimesh.creation.icosphere(subdivisions=6)  # 40,962 vertices
+    rng = np.random.default_rng(11)
+    faces = np.asarray(sphere.faces)[rng.random(len(sphere.faces)) > 0.05]
+    flip = rng.random(len(faces)) < 0.02
+    faces[flip] = faces[flip][:, ::-1]
+    faces = np.vstack([faces, faces[rng.choice(len(faces), 40)]])  # edges in three and four faces
+    faces = rng.permutation(len(sphere.vertices))[faces]
+    got = T.mesh_topology(faces, len(sphere.vertices), labels=True)
+    n, labels = T.connected_components(faces, len(sphere.vertices))
+    np.testing.assert_array_equal(got.pop("labels"), labels)
+    assert got == oracle_topology(faces) and got["components"] == n
+    assert got["n_nonmanifold_edges"] > 0 and not got["oriented"] and got["n_boundary_edges"] > 0
