@@ -288,3 +288,18 @@ def match_half_edges_by_lead_kernel(
                 tally[2] = tally[2] + 1
         if s > 1:
             tally[3] = tally[3] + 1
+
+
+@wp.kernel
+def face_volumes_kernel(
+    first: int, points: wp.array(dtype=wp.vec3d), faces: wp.array(dtype=wp.int32),
+    labels: wp.array(dtype=wp.int32), centres: wp.array(dtype=wp.vec3d), volume6: wp.array(dtype=wp.float64),
+):
+    """A thread takes face f = first + tid: six times the signed volume of the tetrahedron
+    (c, p0, p1, p2) with c its group's centre ``centres[labels[f]]``."""
+    f = first + wp.tid()
+    c = centres[labels[f]]
+    p0 = points[faces[3 * f]] - c
+    p1 = points[faces[3 * f + 1]] - c
+    p2 = points[faces[3 * f + 2]] - c
+    volume6[f] = wp.dot(p0, wp.cross(p1, p2))

@@ -398,3 +398,28 @@ def test_mesh_topology_split_across_workers_equals_the_oracle():
     np.testing.assert_array_equal(got.pop("labels"), labels)
     assert got == oracle_topology(faces) and got["components"] == n
     assert got["n_nonmanifold_edges"] > 0 and not got["oriented"] and got["n_boundary_edges"] > 0
+
+
+def test_face_volumes_equal_numpy_and_sum_to_each_groups_volume():
+    """Per face about one centre or its group's: the numpy triple products to rounding; over
+    a closed group the enclosed volume (a sphere and a shifted, inside-out copy)."""
+    pts, tri = _sphere()
+    shifted = pts + [3.0, 0.0, 0.0]
+    points = np.vstack([pts, shifted])
+    faces = np.vstack([tri, tri[:, ::-1] + len(pts)])
+    labels = np.repeat([0, 1], len(tri))
+    centres = np.array([[0.1, 0.0, 0.0], [3.0, 0.2, 0.0]])
+    got = T.face_volumes(points, faces, centres, labels)
+    c = centres[labels]
+    p0, p1, p2 = (points[faces[:, j]] - c for j in range(3))
+    np.testing.assert_allclose(got, np.einsum("ij,ij->i", p0, np.cross(p1, p2)) / 6.0, rtol=1e-12, atol=1e-15)
+    sums = np.bincount(labels, got)
+    assert sums[0] == pytest.approx(T.signed_volume(pts, tri), rel=1e-12) and sums[1] == pytest.approx(-sums[0])
+    one = T.face_volumes(pts, tri, [0.0, 0.0, 0.0])
+    assert one.sum() == pytest.approx(T.signed_volume(pts, tri), rel=1e-12)
+    with pytest.raises(ValueError, match="'centres'"):
+        T.face_volumes(points, faces, centres)  # (G, 3) without labels
+    with pytest.raises(ValueError, match="'labels'"):
+        T.face_volumes(points, faces, centres, labels + 1)
+    with pytest.raises(ValueError, match="'faces'"):
+        T.face_volumes(pts, tri + len(pts), [0.0, 0.0, 0.0])

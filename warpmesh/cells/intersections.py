@@ -769,7 +769,7 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
     (:func:`~warpmesh.cells.predicates.power_of_two_scaled`): the signed volumes, ray
     signs and solid angles are products of up to three coordinates. ``components``: the
     boundary's (count, labels) when the caller has them (:attr:`TetFaces.components`)."""
-    from warpmesh.cells.topology import connected_components
+    from warpmesh.cells.topology import connected_components, face_volumes
 
     if not len(boundary):
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
@@ -782,11 +782,7 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
     corners = pts[boundary]  # (F, 3, 3)
     q = corners[first].mean(axis=1)  # on component c, off the others
     # own orientation: the signed volume of each component, about its own point (no cancellation)
-    own = np.zeros(n_comp)
-    for lo in range(0, len(boundary), _CHUNK_FACES):
-        rel = corners[lo:lo + _CHUNK_FACES] - q[label[lo:lo + _CHUNK_FACES]][:, None, :]
-        own += np.bincount(label[lo:lo + _CHUNK_FACES], minlength=n_comp,
-                           weights=np.einsum("ij,ij->i", rel[:, 0], np.cross(rel[:, 1], rel[:, 2])))
+    own = np.bincount(label, face_volumes(pts, boundary, q, label), minlength=n_comp)
     point, _, others, _ = ray_windings(corners, label, q, skip=np.arange(n_comp))
     winding = (own > 0.0).astype(REAL_DTYPE) + np.bincount(point, weights=others, minlength=n_comp)
     out = []

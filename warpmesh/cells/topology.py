@@ -30,6 +30,7 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE, REL_TOL
 
 __all__ = [
     "unique_edges",
+    "face_volumes",
     "is_watertight",
     "is_edge_manifold",
     "is_vertex_manifold",
@@ -365,6 +366,67 @@ def signed_volume(points, faces) -> float:
     p = points - 0.5 * (used.min(axis=0) + used.max(axis=0))
     p0, p1, p2 = (p[faces[:, j]] for j in range(3))
     return float(np.einsum("ij,ij->", p0, np.cross(p1, p2)) / 6.0)
+
+
+def face_volumes(points, faces, centres, labels=None) -> np.ndarray:
+    """The signed volume of the tetrahedron (c, p0, p1, p2) of each face, c its centre: one
+    for all faces, or each face's group's. Summed over a closed group (``np.bincount(labels,
+    face_volumes(...))``) it is the volume the group encloses, positive when its faces wind
+    counter-clockwise seen from outside; a centre near the group avoids cancellation. One
+    Warp kernel split across the CPU cores (6.2 M faces: 0.1 s against 1.4 s for numpy's
+    gathers and cross products); numpy beyond int32 indexing.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+    faces : (m, 3) int
+    centres : (3,) or (G, 3) float
+    labels : (m,) int, optional
+        Each face's group in [0, G) when ``centres`` is (G, 3).
+
+    Returns
+    -------
+    (m,) float64
+
+    Examples
+    --------
+    >>> tet = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]
+    >>> v = face_volumes([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], tet, [0.25, 0.25, 0.25])
+    >>> round(float(v.sum()), 12)
+    0.166666666667
+    """
+    points, faces = _as_points(points, (3,)), _as_faces(faces, keep_int32=True)
+    centres = np.asarray(centres, dtype=np.float64)
+    if centres.shape == (3,):
+        centres, labels = centres[None], np.zeros(len(faces), np.int32)
+    if centres.ndim != 2 or centres.shape[1] != 3 or labels is None:
+        raise ValueError(f"expected 'centres' of shape (3,), or (G, 3) with 'labels', got shape {centres.shape}")
+    labels = np.asarray(labels)
+    if labels.shape != (len(faces),) or not np.issubdtype(labels.dtype, np.integer):
+        raise ValueError(f"expected integer 'labels' of shape ({len(faces)},), got {labels.dtype} {labels.shape}")
+    if len(faces) and (int(labels.min()) < 0 or int(labels.max()) >= len(centres)):
+        raise ValueError(f"expected 'labels' in [0, {len(centres)}) (the rows of 'centres')")
+    if len(faces) and int(faces.max()) >= len(points):
+        raise ValueError(f"expected indices in 'faces' below the number of points {len(points)}, "
+                         f"got {int(faces.max())}")
+    if 3 * len(faces) >= np.iinfo(np.int32).max or len(points) >= np.iinfo(np.int32).max:
+        c = centres[labels]
+        p0, p1, p2 = (points[faces[:, j]] - c for j in range(3))
+        return np.einsum("ij,ij->i", p0, np.cross(p1, p2)) / 6.0
+    import warp as wp
+
+    from warpmesh._util.parallel import cpu_view, launch_split
+    from warpmesh.kernels import topology as KT
+
+    wp.load_module(KT, device="cpu")  # once here, not in the worker threads
+    out = np.empty(len(faces))
+    launch_split(KT.face_volumes_kernel, len(faces),
+                 [cpu_view(np.ascontiguousarray(points, dtype=np.float64), wp.vec3d),
+                  cpu_view(faces.astype(np.int32, copy=False).reshape(-1), wp.int32), cpu_view(labels.astype(np.int32), wp.int32),
+                  cpu_view(centres, wp.vec3d)], [cpu_view(out, wp.float64)])
+    wp.synchronize_device("cpu")
+    out /= 6.0
+    return out
 
 
 def degenerate_faces(points, faces, rel_tol: float = REL_TOL) -> np.ndarray:

@@ -43,7 +43,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components as graph_components
 
-from warpmesh.cells.topology import connected_components
+from warpmesh.cells.topology import connected_components, face_volumes
 
 __all__ = ["fill_pockets"]
 
@@ -149,14 +149,10 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
     # each shell's volume, oriented out of the regions (a triangle naming the rest as its lower
     # code points into them), about a common centre: negative for a cavity
     corners = position(used)
-    corners -= corners.mean(axis=0)
-    six = np.empty(len(shell))
-    for i in range(0, len(shell), 1 << 20):  # a chunk at a time: three (k, 3) gathers, not (m, 3)
-        a, b, c = (corners[shell[i:i + (1 << 20), j]] for j in range(3))
-        six[i:i + (1 << 20)] = np.einsum("ij,ij->i", a, np.cross(b, c))
+    signed = face_volumes(corners, shell, corners.mean(axis=0))
     del corners, shell
-    six[lower[on] == rest] *= -1.0
-    volume = np.bincount(shell_of, six, n_shells)
+    signed[lower[on] == rest] *= -1.0
+    volume = 6.0 * np.bincount(shell_of, signed, n_shells)  # six times each shell's volume
     cavity = volume < 0.0
     n_cavities = int(cavity.sum())
     # a pocket is a few pieces about one node or edge: a cavity larger than ``largest`` is one
