@@ -120,7 +120,8 @@ def ray_windings(triangles, label, points, skip=None):
     ([0, 0, 1, 2], [0, 1, 1, 2], [1, 1, 1, -1])
     """
     tri, label, pts, skip, n_groups = _check(triangles, label, points, skip)
-    big = max(float(np.abs(tri).max(initial=0.0)), float(np.abs(pts).max(initial=0.0)))
+    big = max(float(tri.max(initial=0.0)), -float(tri.min(initial=0.0)),  # (no |tri| temporary)
+              float(pts.max(initial=0.0)), -float(pts.min(initial=0.0)))
     shift = -int(np.frexp(big)[1]) if big > 0.0 else 0
     if shift:  # a power of two: exact, signs unchanged (no copy when already scaled)
         tri, pts = np.ldexp(tri, shift), np.ldexp(pts, shift)
@@ -129,8 +130,10 @@ def ray_windings(triangles, label, points, skip=None):
         empty = np.zeros(0, dtype=INDEX_DTYPE)
         return empty, empty.copy(), empty.copy(), report
     lo, hi = np.empty((len(tri), 3)), np.empty((len(tri), 3))
-    for a in range(0, len(tri), _PAIRS):  # face boxes, in slices (no second copy of the faces)
-        lo[a:a + _PAIRS], hi[a:a + _PAIRS] = tri[a:a + _PAIRS].min(axis=1), tri[a:a + _PAIRS].max(axis=1)
+    for a in range(0, len(tri), _PAIRS):  # face boxes, in slices (no second copy of the faces), corner by corner
+        t = tri[a:a + _PAIRS]
+        np.minimum(np.minimum(t[:, 0], t[:, 1], out=lo[a:a + _PAIRS]), t[:, 2], out=lo[a:a + _PAIRS])
+        np.maximum(np.maximum(t[:, 0], t[:, 1], out=hi[a:a + _PAIRS]), t[:, 2], out=hi[a:a + _PAIRS])
     points_out, groups_out, counts_out = [], [], []
     inst = np.arange(len(pts), dtype=INDEX_DTYPE)  # the point of each query instance
     only = np.full(len(pts), -1, dtype=INDEX_DTYPE)  # -1: every group but skip
@@ -243,7 +246,11 @@ def _bands(q, i, j, n_faces):
 
 
 def _fine(x, origin, scale, steps):
-    return np.clip(np.floor((x - origin) * scale), 0, steps - 1).astype(INDEX_DTYPE)
+    v = np.subtract(x, origin)  # one temporary, the steps computed in place
+    v *= scale
+    np.floor(v, out=v)
+    np.clip(v, 0, steps - 1, out=v)
+    return v.astype(INDEX_DTYPE)
 
 
 def _band(m, x):
