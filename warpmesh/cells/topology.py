@@ -526,7 +526,10 @@ def _matched_half_edges(faces: np.ndarray, n: int, by_start: bool = True):
     wp.load_module(KT, device="cpu")  # once here, not in the worker threads
     m = len(faces)
     flat = np.ascontiguousarray(faces, dtype=np.int32).ravel()  # (no copy of int32 faces)
-    dst = np.ascontiguousarray(faces[:, [1, 2, 0]], dtype=np.int32).ravel()  # where each half-edge ends
+    rows = flat.reshape(-1, 3)
+    dst = np.empty_like(rows)  # where each half-edge ends: the next corner (int32 columns, no fancy index)
+    dst[:, :2], dst[:, 2] = rows[:, 1:], rows[:, 0]
+    dst = dst.ravel()
     lead_offsets, order = counting_sort(np.minimum(flat, dst), n)
     other = np.take(np.maximum(flat, dst), order)
     forward = np.take((flat < dst).view(np.int8), order)
