@@ -445,8 +445,8 @@ def gather_vertices_kernel(n_nodes: int, used: wp.array(dtype=wp.int32), ids: wp
 
 
 @wp.func
-def _cos_between(a: wp.vec3d, b: wp.vec3d):
-    d = wp.length(a) * wp.length(b)
+def _cos_of(a: wp.vec3d, b: wp.vec3d, d: wp.float64):
+    """The cosine of the angle of a and b, d = |a| |b| (1 when either is zero), clamped."""
     c = wp.float64(1.0)
     if d > wp.float64(0.0):
         c = wp.dot(a, b) / d
@@ -469,16 +469,22 @@ def tet_quality_kernel(first: int, points: wp.array(dtype=wp.vec3d), tets: wp.ar
     n1 = wp.cross(p3 - p0, p2 - p0)
     n2 = wp.cross(p1 - p0, p3 - p0)
     n3 = wp.cross(p2 - p0, p1 - p0)
+    l0 = wp.length(n0)
+    l1 = wp.length(n1)
+    l2 = wp.length(n2)
+    l3 = wp.length(n3)
     pi = wp.float64(3.141592653589793)
-    # edges (01, 02, 03, 12, 13, 23) are held by the faces opposite (23, 13, 12, 03, 02, 01)
-    a01 = pi - wp.acos(_cos_between(n2, n3))
-    a02 = pi - wp.acos(_cos_between(n1, n3))
-    a03 = pi - wp.acos(_cos_between(n1, n2))
-    a12 = pi - wp.acos(_cos_between(n0, n3))
-    a13 = pi - wp.acos(_cos_between(n0, n2))
-    a23 = pi - wp.acos(_cos_between(n0, n1))
-    lo = wp.min(wp.min(wp.min(a01, a02), wp.min(a03, a12)), wp.min(a13, a23))
-    hi = wp.max(wp.max(wp.max(a01, a02), wp.max(a03, a12)), wp.max(a13, a23))
+    # edges (01, 02, 03, 12, 13, 23) are held by the faces opposite (23, 13, 12, 03, 02, 01);
+    # the angle pi - acos(c) rises with c, so the extremes come from the extreme cosines: two
+    # acos a tetrahedron instead of six, the same values (a monotone map commutes with min, max)
+    c01 = _cos_of(n2, n3, l2 * l3)
+    c02 = _cos_of(n1, n3, l1 * l3)
+    c03 = _cos_of(n1, n2, l1 * l2)
+    c12 = _cos_of(n0, n3, l0 * l3)
+    c13 = _cos_of(n0, n2, l0 * l2)
+    c23 = _cos_of(n0, n1, l0 * l1)
+    lo = pi - wp.acos(wp.min(wp.min(wp.min(c01, c02), wp.min(c03, c12)), wp.min(c13, c23)))
+    hi = pi - wp.acos(wp.max(wp.max(wp.max(c01, c02), wp.max(c03, c12)), wp.max(c13, c23)))
     a = p1 - p0
     b = p2 - p0
     c = p3 - p0
