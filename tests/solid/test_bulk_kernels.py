@@ -271,3 +271,23 @@ def test_quality_summary_by_chunks_equals_the_whole_array(monkeypatch, chunk):
     assert got["radius_edge_max"] == q[:, 2].max() and got["min_volume"] == q[:, 3].min()
     assert got["negative_tets"] == int((q[:, 3] <= 0).sum()) > 1
     assert got["radius_edge_mean"] == pytest.approx(q[:, 2].mean(), rel=1e-12)
+
+
+def test_tet_quality_equals_the_numpy_references():
+    """The kernel's extreme dihedral angles and radius-edge ratio against the numpy
+    functions (every angle computed, then reduced), on random and near-flat tetrahedra."""
+    from warpmesh.solid.dihedral import dihedral_angles, radius_edge_ratio
+
+    rng = np.random.default_rng(8)
+    pts = rng.normal(size=(500, 3))
+    tets = np.argsort(rng.random((4000, 500)), axis=1)[:, :4]
+    pts[499] = 0.5 * (pts[tets[0, 0]] + pts[tets[0, 1]]) + 1e-7  # a near-flat one: angles near 0 and 180
+    tets[0, 2] = 499
+    q = tet_quality(pts, tets)
+    ang = np.degrees(dihedral_angles(pts, tets))
+    # (acos is ill-conditioned near +-1: the near-flat one agrees to 1e-6 degrees only)
+    np.testing.assert_allclose(q[1:, 0], ang[1:].min(axis=1), rtol=0, atol=1e-7)
+    np.testing.assert_allclose(q[1:, 1], ang[1:].max(axis=1), rtol=0, atol=1e-7)
+    np.testing.assert_allclose(q[0, :2], [ang[0].min(), ang[0].max()], rtol=0, atol=1e-6)
+    assert q[0, 0] < 1e-3 or q[0, 1] > 179.0
+    np.testing.assert_allclose(q[:, 2], radius_edge_ratio(pts, tets), rtol=1e-9)
