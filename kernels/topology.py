@@ -2,13 +2,15 @@
 half-edge, fans around every vertex, edge-connected components, face measures and quality.
 
 Half-edge ``h = 3 f + j`` runs from ``faces[h]`` to ``faces[3 f + (j + 1) % 3]``
-(``faces`` flattened, the numbering of :mod:`warpmesh.cells.topology`). The host
-gathers the half-edges leaving each vertex into CSR (``offsets``, ``out_of``) by a
-counting sort, so a half-edge finds its partners among the few half-edges of its two
-end vertices: no sort of the edges. Faces with a repeated vertex are handled on the
-host (these kernels assume three distinct corners). The per-half-edge, per-vertex and
-per-face kernels take ``first`` so the host can split a launch across CPU cores; the
-counting-sort scatter and the union-find run on one thread.
+(``faces`` flattened, the numbering of :mod:`warpmesh.cells.topology`). The host sorts
+the half-edges by their smaller end (:func:`count_keys_kernel`, :func:`scatter_keys_kernel`:
+a counting sort with one count row and one range per CPU worker), so one thread per
+vertex matches the half-edges of its run among themselves: no sort of the edges; the
+half-edges leaving each vertex (``offsets``, ``out_of``) come from the same sort by start
+vertex, for the fans. Faces with a repeated vertex are handled on the host (these
+kernels assume three distinct corners). The per-vertex and per-face kernels take
+``first`` so the host can split a launch across CPU cores; the union-find runs on one
+thread.
 """
 
 import warp as wp
@@ -230,10 +232,11 @@ def cell_extents_kernel(first: int, x: wp.array(dtype=wp.float64), cells: wp.arr
     """A thread takes cell c = first + tid of k corners (``cells[k c : k c + k]``): the
     smallest and largest of the coordinate ``x`` over its corners."""
     c = first + wp.tid()
-    a = x[cells[k * c]]
+    base = wp.int64(k) * wp.int64(c)  # (beyond 2^31 corners)
+    a = x[cells[base]]
     b = a
     for j in range(1, k):
-        v = x[cells[k * c + j]]
+        v = x[cells[base + wp.int64(j)]]
         a = wp.min(a, v)
         b = wp.max(b, v)
     lo[c] = a

@@ -26,3 +26,13 @@ def test_counting_sort_takes_other_integer_dtypes_and_refuses_too_many_keys():
     assert offsets.tolist() == [0, 1, 2, 2, 4] and order.tolist() == [3, 1, 0, 2]
     with pytest.raises(ValueError, match="counting_sort"):
         cs.counting_sort(np.zeros(3, np.int32), 2**31)
+
+
+def test_counting_sort_refuses_keys_out_of_range_or_not_integers():
+    for keys in (np.array([0, 4, 1], np.int32), np.array([-1, 0], np.int64)):
+        with pytest.raises(ValueError, match="'keys' in \\[0, 4\\)"):
+            cs.counting_sort(keys, 4)
+    with pytest.raises(ValueError, match="'keys'"):
+        cs.counting_sort(np.array([0.0, 1.0]), 4)
+    with pytest.raises(ValueError, match="'keys'"):
+        cs.counting_sort(np.zeros((2, 2), np.int32), 4)

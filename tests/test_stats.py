@@ -423,3 +423,18 @@ def test_face_volumes_equal_numpy_and_sum_to_each_groups_volume():
         T.face_volumes(points, faces, centres, labels + 1)
     with pytest.raises(ValueError, match="'faces'"):
         T.face_volumes(pts, tri + len(pts), [0.0, 0.0, 0.0])
+
+
+def test_mesh_topology_of_a_large_fan_takes_the_functions(monkeypatch):
+    """A fan of 6,000 faces about vertex 0 (the smallest index): its run of half-edges would
+    cost 1.4e8 reads on one thread, so the kernels give up (None) and the sorting functions
+    give the figures; the same as the oracle, labels included."""
+    k = 6000
+    ring = np.arange(1, k + 1)
+    fan = np.column_stack([np.zeros(k, int), ring, np.r_[ring[1:], 1]])
+    assert T._matched_half_edges(fan, k + 1) is None
+    got = T.mesh_topology(fan, k + 1, labels=True)
+    labels = got.pop("labels")
+    assert got == oracle_topology(fan) and got["components"] == 1 and not got["watertight"]
+    assert labels.tolist() == [0] * k
+    assert T.connected_components(fan, k + 1)[0] == 1

@@ -371,7 +371,7 @@ class Mesh:
         if len(surface):  # every topological figure from one pass over the half-edges
             t = _topo.mesh_topology(surface, self.n_points, labels=tets)
             if tets:  # the boundary's components, for the overlap check's nested shells
-                self._tet_faces = self._tet_faces._replace(components=(t["components"], t.pop("labels")))
+                self._boundary_components = (t["components"], t.pop("labels"))
             for key in ("watertight", "manifold", "oriented", "euler", "components"):
                 s[key] = t[key]
             if s["watertight"] and s["manifold"] and s["oriented"]:
@@ -409,7 +409,8 @@ class Mesh:
         from warpmesh.cells.intersections import check, find_tet_overlaps
 
         if "tetra" in self._cells and self.dim == 3:  # the faces matched once for this and the topology
-            return find_tet_overlaps(self._points, self._cells["tetra"], faces=self._tet_faces)
+            return find_tet_overlaps(self._points, self._cells["tetra"], faces=self._tet_faces,
+                                     components=self.__dict__.get("_boundary_components"))
         return check(self)
 
     @property

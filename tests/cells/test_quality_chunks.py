@@ -79,3 +79,12 @@ def test_figures_refuse_bad_tetrahedra():
     with pytest.raises(TypeError, match="'tetra'"):
         quality.tetra_figures(pts, tets.astype(float))
     assert quality.tetra_figures(pts, np.zeros((0, 4), int))[0] == 0.0
+
+
+def test_figures_keep_nan_as_the_summary_does():
+    pts, tets = _random_tets(6)
+    pts[tets[3, 0]] = np.nan
+    _, summary = quality.tetra_figures(pts, tets)
+    expect = quality.summarize_quality(quality.tetra_quality(pts, tets))
+    assert np.isnan(summary["worst_q"]) and np.isnan(expect["worst_q"])
+    assert np.isnan(summary["best_q"]) == np.isnan(expect["best_q"])

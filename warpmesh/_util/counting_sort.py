@@ -28,8 +28,8 @@ def counting_sort(keys: np.ndarray, n_keys: int) -> tuple[np.ndarray, np.ndarray
 
     Parameters
     ----------
-    keys : (m,) int32
-        Each item's key, in [0, n_keys) (not checked: the caller's kernels made them).
+    keys : (m,) int
+        Each item's key, in [0, n_keys).
     n_keys : int
 
     Returns
@@ -44,12 +44,17 @@ def counting_sort(keys: np.ndarray, n_keys: int) -> tuple[np.ndarray, np.ndarray
     from warpmesh._util.parallel import cpu_view, parallel_ranges, run_parallel
     from warpmesh.kernels import topology as KT
 
-    keys = np.ascontiguousarray(keys, dtype=np.int32)
+    keys = np.asarray(keys)
     m = len(keys)
     if m >= np.iinfo(np.int32).max or n_keys >= np.iinfo(np.int32).max:
         raise ValueError(f"counting_sort takes fewer than 2^31 - 1 items and keys, got {m} and {n_keys}")
+    if keys.ndim != 1 or not np.issubdtype(keys.dtype, np.integer):
+        raise ValueError(f"expected 'keys' of integers of shape (m,), got {keys.dtype} {keys.shape}")
     if m == 0:
         return np.zeros(n_keys + 1, np.int32), np.zeros(0, np.int32)
+    if int(keys.min()) < 0 or int(keys.max()) >= n_keys:  # (the kernels index by key unchecked)
+        raise ValueError(f"expected 'keys' in [0, {n_keys}), got [{int(keys.min())}, {int(keys.max())}]")
+    keys = np.ascontiguousarray(keys, dtype=np.int32)
     wp.load_module(KT, device="cpu")  # once here, not in the worker threads
     ranges = parallel_ranges(m, "cpu", min_per_worker=1 << 18)
     counts = np.zeros((len(ranges), n_keys), np.int32)

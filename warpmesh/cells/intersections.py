@@ -416,7 +416,8 @@ def check(mesh, *, device: str = "cpu") -> np.ndarray:
 _TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
 
 
-def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | None = None) -> np.ndarray:
+def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | None = None,
+                      components: tuple[int, np.ndarray] | None = None) -> np.ndarray:
     """The pairs of tetrahedra whose interiors overlap, and the tetrahedra that are flat or
     inverted: is a volume mesh embedded?
 
@@ -458,6 +459,11 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | N
     faces : TetFaces, optional
         :func:`tet_faces` of the same ``tetra``, when the caller has it (``Mesh.stats()``
         shares it with the boundary's topology): the faces are not matched again.
+    components : (int, (B,) int), optional
+        The count and per-face labels of the edge-connected components of
+        ``faces.boundary`` (as :func:`~warpmesh.cells.topology.connected_components` or
+        ``mesh_topology(..., labels=True)`` give them), when the caller has them: not
+        labelled again. Only with ``faces``.
 
     Returns
     -------
@@ -492,7 +498,7 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | N
         bad = np.flatnonzero(signs.numpy() <= 0).astype(INDEX_DTYPE)
         pairs = [np.column_stack([bad, bad])]
         if faces is None:
-            faces = _matched_faces(tets, tets32, dev)
+            faces, components = _matched_faces(tets, tets32, dev), None
     once, boundary = faces.once, faces.boundary
     pairs.append(faces.face_pairs)
     crossing = find_self_intersections(pts, boundary, device=device)
@@ -501,7 +507,7 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | N
         scaled = power_of_two_scaled(pts)
         pairs.append(_overlapping_fans(scaled, tets, boundary))
         if not len(pairs[-1]):
-            pairs.append(_nested_shells(scaled, tets, boundary, once // 4, faces.components))
+            pairs.append(_nested_shells(scaled, tets, boundary, once // 4, components))
     out = np.sort(np.concatenate(pairs).astype(INDEX_DTYPE), axis=1)
     return np.unique(out, axis=0) if len(out) else out.reshape(0, 2)
 
@@ -515,16 +521,13 @@ class TetFaces(NamedTuple):
     boundary: np.ndarray
     #: (k, 2) int64 tetrahedra of a face in two with the same orientation, or in three or more
     face_pairs: np.ndarray
-    #: (count, (B,) int64 labels) of the boundary's edge-connected components when already
-    #: known (``Mesh.stats()`` has them from the boundary's topology), else None
-    components: tuple | None = None
 
 
 def tet_faces(points, tetra, *, device: str = "cpu") -> TetFaces:
     """The boundary of a tetrahedral mesh (the faces in exactly one tetrahedron, oriented
     outward) and the tetrahedra whose faces do not pair up as in a conforming, oriented
-    mesh, from one matching of the 4 m faces by their corners (Warp kernels over buckets
-    of faces, or a sort when a fan fills a bucket). What :func:`find_tet_overlaps` starts
+    mesh, from one matching of the 4 m faces by their corners (Warp kernels over the faces
+    sorted by largest corner, or a comparison sort when a fan makes a run too long). What :func:`find_tet_overlaps` starts
     from; ``Mesh.stats()`` reports the boundary's topology from it.
 
     Parameters
@@ -598,6 +601,7 @@ def _tet_face_pairs(tets: np.ndarray, tets32: wp.array, device):
     if n_faces >= _INT32_MAX or n_points >= _INT32_MAX:
         return None
     cpu = wp.get_device("cpu")
+    wp.load_module(K, device=cpu)  # once here, not in the worker threads (a module's load takes no lock)
     if not device.is_cpu:
         tets32 = wp.array(tets.astype(np.int32).reshape(-1), dtype=wp.int32, device=cpu)
     lead = np.empty(n_faces, np.int32)
@@ -768,7 +772,7 @@ def _nested_shells(pts: np.ndarray, tets: np.ndarray, boundary: np.ndarray, owne
     the same at q_c as just inside c. ``pts`` must be scaled
     (:func:`~warpmesh.cells.predicates.power_of_two_scaled`): the signed volumes, ray
     signs and solid angles are products of up to three coordinates. ``components``: the
-    boundary's (count, labels) when the caller has them (:attr:`TetFaces.components`)."""
+    boundary's (count, labels) when the caller has them."""
     from warpmesh.cells.topology import connected_components, face_volumes
 
     if not len(boundary):

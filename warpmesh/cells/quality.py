@@ -187,7 +187,7 @@ def tetra_figures(points, tetra) -> tuple[float, dict]:
         volume6 += float(v6.sum())
         finite = q[np.isfinite(q)]
         total, count = total + float(finite.sum()), count + len(finite)
-        worst, best = max(worst, float(q.max())), min(best, float(q.min()))
+        worst, best = float(np.maximum(worst, q.max())), float(np.minimum(best, q.min()))  # (NaN kept)
     m = len(tet)
     return volume6 / 6.0, {"n_elements": m, "mean_q": total / count if count else float("inf"),
                            "worst_q": worst, "best_q": best, "n_degenerate": m - count}

@@ -295,7 +295,9 @@ def connected_components(
     if m == 0:
         return 0, np.zeros(0, dtype=INDEX_DTYPE)
     if connectivity == "edge" and _kernels_apply(faces, _count(faces, n_points)):
-        return _components_by_kernels(faces, _count(faces, n_points))
+        found = _components_by_kernels(faces, _count(faces, n_points))
+        if found is not None:  # (None: a fan too large for the kernels' runs)
+            return found
     links = unique_edges(faces)[1] if connectivity == "edge" else faces
     k = _count(links, n_points if connectivity == "vertex" else None)
     rows = np.repeat(np.arange(m), 3)  # bipartite graph: faces 0..m-1, then edges/vertices
@@ -506,10 +508,17 @@ def _kernels_apply(faces: np.ndarray, n: int) -> bool:
     return not bool(np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])))
 
 
+#: the half-edge kernels match the runs of each vertex while the scans total at most this
+#: many reads a half-edge (sum of squared run lengths / half-edges); a fan of very many
+#: faces about one vertex exceeds it and the sorting functions take the mesh
+_RUN_READS = 64
+
+
 def _matched_half_edges(faces: np.ndarray, n: int, by_start: bool = True):
     """The half-edges matched by their undirected edge (:func:`mesh_topology`'s first
     pass): (flat corners, CSR offsets and half-edges by start vertex (None without
-    ``by_start``), ``rep``, ``twin``, per-launch tallies) as int32 arrays.
+    ``by_start``), ``rep``, ``twin``, per-launch tallies) as int32 arrays; None when the
+    runs are too long (:data:`_RUN_READS`).
 
     The half-edges are sorted by their smaller end (:func:`~warpmesh._util.counting_sort.counting_sort`,
     split across the cores), and one thread per vertex matches its run by the larger end
@@ -531,6 +540,10 @@ def _matched_half_edges(faces: np.ndarray, n: int, by_start: bool = True):
     dst[:, :2], dst[:, 2] = rows[:, 1:], rows[:, 0]
     dst = dst.ravel()
     lead_offsets, order = counting_sort(np.minimum(flat, dst), n)
+    runs = np.diff(lead_offsets).astype(np.float64)
+    if float(runs @ runs) > _RUN_READS * len(flat):  # a run of length k costs k^2 reads on one thread
+        return None
+    del runs
     other = np.take(np.maximum(flat, dst), order)
     forward = np.take((flat < dst).view(np.int8), order)
     del dst
@@ -547,15 +560,20 @@ def _matched_half_edges(faces: np.ndarray, n: int, by_start: bool = True):
     return flat, offsets, out_of, rep, twin, tallies
 
 
-def _components_by_kernels(faces: np.ndarray, n: int) -> tuple[int, np.ndarray]:
+def _components_by_kernels(faces: np.ndarray, n: int) -> tuple[int, np.ndarray] | None:
     """:func:`connected_components` (edge connectivity) from the matched half-edges: faces
     joined with their edges' representatives by union-find, labelled in order of first
-    appearance (:func:`~warpmesh.kernels.topology.label_faces_kernel`); no sort."""
+    appearance (:func:`~warpmesh.kernels.topology.label_faces_kernel`); no sort. None when
+    the half-edges' runs are too long (:func:`_matched_half_edges`)."""
     import warp as wp
 
     from warpmesh.kernels import topology as KT
 
-    rep = _matched_half_edges(faces, n, by_start=False)[3]
+    matched = _matched_half_edges(faces, n, by_start=False)
+    if matched is None:
+        return None
+    rep = matched[3]
+    del matched
     m = len(faces)
     parent, count = np.arange(m, dtype=np.int32), np.zeros(1, np.int32)
     wp.launch(KT.union_faces_kernel, dim=1, inputs=[_wp(rep)], outputs=[_wp(parent), _wp(count)], device="cpu")
@@ -582,10 +600,11 @@ def _face_labels(parent: np.ndarray) -> tuple[int, np.ndarray]:
 def mesh_topology(faces, n_points: int | None = None, *, labels: bool = False) -> dict:
     """Every topological figure of a triangle mesh from one pass over its half-edges.
 
-    The half-edges are gathered per start vertex by a counting sort; each finds the
-    others of its undirected edge among those of its two end vertices (Warp kernels in
-    :mod:`warpmesh.kernels.topology`), so no sort or ``unique`` over the faces is
-    needed. The figures equal those of :func:`unique_edges`, :func:`is_watertight`,
+    The half-edges are sorted by their smaller end by a counting sort, and one thread per
+    vertex matches the half-edges of its run by their larger end (Warp kernels in
+    :mod:`warpmesh.kernels.topology`), so no comparison sort or ``unique`` over the faces
+    is needed (a mesh where one vertex holds too long a run, a fan of very many faces,
+    takes the functions below instead). The figures equal those of :func:`unique_edges`, :func:`is_watertight`,
     :func:`is_edge_manifold`, :func:`is_vertex_manifold`,
     :func:`is_consistently_oriented`, :func:`euler_characteristic` and
     :func:`connected_components` (edge connectivity), which compute one each; a mesh
@@ -625,15 +644,16 @@ def mesh_topology(faces, n_points: int | None = None, *, labels: bool = False) -
                 "watertight": False, "edge_manifold": True, "manifold": True, "oriented": True, "euler": 0,
                 "components": 0, **({"labels": np.zeros(0, dtype=INDEX_DTYPE)} if labels else {})}
     if not _kernels_apply(faces, n):
-        out = _mesh_topology_by_functions(faces, n)
-        if labels:
-            out["labels"] = connected_components(faces, n)[1]
-        return out
+        return _mesh_topology_by_functions(faces, n, labels)
     import warp as wp
 
     from warpmesh.kernels import topology as KT
 
-    flat, offsets, out_of, rep, twin, tallies = _matched_half_edges(faces, n)
+    matched = _matched_half_edges(faces, n)
+    if matched is None:  # a fan too large for the kernels' runs: the functions (sorts)
+        return _mesh_topology_by_functions(faces, n, labels)
+    flat, offsets, out_of, rep, twin, tallies = matched
+    del matched
     bad = np.empty(n, np.int8)
     _per_item(KT.fan_check_kernel, n, [_wp(flat), _wp(offsets), _wp(out_of), _wp(twin)], [_wp(bad)])
     parent = np.arange(m, dtype=np.int32)
@@ -652,15 +672,20 @@ def mesh_topology(faces, n_points: int | None = None, *, labels: bool = False) -
     return out
 
 
-def _mesh_topology_by_functions(faces: np.ndarray, n: int) -> dict:
-    """:func:`mesh_topology` from the one-figure functions (faces with a repeated vertex)."""
+def _mesh_topology_by_functions(faces: np.ndarray, n: int, labels: bool = False) -> dict:
+    """:func:`mesh_topology` from the one-figure functions (faces with a repeated vertex,
+    or a fan too large for the kernels)."""
     _, _, counts = unique_edges(faces)
     heavy = int(np.count_nonzero(counts > 2))
-    return {"n_vertices": len(sorted_unique(faces)), "n_edges": len(counts),
-            "n_boundary_edges": int(np.count_nonzero(counts == 1)), "n_nonmanifold_edges": heavy,
-            "watertight": bool(np.all(counts == 2)), "edge_manifold": heavy == 0,
-            "manifold": heavy == 0 and is_vertex_manifold(faces, n), "oriented": is_consistently_oriented(faces),
-            "euler": euler_characteristic(None, faces), "components": connected_components(faces)[0]}
+    n_components, face_labels = connected_components(faces, n)
+    out = {"n_vertices": len(sorted_unique(faces)), "n_edges": len(counts),
+           "n_boundary_edges": int(np.count_nonzero(counts == 1)), "n_nonmanifold_edges": heavy,
+           "watertight": bool(np.all(counts == 2)), "edge_manifold": heavy == 0,
+           "manifold": heavy == 0 and is_vertex_manifold(faces, n), "oriented": is_consistently_oriented(faces),
+           "euler": euler_characteristic(None, faces), "components": n_components}
+    if labels:
+        out["labels"] = face_labels
+    return out
 
 
 def surface_measures(points, faces, *, volume: bool = True) -> tuple[float, float | None]:
