@@ -50,8 +50,16 @@ def _solid(corners, label, q, skip):
     return want
 
 
+@pytest.fixture(params=["coverage", "few points"])
+def plan(request, monkeypatch):
+    """Both plans of :func:`rays._plan`: per-point axes by coverage, and (as for a few
+    points against many faces) x for all with each axis's faces found on demand."""
+    monkeypatch.setattr(rays, "_FEW_POINTS", 0 if request.param == "coverage" else 10**9)
+    return request.param
+
+
 @pytest.mark.parametrize("seed", range(3))
-def test_windings_equal_solid_angles_on_nested_overlapping_inside_out_shells(seed):
+def test_windings_equal_solid_angles_on_nested_overlapping_inside_out_shells(seed, plan):
     # icospheres and integer cubes (grid planes: ties), some inside out, overlapping or
     # nested; each point (a face centroid of one shell) against every other shell
     rng = np.random.default_rng(seed)
@@ -68,7 +76,7 @@ def test_windings_equal_solid_angles_on_nested_overlapping_inside_out_shells(see
     assert ties > 0  # the redo path ran
 
 
-def test_every_axis_ties_then_solid_angles():
+def test_every_axis_ties_then_solid_angles(plan):
     # integer cubes, queries on grid points: rays run through edges and vertices of the
     # projected faces. q = (0, 0, 0) is the centre of cube 1, on the diagonals splitting
     # its square faces: its rays along x, y and z all tie, solid angles decide

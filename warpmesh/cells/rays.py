@@ -22,7 +22,9 @@ Pipeline (host numpy):
    the points), the only ones that axis looks at; how many faces' boxes cover each
    point's bucket (a difference array). All points take the axis of least total
    coverage (one pass over the faces), except those covered over twice as much there as
-   along their best axis (shells in a row along x cast their rays along y or z);
+   along their best axis (shells in a row along x cast their rays along y or z). Fewer
+   than one point per 1024 faces: no coverage, every point along x, and the faces of
+   the other axes only if ties call for them;
 1. one pass per axis, candidates from its grid: each face meets only the points in the
    buckets its projected box covers (one run of points, sorted by bucket, per row of
    buckets). Memory: the faces' rows of buckets plus the (face, point) pairs, in passes
@@ -258,36 +260,68 @@ def _band(m, x):
     return m[2][_fine(x, m[0], m[1], len(m[2]))]
 
 
+#: below one query point per this many faces the plan skips the coverage: every point casts
+#: its ray along x first (a few points meet few faces along any axis) and an axis's faces
+#: are found when a round first needs that axis (the graded frog's 721 boundary components
+#: against 6.2 M faces: one axis's pass instead of three)
+_FEW_POINTS = 1024
+
+
 def _plan(lo, hi, pts):
     """The grids of the three axes (band maps from every point, :func:`_bands`), the
     faces of each whose bucket box holds a point (the only ones a pass along it looks
     at), and each point's axis: one for all (one pass over the faces) unless a point's
     bucket is covered by more than twice as many faces' boxes (and over 16) there as
     along its best axis (a row of shells along x casts its rays along y or z). Coverage
-    per bucket by a 2D difference array of the faces' bucket boxes."""
+    per bucket by a 2D difference array of the faces' bucket boxes; with few points
+    (:data:`_FEW_POINTS`) no coverage, x for all, and the faces per axis on demand."""
+    maps = [_bands(pts, (a + 1) % 3, (a + 2) % 3, len(lo)) for a in range(3)]
+    if len(pts) * _FEW_POINTS < len(lo):
+        return np.zeros(len(pts), dtype=INDEX_DTYPE), maps, _Holders(lo, hi, pts, maps)
     cover = np.empty((3, len(pts)), dtype=INDEX_DTYPE)
-    maps, holders = [], []
+    holders = []
     for axis in range(3):
-        i, j = (axis + 1) % 3, (axis + 2) % 3
-        mi, mj = _bands(pts, i, j, len(lo))
-        w = int(mj[2][-1]) + 2
-        size = (int(mi[2][-1]) + 2) * w
-        a0, a1 = _band(mi, lo[:, i]), _band(mi, hi[:, i]) + 1
-        b0, b1 = _band(mj, lo[:, j]), _band(mj, hi[:, j]) + 1
-        corner = [a0 * w + b0, a1 * w + b1, a0 * w + b1, a1 * w + b0]
-        diff = np.bincount(np.concatenate(corner[:2]), minlength=size)
-        diff -= np.bincount(np.concatenate(corner[2:]), minlength=size)
-        pa, pb = _band(mi, pts[:, i]), _band(mj, pts[:, j])
-        cover[axis] = diff.reshape(-1, w).cumsum(axis=0).cumsum(axis=1)[pa, pb]
-        # points in buckets [0, a) x [0, b): the faces' boxes that hold one
-        sat = np.bincount((pa + 1) * w + pb + 1, minlength=size).reshape(-1, w).cumsum(axis=0).cumsum(axis=1).ravel()
-        held = sat[corner[1]] - sat[corner[2]] - sat[corner[3]] + sat[corner[0]]
-        maps.append((mi, mj))
-        holders.append(np.flatnonzero(held > 0))
+        cover[axis], held = _axis_faces(lo, hi, pts, axis, maps[axis], coverage=True)
+        holders.append(held)
     common = int(np.argmin(cover.sum(axis=1)))
     best = np.argmin(cover, axis=0)
     axis = np.where(cover[common] > np.maximum(2 * cover[best, np.arange(len(pts))], 16), best, common)
     return axis, maps, holders
+
+
+def _axis_faces(lo, hi, pts, axis, maps, coverage: bool):
+    """(how many faces' bucket boxes cover each point's bucket, or None without
+    ``coverage``; the faces whose bucket box holds a point) along ``axis``."""
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    mi, mj = maps
+    w = int(mj[2][-1]) + 2
+    size = (int(mi[2][-1]) + 2) * w
+    a0, a1 = _band(mi, lo[:, i]), _band(mi, hi[:, i]) + 1
+    b0, b1 = _band(mj, lo[:, j]), _band(mj, hi[:, j]) + 1
+    corner = [a0 * w + b0, a1 * w + b1, a0 * w + b1, a1 * w + b0]
+    del a0, a1, b0, b1
+    pa, pb = _band(mi, pts[:, i]), _band(mj, pts[:, j])
+    cover = None
+    if coverage:
+        diff = np.bincount(np.concatenate(corner[:2]), minlength=size)
+        diff -= np.bincount(np.concatenate(corner[2:]), minlength=size)
+        cover = diff.reshape(-1, w).cumsum(axis=0).cumsum(axis=1)[pa, pb]
+    # points in buckets [0, a) x [0, b): the faces' boxes that hold one
+    sat = np.bincount((pa + 1) * w + pb + 1, minlength=size).reshape(-1, w).cumsum(axis=0).cumsum(axis=1).ravel()
+    held = sat[corner[1]] - sat[corner[2]] - sat[corner[3]] + sat[corner[0]]
+    return cover, np.flatnonzero(held > 0)
+
+
+class _Holders:
+    """The faces per axis of :func:`_plan`, each axis's found when first asked for."""
+
+    def __init__(self, lo, hi, pts, maps):
+        self._args, self._maps, self._found = (lo, hi, pts), maps, {}
+
+    def __getitem__(self, axis: int) -> np.ndarray:
+        if axis not in self._found:
+            self._found[axis] = _axis_faces(*self._args, axis, self._maps[axis], coverage=False)[1]
+        return self._found[axis]
 
 
 def _crossings(tri, lo, hi, label, faces, pts, inst, skip, only, n_groups, axis, maps, report):
