@@ -74,6 +74,7 @@ from meshio._helpers import reader_map
 from warpmesh.io.convert import GMSH_GEO, GMSH_REF, from_meshio, set_dim, to_meshio
 from warpmesh.io.formats import format_support, meshio_extensions
 from warpmesh.io.gmsh_groups import LABEL_ABOVE, ref_names, restore_refs, uses_groups, write_msh41
+from warpmesh.io.medit import write_medit
 from warpmesh.io.ply import read_ply, write_ply
 from warpmesh.errors import ReadError
 
@@ -283,6 +284,7 @@ _register_format(
     cell_types=("line", "triangle", "quad", "tetra", "pyramid", "wedge", "hexahedron"),
     keeps_2d=True,
     keep_data=_medit_data,
+    write=write_medit,
 )
 _register_format(
     "ply",
