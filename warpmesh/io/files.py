@@ -17,7 +17,8 @@ ext     format   cells                          besides points (precision) and c
                                                 group per label and per interface,
                                                 refs only (:mod:`~warpmesh.io.gmsh_groups`)
 .mesh   medit    line tri quad tetra pyramid    point refs, cell refs (Medit ascii,
-                 wedge hexahedron               17 digits); 2D kept 2D
+                 wedge hexahedron               17 digits; :mod:`warpmesh.io.medit`,
+                                                meshio's bytes, 4x faster); 2D kept 2D
 .ply    ply      triangle quad                  point and cell refs (``ref``), point and
                                                 cell data of one value each, as vertex
                                                 and face properties (binary;
