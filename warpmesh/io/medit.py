@@ -82,7 +82,8 @@ def write_medit(path, data, mesh=None, **kwargs) -> None:
 
 
 def integer_rows(columns: list[np.ndarray]) -> bytes:
-    """The lines ``"%d %d ... %d\\n"`` of equal-length integer columns, by numpy arithmetic.
+    """Equal-length integer columns as text, a row a line and a space between values (as
+    ``%d`` writes them), by numpy arithmetic.
 
     >>> integer_rows([np.array([0, 12, -305]), np.array([7, -1, 4000000000])])
     b'0 7\\n12 -1\\n-305 4000000000\\n'
