@@ -14,7 +14,7 @@ import pytest
 import warpmesh as wm
 from warpmesh._util.atomic import atomic_path, remove_stale, temporary_name
 
-# a save that blocks inside meshio's writer until it is killed: the temporary exists meanwhile
+# a save that blocks inside meshio's writer (.vtk, .obj) until it is killed: the temporary exists meanwhile
 SLOW_SAVE = """
 import sys, time, numpy as np, meshio
 import warpmesh as wm
@@ -37,7 +37,7 @@ def _start_slow_save(path):
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGTERM") or os.name == "nt", reason="POSIX signals")
-@pytest.mark.parametrize("ext", [".vtu", ".obj"])
+@pytest.mark.parametrize("ext", [".vtk", ".obj"])
 def test_sigterm_during_a_save_leaves_nothing(tmp_path, ext):
     path = tmp_path / f"out{ext}"
     proc = _start_slow_save(path)
@@ -48,14 +48,14 @@ def test_sigterm_during_a_save_leaves_nothing(tmp_path, ext):
 
 @pytest.mark.skipif(os.name == "nt", reason="POSIX signals")
 def test_sigkill_leftover_is_removed_by_the_next_save(tmp_path):
-    path = tmp_path / "out.vtu"
+    path = tmp_path / "out.vtk"
     proc = _start_slow_save(path)
     proc.kill()
     proc.wait(timeout=60)
     left = [p for p in tmp_path.iterdir()]
-    assert len(left) == 1 and left[0].name.startswith(".out.vtu.") and left[0].name.endswith(".tmp")
+    assert len(left) == 1 and left[0].name.startswith(".out.vtk.") and left[0].name.endswith(".tmp")
     wm.Mesh(np.eye(3), {"triangle": np.array([[0, 1, 2]])}).save(path)
-    assert [p.name for p in tmp_path.iterdir()] == ["out.vtu"]
+    assert [p.name for p in tmp_path.iterdir()] == ["out.vtk"]
     assert wm.load(path).n_cells == 1
 
 

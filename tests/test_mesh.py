@@ -475,12 +475,12 @@ def test_failing_save_leaves_no_file(surface, tmp_path, monkeypatch):
 
     monkeypatch.setattr(meshio, "write", broken_write)
     with pytest.raises(OSError, match="disk full"):
-        surface.save(tmp_path / "sphere.vtu")
+        surface.save(tmp_path / "sphere.vtk")  # (.vtu: tests/io/test_vtu.py)
     assert not list(tmp_path.iterdir())
 
 
 def test_failing_save_keeps_the_old_file(surface, tmp_path, monkeypatch):
-    path = surface.save(tmp_path / "sphere.vtu")
+    path = surface.save(tmp_path / "sphere.vtk")
     before = path.read_bytes()
     monkeypatch.setattr(meshio, "write", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt()))
     with pytest.raises(KeyboardInterrupt):

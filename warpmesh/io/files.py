@@ -6,7 +6,9 @@ format cannot store is dropped with a ``UserWarning``. What each format keeps:
 ======  =======  =============================  ====================================
 ext     format   cells                          besides points (precision) and cells
 ======  =======  =============================  ====================================
-.vtu    vtu      all but the gmsh-only types    everything (float64)
+.vtu    vtu      all but the gmsh-only types    everything (float64; zlib blocks
+                                                compressed on every core,
+                                                :mod:`warpmesh.io.vtu`)
 .vtk    vtk      all but the gmsh-only types    everything (legacy binary, float64)
 .msh    gmsh     all                            gmsh 2.2 binary: cell refs as
                                                 gmsh:physical (= gmsh:geometrical),
@@ -69,7 +71,7 @@ import numpy as np
 
 from warpmesh._util.atomic import atomic_path
 from warpmesh._conventions import INDEX_DTYPE
-from warpmesh.cells.types import CELL_TYPES, REF_KEY, MeshLike, block_refs, points3
+from warpmesh.cells.types import REF_KEY, MeshLike, block_refs, points3
 from meshio._helpers import reader_map
 
 from warpmesh.io.convert import GMSH_GEO, GMSH_REF, from_meshio, set_dim, to_meshio
@@ -77,6 +79,7 @@ from warpmesh.io.formats import format_support, meshio_extensions
 from warpmesh.io.gmsh_groups import LABEL_ABOVE, ref_names, restore_refs, uses_groups, write_msh41
 from warpmesh.io.medit import write_medit
 from warpmesh.io.ply import read_ply, write_ply
+from warpmesh.io.vtu import VTK_CELL_TYPES, write_vtu
 from warpmesh.errors import ReadError
 
 
@@ -272,9 +275,8 @@ def _tidy_obj(m: meshio.Mesh) -> None:
 
 
 _SURFACE = ("triangle", "quad")
-_GMSH_ONLY = ("line4", "line5", "triangle10", "triangle15", "tetra20", "tetra35")
-_VTK_CELLS = tuple(t for t in CELL_TYPES if t not in _GMSH_ONLY)
-_register_format("vtu", ".vtu", "vtu", write_kwargs={"binary": True}, cell_types=_VTK_CELLS)
+_VTK_CELLS = tuple(VTK_CELL_TYPES)  # all but the gmsh-only types
+_register_format("vtu", ".vtu", "vtu", cell_types=_VTK_CELLS, write=write_vtu)
 _register_format("vtk", ".vtk", "vtk", write_kwargs={"binary": True}, cell_types=_VTK_CELLS)
 _register_format("gmsh", ".msh", "gmsh22", write_kwargs={"binary": True}, keep_data=_gmsh_data,
                  write=_write_gmsh, tidy=restore_refs)

@@ -1,0 +1,163 @@
+"""The parallel .vtu writer: what meshio's reader and VTK's reader get from its files is
+what they get from meshio's own file of the same mesh, for every cell type, any chunking,
+any zlib level; bad input is refused, and a failed write leaves nothing."""
+
+from __future__ import annotations
+
+import meshio
+import numpy as np
+import pytest
+import pyvista as pv
+from meshio._common import num_nodes_per_cell
+from meshio._mesh import topological_dimension
+
+import warpmesh as wm
+from warpmesh.io import vtu
+
+
+# meshio.Mesh cannot hold wedge15 cells (no topological dimension for them)
+MESHIO_TYPES = tuple(t for t in vtu.VTK_CELL_TYPES if t in topological_dimension)
+
+
+def _mesh(rng, n=200, types=MESHIO_TYPES):
+    pts = rng.normal(size=(n, 3)) * rng.choice([1e-7, 1.0, 3e5], (n, 1))
+    cells = [(t, rng.integers(0, n, (int(rng.integers(1, 40)), num_nodes_per_cell[t]))) for t in types]
+    cells.append(("triangle", rng.integers(0, n, (5, 3))))  # a type in two blocks
+    point_data = {"medit:ref": rng.integers(-3, 4, n), "u": rng.normal(size=(n, 3)).astype(np.float32),
+                  "tensor": rng.normal(size=(n, 9)), "flag": rng.integers(0, 2, n).astype(np.uint8)}
+    cell_data = {"medit:ref": [rng.integers(-50, 10**6, len(c)) for _, c in cells],
+                 "q": [rng.normal(size=(len(c), 2)) for _, c in cells]}
+    return meshio.Mesh(pts, cells, point_data=point_data, cell_data=cell_data)
+
+
+def _same_meshio(a: meshio.Mesh, b: meshio.Mesh) -> None:
+    np.testing.assert_array_equal(a.points, b.points)
+    assert [c.type for c in a.cells] == [c.type for c in b.cells]
+    for x, y in zip(a.cells, b.cells):
+        np.testing.assert_array_equal(x.data, y.data)
+    assert a.point_data.keys() == b.point_data.keys() and a.cell_data.keys() == b.cell_data.keys()
+    for k in a.point_data:
+        np.testing.assert_array_equal(a.point_data[k], b.point_data[k])
+        assert a.point_data[k].dtype == b.point_data[k].dtype
+    for k in a.cell_data:
+        for x, y in zip(a.cell_data[k], b.cell_data[k]):
+            np.testing.assert_array_equal(x, y)
+
+
+def _same_vtk(a: pv.UnstructuredGrid, b: pv.UnstructuredGrid) -> None:
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.cell_connectivity, b.cell_connectivity)
+    np.testing.assert_array_equal(a.cell_offsets, b.cell_offsets)
+    np.testing.assert_array_equal(a.celltypes, b.celltypes)
+    for mine, theirs in ((a.point_data, b.point_data), (a.cell_data, b.cell_data)):
+        assert sorted(mine.keys()) == sorted(theirs.keys())
+        for k in mine.keys():
+            np.testing.assert_array_equal(mine[k], theirs[k])
+            assert mine[k].dtype == theirs[k].dtype
+
+
+@pytest.mark.parametrize("case", ["default", "level 0", "level 9", "small chunks"])
+def test_both_readers_get_what_they_get_from_meshios_file(tmp_path, monkeypatch, case):
+    rng = np.random.default_rng(len(case))
+    data = _mesh(rng)
+    level = {"level 0": 0, "level 9": 9}.get(case, 1)
+    if case == "small chunks":  # 64-byte blocks, 3 a chunk: every base64 carry, arrays of one block
+        monkeypatch.setattr(vtu, "BLOCK_BYTES", 64)
+        monkeypatch.setattr(vtu, "CHUNK_BLOCKS", 3)
+        monkeypatch.setattr(vtu, "BLOCKS_PER_TASK", 1)
+    vtu.write_vtu(tmp_path / "fast.vtu", data, level=level)
+    meshio.write(tmp_path / "meshio.vtu", data, binary=True)
+    _same_meshio(meshio.read(tmp_path / "fast.vtu"), meshio.read(tmp_path / "meshio.vtu"))
+    _same_vtk(pv.read(tmp_path / "fast.vtu"), pv.read(tmp_path / "meshio.vtu"))
+
+
+def test_indices_beyond_int32_are_written_as_int64(tmp_path, monkeypatch):
+    data = _mesh(np.random.default_rng(3), types=("tetra", "wedge"))
+    monkeypatch.setattr(vtu, "_INT32_MAX", 50)
+    vtu.write_vtu(tmp_path / "wide.vtu", data)
+    text = (tmp_path / "wide.vtu").read_bytes()
+    assert b'type="Int64" Name="connectivity"' in text and b'type="Int64" Name="offsets"' in text
+    _same_meshio(meshio.read(tmp_path / "wide.vtu"), data)
+    monkeypatch.undo()
+    vtu.write_vtu(tmp_path / "narrow.vtu", data)
+    assert b'type="Int32" Name="connectivity"' in (tmp_path / "narrow.vtu").read_bytes()
+
+
+def test_arrays_of_matrices_are_rows_of_components(tmp_path):
+    data = _mesh(np.random.default_rng(5), types=("tetra",))
+    data.point_data = {"stress": np.random.default_rng(6).normal(size=(len(data.points), 3, 3))}
+    vtu.write_vtu(tmp_path / "m.vtu", data)  # meshio's writer makes a file no reader takes
+    want = data.point_data["stress"].reshape(-1, 9)
+    np.testing.assert_array_equal(meshio.read(tmp_path / "m.vtu").point_data["stress"], want)
+    np.testing.assert_array_equal(pv.read(tmp_path / "m.vtu").point_data["stress"], want)
+
+
+def test_blocks_compressed_on_many_threads_are_zlibs_blocks(monkeypatch):
+    raw = np.random.default_rng(0).integers(0, 7, 3_000_000).astype(np.int32).tobytes()
+    monkeypatch.setattr(vtu, "usable_cores", lambda: 4)
+    sizes, joined = vtu.compress_blocks(memoryview(raw), 1)
+    step = vtu.BLOCK_BYTES
+    want = [vtu.zlib.compress(raw[k:k + step], 1) for k in range(0, len(raw), step)]
+    assert sizes == [len(b) for b in want] and joined == b"".join(want)
+
+
+def test_a_volume_mesh_saved_and_loaded_through_vtu(tmp_path):
+    labels = np.zeros((12, 12, 12), np.uint8)
+    labels[2:10, 2:10, 2:10] = 1
+    labels[5:10, 5:10, 5:10] = 2
+    m = wm.mesh_domain(labels, labels="all", size=2.0)
+    path = m.save(tmp_path / "regions.vtu")
+    assert b'Name="types" format="binary"' in path.read_bytes()
+    back = wm.load(path)
+    np.testing.assert_array_equal(back.points, m.points)
+    for t in m.cells:
+        np.testing.assert_array_equal(back.cells[t], m.cells[t])
+        np.testing.assert_array_equal(back.cell_refs[t], m.cell_refs[t])
+    grid = pv.read(path)  # VTK: positive volumes per region, as warpmesh measures them
+    volumes = grid.compute_cell_sizes(length=False, area=False)["Volume"]
+    tets = grid.celltypes == vtu.VTK_CELL_TYPES["tetra"]
+    assert np.all(volumes[tets] > 0)
+    np.testing.assert_allclose(volumes[tets].sum(), m.stats()["volume"], rtol=1e-9)
+
+
+def test_bad_input_is_refused_naming_it(tmp_path):
+    data = _mesh(np.random.default_rng(1), types=("tetra",))
+    with pytest.raises(ValueError, match="unknown options"):
+        vtu.write_vtu(tmp_path / "a.vtu", data, binary=True)
+    for level in (-1, 10, 1.5, "1"):
+        with pytest.raises(ValueError, match="'level'"):
+            vtu.write_vtu(tmp_path / "a.vtu", data, level=level)
+    flat = meshio.Mesh(data.points[:, :2], data.cells)
+    with pytest.raises(ValueError, match=r"\(n, 3\) float 'points'"):
+        vtu.write_vtu(tmp_path / "a.vtu", flat)
+    quartic = meshio.Mesh(data.points, [("triangle15", np.zeros((1, 15), int))])
+    with pytest.raises(ValueError, match=r"no VTK type for \['triangle15'\]"):
+        vtu.write_vtu(tmp_path / "a.vtu", quartic)
+    flags = meshio.Mesh(data.points, data.cells, point_data={"inside": np.ones(len(data.points), bool)})
+    with pytest.raises(ValueError, match="cannot hold bool data: 'inside'"):
+        vtu.write_vtu(tmp_path / "a.vtu", flags)
+    short = meshio.Mesh(data.points, data.cells)
+    short.point_data = {"u": np.ones(3)}  # (meshio.Mesh refuses it)
+    with pytest.raises(ValueError, match="values in data array 'u'"):
+        vtu.write_vtu(tmp_path / "a.vtu", short)
+    ragged = meshio.Mesh(data.points, data.cells)
+    ragged.cell_data = {"q": []}
+    with pytest.raises(ValueError, match="an array per cell block in cell data 'q'"):
+        vtu.write_vtu(tmp_path / "a.vtu", ragged)
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_failed_write_leaves_nothing_and_keeps_the_old_file(tmp_path, monkeypatch):
+    m = wm.Mesh(np.eye(3), {"triangle": np.array([[0, 1, 2]])})
+    path = m.save(tmp_path / "t.vtu")
+    before = path.read_bytes()
+
+    def full(raw, level):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(vtu, "compress_blocks", full)
+    with pytest.raises(OSError, match="disk full"):
+        m.save(path)
+    with pytest.raises(OSError, match="disk full"):
+        m.save(tmp_path / "new.vtu")
+    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == [path.name]
