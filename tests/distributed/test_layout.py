@@ -66,14 +66,14 @@ def test_more_bricks_than_blocks_is_refused():
 
 
 def test_pieces_read_back_by_meshio_and_pyvista(tmp_path):
-    """write_piece's own VTU writer: triangles with refs and tetrahedra, several zlib blocks
-    (1 MB each) and Int32 connectivity, read back equal by both readers; the .pvtu too."""
+    """write_piece (warpmesh.io.vtu's writer): triangles with refs and tetrahedra, many zlib
+    blocks and Int32 connectivity, read back equal by both readers; the .pvtu too."""
     meshio = pytest.importorskip("meshio")
     pv = pytest.importorskip("pyvista")
     from warpmesh.distributed.output import write_piece, write_pvtu
 
     rng = np.random.default_rng(5)
-    points = rng.random((60_000, 3)) * 1e3 - 500.0  # 1.4 MB of Float64: two blocks
+    points = rng.random((60_000, 3)) * 1e3 - 500.0  # 1.4 MB of Float64: 44 blocks
     for k, vtk in ((3, 5), (4, 10)):
         cells = rng.integers(0, len(points), (50_000, k))
         keys = rng.integers(0, 2**62, len(points))

@@ -161,3 +161,113 @@ def test_a_failed_write_leaves_nothing_and_keeps_the_old_file(tmp_path, monkeypa
     with pytest.raises(OSError, match="disk full"):
         m.save(tmp_path / "new.vtu")
     assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == [path.name]
+
+
+# ----------------------------------------------------------------------------- reading
+def _same_read(path) -> meshio.Mesh:
+    """read_vtu's mesh of the file equals meshio's reader's, array for array and dtype for dtype."""
+    mine, theirs = vtu.read_vtu(path), meshio.read(path)
+    _same_meshio(mine, theirs)
+    for k in theirs.point_data:
+        assert mine.point_data[k].shape == theirs.point_data[k].shape
+    for k in theirs.cell_data:
+        assert [x.shape for x in mine.cell_data[k]] == [x.shape for x in theirs.cell_data[k]]
+    return mine
+
+
+VTK_WRITERS = ["vtk binary zlib", "vtk binary none", "vtk appended zlib", "vtk appended none", "vtk base64 zlib",
+               "vtk base64 none", "vtk ascii none", "vtk appended zlib UInt64", "vtk binary none UInt64"]
+
+
+@pytest.mark.parametrize("writer", ["warpmesh", "warpmesh small blocks", "meshio zlib", "meshio raw",
+                                    "meshio ascii", *VTK_WRITERS])
+def test_read_vtu_gets_meshios_mesh_from_every_writer(tmp_path, monkeypatch, writer):
+    rng = np.random.default_rng(len(writer))
+    types = MESHIO_TYPES if writer.startswith(("warpmesh", "meshio")) else ("tetra", "triangle", "wedge", "quad")
+    data = _mesh(rng, types=types)
+    path = tmp_path / "m.vtu"
+    if writer.startswith("warpmesh"):
+        if writer.endswith("small blocks"):
+            monkeypatch.setattr(vtu, "BLOCK_BYTES", 48)
+            monkeypatch.setattr(vtu, "BLOCKS_PER_TASK", 2)
+        vtu.write_vtu(path, data)
+        monkeypatch.undo()
+    elif writer.startswith("meshio"):
+        kw = {"meshio zlib": {}, "meshio raw": {"compression": None}, "meshio ascii": {"binary": False}}[writer]
+        meshio.write(path, data, file_format="vtu", **kw)
+    else:  # VTK's own writer, through pyvista
+        grid = pv.UnstructuredGrid({vtu.VTK_CELL_TYPES[c.type]: c.data[:, vtu.VTK_ORDER[c.type]]
+                                    if c.type in vtu.VTK_ORDER else c.data for c in data.cells[:-1]}, data.points)
+        grid.point_data["u"] = data.point_data["u"]
+        grid.point_data["flag"] = data.point_data["flag"]
+        grid.cell_data["q"] = rng.normal(size=grid.n_cells)
+        _vtk_write(grid, path, *writer.split()[1:])
+    back = _same_read(path)
+    assert sum(len(c.data) for c in back.cells) >= len(types)
+
+
+def _vtk_write(grid, path, mode: str, compressor: str, header: str = "UInt32") -> None:
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridWriter
+
+    w = vtkXMLUnstructuredGridWriter()
+    w.SetFileName(str(path))
+    w.SetInputData(grid)
+    {"binary": w.SetDataModeToBinary, "ascii": w.SetDataModeToAscii}.get(mode, w.SetDataModeToAppended)()
+    w.SetEncodeAppendedData(mode == "base64")
+    w.SetCompressorTypeToZLib() if compressor == "zlib" else w.SetCompressorTypeToNone()
+    w.SetHeaderTypeToUInt64() if header == "UInt64" else w.SetHeaderTypeToUInt32()
+    assert w.Write() == 1
+    text = path.read_bytes()
+    assert (b'format="appended"' in text) == (mode in ("appended", "base64"))
+    assert (b'encoding="raw"' in text) == (mode == "appended") and (b"vtkZLib" in text) == (compressor == "zlib")
+
+
+def test_read_vtu_joins_pieces_as_vtk_does(tmp_path):
+    """(meshio's reader keeps only the last piece's cells: VTK is the reference here.)"""
+    rng = np.random.default_rng(9)
+    first, second = tmp_path / "a.vtu", tmp_path / "b.vtu"
+    vtu.write_vtu(first, _mesh(rng, types=("tetra", "triangle")))
+    vtu.write_vtu(second, _mesh(rng, n=50, types=("quad", "tetra")))
+    a, b = first.read_bytes(), second.read_bytes()
+    piece = b[b.index(b"<Piece"):b.index(b"</UnstructuredGrid>")]
+    (tmp_path / "two.vtu").write_bytes(a.replace(b"</UnstructuredGrid>", piece + b"</UnstructuredGrid>"))
+    back, grid = vtu.read_vtu(tmp_path / "two.vtu"), pv.read(tmp_path / "two.vtu")
+    assert len(back.points) == 250 and back.cells[-1].data.max() >= 200
+    np.testing.assert_array_equal(back.points, grid.points)
+    np.testing.assert_array_equal(np.concatenate([c.data.ravel() for c in back.cells]), grid.cell_connectivity)
+    np.testing.assert_array_equal(np.concatenate([np.full(len(c.data), vtu.VTK_CELL_TYPES[c.type]) for c in back.cells]),
+                                  grid.celltypes)
+    for k in ("medit:ref", "u", "tensor", "flag"):
+        np.testing.assert_array_equal(back.point_data[k], grid.point_data[k])
+    for k in ("medit:ref", "q"):
+        np.testing.assert_array_equal(np.concatenate(back.cell_data[k]), grid.cell_data[k])
+
+
+def test_read_vtu_refuses_cut_and_corrupt_files_naming_them(tmp_path):
+    path = tmp_path / "m.vtu"
+    vtu.write_vtu(path, _mesh(np.random.default_rng(2), types=("tetra",)))
+    whole = path.read_bytes()
+    for cut in np.linspace(0.05, 0.98, 30):
+        (tmp_path / "cut.vtu").write_bytes(whole[:int(len(whole) * cut)])
+        with pytest.raises(wm.ReadError, match=r"could not read '.*cut\.vtu' as vtu"):
+            vtu.read_vtu(tmp_path / "cut.vtu")
+    at = whole.index(b'Name="connectivity"') + 200  # a byte of the compressed blocks changed
+    (tmp_path / "bad.vtu").write_bytes(whole[:at] + (b"A" if whole[at:at + 1] != b"A" else b"B") + whole[at + 1:])
+    with pytest.raises(wm.ReadError, match="bad.vtu"):
+        vtu.read_vtu(tmp_path / "bad.vtu")
+    (tmp_path / "image.vtu").write_bytes(whole.replace(b'type="UnstructuredGrid"', b'type="ImageData"', 1))
+    with pytest.raises(wm.ReadError, match="UnstructuredGrid"):
+        vtu.read_vtu(tmp_path / "image.vtu")
+
+
+def test_other_compressors_and_polyhedra_go_to_meshios_reader(tmp_path, monkeypatch):
+    data = _mesh(np.random.default_rng(4), types=("tetra",))
+    meshio.write(tmp_path / "lzma.vtu", data, compression="lzma")
+    calls = []
+    real = vtu.meshio_vtu.read
+    monkeypatch.setattr(vtu.meshio_vtu, "read", lambda p: calls.append(p) or real(p))
+    _same_meshio(vtu.read_vtu(tmp_path / "lzma.vtu"), real(tmp_path / "lzma.vtu"))
+    grid = pv.UnstructuredGrid({7: np.array([[0, 1, 2, 3, 4]])}, np.random.default_rng(0).random((5, 3)))
+    grid.save(tmp_path / "polygon.vtu")
+    assert vtu.read_vtu(tmp_path / "polygon.vtu").cells[0].type == "polygon"
+    assert len(calls) == 2

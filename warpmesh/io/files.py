@@ -6,9 +6,9 @@ format cannot store is dropped with a ``UserWarning``. What each format keeps:
 ======  =======  =============================  ====================================
 ext     format   cells                          besides points (precision) and cells
 ======  =======  =============================  ====================================
-.vtu    vtu      all but the gmsh-only types    everything (float64; zlib blocks
-                                                compressed on every core,
-                                                :mod:`warpmesh.io.vtu`)
+.vtu    vtu      all but the gmsh-only types    everything (float64; read and
+                                                written by :mod:`warpmesh.io.vtu`,
+                                                zlib blocks on every core)
 .vtk    vtk      all but the gmsh-only types    everything (legacy binary, float64)
 .msh    gmsh     all                            gmsh 2.2 binary: cell refs as
                                                 gmsh:physical (= gmsh:geometrical),
@@ -79,7 +79,7 @@ from warpmesh.io.formats import format_support, meshio_extensions
 from warpmesh.io.gmsh_groups import LABEL_ABOVE, ref_names, restore_refs, uses_groups, write_msh41
 from warpmesh.io.medit import write_medit
 from warpmesh.io.ply import read_ply, write_ply
-from warpmesh.io.vtu import VTK_CELL_TYPES, write_vtu
+from warpmesh.io.vtu import VTK_CELL_TYPES, read_vtu, write_vtu
 from warpmesh.errors import ReadError
 
 
@@ -276,7 +276,7 @@ def _tidy_obj(m: meshio.Mesh) -> None:
 
 _SURFACE = ("triangle", "quad")
 _VTK_CELLS = tuple(VTK_CELL_TYPES)  # all but the gmsh-only types
-_register_format("vtu", ".vtu", "vtu", cell_types=_VTK_CELLS, write=write_vtu)
+_register_format("vtu", ".vtu", "vtu", cell_types=_VTK_CELLS, write=write_vtu, read=read_vtu)
 _register_format("vtk", ".vtk", "vtk", write_kwargs={"binary": True}, cell_types=_VTK_CELLS)
 _register_format("gmsh", ".msh", "gmsh22", write_kwargs={"binary": True}, keep_data=_gmsh_data,
                  write=_write_gmsh, tidy=restore_refs)
