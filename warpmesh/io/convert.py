@@ -76,18 +76,20 @@ def set_dim(points: np.ndarray, dim) -> np.ndarray:
     return points
 
 
+def _joined(parts: list[np.ndarray]) -> np.ndarray:
+    """The parts concatenated; a single part as it is (no copy of a large block)."""
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
 def _from_parts(mesh_type, points, blocks, point_data, cell_data, dim, info) -> MeshLike:
     """Build a ``mesh_type`` from blocks that may repeat a type; pull the refs out of the
     data arrays."""
     points = set_dim(np.asarray(points, dtype=REAL_DTYPE), dim)
     names = list(dict.fromkeys(t for t, _ in blocks))
-    cells = {t: np.concatenate([np.asarray(c) for u, c in blocks if u == t]) for t in names}
+    cells = {t: _joined([np.asarray(c) for u, c in blocks if u == t]) for t in names}
     point_data = {k: _native(v) for k, v in point_data.items()}
     cell_data = {
-        k: {
-            t: np.concatenate([_native(a) for (u, _), a in zip(blocks, v, strict=True) if u == t])
-            for t in names
-        }
+        k: {t: _joined([_native(a) for (u, _), a in zip(blocks, v, strict=True) if u == t]) for t in names}
         for k, v in cell_data.items()
     }
     point_refs = point_data.pop(REF_KEY, None)

@@ -19,8 +19,9 @@ ext     format   cells                          besides points (precision) and c
                                                 group per label and per interface,
                                                 refs only (:mod:`~warpmesh.io.gmsh_groups`)
 .mesh   medit    line tri quad tetra pyramid    point refs, cell refs (Medit ascii,
-                 wedge hexahedron               17 digits; :mod:`warpmesh.io.medit`,
-                                                meshio's bytes, 4x faster); 2D kept 2D
+                 wedge hexahedron               17 digits; :mod:`warpmesh.io.medit`:
+                                                meshio's bytes, 4x faster, read with a
+                                                kernel); 2D kept 2D
 .ply    ply      triangle quad                  point and cell refs (``ref``), point and
                                                 cell data of one value each, as vertex
                                                 and face properties (binary;
@@ -77,7 +78,7 @@ from meshio._helpers import reader_map
 from warpmesh.io.convert import GMSH_GEO, GMSH_REF, from_meshio, set_dim, to_meshio
 from warpmesh.io.formats import format_support, meshio_extensions
 from warpmesh.io.gmsh_groups import LABEL_ABOVE, ref_names, restore_refs, uses_groups, write_msh41
-from warpmesh.io.medit import write_medit
+from warpmesh.io.medit import read_medit, write_medit
 from warpmesh.io.ply import read_ply, write_ply
 from warpmesh.io.vtu import VTK_CELL_TYPES, read_vtu, write_vtu
 from warpmesh.errors import ReadError
@@ -288,6 +289,7 @@ _register_format(
     keeps_2d=True,
     keep_data=_medit_data,
     write=write_medit,
+    read=read_medit,
 )
 _register_format(
     "ply",
