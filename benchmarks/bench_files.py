@@ -1,4 +1,5 @@
-"""``.vtu`` files written and read by warpmesh, meshio and VTK, the same mesh in one run.
+"""``.vtu`` and Medit ``.mesh`` files written and read by warpmesh, meshio and VTK, the same
+mesh in one run.
 
 Writers: warpmesh (``Mesh.save``: :mod:`warpmesh.io.vtu`, zlib level 1 on every core,
 inline base64), meshio (``meshio.write``, zlib at its default level, inline base64) and
@@ -6,9 +7,12 @@ VTK (``vtkXMLUnstructuredGridWriter``, appended raw data with zlib: ParaView's d
 layout). Readers: warpmesh (``wm.load``: :func:`warpmesh.io.vtu.read_vtu`, then the Mesh),
 meshio (``meshio.read``) and VTK (``pyvista.read``), each on each file. Every row is the
 median of ``--repeat`` runs after one untimed run; the ratio is tool / warpmesh (> 1:
-warpmesh faster). Each file read back is checked equal to the mesh written.
+warpmesh faster). Each file read back is checked equal to the mesh written. Medit
+(``--formats vtu,mesh``): warpmesh (:mod:`warpmesh.io.medit`: meshio's bytes by numpy digit
+arithmetic; read with the integer rows parsed by a Warp kernel) against meshio.
 
-Run:  python benchmarks/bench_files.py [--resolution 512] [--repeat 3] [--frog] [--json out.json]
+Run:  python benchmarks/bench_files.py [--resolution 512] [--repeat 3] [--frog] [--formats vtu,mesh]
+      [--json out.json]
 ``--frog`` uses the graded frog of ``bench_regions.py`` (all labels, 4 voxels: 4.4 M points,
 12.7 M tetrahedra, 7.7 M triangles; about 45 s to make) instead of the part's surface;
 meshio reads VTK's appended file of it in about 5 minutes, so that row is run once.
@@ -43,6 +47,27 @@ def make_mesh(resolution: int, frog: bool):
         return "frog, all labels, 4 voxels", wm.mesh_domain(image, labels="all", size=4.0 * min(image.spacing))
     shape, bounds = wm.example("part")
     return f"part surface at {resolution}", wm.mesh_surface(shape, bounds=bounds, resolution=resolution)
+
+
+def medit_writers(mesh, refs):
+    import meshio
+
+    def by_warpmesh(path):
+        mesh.save(path)
+
+    def by_meshio(path):
+        meshio.write(path, meshio.Mesh(mesh.points, list(mesh.cells.items()), cell_data={"medit:ref": refs}),
+                     file_format="medit")
+
+    return {"warpmesh": by_warpmesh, "meshio": by_meshio}
+
+
+def medit_readers():
+    import meshio
+
+    import warpmesh as wm
+
+    return {"warpmesh": lambda p: wm.load(p), "meshio": lambda p: meshio.read(p, file_format="medit")}
 
 
 def writers(mesh, refs):
@@ -102,6 +127,7 @@ def main(argv=None) -> int:
     ap.add_argument("--resolution", type=int, default=512)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--frog", action="store_true")
+    ap.add_argument("--formats", default="vtu,mesh", help="comma-separated: vtu, mesh")
     ap.add_argument("--default-malloc", action="store_true", help="glibc's default allocator setting")
     ap.add_argument("--json")
     args = ap.parse_args(argv)
@@ -112,29 +138,34 @@ def main(argv=None) -> int:
             for t, c in mesh.cells.items()]
     print(f"{name}: {mesh.n_points} points, " + ", ".join(f"{len(c)} {t}" for t, c in mesh.cells.items()))
     rows = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        files = {}
-        for tool, write in writers(mesh, refs).items():
-            path = os.path.join(tmp, f"{tool}.vtu")
-            wall, cpu, _ = median_run(lambda: write(path), args.repeat)
-            files[tool] = path
-            rows[f"write {tool}"] = {"wall_s": wall, "cpu_s": cpu, "mb": os.path.getsize(path) / 1e6}
-        for writer, path in files.items():
-            for tool, read in readers().items():
-                slow = args.frog and tool == "meshio" and writer == "VTK"
-                if slow:  # minutes: one run
-                    w0, c0 = time.perf_counter(), time.process_time()
-                    back = read(path)
-                    wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-                else:
-                    wall, cpu, back = median_run(lambda: read(path), args.repeat)
-                check(tool, back, mesh)
-                rows[f"read {writer}'s file, {tool}"] = {"wall_s": wall, "cpu_s": cpu}
-                del back
+    kinds = {"vtu": (writers, readers), "mesh": (medit_writers, medit_readers)}
+    for ext in args.formats.split(","):
+        if ext not in kinds:
+            raise SystemExit(f"unknown format {ext!r} in --formats: pick from {sorted(kinds)}")
+        make_writers, make_readers = kinds[ext]
+        with tempfile.TemporaryDirectory() as tmp:
+            files = {}
+            for tool, write in make_writers(mesh, refs).items():
+                path = os.path.join(tmp, f"{tool}.{ext}")
+                wall, cpu, _ = median_run(lambda: write(path), args.repeat)
+                files[tool] = path
+                rows[f"{ext}: write {tool}"] = {"wall_s": wall, "cpu_s": cpu, "mb": os.path.getsize(path) / 1e6}
+            for writer, path in files.items():
+                for tool, read in make_readers().items():
+                    if args.frog and tool == "meshio" and writer == "VTK":  # minutes: one run
+                        w0, c0 = time.perf_counter(), time.process_time()
+                        back = read(path)
+                        wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+                    else:
+                        wall, cpu, back = median_run(lambda: read(path), args.repeat)
+                    check(tool, back, mesh)
+                    rows[f"{ext}: read {writer}'s file, {tool}"] = {"wall_s": wall, "cpu_s": cpu}
+                    del back
     for key, r in rows.items():
-        base = rows[(key.rsplit(",", 1)[0] + ", warpmesh") if key.startswith("read") else "write warpmesh"]["wall_s"]
+        ext = key.split(":")[0]
+        base = rows[(key.rsplit(",", 1)[0] + ", warpmesh") if ": read" in key else f"{ext}: write warpmesh"]["wall_s"]
         size = f", {r['mb']:.0f} MB" if "mb" in r else ""
-        print(f"{key:34s} {r['wall_s']:8.2f} s (CPU {r['cpu_s']:.2f} s){size}  {r['wall_s'] / base:6.2f}x warpmesh's")
+        print(f"{key:40s} {r['wall_s']:8.2f} s (CPU {r['cpu_s']:.2f} s){size}  {r['wall_s'] / base:6.2f}x warpmesh's")
     finish(t_start, load0, args.json, {"mesh": name, "rows": rows})
     return 0
 
