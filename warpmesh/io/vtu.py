@@ -372,14 +372,17 @@ def _read(raw: bytes) -> meshio.Mesh:
             values = reader.read(a, m)
             cell_data.setdefault(a[b"Name"].decode(), []).extend(values[lo:hi] for lo, hi in zip(runs[:-1], runs[1:]))
         blocks += piece_blocks
+    fields = {a[b"Name"].decode(): reader.read(a) for a in root.get(b"fields", [])
+              if a.get(b"type", b"").decode() in _NUMPY_DTYPES}  # (not VTK's String arrays)
     return meshio.Mesh(np.concatenate(points), blocks,
                        point_data={k: np.concatenate(v) for k, v in point_data.items() if len(v) == len(pieces)},
-                       cell_data={k: v for k, v in cell_data.items() if len(v) == len(blocks)})
+                       cell_data={k: v for k, v in cell_data.items() if len(v) == len(blocks)}, field_data=fields)
 
 
 def _skeleton(raw: bytes) -> tuple[dict, list[dict]]:
     """The file's tags without the arrays' text: the VTKFile attributes (with
-    ``b"appended"``: where the appended bytes begin and their encoding) and, per piece, its
+    ``b"appended"``: where the appended bytes begin and their encoding; ``b"fields"``: the
+    grid's FieldData arrays) and, per piece, its
     attributes and its DataArrays' attributes (with ``b"text"``: the span of their inline
     text) under each of :data:`_SECTIONS`."""
     root: dict | None = None
@@ -391,19 +394,21 @@ def _skeleton(raw: bytes) -> tuple[dict, list[dict]]:
         at = match.end()
         values = dict(_ATTRIBUTE.findall(attrs))
         if closing:
-            section = None if name in _SECTIONS else section
+            section = None if name in _SECTIONS or name == b"FieldData" else section
         elif name == b"VTKFile":
             root = values
         elif name == b"Piece":
             pieces.append({**values, **{s: [] for s in _SECTIONS}})
-        elif name in _SECTIONS and not empty:
+        elif (name in _SECTIONS or name == b"FieldData") and not empty:
             section = name
         elif name == b"DataArray":
             if not empty:  # its text, up to the end tag or VTK's InformationKey elements
                 end = raw.index(b"</DataArray>", at)
                 values[b"text"] = (at, raw.index(b"<", at))
                 at = end + len(b"</DataArray>")
-            if section is not None and pieces:
+            if section == b"FieldData" and root is not None and not pieces:  # the grid's own
+                root.setdefault(b"fields", []).append(values)
+            elif section in _SECTIONS and pieces:
                 pieces[-1][section].append(values)
         elif name == b"AppendedData":  # the rest is data: raw bytes after an underscore
             if root is None:
