@@ -26,6 +26,7 @@ import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh.cells.types import CELL_TYPES, REF_KEY, MeshLike, block_refs, points3, require_mesh
+from warpmesh.io.vtu import VTK_CELL_TYPES
 
 
 __all__ = [
@@ -46,7 +47,7 @@ _VTK_LAGRANGE = {
 }
 #: types whose VTK id numbers the nodes differently from meshio: no pyvista conversion
 _VTK_ORDER_DIFFERS = ("tetra20", "tetra35")
-_VTK_TO_NAME = {vtk: name for name, (_, _, vtk) in CELL_TYPES.items() if vtk not in _VTK_LAGRANGE}
+_VTK_TO_NAME = {vtk: name for name, vtk in VTK_CELL_TYPES.items()}
 #: VTK pixel/voxel -> quad/hexahedron node order. Other types share VTK's order: meshio's
 #: wedge permutation (0 2 1 3 5 4, used by its vtu/vtk files) gives negative cell sizes in
 #: VTK 9.x (pyvista compute_cell_sizes), so pyvista conversions keep wedges as they are.

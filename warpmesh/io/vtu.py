@@ -60,8 +60,9 @@ _LAGRANGE = (68, 69, 71)
 #: meshio cell types with a VTK type of their own, and its id (the higher-order curves,
 #: triangles and tetrahedra that are VTK Lagrange cells are refused, as meshio does)
 VTK_CELL_TYPES = MappingProxyType({t: vtk for t, (_, _, vtk) in CELL_TYPES.items() if vtk not in _LAGRANGE})
-#: corners reordered for VTK, as meshio's reader expects them (its wedge lists the
-#: first triangle the other way round)
+#: corners reordered as meshio's vtu files have them, so meshio's reader gets its wedges
+#: back (VTK then measures those wedges negative: :mod:`warpmesh.io.convert` keeps wedges
+#: as they are for pyvista)
 VTK_ORDER = {"wedge": np.array([0, 2, 1, 3, 5, 4])}
 #: uncompressed bytes per zlib block (meshio's and VTK's default)
 BLOCK_BYTES = 1 << 15
@@ -301,6 +302,9 @@ def _each_block(n_blocks: int, work_on: Callable[[int], None]) -> None:
 _NUMPY_DTYPES = {n: t for t, n in _VTK_DTYPES.items()}
 #: meshio cell type of each VTK id read
 _MESHIO_TYPES = {vtk: t for t, vtk in VTK_CELL_TYPES.items()}
+#: corners of each VTK cell type read here by id (0: a type left to meshio's reader)
+_CORNERS = np.zeros(256, dtype=np.int64)
+_CORNERS[list(_MESHIO_TYPES)] = [CELL_TYPES[name][0] for name in _MESHIO_TYPES.values()]
 _SECTIONS = (b"Points", b"Cells", b"PointData", b"CellData")
 _TAG = re.compile(rb"<(/?)([A-Za-z]+)([^>]*?)(/?)>")
 _ATTRIBUTE = re.compile(rb'([A-Za-z_:]+)\s*=\s*"([^"]*)"')
@@ -436,7 +440,7 @@ class _ArrayReader:
         if fmt in (b"ascii", b"binary"):
             a, b = attrs[b"text"]
             text = self.raw[a:b]
-            values = np.array(text.split(), dtype=dtype) if fmt == b"ascii" else self._binary(text.strip(), dtype)
+            values = np.array(text.split(), dtype=dtype) if fmt == b"ascii" else self._base64(text.strip(), 0, dtype)
         elif fmt == b"appended":
             if self.appended is None:
                 raise ValueError("an appended DataArray without AppendedData")
@@ -450,10 +454,6 @@ class _ArrayReader:
             raise ValueError(f"{values.size} values in {attrs.get(b'Name', b'Points').decode()!r}, "
                              f"expected {'some' if rows is None else rows} rows of {components}")
         return values.reshape(-1, components) if given else values  # (meshio's shapes)
-
-    def _binary(self, text: bytes, dtype: np.dtype) -> np.ndarray:
-        """Inline base64 text."""
-        return self._base64(text, 0, dtype)
 
     def _appended(self, start: int, encoding: bytes, dtype: np.dtype) -> np.ndarray:
         """An appended array: raw bytes or base64 text from ``start``."""
@@ -536,9 +536,7 @@ def _blocks(cells: dict, m: int, n: int, base: int) -> list[tuple[str, np.ndarra
     if len(offsets) != m or len(types) != m:
         raise ValueError(f"expected {m} cell offsets and types, got {len(offsets)} and {len(types)}")
     types = types.astype(np.int64)
-    corners = np.zeros(256, dtype=np.int64)  # 0: a type read by meshio
-    for vtk, name in _MESHIO_TYPES.items():
-        corners[vtk] = CELL_TYPES[name][0]
+    corners = _CORNERS
     if types.min() < 0 or types.max() > 255 or not corners[types].all():
         raise _Unsupported("cell types")
     ends = offsets.astype(np.int64)
