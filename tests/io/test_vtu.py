@@ -1,6 +1,7 @@
 """The parallel .vtu writer: what meshio's reader and VTK's reader get from its files is
-what they get from meshio's own file of the same mesh, for every cell type, any chunking,
-any zlib level; bad input is refused, and a failed write leaves nothing."""
+what they get from meshio's own file of the same mesh (wedges as VTK measures them
+positive, which meshio's writer reverses), for every cell type, any chunking, any zlib
+level; bad input is refused, and a failed write leaves nothing."""
 
 from __future__ import annotations
 
@@ -28,6 +29,19 @@ def _mesh(rng, n=200, types=MESHIO_TYPES):
     cell_data = {"medit:ref": [rng.integers(-50, 10**6, len(c)) for _, c in cells],
                  "q": [rng.normal(size=(len(c), 2)) for _, c in cells]}
     return meshio.Mesh(pts, cells, point_data=point_data, cell_data=cell_data)
+
+
+def _meshio_write(path, data: meshio.Mesh, **kwargs) -> None:
+    """meshio's file of ``data`` with the wedges as ``data`` holds them (its writer reverses
+    them: given them reversed, it writes them back as they were)."""
+    copy = meshio.Mesh(data.points, [(b.type, b.data) for b in data.cells], point_data=data.point_data,
+                       cell_data=data.cell_data)
+    meshio.write(path, vtu.meshio_wedges(copy), file_format="vtu", **kwargs)
+
+
+def _meshio_read(path) -> meshio.Mesh:
+    """meshio's reader (not meshio.read, which exits on failure), wedges as the file holds them."""
+    return vtu.meshio_wedges(vtu.meshio_vtu.read(str(path)))
 
 
 def _same_meshio(a: meshio.Mesh, b: meshio.Mesh) -> None:
@@ -66,8 +80,8 @@ def test_both_readers_get_what_they_get_from_meshios_file(tmp_path, monkeypatch,
         monkeypatch.setattr(vtu, "CHUNK_BLOCKS", 3)
         monkeypatch.setattr(vtu, "BLOCKS_PER_TASK", 1)
     vtu.write_vtu(tmp_path / "fast.vtu", data, level=level)
-    meshio.write(tmp_path / "meshio.vtu", data, binary=True)
-    _same_meshio(meshio.read(tmp_path / "fast.vtu"), meshio.read(tmp_path / "meshio.vtu"))
+    _meshio_write(tmp_path / "meshio.vtu", data, binary=True)
+    _same_meshio(_meshio_read(tmp_path / "fast.vtu"), _meshio_read(tmp_path / "meshio.vtu"))
     _same_vtk(pv.read(tmp_path / "fast.vtu"), pv.read(tmp_path / "meshio.vtu"))
 
 
@@ -77,7 +91,8 @@ def test_indices_beyond_int32_are_written_as_int64(tmp_path, monkeypatch):
     vtu.write_vtu(tmp_path / "wide.vtu", data)
     text = (tmp_path / "wide.vtu").read_bytes()
     assert b'type="Int64" Name="connectivity"' in text and b'type="Int64" Name="offsets"' in text
-    _same_meshio(meshio.read(tmp_path / "wide.vtu"), data)
+    _same_meshio(_meshio_read(tmp_path / "wide.vtu"), data)
+    _same_meshio(vtu.read_vtu(tmp_path / "wide.vtu"), data)
     monkeypatch.undo()
     vtu.write_vtu(tmp_path / "narrow.vtu", data)
     assert b'type="Int32" Name="connectivity"' in (tmp_path / "narrow.vtu").read_bytes()
@@ -118,6 +133,51 @@ def test_a_volume_mesh_saved_and_loaded_through_vtu(tmp_path):
     tets = grid.celltypes == vtu.VTK_CELL_TYPES["tetra"]
     assert np.all(volumes[tets] > 0)
     np.testing.assert_allclose(volumes[tets].sum(), m.stats()["volume"], rtol=1e-9)
+
+
+def _prisms() -> wm.Mesh:
+    """Two layers of wedges over a triangulated 3 x 3 square, each wedge's first triangle
+    counter-clockwise seen from its second (warpmesh's, meshio's and gmsh's orientation)."""
+    k = 4
+    xy = np.stack(np.meshgrid(np.arange(k), np.arange(k), indexing="ij"), -1).reshape(-1, 2) * 0.5
+    pts = np.concatenate([np.column_stack([xy, np.full(len(xy), z)]) for z in (0.0, 0.3, 0.7)])
+    i, j = np.meshgrid(np.arange(k - 1), np.arange(k - 1), indexing="ij")
+    a = (i * k + j).ravel()
+    tris = np.concatenate([np.stack([a, a + k, a + k + 1], 1), np.stack([a, a + k + 1, a + 1], 1)])
+    n = len(xy)
+    wedges = np.concatenate([np.hstack([tris + layer * n, tris + (layer + 1) * n]) for layer in (0, 1)])
+    return wm.Mesh(pts, {"wedge": wedges})
+
+
+@pytest.mark.parametrize("ext", [".vtu", ".vtk"])
+def test_wedges_are_saved_as_vtk_measures_them_positive(tmp_path, ext):
+    """VTK 9 takes the wedge whose first triangle turns counter-clockwise seen from the
+    second as valid (its cell validator, Jacobian and cell sizes); meshio's writers reverse
+    each wedge, which VTK then measures negative and calls misoriented."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkFiltersGeneral import vtkCellValidator
+
+    def vtk_view(path):
+        grid = pv.read(path)
+        check = vtkCellValidator()
+        check.SetInputData(grid)
+        check.Update()
+        states = vtk_to_numpy(check.GetOutput().GetCellData().GetArray("ValidityState"))
+        return grid.compute_cell_sizes(length=False, area=False)["Volume"], states
+
+    m = _prisms()
+    assert m.stats()["volume"] == pytest.approx(1.5 * 1.5 * 0.7)
+    path = m.save(tmp_path / f"prisms{ext}")
+    volumes, states = vtk_view(path)
+    assert np.all(volumes > 0) and not states.any()
+    assert volumes.sum() == pytest.approx(1.5 * 1.5 * 0.7)
+    back = wm.load(path)
+    np.testing.assert_array_equal(back.cells["wedge"], m.cells["wedge"])
+    meshios = tmp_path / f"meshio{ext}"  # the reason for the above: meshio's own file of the mesh
+    meshio.write(meshios, m.to_meshio(), file_format=ext[1:])
+    volumes, states = vtk_view(meshios)
+    assert np.all(volumes < 0) and np.all(states == 32)  # vtkCellValidator: faces oriented incorrectly
+    np.testing.assert_array_equal(wm.load(meshios).cells["wedge"], m.cells["wedge"][:, vtu.MESHIO_WEDGE_ORDER])
 
 
 def test_bad_input_is_refused_naming_it(tmp_path):
@@ -165,8 +225,9 @@ def test_a_failed_write_leaves_nothing_and_keeps_the_old_file(tmp_path, monkeypa
 
 # ----------------------------------------------------------------------------- reading
 def _same_read(path) -> meshio.Mesh:
-    """read_vtu's mesh of the file equals meshio's reader's, array for array and dtype for dtype."""
-    mine, theirs = vtu.read_vtu(path), meshio.read(path)
+    """read_vtu's mesh of the file equals meshio's reader's, array for array and dtype for
+    dtype, but for the wedges, which meshio's reader reverses."""
+    mine, theirs = vtu.read_vtu(path), _meshio_read(path)
     _same_meshio(mine, theirs)
     assert mine.field_data.keys() == theirs.field_data.keys()
     for k in theirs.field_data:
@@ -197,10 +258,9 @@ def test_read_vtu_gets_meshios_mesh_from_every_writer(tmp_path, monkeypatch, wri
         monkeypatch.undo()
     elif writer.startswith("meshio"):
         kw = {"meshio zlib": {}, "meshio raw": {"compression": None}, "meshio ascii": {"binary": False}}[writer]
-        meshio.write(path, data, file_format="vtu", **kw)
+        _meshio_write(path, data, **kw)
     else:  # VTK's own writer, through pyvista
-        grid = pv.UnstructuredGrid({vtu.VTK_CELL_TYPES[c.type]: c.data[:, vtu.VTK_ORDER[c.type]]
-                                    if c.type in vtu.VTK_ORDER else c.data for c in data.cells[:-1]}, data.points)
+        grid = pv.UnstructuredGrid({vtu.VTK_CELL_TYPES[c.type]: c.data for c in data.cells[:-1]}, data.points)
         grid.point_data["u"] = data.point_data["u"]
         grid.point_data["flag"] = data.point_data["flag"]
         grid.cell_data["q"] = rng.normal(size=grid.n_cells)
@@ -266,12 +326,16 @@ def test_read_vtu_refuses_cut_and_corrupt_files_naming_them(tmp_path):
 
 
 def test_other_compressors_and_polyhedra_go_to_meshios_reader(tmp_path, monkeypatch):
-    data = _mesh(np.random.default_rng(4), types=("tetra",))
-    meshio.write(tmp_path / "lzma.vtu", data, compression="lzma")
+    data = _mesh(np.random.default_rng(4), types=("tetra", "wedge"))
+    _meshio_write(tmp_path / "lzma.vtu", data, compression="lzma")
     calls = []
     real = vtu.meshio_vtu.read
     monkeypatch.setattr(vtu.meshio_vtu, "read", lambda p: calls.append(p) or real(p))
-    _same_meshio(vtu.read_vtu(tmp_path / "lzma.vtu"), real(tmp_path / "lzma.vtu"))
+    back = vtu.read_vtu(tmp_path / "lzma.vtu")  # the wedges as the file holds them, as from the fast path
+    _same_meshio(back, vtu.meshio_wedges(real(tmp_path / "lzma.vtu")))
+    assert [b.type for b in back.cells] == [b.type for b in data.cells]
+    for mine, given in zip(back.cells, data.cells):
+        np.testing.assert_array_equal(mine.data, given.data)
     grid = pv.UnstructuredGrid({7: np.array([[0, 1, 2, 3, 4]])}, np.random.default_rng(0).random((5, 3)))
     grid.save(tmp_path / "polygon.vtu")
     assert vtu.read_vtu(tmp_path / "polygon.vtu").cells[0].type == "polygon"

@@ -48,9 +48,8 @@ _VTK_LAGRANGE = {
 #: types whose VTK id numbers the nodes differently from meshio: no pyvista conversion
 _VTK_ORDER_DIFFERS = ("tetra20", "tetra35")
 _VTK_TO_NAME = {vtk: name for name, vtk in VTK_CELL_TYPES.items()}
-#: VTK pixel/voxel -> quad/hexahedron node order. Other types share VTK's order: meshio's
-#: wedge permutation (0 2 1 3 5 4, used by its vtu/vtk files) gives negative cell sizes in
-#: VTK 9.x (pyvista compute_cell_sizes), so pyvista conversions keep wedges as they are.
+#: VTK pixel/voxel -> quad/hexahedron node order. Other types share VTK's order, wedges too:
+#: VTK 9 measures warpmesh's wedges positive (meshio's VTK files reverse them: io.vtu).
 _VTK_EXTRA = {8: ("quad", [0, 1, 3, 2]), 11: ("hexahedron", [0, 1, 3, 2, 4, 5, 7, 6])}
 _POLY_TYPES = ("vertex", "line", "triangle", "quad")  # what a pyvista PolyData holds
 

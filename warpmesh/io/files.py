@@ -37,7 +37,9 @@ SU2, XDMF, MED, Exodus, Netgen ``.vol``, OFF, Permas, Tecplot, TetGen ``.node``/
 (:mod:`warpmesh.io.formats`): its cell types, its cell refs when they come back, no
 other data (dropped with a warning). :func:`file_formats` lists every extension that
 works here; XDMF, MED, CGNS and HMF need h5py and Exodus netCDF4 (the ``[formats]``
-extra). Legacy ``.vtk`` files meshio cannot parse (64-bit ids) are read by VTK.
+extra). Legacy ``.vtk`` files meshio cannot parse (64-bit ids) are read by VTK. Wedges
+in ``.vtu`` and ``.vtk`` files keep their corners both ways, the orientation VTK measures
+positive (meshio's own VTK writers and readers reverse them: :mod:`warpmesh.io.vtu`).
 
 The gmsh-only types are line4, line5, triangle10, triangle15, tetra20 and tetra35: meshio's
 vtu/vtk writers have no VTK type for them. Every format but Medit stores 3D points; 2D
@@ -80,7 +82,7 @@ from warpmesh.io.formats import format_support, meshio_extensions
 from warpmesh.io.gmsh_groups import LABEL_ABOVE, ref_names, restore_refs, uses_groups, write_msh41
 from warpmesh.io.medit import read_medit, write_medit
 from warpmesh.io.ply import read_ply, write_ply
-from warpmesh.io.vtu import VTK_CELL_TYPES, read_vtu, write_vtu
+from warpmesh.io.vtu import VTK_CELL_TYPES, meshio_wedges, read_vtu, write_vtu
 from warpmesh.errors import ReadError
 
 
@@ -239,6 +241,12 @@ def _write_gmsh(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
     meshio.write(path, data, file_format="gmsh22", **kwargs)
 
 
+def _write_vtk(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
+    # meshio's writer reverses each wedge (io.vtu's module docstring): reversed first, the
+    # file holds them as VTK measures them positive
+    meshio.write(path, meshio_wedges(data), file_format="vtk", **kwargs)
+
+
 def _write_ply(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
     write_ply(path, data, **kwargs)
 
@@ -278,7 +286,8 @@ def _tidy_obj(m: meshio.Mesh) -> None:
 _SURFACE = ("triangle", "quad")
 _VTK_CELLS = tuple(VTK_CELL_TYPES)  # all but the gmsh-only types
 _register_format("vtu", ".vtu", "vtu", cell_types=_VTK_CELLS, write=write_vtu, read=read_vtu)
-_register_format("vtk", ".vtk", "vtk", write_kwargs={"binary": True}, cell_types=_VTK_CELLS)
+_register_format("vtk", ".vtk", "vtk", write_kwargs={"binary": True}, cell_types=_VTK_CELLS, write=_write_vtk,
+                 tidy=meshio_wedges)
 _register_format("gmsh", ".msh", "gmsh22", write_kwargs={"binary": True}, keep_data=_gmsh_data,
                  write=_write_gmsh, tidy=restore_refs)
 _register_format(

@@ -8,8 +8,17 @@ warpmesh's meshes); connectivity and offsets are Int32 when the counts allow, ce
 types UInt8 (VTK's own choice), and the values are made, compressed and written a chunk
 of 8 MiB at a time, with no XML tree: the frog's file is 274 MB against meshio's 277 MB.
 The layout is meshio's (inline base64 ``binary`` DataArrays, header and blocks encoded
-separately, wedges in VTK's corner order), so meshio's reader and VTK's both read it
-(``tests/io/test_vtu.py`` reads every cell type back through both).
+separately), so meshio's reader and VTK's both read it (``tests/io/test_vtu.py`` reads
+every cell type back through both).
+
+Wedges keep their corners in both directions, as VTK reads them: VTK 9's cell validator,
+Jacobian and cell sizes take a wedge whose first triangle turns counter-clockwise seen
+from the second (gmsh's prism, meshio's and warpmesh's wedge) as valid and positive, and
+call the other orientation "faces oriented incorrectly". meshio's ``.vtu`` and ``.vtk``
+readers and writers reverse both triangles of every wedge (:func:`meshio_wedges`), after
+VTK's documentation, so a file from meshio holds wedges VTK measures negative, and
+meshio's reader hands back this module's wedges reversed (``tests/io/test_vtu.py``
+checks both with VTK).
 
 Reading (:func:`read_vtu`): the tags are found by a regular expression that skips each
 array's text, the arrays decoded and their blocks decompressed by one thread per core.
@@ -52,7 +61,8 @@ from warpmesh._util.parallel import run_parallel, usable_cores
 from warpmesh.cells.types import CELL_TYPES
 from warpmesh.errors import ReadError
 
-__all__ = ["read_vtu", "write_vtu", "write_grid", "compress_blocks", "VTK_CELL_TYPES"]
+__all__ = ["read_vtu", "write_vtu", "write_grid", "compress_blocks", "meshio_wedges", "VTK_CELL_TYPES",
+           "MESHIO_WEDGE_ORDER"]
 
 #: VTK's Lagrange curve, triangle and tetrahedron ids
 _LAGRANGE = (68, 69, 71)
@@ -60,10 +70,8 @@ _LAGRANGE = (68, 69, 71)
 #: meshio cell types with a VTK type of their own, and its id (the higher-order curves,
 #: triangles and tetrahedra that are VTK Lagrange cells are refused, as meshio does)
 VTK_CELL_TYPES = MappingProxyType({t: vtk for t, (_, _, vtk) in CELL_TYPES.items() if vtk not in _LAGRANGE})
-#: corners reordered as meshio's vtu files have them, so meshio's reader gets its wedges
-#: back (VTK then measures those wedges negative: :mod:`warpmesh.io.convert` keeps wedges
-#: as they are for pyvista)
-VTK_ORDER = {"wedge": np.array([0, 2, 1, 3, 5, 4])}
+#: the corner permutation meshio's VTK readers and writers apply to each wedge (its own inverse)
+MESHIO_WEDGE_ORDER = np.array([0, 2, 1, 3, 5, 4])
 #: uncompressed bytes per zlib block (meshio's and VTK's default)
 BLOCK_BYTES = 1 << 15
 #: blocks made and compressed at a time (a buffer of 8 MiB)
@@ -216,8 +224,7 @@ def _cell_streams(blocks: list, n_points: int) -> tuple[_Stream, _Stream, _Strea
     connectivity, offsets, types = [], [], []
     at = 0
     for (name, cells), size in zip(blocks, corners):
-        order = VTK_ORDER.get(name)
-        connectivity.append((size, _flat_getter(cells if order is None else cells[:, order])))
+        connectivity.append((size, _flat_getter(cells)))
         offsets.append((len(cells), partial(_ends, at, cells.shape[1])))
         types.append((len(cells), partial(_repeated, VTK_CELL_TYPES[name])))
         at += size
@@ -297,6 +304,25 @@ def _each_block(n_blocks: int, work_on: Callable[[int], None]) -> None:
     run_parallel([work] * max(1, min(usable_cores(), -(-n_blocks // BLOCKS_PER_TASK))))
 
 
+def meshio_wedges(data: meshio.Mesh) -> meshio.Mesh:
+    """``data`` with each wedge's corners as meshio's VTK readers and writers turn them
+    (:data:`MESHIO_WEDGE_ORDER`, its own inverse): applied to what meshio's reader returns,
+    the wedges as the file holds them (and VTK reads them); applied before meshio's writer,
+    a file with the wedges as ``data`` holds them. The wedge blocks get new arrays (the old
+    ones are not written to); ``data`` itself is returned.
+
+    Examples
+    --------
+    >>> m = meshio.Mesh(np.eye(6, 3), [("wedge", np.array([[0, 1, 2, 3, 4, 5]]))])
+    >>> meshio_wedges(m).cells[0].data.tolist()
+    [[0, 2, 1, 3, 5, 4]]
+    """
+    for block in data.cells:
+        if block.type == "wedge":
+            block.data = block.data[:, MESHIO_WEDGE_ORDER]
+    return data
+
+
 # ----------------------------------------------------------------------------- reading
 #: numpy dtype of each DataArray type
 _NUMPY_DTYPES = {n: t for t, n in _VTK_DTYPES.items()}
@@ -343,7 +369,7 @@ def read_vtu(path) -> meshio.Mesh:
     try:
         return _read(raw)
     except _Unsupported:
-        return meshio_vtu.read(str(path))
+        return meshio_wedges(meshio_vtu.read(str(path)))
     except (ValueError, KeyError, IndexError, zlib.error, binascii.Error) as exc:
         raise ReadError(f"could not read {str(path)!r} as vtu: {type(exc).__name__}: {exc}") from exc
 
@@ -551,6 +577,5 @@ def _blocks(cells: dict, m: int, n: int, base: int) -> list[tuple[str, np.ndarra
         name = _MESHIO_TYPES[int(types[lo])]
         block = connectivity[starts[lo]:ends[hi - 1]].reshape(-1, corners[types[lo]]).astype(np.int64)
         block += base
-        order = VTK_ORDER.get(name)
-        out.append((name, block if order is None else block[:, order]))
+        out.append((name, block))
     return out
