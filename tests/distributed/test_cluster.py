@@ -218,6 +218,16 @@ def test_partitioned_output_streams_pieces_and_a_pvtu(client, tmp_path):
     # the pieces' global grid-edge keys weld them to the gathered mesh's vertices
     assert len(np.unique(grid.point_data["grid_edge_key"])) == gathered.n_points
     assert not list(tmp_path.glob(".*tmp"))  # nothing half-written
+    loaded = wm.load(result.path)  # welded by the keys the .pvtu declares as global ids: the gathered mesh
+    assert (loaded.n_points, loaded.n_cells) == (gathered.n_points, gathered.n_cells)
+    np.testing.assert_array_equal(np.unique(loaded.points, axis=0), np.unique(gathered.points, axis=0))
+    faces = lambda m: np.unique(np.sort(m.points[m.triangles].reshape(-1, 9), axis=1), axis=0)  # noqa: E731
+    np.testing.assert_array_equal(faces(loaded), faces(gathered))
+    # the pieces' "ref" (1 where the gathered mesh, whose triangles are all surface, keeps none)
+    want = np.ones(gathered.n_cells, int) if gathered.cell_refs is None else gathered.cell_refs["triangle"]
+    np.testing.assert_array_equal(np.sort(loaded.cell_refs["triangle"]), np.sort(want))
+    stats = loaded.stats()
+    assert stats["watertight"] and stats["oriented"] and stats["self_intersections"] == 0
 
 
 def test_nan_in_a_brick_fails_naming_the_brick_and_its_box(client):

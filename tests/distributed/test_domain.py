@@ -121,6 +121,10 @@ def test_partitioned_output_writes_tet_pieces_and_a_pvtu(client, tmp_path):
     assert len(np.unique(keys)) == single.n_points
     assert np.isclose(grid.volume, single.stats()["volume"], rtol=1e-9)
     assert not list(tmp_path.glob(".*tmp"))
+    loaded = wm.load(result.path)  # welded by the lattice keys: the single-process tetrahedra
+    assert loaded.n_points == single.n_points and len(loaded.cells["tetra"]) == len(single.cells["tetra"])
+    np.testing.assert_array_equal(np.unique(loaded.points, axis=0), np.unique(single.points, axis=0))
+    assert np.isclose(loaded.stats()["volume"], single.stats()["volume"], rtol=1e-9)
 
 
 def test_what_is_not_bricked_is_refused_naming_it(client, tmp_path):

@@ -5,10 +5,11 @@ a temporary file renamed, so a worker killed while writing leaves nothing half-w
 the retried brick writes it again); the ``.pvtu`` is rewritten (atomically too) as bricks
 finish, so a reader sees the pieces done so far. Every piece carries the point array
 ``grid_edge_key``: the vertex's grid-edge key ``node * 8 + type`` in the whole grid, a
-global vertex id that needs no coordination, equal in the pieces on both sides of a seam
-(so any reader can weld them, as :func:`warpmesh.distributed.seams.weld` does); triangle
-refs go into the cell array ``ref``. The directory must be visible to every worker (a
-shared file system on a real cluster).
+global vertex id that needs no coordination, equal in the pieces on both sides of a seam,
+declared as the points' VTK global ids (``GlobalIds``), so any reader can weld them, as
+:func:`warpmesh.distributed.seams.weld` does and ``wm.load("name.pvtu")``
+(:mod:`warpmesh.io.pvtu`); triangle refs go into the cell array ``ref``. The directory
+must be visible to every worker (a shared file system on a real cluster).
 
 Example
 -------
@@ -29,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from warpmesh.io.pvtu import pvtu_text
 from warpmesh.io.vtu import write_grid
 
 KEY_ARRAY = "grid_edge_key"
@@ -66,7 +68,8 @@ def write_piece(path, points, faces, refs, keys, key: str = KEY_ARRAY) -> Path:
     cell_type = {3: "triangle", 4: "tetra"}[k]
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
     try:
-        write_grid(tmp, np.asarray(points, dtype=np.float64), [(cell_type, faces)], point_data, cell_data)
+        write_grid(tmp, np.asarray(points, dtype=np.float64), [(cell_type, faces)], point_data, cell_data,
+                   global_ids=key)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
@@ -74,17 +77,10 @@ def write_piece(path, points, faces, refs, keys, key: str = KEY_ARRAY) -> Path:
 
 
 def write_pvtu(path, pieces: list[str], refs: bool, key: str = KEY_ARRAY) -> Path:
-    """The ``.pvtu`` listing ``pieces`` (file names relative to it), written atomically."""
+    """The ``.pvtu`` listing ``pieces`` (file names relative to it), written atomically;
+    ``key`` declared as the points' global ids (``wm.load`` welds the pieces by it)."""
     path = Path(path)
-    cell = f'    <PCellData>\n      <PDataArray type="Int64" Name="{REF_ARRAY}"/>\n    </PCellData>\n' if refs else ""
-    text = ('<?xml version="1.0"?>\n'
-            '<VTKFile type="PUnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n'
-            '  <PUnstructuredGrid GhostLevel="0">\n'
-            f'    <PPointData>\n      <PDataArray type="Int64" Name="{key}"/>\n    </PPointData>\n'
-            f'{cell}'
-            '    <PPoints>\n      <PDataArray type="Float64" NumberOfComponents="3"/>\n    </PPoints>\n'
-            + "".join(f'    <Piece Source="{name}"/>\n' for name in pieces) +
-            '  </PUnstructuredGrid>\n</VTKFile>\n')
+    text = pvtu_text(pieces, [(key, "Int64", 1)], [(REF_ARRAY, "Int64", 1)] if refs else [], global_ids=key)
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
     try:
         tmp.write_text(text)

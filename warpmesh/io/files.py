@@ -9,6 +9,10 @@ ext     format   cells                          besides points (precision) and c
 .vtu    vtu      all but the gmsh-only types    everything (float64; read and
                                                 written by :mod:`warpmesh.io.vtu`,
                                                 zlib blocks on every core)
+.pvtu   pvtu     all but the gmsh-only types    everything: one piece ``<stem>_0.vtu``
+                                                beside it; read: every piece, points
+                                                of one global id welded (a bricked
+                                                run's output; :mod:`warpmesh.io.pvtu`)
 .vtk    vtk      all but the gmsh-only types    everything (legacy binary, float64)
 .msh    gmsh     all                            gmsh 2.2 binary: cell refs as
                                                 gmsh:physical (= gmsh:geometrical),
@@ -82,6 +86,7 @@ from warpmesh.io.formats import format_support, meshio_extensions
 from warpmesh.io.gmsh_groups import LABEL_ABOVE, ref_names, restore_refs, uses_groups, write_msh41
 from warpmesh.io.medit import read_medit, write_medit
 from warpmesh.io.ply import read_ply, write_ply
+from warpmesh.io.pvtu import read_pvtu, write_pvtu
 from warpmesh.io.vtu import VTK_CELL_TYPES, meshio_wedges, read_vtu, write_vtu
 from warpmesh.errors import ReadError
 
@@ -125,7 +130,7 @@ _FORMATS: dict[str, _Format] = {}  # name -> format, in registration order
 _EXTENSIONS: dict[str, str] = {}
 #: file extension -> format name, as chosen by :func:`save` and :func:`load`
 FILE_FORMATS: Mapping[str, str] = MappingProxyType(_EXTENSIONS)
-FileFormat = Literal["vtu", "vtk", "gmsh", "medit", "ply", "obj", "stl"]
+FileFormat = Literal["vtu", "pvtu", "vtk", "gmsh", "medit", "ply", "obj", "stl"]
 
 
 def _register_format(name: str, ext: str, meshio_name: str, **options) -> None:
@@ -278,6 +283,12 @@ def _refs_back(name: str | None) -> Callable[[meshio.Mesh], None]:
     return tidy
 
 
+def _tidy_pvtu(m: meshio.Mesh) -> None:
+    # a bricked run's pieces name their refs "ref" (warpmesh.distributed.output)
+    if REF_KEY not in m.cell_data and "ref" in m.cell_data:
+        m.cell_data[REF_KEY] = m.cell_data.pop("ref")
+
+
 def _tidy_obj(m: meshio.Mesh) -> None:
     if all(np.all(g == -1) for g in m.cell_data.get("obj:group_ids", [])):
         m.cell_data.pop("obj:group_ids", None)  # meshio's "no group"
@@ -286,6 +297,8 @@ def _tidy_obj(m: meshio.Mesh) -> None:
 _SURFACE = ("triangle", "quad")
 _VTK_CELLS = tuple(VTK_CELL_TYPES)  # all but the gmsh-only types
 _register_format("vtu", ".vtu", "vtu", cell_types=_VTK_CELLS, write=write_vtu, read=read_vtu)
+_register_format("pvtu", ".pvtu", "vtu", cell_types=_VTK_CELLS, write=write_pvtu, read=read_pvtu, folder=True,
+                 tidy=_tidy_pvtu)
 _register_format("vtk", ".vtk", "vtk", write_kwargs={"binary": True}, cell_types=_VTK_CELLS, write=_write_vtk,
                  tidy=meshio_wedges)
 _register_format("gmsh", ".msh", "gmsh22", write_kwargs={"binary": True}, keep_data=_gmsh_data,
@@ -361,7 +374,7 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
                          f"mesh ({mesh.n_points} points, {mesh.n_cells} cells): mesh files cannot hold it")
     data = _meshio_for(mesh, fmt, stacklevel + 1)
     if fmt.folder:
-        _write_in_folder(data, path, fmt)
+        _write_in_folder(data, mesh, path, fmt)
         return path
     with atomic_path(path) as tmp:
         if fmt.write is not None:
@@ -371,12 +384,15 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
     return path
 
 
-def _write_in_folder(data: meshio.Mesh, path: Path, fmt: _Format) -> None:
+def _write_in_folder(data: meshio.Mesh, mesh: MeshLike, path: Path, fmt: _Format) -> None:
     """Write with the final name inside a temporary folder next to ``path`` (side files,
     such as XDMF's .h5 or TetGen's .ele, keep the names the main file refers to), then
     move every file out, the main file last; on failure nothing is left."""
     with atomic_path(path, kind="tmpdir") as tmp:
-        meshio.write(tmp / path.name, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
+        if fmt.write is not None:
+            fmt.write(tmp / path.name, data, mesh, **fmt.write_kwargs)
+        else:
+            meshio.write(tmp / path.name, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
 
 
 def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path:
@@ -391,7 +407,7 @@ def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path
     ----------
     mesh : Mesh
     path : str or os.PathLike
-    file_format : {'vtu', 'vtk', 'gmsh', 'medit', 'ply', 'obj', 'stl'}, optional
+    file_format : {'vtu', 'pvtu', 'vtk', 'gmsh', 'medit', 'ply', 'obj', 'stl'}, optional
         Default: from the extension (:data:`FILE_FORMATS`).
 
     Returns
@@ -426,7 +442,7 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     mesh_type : type
         The class to build, :class:`~warpmesh.mesh.Mesh` (``warpmesh.load`` and
         ``Mesh.load`` pass it: this module sits below ``mesh.py``).
-    file_format : {'vtu', 'vtk', 'gmsh', 'medit', 'ply', 'obj', 'stl'}, optional
+    file_format : {'vtu', 'pvtu', 'vtk', 'gmsh', 'medit', 'ply', 'obj', 'stl'}, optional
         Default: from the extension.
     dim : {None, 2, 3}
         ``2`` drops a zero z column (formats other than Medit store 3D points).

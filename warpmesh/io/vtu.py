@@ -62,7 +62,7 @@ from warpmesh.cells.types import CELL_TYPES
 from warpmesh.errors import ReadError
 
 __all__ = ["read_vtu", "write_vtu", "write_grid", "compress_blocks", "meshio_wedges", "VTK_CELL_TYPES",
-           "MESHIO_WEDGE_ORDER"]
+           "MESHIO_WEDGE_ORDER", "VTK_DTYPES"]
 
 #: VTK's Lagrange curve, triangle and tetrahedron ids
 _LAGRANGE = (68, 69, 71)
@@ -83,6 +83,8 @@ _VTK_DTYPES = {np.dtype(t): n for t, n in (
     (np.int8, "Int8"), (np.int16, "Int16"), (np.int32, "Int32"), (np.int64, "Int64"),
     (np.uint8, "UInt8"), (np.uint16, "UInt16"), (np.uint32, "UInt32"), (np.uint64, "UInt64"),
     (np.float32, "Float32"), (np.float64, "Float64"))}
+#: VTK's DataArray type name of each numpy dtype it holds (native byte order)
+VTK_DTYPES = MappingProxyType(_VTK_DTYPES)
 _INT32_MAX = np.iinfo(np.int32).max
 
 
@@ -102,7 +104,8 @@ def write_vtu(path, data, mesh=None, *, level: int = 1, **kwargs) -> None:
                level=level)
 
 
-def write_grid(path, points, blocks, point_data=None, cell_data=None, *, level: int = 1) -> None:
+def write_grid(path, points, blocks, point_data=None, cell_data=None, *, level: int = 1,
+               global_ids: str | None = None) -> None:
     """Write an unstructured grid as a zlib-compressed ``.vtu`` file.
 
     Parameters
@@ -118,11 +121,14 @@ def write_grid(path, points, blocks, point_data=None, cell_data=None, *, level: 
         An array per block, per name; the file holds them concatenated.
     level : int, default 1
         zlib's compression level, 1 (fastest) to 9 (smallest); 0 stores the blocks.
+    global_ids : str, optional
+        The point data array VTK takes as the points' global ids (``<PointData
+        GlobalIds=...>``: pieces of one mesh name a point shared by two of them alike).
 
     Raises
     ------
     ValueError
-        A level outside 0..9, points that are not (n, 3) floats, a cell type VTK has no id
+        A global_ids name that is no point data array, a level outside 0..9, points that are not (n, 3) floats, a cell type VTK has no id
         for, or a data array of a type VTK files cannot hold (bool, complex, strings) or of
         the wrong length. Nothing is written then.
 
@@ -148,6 +154,8 @@ def write_grid(path, points, blocks, point_data=None, cell_data=None, *, level: 
         raise ValueError(f".vtu files have no VTK type for {unknown} cells")
     n_cells = sum(len(c) for _, c in blocks)
     point_arrays = [(name, [_values(name, v, n_points)]) for name, v in (point_data or {}).items()]
+    if global_ids is not None and global_ids not in (point_data or {}):
+        raise ValueError(f"expected the name of a point data array for 'global_ids', got {global_ids!r}")
     cell_arrays = []
     for name, per_block in (cell_data or {}).items():
         if len(per_block) != len(blocks):
@@ -165,9 +173,10 @@ def write_grid(path, points, blocks, point_data=None, cell_data=None, *, level: 
         for name, stream in zip(("connectivity", "offsets", "types"), _cell_streams(blocks, n_points)):
             _write_array(f, name, stream, level)
         f.write(b"</Cells>\n")
-        for tag, arrays in (("PointData", point_arrays), ("CellData", cell_arrays)):
+        ids = "" if global_ids is None else f" GlobalIds={quoteattr(global_ids)}"
+        for tag, arrays, attributes in (("PointData", point_arrays, ids), ("CellData", cell_arrays, "")):
             if arrays:
-                f.write(f"<{tag}>\n".encode())
+                f.write(f"<{tag}{attributes}>\n".encode())
                 for name, parts in arrays:
                     _write_array(f, name, _Stream.of(parts), level)
                 f.write(f"</{tag}>\n".encode())
