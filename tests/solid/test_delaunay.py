@@ -188,6 +188,8 @@ def test_peel_keeps_the_boundary_manifold():
     ({"alpha_long": 0.3}, "alpha_long"),
     ({"smooth": -1}, "smooth"),
     ({"feature_floor": 70}, "feature_floor"),
+    ({"size": "curvature"}, "method='delaunay' takes a number 'size'; a graded 'size' \\('curvature'\\)"),
+    ({"size": lambda p: np.full(len(p), 0.3)}, "graded 'size'.*use method='stuffing'"),
 ])
 def test_bad_input_names_the_argument(kwargs, match):
     args = {"shape": wm.sphere(1.0), "bounds": ((-1.2,) * 3, (1.2,) * 3), "size": 0.3, "method": "delaunay",

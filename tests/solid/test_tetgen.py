@@ -67,3 +67,5 @@ def test_tetgen_caps_carry_their_ref():
 def test_tetgen_refuses_stuffing_options():
     with pytest.raises(ValueError, match="tetgen"):
         wm.mesh_domain(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), size=0.3, method="tetgen", smooth=1)
+    with pytest.raises(ValueError, match="method='tetgen' takes a number 'size'; a graded 'size'"):
+        wm.mesh_domain(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), size="curvature", method="tetgen")

@@ -81,7 +81,7 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         ``size=warpmesh.solid.graded.curvature_size(shape, smallest, largest)``). The lattice
         is then refined by longest-edge bisection (:mod:`warpmesh.solid.graded`); the dihedral
         bound is not proven there: ``info["graded_dihedral_min"]`` and ``"graded_dihedral_max"``
-        give the range found. Other methods use the smallest size.
+        give the range found. Stuffing only: the other methods refuse a graded size.
     method : {'stuffing', 'delaunay', 'tetgen'}, optional
         3D: isosurface stuffing (Labelle & Shewchuk 2007) on a body-centred cubic lattice
         (default); or the seed's second global variant, ``'delaunay'``: BCC lattice points
@@ -323,6 +323,10 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, dev
         raise ValueError(f"expected a number of sweeps >= 0 for 'smooth', got {smooth!r}")
     if bricked is not None:
         _check_bricked(method, size, smooth, features, flips, bricked["gather"])
+    if method != "stuffing" and (callable(size) or isinstance(size, str)):
+        # (meshing the whole domain at the graded field's smallest size instead can take hours)
+        raise ValueError(f"method={method!r} takes a number 'size'; a graded 'size' ({size!r}) grades the "
+                         "stuffing lattice only: use method='stuffing' (the default) or give 'size' as a number")
     h = _check_size(size, box)
     opts = _check_options(options)
     if method == "delaunay":
