@@ -753,20 +753,39 @@ class Mesh:
     # ---------------------------------------------------------------- pictures
     def plot(self, path=None, *, window_size=(800, 600), show_edges: bool = False, camera=None, clip="auto",
              scalars: str | None = None):
-        """An off-screen picture (pyvista/VTK, no display needed): shows itself in notebooks.
+        """An off-screen picture (pyvista/VTK, no display needed): shows itself in notebooks;
+        or, with a ``.html`` path, a self-contained page with an interactive WebGL view.
 
         See :func:`warpmesh.preview.render.render_png`; ``path`` (a .png) also writes it.
         Curves are drawn as ribbons, 2D meshes from above, volume meshes cut through the
         middle (``clip``, :func:`warpmesh.preview.drawable.drawable`); ``scalars="ref"`` (or
-        a cell_data name) colours a surface's triangles by value.
+        a cell_data name) colours a surface's triangles by value. A ``.html`` (or ``.htm``)
+        ``path`` is written by :func:`warpmesh.preview.render.write_html` (atomically) and
+        returned as a string; the page takes ``clip`` only (the viewer has its own camera).
 
         Examples
         --------
-        >>> import warpmesh as wm
-        >>> img = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=16).plot(window_size=(64, 48))
+        >>> import os, tempfile, warpmesh as wm
+        >>> ball = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=16)
+        >>> img = ball.plot(window_size=(64, 48))
         >>> img.array.shape, bool((img.array < 200).any())   # the ball is drawn on a white background
         ((48, 64, 3), True)
+        >>> page = ball.plot(os.path.join(tempfile.mkdtemp(), "ball.html"))
+        >>> open(page).read().startswith("<!DOCTYPE html>")
+        True
         """
+        if path is not None and str(path).lower().endswith((".html", ".htm")):
+            from warpmesh.preview.render import write_html
+
+            given = [name for name, value, default in (("window_size", window_size, (800, 600)),
+                                                       ("show_edges", show_edges, False), ("camera", camera, None),
+                                                       ("scalars", scalars, None)) if value != default]
+            if given:
+                raise ValueError(f"an HTML page takes only 'clip' (its viewer has its own camera and size), "
+                                 f"got {given}; drop them or give a .png 'path'")
+            return write_html(self, path, clip=clip)
+        if path is not None and not str(path).lower().endswith(".png"):
+            raise ValueError(f"expected a .png or .html path for 'path', got {str(path)!r}")
         from warpmesh.preview.render import render_png
 
         return render_png(self, path, window_size=window_size, show_edges=show_edges, camera=camera, clip=clip,

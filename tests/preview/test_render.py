@@ -47,6 +47,18 @@ def test_html_holds_the_exact_buffers(ball):
         mesh_html(ball, color=(2, 0, 0))
 
 
+def test_plot_writes_the_html_page_for_an_html_path(ball, tmp_path):
+    page = ball.plot(tmp_path / "ball.html")
+    assert page == str(tmp_path / "ball.html")
+    assert open(page, encoding="utf-8").read() == mesh_html(ball)  # the page of the export, exactly
+    assert ball.plot(tmp_path / "ball.HTM", clip=False) == str(tmp_path / "ball.HTM")
+    with pytest.raises(ValueError, match=r"an HTML page takes only 'clip'.*\['show_edges', 'scalars'\]"):
+        ball.plot(tmp_path / "other.html", show_edges=True, scalars="ref")
+    with pytest.raises(ValueError, match="expected a .png or .html path for 'path', got '.*ball.jpg'"):
+        ball.plot(tmp_path / "ball.jpg")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ball.HTM", "ball.html"]  # nothing else written
+
+
 def test_notebook_bundles(ball):
     bundle = ball._repr_mimebundle_()
     assert bundle["text/plain"] == repr(ball) and "<iframe srcdoc=" in bundle["text/html"]
