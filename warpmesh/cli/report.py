@@ -49,7 +49,7 @@ _BOUNDARY = {"watertight", "manifold", "oriented", "euler", "components", "genus
 _PLURAL = {"line": "segments", "triangle": "triangles", "quad": "quads", "tetra": "tetrahedra",
            "hexahedron": "hexahedra", "wedge": "wedges", "pyramid": "pyramids"}
 #: optimisation facts printed under the table: key -> label
-_OPTIMIZE = {"iterations": "iterations", "kept": "kept", "tolerance": "max error (absolute)", "creases": "crease points",
+_OPTIMIZE = {"iterations": "iterations", "kept": "kept", "tolerance": "tolerance (absolute)", "creases": "crease points",
              "feature_edges": "feature edges", "corners": "corners", "splits": "splits", "collapses": "collapses",
              "flips": "flips", "moves": "moves", "rejected": "rejected moves"}
 

@@ -144,12 +144,19 @@ class _Run:
         return self.target.project(pts, max_step=max_step)
 
     def place(self, pts, feature, line_id, max_step):
-        """Project new/moved points: feature points onto their polyline, others onto f = 0."""
+        """Project new/moved points: feature points onto their polyline, others onto f = 0.
+        A polyline point farther from the surface than the tolerance (a chord across a
+        curved crease, or across a corner the creases do not reach yet) goes on onto f = 0:
+        no vertex is placed outside the tolerance."""
         out = pts.copy()
         if (~feature).any():
             out[~feature] = self.project_free(pts[~feature], max_step[~feature])
         if feature.any() and self.lines is not None:
-            out[feature] = self.lines.project(pts[feature], line_id[feature])
+            on_line = self.lines.project(pts[feature], line_id[feature])
+            near = np.flatnonzero(self.target.estimate(on_line) > 0.5 * self.tolerance)  # a filter
+            off = near[self._distance(on_line[near]) > self.tolerance]
+            on_line[off] = self.project_free(on_line[off], max_step[feature][off])
+            out[feature] = on_line
         return out
 
     def _distance(self, pts):
@@ -203,7 +210,9 @@ class _Run:
 
     def error_pass(self) -> int:
         """Split edges whose midpoint, or the centroid of a face beside them, is farther from
-        the surface than the tolerance (the new vertex goes onto the surface)."""
+        the surface than the tolerance (the new vertex goes onto the surface, a feature
+        edge's onto its polyline, and onto f = 0 where that is farther than the tolerance:
+        :meth:`place`)."""
         s = self.s
         topo = s.topology()
         p, t = s.points, s.triangles
@@ -461,7 +470,8 @@ class _Run:
                     fe[:, 1], weights=p[fe[:, 0], k], minlength=n)
             good = line[cnt[line] == 2]
             mid = acc[good] / 2.0
-            newp[good] = self.lines.project(p[good] + weight * (mid - p[good]), s.line_id[good])
+            newp[good] = self.place(p[good] + weight * (mid - p[good]), np.ones(len(good), bool), s.line_id[good],
+                                    0.5 * self.h[good])
         moved = np.flatnonzero(np.any(newp != p, axis=1))
         return self._commit(newp, moved)
 
@@ -894,7 +904,8 @@ def _cap_refs(points, triangles, bounds, tol):
 
 
 def _face_samples(tri: np.ndarray) -> np.ndarray:
-    """(k, 4, 3) centroid and edge midpoints of (k, 3, 3) triangles."""
+    """(k, 4, 3) centroid and edge midpoints of (k, 3, 3) triangles (the corners are the
+    vertices, which :meth:`_Run.place` puts within the tolerance)."""
     return np.stack([tri.mean(axis=1), 0.5 * (tri[:, 0] + tri[:, 1]), 0.5 * (tri[:, 1] + tri[:, 2]),
                      0.5 * (tri[:, 2] + tri[:, 0])], axis=1)
 
@@ -1034,7 +1045,12 @@ def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, frac
     0.1) scales the field for that fraction of the input triangles and stops there (the
     tolerance may stop it earlier). With ``shape=None`` the error is measured to the
     input mesh. Default tolerance: 0.05 x the mean input edge, one sample spacing for a
-    :class:`VolumeField`. As in :func:`optimize`, no operation may make faces cross,
+    :class:`VolumeField`. What the tolerance holds: every vertex placed (a crease vertex
+    too: where its polyline runs off the surface by more, it goes onto f = 0); every new
+    face within it at its centroid and edge midpoints, or no farther than the faces it
+    replaces, so where the input is farther (a marching-cubes chamfer across a sharp
+    corner that the crease recovery does not reach) the output can be as well, never
+    farther than the input there. As in :func:`optimize`, no operation may make faces cross,
     fold or face inwards; the result's worst Q_K is at most the input's or ``SIMPLIFY_Q``
     (6), whichever is larger (else the latest pass that was, else the input). A shared
     multi-material surface (``interfaces="shared"``) without ``shape`` goes to
