@@ -349,3 +349,16 @@ def test_cull_does_not_change_the_mesh_and_adaptive_agrees(seed):
         topo.append((m.n_cells > 0, m.stats()["euler"] if m.n_cells else None,
                      m.stats()["components"] if m.n_cells else None))
     assert topo[0] == topo[1] == topo[2], (seed, topo)
+
+
+def test_one_box_as_two_points_and_bad_boxes_named():
+    x, y, z = wm.coords()
+    boxes = wm.evaluate_interval(x * y - z, np.array([[-1.0, 0, 0]]), np.array([[1.0, 2, 3]]))
+    one = wm.evaluate_interval(x * y - z, (-1.0, 0, 0), (1.0, 2, 3))
+    assert one.shape == (2,) and one.tolist() == boxes[0].tolist()
+    with pytest.raises(ValueError, match=r"expected a point \(3,\) or an \(n, 3\) array for 'hi', got shape \(2,\)"):
+        wm.evaluate_interval(x, (0, 0, 0), (1, 1))
+    with pytest.raises(ValueError, match="expected finite values in 'lo'"):
+        wm.evaluate_interval(x, (np.nan, 0, 0), (1, 1, 1))
+    with pytest.raises(ValueError, match="expected 'lo' <= 'hi' for every box"):
+        wm.evaluate_interval(x, (1, 0, 0), (0, 1, 1))

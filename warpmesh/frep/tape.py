@@ -252,12 +252,12 @@ def eval_intervals(tape: Tape, boxes_lo: wp.array, boxes_hi: wp.array, out: wp.a
     return out
 
 
-def points_array(points, device) -> wp.array:
+def points_array(points, device, name: str = "points") -> wp.array:
     pts = np.asarray(points)
     if pts.ndim != 2 or pts.shape[1] != 3:
-        raise ValueError(f"expected an (n, 3) array for 'points', got shape {pts.shape}")
+        raise ValueError(f"expected an (n, 3) array for {name!r}, got shape {pts.shape}")
     if not np.all(np.isfinite(pts)):
-        raise ValueError("expected finite values in 'points', got NaN or infinity")
+        raise ValueError(f"expected finite values in {name!r}, got NaN or infinity")
     return wp.array(np.ascontiguousarray(pts, dtype=np.float32), dtype=wp.vec3, device=device)
 
 
@@ -299,7 +299,8 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu",
 
 
 def evaluate_interval(shape, lo, hi, *, device: str = "cpu") -> np.ndarray:
-    """Intervals (m, 2) enclosing f over boxes [lo_i, hi_i] (each (m, 3)).
+    """Intervals (m, 2) enclosing f over boxes [lo_i, hi_i] (each (m, 3)); for one box
+    given as two points (3,), its interval (2,).
 
     Each interval holds every value :func:`evaluate` gives in its box (float32, no
     tolerance needed); a bound may be ±inf, and (-inf, inf) says that f may be NaN
@@ -312,15 +313,24 @@ def evaluate_interval(shape, lo, hi, *, device: str = "cpu") -> np.ndarray:
     >>> x, y, z = wm.coords()
     >>> wm.evaluate_interval(wm.log(x), np.array([[-1.0, 0, 0]]), np.array([[1.0, 0, 0]])).tolist()
     [[-inf, inf]]
+    >>> wm.evaluate_interval(x + y, (0, 0, 0), (1, 2, 3)).tolist()
+    [0.0, 3.0]
     """
     tape = tape_of(shape)
     device = check_device(device)
-    blo, bhi = points_array(lo, device), points_array(hi, device)
+    lo_, hi_ = np.asarray(lo), np.asarray(hi)
+    for name, a in (("lo", lo_), ("hi", hi_)):
+        if a.shape != (3,) and (a.ndim != 2 or a.shape[1] != 3):
+            raise ValueError(f"expected a point (3,) or an (n, 3) array for {name!r}, got shape {a.shape}")
+    one = lo_.shape == (3,) and hi_.shape == (3,)
+    lo_, hi_ = np.atleast_2d(lo_), np.atleast_2d(hi_)
+    blo, bhi = points_array(lo_, device, "lo"), points_array(hi_, device, "hi")
     if blo.shape != bhi.shape:
         raise ValueError(f"expected 'lo' and 'hi' of one shape, got {blo.shape} and {bhi.shape}")
-    if np.any(np.asarray(lo) > np.asarray(hi)):
-        raise ValueError("expected lo <= hi for every box")
-    return eval_intervals(tape, blo, bhi, device=device).numpy()
+    if np.any(lo_ > hi_):
+        raise ValueError("expected 'lo' <= 'hi' for every box")
+    out = eval_intervals(tape, blo, bhi, device=device).numpy()
+    return out[0] if one else out
 
 
 def value_gradient_at(tape: Tape, points: np.ndarray, device="cpu") -> tuple[np.ndarray, np.ndarray]:
