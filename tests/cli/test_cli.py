@@ -89,8 +89,9 @@ def test_errors_are_reported_not_raised(tmp_path, capsys):
     assert "root" in capsys.readouterr().err
 
 
-def test_console_script_is_installed():
-    done = subprocess.run([sys.executable, "-m", "warpmesh.cli", "--help"], capture_output=True, text=True)
+@pytest.mark.parametrize("module", ["warpmesh.cli", "warpmesh"])
+def test_console_script_is_installed(module):
+    done = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True)
     assert done.returncode == 0 and "mesh" in done.stdout
 
 
