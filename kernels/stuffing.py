@@ -112,9 +112,15 @@ def box_distance(p: wp.vec3, lo: wp.vec3, hi: wp.vec3):
 @wp.kernel
 def clip_values_kernel(points: wp.array(dtype=wp.vec3), f: wp.array(dtype=wp.float32), lo: wp.vec3, hi: wp.vec3,
                        values: wp.array(dtype=wp.float32)):
-    """One thread per point: min(f, signed distance to the box), the field of {f > 0} in bounds."""
+    """One thread per point: min(f, signed distance to the box), the field of {f > 0} in bounds;
+    NaN where f is NaN inside the box (the node classification counts it: min would drop it)."""
     i = wp.tid()
-    values[i] = wp.min(f[i], box_distance(points[i], lo, hi))
+    v = f[i]
+    d = box_distance(points[i], lo, hi)
+    if v != v and d > 0.0:
+        values[i] = v
+    else:
+        values[i] = wp.min(v, d)
 
 
 @wp.kernel

@@ -163,6 +163,18 @@ def test_bad_input_names_the_argument(kwargs, match):
         wm.mesh_domain(args.pop("shape"), **args)
 
 
+@pytest.mark.parametrize("kwargs", [{}, {"method": "delaunay"}, {"size": "curvature"}])
+def test_a_shape_that_is_nan_inside_the_bounds_is_refused(kwargs):
+    """(min(NaN, box distance) was the box distance: the whole box came out as the domain.)"""
+    x, y, z = wm.coords()
+    with pytest.raises(ValueError, match="the shape evaluates to NaN at [0-9]+ lattice nodes inside 'bounds'"):
+        wm.mesh_domain(wm.log(-1 - x**2), bounds=((-1.2,) * 3, (1.2,) * 3), **{"size": 0.5, **kwargs})
+    # NaN beyond the bounds only (|x| > 1.3) is outside the domain: meshed
+    ball = wm.mesh_domain(wm.min(wm.sqrt(1.69 - x**2) - 0.2, wm.sphere(1.0)), bounds=((-1.2,) * 3, (1.2,) * 3),
+                          size=0.4)
+    assert len(ball.cells["tetra"]) and ball.stats()["volume"] == pytest.approx(4 / 3 * np.pi, rel=0.1)
+
+
 def test_not_a_shape():
     with pytest.raises(TypeError, match="shape"):
         wm.mesh_domain("sphere", bounds=((-1,) * 3, (1,) * 3), size=0.2)
