@@ -32,6 +32,7 @@ import importlib
 import inspect
 import math
 import time
+import warnings
 from typing import Literal
 
 import numpy as np
@@ -95,9 +96,26 @@ def sample_curve(shape, bounds, *, method: CurveMethod = "continuation", toleran
     func = _sampler(method)
     _check_options(func, options, method)
     field = PlanarField(shape, bounds, device=device)
+    _check_finite(field)
     if "tolerance" in inspect.signature(func).parameters:
         options["tolerance"] = tol
     return field, func(field, **options)
+
+
+#: nodes per side of the grid over the bounds at which a planar shape must be finite
+FINITE_CHECK_NODES = 129
+
+
+def _check_finite(field: PlanarField) -> None:
+    """A ValueError naming 'shape' when f is NaN or infinite at nodes of a grid over the
+    bounds (the samplers would return an empty or broken curve, the quadtree after minutes)."""
+    n = FINITE_CHECK_NODES - 1
+    values = field.grid(n, n)[2]
+    bad = int((~np.isfinite(values)).sum())
+    if bad:
+        raise ValueError(f"the shape evaluates to NaN or infinity at {bad} of {values.size} grid nodes inside "
+                         "'bounds' (e.g. sqrt/log of a negative or a division by zero); change the 'shape' or "
+                         "the 'bounds'")
 
 
 def _curve_mesh(points, segments, info) -> Mesh:
@@ -174,6 +192,9 @@ def mesh_curve(shape, bounds, *, method: CurveMethod = "continuation", tolerance
                                 singular=singular)
         info.update(sample.info)
         info["time_geometric"] = time.perf_counter() - t1
+    if not len(sample.segments):
+        warnings.warn(f"method {method!r} found no curve f = 0 in 'bounds': the mesh is empty (check 'bounds', the "
+                      "seeds or the resolution, and the sign convention f > 0 inside)", stacklevel=2)
     return _curve_mesh(sample.points, sample.segments, info)
 
 
