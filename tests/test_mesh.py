@@ -143,6 +143,13 @@ def test_cells_as_list_of_pairs_or_meshio_blocks():
             r"cell_data\['q'\] keys \['triangle'\]",
         ),
         ({"point_data": {REF_KEY: [1, 2, 3]}}, ValueError, "pass it as point_refs"),
+        # names and values every file format can hold (an int name broke the .vtu writer, a
+        # newline in a name made .msh files no reader takes, object arrays failed mid-write)
+        ({"point_data": {3: [1, 2, 3]}}, ValueError, "point_data names that are non-empty printable strings, got 3"),
+        ({"cell_data": {"a\nb": {"triangle": [1.0]}}}, ValueError, r"cell_data names .*got 'a\\nb'"),
+        ({"point_data": {"a": np.array([None, 1, "x"], object)}}, ValueError,
+         r"numbers \(bool, int or float\) in point_data\['a'\], got object values"),
+        ({"cell_data": {"z": {"triangle": [1j]}}}, ValueError, r"in cell_data\['z'\]\['triangle'\], got complex128"),
     ],
 )
 def test_bad_input_is_named(kwargs, error, message):
@@ -437,6 +444,14 @@ def test_save_with_explicit_format(surface, tmp_path):
 def test_save_unknown_extension(surface, tmp_path):
     with pytest.raises(ValueError, match=r"unknown mesh file extension '\.xyz'.*'\.vtu'"):
         surface.save(tmp_path / "sphere.xyz")
+    assert not list(tmp_path.iterdir())
+
+
+def test_save_names_a_missing_folder_and_a_bad_path(surface, tmp_path):
+    with pytest.raises(FileNotFoundError, match=r"no folder '.*nodir' to save 'a.vtu' in"):
+        surface.save(tmp_path / "nodir" / "a.vtu")
+    with pytest.raises(TypeError, match="expected a str or os.PathLike 'path', got int"):
+        surface.save(3)
     assert not list(tmp_path.iterdir())
 
 

@@ -45,7 +45,7 @@ __version__ = "0.1.0"
 
 #: module -> the public names it defines (imported on first use)
 _EXPORTS = {
-    "warpmesh.errors": ("MergeError", "ReadError", "SizeError", "TopologyError", "WarpMeshError"),
+    "warpmesh.errors": ("MergeError", "ReadError", "SizeError", "TopologyError", "WarpMeshError", "WriteError"),
     "warpmesh.frep.expr": ("Expr", "abs", "coords", "cos", "exp", "log", "max", "param", "min", "sin", "sqrt"),
     "warpmesh.frep.projection": ("VolumeField", "surface_error"),
     "warpmesh.frep.examples": ("EXAMPLES", "EXAMPLES_2D", "example"),
@@ -77,6 +77,7 @@ _ORIGIN = {name: module for module, names in _EXPORTS.items() for name in names}
 if TYPE_CHECKING:  # what static tools see; at run time the names come from __getattr__
     from warpmesh.errors import MergeError as MergeError
     from warpmesh.errors import ReadError as ReadError
+    from warpmesh.errors import WriteError as WriteError
     from warpmesh.errors import SizeError as SizeError
     from warpmesh.errors import TopologyError as TopologyError
     from warpmesh.errors import WarpMeshError as WarpMeshError
@@ -192,5 +193,5 @@ __all__ = [
     "example", "EXAMPLES",
     "circle", "ellipse", "rectangle", "halfplane", "regular_polygon", "cassini", "EXAMPLES_2D",
     "Tape", "compile_tape", "evaluate", "evaluate_interval", "geometry", "transforms",
-    "WarpMeshError", "ReadError", "TopologyError", "MergeError", "SizeError",
+    "WarpMeshError", "ReadError", "WriteError", "TopologyError", "MergeError", "SizeError",
 ]

@@ -24,6 +24,11 @@ class ReadError(WarpMeshError, ValueError):
     """A mesh file exists but cannot be parsed; the message names the path and format."""
 
 
+class WriteError(WarpMeshError, ValueError):
+    """A mesh file writer (meshio's) failed on a mesh; the message names the path and
+    format, and nothing is left on disk."""
+
+
 class TopologyError(WarpMeshError):
     """A mesh does not have the topology an operation needs (e.g. it is not manifold)."""
 

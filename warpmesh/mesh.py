@@ -153,6 +153,20 @@ def _check_data(data, length: int, name: str, *, integer: bool = False) -> np.nd
     return _frozen(arr.astype(INDEX_DTYPE, copy=False) if integer else arr)
 
 
+def _check_key(key, name: str) -> str:
+    """A data array's name: a non-empty string without control characters (a newline in a
+    name made .msh files that no reader takes)."""
+    if not isinstance(key, str) or not key or not key.isprintable():
+        raise ValueError(f"expected {name} names that are non-empty printable strings, got {key!r}")
+    return key
+
+
+def _check_values(arr: np.ndarray, name: str) -> np.ndarray:
+    if arr.dtype.kind not in "biuf":
+        raise ValueError(f"expected numbers (bool, int or float) in {name}, got {arr.dtype} values")
+    return arr
+
+
 def _check_mapping(value, name: str) -> Mapping:
     if value is None:
         return {}
@@ -228,9 +242,11 @@ class Mesh:
             t: _check_data(r, sizes[t], f"cell_refs[{t!r}]", integer=True) for t, r in crefs.items()
         } or None  # an empty dict means no refs
         pdata = _check_mapping(point_data, "point_data")
-        self._point_data = {k: _check_data(v, n, f"point_data[{k!r}]") for k, v in pdata.items()}
+        self._point_data = {_check_key(k, "point_data"): _check_values(_check_data(v, n, f"point_data[{k!r}]"),
+                                                                         f"point_data[{k!r}]") for k, v in pdata.items()}
         self._cell_data = {}
         for key, per_type in _check_mapping(cell_data, "cell_data").items():
+            _check_key(key, "cell_data")
             per_type = _check_mapping(per_type, f"cell_data[{key!r}]")
             if set(per_type) != set(sizes):
                 raise ValueError(
@@ -238,7 +254,8 @@ class Mesh:
                     f"got {list(per_type)}"
                 )
             self._cell_data[key] = MappingProxyType(
-                {t: _check_data(per_type[t], sizes[t], f"cell_data[{key!r}][{t!r}]") for t in sizes}
+                {t: _check_values(_check_data(per_type[t], sizes[t], f"cell_data[{key!r}][{t!r}]"),
+                                  f"cell_data[{key!r}][{t!r}]") for t in sizes}
             )
         if REF_KEY in self._point_data or REF_KEY in self._cell_data:
             raise ValueError(

@@ -129,3 +129,56 @@ def test_the_first_probe_says_why_it_waits(tmp_path):
     assert first.returncode == 0 and second.returncode == 0, first.stderr + second.stderr
     assert first.stderr.count("first run only") == 1 and "first run only" not in second.stderr
     assert first.stdout == second.stdout and int(first.stdout) > 10
+
+
+def _finishes(call, seconds: float = 60.0):
+    """``call()``'s result or exception, or a failed test if it runs longer than ``seconds``
+    (run on a daemon thread: a reader that loops forever is left spinning, the test fails)."""
+    import threading
+
+    out = {}
+
+    def run():
+        try:
+            out["value"] = call()
+        except BaseException as exc:  # noqa: BLE001 -- handed to the caller
+            out["error"] = exc
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    worker.join(seconds)
+    assert not worker.is_alive(), f"still reading after {seconds} s"
+    return out
+
+
+def test_cut_and_empty_files_of_every_format_end_as_a_read_error_or_a_mesh(tmp_path):
+    """meshio's Tecplot, Kratos and TetGen readers looped forever on a cut or empty file
+    (``readline`` at the end of a file returns "" again and again): warpmesh.io.eof_guard."""
+    sphere = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8)
+    tried = []
+    for ext, name in sorted(file_formats().items()):
+        if ext in (".pvtu",):
+            continue  # its pieces beside it: tests/io/test_pvtu.py
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                whole = sphere.save(tmp_path / f"whole{ext}").read_bytes()
+        except ValueError:
+            whole = b""  # no triangles in this format (TetGen): the empty file only
+        cases = [("empty", b"")] + ([("200 bytes", whole[:200]), ("half", whole[:len(whole) // 2])] if whole else [])
+        for label, data in cases:
+            cut = tmp_path / f"cut{ext}"
+            cut.write_bytes(data)
+            got = _finishes(lambda: wm.load(cut))
+            assert "value" in got or isinstance(got["error"], wm.ReadError), (ext, label, got)
+            tried.append(ext)
+    assert {".dat", ".mdpa", ".node"} <= set(tried)
+
+
+def test_a_meshio_writer_that_fails_is_a_write_error_and_leaves_nothing(tmp_path):
+    """meshio's Nastran writer asserts that every coordinate fits 16 characters, which
+    -0.2999999642372131 does not: an AssertionError from deep inside, before."""
+    sphere = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8)
+    with pytest.raises(wm.WriteError, match=r"meshio's nastran writer failed on this mesh: AssertionError"):
+        sphere.save(tmp_path / "a.bdf")
+    assert isinstance(wm.WriteError("x"), ValueError) and not list(tmp_path.iterdir())

@@ -81,6 +81,7 @@ from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.cells.types import REF_KEY, MeshLike, block_refs, points3
 from meshio._helpers import reader_map
 
+from warpmesh.io.eof_guard import guarded_reader
 from warpmesh.io.convert import GMSH_GEO, GMSH_REF, from_meshio, set_dim, to_meshio
 from warpmesh.io.formats import format_support, meshio_extensions
 from warpmesh.io.gmsh_groups import LABEL_ABOVE, ref_names, restore_refs, uses_groups, write_msh41
@@ -88,7 +89,7 @@ from warpmesh.io.medit import read_medit, write_medit
 from warpmesh.io.ply import read_ply, write_ply
 from warpmesh.io.pvtu import read_pvtu, write_pvtu
 from warpmesh.io.vtu import VTK_CELL_TYPES, meshio_wedges, read_vtu, write_vtu
-from warpmesh.errors import ReadError
+from warpmesh.errors import ReadError, WarpMeshError, WriteError
 
 
 __all__ = ["save", "load", "file_formats", "FILE_FORMATS", "FileFormat"]
@@ -243,13 +244,25 @@ def _write_gmsh(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
     if names:  # $PhysicalNames: a name per ref
         data = meshio.Mesh(data.points, data.cells, point_data=data.point_data, cell_data=data.cell_data,
                            field_data={k: np.array(v) for k, v in names.items()})
-    meshio.write(path, data, file_format="gmsh22", **kwargs)
+    _meshio_write(path, data, "gmsh22", **kwargs)
+
+
+def _meshio_write(path, data: meshio.Mesh, file_format: str, **kwargs) -> None:
+    """meshio's writer; its failures other than the file system's (assertions, KeyErrors,
+    meshio's WriteError) become a WriteError naming the format (the atomic write around it
+    leaves nothing on disk)."""
+    try:
+        meshio.write(path, data, file_format=file_format, **kwargs)
+    except (OSError, WarpMeshError):
+        raise
+    except Exception as exc:  # noqa: BLE001 -- any meshio failure, named
+        raise WriteError(f"meshio's {file_format} writer failed on this mesh: {type(exc).__name__}: {exc}") from exc
 
 
 def _write_vtk(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
     # meshio's writer reverses each wedge (io.vtu's module docstring): reversed first, the
     # file holds them as VTK measures them positive
-    meshio.write(path, meshio_wedges(data), file_format="vtk", **kwargs)
+    _meshio_write(path, meshio_wedges(data), "vtk", **kwargs)
 
 
 def _write_ply(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
@@ -367,7 +380,12 @@ def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
 
 def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) -> Path:
     """:func:`save` with the stack level of its warnings (``Mesh.save`` passes its caller's)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"expected a str or os.PathLike 'path', got {type(path).__name__}")
     path = Path(path)
+    if not path.parent.is_dir():  # (else the error names the temporary file)
+        raise FileNotFoundError(errno.ENOENT, f"no folder {str(path.parent)!r} to save {path.name!r} in",
+                                str(path.parent))
     fmt = _find_format(path, file_format)
     if mesh.n_points == 0 or mesh.n_cells == 0:
         raise ValueError(f"expected a mesh with points and cells to save to {str(path)!r}, got an empty "
@@ -380,7 +398,7 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         if fmt.write is not None:
             fmt.write(tmp, data, mesh, **fmt.write_kwargs)
         else:
-            meshio.write(tmp, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
+            _meshio_write(tmp, data, fmt.meshio_name, **fmt.write_kwargs)
     return path
 
 
@@ -392,7 +410,7 @@ def _write_in_folder(data: meshio.Mesh, mesh: MeshLike, path: Path, fmt: _Format
         if fmt.write is not None:
             fmt.write(tmp / path.name, data, mesh, **fmt.write_kwargs)
         else:
-            meshio.write(tmp / path.name, data, file_format=fmt.meshio_name, **fmt.write_kwargs)
+            _meshio_write(tmp / path.name, data, fmt.meshio_name, **fmt.write_kwargs)
 
 
 def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path:
@@ -473,16 +491,18 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     set_dim(np.zeros((0, 3)), dim)  # check the argument before reading
     if not path.exists():
         raise FileNotFoundError(errno.ENOENT, "no such mesh file", str(path))
-    reader = fmt.read or reader_map[fmt.name]  # the format's own: meshio.read calls sys.exit
+    # the format's own reader, else meshio's (not meshio.read, which calls sys.exit), stopped
+    # where it would read past the end of a cut file forever
+    reader = fmt.read or guarded_reader(reader_map[fmt.name])
     _check_complete(path, fmt.name)
     try:
         with warnings.catch_warnings():
             # meshio's binary-STL probe overflows on ascii files
             warnings.simplefilter("ignore", RuntimeWarning)
             m = reader(str(path))
-    except ReadError:  # warpmesh's own readers say what is wrong, naming the file
-        raise
     except Exception as exc:  # meshio raises ReadError, ValueError, UnicodeError, IndexError, ...
+        if isinstance(exc, ReadError) and fmt.read is not None:  # warpmesh's own readers name the file
+            raise
         if fmt.name in ("vtk", "vtu"):  # VTK's own reader knows what meshio's does not (64-bit ids)
             mesh = _read_with_vtk(path, mesh_type, exc)
             _check_cells(mesh, path, fmt.name)
