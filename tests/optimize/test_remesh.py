@@ -359,6 +359,10 @@ def test_bad_input_is_named(sphere_mc):
         wm.optimize(mc.points, shape)
     with pytest.raises(ValueError, match="'mesh'"):
         wm.optimize(wm.Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}), shape)
+    tets = wm.mesh_domain(shape, bounds=((-1.2,) * 3, (1.2,) * 3), size=0.5)  # (the tetra were dropped silently)
+    for op in (wm.optimize, wm.simplify):
+        with pytest.raises(ValueError, match=r"expected a triangle surface for 'mesh', got \['tetra'\] cells too"):
+            op(tets, shape)
     with pytest.raises(ValueError, match="'size'"):
         wm.optimize(mc, shape, size=-1.0)
     with pytest.raises(ValueError, match="'size'"):

@@ -670,6 +670,10 @@ def _run_setup(mesh: MeshLike, shape, bounds, size, tolerance, features, angle, 
     tri = mesh.triangles
     if len(tri) == 0 or mesh.dim != 3:
         raise ValueError("expected a 3D mesh with a 'triangle' block for 'mesh'")
+    others = sorted(t for t in mesh.cells if t != "triangle")
+    if others:  # the result holds triangles only: they would be dropped without a word
+        raise ValueError(f"expected a triangle surface for 'mesh', got {others} cells too (surface operators "
+                         "return triangles only); pass its surface: wm.Mesh(mesh.points, {'triangle': mesh.triangles})")
     if features is not None and not isinstance(features, bool):
         raise TypeError(f"expected True, False or None for 'features', got {features!r}")
     if not (0.0 < angle < 180.0):
