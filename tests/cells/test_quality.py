@@ -101,3 +101,16 @@ def test_tetra_need_3d_points():
 def test_float_indices_rejected():
     with pytest.raises(TypeError, match="integer array for 'triangles'"):
         triangle_quality(EQUILATERAL, [[0.0, 1.0, 2.0]])
+
+
+def test_points_with_nan_or_infinity_are_refused():
+    """(A NaN corner gave Q_K NaN, and quality_summary a mean of inf with a worst of NaN.)"""
+    for bad in (np.nan, np.inf):
+        tri = np.array([[0, 0, 0], [1, 0, 0], [0, bad, 0]], float)
+        tet = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, bad]], float)
+        with pytest.raises(ValueError, match="expected finite 'points', got NaN or infinity"):
+            triangle_quality(tri, [[0, 1, 2]])
+        with pytest.raises(ValueError, match="expected finite 'points'"):
+            tetra_quality(tet, [[0, 1, 2, 3]])
+        with pytest.raises(ValueError, match="expected finite 'points'"):
+            quality_summary(tri, [[0, 1, 2]])

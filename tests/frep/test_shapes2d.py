@@ -85,6 +85,8 @@ def test_bad_arguments():
                  lambda: wm.regular_polygon(3.5), lambda: wm.cassini(0, 1), lambda: wm.example("nope")):
         with pytest.raises(ValueError):
             make()
+    with pytest.raises(ValueError, match="at most 4096 sides for 'n', got 1000000"):  # (a minute to build)
+        wm.regular_polygon(10**6)
     with pytest.raises(ValueError, match="bounds"):
         check_bounds2d(((0, 0), (0, 1)))
     with pytest.raises(ValueError, match="bounds"):

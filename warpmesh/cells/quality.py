@@ -41,6 +41,8 @@ def _validate(points, cells, k: int, dims: tuple[int, ...], name: str):
     if pts.ndim != 2 or pts.shape[1] not in dims:
         want = " or ".join(f"(n, {d})" for d in dims)
         raise ValueError(f"expected 'points' of shape {want}, got shape {pts.shape}")
+    if not np.isfinite(pts).all():  # (NaN Q_K otherwise, and an inconsistent summary)
+        raise ValueError("expected finite 'points', got NaN or infinity")
     arr = np.asarray(cells)
     if arr.size == 0:
         return pts, np.zeros((0, k), dtype=INDEX_DTYPE)

@@ -80,12 +80,19 @@ def halfplane(normal=(0.0, 1.0), point=(0.0, 0.0)) -> Shape:
     return Shape(level - (x * n[0] + y * n[1]), True)
 
 
+#: sides of :func:`regular_polygon` at most (its tape holds a half-plane per side)
+MAX_POLYGON_SIDES = 4096
+
+
 @_primitive
 def regular_polygon(n: int, radius: float = 1.0, center=(0.0, 0.0)) -> Shape:
     """Convex regular polygon with ``n`` >= 3 vertices on the circle of ``radius``, one at
     angle 0 (a bound: the min of its edges' half-planes, exact inside)."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 3:
         raise ValueError(f"expected an integer 'n' >= 3, got {n!r}")
+    if n > MAX_POLYGON_SIDES:  # (10**6 sides took a minute to build, and no mesher could use them)
+        raise ValueError(f"expected at most {MAX_POLYGON_SIDES} sides for 'n', got {n}: a polygon of that many "
+                         "sides is a circle to within 3e-7 of its radius, use wm.circle")
     r = _positive(radius, "radius")
     x, y = E.coords(2)
     apothem = r * math.cos(math.pi / n)
