@@ -94,6 +94,10 @@ def test_mesh_curve_bad_arguments():
         wm.mesh_curve(circle, box, tolerance=0)
     with pytest.raises(ValueError, match="tolerance"):
         wm.mesh_curve(circle, box, tolerance=float("nan"))
+    # (at 1e-12 the continuation walk broke the circle into 100 pieces, silently)
+    with pytest.raises(ValueError, match=r"'tolerance' in \[1e-06, 0.5\).*float32.*got 1e-12"):
+        wm.mesh_curve(circle, box, tolerance=1e-12)
+    assert wm.mesh_curve(circle, box, tolerance=1e-6, method="grid").stats()["components"] == 1
     with pytest.raises(ValueError, match="resolutio"):
         wm.mesh_curve(circle, box, method="continuation", resolutio=3)
     with pytest.raises(ValueError, match="planar"):

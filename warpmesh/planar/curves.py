@@ -76,12 +76,18 @@ def _check_options(func, options: dict, method: str) -> None:
         raise ValueError(f"unknown option {unknown[0]!r} for method {method!r}; it takes {known}")
 
 
+#: the smallest relative tolerance: below, chord deviations drop under f's float32 resolution
+#: (a circle at 3e-7 came out as 100 disconnected pieces)
+MIN_TOLERANCE = 1e-6
+
+
 def _check_tolerance(tolerance) -> float:
     t = float(tolerance) if isinstance(tolerance, (int, float, np.floating)) and not isinstance(tolerance, bool) \
         else math.nan
-    if not (0.0 < t < 0.5):
-        raise ValueError(f"expected a relative 'tolerance' in (0, 0.5) (chord deviation / edge length), "
-                         f"got {tolerance!r}")
+    if not (MIN_TOLERANCE <= t < 0.5):
+        raise ValueError(f"expected a relative 'tolerance' in [{MIN_TOLERANCE:g}, 0.5) (chord deviation / edge "
+                         f"length; below {MIN_TOLERANCE:g} the float32 evaluation of f cannot tell the deviations "
+                         f"apart), got {tolerance!r}")
     return t
 
 
@@ -192,6 +198,11 @@ def mesh_curve(shape, bounds, *, method: CurveMethod = "continuation", tolerance
                                 singular=singular)
         info.update(sample.info)
         info["time_geometric"] = time.perf_counter() - t1
+    failures = sample.info.get("failures")
+    if failures is not None and len(failures):
+        warnings.warn(f"method {method!r} could not follow the curve at {len(failures)} points (listed in "
+                      "info['sample_failures']): the curve may be broken there; try method='quadtree'",
+                      stacklevel=2)
     if not len(sample.segments):
         warnings.warn(f"method {method!r} found no curve f = 0 in 'bounds': the mesh is empty (check 'bounds', the "
                       "seeds or the resolution, and the sign convention f > 0 inside)", stacklevel=2)
