@@ -181,3 +181,15 @@ def test_library_errors_are_told_in_cli_flags(capsys, argv, flag):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert flag in err and not re.search(r"'(root_iterations|level|fraction|tolerance|size|bounds)'", err), err
+
+
+def test_warnings_are_one_line_of_the_command(tmp_path, capsys):
+    """(A UserWarning printed its module path, line number and the source line.)"""
+    labels = np.zeros((12, 12, 12), np.uint8)
+    labels[3:8, 3:8, 3:8] = 1
+    labels[6:10, 6:10, 6:10] = 2
+    np.save(tmp_path / "l.npy", labels)
+    assert main(["mesh", "--volume", str(tmp_path / "l.npy"), "--labels", "all", "-o", str(tmp_path / "l.obj")]) == 0
+    err = capsys.readouterr().err
+    assert "warpmesh: warning: obj files cannot store ['medit:ref']; not saved\n" in err
+    assert "UserWarning" not in err and ".py:" not in err

@@ -39,6 +39,7 @@ import json
 import os
 import sys
 import threading
+import warnings
 
 import numpy as np
 
@@ -329,6 +330,12 @@ def _run(args, program: bool = False) -> int:
         return 2
 
 
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning as the command prints it: one line, ``warpmesh: warning: ...`` (not the
+    source line that issued it)."""
+    print(f"warpmesh: warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the ``warpmesh`` command with ``argv`` (default ``sys.argv[1:]``); the exit status.
 
@@ -342,7 +349,9 @@ def main(argv: list[str] | None = None) -> int:
     2
     """
     try:
-        return _run(_parser().parse_args(argv), program=argv is None)
+        with warnings.catch_warnings():
+            warnings.showwarning = _warning_line
+            return _run(_parser().parse_args(argv), program=argv is None)
     except BrokenPipeError:  # the reader left (| head): no traceback, no error line
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
