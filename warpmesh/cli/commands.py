@@ -59,7 +59,8 @@ def _parser() -> argparse.ArgumentParser:
     add_volume_arguments(m, src, labels_help="integer volumes: mesh each label's region ('all' or label values)")
     m.add_argument("--resolution", type=int, help="cells along the longest side (shapes; default 128)")
     m.add_argument("--level", type=float, help="iso-level (volumes; default 0)")
-    m.add_argument("--inside", choices=["above", "below"], help="inside side of the level (volumes)")
+    m.add_argument("--inside", choices=["above", "below"],
+                   help="volumes: the inside is where the values are above --level (default) or below it")
     m.add_argument("--method", choices=["mc33", "mt", "mc"], default=None,
                    help="cell triangulation: marching cubes 33 (default), marching tetrahedra, plain mc")
     m.add_argument("--covering", choices=["grid", "continuation"], default=None,
@@ -97,7 +98,9 @@ def _parser() -> argparse.ArgumentParser:
     r = sub.add_parser("renumber", help="renumber a mesh file's nodes and elements (bandwidth, profile)")
     r.add_argument("input", help=f"mesh file to read ({extensions_text(())})")
     r.add_argument("output", help=f"mesh file to write ({extensions_text(())})")
-    r.add_argument("--method", choices=["gibbs", "rcm", "frontal", "frontal-diameter"], default="gibbs")
+    r.add_argument("--method", choices=["gibbs", "rcm", "frontal", "frontal-diameter"], default="gibbs",
+                   help="Gibbs-Poole-Stockmeyer (default), reverse Cuthill-McKee, or the frontal method "
+                        "from a node of minimal degree or from the end of the pseudo-diameter ([FG §17.4])")
     r.add_argument("--higher-order", choices=["ball", "graph"], default="ball",
                    help="nodes other than vertices: by the book's ball rule (default) or the full graph")
     r.add_argument("--reverse", choices=["auto", "yes", "no"], default="auto",

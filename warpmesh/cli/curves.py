@@ -43,7 +43,8 @@ def add_parsers(sub) -> None:
 
     c = sub.add_parser("curve", help="mesh an implicit curve f(x, y) = 0 with line segments ([FG §16.3])")
     add_shape_arguments(c, c.add_mutually_exclusive_group(required=True), dims=(2,))
-    c.add_argument("--method", choices=list(CURVE_METHODS), default="continuation")
+    c.add_argument("--method", choices=list(CURVE_METHODS), default="continuation",
+                   help="sampling method of [FG §16.3.1] (default continuation)")
     c.add_argument("--tolerance", type=float, default=1e-2, help="relative chord deviation (default 1e-2)")
     c.add_argument("--resolution", type=int, help="cells along the longer side (grid, freudenthal, progression)")
     c.add_argument("--raw", action="store_true", help="the method's raw polyline, no geometric remeshing")

@@ -60,7 +60,10 @@ def add_parsers(sub) -> None:
     r.add_argument("--example", help="project new boundary nodes onto this bundled example shape")
     c = sub.add_parser("convert", help="split elements into another type ([FG §17.1.3])")
     _io(c, "input")
-    c.add_argument("--to", required=True, choices=["triangle", "quad", "tetra", "hexahedron"])
+    c.add_argument("--to", required=True, choices=["triangle", "quad", "tetra", "hexahedron"],
+                   help="the element type to split into: triangle (a quad -> 2 or 4), quad (a triangle -> 3), "
+                        "tetra (a hexahedron -> 5 or 6, a wedge -> 3, a pyramid -> 2), hexahedron (a "
+                        "tetrahedron -> 4)")
     c.add_argument("--quads", choices=["best", "min", "4"],
                    help="--to triangle: quad -> 2 triangles on the best diagonal (default), through the "
                         "smallest vertex number, or 4 around the centroid")

@@ -230,8 +230,8 @@ class Volume:
         bad = ~np.isfinite(v) | (v != np.round(v))
         if bad.any():
             raise ValueError(f"expected whole-number label values in the volume for 'labels', got "
-                             f"{v[bad].ravel()[0]!r} (and {int(bad.sum()) - 1} more non-integer samples); "
-                             "mesh an iso-surface with level= instead, or round the values")
+                             f"{float(v[bad].ravel()[0]):g} (and {int(bad.sum()) - 1} more non-integer samples); "
+                             "mesh an iso-surface at a 'level' instead, or round the values")
         lo, hi = int(v.min()), int(v.max())
         dtype = np.result_type(np.min_scalar_type(lo), np.min_scalar_type(hi))
         return self.replace(values=v.astype(dtype))
