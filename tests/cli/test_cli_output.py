@@ -193,3 +193,16 @@ def test_warnings_are_one_line_of_the_command(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "warpmesh: warning: obj files cannot store ['medit:ref']; not saved\n" in err
     assert "UserWarning" not in err and ".py:" not in err
+
+
+def test_touching_labels_crossings_point_to_shared_interfaces(tmp_path, capsys):
+    labels = np.zeros((12, 12, 12), np.uint8)
+    labels[3:8, 3:8, 3:8] = 1
+    labels[6:10, 6:10, 6:10] = 2  # touching label 1
+    np.save(tmp_path / "l.npy", labels)
+    for interfaces, hint in (("separate", True), ("shared", False)):
+        assert main(["mesh", "--volume", str(tmp_path / "l.npy"), "--labels", "all", "--interfaces", interfaces,
+                     "-o", str(tmp_path / "l.vtu")]) == 0
+        line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("self-intersections"))
+        assert ("--interfaces shared meshes each interface once" in line) == hint, line
+        assert line.split()[1] != "0" if hint else line.split()[1] == "0"

@@ -190,6 +190,11 @@ def _line(label: str, value: str) -> str:
     return f"{label:<{_WIDTH}}{value}"
 
 
+def _separate_labels(mesh) -> bool:
+    """A surface of several labels, each its own closed surface (not ``interfaces="shared"``)."""
+    return len(mesh.info.get("labels") or ()) > 1 and "label_above" not in mesh.cell_data
+
+
 def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
     """The lines a person reads: figures, the optimisation table, the written file, the stage times."""
     from warpmesh.cells.quality import format_table
@@ -211,6 +216,9 @@ def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
             continue
         value = _value(key, stats[key])
         if value is not None:
+            if key == "self_intersections" and stats[key] and _separate_labels(mesh):
+                value += " (each label's own closed surface: where two labels touch, both are there; " \
+                         "--interfaces shared meshes each interface once)"
             lines.append(_line(f"boundary {label}" if of_boundary and key in _BOUNDARY else label, value))
     tables = []
     for key, v in stats.items():
