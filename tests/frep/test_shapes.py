@@ -329,6 +329,13 @@ def test_primitive_argument_validation():
             pytest.fail(f"bad primitive #{i} accepted")
     with pytest.raises(ValueError, match="axis"):
         wm.cylinder(1, axis="w")
+    # strings, bools and None are not numbers (float() took "1" and True without a word)
+    for make, name in ((lambda: wm.sphere("1"), "radius"), (lambda: wm.sphere(True), "radius"),
+                       (lambda: wm.sphere(None), "radius"), (lambda: wm.cylinder(1.0, height="2"), "height"),
+                       (lambda: wm.box(("1", 1, 1)), "size"), (lambda: wm.sphere(1.0, (0, 0, True)), "center")):
+        with pytest.raises(TypeError, match=f"expected (a number|numbers) for '{name}'"):
+            make()
+    assert wm.sphere(np.float32(2.0)).field is not None and wm.box(np.array([1, 2, 3])) is not None
 
 
 # -- booleans ---------------------------------------------------------------------------------

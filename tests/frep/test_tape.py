@@ -613,12 +613,11 @@ def test_evaluate_interval_rejects_bad_boxes(dev):
     hi = np.ones((2, 3))
     bad_hi = hi.copy()
     bad_hi[1, 2] = -1.0
-    with pytest.raises(ValueError, match="lo <= hi"):
+    with pytest.raises(ValueError, match="'lo' <= 'hi'"):
         wm.evaluate_interval(s, lo, bad_hi, device=dev)
     with pytest.raises(ValueError):
         wm.evaluate_interval(s, lo, np.ones((3, 3)), device=dev)
-    with pytest.raises(ValueError):
-        wm.evaluate_interval(s, np.zeros(3), np.ones(3), device=dev)
+    assert wm.evaluate_interval(s, np.zeros(3), np.ones(3), device=dev).shape == (2,)  # one box, its interval
     nan_lo = lo.copy()
     nan_lo[0, 0] = np.nan
     with pytest.raises(ValueError, match="finite"):

@@ -30,6 +30,7 @@ from __future__ import annotations
 import functools
 
 import math
+import numbers
 from typing import Literal
 
 import numpy as np
@@ -61,7 +62,11 @@ def _vector(value, name: str, n: int, *, positive: bool = False, fill: float | s
             raise TypeError(f"expected numbers for {name!r}, got a parameter: {name!r} is a constant of "
                             "the shape's structure (use parameters for sizes, positions and angles)")
         return _param_vector(value, name, n, positive=positive, fill=fill)
-    arr = np.asarray(value, dtype=np.float64)
+    raw = np.asarray(value)
+    mixed_bool = isinstance(value, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in value)
+    if raw.dtype.kind not in "iuf" or mixed_bool:  # (strings and bools converted without a word: sphere("1"))
+        raise TypeError(f"expected numbers for {name!r}, got {value!r}")
+    arr = raw.astype(np.float64)
     if arr.ndim == 0:
         arr = np.full(n, float(arr))
     if n == 3 and arr.shape == (2,) and fill is not None:
@@ -91,11 +96,19 @@ def _param_vector(value, name: str, n: int, *, positive: bool, fill) -> np.ndarr
     return out
 
 
+def _real(value, name: str) -> float:
+    """``value`` as a float when it is a real number (not a bool, a string or None)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.ndarray)) or (
+            isinstance(value, np.ndarray) and (value.ndim != 0 or value.dtype.kind not in "iuf")):
+        raise TypeError(f"expected a number for {name!r}, got {value!r}")
+    return float(value)
+
+
 def _number(value, name: str):
     """A finite float, or a parameter (kept as an expression leaf)."""
     if isinstance(value, Param):
         return value
-    v = float(value)
+    v = _real(value, name)
     if not math.isfinite(v):
         raise ValueError(f"expected a finite '{name}', got {value!r}")
     return v
@@ -120,7 +133,7 @@ def _positive(value, name: str):
             raise ValueError(f"expected a parameter with lo > 0 for '{name}', got {value!r}: give "
                              f"wm.param({value.name!r}, ...) a positive lower bound")
         return value
-    v = float(value)
+    v = _real(value, name)
     if not math.isfinite(v) or v <= 0:
         raise ValueError(f"expected a positive finite '{name}', got {value!r}")
     return v
