@@ -730,3 +730,19 @@ def test_culling_agrees_with_the_dense_grid_on_division_and_sine():
             a = wm.mesh_surface(field, bounds=bounds, resolution=res, cull=True)
             b = wm.mesh_surface(field, bounds=bounds, resolution=res, cull=False)
             assert len(a.cells["triangle"]) == len(b.cells["triangle"])
+
+
+def test_evaluate_refuses_points_that_are_not_real_numbers_or_overflow_float32():
+    """(Bool points became 0/1, complex ones lost their imaginary part, 1e40 gave -inf.)"""
+    s = wm.sphere(1.0)
+    with pytest.raises(TypeError, match="expected real numbers in 'points', got bool values"):
+        wm.evaluate(s, np.ones((2, 3), bool))
+    with pytest.raises(TypeError, match="got complex128 values"):
+        wm.evaluate(s, np.ones((2, 3)) * 1j)
+    with pytest.raises(TypeError, match="got object values"):
+        wm.evaluate(s, np.array([[None, 0, 0]]))
+    with pytest.raises(ValueError, match=r"expected coordinates within \+-1.84e\+19 in 'points'.*got 1e\+40"):
+        wm.evaluate(s, np.full((2, 3), 1e40))
+    with pytest.raises(TypeError, match="expected True or False for 'gradient', got 'yes'"):
+        wm.evaluate(s, np.ones((2, 3)), gradient="yes")
+    assert wm.evaluate(s, np.array([[0, 0, 1]])).tolist() == [0.0]  # integers are numbers

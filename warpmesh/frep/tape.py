@@ -252,12 +252,21 @@ def eval_intervals(tape: Tape, boxes_lo: wp.array, boxes_hi: wp.array, out: wp.a
     return out
 
 
+#: the largest coordinate a float32 evaluation takes (beyond, x * x overflows to infinity)
+FLOAT32_REACH = float(np.sqrt(np.finfo(np.float32).max))
+
+
 def points_array(points, device, name: str = "points") -> wp.array:
     pts = np.asarray(points)
+    if pts.dtype.kind not in "iuf":  # (bools became 0/1, complex numbers lost their imaginary part)
+        raise TypeError(f"expected real numbers in {name!r}, got {pts.dtype} values")
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"expected an (n, 3) array for {name!r}, got shape {pts.shape}")
     if not np.all(np.isfinite(pts)):
         raise ValueError(f"expected finite values in {name!r}, got NaN or infinity")
+    if pts.size and float(np.abs(pts).max()) > FLOAT32_REACH:
+        raise ValueError(f"expected coordinates within +-{FLOAT32_REACH:.3g} in {name!r} (f is evaluated in "
+                         f"float32), got {float(np.abs(pts).max()):.3g}")
     return wp.array(np.ascontiguousarray(pts, dtype=np.float32), dtype=wp.vec3, device=device)
 
 
@@ -290,6 +299,8 @@ def evaluate(shape, points, *, gradient: bool = False, device: str = "cpu",
     """
     tape = tape_of(shape)
     device = check_device(device)
+    if not isinstance(gradient, (bool, np.bool_)):
+        raise TypeError(f"expected True or False for 'gradient', got {gradient!r}")
     pts = points_array(points, device)
     if gradient:
         if evaluator != "auto":
