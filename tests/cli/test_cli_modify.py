@@ -75,6 +75,15 @@ def test_convert_to_tetra_five_and_auto(beam, tmp_path, capsys):
         assert len(got.cells["triangle"]) == 8  # the ref-7 quads, each cut in two
 
 
+def test_convert_to_hexahedra_prints_a_dash_for_figures_hexahedra_have_not(tmp_path, capsys):
+    """(The quality columns printed "None" for the hexahedra.)"""
+    tets = wm.mesh_domain(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), size=0.5)
+    tets.save(tmp_path / "ball.msh")
+    assert main(["convert", str(tmp_path / "ball.msh"), str(tmp_path / "hex.vtu"), "--to", "hexahedron"]) == 0
+    after = next(line for line in capsys.readouterr().out.splitlines() if line.split()[:1] == ["after"])
+    assert "None" not in after and after.split()[-1] == "-"
+
+
 def test_merge_two_halves(beam, tmp_path, capsys):
     mesh, _ = beam
     h = mesh.cells["hexahedron"]

@@ -137,7 +137,9 @@ def _report(before: dict, mesh, args) -> None:
         return
     print(f"{'':>14}" + "".join(f"{k:>12}" for k in _SHOWN))
     for name, s in (("before", before), ("after", after)):
-        cells = [f"{s.get(k):>12.6g}" if isinstance(s.get(k), float) else f"{str(s.get(k)):>12}" for k in _SHOWN]
+        # "-": a figure stats() does not give for these cells (the quality of hexahedra)
+        cells = [f"{s.get(k):>12.6g}" if isinstance(s.get(k), float) else
+                 f"{'-' if s.get(k) is None else str(s.get(k)):>12}" for k in _SHOWN]
         print(f"{name:>14}" + "".join(cells))
     for key, value in facts.items():
         print(f"{key:>22}: {value}")
