@@ -192,3 +192,25 @@ def test_copies_merged_in_halves_equal_copies_merged_one_by_one(copies):
         np.testing.assert_array_equal(got.points, want.points)
         np.testing.assert_array_equal(got.cells["triangle"], want.cells["triangle"])
         assert got.info["euler"] == want.info["euler"]
+
+
+def test_overlapping_copies_are_warned_about_and_the_identity_refused():
+    """(Six copies of a ball rotated by 60 degrees, or a square moved by half its side,
+    passed the Euler check and came back without a word.)"""
+    import warnings
+
+    from warpmesh.modify import transforms as T
+
+    square = Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"triangle": [[0, 1, 2], [0, 2, 3]]})
+    with pytest.warns(UserWarning, match=r"periodic: the copies overlap \([0-9]+ pairs of cells cross"):
+        periodic(square, T.translation((0.5, 0.0)), 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        row = periodic(square, T.translation((1.0, 0.0)), 3)  # side by side: no warning
+        periodic(square, T.translation((0.5, 0.0)), 2, check=False)  # no checks asked for
+    assert len(row.cells["triangle"]) == 6 and not len(row.check())
+    tets = kuhn_block(2)  # [0, 1]^3
+    with pytest.warns(UserWarning, match="the copies overlap"):
+        periodic(tets, T.translation((0.3, 0.0, 0.0)), 2)  # (at 0.5 the shared points fail the merge)
+    with pytest.raises(ValueError, match="got the identity"):
+        periodic(square, np.eye(3), 3)

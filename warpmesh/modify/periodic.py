@@ -22,9 +22,9 @@ Examples
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numbers
+import warnings
+from typing import Literal
 
 import numpy as np
 
@@ -58,6 +58,9 @@ def _check_matrix(matrix, d: int) -> np.ndarray:
     det = np.linalg.det(arr[:d, :d])
     if not abs(det) > 1e-12 * max(np.abs(arr[:d, :d]).max(), 1e-300) ** d:
         raise ValueError(f"expected an invertible 'matrix', got determinant {det:g}")
+    if np.allclose(arr, np.eye(d + 1), rtol=0, atol=1e-12):
+        raise ValueError("expected a 'matrix' that moves the mesh, got the identity (every copy would be the "
+                         "pattern itself)")
     return arr
 
 
@@ -180,7 +183,10 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs:
     tolerance : float, optional
         Absolute; default ``1e-8 × Δ``, Δ the largest side of the box of all copies.
     refs, duplicates, check
-        As :func:`warpmesh.modify.merge.merge`, for every merge of a copy.
+        As :func:`warpmesh.modify.merge.merge`, for every merge of a copy. Unless ``check``
+        is False, the result's triangles or tetrahedra are also checked for crossings
+        (:meth:`Mesh.check <warpmesh.mesh.Mesh.check>`): copies that overlap give a
+        ``UserWarning``.
 
     Returns
     -------
@@ -196,7 +202,7 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs:
     TypeError
         ``mesh`` not a Mesh, non-numeric matrix, non-integer ``copies``, unknown option.
     ValueError
-        Bad matrix (shape, not affine, singular, not finite), ``copies`` < 1.
+        Bad matrix (shape, not affine, singular, not finite, the identity), ``copies`` < 1.
     warpmesh.modify.merge.MergeError
         A merge fails its Euler check (sides meshed differently or tolerance too large).
 
@@ -231,4 +237,20 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs:
     pairs = _match(image, result.points[last], tol)[0]
     pairs = np.stack([pairs[:, 0], last[pairs[:, 1]]], axis=1).astype(INDEX_DTYPE)
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]
-    return result.replace(info={**result.info, "copies": n, "periodic_pairs": pairs})
+    out = result.replace(info={**result.info, "copies": n, "periodic_pairs": pairs})
+    if check is not False and n > 1:
+        _warn_if_copies_overlap(out)
+    return out
+
+
+def _warn_if_copies_overlap(mesh) -> None:
+    """A UserWarning when cells of the result cross (copies moved by less than the pattern's
+    extent, or a rotation that turns them onto each other): merged, they are no mesh a
+    solver can take, and the Euler check does not see it. Triangles and tetrahedra only."""
+    if not any(t in mesh.cells for t in ("triangle", "tetra")):
+        return
+    crossing = mesh.check()
+    if len(crossing):
+        warnings.warn(f"periodic: the copies overlap ({len(crossing)} pairs of cells cross, e.g. cells "
+                      f"{crossing[0].tolist()}): the transform moves the pattern by less than its extent",
+                      UserWarning, stacklevel=3)
