@@ -453,3 +453,12 @@ def test_bad_shape():
 def test_bad_tetra_diagonal():
     with pytest.raises(ValueError, match="'tetra_diagonal'"):
         refine_uniform(_tri2(), 2, tetra_diagonal="longest")
+
+
+def test_a_shape_that_is_nan_at_the_new_nodes_is_named():
+    """(The error said 'expected finite values in 'points'', a point the user never gave.)"""
+    import warpmesh as wm
+
+    ball = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8)
+    with pytest.raises(ValueError, match=r"the shape evaluates to NaN or infinity near [0-9]+ of the [0-9]+ nodes"):
+        ball.refine(2, wm.log(wm.coords()[0]))

@@ -392,6 +392,10 @@ def project_nodes(target, x: np.ndarray, cap: np.ndarray) -> np.ndarray:
     (n, 3) float64
     """
     y = target.project(x, max_step=cap)
+    if not np.isfinite(y).all():  # (else the next evaluation blames 'points')
+        bad = int((~np.isfinite(y).all(axis=1)).sum())
+        raise ValueError(f"the shape evaluates to NaN or infinity near {bad} of the {len(y)} nodes to place on it: "
+                         "check the 'shape' (e.g. sqrt/log of a negative) and that it is the mesh's")
     shape = getattr(target, "shape", None)
     if shape is None or not hasattr(shape, "eval_numpy") or len(y) == 0:
         return y
