@@ -165,7 +165,7 @@ def test_cells_is_the_bottom_layer():
 
 def test_a_handful_of_modules_directly_in_the_package():
     top = {p.stem for p in PKG.glob("*.py")}
-    assert top == {"__init__", "mesh", "errors", "_conventions"}
+    assert top == {"__init__", "__main__", "mesh", "errors", "_conventions"}  # (__main__: python -m warpmesh)
     assert {p.name for p in PKG.iterdir() if p.is_dir() and (p / "__init__.py").exists()} == \
         SUBPACKAGES - {"kernels"} | {"_util"}
 

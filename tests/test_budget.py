@@ -22,7 +22,7 @@ REFUSED = {
     "refine n": (lambda m: m.refine(10**4), "'n'"),
     "refine max_length": (lambda m: m.refine(max_length=1e-7), "'max_length'"),
     "refine callable max_length": (lambda m: m.refine(max_length=lambda x: np.full(len(x), 1e-7)), "'max_length'"),
-    "periodic copies": (lambda m: m.periodic(np.eye(4), 10**7), "'copies'"),
+    "periodic copies": (lambda m: m.periodic(np.diag([2.0, 2.0, 2.0, 1.0]), 10**7), "'copies'"),
     "mesh_curve resolution": (lambda m: wm.mesh_curve(wm.circle(0.5), bounds=((-1, -1), (1, 1)), method="grid",
                                                       resolution=10**5), "'resolution'"),
 }

@@ -13,7 +13,7 @@ True
 
 from __future__ import annotations
 
-__all__ = ["WarpMeshError", "ReadError", "TopologyError", "MergeError", "SizeError"]
+__all__ = ["WarpMeshError", "ReadError", "WriteError", "TopologyError", "MergeError", "SizeError"]
 
 
 class WarpMeshError(Exception):

@@ -451,3 +451,14 @@ def test_simplify_never_returns_more_triangles_than_its_input():
             out = m.simplify(shape, fraction=0.1)
         assert out.n_cells <= m.n_cells, (resolution, out.n_cells, m.n_cells)
         assert out.stats()["watertight"]
+
+
+def test_the_progress_bar_says_which_operation_runs(capsys):
+    """(simplify's bar said "optimize".)"""
+    shape, bounds = wm.example("sphere")
+    mc = wm.mesh_surface(shape, bounds=bounds, resolution=16, method="mc")
+    mc.simplify(shape, fraction=0.5, iterations=1, progress=True)
+    err = capsys.readouterr().err
+    assert "simplify:" in err and "optimize:" not in err
+    mc.optimize(shape, iterations=1, progress=True)
+    assert "optimize:" in capsys.readouterr().err

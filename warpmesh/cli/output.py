@@ -62,7 +62,7 @@ def extensions_text(cells: tuple[str, ...]) -> str:
     Examples
     --------
     >>> extensions_text(("tetra",))
-    '.vtu .vtk .msh .mesh'
+    '.vtu .pvtu .vtk .msh .mesh'
     """
     return " ".join(output_extensions(cells))
 
@@ -102,7 +102,7 @@ def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output"
     >>> check_output("part.xyz", cells=("triangle",))
     Traceback (most recent call last):
     ...
-    ValueError: unknown extension '.xyz' for -o/--output 'part.xyz'; expected one of .vtu .vtk .msh .mesh .ply .obj .stl
+    ValueError: unknown extension '.xyz' for -o/--output 'part.xyz'; expected one of .vtu .pvtu .vtk .msh .mesh .ply .obj .stl
     """
     from warpmesh.io.files import FILE_FORMATS
 

@@ -769,7 +769,7 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
     else:
         detect_features(s, 180.0 - 1e-9)  # boundaries and ref interfaces only
     run = _Run(s, target, hfield, tol, angle, FeatureLines(s), counts=counts, half_edge=simplifying)
-    bar = _progress(iterations + POLISH_PASSES, progress)
+    bar = _progress(iterations + POLISH_PASSES, progress, "simplify" if simplifying else "optimize")
     fallback = None  # (label, state): the latest state within the allowed worst Q_K
 
     def acceptable() -> bool:  # within the allowed worst Q_K; a decimation never ends with more triangles
@@ -951,12 +951,12 @@ class _NoBar:
         pass
 
 
-def _progress(total: int, progress: bool):
+def _progress(total: int, progress: bool, label: str = "optimize"):
     if not progress:
         return _NoBar()
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, desc="optimize", unit="pass", leave=False)
+    return tqdm(total=total, desc=label, unit="pass", leave=False)
 
 
 def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: float | None = None,
