@@ -537,3 +537,11 @@ def test_kept_blocks_and_inverted_parent():
     inverted = Mesh(tet, {"tetra": [[0, 2, 1, 3]]})
     with pytest.raises(WarpMeshError, match="positively oriented"):
         convert_cells(inverted, "hexahedron")
+
+
+def test_nothing_to_split_says_so():
+    """(A 2D triangle mesh converted "to tetra" came back unchanged without a word.)"""
+    square = Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"triangle": [[0, 1, 2], [0, 2, 3]]})
+    with pytest.warns(UserWarning, match=r"convert to 'tetra': the mesh has no 'hexahedron' .* cells to split"):
+        same = square.convert("tetra")
+    assert same.cells["triangle"].tolist() == square.cells["triangle"].tolist()

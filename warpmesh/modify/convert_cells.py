@@ -45,6 +45,7 @@ Examples
 
 from __future__ import annotations
 
+import warnings
 from functools import cache
 from typing import Literal
 
@@ -415,6 +416,9 @@ def convert_cells(mesh, target: Target, *, quads: Literal["best", "min", 4] | No
         if "quad" in cells:
             q = cells["quad"]
             pieces["quad"] = _quad_pieces(q, _boundary_quad_bits(q, h, choice, hexes))
+    if not pieces:  # (a 2D triangle mesh converted "to tetra" came back unchanged without a word)
+        warnings.warn(f"convert to {target!r}: the mesh has no {' or '.join(repr(t) for t in TARGETS[target])} "
+                      f"cells to split (it has {sorted(cells)}); it is returned as it is", UserWarning, stacklevel=3)
     return _assemble(mesh, pieces, target, info)
 
 
