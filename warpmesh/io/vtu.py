@@ -380,7 +380,8 @@ def read_vtu(path) -> meshio.Mesh:
     except _Unsupported:
         return meshio_wedges(meshio_vtu.read(str(path)))
     except (ValueError, KeyError, IndexError, zlib.error, binascii.Error) as exc:
-        raise ReadError(f"could not read {str(path)!r} as vtu: {type(exc).__name__}: {exc}") from exc
+        raise ReadError(f"could not read {str(path)!r} as vtu (a cut or corrupt file?): {type(exc).__name__}: "
+                        f"{exc}") from exc
 
 
 def _read(raw: bytes) -> meshio.Mesh:
