@@ -203,7 +203,7 @@ class Mesh:
         per cell, negative or out-of-range indices, mismatched data lengths. A cell with
         a repeated vertex (a collapsed cell, as files carry them) is accepted; the
         operations that split or rebuild cells refuse it
-        (:mod:`warpmesh.modify.collapsed_cells` lists which).
+        (:mod:`warpmesh.cells.collapsed` lists which).
 
     Examples
     --------

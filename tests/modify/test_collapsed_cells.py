@@ -8,7 +8,7 @@ import pytest
 
 import warpmesh as wm
 from tests.helpers.blocks import kuhn_block, tri_square
-from warpmesh.modify.collapsed_cells import collapsed_cells
+from warpmesh.cells.collapsed import collapsed_cells
 
 
 def _with_collapsed():
@@ -26,12 +26,13 @@ def test_collapsed_cells_found_per_block():
     assert collapsed_cells(tri_square(3)) == {}
 
 
-@pytest.mark.parametrize("operation", ["refine", "refine local", "convert", "crack"])
+@pytest.mark.parametrize("operation", ["refine", "refine local", "convert", "crack", "to_order"])
 def test_operations_that_rebuild_cells_refuse_them(operation):
     for mesh in _with_collapsed():
         run = {"refine": lambda m: m.refine(2), "refine local": lambda m: m.refine(max_length=0.3),
                "convert": lambda m: m.convert("quad" if m.dim == 2 else "tetra"),
-               "crack": lambda m: m.crack(m.cells[next(iter(m.cells))][:1, :m.dim])}[operation]
+               "crack": lambda m: m.crack(m.cells[next(iter(m.cells))][:1, :m.dim]),
+               "to_order": lambda m: m.to_order(2)}[operation]
         with pytest.raises(ValueError, match=r"repeated vertex in 'mesh'.*the first cells\[") as err:
             run(mesh)
         assert operation.split()[0] in str(err.value)

@@ -55,7 +55,7 @@ from scipy.sparse.csgraph import connected_components
 
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh.cells.types import require_mesh
-from warpmesh.modify.collapsed_cells import reject_collapsed
+from warpmesh.cells.collapsed import reject_collapsed
 from warpmesh.errors import WarpMeshError
 from warpmesh.cells.quality import tetra_quality, triangle_quality
 from warpmesh.cells.reference import (

@@ -48,7 +48,7 @@ from scipy.sparse.csgraph import connected_components
 from warpmesh._conventions import INDEX_DTYPE
 from warpmesh._util.arrays import unique_rows
 from warpmesh.cells.types import CELL_TYPES, require_mesh
-from warpmesh.modify.collapsed_cells import reject_collapsed
+from warpmesh.cells.collapsed import reject_collapsed
 from warpmesh.cells.reference import P1_TYPES, mirror_permutation, reference_cell
 
 __all__ = ["crack"]

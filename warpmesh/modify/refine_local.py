@@ -66,7 +66,7 @@ import numpy as np
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import CELL_TYPES, require_mesh
-from warpmesh.modify.collapsed_cells import reject_collapsed
+from warpmesh.cells.collapsed import reject_collapsed
 from warpmesh.frep.projection import as_target, project_nodes
 from warpmesh.errors import WarpMeshError
 from warpmesh.cells.quality import tetra_quality, triangle_quality

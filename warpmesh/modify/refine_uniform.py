@@ -60,7 +60,7 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.arrays import unique_rows
 from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import require_mesh
-from warpmesh.modify.collapsed_cells import reject_collapsed
+from warpmesh.cells.collapsed import reject_collapsed
 from warpmesh.frep.projection import as_target, project_nodes
 from warpmesh.cells.reference import (base_type, cell_measures, corner_jacobians, extend_point_values,
                               reference_cell, weighted_nodes)

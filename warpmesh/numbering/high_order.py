@@ -41,6 +41,7 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.arrays import unique_rows
 from warpmesh.cells.lagrange import (ELEMENT_BY_NAME, ELEMENTS, HIGHER_TYPES, LAGRANGE_NAMES, ORDERS,
                                      P1_TOPOLOGY, LagrangeElement)
+from warpmesh.cells.collapsed import reject_collapsed
 from warpmesh.cells.types import require_mesh
 from warpmesh.frep.projection import as_target, project_nodes
 
@@ -282,6 +283,7 @@ def _to_order(mesh, order, shape=None, *, bounds=None, check=True, stacklevel: i
     target = None if shape is None else as_target(shape, bounds=bounds)
     if k == 1:
         return mesh
+    reject_collapsed(mesh, "to_order")  # (a repeated corner only warned of an inverted element)
     plan = _plan(mesh, k)
     blocks = [(el, np.asarray(mesh.cells[t])) for t, el in plan if el is not None]
     n0, dim = mesh.n_points, mesh.dim

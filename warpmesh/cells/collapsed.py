@@ -4,15 +4,16 @@
 hexahedron standing for a wedge): files carry them, and statistics, numbering, colouring,
 transformations, merges, periodic copies and file writers pass them through unchanged.
 The operations that split or rebuild cells — uniform and local refinement, conversion
-between cell types, cracks, and :func:`warpmesh.optimize` / :func:`warpmesh.simplify`
-(which refuse any zero-area triangle) — cannot give such a cell a shape: they call
+between cell types, cracks, higher-order nodes (``to_order``), and
+:func:`warpmesh.optimize` / :func:`warpmesh.simplify` (which refuse any zero-area
+triangle) — cannot give such a cell a shape: they call
 :func:`reject_collapsed` first, so the answer is a ValueError naming the first one
 instead of more collapsed cells (or a hang).
 
 Example
 -------
 >>> from warpmesh.mesh import Mesh
->>> from warpmesh.modify.collapsed_cells import collapsed_cells, reject_collapsed
+>>> from warpmesh.cells.collapsed import collapsed_cells, reject_collapsed
 >>> m = Mesh([[0, 0], [1, 0], [0, 1], [1, 1]], {"triangle": [[0, 1, 2], [1, 3, 1]]})
 >>> collapsed_cells(m)["triangle"].tolist()
 [1]
