@@ -273,8 +273,10 @@ def mesh_domain(shape, bounds, *, size: float | None = None, tolerance: float = 
     if not (isinstance(h, (int, float, np.floating)) and not isinstance(h, bool) and h > 0 and math.isfinite(h)):
         raise ValueError(f"expected a positive finite 'size', got {size!r}")
     t0 = time.perf_counter()
-    curve = mesh_curve(shape, bounds, method=boundary, tolerance=tolerance, size=float(h), hmax=float(h),
-                       device=device)
+    with warnings.catch_warnings():  # no curve is the ValueError below, not a warning first
+        warnings.filterwarnings("ignore", message="method '.*' found no curve", category=UserWarning)
+        curve = mesh_curve(shape, bounds, method=boundary, tolerance=tolerance, size=float(h), hmax=float(h),
+                           device=device)
     t1 = time.perf_counter()
     if not len(curve.cells["line"]):
         raise ValueError("expected a 'shape' whose boundary f = 0 crosses 'bounds', found no curve")
