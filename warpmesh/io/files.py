@@ -395,11 +395,16 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         _write_in_folder(data, mesh, path, fmt)
         return path
     with atomic_path(path) as tmp:
-        if fmt.write is not None:
-            fmt.write(tmp, data, mesh, **fmt.write_kwargs)
-        else:
-            _meshio_write(tmp, data, fmt.meshio_name, **fmt.write_kwargs)
+        _write(fmt, tmp, data, mesh)
     return path
+
+
+def _write(fmt: _Format, path: Path, data: meshio.Mesh, mesh: MeshLike) -> None:
+    """The format's own writer, else meshio's."""
+    if fmt.write is not None:
+        fmt.write(path, data, mesh, **fmt.write_kwargs)
+    else:
+        _meshio_write(path, data, fmt.meshio_name, **fmt.write_kwargs)
 
 
 def _write_in_folder(data: meshio.Mesh, mesh: MeshLike, path: Path, fmt: _Format) -> None:
@@ -407,10 +412,7 @@ def _write_in_folder(data: meshio.Mesh, mesh: MeshLike, path: Path, fmt: _Format
     such as XDMF's .h5 or TetGen's .ele, keep the names the main file refers to), then
     move every file out, the main file last; on failure nothing is left."""
     with atomic_path(path, kind="tmpdir") as tmp:
-        if fmt.write is not None:
-            fmt.write(tmp / path.name, data, mesh, **fmt.write_kwargs)
-        else:
-            _meshio_write(tmp / path.name, data, fmt.meshio_name, **fmt.write_kwargs)
+        _write(fmt, tmp / path.name, data, mesh)
 
 
 def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path:
