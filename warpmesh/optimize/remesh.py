@@ -305,11 +305,12 @@ class _Run:
         taken = np.zeros(n, bool)
         accepted = []
         alive = np.ones(len(cand), bool)
+        by_vertex = np.lexsort((length_c, rem))  # once: each round keeps its live part, in order
+        vf_ptr, vf = vertex_faces(s.triangles, n)  # the faces change only after the last round
         for _ in range(COLLAPSE_ROUNDS):
-            live = np.flatnonzero(alive & ~taken[rem] & ~taken[kp])
+            live = by_vertex[(alive & ~taken[rem] & ~taken[kp])[by_vertex]]
             if len(live) == 0:
                 break
-            live = live[np.lexsort((length_c[live], rem[live]))]
             live = live[np.r_[True, rem[live][1:] != rem[live][:-1]]]
             own_r, nr = gather(nb_ptr, nb, rem[live])
             moving = np.flatnonzero(both_free[live])
@@ -323,7 +324,7 @@ class _Run:
             win = live[pick]
             alive[win] = False
             failed, pos = self._collapse_checks(topo, cand[win], rem[win], kp[win], both_free[win], length_c[win],
-                                                limit_q)
+                                                limit_q, (vf_ptr, vf))
             failed |= ~_link_ok(rem[win], kp[win], topo.n_faces[cand[win]], nb_ptr, nb, n)
             self.rejected = np.concatenate([self.rejected, rem[win[failed]] * n + kp[win[failed]]])
             taken[element[np.isin(owner, pick[~failed])]] = True
@@ -344,16 +345,17 @@ class _Run:
         self._count_rejected(len(good) - done)
         return done
 
-    def _collapse_checks(self, topo, cand, rem, kp, both_free, length_c, limit_q):
-        """(failed flags, new positions of the kept ends) of independent collapses."""
+    def _collapse_checks(self, topo, cand, rem, kp, both_free, length_c, limit_q, faces_of):
+        """(failed flags, new positions of the kept ends) of independent collapses;
+        ``faces_of`` is ``vertex_faces`` of the current triangles."""
         s = self.s
-        p, n = s.points, len(s.points)
+        p = s.points
         pos = p[kp].copy()
         if both_free.any():
             mid = 0.5 * (p[rem[both_free]] + p[kp[both_free]])
             pos[both_free] = self.project_free(mid, 0.5 * length_c[both_free])
         # geometry of the new balls
-        vf_ptr, vf = vertex_faces(s.triangles, n)
+        vf_ptr, vf = faces_of
         own1, f1 = gather(vf_ptr, vf, rem)
         own2, f2 = gather(vf_ptr, vf, kp)
         own = np.concatenate([own1, own2])
