@@ -294,3 +294,19 @@ def test_optimize_random_blobs_32():
     assert info["after"]["q_mean"] < 0.7 * info["before"]["q_mean"]
     assert info["after"]["edge_error"] < info["before"]["edge_error"]
     assert info["after"]["q_worst"] < 10.0 < info["before"]["q_worst"]  # 5e5 -> 6.5
+
+
+def test_shared_surface_with_a_volume_field_target():
+    """A shared surface (every ref 0: the background below label 1) optimised and simplified
+    against a sampled volume, which has no box: no cap refs to look for (it raised TypeError)."""
+    vol = np.zeros((16, 16, 16), np.uint8)
+    vol[4:12, 4:12, 4:12] = 1
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    assert not m.cell_refs["triangle"].any()
+    target = wm.VolumeField((vol == 1).astype(float), level=0.5)
+    for out in (m.optimize(target), m.simplify(target, fraction=0.3)):
+        s = out.stats()
+        assert s["watertight"] and s["self_intersections"] == 0
+        assert not out.cell_refs["triangle"].any()
+        # oriented from the lower label to the higher, as the input: towards label 1, inwards
+        assert abs(s["volume"] + 512.0) < 0.1 * 512.0 and m.stats()["volume"] < 0

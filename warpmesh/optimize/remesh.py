@@ -888,7 +888,7 @@ def _drive(mesh, shape, *, bounds, size, tolerance, features, angle, iterations,
                      "corners": int((s.vclass == CORNER).sum())},
     })
     cell_refs = None if mesh.cell_refs is None else {"triangle": s.refs}
-    if cell_refs is not None and not s.refs.any():
+    if cell_refs is not None and not s.refs.any() and target.bounds is not None:  # no box: no caps
         cell_refs = {"triangle": _cap_refs(s.points, s.triangles, target.bounds, tol)}
     return type(mesh)(s.points, {"triangle": s.triangles}, cell_refs=cell_refs, info=info)
 
