@@ -57,7 +57,7 @@ def add_parsers(sub) -> None:
     add_volume_arguments(d, source, labels_help="--volume: the regions to mesh, 'all' (default: every value "
                                                 "but 0) or label values (0 included when listed)")
     d.add_argument("--size", type=_domain_size, help="target edge length (default: box diagonal / 20; 3D: the "
-                                                     "smallest side / 20; --volume: 4 voxels), or, in 3D, "
+                                                     "smallest side / 20; --volume: 4 voxels, less in a thinner volume), or, in 3D, "
                                                      "'curvature': graded by the surface's curvature")
     d.add_argument("--snap", type=float, help="--volume: cut points this fraction of their edge from a lattice "
                                               "node are snapped onto it, in [0, 0.5) (default 0.3)")

@@ -145,6 +145,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 
 import numpy as np
 import warp as wp
@@ -224,7 +225,8 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         (not meshed).
     size : float, optional
         The lattice's cube side (the long edges; short edges are sqrt(3)/2 of it), in world
-        units. Default: 4 times the smallest spacing.
+        units. Default: 4 times the smallest spacing, halved until it is below the volume's
+        smallest extent (a thin slab).
     snap : float
         Cut points within ``snap`` times their edge's length of a node are snapped onto it,
         in [0, 0.5); 0 keeps every cut where the labels put it.
@@ -240,7 +242,10 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         does a volume whose every region is within ``REFINE_ERROR`` (the uniform mesh, bit
         for bit). The regions made only of specks (components of at most ``SPECK_CUBES``
         lattice cubes) are refined to about half a voxel and have their interfaces moved to
-        their voxel volumes (the module docstring). ``info``: ``graded``, ``refined_labels``,
+        their voxel volumes (the module docstring). A region still off by more than
+        ``REFINE_ERROR`` (a blocky one a few cubes across, whose edges cross its labels once:
+        nothing to refine, and the snapped cut points move its faces) is named in a
+        UserWarning. ``info``: ``graded``, ``refined_labels`` (when graded),
         ``graded_tets``, ``speck_offsets`` (label: the distance its interface moved, world units).
     device : str
 
@@ -306,13 +311,15 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
             del points, tets, tet_codes, tris, lower, upper  # (freed for the graded pass's peak)
             graded = cleave(codes, rest, spacing, h, float(snap), more, min_size=smallest, focus=focus, specks=specks,
                             targets=targets)
-            if graded is None:  # nothing to refine after all: the uniform mesh again
+            refined = graded is not None
+            if not refined:  # nothing to refine after all (no edge crosses the labels twice): the uniform mesh again
                 graded = cleave(codes, rest, spacing, h, float(snap), more)
                 graded[-1].update(graded=False, min_size=smallest)
             points, tets, tet_codes, tris, lower, upper, info = graded
             timings.update(more)
             meshed = _region_volumes(points, tets, tet_codes, len(ids))
-            info["refined_labels"] = [int(v) for v in ids[focus]]
+            if refined:
+                info["refined_labels"] = [int(v) for v in ids[focus]]
             if "speck_offsets" in info:
                 info["speck_offsets"] = {int(ids[c]): d for c, d in info["speck_offsets"].items()}
     if not len(tets):
@@ -339,11 +346,27 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     info.update(quality, method="cleaving", size=h, snap=float(snap), labels=[int(v) for v in ids if v != ids[rest]],
                 rest=int(ids[rest]), region_volumes=region, time=timings, space=image.space,
                 region_error_max=max((abs(r["error"]) for r in region.values()), default=0.0))
+    _warn_unresolved(region, h, float(snap))
     tet_labels, lower, upper = ids[tet_codes], ids[lower], ids[upper]
     for a in (points, tets, tris, tet_labels, lower, upper):  # made here, handed over: the Mesh keeps them, no copy
         a.setflags(write=False)
     return Mesh(points, {"tetra": tets, "triangle": tris}, cell_refs={"tetra": tet_labels, "triangle": lower},
                 cell_data={LABEL_ABOVE: {"tetra": tet_labels, "triangle": upper}}, info=info)
+
+
+def _warn_unresolved(region: dict, h: float, snap: float) -> None:
+    """One UserWarning naming the regions still off their voxel volume by more than
+    REFINE_ERROR after the graded pass (or where it found no edge crossing the labels twice:
+    a blocky region a few lattice cubes across, whose cut points the snapping moves onto
+    lattice nodes)."""
+    off = {label: r["error"] for label, r in region.items() if abs(r["error"]) > REFINE_ERROR}
+    if not off:
+        return
+    listed = ", ".join(f"label {k}: {v:+.2%}" for k, v in list(off.items())[:8]) + (", ..." if len(off) > 8 else "")
+    hint = "a smaller 'size'" + (", or 'snap' 0.1 (cut points kept off the lattice nodes; smaller angles)," if snap > 0.1
+                                 else "")
+    warnings.warn(f"mesh_domain: {len(off)} region(s) off their voxel volume by more than {REFINE_ERROR:.1%} at "
+                  f"size {h:g}, snap {snap:g} ({listed}): {hint} meshes them closer", UserWarning, stacklevel=4)
 
 
 # ----------------------------------------------------------------------------------- validation
@@ -370,8 +393,10 @@ def _as_image(volume) -> Volume:
 
 def _check_size(size, shape, spacing: np.ndarray) -> float:
     extent = float(np.min(np.asarray(shape) * spacing))
-    if size is None:
+    if size is None:  # DEFAULT_VOXELS voxels, halved (still a power of two) below a thin volume's extent
         size = DEFAULT_VOXELS * float(spacing.min())
+        while size >= extent:
+            size *= 0.5
     ok = isinstance(size, (int, float, np.integer, np.floating)) and not isinstance(size, bool) \
         and math.isfinite(size) and size > 0
     if not ok:

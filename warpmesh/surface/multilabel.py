@@ -153,6 +153,8 @@ def label_codes(vol: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray, int]:
     >>> codes.ravel().tolist(), ids.tolist(), rest
     ([1, 2, 0, 2], [-1, 0, 3], 0)
     """
+    if vol.dtype == np.bool_:  # as 0/1 bytes (a bool array would index the table as a mask)
+        vol = vol.view(np.uint8)
     if vol.flags.f_contiguous and not vol.flags.c_contiguous:  # x fastest: slabs of the C-order view
         codes, ids, rest = label_codes(vol.T, labels)
         return codes.T, ids, rest
