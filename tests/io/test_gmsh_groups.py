@@ -317,6 +317,11 @@ def test_mesh_domain_regions_go_to_volume_groups(tmp_path):
     back = wm.load(path)
     assert sorted(zip(map(tuple, back.cells["tetra"].tolist()), back.cell_refs["tetra"].tolist())) == \
         sorted(zip(map(tuple, tets.tolist()), tet_refs.tolist()))
+    # saved again (a load / save round trip, as the CLI's renumber or refine does): the same
+    # group names (the regions were renamed region_<r>)
+    assert back.info["labels"] == [2, 5]
+    again = _gmsh_groups(back.save(tmp_path / "again.msh"))
+    assert {k: (v[0], len(v[1])) for k, v in again.items()} == {k: (v[0], len(v[1])) for k, v in groups.items()}
 
 
 @pytest.mark.parametrize("rows", [1, 5, 64])

@@ -121,7 +121,8 @@ class _Format:
     keeps_2d: bool = False
     index_dtype: type = INDEX_DTYPE  # of the cells written
     keep_data: _DataFilter = _keep_all  # on save: which arrays the file gets
-    tidy: Callable[[meshio.Mesh], None] = _no_tidy  # on load: drop what meshio invents
+    #: on load: drop what meshio invents; may return info the file holds (a label volume's labels)
+    tidy: Callable[[meshio.Mesh], dict | None] = _no_tidy
     folder: bool = False  # written in a temporary folder (writers that add side files: .h5, .ele)
     read: Callable[[str], meshio.Mesh] | None = None  # warpmesh's own reader (default: meshio's)
     write: Callable[..., object] | None = None  # warpmesh's own: (path, meshio.Mesh, mesh, **write_kwargs)
@@ -512,11 +513,11 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
         raise ReadError(
             f"could not read {str(path)!r} as {fmt.name}: {type(exc).__name__}: {exc}"
         ) from exc
-    fmt.tidy(m)
+    info = fmt.tidy(m)
     if len(m.points) == 0:
         raise ReadError(f"could not read {str(path)!r} as {fmt.name}: the file holds no points")
     try:
-        mesh = from_meshio(m, mesh_type=mesh_type)
+        mesh = from_meshio(m, mesh_type=mesh_type, info=info)
     except (ValueError, TypeError) as exc:
         raise ReadError(f"could not read {str(path)!r} as {fmt.name}: invalid mesh: {exc}") from exc
     _check_cells(mesh, path, fmt.name)

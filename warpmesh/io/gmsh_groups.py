@@ -410,7 +410,7 @@ def _parse(name: str):
     return None
 
 
-def restore_refs(m) -> None:
+def restore_refs(m) -> dict | None:
     """On load of a ``.msh`` file written by :func:`write_msh41` (read by meshio, whose
     ``"gmsh:physical"`` is each entity's first group): the refs from the group names, and
     ``label_above`` for interface cells (other blocks get their refs there, as a label on
@@ -421,7 +421,28 @@ def restore_refs(m) -> None:
     ----------
     m : meshio.Mesh
         Modified in place.
+
+    Returns
+    -------
+    dict or None
+        ``{"labels": [...]}`` when the file's volume groups are ``label_<r>`` (regions of a
+        label volume), so that the mesh saved again names them the same; else None.
+
+    Examples
+    --------
+    >>> import meshio
+    >>> m = meshio.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [("tetra", [[0, 1, 2, 3]])],
+    ...                 field_data={"label_7": [1, 3]})
+    >>> restore_refs(m)
+    {'labels': [7]}
     """
+    _restore_refs(m)
+    labels = sorted(int(mt.group(1)) for mt in (re.match(r"^label_(-?\d+)$", k) for k, v in m.field_data.items()
+                                                  if len(v) > 1 and int(v[1]) == 3) if mt)
+    return {"labels": labels} if labels else None
+
+
+def _restore_refs(m) -> None:
     names = {}
     for name, (tag, dim) in ((k, tuple(int(x) for x in v[:2])) for k, v in m.field_data.items()):
         names[(dim, tag)] = _parse(name)
