@@ -215,6 +215,16 @@ def test_bad_input_names_the_argument():
         wm.mesh_surface(vol.astype(float), interfaces="separate")
     with pytest.raises(ValueError, match='non-zero labels.*labels="all"'):
         wm.mesh_surface(np.zeros((6, 6, 6), np.uint8), labels="all", interfaces="shared")
+    # marching cubes' options are refused, not dropped unseen (method="mt" gave surface nets)
+    with pytest.raises(ValueError, match="method='mt' does not apply with interfaces='shared'"):
+        wm.mesh_surface(vol, labels="all", interfaces="shared", method="mt")
+    with pytest.raises(ValueError, match="method='mc' and clearance=0.1 do not apply"):
+        wm.mesh_surface(vol, interfaces="shared", method="mc", clearance=0.1)
+    # whole-number floats are labels with separate surfaces too (they raised TypeError there only)
+    as_floats = wm.mesh_surface(vol.astype(np.float32), labels="all")
+    assert np.array_equal(as_floats.points, wm.mesh_surface(vol, labels="all").points)
+    with pytest.raises(ValueError, match="'labels' meshes the regions .*whole-number"):
+        wm.mesh_surface(vol + 0.25, labels="all")
     m = wm.mesh_surface(vol, labels="all", interfaces="shared")
     with pytest.raises(ValueError, match="'label'"):
         label_boundary(m, 9)

@@ -88,8 +88,10 @@ def test_label_volume_bad_input():
         wm.mesh_surface(labels, labels="some")
     with pytest.raises(ValueError, match="distinct"):
         wm.mesh_surface(labels, labels=[3, 3])
-    with pytest.raises(TypeError, match="integer"):
-        wm.mesh_surface(labels.astype(np.float32), labels="all")
+    with pytest.raises(ValueError, match="whole-number"):  # whole-number floats are labels, others are not
+        wm.mesh_surface(labels.astype(np.float32) + 0.5, labels="all")
+    with pytest.raises(TypeError, match="real numeric 'volume'"):
+        wm.mesh_surface(labels.astype(np.complex64), labels="all")
     with pytest.raises(ValueError, match="only 0"):
         wm.mesh_surface(np.zeros((5, 5, 5), np.uint8), labels="all")
     with pytest.raises(ValueError, match="'level'.*labels|labels"):

@@ -609,6 +609,12 @@ class VolumeOptions:
             elif self.labels is None:
                 raise ValueError(f"'interfaces' applies with 'labels', got interfaces={self.interfaces!r} "
                                  "and no 'labels'")
+        if self.interfaces == "shared":  # surface nets: marching cubes' options would be dropped unseen
+            given = [f"{n}={getattr(self, n)!r}" for n in ("method", "clearance")
+                     if getattr(self, n) != getattr(VolumeOptions, n)]
+            if given:
+                raise ValueError(f"{' and '.join(given)} {'does' if len(given) == 1 else 'do'} not apply with "
+                                 "interfaces='shared' (surface nets, not marching cubes)")
         if self.smoothing and self.interfaces != "shared":
             raise ValueError(f"'smoothing' applies with interfaces='shared', got smoothing={self.smoothing} and "
                              f"interfaces={self.interfaces!r}")

@@ -524,6 +524,11 @@ def _mesh_volume(source, opts: VolumeOptions, device, t_start: float, progress=T
     vol = _check_volume(source)
     if opts.interfaces == "shared":
         return _mesh_shared(vol, opts, device, t_start, progress)
+    if opts.labels is not None and np.issubdtype(vol.dtype, np.floating):  # whole-number floats are labels
+        try:  # (as interfaces="shared" and mesh_domain take them)
+            vol = Volume(vol).as_labels().values
+        except ValueError as exc:
+            raise ValueError(f"'labels' meshes the regions of a label 'volume': {exc}") from None
     if opts.cap and min(vol.shape) < 3:
         raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
                          f"boundary samples are outside), got shape {vol.shape}")
