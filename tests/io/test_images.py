@@ -308,7 +308,7 @@ def test_labels_of_floats_must_be_whole_numbers(tmp_path):
     nib.save(nib.Nifti1Image(lab, affine), tmp_path / "frac.nii")
     with pytest.raises(ValueError, match="'labels'.*2.5"):
         wm.mesh_surface(tmp_path / "frac.nii", labels="all")
-    with pytest.raises(TypeError, match="'labels'"):  # a plain float array, as before
+    with pytest.raises(ValueError, match="'labels'.*whole-number.*2.5"):  # a plain float array: the same
         wm.mesh_surface(lab, labels="all")
 
 

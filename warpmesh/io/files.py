@@ -121,7 +121,7 @@ class _Format:
     keeps_2d: bool = False
     index_dtype: type = INDEX_DTYPE  # of the cells written
     keep_data: _DataFilter = _keep_all  # on save: which arrays the file gets
-    #: on load: drop what meshio invents; may return info the file holds (a label volume's labels)
+    #: on load: drop what meshio invents; may return a dict of info the file holds (a label volume's labels)
     tidy: Callable[[meshio.Mesh], dict | None] = _no_tidy
     folder: bool = False  # written in a temporary folder (writers that add side files: .h5, .ele)
     read: Callable[[str], meshio.Mesh] | None = None  # warpmesh's own reader (default: meshio's)
@@ -514,6 +514,7 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
             f"could not read {str(path)!r} as {fmt.name}: {type(exc).__name__}: {exc}"
         ) from exc
     info = fmt.tidy(m)
+    info = info if isinstance(info, dict) else None  # (some tidy functions return the meshio mesh they fixed)
     if len(m.points) == 0:
         raise ReadError(f"could not read {str(path)!r} as {fmt.name}: the file holds no points")
     try:
