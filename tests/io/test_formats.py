@@ -175,6 +175,24 @@ def test_cut_and_empty_files_of_every_format_end_as_a_read_error_or_a_mesh(tmp_p
     assert {".dat", ".mdpa", ".node"} <= set(tried)
 
 
+@pytest.mark.parametrize("ext", [".vtk", ".msh"])
+def test_binary_files_cut_inside_an_array_are_a_read_error(tmp_path, ext):
+    """numpy.fromfile returns fewer values, silently, at the end of a cut file: a .vtk cut in
+    its cell data loaded with refs read from the wrong bytes (meshio), or with VTK's warning
+    (the VTK fallback). Now a ReadError naming the file, at every cut."""
+    shape, bounds = wm.example("sphere")
+    tets = wm.mesh_domain(shape, bounds, size=0.4)
+    whole = tets.save(tmp_path / f"whole{ext}").read_bytes()
+    for keep in (0.5, 0.9, 0.99, 0.999):
+        cut = tmp_path / f"cut{ext}"
+        cut.write_bytes(whole[:int(len(whole) * keep)])
+        with pytest.raises(wm.ReadError, match=f"cut{ext}"):
+            wm.load(cut)
+    back = wm.load(tmp_path / f"whole{ext}")
+    assert np.array_equal(back.cells["tetra"], tets.cells["tetra"])
+    assert np.array_equal(back.cell_refs["tetra"], tets.cell_refs["tetra"])
+
+
 def test_a_meshio_writer_that_fails_is_a_write_error_and_leaves_nothing(tmp_path):
     """meshio's Nastran writer asserts that every coordinate fits 16 characters, which
     -0.2999999642372131 does not: an AssertionError from deep inside, before."""

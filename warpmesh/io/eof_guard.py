@@ -9,6 +9,11 @@ for lines past the end more than :data:`EMPTY_READS` times in a row raises
 :class:`~warpmesh.errors.ReadError`; a reader that reaches the end once, or a few times,
 is not affected. The wrapped files are real file objects (``numpy.fromfile`` reads them).
 
+Binary readers (meshio's legacy VTK, gmsh) read arrays with ``numpy.fromfile(f, count=n)``,
+which returns fewer values, silently, when the file ends first: a cut ``.vtk`` loaded with
+refs read from the wrong bytes. For the call, the reader's package's modules see a numpy
+whose ``fromfile`` raises :class:`~warpmesh.errors.ReadError` on such a short read.
+
 Example
 -------
 >>> import os, tempfile
@@ -78,27 +83,55 @@ def guarded_open(file, mode="r", buffering=-1, encoding=None, errors=None, newli
     return _GuardedText(raw, encoding=encoding, errors=errors, newline=newline)
 
 
+class _StrictNumpy:
+    """numpy, but ``fromfile`` with a ``count`` raises :class:`ReadError` when the file holds
+    fewer values (the end of a cut file)."""
+
+    def __init__(self, module):
+        self._np = module
+
+    def __getattr__(self, name):
+        return getattr(self._np, name)
+
+    def fromfile(self, file, *args, **kwargs):
+        out = self._np.fromfile(file, *args, **kwargs)
+        count = kwargs.get("count", args[1] if len(args) > 1 else -1)
+        if count is not None and int(count) >= 0 and out.size < int(count):
+            raise ReadError(f"the file ends inside an array of {int(count)} values, after {out.size} (a cut file?)")
+        return out
+
+
 def guarded_reader(reader: Callable, namespace: dict | None = None) -> Callable:
     """``reader`` run with ``open`` in its module (or in ``namespace``) and in
-    ``meshio._files`` replaced by :func:`guarded_open` for the call."""
+    ``meshio._files`` replaced by :func:`guarded_open`, and ``np`` in the modules of its
+    package by a numpy whose ``fromfile`` refuses short reads, for the call."""
 
     def read(*args, **kwargs):
         spaces = [namespace if namespace is not None else vars(sys.modules[reader.__module__])]
         files = sys.modules.get("meshio._files")
         if files is not None:
             spaces.append(vars(files))
+        package = reader.__module__.rpartition(".")[0] or reader.__module__
+        numpy = sys.modules["numpy"]
+        users = [vars(m) for name, m in list(sys.modules.items())
+                 if m is not None and (name == package or name.startswith(package + "."))
+                 and vars(m).get("np") is numpy]
         with _PATCH_LOCK:
-            saved = [(ns, ns.get("open", _MISSING)) for ns in spaces]
+            saved = [(ns, "open", ns.get("open", _MISSING)) for ns in spaces]
+            saved += [(ns, "np", numpy) for ns in users]
             try:
                 for ns in spaces:
                     ns["open"] = guarded_open
+                strict = _StrictNumpy(numpy)
+                for ns in users:
+                    ns["np"] = strict
                 return reader(*args, **kwargs)
             finally:
-                for ns, old in reversed(saved):
+                for ns, name, old in reversed(saved):
                     if old is _MISSING:
-                        ns.pop("open", None)
+                        ns.pop(name, None)
                     else:
-                        ns["open"] = old
+                        ns[name] = old
 
     return read
 

@@ -506,7 +506,9 @@ def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = No
     except Exception as exc:  # meshio raises ReadError, ValueError, UnicodeError, IndexError, ...
         if isinstance(exc, ReadError) and fmt.read is not None:  # warpmesh's own readers name the file
             raise
-        if fmt.name in ("vtk", "vtu"):  # VTK's own reader knows what meshio's does not (64-bit ids)
+        if fmt.name in ("vtk", "vtu") and not isinstance(exc, ReadError):
+            # VTK's own reader knows what meshio's does not (64-bit ids); not a cut file (the guard's
+            # ReadError), which VTK reads with a warning and values from the wrong bytes
             mesh = _read_with_vtk(path, mesh_type, exc)
             _check_cells(mesh, path, fmt.name)
             return mesh if dim in (None, mesh.dim) else mesh.replace(points=set_dim(np.asarray(mesh.points), dim))
