@@ -17,7 +17,9 @@ A collapse u -> v is made when the *link condition* holds (u and v have as many
 common neighbours as triangles on the edge uv: 2 inside an interface, 3 or more along
 a junction, so no edge or triangle is duplicated and each label's boundary stays
 closed and consistently oriented), and its triangles pass, in the mesh after the batch,
-the checks: no triangle turns by more than ``MAX_TURN`` degrees or degenerates, every
+the checks: no triangle turns by more than ``MAX_TURN`` degrees or degenerates, none
+gets a Q_K above ``Q_LIMIT`` (6) unless it was worse before (the result's worst Q_K is
+at most the input's or 6, whichever is larger), every
 new triangle's centroid and edge midpoints stay within ``tolerance`` of the input
 surface (the reference, :class:`warpmesh.frep.projection.MeshTarget`), no triangle
 crosses or touches another (:func:`warpmesh.optimize.embedding.face_violations`) and no
@@ -60,6 +62,10 @@ MAX_TURN = 60.0
 MAX_ROUNDS = 60
 #: check-and-retry rounds per batch
 RETRIES = 8
+#: a collapse may not make a face worse than this, unless the face was worse already (so the
+#: result's worst Q_K is at most max(Q_LIMIT, the input's), as :func:`warpmesh.simplify`'s:
+#: the same value as its ``SIMPLIFY_Q``)
+Q_LIMIT = 6.0
 
 
 def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = None):
@@ -129,7 +135,7 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
         if len(t) <= goal:
             break
         done, refused = collapse_round(p, t, lower, upper, bits, reference, float(tolerance), counts,
-                                       room=int((len(t) - goal) // 2) + 1, refused=refused)
+                                       room=int((len(t) - goal) // 2) + 1, refused=refused, q_limit=Q_LIMIT)
         if done is None:
             break
         t, lower, upper = done
