@@ -171,8 +171,10 @@ def test_concave_square_of_two_boxes_is_sharp_but_near_its_corners():
     corner = np.array([[x, y, 0.3] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])])
     near = np.linalg.norm(samples[:, None] - corner[None], axis=2).min(axis=1) < h
     assert d[~near].max() <= 0.05, d[~near].max()
-    # near them: 0.22 h at this size, 0.11 h at 0.08 (stuffing alone: 0.48 h)
-    assert d.max() <= 0.25 and (d <= 0.05).mean() >= 0.99, (d.max(), (d > 0.05).mean())
+    # near them: 0.23 h at this size, 0.11 h at 0.08 (stuffing alone: 0.48 h); 98.9 % of the
+    # samples within 0.05 h (99.0 % before the tight check of crease points, TIGHT: it refuses
+    # the 5 estimates that sit off the creases within 0.33 h of these corners)
+    assert d.max() <= 0.25 and (d <= 0.05).mean() >= 0.985, (d.max(), (d > 0.05).mean())
     assert s["feature_corners"] == 16
 
 
@@ -212,3 +214,14 @@ def test_crease_points_on_the_exact_creases_from_points_near_them():
     # second order in the samples' offset (0.1 h): 4e-7 h on the rim, 1e-3 h on the sphere of radius 6 h
     assert abs(r_rim - 0.2) < 1e-3 * h and abs(r_boss - 0.4) < 3e-3 * h, (r_rim, r_boss)
     assert np.allclose(c[:, 2], -0.3, atol=1e-6)
+
+
+def test_a_tight_smooth_bend_is_not_a_crease():
+    """A thin ellipsoid's rim (radius of curvature 0.0625 at h = 0.1) turns the normal by more
+    than the feature angle across the crease samples: its "creases" moved the boundary 0.107
+    off the surface, with dihedral angles down to 10.04 deg. Beside a crease point the normals
+    must still differ TIGHT h away: a bend's do not."""
+    shape = wm.ellipsoid((1.0, 0.5, 0.25))
+    vol = wm.mesh_domain(shape, bounds=((-1.2,) * 3, (1.2,) * 3), size=0.1)
+    s = vol.stats()
+    assert s["boundary_distance"] < 1e-4 and s["dihedral_min"] > 15.0, (s["boundary_distance"], s["dihedral_min"])
