@@ -48,8 +48,15 @@ def test_the_formats_solvers_read_are_there():
     """Not an empty probe: these round-trip a tetrahedral mesh with this project's test
     dependencies (h5py for XDMF and MED, netCDF4 for Exodus)."""
     works = {name for name, s in format_support().items() if "tetra" in s.cells}
-    assert {"abaqus", "nastran", "su2", "xdmf", "med", "exodus", "netgen", "avsucd", "permas", "tetgen"} <= works
-    assert {".inp", ".nas", ".su2", ".xdmf", ".med", ".e", ".vol", ".off"} <= set(file_formats())
+    assert {"abaqus", "su2", "xdmf", "med", "exodus", "netgen", "avsucd", "permas", "tetgen"} <= works
+    assert {".inp", ".su2", ".xdmf", ".med", ".e", ".vol", ".off"} <= set(file_formats())
+    # a mesher's coordinates (17 digits, exponent notation): meshio's Nastran writer asserts
+    # 16-character fields, its WKT reader refuses exponents (and hung on a sphere's file)
+    assert not format_support()["nastran"].cells and not format_support()["wkt"].cells
+    assert ".nas" not in file_formats() and ".wkt" not in file_formats()
+    # tetrahedra with their boundary triangles: Abaqus and MED bring both back, Tecplot not
+    assert format_support()["abaqus"].mixed and format_support()["med"].mixed
+    assert not format_support()["tecplot"].mixed
     assert all(format_support()[name].cells for name in file_formats().values() if name in format_support()
                and name not in FILE_FORMATS.values())
 
@@ -193,10 +200,32 @@ def test_binary_files_cut_inside_an_array_are_a_read_error(tmp_path, ext):
     assert np.array_equal(back.cell_refs["tetra"], tets.cell_refs["tetra"])
 
 
-def test_a_meshio_writer_that_fails_is_a_write_error_and_leaves_nothing(tmp_path):
-    """meshio's Nastran writer asserts that every coordinate fits 16 characters, which
-    -0.2999999642372131 does not: an AssertionError from deep inside, before."""
+def test_a_meshio_writer_that_fails_is_a_write_error_and_leaves_nothing(tmp_path, monkeypatch):
+    """meshio's writers fail with assertions from deep inside (Nastran's on a coordinate
+    that does not fit 16 characters, which its probe now leaves out): a WriteError naming the
+    format, and no file."""
+    import meshio._helpers
+
+    def asserting(path, mesh, **kwargs):
+        with open(path, "w") as f:
+            f.write("half a file")
+        assert len("-0.2999999642372131") <= 16
+
+    monkeypatch.setitem(meshio._helpers._writer_map, "abaqus", asserting)
     sphere = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8)
-    with pytest.raises(wm.WriteError, match=r"meshio's nastran writer failed on this mesh: AssertionError"):
-        sphere.save(tmp_path / "a.bdf")
+    with pytest.raises(wm.WriteError, match=r"meshio's abaqus writer failed on this mesh: AssertionError"):
+        sphere.save(tmp_path / "a.inp")
     assert isinstance(wm.WriteError("x"), ValueError) and not list(tmp_path.iterdir())
+
+
+def test_a_format_that_loses_a_block_refuses_a_mesh_of_several(tmp_path):
+    """Tecplot wrote tetrahedra without their boundary triangles (meshio printed "Skipping 2D
+    cells") and read them back as hexahedra: its probe says mixed=False, so such a mesh is
+    refused, naming the format and the types; one cell type is written."""
+    shape, bounds = wm.example("sphere")
+    tets = wm.mesh_domain(shape, bounds, size=0.5)
+    with pytest.raises(ValueError, match=r"tecplot \(.dat\) files here do not bring a mesh of several cell types"):
+        tets.save(tmp_path / "a.dat")
+    assert not list(tmp_path.iterdir())
+    both = tets.save(tmp_path / "a.inp")  # Abaqus keeps both
+    assert sorted(wm.load(both).cells) == ["tetra", "triangle"]

@@ -126,6 +126,7 @@ class _Format:
     folder: bool = False  # written in a temporary folder (writers that add side files: .h5, .ele)
     read: Callable[[str], meshio.Mesh] | None = None  # warpmesh's own reader (default: meshio's)
     write: Callable[..., object] | None = None  # warpmesh's own: (path, meshio.Mesh, mesh, **write_kwargs)
+    mixed: bool = True  # a mesh of several cell types comes back (a meshio format: as its probe found)
 
 
 _FORMATS: dict[str, _Format] = {}  # name -> format, in registration order
@@ -173,7 +174,7 @@ def _meshio_format(name: str, ext: str) -> _Format:
         raise ValueError(f"meshio's {name!r} format ({ext}) does not round-trip any mesh on this installation "
                          f"({why}); use one of {list(file_formats())}")
     return _Format(name, ext, name, cell_types=sup.cells, keep_data=_refs_as(sup.refs),
-                   tidy=_refs_back(sup.refs), folder=True)
+                   tidy=_refs_back(sup.refs), folder=True, mixed=sup.mixed)
 
 
 def _find_format(path: Path, file_format: str | None) -> _Format:
@@ -366,6 +367,10 @@ def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
                 f"{fmt.name} ({fmt.ext}) files store only {list(fmt.cell_types)} cells, "
                 f"got {bad}; save a mesh without them or pick one of {able}"
             )
+    if not fmt.mixed and len(mesh.cells) > 1:  # (Tecplot wrote tetrahedra without their triangles)
+        raise ValueError(f"{fmt.name} ({fmt.ext}) files here do not bring a mesh of several cell types back (its "
+                         f"probe: tetrahedra and triangles), got {list(mesh.cells)}; save each type to a file of "
+                         f"its own or pick one of {list(FILE_FORMATS)}")
     m = to_meshio(mesh)
     pd, cd, dropped = fmt.keep_data(mesh, dict(m.point_data), dict(m.cell_data))
     if dropped:

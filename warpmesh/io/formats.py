@@ -7,8 +7,10 @@ survive the round trip, some need packages that may be missing (h5py for XDMF, M
 CGNS, H5M, HMF; netCDF4 for Exodus), and some do not work at all in a given meshio
 release (a writer whose reader cannot read its file). So the table is measured:
 :func:`format_support` writes one tiny mesh per cell type with each writer, reads it
-back with the same format's reader and keeps the cell types whose points and
-connectivity come back equal, and whether cell refs (``"medit:ref"``) survive.
+back with the same format's reader and keeps the cell types whose points (at 17
+significant digits, some in exponent notation) and connectivity come back equal, whether
+cell refs (``"medit:ref"``) survive, and whether a mesh of two cell types (tetrahedra and
+triangles) comes back with both.
 
 The probe runs once per installation in a subprocess (a writer that loops cannot hang
 the caller; each format gets :data:`PROBE_SECONDS`), and its result is cached on disk
@@ -49,7 +51,7 @@ PROBE_SECONDS = 3
 #: formats of meshio that are not meshes a solver reads (drawings, web viewers)
 _NOT_MESHES = ("svg", "neuroglancer", "gmsh22", "vtk42", "vtk51")
 #: the layout of the cached table (a new layout is probed again)
-_SCHEMA = 2
+_SCHEMA = 3
 #: the packages some of meshio's formats need: their versions key the cache
 _OPTIONAL = ("meshio", "h5py", "netCDF4")
 
@@ -59,13 +61,16 @@ class FormatSupport:
     """What one meshio format keeps in a round trip here: ``cells`` (the cell types that
     come back equal), ``refs`` (the cell-data name under which per-cell refs come back,
     None if they are lost), ``error`` (why nothing works, when ``cells`` is empty: e.g.
-    a missing package)."""
+    a missing package), ``mixed`` (whether a mesh of tetrahedra and triangles comes back
+    with both blocks)."""
 
     name: str
     extensions: tuple[str, ...]
     cells: tuple[str, ...]
     refs: str | None
     error: str | None = None
+    #: a mesh of two cell types (tetrahedra and their boundary triangles) comes back equal
+    mixed: bool = False
 
 
 def meshio_extensions(exclude=()) -> dict[str, str]:
@@ -142,7 +147,8 @@ def format_support(refresh: bool = False) -> dict[str, FormatSupport]:
             os.replace(tmp, path)
         except OSError:  # a read-only home: probe again next time
             pass
-    _MEMO = {name: FormatSupport(name, tuple(v["extensions"]), tuple(v["cells"]), v["refs"], v["error"])
+    _MEMO = {name: FormatSupport(name, tuple(v["extensions"]), tuple(v["cells"]), v["refs"], v["error"],
+                                 bool(v.get("mixed", False)))
              for name, v in raw.items()}
     return _MEMO
 
@@ -159,30 +165,48 @@ def _probe_mesh(cell_type: str):
     pts = np.column_stack([pts, np.zeros((len(pts), 3 - pts.shape[1]))]) if pts.shape[1] < 3 else pts
     pts = np.concatenate([pts, [0.5 * (pts[a] + pts[b]) for a, b in mids]]) if mids else pts
     n = len(pts)
-    # two cells: the reference one and a translated copy (refs 7 and 9 tell them apart)
-    points = np.concatenate([pts, pts + [2.0, 0.5, 0.25]])
+    # two cells: the reference one and a translated copy (refs 7 and 9 tell them apart), at
+    # coordinates a mesher writes: 17 significant digits, tiny ones (exponent notation)
+    pts = pts * 0.7310000000000001 + [-0.2999999642372131, 4.77e-08, 1.5e-05]
+    points = np.concatenate([pts, pts + [2.0, 0.5, -1.25e-06]])
     cells = np.array([np.arange(n), np.arange(n, 2 * n)])
     return points, cells, np.array([7, 9], dtype=np.int32)
 
 
-def _probe_one(name: str, cell_type: str, folder: str) -> tuple[bool, str | None]:
+def _round_trip(name: str, folder: str, label: str, points, blocks, refs):
+    """meshio's write then read of ``blocks`` [(type, cells)] with ``refs`` per block: the
+    mesh read back, or None when its points or blocks differ."""
     import meshio
     from meshio._helpers import reader_map
 
-    points, cells, refs = _probe_mesh(cell_type)
     ext = next(e for e, names in meshio.extension_to_filetypes.items() if name in names)
-    path = os.path.join(folder, f"probe_{cell_type}{ext}")
-    meshio.write(path, meshio.Mesh(points, [(cell_type, cells)], cell_data={"medit:ref": [refs]}),
-                 file_format=name)
+    path = os.path.join(folder, f"probe_{label}{ext}")
+    meshio.write(path, meshio.Mesh(points, blocks, cell_data={"medit:ref": refs}), file_format=name)
     back = reader_map[name](path)
-    blocks = [b for b in back.cells if len(b.data)]
-    if len(blocks) != 1 or blocks[0].type != cell_type or not np.array_equal(blocks[0].data, cells):
-        return False, None
+    got = sorted(((b.type, b.data) for b in back.cells if len(b.data)), key=lambda b: b[0])  # (in any order)
+    want = sorted(blocks, key=lambda b: b[0])
+    if len(got) != len(want) or any(t != u or not np.array_equal(c, d) for (t, c), (u, d) in zip(got, want)):
+        return None
     if len(back.points) < len(points) or not np.allclose(np.asarray(back.points)[:len(points), :3], points,
-                                                         atol=1e-6):
+                                                         rtol=1e-9, atol=1e-12):
+        return None
+    return back
+
+
+def _probe_one(name: str, cell_type: str, folder: str) -> tuple[bool, str | None]:
+    points, cells, refs = _probe_mesh(cell_type)
+    back = _round_trip(name, folder, cell_type, points, [(cell_type, cells)], [refs])
+    if back is None:
         return False, None
     kept = [k for k, v in back.cell_data.items() if len(v) == 1 and np.array_equal(np.ravel(v[0]), refs)]
     return True, kept[0] if kept else None
+
+
+def _probe_mixed(name: str, folder: str) -> bool:
+    """Whether tetrahedra and triangles (a volume mesh and its boundary) come back as both blocks."""
+    points, tets, refs = _probe_mesh("tetra")
+    tris = tets[:, [0, 2, 1]]  # a face of each tetrahedron
+    return _round_trip(name, folder, "mixed", points, [("tetra", tets), ("triangle", tris)], [refs, refs]) is not None
 
 
 def _probe_all() -> dict:
@@ -218,9 +242,20 @@ def _probe_all() -> dict:
                 if ok:
                     cells.append(cell_type)
                     names.add(kept)
+            mixed = False
+            if {"tetra", "triangle"} <= set(cells):
+                signal.alarm(seconds)
+                try:
+                    with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
+                        warnings.simplefilter("ignore")
+                        mixed = _probe_mixed(name, folder)
+                except Exception:  # noqa: BLE001 -- a failing mixed round trip is what is measured
+                    mixed = False
+                finally:
+                    signal.alarm(0)
         # refs count as kept when every cell type brought them back under one name
         refs = names.pop() if len(names) == 1 else None
-        out[name] = {"extensions": exts, "cells": cells, "refs": refs,
+        out[name] = {"extensions": exts, "cells": cells, "refs": refs, "mixed": mixed,
                      "error": None if cells else (error or "no cell type comes back equal")}
     return out
 
