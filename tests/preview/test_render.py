@@ -123,3 +123,23 @@ def test_plot_colours_a_surface_by_its_labels(tmp_path):
         m.plot(scalars="tissue")
     with pytest.raises(ValueError, match="no triangle refs"):
         wm.mesh_surface(wm.sphere(1.0), bounds=BOUNDS, resolution=8).plot(scalars="ref")
+
+
+def test_bad_plot_options_are_refused_naming_them(ball, tmp_path):
+    """A window VTK cannot allocate aborted the process (std::bad_alloc, exit 134), not Python;
+    a string size failed in int(); clip="w" passed on a surface; a missing folder was named
+    by a temporary file."""
+    for size, what in (((100000, 100000), "at most 67108864 pixels"), ("big", r"\(width, height\)"),
+                       ((64,), r"\(width, height\)"), ((64.5, 48), "two positive integers"),
+                       ((0, 48), "two positive integers"), ((True, 48), "two positive integers")):
+        with pytest.raises(ValueError, match=f"'window_size'.*{what}|{what}.*'window_size'"):
+            ball.plot(window_size=size)
+    with pytest.raises(ValueError, match="Unknown clip 'w'"):
+        ball.plot(clip="w", window_size=(32, 24))
+    with pytest.raises(FileNotFoundError, match="no such folder for 'path'.*missing"):
+        ball.plot(tmp_path / "missing" / "x.png", window_size=(32, 24))
+    with pytest.raises(FileNotFoundError, match="no such folder for 'path'.*missing"):
+        ball.plot(tmp_path / "missing" / "x.html")
+    assert not list(tmp_path.iterdir())
+    assert main(["view", "--example", "sphere", "-o", str(tmp_path / "v.png"), "--window-size", "100000",
+                 "100000"]) == 2

@@ -133,6 +133,8 @@ def drawable(mesh, *, clip="auto", width: float = DEFAULT_LINE_WIDTH) -> Drawabl
     require_mesh(mesh)
     if isinstance(width, bool) or not isinstance(width, (int, float)) or not 0 < width < 1:
         raise ValueError(f"expected a fraction in (0, 1) for 'width', got {width!r}")
+    if clip is not None and clip is not False:  # checked whatever the mesh (a surface ignores it)
+        _clip_plane(clip, np.zeros(3), np.ones(3))
     pts = np.asarray(mesh.points, dtype=np.float64)
     planar = pts.shape[1] == 2
     if planar:

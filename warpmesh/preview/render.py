@@ -22,6 +22,7 @@ Example
 from __future__ import annotations
 
 import base64
+import errno
 import html
 import io
 import json
@@ -131,6 +132,8 @@ def write_html(mesh, path, *, title: str = "warpmesh", color=DEFAULT_COLOR, box=
     path = Path(path)
     if path.suffix.lower() not in (".html", ".htm"):
         raise ValueError(f"expected a .html path for 'path', got {str(path)!r}")
+    if not path.parent.is_dir():
+        raise FileNotFoundError(errno.ENOENT, "no such folder for 'path'", str(path.parent))
     text = mesh_html(mesh, title=title, color=color, box=box, label=label, clip=clip)
     fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -161,6 +164,8 @@ class RenderedImage:
         path = Path(path)
         if path.suffix.lower() != ".png":
             raise ValueError(f"expected a .png path for 'path', got {str(path)!r}")
+        if not path.parent.is_dir():
+            raise FileNotFoundError(errno.ENOENT, "no such folder for 'path'", str(path.parent))
         fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.")
         with os.fdopen(fd, "wb") as f:
             f.write(self.png)
@@ -180,6 +185,32 @@ def _headless_vtk() -> None:
     """Off-screen rendering without an X display: VTK's EGL window (falls back to OSMesa)."""
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+#: the most pixels of a rendered image (8192 x 8192: 192 MB of RGB; VTK aborts the process,
+#: not Python, when it cannot allocate a window)
+MAX_PIXELS = 1 << 26
+
+
+def check_window_size(window_size) -> tuple[int, int]:
+    """(width, height) of ``window_size``: two positive integers, at most MAX_PIXELS in all.
+
+    >>> check_window_size((800, 600))
+    (800, 600)
+    >>> check_window_size((100000, 100000))
+    Traceback (most recent call last):
+    ...
+    ValueError: expected a 'window_size' of at most 67108864 pixels (8192 x 8192), got (100000, 100000)
+    """
+    try:
+        w, h = window_size
+    except (TypeError, ValueError):
+        raise ValueError(f"expected (width, height) for 'window_size', got {window_size!r}") from None
+    if not all(isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) and v > 0 for v in (w, h)):
+        raise ValueError(f"expected two positive integers for 'window_size', got {window_size!r}")
+    if int(w) * int(h) > MAX_PIXELS:
+        raise ValueError(f"expected a 'window_size' of at most {MAX_PIXELS} pixels (8192 x 8192), got {window_size!r}")
+    return int(w), int(h)
 
 
 def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, show_edges: bool = False,
@@ -210,9 +241,7 @@ def render_png(mesh, path=None, *, window_size=(800, 600), color=DEFAULT_COLOR, 
     -------
     RenderedImage
     """
-    w, h = (int(v) for v in window_size)
-    if w <= 0 or h <= 0:
-        raise ValueError(f"expected a positive 'window_size', got {window_size!r}")
+    w, h = check_window_size(window_size)
     values = None if scalars is None else _triangle_values(mesh, scalars)
     shown = drawable(mesh, clip=clip)
     pts, tri = shown.points, shown.triangles
