@@ -57,3 +57,12 @@ def test_sizes_within_the_budget_still_run(sphere):
     assert sphere.refine(2).n_cells == 4 * 104
     assert sphere.refine(max_length=0.1).n_cells > 104
     assert wm.mesh_curve(wm.circle(0.5), bounds=((-1, -1), (1, 1)), method="grid", resolution=64).n_cells > 0
+
+
+def test_a_tiny_pattern_s_many_copies_are_refused_too():
+    """A one-quad pattern's 10**7 copies passed a budget of their arrays alone (3 GB) and then
+    ran for hours (about 1 ms a copy): each copy's Python objects count as well."""
+    quad = wm.Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"quad": [[0, 1, 2, 3]]})
+    with pytest.raises(wm.SizeError, match="'copies'"):
+        quad.periodic(wm.transforms.translation((1, 0)), 10**7)
+    assert quad.periodic(wm.transforms.translation((1, 0)), 100).n_cells == 100

@@ -229,3 +229,15 @@ def test_a_format_that_loses_a_block_refuses_a_mesh_of_several(tmp_path):
     assert not list(tmp_path.iterdir())
     both = tets.save(tmp_path / "a.inp")  # Abaqus keeps both
     assert sorted(wm.load(both).cells) == ["tetra", "triangle"]
+
+
+def test_netgen_refuses_a_ref_it_would_write_a_line_for_each_index_below(tmp_path):
+    """meshio's Netgen writer writes one line per index up to the largest ref: 2**31 filled
+    675 MB in 20 s and never returned."""
+    square = wm.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], {"triangle": [[0, 1, 2], [1, 3, 2]]},
+                     cell_refs={"triangle": [2**31, 5]})
+    with pytest.raises(ValueError, match=r"netgen \(.vol\) files list every index up to the largest cell ref"):
+        square.save(tmp_path / "a.vol")
+    assert not list(tmp_path.iterdir())
+    small = wm.Mesh(square.points, square.cells, cell_refs={"triangle": [2, 5]})
+    assert wm.load(small.save(tmp_path / "a.vol")).n_cells == 2

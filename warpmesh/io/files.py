@@ -352,6 +352,11 @@ _register_format(
 
 
 # ----------------------------------------------------------------------------- save / load
+#: the largest cell ref a Netgen file takes (its writer writes a line per index up to it: a
+#: ref of 2**31 filled the disk)
+NETGEN_MAX_REF = 10**6
+
+
 def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
     """The meshio object written for ``fmt``; warns about what the format drops.
 
@@ -367,6 +372,12 @@ def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
                 f"{fmt.name} ({fmt.ext}) files store only {list(fmt.cell_types)} cells, "
                 f"got {bad}; save a mesh without them or pick one of {able}"
             )
+    if fmt.name == "netgen" and mesh.cell_refs:  # meshio's writer lists every index up to the largest
+        top = max((int(np.max(r)) for r in mesh.cell_refs.values() if len(r)), default=0)
+        if top > NETGEN_MAX_REF:
+            raise ValueError(f"netgen ({fmt.ext}) files list every index up to the largest cell ref, at most "
+                             f"{NETGEN_MAX_REF} here, got {top}; number the refs 1, 2, ... or pick one of "
+                             f"{list(FILE_FORMATS)}")
     if not fmt.mixed and len(mesh.cells) > 1:  # (Tecplot wrote tetrahedra without their triangles)
         raise ValueError(f"{fmt.name} ({fmt.ext}) files here do not bring a mesh of several cell types back (its "
                          f"probe: tetrahedra and triangles), got {list(mesh.cells)}; save each type to a file of "

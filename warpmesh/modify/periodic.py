@@ -155,6 +155,11 @@ def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
     return pairs[pairs[:, 0] != pairs[:, 1]]
 
 
+#: bytes of Python objects a copy holds besides its arrays (a Mesh, its dicts and array headers:
+#: a 4-point quad's 10**7 copies took about 1 ms each to make and would not fit, yet passed a
+#: budget of its arrays alone)
+COPY_OVERHEAD = 4096
+
 def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs: bool = False,
              duplicates: Literal["merge", "keep", "drop"] = "merge",
              check: Literal["interface", "full", False] = "interface"):
@@ -219,7 +224,8 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs:
     require_mesh(mesh)
     t = _check_matrix(matrix, mesh.dim)
     n = _check_copies(copies)
-    pattern_bytes = mesh.points.nbytes + sum(c.nbytes for c in mesh.cells.values())
+    # each copy is a Mesh of its own until merged: its arrays and its Python objects
+    pattern_bytes = mesh.points.nbytes + sum(c.nbytes for c in mesh.cells.values()) + COPY_OVERHEAD
     check_budget(3.0 * n * pattern_bytes, f"periodic(copies={n}) of a {mesh.n_cells}-cell pattern",
                  "lower 'copies'")
     options = {"refs": refs, "duplicates": duplicates, "check": check}
