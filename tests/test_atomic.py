@@ -86,3 +86,19 @@ def test_a_folder_write_moves_every_file_and_leaves_no_folder(tmp_path):
         (tmp / "z.main").write_text("main")
         (tmp / "z.side").write_text("side")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["z.main", "z.side"]
+
+
+def test_save_through_a_symbolic_link_writes_its_target(tmp_path):
+    """os.replace over the link's name replaced the link with a file; the target kept its old
+    contents."""
+    import warpmesh as wm
+
+    mesh = wm.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 2]]})
+    (tmp_path / "data").mkdir()
+    target = tmp_path / "data" / "real.vtu"
+    target.write_text("old")
+    link = tmp_path / "link.vtu"
+    link.symlink_to(target)
+    assert mesh.save(link) == link
+    assert link.is_symlink() and wm.load(target).n_cells == 1
+    assert sorted(p.name for p in (tmp_path / "data").iterdir()) == ["real.vtu"]

@@ -241,3 +241,15 @@ def test_netgen_refuses_a_ref_it_would_write_a_line_for_each_index_below(tmp_pat
     assert not list(tmp_path.iterdir())
     small = wm.Mesh(square.points, square.cells, cell_refs={"triangle": [2, 5]})
     assert wm.load(small.save(tmp_path / "a.vol")).n_cells == 2
+
+
+def test_msh_refuses_refs_beyond_32_bits(tmp_path):
+    """gmsh's physical tags are 32-bit: a ref of 2**31 came back as -2**31, 2**40 as no refs."""
+    pts = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    for big in (2**31, 2**40, -(2**31) - 1):
+        m = wm.Mesh(pts, {"triangle": [[0, 1, 2], [1, 3, 2]]}, cell_refs={"triangle": [big, 5]})
+        with pytest.raises(ValueError, match=f"32-bit integers, got cell ref {big}"):
+            m.save(tmp_path / "a.msh")
+        assert not list(tmp_path.iterdir())
+    ok = wm.Mesh(pts, {"triangle": [[0, 1, 2], [1, 3, 2]]}, cell_refs={"triangle": [2**31 - 1, -5]})
+    assert wm.load(ok.save(tmp_path / "a.msh")).cell_refs["triangle"].tolist() == [2**31 - 1, -5]

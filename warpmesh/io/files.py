@@ -218,7 +218,12 @@ def _gmsh_data(mesh: MeshLike, pd: dict, cd: dict) -> tuple[dict, dict, list]:
         dropped += [k for k in cd if k != REF_KEY]  # meshio cannot read them back
         cd = {}
     dropped += [k for k in cd if k in (GMSH_REF, GMSH_GEO)]  # replaced by the refs
-    tags = [block_refs(mesh, t).astype(np.int32) for t in mesh.cells]
+    tags = [block_refs(mesh, t) for t in mesh.cells]
+    big = [int(r[np.argmax(np.abs(r))]) for r in tags if len(r) and np.abs(r).max() > np.iinfo(np.int32).max]
+    if big:  # physical tags are 32-bit: 2**31 came back as -2**31, 2**40 as no refs at all
+        raise ValueError(f"gmsh (.msh) physical tags are 32-bit integers, got cell ref {big[0]}; number the refs "
+                         "below 2**31 or save as .vtu")
+    tags = [r.astype(np.int32) for r in tags]
     cd = {
         **{k: v for k, v in cd.items() if k not in (REF_KEY, GMSH_REF, GMSH_GEO)},
         GMSH_REF: tags,
@@ -408,10 +413,12 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         raise ValueError(f"expected a mesh with points and cells to save to {str(path)!r}, got an empty "
                          f"mesh ({mesh.n_points} points, {mesh.n_cells} cells): mesh files cannot hold it")
     data = _meshio_for(mesh, fmt, stacklevel + 1)
+    # through a symbolic link: its target is written (the rename would replace the link)
+    dest = Path(os.path.realpath(path)) if path.is_symlink() else path
     if fmt.folder:
-        _write_in_folder(data, mesh, path, fmt)
+        _write_in_folder(data, mesh, dest, fmt)
         return path
-    with atomic_path(path) as tmp:
+    with atomic_path(dest) as tmp:
         _write(fmt, tmp, data, mesh)
     return path
 
