@@ -444,6 +444,9 @@ def test_format_table():
         (lambda g, m: m.renumber("gibbs", higher_order="all"), "higher_order"),
         (lambda g, m: node_graph(m.cells, m.n_points, nodes="some"), "nodes"),
         (lambda g, m: matrix_stats(g, np.arange(3)), "new"),
+        (lambda g, m: m.renumber("gibbs", elements="no"), "True or False for 'elements'"),  # was truthy
+        (lambda g, m: m.renumber("gibbs", reduced="x"), "True or False for 'reduced'"),
+        (lambda g, m: m.renumber("gibbs", reverse="sometimes"), "'reverse'"),
     ],
 )
 def test_bad_input(call, match):

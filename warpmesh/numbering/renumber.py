@@ -780,6 +780,11 @@ def renumber(
         raise ValueError(f"expected method among {list(METHODS)}, got {method!r}")
     if higher_order not in ("ball", "graph"):
         raise ValueError(f"expected higher_order='ball' or 'graph', got {higher_order!r}")
+    for name, value in (("reduced", reduced), ("elements", elements)):  # (a truthy "no" renumbered the elements)
+        if not isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"expected True or False for '{name}', got {value!r}")
+    if not (isinstance(reverse, (bool, np.bool_)) or reverse == "auto"):
+        raise TypeError(f"expected True, False or 'auto' for 'reverse', got {reverse!r}")
     n = mesh.n_points
     wp.load_module(KN, device="cpu")  # compiled once per machine, loaded once per process: not timed
     t0 = time.perf_counter()
