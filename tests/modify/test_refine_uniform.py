@@ -450,6 +450,19 @@ def test_bad_shape():
         refine_uniform(_tri2(), 2, "sphere")
 
 
+def test_a_planar_shape_is_refused_for_a_3d_mesh():
+    """A circle's f does not depend on z: the new nodes of a sphere's surface went onto the
+    cylinder x^2 + y^2 = 1 (at distance 1.36 from the centre), with only an inversion warning."""
+    shape, bounds = wm.example("sphere")
+    surface = wm.mesh_surface(shape, bounds=bounds, resolution=12)
+    for call in (lambda: surface.refine(2, wm.circle(1.0)), lambda: surface.to_order(2, wm.circle(1.0)),
+                 lambda: surface.refine(max_length=0.1, shape=wm.circle(1.0))):
+        with pytest.raises(ValueError, match="expected a 3D 'shape' for the nodes of a 3D mesh"):
+            call()
+    finer = surface.refine(2, shape)  # the new nodes on the sphere (the old ones where marching cubes put them)
+    assert np.abs(np.linalg.norm(finer.points[surface.n_points:], axis=1) - 1.0).max() < 1e-6
+
+
 def test_bad_tetra_diagonal():
     with pytest.raises(ValueError, match="'tetra_diagonal'"):
         refine_uniform(_tri2(), 2, tetra_diagonal="longest")

@@ -38,7 +38,8 @@ from warpmesh.frep.tape import points_array, eval_gradients, tape_of
 from warpmesh.kernels.block_grid import trilinear_value_gradient_kernel
 from warpmesh.cells.topology import face_normals
 
-__all__ = ["ImplicitTarget", "FunctionTarget", "VolumeField", "MeshTarget", "as_target", "project_nodes", "surface_error"]
+__all__ = ["ImplicitTarget", "FunctionTarget", "VolumeField", "MeshTarget", "as_target", "check_shape_dim",
+           "project_nodes", "surface_error"]
 
 NEWTON_STEPS = 6
 #: finite-difference step of the Hessian, relative to the size of the target's box
@@ -368,6 +369,23 @@ def surface_error(mesh, shape=None, *, bounds=None, reference=None) -> dict:
     d = target.distance(samples)
     nv = len(np.unique(tri))
     return {"max": float(d.max()), "mean": float(d.mean()), "vertex_max": float(d[:nv].max())}
+
+
+def check_shape_dim(shape, points) -> None:
+    """Refuse a planar shape for the nodes of a mesh off the plane z = 0: its f does not
+    depend on z (a cylinder), so nodes would go onto a cylinder, not onto the shape. (A 3D
+    shape on a planar mesh is its z = 0 slice, as intended.)
+
+    >>> import numpy as np, warpmesh as wm
+    >>> check_shape_dim(wm.circle(1.0), np.array([[0.0, 0.0, 0.5]]))
+    Traceback (most recent call last):
+    ...
+    ValueError: expected a 3D 'shape' for the nodes of a 3D mesh (z from 0.5 to 0.5), got a 2D shape: its f is the same along z (a cylinder)
+    """
+    pts = np.asarray(points)
+    if getattr(shape, "dim", 3) == 2 and pts.ndim == 2 and pts.shape[1] == 3 and len(pts) and np.any(pts[:, 2] != 0):
+        raise ValueError(f"expected a 3D 'shape' for the nodes of a 3D mesh (z from {pts[:, 2].min():g} to "
+                         f"{pts[:, 2].max():g}), got a 2D shape: its f is the same along z (a cylinder)")
 
 
 def project_nodes(target, x: np.ndarray, cap: np.ndarray) -> np.ndarray:

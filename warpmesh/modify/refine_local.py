@@ -67,7 +67,7 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import CELL_TYPES, require_mesh
 from warpmesh.cells.collapsed import reject_collapsed
-from warpmesh.frep.projection import as_target, project_nodes
+from warpmesh.frep.projection import as_target, check_shape_dim, project_nodes
 from warpmesh.errors import WarpMeshError
 from warpmesh.cells.quality import tetra_quality, triangle_quality
 from warpmesh.cells.reference import cell_measures, reference_cell
@@ -389,6 +389,8 @@ def refine_local(mesh, *, where=None, max_length=None, shape=None, max_rounds: i
     if max_rounds < 1:
         raise ValueError(f"expected 'max_rounds' >= 1, got {max_rounds}")
     target = None if shape is None else as_target(shape)
+    if shape is not None:
+        check_shape_dim(shape, mesh.points)
     if size is not None:
         _check_output_size(mesh, types, size)
 

@@ -61,7 +61,7 @@ from warpmesh._util.arrays import unique_rows
 from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import require_mesh
 from warpmesh.cells.collapsed import reject_collapsed
-from warpmesh.frep.projection import as_target, project_nodes
+from warpmesh.frep.projection import as_target, check_shape_dim, project_nodes
 from warpmesh.cells.reference import (base_type, cell_measures, corner_jacobians, extend_point_values,
                               reference_cell, weighted_nodes)
 
@@ -422,6 +422,8 @@ def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
     check_budget(3 * n_after * (8 * nv_max + 8 * mesh.dim), f"refine(n={k}) of {mesh.n_cells} cells "
                  f"({n_after:.3g} cells after)", "lower 'n', or refine where needed (where=..., max_length=...)")
     target = None if shape is None else as_target(shape, bounds=bounds)
+    if shape is not None:
+        check_shape_dim(shape, mesh.points)
     n0 = mesh.n_points
 
     points, cells, lattice, support = _split(mesh, types, k, tetra_diagonal)

@@ -43,7 +43,7 @@ from warpmesh.cells.lagrange import (ELEMENT_BY_NAME, ELEMENTS, HIGHER_TYPES, LA
                                      P1_TOPOLOGY, LagrangeElement)
 from warpmesh.cells.collapsed import reject_collapsed
 from warpmesh.cells.types import require_mesh
-from warpmesh.frep.projection import as_target, project_nodes
+from warpmesh.frep.projection import as_target, check_shape_dim, project_nodes
 
 __all__ = ["to_order", "jacobians", "inverted_elements"]
 
@@ -281,6 +281,8 @@ def _to_order(mesh, order, shape=None, *, bounds=None, check=True, stacklevel: i
     if shape is None and bounds is not None:
         raise ValueError("expected a 'shape' with 'bounds' (the box caps that shape), got shape=None")
     target = None if shape is None else as_target(shape, bounds=bounds)
+    if shape is not None:
+        check_shape_dim(shape, mesh.points)
     if k == 1:
         return mesh
     reject_collapsed(mesh, "to_order")  # (a repeated corner only warned of an inverted element)
