@@ -182,3 +182,14 @@ def test_json_is_the_whole_statistics_and_nothing_else(capsys):
     assert set(expected) <= set(stats) and stats["np"] == expected["np"] and stats["euler"] == 2
     t = stats["time"]
     assert t["total"] == pytest.approx(sum(v for k, v in t.items() if k != "total"))
+
+
+def test_domain_takes_every_3d_method_the_library_has(tmp_path):
+    """The README's `--method delaunay|tetgen`: tetgen was not a choice of the CLI."""
+    import meshio
+
+    for method in ("stuffing", "delaunay", "tetgen"):
+        out = tmp_path / f"{method}.msh"
+        assert main(["domain", "--example", "torus", "--size", "0.2", "--method", method, "-o", str(out)]) == 0
+        back = meshio.gmsh.read(str(out))
+        assert "tetra" in back.cells_dict and len(back.cells_dict["tetra"]) > 100

@@ -65,8 +65,8 @@ def add_parsers(sub) -> None:
                                                   "are thin (default --size / 2; --size or more: uniform)")
     d.add_argument("--tolerance", type=float, help="planar: relative chord deviation of the boundary (default 1e-2)")
     d.add_argument("--min-angle", type=float, help="planar: smallest angle aimed at, degrees (default 28)")
-    d.add_argument("--method", choices=["global", "triangle", "stuffing", "delaunay"],
-                   help="planar: global (default) or triangle; 3D: stuffing (default) or delaunay")
+    d.add_argument("--method", choices=["global", "triangle", "stuffing", "delaunay", "tetgen"],
+                   help="planar: global (default) or triangle; 3D: stuffing (default), delaunay or tetgen")
     d.add_argument("--smooth", type=int, default=0, help="3D: smoothing sweeps that never lower the smallest "
                                                          "dihedral angle")
     d.add_argument("-o", "--output", help=f"mesh file to write (planar: {extensions_text(('triangle', 'line'))}; "
