@@ -13,6 +13,7 @@ from warpmesh.errors import MergeError
 from warpmesh.modify.merge import match_points, merge
 from warpmesh.modify.merge_hash import _grid
 from warpmesh.mesh import Mesh
+import warpmesh as wm
 from warpmesh.cells.reference import cell_measures, reference_cell
 from tests.helpers.blocks import hex_block, kuhn_block, positive, tri_square
 
@@ -410,3 +411,20 @@ def test_an_empty_mesh_is_merges_identity(dim):
     assert both.n_points == 0 and both.n_cells == 0
     with pytest.raises(ValueError, match="same dimension"):
         merge(m, Mesh(np.zeros((0, 5 - dim)), {"triangle": np.zeros((0, 3), dtype=np.int64)}))
+
+
+def test_meshes_sharing_top_cells_pass_the_euler_check():
+    """Cells in both meshes belong to the interface complex T1 ∩ T2 (with their facets): a
+    shared triangle made chi(T1 ∩ T2) one short and raised a MergeError on a valid merge, and
+    a mesh merged with itself failed by the number of its cells."""
+    pts = [[0, 0], [1, 0], [0, 1], [1, 1], [-1, 0]]
+    a = wm.Mesh(pts, {"triangle": [[0, 1, 2], [1, 3, 2]]})
+    b = wm.Mesh(pts, {"triangle": [[0, 1, 2], [0, 2, 4]]})
+    for check in ("interface", "full"):
+        m = a.merge(b, check=check)
+        assert m.n_cells == 3 and m.info["euler_ok"] and m.info["n_duplicates"] == 1
+    shape, bounds = wm.example("sphere")
+    for mesh in (wm.mesh_surface(shape, bounds=bounds, resolution=12), wm.mesh_domain(shape, bounds, size=0.5)):
+        same = mesh.merge(mesh, check="full")
+        assert same.info["euler_ok"] and same.info["euler"] == mesh.info.get("euler", same.info["euler_a"])
+        assert {t: len(c) for t, c in same.cells.items()} == {t: len(c) for t, c in mesh.cells.items()}

@@ -307,6 +307,8 @@ def _euler_check(top_a, blocks_a, blocks_b, bmap, common_a, n_new, points) -> di
         ca = cb = both
     ca += [0] * (len(ta) - len(ca))
     cb += [0] * (len(ta) - len(cb))
+    if top_a >= 2:  # top cells in both meshes belong to the interface complex too (with their facets)
+        ca[-1] = cb[-1] = both[-1]
     chi_a, chi_b, chi_i, chi_ib = _euler(ta), _euler(tb), _euler(ca), _euler(cb)
     chi = _euler([x + y - z for x, y, z in zip(ta, tb, both)])
     return {
