@@ -133,6 +133,25 @@ def test_mesh_volume_shared_interfaces_once_each(slabs, tmp_path, capsys):
     assert separate["n_triangles"] > stats["n_triangles"]
 
 
+def test_mesh_volume_shared_interfaces_simplify_and_optimize(slabs, tmp_path, capsys):
+    """--simplify / --optimize of a shared surface run its own remeshing (they were refused:
+    "expected one label with --labels when optimising"); the report prints its figures."""
+    path, _ = slabs
+    base = ["mesh", "--volume", str(path), "--labels", "all", "--interfaces", "shared"]
+    assert main([*base, "--json"]) == 0
+    raw = json.loads(capsys.readouterr().out)
+    out = tmp_path / "fewer.vtu"
+    assert main([*base, "--simplify", "0.3", "-o", str(out), "--json"]) == 0
+    fewer = json.loads(capsys.readouterr().out)
+    assert fewer["n_triangles"] < 0.45 * raw["n_triangles"] and fewer["self_intersections"] == 0
+    assert fewer["q_worst"] <= max(raw["q_worst"], 6.0)
+    back = wm.load(out)
+    assert set(back.cell_data["label_above"]["triangle"].tolist()) <= {1, 2, 5}
+    assert main([*base, "--optimize", "--size", "2"]) == 0
+    text = capsys.readouterr().out
+    assert "optimisation (before / after):" in text and "q worst" in text
+
+
 @pytest.mark.parametrize("argv, needle", [
     (["--volume", "{path}", "--labels", "all", "--smoothing", "3"], "--smoothing applies with --interfaces 'shared'"),
     (["--example", "part", "--interfaces", "shared"], "--interfaces does not apply to a shape"),

@@ -178,6 +178,20 @@ def _volume_target(wm, args, volume):
                           level=args.level or 0.0, inside=args.inside or "above")
 
 
+def _improve_labels(wm, args, mesh, clock):
+    """--optimize / --simplify of a shared multi-material surface (--interfaces shared): its
+    own remeshing, which keeps every junction on its curve and measures the tolerance to the
+    input surface."""
+    from warpmesh.cli.flags import in_flags
+
+    if args.optimize and args.simplify is not None:
+        raise ValueError("expected one of --optimize and --simplify, got both")
+    with clock.stage("optimize" if args.optimize else "simplify"), in_flags(_IMPROVE_FLAGS):
+        if args.optimize:
+            return wm.optimize(mesh, size=args.size, tolerance=args.max_error)
+        return wm.simplify(mesh, fraction=args.simplify, tolerance=args.max_error)
+
+
 def _improve(wm, args, mesh, bounds, target, clock):
     """--optimize / --simplify, and the largest distance of the result to the surface."""
     from warpmesh.cli.flags import in_flags
@@ -269,7 +283,9 @@ def _mesh(wm, args, clock) -> int:
                                    evaluator=args.evaluator, **common)
     clock.split("mesh", mesh.info.get("time"))
     distance = None
-    if args.optimize or args.simplify is not None:
+    if (args.optimize or args.simplify is not None) and "label_above" in mesh.cell_data:
+        mesh = _improve_labels(wm, args, mesh, clock)  # a shared multi-material surface
+    elif args.optimize or args.simplify is not None:
         target = shape if args.volume is None else _volume_target(wm, args, volume)
         mesh, distance = _improve(wm, args, mesh, bounds, target, clock)
     if args.output:

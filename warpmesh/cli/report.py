@@ -235,7 +235,11 @@ def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
         lines += _table(rows)
     if opt:
         lines.append("optimisation (before / after):")
-        lines += format_table({"before": opt["before"], "after": opt["after"]}).splitlines()
+        if "np" in opt["before"]:
+            lines += format_table({"before": opt["before"], "after": opt["after"]}).splitlines()
+        else:  # a multi-material surface's remeshing reports its own figures
+            lines += [_line(f"  {k.replace('_', ' ')}", f"{_number(v)} / {_number(opt['after'].get(k))}")
+                      for k, v in opt["before"].items() if not isinstance(v, (dict, list))]
         for key, label in _OPTIMIZE.items():
             if key in opt and opt[key] is not None:
                 lines.append(_line(label, _number(opt[key])))
