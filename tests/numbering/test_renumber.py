@@ -505,3 +505,25 @@ def test_degenerate_elements_empty_meshes_and_unknown_options():
     g = node_graph(m.cells, m.n_points).astype(float)
     g.data[:] = np.nan  # a value is no weight: every stored entry is an edge
     assert np.array_equal(renumber_graph(g, "gibbs"), renumber_graph(node_graph(m.cells, m.n_points), "gibbs"))
+
+
+def test_a_better_input_numbering_is_kept():
+    """A 10^3 hexahedral grid numbered row by row: every method's numbering had a larger
+    bandwidth and profile (133 -> 331, 160,930 -> 218,062); the input's is kept and said so."""
+    import itertools
+
+    n = 10
+    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
+    pts = np.array(list(itertools.product(range(n + 1), repeat=3)), float)
+    hexes = np.array([[idx[i, j, k], idx[i + 1, j, k], idx[i + 1, j + 1, k], idx[i, j + 1, k],
+                       idx[i, j, k + 1], idx[i + 1, j, k + 1], idx[i + 1, j + 1, k + 1], idx[i, j + 1, k + 1]]
+                      for i in range(n) for j in range(n) for k in range(n)])
+    grid = wm.Mesh(pts, {"hexahedron": hexes})
+    for method in ("gibbs", "rcm"):
+        r = grid.renumber(method)
+        s = r.stats()
+        assert r.info["renumber_kept_input"] and np.array_equal(r.points, grid.points)
+        assert s["profile"] == s["profile_before"] == 160_930 and s["bandwidth"] == s["bandwidth_before"] == 133
+    shuffled_grid = shuffled(grid, 3).renumber("gibbs")  # a shuffled one is renumbered
+    assert not shuffled_grid.info["renumber_kept_input"]
+    assert shuffled_grid.stats()["profile"] < shuffled_grid.stats()["profile_before"]

@@ -755,7 +755,9 @@ def renumber(
         ``bandwidth``, ``profile``, ``profile_mean``, the same with ``_before``,
         ``profile_ratio`` (before / after), ``renumber_method``, ``renumber_time``
         (seconds, the method on the graph), ``graph_time`` and ``nodes_per_second``
-        (nodes / renumber_time, the book's v).
+        (nodes / renumber_time, the book's v), ``renumber_kept_input`` (True when the
+        method's numbering had a larger profile, or the same and a larger bandwidth, than
+        the input's, which is then kept: a structured grid numbered row by row).
 
     Raises
     ------
@@ -815,6 +817,9 @@ def renumber(
     new = _inverse(order)
     full = graph if not reduced else node_graph(mesh.cells, n)  # statistics: every coefficient
     before, after = matrix_stats(full), matrix_stats(full, new)
+    kept = (after["profile"], after["bandwidth"]) > (before["profile"], before["bandwidth"])
+    if kept:  # the input's numbering is better (a structured grid numbered row by row): keep it
+        order, new, after, walk = np.arange(n), np.arange(n), before, None
     cells, cell_refs, cell_data = {}, {}, {k: {} for k in mesh.cell_data}
     for t, block in mesh.cells.items():
         block = new[block]
@@ -833,6 +838,7 @@ def renumber(
     info.update(
         profile_ratio=before["profile"] / max(after["profile"], 1),
         renumber_method=method,
+        renumber_kept_input=bool(kept),
         renumber_time=elapsed,
         graph_time=graph_time,
         nodes_per_second=n / elapsed if elapsed > 0 else float("inf"),
