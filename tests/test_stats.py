@@ -438,3 +438,21 @@ def test_mesh_topology_of_a_large_fan_takes_the_functions(monkeypatch):
     assert got == oracle_topology(fan) and got["components"] == 1 and not got["watertight"]
     assert labels.tolist() == [0] * k
     assert T.connected_components(fan, k + 1)[0] == 1
+
+
+def test_a_mesher_s_facts_are_not_reported_for_a_mesh_made_from_its_output():
+    """A dilated surface's stats said signed_volume 4.13 beside volume 33.06; a refined one's
+    vertices 822 beside np 3282: the mesher's facts about its own output, carried in info."""
+    import warpmesh as wm
+
+    shape, bounds = wm.example("sphere")
+    s = wm.mesh_surface(shape, bounds=bounds, resolution=16)
+    own = s.stats()
+    assert own["vertices"] == s.n_points and own["signed_volume"] == pytest.approx(own["volume"], rel=1e-5)
+    assert "facts_of" not in own
+    renumbered = s.renumber("gibbs").stats()  # the same points and cells: the facts hold
+    assert renumbered["vertices"] == s.n_points
+    for made in (s.transform(wm.transforms.dilation(2, dim=3)), s.refine(2), s.to_order(2)):
+        st = made.stats()
+        assert not {"vertices", "triangles", "signed_volume", "grid"} & set(st), sorted(st)
+        assert "signed_volume" in made.info  # still in info (the mesh's history), not in its stats

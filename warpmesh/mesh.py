@@ -41,6 +41,20 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+
+#: a mesher's facts about the mesh it returns (its extraction's counts and volume), not
+#: reported by :meth:`Mesh.stats` for a mesh made from it (transformed, refined, converted)
+OUTPUT_FACTS = ("vertices", "triangles", "signed_volume", "grid")
+#: the ``info`` key of the fingerprint of the mesh those facts describe
+FACTS_OF = "facts_of"
+
+
+def _same_fingerprint(a, b) -> bool:
+    try:
+        return a[0] == b[0] and [tuple(x) for x in a[1]] == [tuple(x) for x in b[1]] and \
+            abs(float(a[2]) - float(b[2])) <= 1e-9 * (1.0 + abs(float(b[2])))
+    except (TypeError, ValueError, IndexError):
+        return False
 from warpmesh.cells import topology as _topo
 from warpmesh.cells.quality import summarize_quality, tetra_figures, tetra_quality, triangle_quality
 from warpmesh.cells.types import CELL_TYPES, REF_KEY
@@ -263,6 +277,15 @@ class Mesh:
                 "pass it as point_refs/cell_refs"
             )
         self._info = dict(_check_mapping(info, "info"))
+        if any(k in self._info for k in OUTPUT_FACTS) and FACTS_OF not in self._info:
+            self._info[FACTS_OF] = self._fingerprint()  # the mesher's own output: its facts hold
+
+    def _fingerprint(self) -> list:
+        """Points, cells per type and the points' sum: what a mesher's facts about its output
+        (:data:`OUTPUT_FACTS`) were measured on; a renumbering keeps it, a transform or a
+        refinement does not."""
+        return [len(self._points), sorted((t, len(c)) for t, c in self._cells.items()),
+                float(np.sum(self._points))]
 
     # ---------------------------------------------------------------- accessors
     points = property(lambda self: self._points, doc="(n, d) float64, read-only.")
@@ -490,7 +513,10 @@ class Mesh:
         (True, 0, 1)
         """
         computed = self._stats
-        return {**computed, **{k: v for k, v in self._info.items() if k not in computed}}
+        hide = {FACTS_OF}
+        if FACTS_OF in self._info and not _same_fingerprint(self._info[FACTS_OF], self._fingerprint()):
+            hide.update(OUTPUT_FACTS)  # facts of the mesh this one was made from (transformed, refined, ...)
+        return {**computed, **{k: v for k, v in self._info.items() if k not in computed and k not in hide}}
 
     # ---------------------------------------------------------------- quality and optimisation
     def quality(self) -> np.ndarray:
