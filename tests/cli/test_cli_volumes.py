@@ -216,3 +216,12 @@ def test_keep_freed_memory_opt_out_and_the_program_only(monkeypatch):
     assert calls == []                                   # a caller's main([...]): the process is not ours
     assert cli.main() == 0
     assert calls == [1]                                  # the program
+
+
+def test_a_volume_too_thin_to_cap_names_the_flag_that_opens_it(tmp_path, capsys):
+    """The library's 'cap=True' read '--no-cap True' through the CLI."""
+    path = tmp_path / "tiny.npy"
+    np.save(path, np.ones((2, 2, 2), np.uint8))
+    assert main(["mesh", "--volume", str(path), "--labels", "all", "-o", str(tmp_path / "a.stl")]) == 2
+    err = capsys.readouterr().err
+    assert "3 samples per axis" in err and "(--no-cap leaves the surface open)" in err and "True" not in err

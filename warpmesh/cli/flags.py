@@ -24,11 +24,20 @@ def in_flags(flags: dict[str, str]):
     Traceback (most recent call last):
     ...
     ValueError: got --smoothing 3
+    >>> with in_flags({"cap": "--no-cap"}):  # a --no- flag is the keyword's False
+    ...     raise ValueError("too thin (cap=False leaves it open)")
+    Traceback (most recent call last):
+    ...
+    ValueError: too thin (--no-cap leaves it open)
     """
     try:
         yield
     except (ValueError, TypeError) as exc:
-        text = re.sub(r"'(\w+)'|\b(\w+)=(?!=)", lambda m: _flag(m, flags), str(exc))
+        text = str(exc)
+        for name, flag in flags.items():
+            if flag.startswith("--no-"):
+                text = re.sub(rf"\b{name}=False\b", flag, text)
+        text = re.sub(r"'(\w+)'|\b(\w+)=(?!=)", lambda m: _flag(m, flags), text)
         if text == str(exc):
             raise
         try:

@@ -355,9 +355,9 @@ class _ShapeGrid:
         cells = cells_of(self.resolution, _extent(self.bounds))
         check_float32_grid(self.bounds, cells)
         if self.cap and np.any(cells < 2):
-            raise ValueError(f"expected at least 2 cells per axis with cap=True (the boundary nodes are "
+            raise ValueError(f"expected at least 2 cells per axis to cap the surface (the boundary nodes are "
                              f"outside), got {cells.tolist()} from resolution={self.resolution!r}: raise "
-                             "'resolution' or widen the thin side of 'bounds'")
+                             "'resolution' or widen the thin side of 'bounds' (cap=False leaves the surface open)")
         set_(self, "resolution", int(self.resolution) if np.ndim(self.resolution) == 0 else
              tuple(int(v) for v in self.resolution))
 

@@ -530,8 +530,8 @@ def _mesh_volume(source, opts: VolumeOptions, device, t_start: float, progress=T
         except ValueError as exc:
             raise ValueError(f"'labels' meshes the regions of a label 'volume': {exc}") from None
     if opts.cap and min(vol.shape) < 3:
-        raise ValueError(f"expected at least 3 samples per axis in 'volume' with cap=True (the "
-                         f"boundary samples are outside), got shape {vol.shape}")
+        raise ValueError(f"expected at least 3 samples per axis in 'volume' to cap the surface (the "
+                         f"boundary samples are outside), got shape {vol.shape} (cap=False leaves the surface open)")
     if opts.level is not None:
         level = opts.level
     else:  # a bool or label volume's surface sits halfway between False and True samples
