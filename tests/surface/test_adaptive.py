@@ -403,3 +403,14 @@ def test_a_rod_beside_a_plane_in_coarse_leaves_is_kept():
     assert m.info["octree_rounds"] == 3, m.info["octree_rounds"]
     assert (s["euler"], s["components"]) == (grid["euler"], grid["components"]) == (4, 2)
     assert s["watertight"] and s["oriented"] and len(wm.check(m)) == 0
+
+
+def test_a_lipschitz_bound_below_the_slope_is_a_clear_error():
+    """The part's R-function field has slope up to 5.24 (lipschitz_bound): L = 1 culls cells
+    the surface crosses, which raised "a leaf's segments do not close into loops (an internal
+    error)"."""
+    part, bounds = wm.example("part")
+    with pytest.raises(ValueError, match="lipschitz=1.0: a bound below the field's largest slope"):
+        wm.mesh_surface(part, bounds=bounds, adaptive=True, bound="lipschitz", lipschitz=1.0, max_level=6)
+    ok = wm.mesh_surface(part, bounds=bounds, adaptive=True, bound="lipschitz", lipschitz=6.0, max_level=6)
+    assert ok.stats()["watertight"]

@@ -23,6 +23,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh._conventions import CAP_REF, SURFACE_REF
+from warpmesh.errors import WarpMeshError
 from warpmesh.surface.adaptive import contour as OC
 from warpmesh.surface.block_grid import refine_roots
 from warpmesh.surface.adaptive.octree import build_octree, cell_keys
@@ -103,6 +104,12 @@ def mesh_adaptive(tape, lo, hi, *, max_level, min_level, tolerance, angles, chor
 
         t0 = time.perf_counter()
         chain.join()
+        if isinstance(loops[0], WarpMeshError) and bound == "lipschitz":
+            # leaves culled by a bound below the field's slope miss crossings their neighbours see
+            raise ValueError(f"the octree's leaves do not close the surface with lipschitz={lipschitz!r}: a bound "
+                             "below the field's largest slope culls cells the surface crosses; give a larger "
+                             "'lipschitz' (warpmesh.frep.lipschitz.lipschitz_bound(shape, bounds) is one) or "
+                             "bound='interval'") from loops[0]
         if isinstance(loops[0], BaseException):
             raise loops[0]
         half, loop_of, n_loops, loop_size, nxt = loops[0]
