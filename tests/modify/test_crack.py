@@ -585,3 +585,39 @@ def test_bad_mesh():
                {"tetra": [[0, 1, 2, 3], [0, 1, 3, 4], [0, 1, 5, 3]]})  # face 0-1-3 in three
     with pytest.raises(ValueError, match=r"\[0, 1, 3\] which is shared by 3 elements"):
         crack(fan, [[0, 1, 3]])
+
+
+def test_a_cracked_mesh_is_embedded():
+    """The two lips of a crack are coincident faces (edges in the plane) that touch; the check
+    counted them as crossing (36 pairs of tetrahedra for an interior crack, 484 for a plane
+    through a tetrahedral cube, 11 for the planar example), though no interiors overlap."""
+    import itertools
+
+    import warpmesh as wm
+
+    n = 4
+    g = np.array(list(itertools.product(range(n + 1), repeat=3)), float)[:, ::-1] / n
+    idx = lambda i, j, k: i + (n + 1) * (j + (n + 1) * k)  # noqa: E731
+    hexes = [[idx(i, j, k), idx(i + 1, j, k), idx(i + 1, j + 1, k), idx(i, j + 1, k), idx(i, j, k + 1),
+              idx(i + 1, j, k + 1), idx(i + 1, j + 1, k + 1), idx(i, j + 1, k + 1)]
+             for k in range(n) for j in range(n) for i in range(n)]
+    tets = wm.Mesh(g, {"hexahedron": hexes}).convert("tetra")
+    t = tets.cells["tetra"]
+    faces = np.sort(np.concatenate([t[:, list(c)] for c in itertools.combinations(range(4), 3)]), axis=1)
+    u, cnt = np.unique(faces, axis=0, return_counts=True)
+    inner = u[cnt == 2]
+    on_plane = np.abs(tets.points[inner][:, :, 0] - 0.5).max(axis=1) < 1e-9
+    for sel in (on_plane, on_plane & (np.abs(tets.points[inner][:, :, 1:] - 0.5).max(axis=(1, 2)) <= 0.25 + 1e-9)):
+        cracked = tets.crack(inner[sel])
+        assert cracked.n_points > tets.n_points and len(cracked.check()) == 0
+        assert cracked.stats()["self_intersections"] == 0
+    pts = np.array([[x, y] for y in range(3) for x in range(3)], float)
+    tris = [[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [3, 4, 7], [3, 7, 6], [4, 5, 8], [4, 8, 7]]
+    planar = crack(Mesh(pts, {"triangle": tris, "line": [[3, 4], [4, 5]]}, cell_refs={"line": [5, 5]}), ref=5)
+    assert planar.n_points == 12 and len(planar.check()) == 0
+    # an overlap is still one with duplicated points: the same triangle twice, one on copies
+    twice = Mesh(np.concatenate([pts, pts[[0, 1, 4]]]), {"triangle": [[0, 1, 4], [9, 10, 11]]})
+    assert twice.check().tolist() == [[0, 1]]
+    tet_twice = Mesh(np.concatenate([tets.points, tets.points[t[0]]]),
+                     {"tetra": [t[0], np.arange(4) + tets.n_points]})
+    assert tet_twice.check().tolist() == [[0, 1]]

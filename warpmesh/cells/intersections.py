@@ -404,8 +404,16 @@ def check(mesh, *, device: str = "cpu") -> np.ndarray:
     if "triangle" in mesh.cells:
         from warpmesh.cells.junctions import with_junction_misorders  # which imports nothing of this module
 
-        return with_junction_misorders(mesh, find_self_intersections(points3(mesh), mesh.cells["triangle"],
-                                                                     device=device))
+        tris = mesh.cells["triangle"]
+        pairs = find_self_intersections(points3(mesh), tris, device=device)
+        if len(pairs) and mesh.dim == 2:
+            # a planar mesh's question is the one of tetrahedra (do interiors overlap?): the two
+            # lips of a crack touch along it, decided on the points welded
+            uniq, inverse = np.unique(np.asarray(mesh.points), axis=0, return_inverse=True)
+            if len(uniq) < mesh.n_points:
+                pairs = find_self_intersections(np.column_stack([uniq, np.zeros(len(uniq))]),
+                                                inverse.reshape(-1)[tris], device=device)
+        return with_junction_misorders(mesh, pairs)
     if "line" in mesh.cells and mesh.dim == 2:
         return find_segment_intersections(mesh.points, mesh.cells["line"])
     raise ValueError(f"expected a 'tetra' or 'triangle' block, or a 'line' block of 2D points, got blocks "
@@ -509,7 +517,14 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | N
         if not len(pairs[-1]):
             pairs.append(_nested_shells(scaled, tets, boundary, once // 4, components))
     out = np.sort(np.concatenate(pairs).astype(INDEX_DTYPE), axis=1)
-    return np.unique(out, axis=0) if len(out) else out.reshape(0, 2)
+    out = np.unique(out, axis=0) if len(out) else out.reshape(0, 2)
+    if len(out) and not np.any(out[:, 0] == out[:, 1]):
+        # a crack (crack(), or any seam of coincident points) has coincident boundary faces
+        # that touch, and interiors that do not overlap: decided on the points welded
+        uniq, inverse = np.unique(pts, axis=0, return_inverse=True)
+        if len(uniq) < len(pts):
+            return find_tet_overlaps(uniq, inverse.reshape(-1)[tets], device=device)
+    return out
 
 
 class TetFaces(NamedTuple):
