@@ -253,3 +253,15 @@ def test_msh_refuses_refs_beyond_32_bits(tmp_path):
         assert not list(tmp_path.iterdir())
     ok = wm.Mesh(pts, {"triangle": [[0, 1, 2], [1, 3, 2]]}, cell_refs={"triangle": [2**31 - 1, -5]})
     assert wm.load(ok.save(tmp_path / "a.msh")).cell_refs["triangle"].tolist() == [2**31 - 1, -5]
+
+
+def test_xdmf_refuses_second_order_blocks_it_cannot_read_back(tmp_path):
+    """meshio's XDMF reader failed (KeyError: 38) on the tetra10 + triangle6 file its writer
+    made; the first-order pair round-trips."""
+    assert format_support()["xdmf"].mixed and not format_support()["xdmf"].mixed_quadratic
+    shape, bounds = wm.example("sphere")
+    tets = wm.mesh_domain(shape, bounds, size=0.5)
+    with pytest.raises(ValueError, match=r"xdmf \(.xdmf\) files here do not .* \(its probe: tetra10 and triangle6\)"):
+        tets.to_order(2).save(tmp_path / "p2.xdmf")
+    assert sorted(wm.load(tets.save(tmp_path / "p1.xdmf")).cells) == ["tetra", "triangle"]
+    assert sorted(wm.load(tets.to_order(2).save(tmp_path / "p2.inp")).cells) == ["tetra10", "triangle6"]

@@ -127,6 +127,7 @@ class _Format:
     read: Callable[[str], meshio.Mesh] | None = None  # warpmesh's own reader (default: meshio's)
     write: Callable[..., object] | None = None  # warpmesh's own: (path, meshio.Mesh, mesh, **write_kwargs)
     mixed: bool = True  # a mesh of several cell types comes back (a meshio format: as its probe found)
+    mixed_quadratic: bool = True  # the same with second-order cells
 
 
 _FORMATS: dict[str, _Format] = {}  # name -> format, in registration order
@@ -174,7 +175,7 @@ def _meshio_format(name: str, ext: str) -> _Format:
         raise ValueError(f"meshio's {name!r} format ({ext}) does not round-trip any mesh on this installation "
                          f"({why}); use one of {list(file_formats())}")
     return _Format(name, ext, name, cell_types=sup.cells, keep_data=_refs_as(sup.refs),
-                   tidy=_refs_back(sup.refs), folder=True, mixed=sup.mixed)
+                   tidy=_refs_back(sup.refs), folder=True, mixed=sup.mixed, mixed_quadratic=sup.mixed_quadratic)
 
 
 def _find_format(path: Path, file_format: str | None) -> _Format:
@@ -357,6 +358,8 @@ _register_format(
 
 
 # ----------------------------------------------------------------------------- save / load
+#: first-order cell types (a mesh with others is checked against a format's quadratic probe)
+_FIRST_ORDER = ("vertex", "line", "triangle", "quad", "tetra", "hexahedron", "wedge", "pyramid")
 #: the largest cell ref a Netgen file takes (its writer writes a line per index up to it: a
 #: ref of 2**31 filled the disk)
 NETGEN_MAX_REF = 10**6
@@ -383,10 +386,13 @@ def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
             raise ValueError(f"netgen ({fmt.ext}) files list every index up to the largest cell ref, at most "
                              f"{NETGEN_MAX_REF} here, got {top}; number the refs 1, 2, ... or pick one of "
                              f"{list(FILE_FORMATS)}")
-    if not fmt.mixed and len(mesh.cells) > 1:  # (Tecplot wrote tetrahedra without their triangles)
+    quadratic = any(t not in _FIRST_ORDER for t in mesh.cells)
+    if len(mesh.cells) > 1 and not (fmt.mixed_quadratic if quadratic else fmt.mixed):
+        # (Tecplot wrote tetrahedra without their triangles; XDMF's reader fails on tetra10 + triangle6)
         raise ValueError(f"{fmt.name} ({fmt.ext}) files here do not bring a mesh of several cell types back (its "
-                         f"probe: tetrahedra and triangles), got {list(mesh.cells)}; save each type to a file of "
-                         f"its own or pick one of {list(FILE_FORMATS)}")
+                         f"probe: {'tetra10 and triangle6' if quadratic else 'tetrahedra and triangles'}), got "
+                         f"{list(mesh.cells)}; save each type to a file of its own or pick one of "
+                         f"{list(FILE_FORMATS)}")
     m = to_meshio(mesh)
     pd, cd, dropped = fmt.keep_data(mesh, dict(m.point_data), dict(m.cell_data))
     if dropped:

@@ -51,7 +51,7 @@ PROBE_SECONDS = 3
 #: formats of meshio that are not meshes a solver reads (drawings, web viewers)
 _NOT_MESHES = ("svg", "neuroglancer", "gmsh22", "vtk42", "vtk51")
 #: the layout of the cached table (a new layout is probed again)
-_SCHEMA = 3
+_SCHEMA = 4
 #: the packages some of meshio's formats need: their versions key the cache
 _OPTIONAL = ("meshio", "h5py", "netCDF4")
 
@@ -71,6 +71,8 @@ class FormatSupport:
     error: str | None = None
     #: a mesh of two cell types (tetrahedra and their boundary triangles) comes back equal
     mixed: bool = False
+    #: the same for their second-order cells (tetra10 and triangle6)
+    mixed_quadratic: bool = False
 
 
 def meshio_extensions(exclude=()) -> dict[str, str]:
@@ -148,7 +150,7 @@ def format_support(refresh: bool = False) -> dict[str, FormatSupport]:
         except OSError:  # a read-only home: probe again next time
             pass
     _MEMO = {name: FormatSupport(name, tuple(v["extensions"]), tuple(v["cells"]), v["refs"], v["error"],
-                                 bool(v.get("mixed", False)))
+                                 bool(v.get("mixed", False)), bool(v.get("mixed_quadratic", False)))
              for name, v in raw.items()}
     return _MEMO
 
@@ -202,11 +204,17 @@ def _probe_one(name: str, cell_type: str, folder: str) -> tuple[bool, str | None
     return True, kept[0] if kept else None
 
 
-def _probe_mixed(name: str, folder: str) -> bool:
-    """Whether tetrahedra and triangles (a volume mesh and its boundary) come back as both blocks."""
-    points, tets, refs = _probe_mesh("tetra")
-    tris = tets[:, [0, 2, 1]]  # a face of each tetrahedron
-    return _round_trip(name, folder, "mixed", points, [("tetra", tets), ("triangle", tris)], [refs, refs]) is not None
+def _probe_mixed(name: str, folder: str, quadratic: bool = False) -> bool:
+    """Whether tetrahedra and triangles (a volume mesh and its boundary; ``quadratic``: tetra10
+    and triangle6) come back as both blocks."""
+    if not quadratic:
+        points, tets, refs = _probe_mesh("tetra")
+        blocks = [("tetra", tets), ("triangle", tets[:, [0, 2, 1]])]  # a face of each tetrahedron
+    else:  # the face (0, 1, 2) of each tetra10 with its mid-edge nodes (01, 12, 20)
+        points, tets, refs = _probe_mesh("tetra10")
+        blocks = [("tetra10", tets), ("triangle6", tets[:, [0, 1, 2, 4, 5, 6]])]
+    label = "mixed2" if quadratic else "mixed"
+    return _round_trip(name, folder, label, points, blocks, [refs, refs]) is not None
 
 
 def _probe_all() -> dict:
@@ -242,20 +250,23 @@ def _probe_all() -> dict:
                 if ok:
                     cells.append(cell_type)
                     names.add(kept)
-            mixed = False
-            if {"tetra", "triangle"} <= set(cells):
+            mixed = {False: False, True: False}
+            for quadratic, types in ((False, {"tetra", "triangle"}), (True, {"tetra10", "triangle6"})):
+                if not types <= set(cells):
+                    continue
                 signal.alarm(seconds)
                 try:
                     with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
                         warnings.simplefilter("ignore")
-                        mixed = _probe_mixed(name, folder)
+                        mixed[quadratic] = _probe_mixed(name, folder, quadratic)
                 except Exception:  # noqa: BLE001 -- a failing mixed round trip is what is measured
-                    mixed = False
+                    mixed[quadratic] = False
                 finally:
                     signal.alarm(0)
         # refs count as kept when every cell type brought them back under one name
         refs = names.pop() if len(names) == 1 else None
-        out[name] = {"extensions": exts, "cells": cells, "refs": refs, "mixed": mixed,
+        out[name] = {"extensions": exts, "cells": cells, "refs": refs, "mixed": mixed[False],
+                     "mixed_quadratic": mixed[True],
                      "error": None if cells else (error or "no cell type comes back equal")}
     return out
 
