@@ -114,3 +114,15 @@ def test_points_with_nan_or_infinity_are_refused():
             tetra_quality(tet, [[0, 1, 2, 3]])
         with pytest.raises(ValueError, match="expected finite 'points'"):
             quality_summary(tri, [[0, 1, 2]])
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e-100, 1e-30, 1e30, 1e100, 1e300])
+def test_quality_is_scale_free_at_any_scale(scale):
+    """Products of 1e-100 lengths underflowed: a regular tetrahedron at 1e-100 got Q 0, a right
+    triangle at 1e100 got 0, inf beyond 1e+-120. The points are scaled by a power of two first."""
+    tet = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], float)
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    assert tetra_quality(tet * scale, [[0, 1, 2, 3]])[0] == pytest.approx(1.0, rel=1e-12)
+    assert triangle_quality(tri * scale, [[0, 1, 2]])[0] == pytest.approx((1 + np.sqrt(2)) / np.sqrt(3), rel=1e-12)
+    exact = 2.0 ** round(np.log2(scale))  # a power of two: the same bits as at scale 1
+    assert tetra_quality(tet * exact, [[0, 1, 2, 3]])[0] == tetra_quality(tet, [[0, 1, 2, 3]])[0]
