@@ -41,20 +41,6 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-
-#: a mesher's facts about the mesh it returns (its extraction's counts and volume), not
-#: reported by :meth:`Mesh.stats` for a mesh made from it (transformed, refined, converted)
-OUTPUT_FACTS = ("vertices", "triangles", "signed_volume", "grid")
-#: the ``info`` key of the fingerprint of the mesh those facts describe
-FACTS_OF = "facts_of"
-
-
-def _same_fingerprint(a, b) -> bool:
-    try:
-        return a[0] == b[0] and [tuple(x) for x in a[1]] == [tuple(x) for x in b[1]] and \
-            abs(float(a[2]) - float(b[2])) <= 1e-9 * (1.0 + abs(float(b[2])))
-    except (TypeError, ValueError, IndexError):
-        return False
 from warpmesh.cells import topology as _topo
 from warpmesh.cells.quality import summarize_quality, tetra_figures, tetra_quality, triangle_quality
 from warpmesh.cells.types import CELL_TYPES, REF_KEY
@@ -77,7 +63,24 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
+#: a mesher's facts about the mesh it returns (its extraction's counts and volume), not
+#: reported by :meth:`Mesh.stats` for a mesh made from it (transformed, refined, converted)
+OUTPUT_FACTS = ("vertices", "triangles", "signed_volume", "grid")
+#: the ``info`` key of the fingerprint of the mesh those facts describe
+FACTS_OF = "facts_of"
+
+
 # ----------------------------------------------------------------------------- validation
+def _same_fingerprint(a, b) -> bool:
+    """Whether two fingerprints (:meth:`Mesh._fingerprint`, or one read back from a file)
+    are of the same points and cells."""
+    try:
+        return a[0] == b[0] and [tuple(x) for x in a[1]] == [tuple(x) for x in b[1]] and \
+            abs(float(a[2]) - float(b[2])) <= 1e-9 * (1.0 + abs(float(b[2])))
+    except (TypeError, ValueError, IndexError):
+        return False
+
+
 def _frozen(arr: np.ndarray) -> np.ndarray:
     if arr.flags.owndata and not arr.flags.writeable:  # frozen already (another mesh's, or handed over): shared
         return arr
