@@ -428,3 +428,22 @@ def test_meshes_sharing_top_cells_pass_the_euler_check():
         same = mesh.merge(mesh, check="full")
         assert same.info["euler_ok"] and same.info["euler"] == mesh.info.get("euler", same.info["euler_a"])
         assert {t: len(c) for t, c in same.cells.items()} == {t: len(c) for t, c in mesh.cells.items()}
+
+
+def test_full_check_refuses_meshes_that_overlap():
+    """Two triangulations of one square merge into a valid complex (the Euler check passes)
+    whose triangles overlap; check="full" now also checks the result's cells for crossings."""
+    pts = [[0, 0], [1, 0], [0, 1], [1, 1]]
+    a = wm.Mesh(pts, {"triangle": [[0, 1, 3], [0, 3, 2]]})
+    b = wm.Mesh(pts, {"triangle": [[0, 1, 2], [1, 3, 2]]})
+    assert a.merge(b).n_cells == 4  # the default (interface) check counts only
+    with pytest.raises(MergeError, match="the merged cells overlap"):
+        a.merge(b, check="full")
+    shape, bounds = wm.example("sphere")
+    tets = wm.mesh_domain(shape, bounds, size=0.5)
+    lower = tets.points[:, 2] < 0.0
+    keep = lower[tets.cells["tetra"]].all(axis=1)
+    half = wm.Mesh(tets.points, {"tetra": tets.cells["tetra"][keep]})
+    rest = wm.Mesh(tets.points, {"tetra": tets.cells["tetra"][~keep]})
+    whole = half.merge(rest, check="full")  # halves sharing an interface: no overlap
+    assert len(whole.cells["tetra"]) == len(tets.cells["tetra"])

@@ -68,8 +68,9 @@ def _duplicate_masks(ca: np.ndarray, cb: np.ndarray, interface_a: np.ndarray, n1
 
 
 def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge",
-           check: bool | str = "interface", stacklevel: int = 3):
-    """(merged Mesh, bmap (n2,) int64: new index of each vertex of b)."""
+           check: bool | str = "interface", stacklevel: int = 3, overlaps: bool = True):
+    """(merged Mesh, bmap (n2,) int64: new index of each vertex of b); ``overlaps=False``
+    leaves the crossing check of ``check="full"`` to the caller (periodic checks its result)."""
     require_mesh(a, "a")
     require_mesh(b, "b")
     if a.dim != b.dim:
@@ -195,7 +196,30 @@ def _merge(a, b, tolerance=None, *, refs: bool = False, duplicates: str = "merge
         )
     mesh = type(a)(points, cells, point_data=point_data, cell_data=cell_data,
                 point_refs=point_refs, cell_refs=cell_refs, info=info)
+    if check == "full" and overlaps and _checkable(mesh):
+        # the Euler formula counts, it does not place: two triangulations of one square merge
+        # into a valid complex whose triangles overlap
+        from warpmesh.cells.intersections import check as crossing_pairs
+
+        crossing = crossing_pairs(mesh)
+        if len(crossing):
+            raise MergeError(f"the merged cells overlap: {len(crossing)} pair(s), e.g. cells "
+                             f"{crossing[0].tolist()} (the meshes cover a common region, not only an "
+                             "interface); pass check='interface' or False to merge anyway")
     return mesh, bmap
+
+
+def _checkable(mesh) -> bool:
+    """Whether :func:`warpmesh.cells.intersections.check` decides all of this mesh: tetrahedra
+    in 3D and no other solid cells; else triangles and no quads or solids; else a planar
+    polyline alone. (It checks one block: a mixed mesh would be decided in part.)"""
+    types = set(mesh.cells)
+    solids = {"tetra", "hexahedron", "wedge", "pyramid"}
+    if mesh.dim == 3 and "tetra" in types:
+        return not (types & (solids - {"tetra"}))
+    if "triangle" in types:
+        return not (types & (solids | {"quad"}))
+    return mesh.dim == 2 and types == {"line"}
 
 
 def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
@@ -226,7 +250,10 @@ def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
         (T*, T1*, T2*): everything else is counted alike on both sides and cancels out, so
         the check is the same at a fraction of the cost; ``info`` then has ``euler_star``,
         ``euler_star_a``, ``euler_star_b``. ``"full"`` counts every entity of both meshes
-        (``euler``, ``euler_a``, ``euler_b``: the meshes' own characteristics). ``False``
+        (``euler``, ``euler_a``, ``euler_b``: the meshes' own characteristics) and also checks
+        that no two cells of the result overlap (:func:`warpmesh.cells.intersections.check`,
+        for tetrahedra, triangles or a planar polyline: the formula counts, it does not
+        place, so two triangulations of one square pass it). ``False``
         skips both (no edge or face is built; the ``euler*`` and ``n_common_edges/faces``
         keys are then absent from ``info``).
 
@@ -254,7 +281,8 @@ def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
         Different dimensions, tolerance <= 0, unknown ``duplicates``, top-dimension cells
         of different dimensions.
     MergeError
-        The Euler formula fails (interfaces meshed differently, or tolerance too large).
+        The Euler formula fails (interfaces meshed differently, or tolerance too large), or
+        with ``check="full"`` cells of the result overlap.
 
     Examples
     --------

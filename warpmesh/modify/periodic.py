@@ -107,7 +107,7 @@ def _merge_range(parts, lo: int, hi: int, tol: float, options: dict):
     mid = (lo + hi + 1) // 2
     left, _ = _merge_range(parts, lo, mid, tol, options)
     right, last = _merge_range(parts, mid, hi, tol, options)
-    merged, bmap = _merge(left, right, tol, stacklevel=5, **options)
+    merged, bmap = _merge(left, right, tol, stacklevel=5, overlaps=False, **options)  # (the result is checked)
     return merged, bmap[last]
 
 
