@@ -217,3 +217,16 @@ def test_a_changed_generator_or_a_broken_file_is_generated_again(tmp_path, monke
     src.write_text("A = 2\n")
     assert table_cache.table_path("t", src) != first  # an edited generator names another file
     assert table_cache.cached("t", lambda: (np.arange(5), 9), src)[1] == 9
+
+
+def test_numbering_modules_load_as_attributes():
+    """The README's wm.numbering.high_order.jacobians and wm.numbering.renumber.format_table
+    raised AttributeError in a fresh process (the modules load lazily)."""
+    import subprocess
+    import sys
+
+    code = ("import warpmesh as wm; print(wm.numbering.high_order.jacobians.__name__, "
+            "wm.numbering.renumber.format_table.__name__, 'coloring' in dir(wm.numbering))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["jacobians", "format_table", "True"]
