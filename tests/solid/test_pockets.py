@@ -45,11 +45,11 @@ def winding(points: np.ndarray, tris: np.ndarray, x: np.ndarray) -> np.ndarray:
     return 2.0 * np.arctan2(num, den).sum(axis=1) / (4.0 * np.pi)
 
 
-def assert_no_cavity_without_rest(m: wm.Mesh, labels: np.ndarray) -> int:
+def assert_no_cavity_without_rest(m: wm.Mesh, labels: np.ndarray, spacing=(1.0, 1.0, 1.0)) -> int:
     """Every cavity of the boundary holds a rest sample, inside or on its shell (winding
     number 1 inside, 1/2 on a face; at one of its vertices: pyvista's frog has lone rest
-    voxels whose centres are cut points; local = world coordinates here)."""
-    rest = np.argwhere(labels == 0).astype(float)
+    voxels whose centres are cut points; sample i at i * spacing)."""
+    rest = np.argwhere(labels == 0) * np.asarray(spacing, dtype=float)
     for shell in cavities(m):
         lo, hi = m.points[shell].reshape(-1, 3).min(axis=0), m.points[shell].reshape(-1, 3).max(axis=0)
         near = rest[np.all((rest >= lo) & (rest <= hi), axis=1)]
@@ -68,15 +68,53 @@ def _layer():
     return labels
 
 
-def test_pockets_of_a_thin_layer_are_filled():
+#: the spacing of the noisy volumes (pyvista's frog's): their pockets form on its graded lattice
+NOISY_SPACING = (1.0, 1.0, 1.5)
+
+
+def _noisy(index: int) -> np.ndarray:
+    """Volume ``index`` of a seeded series: six random boxes of the rest and labels 1-3 in
+    24 x 24 x 16 samples, then 1 % of the samples set to random values 0-4 (lone voxels).
+    At NOISY_SPACING and the default size, cleaving encloses pockets of the rest in volumes
+    5, 19, 29, 30 and 37 (1, 1, 1, 2 and 1; 19 and 37 also keep cavities the labels hold)."""
+    rng = np.random.default_rng(5)
+    for _ in range(index + 1):
+        labels = np.zeros((24, 24, 16), np.uint8)
+        for _ in range(6):
+            lo = [int(rng.integers(0, s - 4)) for s in labels.shape]
+            hi = [v + int(rng.integers(2, 12)) for v in lo]
+            labels[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]] = rng.integers(0, 4)
+        noise = rng.random(labels.shape) < 0.01
+        labels[noise] = rng.integers(0, 5, noise.sum())
+    return labels
+
+
+def test_a_thin_layer_leaves_no_pocket():
+    """The layer's edges cross three codes; with cut points snapped edge by edge, the
+    layer's pieces closed over 12 pieces of the rest, each joined to the outside at one
+    node (a pinch). Snapping that would pinch is pushed off the node instead
+    (warpmesh/solid/snapping.py): no pocket forms, and the boundary is one sphere."""
     labels = _layer()
     m = wm.mesh_domain(labels, labels="all", size=2.0)
     check_regions(m, rest=0)
-    assert m.info["filled_pockets"] == 12 and m.info["kept_cavities"] == 0
-    assert 0 < m.info["filled_volume"] < 0.01 * labels.astype(bool).sum()
+    assert m.info["filled_pockets"] == 0 and m.info["kept_cavities"] == 0 and m.info["pushed_cuts"] > 0
     assert cavities(m) == []
     s = m.stats()
     assert (s["watertight"], s["manifold"], s["oriented"], s["euler"], s["components"]) == (True, True, True, 2, 1)
+    assert s["self_intersections"] == 0
+
+
+@pytest.mark.parametrize("index, filled, kept", [(5, 1, 0), (19, 1, 1), (29, 1, 0), (30, 2, 0), (37, 1, 2)])
+def test_pockets_of_noisy_volumes_are_filled(index, filled, kept):
+    labels = _noisy(index)
+    m = wm.mesh_domain(wm.Volume(labels, spacing=NOISY_SPACING), labels="all")
+    check_regions(m, rest=0)
+    assert (m.info["filled_pockets"], m.info["kept_cavities"]) == (filled, kept)
+    assert 0 < m.info["filled_volume"] < filled * np.prod(NOISY_SPACING)  # less than a voxel each
+    assert len(find_tet_overlaps(m.points, m.cells["tetra"])) == 0  # filled pockets overlap nothing
+    assert assert_no_cavity_without_rest(m, labels, NOISY_SPACING) == kept
+    s = m.stats()
+    assert (s["watertight"], s["manifold"], s["oriented"]) == (True, True, True)
     assert s["self_intersections"] == 0
 
 
@@ -98,7 +136,8 @@ def _random_boxes(n: int) -> list[np.ndarray]:
 @pytest.mark.parametrize("part", range(3))
 def test_random_boxes_have_no_cavity_the_labels_do_not_hold(part):
     """The default graded lattice at 2 voxels: every cavity left holds a rest sample. Before
-    the filling, volumes 6 and 7 of these 12 had 6 cavities each (all filled now)."""
+    the filling, volumes 6 and 7 of these 12 had 6 cavities each; they came from snaps that
+    pinched (warpmesh/solid/snapping.py), and none forms now."""
     filled = 0
     for labels in _random_boxes(12)[4 * part:4 * part + 4]:
         m = wm.mesh_domain(labels, labels="all", size=2.0)
@@ -106,58 +145,53 @@ def test_random_boxes_have_no_cavity_the_labels_do_not_hold(part):
         assert len(find_tet_overlaps(m.points, m.cells["tetra"])) == 0  # filled pockets overlap nothing
         assert assert_no_cavity_without_rest(m, labels) == m.info["kept_cavities"]
         filled += m.info["filled_pockets"]
-    if part == 1:
-        assert filled == 12
+    assert filled == 0
 
 
 def test_a_cavity_the_labels_hold_is_kept():
-    """A 3-voxel hole of the rest inside a block: a cavity of the mesh (kept), beside the
-    thin layer's pockets (filled)."""
+    """A 3-voxel hole of the rest inside a block, beside the thin layer: a cavity of the mesh (kept)."""
     labels = _layer()
     labels[3:6, 3:6, 3:6] = 0
     m = wm.mesh_domain(labels, labels="all", size=2.0)
     check_regions(m, rest=0)
-    assert m.info["kept_cavities"] == 1 and m.info["filled_pockets"] > 0
+    assert m.info["kept_cavities"] == 1 and m.info["filled_pockets"] == 0
     assert assert_no_cavity_without_rest(m, labels) == 1
     assert m.stats()["components"] == 2  # the outer boundary and the hole's
 
 
-def test_without_filling_the_pockets_stay():
-    """The same cleaving without the filling (the uniform pass's option) keeps the 12
-    cavities: the oracle sees them, so the tests above can fail."""
-    from warpmesh.solid import regions
-    from warpmesh.surface.multilabel import label_codes
+def test_without_filling_the_pockets_stay(monkeypatch):
+    """The same cleaving without the filling keeps noisy volume 30's two cavities: the oracle
+    sees them, so the tests above can fail."""
+    import functools
 
-    labels = _layer()
-    codes, ids, rest = label_codes(labels, "all")
+    from warpmesh.solid import regions
+
+    labels = _noisy(30)
+    real = regions.cleave
     got = {}
     for fill in (False, True):
-        t = {}
-        graded = regions.cleave(codes, rest, np.ones(3), 2.0, regions.SNAP, t, min_size=1.0,
-                                focus=np.array([False, True, True]), fill=fill)
-        points, tets, tet_codes, tris, lower, upper, info = graded
-        m = wm.Mesh(points, {"tetra": tets, "triangle": tris}, cell_refs={"tetra": ids[tet_codes],
-                                                                           "triangle": ids[lower]})
+        monkeypatch.setattr(regions, "cleave", functools.partial(real, fill=fill))
+        m = wm.mesh_domain(wm.Volume(labels, spacing=NOISY_SPACING), labels="all")
         got[fill] = len(cavities(m))
-    assert got == {False: 12, True: 0}
+    assert got == {False: 2, True: 0}
 
 
 def test_pockets_when_the_rest_is_the_highest_code():
-    """Labels -1 and -2 (the rest, 0, is then the highest code): the shell triangles name the
+    """Labels -4 to -1 (the rest, 0, is then the highest code): the shell triangles name the
     rest as their upper code and the re-labelled ones are turned over. The tetrahedra's
     boundary (matched faces) is exactly the triangles naming the rest, each oriented from
-    its region (lower) out to the rest (upper), one closed sphere; every other triangle lies
+    its region (lower) out to the rest (upper), closed spheres; every other triangle lies
     between two regions, oriented towards the higher label's tetrahedron."""
     from warpmesh.cells.intersections import tet_faces
     from warpmesh.solid.dihedral import signed_volumes
 
-    labels = -_layer().astype(np.int8)
-    m = wm.mesh_domain(labels, labels="all", size=2.0)
-    assert m.info["filled_pockets"] == 12
+    labels = -_noisy(30).astype(np.int8)
+    m = wm.mesh_domain(wm.Volume(labels, spacing=NOISY_SPACING), labels="all")
+    assert m.info["filled_pockets"] == 2
     pts, tets, lab = m.points, m.cells["tetra"], m.cell_refs["tetra"]
     assert np.all(signed_volumes(pts, tets) > 0)
     tris, lower, upper = m.cells["triangle"], m.cell_refs["triangle"], m.cell_data["label_above"]["triangle"]
-    assert np.all(lower < upper) and set(lab.tolist()) == {-2, -1}
+    assert np.all(lower < upper) and set(lab.tolist()) == {-4, -3, -2, -1}
 
     def rows(faces):
         return sorted(tuple(np.roll(f, -int(np.argmin(f)))) for f in np.asarray(faces).tolist())
@@ -165,7 +199,7 @@ def test_pockets_when_the_rest_is_the_highest_code():
     outer = upper == 0
     assert rows(tris[outer]) == rows(tet_faces(pts, tets).boundary)  # rest above: the normals point out
     s = m.stats()
-    assert (s["watertight"], s["manifold"], s["euler"], s["components"]) == (True, True, 2, 1)
+    assert (s["watertight"], s["manifold"], s["euler"]) == (True, True, 2 * s["components"])  # spheres
     # interfaces: the tetrahedron of the upper label lies on the normal's side
     inner = tris[~outer]
     key = {tuple(sorted(f)): i for i, f in enumerate(inner.tolist())}
@@ -183,14 +217,15 @@ def test_pockets_when_the_rest_is_the_highest_code():
 
 
 def test_clients_take_the_filled_block():
-    """TetGen tetrahedralizes the filled block's outer boundary (the triangles naming the
-    rest: one closed manifold sphere now) to the tetrahedra's volume, and scikit-fem's P1
-    mass matrix on the tetrahedra sums to it too."""
+    """TetGen tetrahedralizes the outer boundary of noisy volume 30, its two pockets filled
+    (the triangles naming the rest: closed manifold spheres, none of them a cavity now) to
+    the tetrahedra's volume, and scikit-fem's P1 mass matrix on the tetrahedra sums to it too."""
     tetgen = pytest.importorskip("tetgen")
     skfem = pytest.importorskip("skfem")
     from warpmesh.solid.dihedral import signed_volumes
 
-    m = wm.mesh_domain(_layer(), labels="all", size=2.0)
+    m = wm.mesh_domain(wm.Volume(_noisy(30), spacing=NOISY_SPACING), labels="all")
+    assert m.info["filled_pockets"] == 2 and m.info["kept_cavities"] == 0
     volume = m.stats()["volume"]
     outer = m.cells["triangle"][m.cell_refs["triangle"] == 0][:, ::-1]
     used, inv = np.unique(outer, return_inverse=True)

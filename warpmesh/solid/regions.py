@@ -16,7 +16,10 @@ side ``h``), cleaved by the labels (after Bronson, Levine & Whitaker's lattice c
    voxel face and the volume between the two ends is shared as the samples say;
 3. a cut point within ``snap`` of the edge's length from a node is *snapped* onto that node
    (the vertex-snapping half of lattice cleaving's warp): it removes the sliver the cut
-   would make, and the edge then belongs wholly to its other end's label;
+   would make, and the edge then belongs wholly to its other end's label. Where the snaps
+   onto a node would pinch a region's boundary there (two cones of a label touching at the
+   node), some of them are pushed off it instead (:mod:`warpmesh.solid.snapping`;
+   ``info["pushed_cuts"]``), so every region's boundary is a manifold;
 4. every lattice face with two or three labels gets a *face point*, every cleaved
    tetrahedron a *tet point*: the mean of its cut points, pulled towards the face's
    (tetrahedron's) centroid until every barycentric weight is at least ``INTERIOR`` (so
@@ -27,8 +30,8 @@ side ``h``), cleaved by the labels (after Bronson, Levine & Whitaker's lattice c
    the lattice node of its polygon segment; those of the rest are dropped, degenerate ones
    (a segment snapped to a point) too.
 
-6. where an edge crosses three labels (below), the pieces of the rest near a node can be
-   closed over by the pieces of the layer around them: a cavity the labels do not hold.
+6. where the edges do not resolve the labels, the pieces of a region can close over a piece
+   of the rest: a cavity the labels do not hold.
    Such pockets are filled with the label around them (:mod:`warpmesh.solid.pockets`; a
    cavity that holds a sample of the rest is kept); ``info`` counts them.
 
@@ -158,6 +161,7 @@ from warpmesh.mesh import Mesh
 from warpmesh.solid.dihedral import signed_volumes, tet_quality_summary
 from warpmesh.solid.lattice import lattice_tables
 from warpmesh.solid.pockets import fill_pockets
+from warpmesh.solid.snapping import snap_cuts
 from warpmesh.solid.stuffing import lattice_for
 from warpmesh.solid.thin import Specks, VoxelLabels, graded_background, labels_at, speck_voxels
 from warpmesh.surface.multilabel import LABEL_ABOVE, label_codes
@@ -229,7 +233,9 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         smallest extent (a thin slab).
     snap : float
         Cut points within ``snap`` times their edge's length of a node are snapped onto it,
-        in [0, 0.5); 0 keeps every cut where the labels put it.
+        in [0, 0.5); 0 keeps every cut where the labels put it. Where the snaps onto a node
+        would pinch a region's boundary there, some are pushed to ``snap + PUSH_BEYOND`` from
+        it instead (:mod:`warpmesh.solid.snapping`): every region's boundary is a manifold.
     min_size : float, optional
         The smallest longest edge of a graded lattice (world units; default ``size / 2``, one
         level of refinement). When a region's volume on the uniform lattice is off its voxel
@@ -256,7 +262,8 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         the interfaces and the domain's boundary with ``cell_refs["triangle"]`` (lower label)
         and ``cell_data["label_above"]["triangle"]`` (higher label; for ``"tetra"`` the tetrahedron's own
         label, as the Mesh wants one array per block), oriented from the lower
-        label's side to the higher's (the module docstring). ``info``: counts,
+        label's side to the higher's (the module docstring). ``info``: counts
+        (``snapped_cuts``, ``pushed_cuts``, ...),
         ``region_volumes`` (per label: ``volume``, ``voxel_volume``, ``error`` relative),
         the dihedral range, timings.
 
@@ -587,9 +594,10 @@ def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
     """Step 3 of :func:`_sub_tets`: each cut's vertex id (its node where snapped), each row's
     face points ((M, 4) ids, -1 where the face has one code; one per face, named by its nodes),
     and the positions of the cuts, face points and tet points (means of the snapped cuts,
-    pulled inside); the number of cuts snapped."""
+    pulled inside); the numbers of cuts snapped and pushed (a snap that would pinch a region's
+    boundary at its node, pushed off it instead: :mod:`warpmesh.solid.snapping`)."""
     M = len(T)
-    snapped_lo, snapped_hi = t < snap, t > 1.0 - snap
+    t, snapped_lo, snapped_hi, pushed = snap_cuts(T, L, cut_id, t, e_lo, e_hi, snap)
     ts = np.where(snapped_lo, 0.0, np.where(snapped_hi, 1.0, t))
     cut_vertex = np.where(snapped_lo, e_lo, np.where(snapped_hi, e_hi, n_nodes + np.arange(len(t))))
 
@@ -654,7 +662,7 @@ def _cleave_points(T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap):
     tw = weights_on([0, 1, 2, 3], range(6))
     tet_pos = np.einsum("kv,kvd->kd", tw, node_pos[T])
     cut_pos = (1.0 - t)[:, None] * node_pos[e_lo] + t[:, None] * node_pos[e_hi]
-    return cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, int(snapped_lo.sum() + snapped_hi.sum())
+    return cut_vertex, face_vertex, cut_pos, face_pos, tet_pos, (int(snapped_lo.sum() + snapped_hi.sum()), pushed)
 
 
 def _holds_rest(codes: np.ndarray, spacing: np.ndarray, rest: int, corners: np.ndarray) -> bool:
@@ -948,6 +956,7 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     tris_out = np.take(new_id, triangles, out=triangles, mode="clip")
     timings["compact"] = time.perf_counter() - t0
     info = {"lattice": tuple(int(x) for x in dims), "background_tets": n_bg, "whole_tets": int(len(whole)),
-            "cleaved_tets": int(len(T)), "cut_edges": int(n_cuts), "snapped_cuts": n_snapped,
+            "cleaved_tets": int(len(T)), "cut_edges": int(n_cuts), "snapped_cuts": n_snapped[0],
+            "pushed_cuts": n_snapped[1],
             "face_points": int(n_faces), "n_interface_triangles": int(len(tris_out)), **pockets, **graded}
     return points, tets_out, tet_codes, tris_out, lower, upper, info
