@@ -56,7 +56,7 @@ negative tetrahedron, ``wm.check`` empty (45 s), none lost.
 
 Since the pinch-free snapping (:mod:`warpmesh.solid.snapping`; ``nice python
 benchmarks/bench_regions.py --repeat 1 --no-tetgen`` at f15d4e7 and at d8621df, one after the
-other, load 1.2-1.5, 2026-12-05 00:10 UTC): the frog's defaults 12,837,134 tets (12,722,424),
+other, load 1.2-1.5, 2026-12-05 00:00 UTC): the frog's defaults 12,837,134 tets (12,722,424),
 27.6 s wall / 31.7 s CPU (27.2 / 31.6), dihedral [7.07°, 167.58°] ([7.08°, 166.95°]), worst
 region -3.20 % (-3.26 %), none lost; 21,776 of 555,672 snapped cuts pushed, and no vertex where
 a region's boundary is pinched (15,249 vertex-label pinches before: tests/solid/test_regions.py's
