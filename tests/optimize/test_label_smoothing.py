@@ -229,3 +229,21 @@ def test_bad_input_names_the_argument():
         wm.mesh_surface(vol, labels="all", interfaces="shared", smoothing=-2)
     with pytest.raises(ValueError, match="'smoothing'"):
         wm.mesh_surface(vol, labels="all", interfaces="shared", smoothing=1.5)
+
+
+def test_progress_over_the_passes():
+    """``mesh_surface(..., smoothing=k, progress=f)``: f hears the surface nets' rows, then
+    (1, k) ... (k, k) from the smoothing; ``smooth_labels`` refuses a progress that is not a
+    bool or a callable."""
+    vol = np.zeros((12, 12, 12), np.uint8)
+    vol[2:10, 2:10, 2:6] = 1
+    vol[2:10, 2:10, 6:10] = 2
+    calls = []
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared", smoothing=5,
+                        progress=lambda done, total: calls.append((done, total)))
+    assert m.info["smoothing"]["passes"] == 5
+    assert calls[-5:] == [(k, 5) for k in range(1, 6)]
+    rows = calls[:-5]
+    assert rows and rows[-1][0] == rows[-1][1] and all(t == rows[0][1] for _, t in rows)
+    with pytest.raises(TypeError, match="'progress'"):
+        smooth_labels(m, 2, progress="yes")

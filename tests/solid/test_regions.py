@@ -389,3 +389,36 @@ def test_frog_all_labels_at_four_voxels():
             thick.append(label)
             assert abs(r["error"]) < 0.05, (label, r)
     assert len(thick) >= 12
+
+
+def test_progress_reports_every_stage():
+    """``progress(done, total)`` once per stage, in order, ending at (total, total) whether the
+    graded pass runs (a 2-voxel layer: it does) or not (two slabs: uniform only); a bad value
+    is a TypeError naming it; a call under a second draws no bar."""
+    slabs = np.zeros((20, 20, 20), np.uint8)
+    slabs[3:10, 3:17, 3:17] = 1
+    slabs[10:17, 3:17, 3:17] = 2
+    layer = np.zeros((20, 20, 20), np.uint8)
+    layer[2:18, 2:18, 2:9] = 1
+    layer[2:18, 2:18, 9:11] = 2
+    layer[2:18, 2:18, 11:18] = 3
+    for vol, graded in ((slabs, False), (layer, True)):
+        calls = []
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            m = wm.mesh_domain(vol, labels="all", size=4.0, progress=lambda done, total: calls.append((done, total)))
+        assert m.info["graded"] is graded
+        done = [d for d, _ in calls]
+        assert done == sorted(done) and calls[-1] == (calls[0][1], calls[0][1])
+        assert len(calls) >= (8 if graded else 5)
+    with pytest.raises(TypeError, match="'progress'"):
+        wm.mesh_domain(slabs, labels="all", size=4.0, progress="yes")
+
+
+def test_progress_bar_waits_a_second(capsys):
+    vol = np.zeros((12, 12, 12), np.uint8)
+    vol[2:10, 2:10, 2:10] = 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        wm.mesh_domain(vol, labels="all", size=3.0)  # progress=True, the default
+    assert capsys.readouterr().err == ""

@@ -60,6 +60,7 @@ import time
 import numpy as np
 
 from warpmesh._conventions import GRID_INFO
+from warpmesh._util.progress import Progress, check_progress
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 
 __all__ = ["CHECK_EVERY", "DEFAULT_PASSES", "GRID_INFO", "MARGIN", "PASS_BAND", "box_sides", "classify_edges",
@@ -105,7 +106,8 @@ def vertex_cubes(points, origin, spacing) -> np.ndarray:
     return np.floor((p - np.asarray(origin, np.float64)) / np.asarray(spacing, np.float64)).astype(np.int64)
 
 
-def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = None, relaxation: float = 0.5):
+def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = None, relaxation: float = 0.5,
+                  progress=False):
     """Constrained smoothing of a multi-material surface (module docstring): every vertex in
     its cube, junction curves along themselves, no triangle crossing, turning over or folding.
 
@@ -123,6 +125,9 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
         are not recognised (their vertices move within their cubes like the others).
     relaxation : float
         Taubin's lambda, in (0, 1]; mu follows from :data:`PASS_BAND`.
+    progress : bool or callable
+        A bar over the passes (tqdm, shown once the call has taken a second), or
+        ``progress(done, total)`` called after each pass.
 
     Returns
     -------
@@ -155,6 +160,7 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
     if isinstance(relaxation, (bool, np.bool_)) or not isinstance(relaxation, (int, float, np.floating)) \
             or not 0.0 < float(relaxation) <= 1.0:
         raise ValueError(f"expected 'relaxation' in (0, 1], got {relaxation!r}")
+    check_progress(progress)
     refs, above = shared_labels(mesh)
     origin, spacing, shape = _grid(mesh, grid)
     points = np.array(mesh.points, dtype=np.float64)
@@ -181,6 +187,7 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
     raw = points.copy()
     reverted = 0
     checked = points.copy()  # the last positions that passed the checks
+    bar = Progress(progress, int(passes), "warpmesh label smoothing", "pass")
     for k in range(int(passes)):
         for step in (relaxation, mu):
             delta = weights @ points - points
@@ -188,6 +195,8 @@ def smooth_labels(mesh, passes: int = DEFAULT_PASSES, *, grid: dict | None = Non
         if (k + 1) % CHECK_EVERY == 0 or k + 1 == passes:
             reverted += _revert_failures(checked, points, tris, axis, facing, pairs, pair_cos0, cells)
             checked = points.copy()
+        bar.update()
+    bar.close()
     info = {**mesh.info, "smoothing": {
         "passes": int(passes), "relaxation": float(relaxation), "mu": float(mu),
         "fixed": int(np.count_nonzero(kind == 0)), "curve": int(np.count_nonzero(kind == 1)),

@@ -130,7 +130,9 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         With ``client``: a ``.pvtu`` path; one VTU piece per brick (tetrahedra, point array
         ``lattice_key``) is written beside it as bricks finish.
     progress : bool or callable
-        With ``client``: a progress bar over the bricks, or ``progress(done, total)``.
+        With ``client``: a progress bar over the bricks, or ``progress(done, total)``; with
+        a label volume: a bar over the cleaving's stages (shown once the call has taken a
+        second), or ``progress(done, total)``.
     **options
         3D: ``alpha_long``, ``alpha_short`` (the violation thresholds, default the paper's
         0.24776 and 0.40630 that prove dihedral angles in [10.7°, 164.8°]) and
@@ -180,16 +182,17 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
     """
     bricked = {"client": client, "bricks": bricks, "brick_cells": brick_cells, "gather": gather, "output": output,
                "progress": progress}
+    if not isinstance(shape, (Shape, Expr)):  # a label volume: its regions (lattice cleaving)
+        if client is not None:
+            raise ValueError("'client' stuffs the domain of a shape; a label volume's regions (lattice cleaving) "
+                             "are meshed in one process: drop 'client'")
+        refuse_bricking(**{k: v for k, v in bricked.items() if k not in ("client", "progress")})
+        defaults = {"method": None, "smooth": 0, "features": True, "flips": False}
+        given = {k: v for k, v in zip(defaults, (method, smooth, features, flips)) if v is not defaults[k]}
+        return mesh_regions(shape, bounds, size=size, device=device, progress=progress, **given, **options)
     if client is None:
         refuse_bricking(**{k: v for k, v in bricked.items() if k != "client"})
         bricked = None
-    if not isinstance(shape, (Shape, Expr)):  # a label volume: its regions (lattice cleaving)
-        if bricked is not None:
-            raise ValueError("'client' stuffs the domain of a shape; a label volume's regions (lattice cleaving) "
-                             "are meshed in one process: drop 'client'")
-        defaults = {"method": None, "smooth": 0, "features": True, "flips": False}
-        given = {k: v for k, v in zip(defaults, (method, smooth, features, flips)) if v is not defaults[k]}
-        return mesh_regions(shape, bounds, size=size, device=device, **given, **options)
     box = check_box(bounds)
     device = check_device(device)
     if box.shape[1] == 2:

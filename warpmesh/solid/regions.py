@@ -154,6 +154,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh._util.parallel import cpu_view, launch_split
+from warpmesh._util.progress import Progress
 from warpmesh._util.validate import check_device
 from warpmesh.io.images import Volume, as_volume
 from warpmesh.kernels import stuffing as K
@@ -209,7 +210,7 @@ _FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
 
 
 def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = SNAP, min_size=None,
-                 device: str = "cpu", **refused) -> Mesh:
+                 device: str = "cpu", progress=False, **refused) -> Mesh:
     """Conforming tetrahedra of the regions of a label volume (lattice cleaving).
 
     What :func:`warpmesh.mesh_domain` runs when its first argument is a volume.
@@ -254,6 +255,10 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         UserWarning. ``info``: ``graded``, ``refined_labels`` (when graded),
         ``graded_tets``, ``speck_offsets`` (label: the distance its interface moved, world units).
     device : str
+    progress : bool or callable
+        A bar over the stages (tqdm, shown once the call has taken a second; ``mesh_domain``
+        passes its own, default True), or ``progress(done, total)`` called as each stage ends
+        (stages skipped count as done at the end).
 
     Returns
     -------
@@ -300,7 +305,24 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     h = _check_size(size, image.values.shape, spacing)
     smallest = _check_min_size(min_size, spacing, h)
     timings: dict[str, float] = {}
-    points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, float(snap), timings)
+    bar = Progress(progress, _STAGES, "warpmesh mesh_domain (labels)", "stage")
+    bar.stage("lattice", 0)
+    try:
+        mesh = _mesh_regions(image, codes, ids, rest, spacing, h, float(snap), smallest, timings, bar.stage, t_start,
+                             device)
+        bar.finish()
+    finally:
+        bar.close()
+    return mesh
+
+
+#: the stages of the progress bar: the uniform pass's, the graded pass's, the quality
+_STAGES = 4 + 6 + 1
+
+
+def _mesh_regions(image, codes, ids, rest, spacing, h, snap, smallest, timings, tick, t_start, device) -> Mesh:
+    """:func:`mesh_regions` after its checks (``tick(stage)`` as each stage ends)."""
+    points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, snap, timings, tick=tick)
     info.update(graded=False, min_size=smallest)
     counts = np.zeros(len(ids), np.int64)
     for plane in codes:  # a plane at a time: no int64 copy of the whole volume
@@ -316,11 +338,11 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
             more = {}
             specks, targets = _specks(codes, focus, spacing, h, counts * voxel, rest)
             del points, tets, tet_codes, tris, lower, upper  # (freed for the graded pass's peak)
-            graded = cleave(codes, rest, spacing, h, float(snap), more, min_size=smallest, focus=focus, specks=specks,
-                            targets=targets)
+            graded = cleave(codes, rest, spacing, h, snap, more, min_size=smallest, focus=focus, specks=specks,
+                            targets=targets, tick=tick)
             refined = graded is not None
             if not refined:  # nothing to refine after all (no edge crosses the labels twice): the uniform mesh again
-                graded = cleave(codes, rest, spacing, h, float(snap), more)
+                graded = cleave(codes, rest, spacing, h, snap, more, tick=tick)
                 graded[-1].update(graded=False, min_size=smallest)
             points, tets, tet_codes, tris, lower, upper, info = graded
             timings.update(more)
@@ -333,7 +355,9 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         raise ValueError(f"no lattice node at size {h:g} lies in a region of 'labels' {ids[ids != ids[rest]].tolist()[:20]}"
                          ": the regions are thinner than the lattice; lower 'size'")
     t0 = time.perf_counter()
+    tick("quality", 0)
     quality = tet_quality_summary(points, tets, device)
+    tick("")
     timings["quality"] = time.perf_counter() - t0
     region = {}
     for c, label in enumerate(ids.tolist()):
@@ -373,7 +397,7 @@ def _warn_unresolved(region: dict, h: float, snap: float) -> None:
     hint = "a smaller 'size'" + (", or 'snap' 0.1 (cut points kept off the lattice nodes; smaller angles)," if snap > 0.1
                                  else "")
     warnings.warn(f"mesh_domain: {len(off)} region(s) off their voxel volume by more than {REFINE_ERROR:.1%} at "
-                  f"size {h:g}, snap {snap:g} ({listed}): {hint} meshes them closer", UserWarning, stacklevel=4)
+                  f"size {h:g}, snap {snap:g} ({listed}): {hint} meshes them closer", UserWarning, stacklevel=5)
 
 
 # ----------------------------------------------------------------------------------- validation
@@ -871,8 +895,10 @@ def _offset_cuts(T, L, cut_id, t, e_lo, e_hi, node_pos, node_code, snap, rest, t
 
 # ----------------------------------------------------------------------------------- cleaving
 def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings: dict | None = None,
-           min_size: float | None = None, focus=None, specks=None, targets=None, fill: bool = True):
+           min_size: float | None = None, focus=None, specks=None, targets=None, fill: bool = True, tick=None):
     """Tetrahedra of every region of ``codes`` but ``rest`` (local coordinates: sample i at i * spacing).
+
+    ``tick``: optional, called with the next stage's name as each stage ends (a progress bar).
 
     ``fill``: fill the pockets of the rest that the cleaving encloses and the labels do not
     hold (:mod:`warpmesh.solid.pockets`; ``filled_pockets``, ``filled_volume`` and
@@ -892,6 +918,7 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     info : dict of counts
     """
     timings = {} if timings is None else timings
+    tick = tick or (lambda name: None)
     spacing = np.asarray(spacing, dtype=np.float64)
     t0 = time.perf_counter()
     shape = np.asarray(codes.shape)
@@ -906,6 +933,7 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
                                   VoxelLabels(codes, spacing, rest), SAMPLES_PER_VOXEL, focus, specks)
         if found is None:
             return None
+        tick("lattice")
     timings["grade"] = time.perf_counter() - t0
     if found is None:  # the uniform lattice (nothing to refine, or min_size None)
         n_nodes = 2 * int(np.prod(dims))
@@ -925,12 +953,14 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     n_bg = len(bg)
     del bg, lab, mixed, found  # (the background is in whole and T now: freed for the cleaving's peak)
     timings["lattice"] += time.perf_counter() - t0
+    tick("cut points")
 
     # -- cut points, one per edge with two labels (named by the edge)
     t0 = time.perf_counter()
     e_lo, e_hi, cut_id = _cut_edges(T, L, n_nodes)
     t = _edge_cuts(codes, rest, spacing, node_pos[e_lo], node_pos[e_hi], node_code[e_lo], node_code[e_hi])
     timings["cuts"] = time.perf_counter() - t0
+    tick("speck interfaces" if targets is not None else "cleaving")
     n_cuts = len(e_lo)
     if targets is not None:  # the specks' interfaces moved until their volumes are their voxel volumes
         t, snap, moved = _offset_cuts(T, L, cut_id, t, e_lo, e_hi, node_pos, node_code, snap, rest, targets,
@@ -938,11 +968,13 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
                                 float(np.min(spacing)))
         graded["speck_offsets"] = moved
         timings["offsets"] = time.perf_counter() - t0
+        tick("cleaving")
     cut_pos, face_pos, tet_pos, tets, tet_codes, triangles, lower, upper, n_snapped, n_faces = _sub_tets(
         T, L, cut_id, t, e_lo, e_hi, node_pos, n_nodes, snap, rest, timings, lead=(whole, whole_code),
         holds_rest=(lambda corners: _holds_rest(codes, spacing, rest, corners)) if fill else None,
         largest=h ** 3 / 12.0)  # (a BCC tetrahedron; bisection only makes smaller ones)
     pockets = timings.pop("pockets_info", {})
+    tick("compacting")
 
     # -- compact the vertex ids
     t0 = time.perf_counter()
@@ -955,6 +987,7 @@ def cleave(codes: np.ndarray, rest: int, spacing, h: float, snap: float, timings
     tets_out = np.take(new_id, tets, out=tets, mode="clip")  # in place ("clip": unbuffered; all ids are in range)
     tris_out = np.take(new_id, triangles, out=triangles, mode="clip")
     timings["compact"] = time.perf_counter() - t0
+    tick("")
     info = {"lattice": tuple(int(x) for x in dims), "background_tets": n_bg, "whole_tets": int(len(whole)),
             "cleaved_tets": int(len(T)), "cut_edges": int(n_cuts), "snapped_cuts": n_snapped[0],
             "pushed_cuts": n_snapped[1],

@@ -102,7 +102,6 @@ Example
 
 from __future__ import annotations
 
-import threading
 import time
 from functools import partial
 
@@ -110,6 +109,7 @@ import numpy as np
 
 from warpmesh import _conventions as C
 from warpmesh._util.parallel import parallel_ranges, run_parallel
+from warpmesh._util.progress import Progress
 from warpmesh.io.images import Volume
 
 __all__ = ["LABEL_ABOVE", "INTERFACES", "REST", "interface_refs", "label_boundary", "label_codes", "shared_surface"]
@@ -278,7 +278,7 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     bits = wp.zeros(n_rows * words, dtype=wp.uint64, device=dev)
     counts = {key: wp.empty(n_rows, dtype=wp.int32, device=dev) for key in ("vertex", "quad", "junction")}
     seen = wp.zeros(max(len(ids), len(table)), dtype=wp.uint8, device=dev)
-    bar = _Progress(progress, 2 * n_rows, n_rows * int(p[2]))
+    bar = Progress(progress, 2 * n_rows, "warpmesh surface nets", "row")
     _launch_rows(KF.count_label_rows_kernel, n_rows, grid + [bits, counts["vertex"], counts["quad"],
                                                               counts["junction"], seen], dev, bar)
     meshed = _present_labels(seen.numpy(), ids, rest, chosen)  # sync point: the labels met
@@ -327,33 +327,7 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     return points, tris, lower, upper, info
 
 
-class _Progress:
-    """A tqdm bar (after a second), a callback ``progress(done, total)``, or nothing."""
-
-    def __init__(self, progress, total: int, samples: int):
-        self.callback, self.bar, self.done, self.total = None, None, 0, total
-        self.lock = threading.Lock()
-        if callable(progress):
-            self.callback = progress
-        elif progress:
-            from tqdm.auto import tqdm
-
-            self.bar = tqdm(total=total, unit="row", desc="warpmesh surface nets", delay=1.0, leave=False)
-
-    def update(self, rows: int) -> None:
-        with self.lock:
-            self.done += rows
-            if self.bar is not None:
-                self.bar.update(rows)
-            if self.callback is not None:
-                self.callback(self.done, self.total)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
-def _launch_rows(kernel, n_rows: int, inputs: list, dev, bar: _Progress, extra=None) -> None:
+def _launch_rows(kernel, n_rows: int, inputs: list, dev, bar: Progress, extra=None) -> None:
     """Launch a row kernel over [0, n_rows) from one thread per core, in chunks (for the bar);
     ``extra`` (kernel, inputs) runs over the same rows, chunk by chunk after the first."""
     chunk = max(4096, n_rows // 64)

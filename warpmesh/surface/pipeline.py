@@ -154,8 +154,9 @@ def mesh_surface(
         bricks finish.
     progress : bool or callable
         With ``client``: a progress bar over the bricks, or ``progress(done, total)``; with
-        ``interfaces="shared"``: a bar over the grid's rows (tqdm, shown once the run has
-        taken a second), or ``progress(done, total)``.
+        ``interfaces="shared"``: a bar over the grid's rows, then one over the smoothing's
+        passes (tqdm, shown once the run has taken a second), or ``progress(done, total)``
+        called for each.
     **keywords
         The fields of the chosen pipeline's group, by name. A keyword given as None
         takes its default. A keyword of another pipeline raises one ValueError that
@@ -600,7 +601,7 @@ def _mesh_shared(vol: np.ndarray, opts: VolumeOptions, device, t_start: float, p
         # kernels (84 ms of a fresh process that only extracts)
         from warpmesh.optimize.label_smoothing import smooth_labels
 
-        mesh = smooth_labels(mesh, opts.smoothing)
+        mesh = smooth_labels(mesh, opts.smoothing, progress=progress)
         timings["smoothing"] = mesh.info["smoothing"]["time"]
     timings["total"] = time.perf_counter() - t_start
     info["time"] = timings
