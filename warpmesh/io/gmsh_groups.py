@@ -64,8 +64,9 @@ _PHYS = "gmsh:physical"
 
 @dataclass(frozen=True)
 class PhysicalGroup:
-    """One physical group: its dimension, tag (1, 2, ... per dimension), name and the tags
-    of the elementary entities (of that dimension) it holds."""
+    """One physical group: its dimension, tag (a region of a volume mesh: its label when
+    positive; the others 1, 2, ... per dimension, after those), name and the tags of the
+    elementary entities (of that dimension) it holds."""
 
     dim: int
     tag: int
@@ -217,16 +218,30 @@ def _plan(mesh: MeshLike) -> tuple[list[_Entity], list[PhysicalGroup], dict]:
         nums = tuple(int(x) for x in re.findall(r"-?\d+", n)[:2])
         return d, kind, nums, n
 
+    # a region's physical volume takes its label as tag (solvers select materials by tag:
+    # dolfinx's cell tags, Elmer's bodies), when the label is positive; the other groups of
+    # that dimension (label 0, negative labels) follow the largest
     phys: dict[tuple[int, str], int] = {}
+    for d, n in groups:
+        r = _region_label(n) if d == 3 == top else None
+        if r is not None and r >= 1:
+            phys[(d, n)] = r
+    count = {d: max((t for (dd, _), t in phys.items() if dd == d), default=0) for d, _ in groups}
     out = []
-    count: dict[int, int] = {}
     for (d, n), ents in sorted(groups.items(), key=order):
-        count[d] = count.get(d, 0) + 1
-        phys[(d, n)] = count[d]
-        out.append(PhysicalGroup(d, count[d], n, tuple(ents)))
+        if (d, n) not in phys:
+            count[d] += 1
+            phys[(d, n)] = count[d]
+        out.append(PhysicalGroup(d, phys[(d, n)], n, tuple(ents)))
     entities = [_Entity(d, etag, key, tuple(phys[g] for g in entity_groups[(d, etag)]))
                 for (d, key), etag in sorted(tags.items(), key=lambda kv: (kv[0][0], kv[1]))]
     return entities, out, cell_tags
+
+
+def _region_label(name: str) -> int | None:
+    """The label of a region's group name (``label_<r>`` / ``region_<r>``), else None."""
+    found = re.fullmatch(r"(?:label|region)_(-?\d+)", name)
+    return int(found.group(1)) if found else None
 
 
 def physical_groups(mesh: MeshLike) -> list[PhysicalGroup]:
