@@ -166,6 +166,7 @@ from warpmesh.solid.snapping import snap_cuts
 from warpmesh.solid.stuffing import lattice_for
 from warpmesh.solid.thin import Specks, VoxelLabels, graded_background, labels_at, speck_voxels
 from warpmesh.surface.multilabel import LABEL_ABOVE, label_codes
+from warpmesh.surface.options import FLOAT32_RANGE
 
 __all__ = ["mesh_regions", "SNAP", "REFINE_ERROR", "INTERIOR", "SAMPLES_PER_VOXEL"]
 
@@ -416,6 +417,14 @@ def _as_image(volume) -> Volume:
         image = Volume(values)
     if not (np.issubdtype(image.values.dtype, np.number) or image.values.dtype == np.bool_):
         raise TypeError(f"expected integer labels in 'volume', got dtype {image.values.dtype}")
+    sp, org = np.asarray(image.spacing, dtype=np.float64), np.asarray(image.origin, dtype=np.float64)
+    if np.any(sp < FLOAT32_RANGE[0]) or np.any(sp > FLOAT32_RANGE[1]):  # (the same bounds as mesh_surface's)
+        raise ValueError(f"expected the 'volume' spacing between {FLOAT32_RANGE[0]:g} and {FLOAT32_RANGE[1]:g} "
+                         f"(tetrahedron volumes must stay normal numbers), got {sp.tolist()}: give the spacing "
+                         "in other units")
+    if not np.all(np.isfinite(org)) or np.any(sp < 2.0**-36 * np.abs(org)):  # points: origin + local, in float64
+        raise ValueError(f"expected a 'volume' origin that float64 resolves at its spacing (|origin| below 2**36 "
+                         f"spacings), got origin {org.tolist()} with spacing {sp.tolist()}: move the origin")
     try:
         return image.as_labels()
     except ValueError as exc:
