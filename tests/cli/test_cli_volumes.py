@@ -225,3 +225,19 @@ def test_a_volume_too_thin_to_cap_names_the_flag_that_opens_it(tmp_path, capsys)
     assert main(["mesh", "--volume", str(path), "--labels", "all", "-o", str(tmp_path / "a.stl")]) == 2
     err = capsys.readouterr().err
     assert "3 samples per axis" in err and "(--no-cap leaves the surface open)" in err and "True" not in err
+
+
+def test_progress_bars_only_on_a_terminal(slabs, capsys, monkeypatch, tmp_path):
+    """stderr redirected (as under pytest): no bar frames in it, though the bar would be drawn
+    at once (DELAY 0); on a terminal (progress_bars() True) the stages' bar is drawn."""
+    import warpmesh._util.progress as P
+    import warpmesh.cli.curves as curves
+
+    path, _ = slabs
+    monkeypatch.setattr(P, "DELAY", 0.0)
+    argv = ["domain", "--volume", str(path), "--size", "2", "-o", str(tmp_path / "d.msh")]
+    assert main(argv) == 0
+    assert "mesh_domain" not in capsys.readouterr().err
+    monkeypatch.setattr(curves, "progress_bars", lambda: True)
+    assert main(argv) == 0
+    assert "warpmesh mesh_domain (labels)" in capsys.readouterr().err

@@ -153,6 +153,10 @@ def test_what_is_not_bricked_is_refused_naming_it(client, tmp_path):
         wm.mesh_domain(shape, bounds=bounds, client="tcp://here")
     with pytest.raises(ValueError, match="'bricks' applies to a run on a Dask cluster"):
         wm.mesh_domain(shape, bounds=bounds, bricks=(2, 2, 2))
+    # no bar asked for without a cluster is never wrong (the CLI passes progress=False when
+    # stderr is not a terminal)
+    assert wm.mesh_domain(shape, bounds=bounds, size=0.5, progress=False).n_cells > 0
+    assert wm.mesh_surface(shape, bounds=bounds, resolution=16, progress=False).n_cells > 0
 
 
 def test_numpy_false_gather_refuses_the_whole_mesh_stages_too(client, tmp_path):

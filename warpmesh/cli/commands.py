@@ -43,6 +43,8 @@ import warnings
 
 import numpy as np
 
+from warpmesh.cli.report import progress_bars
+
 
 def _parser() -> argparse.ArgumentParser:
     import warpmesh
@@ -202,10 +204,10 @@ def _improve(wm, args, mesh, bounds, target, clock):
     with clock.stage("optimize" if args.optimize else "simplify"), in_flags(_IMPROVE_FLAGS):
         if args.optimize:
             out = wm.optimize(mesh, target, bounds=bounds if capped else None, size=args.size,
-                              tolerance=args.max_error, progress=True)
+                              tolerance=args.max_error, progress=progress_bars())
         else:
             out = wm.simplify(mesh, target, bounds=bounds if capped else None, fraction=args.simplify,
-                              tolerance=args.max_error, progress=True)
+                              tolerance=args.max_error, progress=progress_bars())
     with clock.stage("distance check"), in_flags(_IMPROVE_FLAGS):
         distance = wm.surface_error(out, target, bounds=bounds if capped else None)["max"]
     return out, distance
@@ -250,7 +252,7 @@ def _mesh(wm, args, clock) -> int:
     _check_mesh_flags(args)
     common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
                   device=args.device, gradient=args.gradient, labels=parse_labels(args.labels),
-                  slab_voxels=args.slab_voxels)
+                  slab_voxels=args.slab_voxels, progress=progress_bars())
     if args.method:
         common["method"] = args.method
     for name in ("interfaces", "smoothing"):

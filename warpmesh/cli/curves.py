@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import argparse
 
+from warpmesh.cli.report import progress_bars
+
 COMMANDS = ("curve", "domain")
 #: flags by the keyword of :func:`warpmesh.mesh_curve` / :func:`warpmesh.mesh_domain` they set
 _FLAGS = {"size": "--size", "tolerance": "--tolerance", "min_angle": "--min-angle", "method": "--method",
@@ -160,4 +162,4 @@ def _regions(wm, args, clock):
         volume = volume_source(args)
     with clock.stage("mesh"), in_flags(_FLAGS):
         return wm.mesh_domain(volume, labels="all" if labels is None else labels, size=args.size,
-                              device=args.device, **options)
+                              device=args.device, progress=progress_bars(), **options)

@@ -33,7 +33,13 @@ from contextlib import contextmanager
 
 import numpy as np
 
-__all__ = ["Clock", "human_lines", "mesh_figures", "print_report", "process_start"]
+__all__ = ["Clock", "human_lines", "mesh_figures", "print_report", "process_start", "progress_bars"]
+
+def progress_bars() -> bool:
+    """Whether the long stages draw progress bars: only on a terminal (stderr redirected to a
+    file or a pipe would collect every frame of the bar, and the warnings after it)."""
+    return sys.stderr.isatty()
+
 
 _WIDTH = 32  # "boundary Euler characteristic" and its value
 #: stats keys said twice (another key holds the same figure) or stale after a later stage

@@ -78,9 +78,12 @@ def check_bricking(bricks, brick_cells) -> tuple:
 
 def refuse_bricking(**given) -> None:
     """The bricking keywords (``bricks``, ``brick_cells``, ``gather``, ``output``, ``progress``)
-    mean nothing without a cluster: refuse any that is not its default."""
+    mean nothing without a cluster: refuse any that is not its default (``progress=False``,
+    no bar, is never wrong: it passes)."""
     defaults = {"bricks": None, "brick_cells": None, "gather": True, "output": None, "progress": True}
     for name, value in given.items():
+        if name == "progress" and isinstance(value, (bool, np.bool_)):
+            continue
         if value is not defaults[name] and not (isinstance(value, bool) and value == defaults[name]):
             raise ValueError(f"{name!r} applies to a run on a Dask cluster (client=...), got {name}={value!r} "
                              "without 'client'")
