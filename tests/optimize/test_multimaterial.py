@@ -331,3 +331,20 @@ def test_shared_surface_with_a_volume_field_target():
         assert not out.cell_refs["triangle"].any()
         # oriented from the lower label to the higher, as the input: towards label 1, inwards
         assert abs(s["volume"] + 512.0) < 0.1 * 512.0 and m.stats()["volume"] < 0
+
+
+def test_a_number_as_shape_and_ignored_options_are_refused():
+    """``m.simplify(0.3)`` put 0.3 in ``shape`` and failed with a TopologyError about edges;
+    a shared surface's simplify ignored iterations, angle, bounds and progress in silence."""
+    vol = np.zeros((12, 12, 12), np.uint8)
+    vol[2:10, 2:10, 2:6] = 1
+    vol[2:10, 2:10, 6:10] = 2
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    with pytest.raises(TypeError, match="fraction=0.3"):
+        m.simplify(0.3)
+    with pytest.raises(TypeError, match="size=0.5"):
+        m.optimize(0.5)
+    for kw in (dict(iterations=2), dict(angle=5.0), dict(progress=True), dict(bounds=((0, 0, 0), (1, 1, 1)))):
+        with pytest.raises(ValueError, match=repr(next(iter(kw)))):
+            m.simplify(fraction=0.5, **kw)
+    assert m.simplify(fraction=0.5).n_cells < m.n_cells

@@ -1024,6 +1024,7 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
     (-6, True)
     """
     _check_iterations(iterations)
+    _check_not_a_number(shape, "size")
     if shape is None and "label_above" in getattr(mesh, "cell_data", {}):  # a shared multi-material surface
         from warpmesh.optimize.label_remesh import optimize_labels
         given = [name for name, ignored in (("bounds", bounds is not None), ("features", features is not None),
@@ -1035,6 +1036,13 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
         return optimize_labels(mesh, size, tolerance=tolerance, iterations=int(iterations))
     return _drive(mesh, shape, bounds=bounds, size=size, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=None, simplifying=False)
+
+
+def _check_not_a_number(shape, keyword: str) -> None:
+    """A number given as ``shape`` (``mesh.simplify(0.3)``) is a misplaced keyword: say which."""
+    if isinstance(shape, (int, float, np.number)) and not isinstance(shape, (bool, np.bool_)):
+        raise TypeError(f"expected a Shape, an expression, a VolumeField or None for 'shape', got the number "
+                        f"{shape!r}: give it by name, {keyword}={shape!r}")
 
 
 def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, fraction: float | None = None,
@@ -1074,8 +1082,16 @@ def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, frac
     _check_iterations(iterations)
     if fraction is not None and (isinstance(fraction, bool) or not isinstance(fraction, (int, float, np.number))):
         raise TypeError(f"expected a number or None for 'fraction', got {type(fraction).__name__}")
+    _check_not_a_number(shape, "fraction")
     if shape is None and "label_above" in getattr(mesh, "cell_data", {}):  # a shared multi-material surface
         from warpmesh.optimize.multimaterial import simplify_labels
+        given = [name for name, ignored in (("bounds", bounds is not None), ("features", features is not None),
+                                            ("angle", angle is not DEFAULT_ANGLE and angle != DEFAULT_ANGLE),
+                                            ("iterations", iterations != 8), ("progress", progress is not False))
+                 if ignored]
+        if given:
+            raise ValueError(f"a shared multi-material surface is simplified by simplify_labels, which takes "
+                             f"'fraction' and 'tolerance'; got {', '.join(repr(g) for g in given)} too")
         return simplify_labels(mesh, 0.5 if fraction is None else fraction, tolerance=tolerance)
     return _drive(mesh, shape, bounds=bounds, size=None, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=fraction, simplifying=True)
