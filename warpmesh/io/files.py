@@ -414,6 +414,9 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
     if not path.parent.is_dir():  # (else the error names the temporary file)
         raise FileNotFoundError(errno.ENOENT, f"no folder {str(path.parent)!r} to save {path.name!r} in",
                                 str(path.parent))
+    if path.is_dir():  # (else the error names the temporary file)
+        raise IsADirectoryError(errno.EISDIR, f"expected a file path to save to, got the folder {str(path)!r}",
+                                str(path))
     fmt = _find_format(path, file_format)
     if mesh.n_points == 0 or mesh.n_cells == 0:
         raise ValueError(f"expected a mesh with points and cells to save to {str(path)!r}, got an empty "

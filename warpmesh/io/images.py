@@ -288,7 +288,8 @@ def _pick(names: list[str], name: str | None, what: str, path: Path) -> str:
         return names[0]
     if not names:
         raise ReadError(f"could not read {str(path)!r}: it holds no {what}")
-    raise ValueError(f"{str(path)!r} holds several {what}s {names}: choose one with name=")
+    several = what if what.endswith("series") else what + "s"
+    raise ValueError(f"{str(path)!r} holds several {several} {names}: choose one with name= (the CLI's --array)")
 
 
 # -- numpy -----------------------------------------------------------------------------------------
