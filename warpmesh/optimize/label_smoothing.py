@@ -36,7 +36,8 @@ towards it while keeping what the labels say true:
   the way it did (surface nets make each triangle from the quad around a grid edge; no
   triangle turns over), and two triangles sharing an edge must not fold onto each other
   (their wings closer than the fold angle of the embedding checks, unless they already
-  were). The moves of the vertices of failing triangles (and of those they cross) are
+  were), and no triangle may end worse than :data:`SMOOTH_Q` unless it already was
+  (the Q_K of the optimisers' bound). The moves of the vertices of failing triangles (and of those they cross) are
   undone (back to their places at the previous check), round by round, until none
   fails, so an embedded input gives an embedded output.
 
@@ -61,6 +62,7 @@ import numpy as np
 
 from warpmesh._conventions import GRID_INFO
 from warpmesh._util.progress import Progress, check_progress
+from warpmesh.cells.quality import triangle_quality
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 
 __all__ = ["CHECK_EVERY", "DEFAULT_PASSES", "GRID_INFO", "MARGIN", "PASS_BAND", "box_sides", "classify_edges",
@@ -77,6 +79,10 @@ PASS_BAND = 0.1
 #: block of the frog (677 k triangles, 16 passes), checking every 2 / 4 / 8 / 16 passes took
 #: 31 / 14.7 / 9.3 / 6.0 CPU s for areas of 297.6 / 298.4 / 300.7 / 303.4 k (raw 417.8 k)
 CHECK_EVERY = 8
+#: a move may not leave a triangle's Q_K [FG eq. 16.15] above this and above what it was at
+#: the previous check (raw surface nets: at most about 1.5; the README's smoothing=8 on a
+#: 40^3 five-label volume made 22-25, 100 passes 682, an angle of 0.1°)
+SMOOTH_Q = 6.0
 #: two triangles sharing an edge fold when their wings (the half-planes from the edge to the
 #: opposite vertices) are closer than this cosine (the fold angle of the embedding checks)
 _WING_COS = -FOLD_COS
@@ -468,16 +474,19 @@ def wing_cos(points, tris, pairs):
     return np.einsum("ij,ij->i", ua, ub) / den
 
 
-def _local_failures(points, tris, faces, axis, facing, pairs, pair_cos0, pending):
-    """Faces (of ``faces``, plus partners) that turned over along their grid edge or fold
-    onto a neighbour: orientation-free checks that hold at junctions."""
+def _local_failures(points, tris, faces, axis, facing, pairs, pair_cos0, pending, old):
+    """Faces (of ``faces``, plus partners) that turned over along their grid edge, fold
+    onto a neighbour (orientation-free checks that hold at junctions) or became worse than
+    ``SMOOTH_Q`` and than they were at ``old``."""
     n_hat = _normals(points, tris[faces])
     turned = faces[n_hat[np.arange(len(faces)), axis[faces]] * facing[faces] <= 0.0]
+    q = triangle_quality(points, tris[faces])
+    worse = faces[(q > SMOOTH_Q) & (q > triangle_quality(old, tris[faces]))]
     near = pending[pairs[:, 0]] | pending[pairs[:, 1]]
     sel = np.flatnonzero(near)
     cos = wing_cos(points, tris, pairs[sel])
     folded = sel[cos > np.maximum(_WING_COS, pair_cos0[sel] + 1e-9)]
-    return np.concatenate([turned, pairs[folded, 0], pairs[folded, 1]])
+    return np.concatenate([turned, worse, pairs[folded, 0], pairs[folded, 1]])
 
 
 def _revert_failures(old, new, tris, axis, facing, pairs, pair_cos0, cells) -> int:
@@ -490,7 +499,7 @@ def _revert_failures(old, new, tris, axis, facing, pairs, pair_cos0, cells) -> i
         faces = np.flatnonzero(pending)
         bad, others = _crossings(new, tris, faces, cells)
         failing = np.concatenate([faces[bad], others, _local_failures(new, tris, faces, axis, facing, pairs,
-                                                                      pair_cos0, pending)])
+                                                                      pair_cos0, pending, old)])
         verts = np.unique(tris[failing].ravel())
         verts = verts[moved[verts]]
         if len(verts) == 0:  # what fails was there before the moves
