@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import ast
 import builtins
+import os
+import subprocess
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -203,3 +205,16 @@ def test_star_import_is_all(tmp_path):
 def test_every_subpackage_says_what_it_holds(name):
     mod = sys.modules.get(f"warpmesh.{name}") or __import__(f"warpmesh.{name}", fromlist=["_"])
     assert mod.__doc__ and len(mod.__doc__.split()) >= 5
+
+
+@pytest.mark.parametrize("first", ["", "import warpmesh as wm; wm.optimize; ", "import warpmesh.optimize.remesh; "])
+def test_import_as_of_an_optimize_submodule(first):
+    """``wm.optimize`` is a function, yet ``import warpmesh.optimize.<sub> as x`` must work in
+    a fresh process whatever was imported first (it was an ImportError: Python looks the
+    submodule up on the function)."""
+    code = (first + "import warpmesh.optimize.label_smoothing as a; import warpmesh.optimize.embedding as b; "
+            "import warpmesh as wm; assert callable(wm.optimize) and wm.optimize.__name__ == 'optimize'; "
+            "print(a.__name__, b.__name__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=os.path.dirname(__file__))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["warpmesh.optimize.label_smoothing", "warpmesh.optimize.embedding"]
