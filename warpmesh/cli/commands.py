@@ -156,12 +156,40 @@ def _check_mesh_flags(args) -> None:
              "root": args.root, "root_iterations": args.root_iterations, "gradient": args.gradient,
              "tolerance": args.tolerance, "evaluator": args.evaluator, "cap": args.no_cap or None,
              "bounds": args.bounds}
+    _check_improve_flags(args)
     names = {f.name for f in dataclasses.fields(group)}
     refused = [_MESH_FLAGS[k] for k, v in given.items() if v is not None and k not in names]
     if refused:
         takes = " ".join(_MESH_FLAGS[k] for k in _MESH_FLAGS if k in names and k != "bounds")
         raise ValueError(f"{' '.join(refused)} {'does' if len(refused) == 1 else 'do'} not apply to {what}, "
                          f"which takes {takes}")
+
+
+def _check_improve_flags(args) -> None:
+    """--optimize / --simplify and their numbers, checked before the mesh is made (a frog's
+    surface takes minutes to simplify, and a bad flag found after it wastes the meshing)."""
+    import math
+
+    if args.optimize and args.simplify is not None:
+        raise ValueError("expected one of --optimize and --simplify, got both")
+    if args.simplify is not None and not 0.0 < args.simplify < 1.0:
+        raise ValueError(f"expected --simplify in (0, 1) (the fraction of the triangles kept), got {args.simplify:g}")
+    for flag, value in (("--size", args.size), ("--max-error", args.max_error)):
+        if value is None:
+            continue
+        if not (args.optimize or args.simplify is not None):
+            raise ValueError(f"{flag} applies with --optimize or --simplify, got {flag} {value:g} without them")
+        if flag == "--size" and args.simplify is not None:
+            raise ValueError("--size applies with --optimize (--simplify sizes by the curvature), got both")
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"expected a positive {flag}, got {value:g}")
+    if (args.optimize or args.simplify is not None) and args.volume is not None and args.interfaces != "shared":
+        from warpmesh.cli.sources import parse_labels
+
+        labels = parse_labels(args.labels)
+        if labels is not None and (labels == "all" or len(labels) != 1):
+            raise ValueError("expected one label with --labels when optimising (one surface per run), or "
+                             "--interfaces shared")
 
 
 def _volume_target(wm, args, volume):
