@@ -310,3 +310,20 @@ def test_graded_background_boundary_check():
     code[1] = 5  # a meshed node on the boundary
     with pytest.raises(WarpMeshError, match="3 faces of the graded background"):
         _check_boundary(pts, tets, code, 0)
+
+
+def test_a_graded_mesh_worse_than_the_uniform_one_is_not_kept():
+    """Four 1-voxel layers in a block at size 3: the uniform lattice is 3-4 % off (above
+    REFINE_ERROR), the graded pass about 20 % (layers as thin as min_size): the uniform mesh
+    is returned, and info says why."""
+    v = np.zeros((20, 20, 20), np.uint8)
+    v[2:-2, 2:-2, 2:-2] = 1
+    for i, z in enumerate(range(5, 15, 3)):
+        v[2:-2, 2:-2, z] = 2 + i % 2
+    with pytest.warns(UserWarning, match="off their voxel volume"):
+        m = wm.mesh_domain(v, size=3.0)
+    check_regions(m, rest=0)
+    rejected = m.info["graded_rejected"]
+    assert m.info["graded"] is False and "refined_labels" not in m.info
+    assert rejected["graded_error"] > rejected["uniform_error"] == pytest.approx(m.info["region_error_max"])
+    assert m.info["region_error_max"] < 0.05

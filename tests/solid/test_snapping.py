@@ -105,7 +105,7 @@ def _octahedron(cuts_onto_zero, t_snapped=0.1):
 def test_snap_cuts_pushes_an_annulus():
     """Cuts onto node 0 from the four nodes of the octahedron's equator: one connected set
     (a 4-cycle of the link), but of Euler characteristic 4 - 4 + 0 = 0: an annulus, node 0's
-    own code would meet it in two cones (towards +z and -z). Far cuts (at least snap / 2) are
+    own code would meet it in two cones (towards +z and -z). Far cuts (at least (snap + 0.1) / 2) are
     pushed first; near ones once the far ones are gone. Three of them (a path of the link,
     or with a pole: a disk) are kept."""
     for t_snapped in (0.2, 0.1):  # pushed in the "far" step, then in the last one

@@ -253,7 +253,10 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         their voxel volumes (the module docstring). A region still off by more than
         ``REFINE_ERROR`` (a blocky one a few cubes across, whose edges cross its labels once:
         nothing to refine, and the snapped cut points move its faces) is named in a
-        UserWarning. ``info``: ``graded``, ``refined_labels`` (when graded),
+        UserWarning. A graded mesh whose worst refined region is farther off than on the
+        uniform lattice (layers about as thin as ``min_size``) is not kept: the uniform mesh
+        is returned, with ``info["graded_rejected"]`` (both worst errors). ``info``:
+        ``graded``, ``refined_labels`` (when graded),
         ``graded_tets``, ``speck_offsets`` (label: the distance its interface moved, world units).
     device : str
     progress : bool or callable
@@ -348,6 +351,14 @@ def _mesh_regions(image, codes, ids, rest, spacing, h, snap, smallest, timings, 
             points, tets, tet_codes, tris, lower, upper, info = graded
             timings.update(more)
             meshed = _region_volumes(points, tets, tet_codes, len(ids))
+            worst = (np.max(np.abs(error[focus])), np.max(np.abs(meshed / np.maximum(counts * voxel, 1e-300) - 1.0)[focus]))
+            if refined and worst[1] > worst[0]:  # the graded pass did worse (layers about as thin as min_size)
+                del graded, points, tets, tet_codes, tris, lower, upper
+                points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, snap, more)
+                info.update(graded=False, min_size=smallest, graded_rejected={
+                    "uniform_error": float(worst[0]), "graded_error": float(worst[1])})
+                meshed = _region_volumes(points, tets, tet_codes, len(ids))
+                refined = False
             if refined:
                 info["refined_labels"] = [int(v) for v in ids[focus]]
             if "speck_offsets" in info:
@@ -835,7 +846,13 @@ def _offset_cuts(T, L, cut_id, t, e_lo, e_hi, node_pos, node_code, snap, rest, t
     cannot). Only the cleaved tetrahedra with a node of such a code are cleaved again at each
     step. Returns (t, snap per edge, {code: distance})."""
     sel = np.isfinite(targets)
-    rows = np.flatnonzero(sel[L].any(axis=1))
+    rows = sel[L].any(axis=1)
+    # and every cleaved tetrahedron around their nodes: the snapping of a cut sees its nodes'
+    # whole links (:mod:`warpmesh.solid.snapping`), so the fit meshes what the final pass meshes
+    # (the added tetrahedra hold no speck code: the volumes are unchanged)
+    near = np.zeros(int(T.max()) + 1, bool)
+    near[T[rows].ravel()] = True
+    rows = np.flatnonzero(near[T].any(axis=1))
     c_lo, c_hi = node_code[e_lo], node_code[e_hi]
     edge = sel[c_lo] | sel[c_hi]
     length = np.linalg.norm(node_pos[e_hi] - node_pos[e_lo], axis=1)

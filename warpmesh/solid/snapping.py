@@ -32,8 +32,9 @@ of one code meet around a face or tetrahedron point without a third between them
 Where a node fails, some of its snapped cut points are *pushed* instead: a cut at ``t < snap``
 of its edge from the node goes to ``snap + PUSH_BEYOND`` (at most the edge's middle), where it
 is not snapped. First those outside the largest connected set of the node's snapped cuts (the
-other cones), then, if the node still fails, those at least ``snap / 2`` from it (pushing them
-moves the interface less than snapping them does), then the rest; the node is checked again
+other cones), then, if the node still fails, those at least half the push target from it
+(``(snap + PUSH_BEYOND) / 2``: pushing them moves the interface no more than snapping them
+does), then the rest; the node is checked again
 before each step. Pushing only changes the links of the nodes it pushes from (``λ`` at another
 node depends only on the cuts snapped onto that node), so every node ends pinch-free.
 
@@ -111,8 +112,9 @@ def snap_cuts(T: np.ndarray, L: np.ndarray, cut_id: np.ndarray, t: np.ndarray, e
     pushed = np.zeros(len(t), bool)
     bad = np.zeros(0, np.int64)
     # at a pinched node, first the cuts outside the largest connected set of its snapped cuts
-    # (the other cones), then those at least snap / 2 from it (pushing them moves the interface
-    # less than snapping does), then the rest: the node is checked again before each step
+    # (the other cones), then those at least half the push target from it (pushing them moves
+    # the interface less than snapping does), then the rest: the node is checked again before
+    # each step
     for step in ("cones", "far", "all"):
         target = np.where(lo, e_lo, np.where(hi, e_hi, -1))
         snapped = np.flatnonzero(lo | hi)
@@ -124,8 +126,8 @@ def snap_cuts(T: np.ndarray, L: np.ndarray, cut_id: np.ndarray, t: np.ndarray, e
         which = np.ones(len(t), bool)
         if step == "cones":
             which[snapped[main]] = False
-        elif step == "far":
-            which = np.minimum(t, 1.0 - t) >= 0.5 * snap_e
+        elif step == "far":  # pushed, they move less than snapped: snap + PUSH_BEYOND - t <= t
+            which = np.minimum(t, 1.0 - t) >= 0.5 * np.minimum(snap_e + PUSH_BEYOND, 0.5)
         push_lo = lo & which & np.isin(e_lo, bad)
         push_hi = hi & which & np.isin(e_hi, bad)
         lo, hi = lo & ~push_lo, hi & ~push_hi
