@@ -23,7 +23,9 @@ Rows per case:
 For each: tetrahedra, wall and process-CPU seconds (median of ``--repeat`` warm runs for
 warpmesh, one run for TetGen), tetrahedra per second, dihedral min / max, the largest relative
 error of a region's volume against its voxel volume among the regions of at least
-``--min-voxels`` voxels, the regions beyond 5 %, the regions lost (no tetrahedron), and the
+``--min-voxels`` voxels, the regions beyond 5 %, the regions lost (no tetrahedron), the
+vertices where a label's boundary is pinched (warpmesh rows; the tests' oracle,
+``tests/helpers/pinches.py``), and the
 time ratio tool / warpmesh (> 1: warpmesh faster); then each warpmesh row's per-region errors.
 
 Run:  python benchmarks/bench_regions.py [--repeat 3] [--voxels 4] [--no-tetgen] [--json out.json]
@@ -73,12 +75,14 @@ import time
 import warnings
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(1, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 from _report import MALLOC_ENV, finish, keep_freed_memory, load_banner, median_run, version  # noqa: E402
 
 if __name__ == "__main__":
     keep_freed_memory()
 
 import numpy as np  # noqa: E402
+from tests.helpers.pinches import pinched_vertices  # noqa: E402
 
 
 def nested_balls(n: int = 128) -> np.ndarray:
@@ -137,6 +141,7 @@ def run_case(name: str, image, values: np.ndarray, spacing, h: float, repeat: in
     print(f"\n== {name}: {values.shape} samples, spacing {tuple(spacing)}, {len(present)} labels, size {h:g} "
           f"({h / min(spacing):g} voxels)")
     rows = []
+    pinched = {}  # tool -> vertices where a label's boundary is pinched (tests/helpers/pinches.py)
     w, c, m = median_run(lambda: wm.mesh_domain(image, labels="all", size=h), repeat)
     graded = f"graded to {m.info['min_size']:g}" if m.info["graded"] else "uniform: nothing to grade"
     rows.append((f"warpmesh cleaving (defaults, {graded})", m.points, m.cells["tetra"], m.cell_refs["tetra"], w, c))
@@ -146,6 +151,9 @@ def run_case(name: str, image, values: np.ndarray, spacing, h: float, repeat: in
     w0, c0, m0 = median_run(lambda: wm.mesh_domain(image, labels="all", size=h, snap=0.0, min_size=h),
                             max(1, repeat // 2))
     rows.append(("warpmesh cleaving (uniform, snap 0)", m0.points, m0.cells["tetra"], m0.cell_refs["tetra"], w0, c0))
+    for (tool, *_), mesh in zip(rows, (m, mu, m0)):
+        pinched[tool] = sum(pinched_vertices(mesh.cells["triangle"], mesh.cell_refs["triangle"],
+                                             mesh.cell_data["label_above"]["triangle"]).values())
     for what, mm in (("defaults", m), ("uniform", mu)):
         print(f"warpmesh stages ({what}): " + ", ".join(f"{k} {v:.2f} s" for k, v in mm.info["time"].items())
               + f"; {mm.info['cleaved_tets']} of {mm.info['background_tets']} background tets cleaved, "
@@ -160,7 +168,7 @@ def run_case(name: str, image, values: np.ndarray, spacing, h: float, repeat: in
         except Exception as exc:  # a peer that fails is reported, not fatal
             print(f"TetGen: failed ({type(exc).__name__}: {str(exc)[:200]})")
     print(f"{'tool':52s} {'tets':>9s} {'wall s':>7s} {'cpu s':>7s} {'tets/s':>9s} {'dih min':>8s} {'dih max':>8s} "
-          f"{'max |err|':>9s} {'>5 %':>12s} {'lost':>5s} {'wall/wm':>8s}")
+          f"{'max |err|':>9s} {'>5 %':>12s} {'lost':>5s} {'pinched':>8s} {'wall/wm':>8s}")
     out = []
     for tool, pts, tets, labs, wall, cpu in rows:
         q = tet_quality_summary(pts, tets)
@@ -168,11 +176,13 @@ def run_case(name: str, image, values: np.ndarray, spacing, h: float, repeat: in
         errors, worst, beyond = _region_errors(values, spacing, present, labs, vols, min_voxels)
         lost = sorted(L for L, (e, n) in errors.items() if e == -1.0)
         print(f"{tool:52s} {len(tets):9d} {wall:7.2f} {cpu:7.2f} {len(tets) / wall:9.0f} {q['dihedral_min']:8.2f} "
-              f"{q['dihedral_max']:8.2f} {100 * worst:8.2f}% {str(beyond):>12s} {len(lost):5d} {wall / rows[0][4]:8.2f}")
+              f"{q['dihedral_max']:8.2f} {100 * worst:8.2f}% {str(beyond):>12s} {len(lost):5d} "
+              f"{pinched.get(tool, '-')!s:>8s} {wall / rows[0][4]:8.2f}")
         out.append({"case": name, "tool": tool, "tets": int(len(tets)), "wall_s": wall, "cpu_s": cpu,
                     "dihedral_min": q["dihedral_min"], "dihedral_max": q["dihedral_max"],
                     "negative": q["negative_tets"], "region_errors": errors, "max_error": worst,
-                    "beyond_5pct": beyond, "lost": lost, "wall_vs_warpmesh": wall / rows[0][4]})
+                    "beyond_5pct": beyond, "lost": lost, "pinched_vertices": pinched.get(tool),
+                    "wall_vs_warpmesh": wall / rows[0][4]})
     for row in out[:2]:
         errs = row["region_errors"]
         print(f"{row['tool']}: per-region volume error (label: % [voxels]): "

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import warpmesh as wm
+from tests.helpers.pinches import pinched_vertices
 from tests.solid.test_pockets import NOISY_SPACING, _layer, _noisy
-from tests.solid.test_regions import _balls, check_regions, pinched_vertices
+from tests.solid.test_regions import _balls, check_regions
 from warpmesh.cells.topology import euler_characteristic
 from warpmesh.solid import regions
 from warpmesh.solid.snapping import PUSH_BEYOND, snap_cuts
