@@ -117,7 +117,7 @@ def test_simplify_dispatches_shared_surfaces():
     via = smooth.simplify(fraction=0.4)
     assert np.array_equal(via.points, direct.points) and np.array_equal(via.triangles, direct.triangles)
     assert np.array_equal(via.cell_data["label_above"]["triangle"], direct.cell_data["label_above"]["triangle"])
-    for name, value in (("features", True), ("angle", 10.0), ("bounds", ((0, 0, 0), (9, 9, 9))), ("progress", True)):
+    for name, value in (("features", True), ("angle", 10.0), ("bounds", ((0, 0, 0), (9, 9, 9)))):
         with pytest.raises(ValueError, match=f"'{name}'"):  # options optimize_labels does not take: not ignored
             smooth.optimize(size=1.5, **{name: value})
 
@@ -359,7 +359,27 @@ def test_a_number_as_shape_and_ignored_options_are_refused():
         m.simplify(0.3)
     with pytest.raises(TypeError, match="size=0.5"):
         m.optimize(0.5)
-    for kw in (dict(iterations=2), dict(angle=5.0), dict(progress=True), dict(bounds=((0, 0, 0), (1, 1, 1)))):
+    for kw in (dict(iterations=2), dict(angle=5.0), dict(bounds=((0, 0, 0), (1, 1, 1)))):
         with pytest.raises(ValueError, match=repr(next(iter(kw)))):
             m.simplify(fraction=0.5, **kw)
     assert m.simplify(fraction=0.5).n_cells < m.n_cells
+
+
+def test_progress_of_the_shared_surface_optimisers():
+    """simplify: (removed so far, to remove) after each round, ending at (total, total);
+    optimize: (k, iterations) after each iteration. A bad progress is a TypeError."""
+    vol = np.zeros((14, 14, 14), np.uint8)
+    vol[2:12, 2:12, 2:7] = 1
+    vol[2:12, 2:12, 7:12] = 2
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared", smoothing=4)
+    calls = []
+    small = m.simplify(fraction=0.5, progress=lambda d, t: calls.append((d, t)))
+    done = [d for d, _ in calls]
+    total = calls[0][1]
+    assert done == sorted(done) and calls[-1] == (total, total) and total == m.n_cells - int(0.5 * m.n_cells)
+    assert small.n_cells < m.n_cells
+    calls.clear()
+    m.optimize(iterations=3, progress=lambda d, t: calls.append((d, t)))
+    assert calls[:3] == [(1, 3), (2, 3), (3, 3)] and all(d <= t for d, t in calls)
+    with pytest.raises(TypeError, match="'progress'"):
+        m.simplify(fraction=0.5, progress="yes")

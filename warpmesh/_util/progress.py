@@ -67,6 +67,14 @@ class Progress:
             if self.callback is not None:
                 self.callback(self.done, self.total)
 
+    def extend(self, n: int) -> None:
+        """``n`` more units of work than announced (a run started again)."""
+        with self.lock:
+            self.total += int(n)
+            if self.bar is not None:
+                self.bar.total = self.total
+                self.bar.refresh()
+
     def stage(self, name: str, n: int = 1) -> None:
         """``n`` more units done, the next one named ``name`` on the bar."""
         if self.bar is not None:

@@ -218,8 +218,8 @@ def _improve_labels(wm, args, mesh, clock):
         raise ValueError("expected one of --optimize and --simplify, got both")
     with clock.stage("optimize" if args.optimize else "simplify"), in_flags(_IMPROVE_FLAGS):
         if args.optimize:
-            return wm.optimize(mesh, size=args.size, tolerance=args.max_error)
-        return wm.simplify(mesh, fraction=args.simplify, tolerance=args.max_error)
+            return wm.optimize(mesh, size=args.size, tolerance=args.max_error, progress=progress_bars())
+        return wm.simplify(mesh, fraction=args.simplify, tolerance=args.max_error, progress=progress_bars())
 
 
 def _improve(wm, args, mesh, bounds, target, clock):

@@ -87,6 +87,7 @@ import warnings
 
 import numpy as np
 
+from warpmesh._util.progress import Progress
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 from warpmesh.optimize.junction_swap import RESCUE_Q, snap_pass, swap_pass
 from warpmesh.optimize.label_smoothing import GRID_INFO, box_sides, classify_edges, vertex_cubes, wing_cos, \
@@ -132,7 +133,7 @@ def _sides(bits):
     return bits & (_PINNED - 1)
 
 
-def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iterations: int = 6):
+def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iterations: int = 6, progress=False):
     """Remesh a multi-material surface towards ``size`` (module docstring).
 
     Parameters
@@ -149,6 +150,9 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
         (``mesh.info["grid"]``), else a quarter of the mean edge length.
     iterations : int
         Split / collapse / flip / relocate iterations, 0 or more.
+    progress : bool or callable
+        A bar over the iterations (tqdm, shown once the call has taken a second), or
+        ``progress(done, total)`` after each (a run started again adds its iterations).
 
     Returns
     -------
@@ -206,21 +210,24 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
     bits = bits | np.where(kind == 0, _PINNED, 0)  # the input's fixed vertices stay fixed whatever happens around
     before = _summary(p, t, h_of)
     start = (p, t, lower, upper, bits)
-    state, best, final, counts = _iterate(start, h_of, ref, tol, int(iterations), before, q_cap=np.inf)
+    bar = Progress(progress, int(iterations), "warpmesh optimize (labels)", "pass")
+    state, best, final, counts = _iterate(start, h_of, ref, tol, int(iterations), before, q_cap=np.inf, bar=bar)
     kept, runs = "final", [counts]
     if final["q_worst"] > before["q_worst"]:
         if best is not None:
             kept, state, counts = "best", best[2], best[3]
         else:  # again from the input, no operation making a triangle worse than the input's worst
             kept = "strict"
+            bar.extend(int(iterations))
             state, _, strict, counts = _iterate(start, h_of, ref, tol, int(iterations), before,
-                                                q_cap=before["q_worst"])
+                                                q_cap=before["q_worst"], bar=bar)
             runs.append(counts)
             if strict["q_worst"] > before["q_worst"]:
                 kept, state, counts = "input", start, dict.fromkeys(counts, 0)
                 warnings.warn(f"optimize_labels: no pass kept the worst Q_K at or below the input's "
                               f"({before['q_worst']:.3g}, reached {strict['q_worst']:.3g}); returning the input",
                               stacklevel=2)
+    bar.close()
     # the counts are the kept state's; the operations of the runs (or iterations) thrown away apart
     discarded = sum(sum(r[k] for k in _OPERATIONS) for r in runs) - sum(counts[k] for k in _OPERATIONS)
     p, t, lower, upper, _ = state
@@ -241,7 +248,7 @@ def optimize_labels(mesh, size=None, *, tolerance: float | None = None, iteratio
 _OPERATIONS = ("splits", "collapses", "flips", "snaps", "moves")
 
 
-def _iterate(state, h_of, ref, tol, iterations, before, q_cap):
+def _iterate(state, h_of, ref, tol, iterations, before, q_cap, bar=None):
     """The iterations from ``state``; returns (last state, the best state not worse than the
     input as (q_worst, -angle_min, state, its operation counts) or None, the last state's
     summary, the last state's operation counts). ``q_cap`` bounds every operation's
@@ -264,6 +271,8 @@ def _iterate(state, h_of, ref, tol, iterations, before, q_cap):
         s = _summary(p, t, h_of)
         if s["q_worst"] <= before["q_worst"] and (best is None or (s["q_worst"], -s["angle_min"]) <= best[:2]):
             best = (s["q_worst"], -s["angle_min"], (p, t, lower, upper, bits), dict(counts))
+        if bar is not None:
+            bar.update()
     return (p, t, lower, upper, bits), best, s, counts
 
 

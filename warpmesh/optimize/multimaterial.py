@@ -50,6 +50,7 @@ import time
 
 import numpy as np
 
+from warpmesh._util.progress import Progress
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 from warpmesh.optimize.label_smoothing import GRID_INFO, box_sides, classify_edges, vertex_cubes, wing_cos, wing_pairs
 from warpmesh.optimize.local_ops import quality_of, select_independent
@@ -68,7 +69,7 @@ RETRIES = 8
 Q_LIMIT = 6.0
 
 
-def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = None):
+def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = None, progress=False):
     """Decimate a multi-material surface by half-edge collapses (module docstring).
 
     Parameters
@@ -82,6 +83,9 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
         Largest distance of a new triangle's centroid and edge midpoints from the input
         surface; default half the smallest grid spacing (``mesh.info["grid"]``), else a
         quarter of the mean edge length.
+    progress : bool or callable
+        A bar over the triangles to remove (tqdm, shown once the call has taken a second),
+        or ``progress(done, total)`` after each round of collapses (the end counts as done).
 
     Returns
     -------
@@ -131,6 +135,7 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
     m0, goal = len(t), float(fraction) * len(t)
     counts = {"rounds": 0, "collapses": 0, "rejected": 0}
     refused = np.zeros(0, np.int64)  # u * n + v of the collapses that failed a check: not tried again
+    bar = Progress(progress, max(int(m0 - goal), 0), "warpmesh simplify (labels)", "triangle")
     for _ in range(MAX_ROUNDS):
         if len(t) <= goal:
             break
@@ -138,8 +143,10 @@ def simplify_labels(mesh, fraction: float = 0.5, *, tolerance: float | None = No
                                        room=int((len(t) - goal) // 2) + 1, refused=refused, q_limit=Q_LIMIT)
         if done is None:
             break
+        bar.update(min(len(t) - len(done[0]), bar.total - bar.done))
         t, lower, upper = done
         counts["rounds"] += 1
+    bar.finish()
     used = np.unique(t)
     index = np.full(len(p), -1, np.int64)
     index[used] = np.arange(len(used))

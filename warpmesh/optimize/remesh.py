@@ -1028,12 +1028,13 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
     if shape is None and "label_above" in getattr(mesh, "cell_data", {}):  # a shared multi-material surface
         from warpmesh.optimize.label_remesh import optimize_labels
         given = [name for name, ignored in (("bounds", bounds is not None), ("features", features is not None),
-                                            ("angle", angle is not DEFAULT_ANGLE and angle != DEFAULT_ANGLE),
-                                            ("progress", progress is not False)) if ignored]
+                                            ("angle", angle is not DEFAULT_ANGLE and angle != DEFAULT_ANGLE))
+                 if ignored]
         if given:
             raise ValueError(f"a shared multi-material surface is optimised by optimize_labels, which takes "
-                             f"'size', 'tolerance' and 'iterations'; got {', '.join(repr(g) for g in given)} too")
-        return optimize_labels(mesh, size, tolerance=tolerance, iterations=int(iterations))
+                             f"'size', 'tolerance', 'iterations' and 'progress'; got "
+                             f"{', '.join(repr(g) for g in given)} too")
+        return optimize_labels(mesh, size, tolerance=tolerance, iterations=int(iterations), progress=progress)
     return _drive(mesh, shape, bounds=bounds, size=size, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=None, simplifying=False)
 
@@ -1087,11 +1088,10 @@ def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, frac
         from warpmesh.optimize.multimaterial import simplify_labels
         given = [name for name, ignored in (("bounds", bounds is not None), ("features", features is not None),
                                             ("angle", angle is not DEFAULT_ANGLE and angle != DEFAULT_ANGLE),
-                                            ("iterations", iterations != 8), ("progress", progress is not False))
-                 if ignored]
+                                            ("iterations", iterations != 8)) if ignored]
         if given:
             raise ValueError(f"a shared multi-material surface is simplified by simplify_labels, which takes "
-                             f"'fraction' and 'tolerance'; got {', '.join(repr(g) for g in given)} too")
-        return simplify_labels(mesh, 0.5 if fraction is None else fraction, tolerance=tolerance)
+                             f"'fraction', 'tolerance' and 'progress'; got {', '.join(repr(g) for g in given)} too")
+        return simplify_labels(mesh, 0.5 if fraction is None else fraction, tolerance=tolerance, progress=progress)
     return _drive(mesh, shape, bounds=bounds, size=None, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=fraction, simplifying=True)
