@@ -198,10 +198,8 @@ def _volume_target(wm, args, volume):
                          f"direction is {volume.direction.tolist()}")
     from warpmesh.cli.sources import parse_labels
 
-    labels = parse_labels(args.labels)
+    labels = parse_labels(args.labels)  # (one label: _check_improve_flags refused more before the meshing)
     if labels is not None:
-        if labels == "all" or len(labels) != 1:
-            raise ValueError("expected one label with --labels when optimising (one surface per run)")
         return wm.VolumeField(np.asarray(volume.values) == labels[0], spacing=volume.spacing,
                               origin=volume.origin, level=0.5)
     return wm.VolumeField(volume.values, spacing=volume.spacing, origin=volume.origin,
@@ -214,8 +212,6 @@ def _improve_labels(wm, args, mesh, clock):
     input surface."""
     from warpmesh.cli.flags import in_flags
 
-    if args.optimize and args.simplify is not None:
-        raise ValueError("expected one of --optimize and --simplify, got both")
     with clock.stage("optimize" if args.optimize else "simplify"), in_flags(_IMPROVE_FLAGS):
         if args.optimize:
             return wm.optimize(mesh, size=args.size, tolerance=args.max_error, progress=progress_bars())
@@ -226,8 +222,6 @@ def _improve(wm, args, mesh, bounds, target, clock):
     """--optimize / --simplify, and the largest distance of the result to the surface."""
     from warpmesh.cli.flags import in_flags
 
-    if args.optimize and args.simplify is not None:
-        raise ValueError("expected one of --optimize and --simplify, got both")
     capped = bounds is not None and not args.no_cap
     with clock.stage("optimize" if args.optimize else "simplify"), in_flags(_IMPROVE_FLAGS):
         if args.optimize:
