@@ -474,14 +474,14 @@ def wing_cos(points, tris, pairs):
     return np.einsum("ij,ij->i", ua, ub) / den
 
 
-def _local_failures(points, tris, faces, axis, facing, pairs, pair_cos0, pending, old):
+def _local_failures(points, tris, faces, axis, facing, pairs, pair_cos0, pending, q_old):
     """Faces (of ``faces``, plus partners) that turned over along their grid edge, fold
     onto a neighbour (orientation-free checks that hold at junctions) or became worse than
-    ``SMOOTH_Q`` and than they were at ``old``."""
+    ``SMOOTH_Q`` and than they were (``q_old``, every face's Q_K at the previous check)."""
     n_hat = _normals(points, tris[faces])
     turned = faces[n_hat[np.arange(len(faces)), axis[faces]] * facing[faces] <= 0.0]
     q = triangle_quality(points, tris[faces])
-    worse = faces[(q > SMOOTH_Q) & (q > triangle_quality(old, tris[faces]))]
+    worse = faces[(q > SMOOTH_Q) & (q > q_old[faces])]
     near = pending[pairs[:, 0]] | pending[pairs[:, 1]]
     sel = np.flatnonzero(near)
     cos = wing_cos(points, tris, pairs[sel])
@@ -494,12 +494,14 @@ def _revert_failures(old, new, tris, axis, facing, pairs, pair_cos0, cells) -> i
     no face around a moved vertex fails; returns the count of moves undone."""
     moved = np.any(new != old, axis=1)
     pending = moved[tris].any(axis=1)
+    q_old = np.zeros(len(tris))  # Q_K at the previous check, of the faces the moves touch (the others never fail)
+    q_old[pending] = triangle_quality(old, tris[pending])
     undone_total = 0
     while pending.any():
         faces = np.flatnonzero(pending)
         bad, others = _crossings(new, tris, faces, cells)
         failing = np.concatenate([faces[bad], others, _local_failures(new, tris, faces, axis, facing, pairs,
-                                                                      pair_cos0, pending, old)])
+                                                                      pair_cos0, pending, q_old)])
         verts = np.unique(tris[failing].ravel())
         verts = verts[moved[verts]]
         if len(verts) == 0:  # what fails was there before the moves
