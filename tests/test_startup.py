@@ -96,6 +96,32 @@ def test_warp_starts_with_the_first_kernel_module_not_with_the_package():
     _run(code)
 
 
+# exit handlers run last-registered first: "before" was registered before warpmesh started
+# Warp, "after" after it; each prints how many objects the collector has frozen
+_EXIT_PROBE = ("import atexit, gc, sys\n"
+               "atexit.register(lambda: print('before', gc.get_freeze_count(), flush=True))\n"
+               "import warpmesh as wm\n"
+               "m = wm.mesh_surface(wm.sphere(1), bounds=((-1.2,)*3, (1.2,)*3), resolution=8)\n"
+               "{extra}"
+               "atexit.register(lambda: print('after', gc.get_freeze_count(), flush=True))\n")
+
+
+def _exit_counts(extra: str = "") -> dict[str, int]:
+    out = _run(_EXIT_PROBE.format(extra=extra)).stdout.split()
+    return {out[i]: int(out[i + 1]) for i in range(0, len(out) - 1, 2) if out[i] in ("before", "after")}
+
+
+def test_exit_freezes_the_live_objects_after_the_programs_own_exit_handlers():
+    counts = _exit_counts()
+    assert counts["after"] == 0  # the program's later handlers run with the collector untouched
+    assert counts["before"] > 10_000  # Warp's and warpmesh's objects are out of the exit's collections
+
+
+def test_the_exit_freeze_can_be_unregistered():
+    counts = _exit_counts("from warpmesh.kernels.startup import freeze_at_exit\natexit.unregister(freeze_at_exit)\n")
+    assert counts == {"after": 0, "before": 0}
+
+
 @pytest.mark.parametrize("code", ["import warpmesh",
                                   "import sys; sys.argv = ['warpmesh', '--help']\n"
                                   "from warpmesh.cli import main\ntry:\n    main()\nexcept SystemExit:\n    pass",
