@@ -33,6 +33,10 @@ TETS_PER_CELL = 12
 _SLOTS = wp.constant(SLOTS)
 _TPC = wp.constant(TETS_PER_CELL)
 _SHORT = wp.constant(0.8660254037844386)  # short edge / long edge
+#: a point within this fraction of a voxel of a face between two voxels (on it included) is in
+#: the upper one: far above the rounding of computed positions, far below any feature
+VOXEL_TIE = 2.0**-20
+_VOXEL_TIE = wp.constant(wp.float64(VOXEL_TIE))
 
 
 @wp.func
@@ -801,12 +805,13 @@ def tet_edge_keys_kernel(first: int, tets: wp.array(dtype=wp.int64), key_base: w
 @wp.func
 def voxel_code(codes: wp.array(dtype=Any), x: wp.vec3d, spacing: wp.vec3d, shape: wp.vec3i, strides: wp.vec3l,
                rest: int) -> int:
-    """The code of the voxel holding local point x (voxel i at i * spacing: the nearest, ties
-    to even as ``np.rint``), ``rest`` outside the volume; ``strides`` in elements of the flat
-    ``codes``."""
+    """The code of the voxel holding local point x (voxel i at i * spacing: the nearest, a
+    point on or within ``VOXEL_TIE`` of a face in the upper voxel, as
+    :func:`warpmesh.solid.thin.labels_at`), ``rest`` outside the volume; ``strides`` in
+    elements of the flat ``codes``."""
     flat = wp.int64(0)
     for k in range(3):
-        q = wp.rint(x[k] / spacing[k])
+        q = wp.rint(x[k] / spacing[k] + _VOXEL_TIE)
         if not (q >= wp.float64(0.0) and q < wp.float64(shape[k])):  # NaN too
             return rest
         flat += wp.int64(int(q)) * strides[k]

@@ -90,12 +90,14 @@ def _noisy(index: int) -> np.ndarray:
 
 
 def test_a_thin_layer_leaves_no_pocket():
-    """The layer's edges cross three codes; with cut points snapped edge by edge, the
-    layer's pieces closed over 12 pieces of the rest, each joined to the outside at one
-    node (a pinch). Snapping that would pinch is pushed off the node instead
-    (warpmesh/solid/snapping.py): no pocket forms, and the boundary is one sphere."""
+    """The layer's edges cross three codes; with cut points snapped edge by edge, its
+    boundary is pinched (at size 3, two vertices: tests/solid/test_snapping.py; at size 2,
+    while the labels' ties went to the even voxel, its pieces closed over 12 pieces of the
+    rest, each joined to the outside at one node). Snapping that would pinch is pushed off
+    the node instead (warpmesh/solid/snapping.py): no pocket forms, and the boundary is one
+    sphere."""
     labels = _layer()
-    m = wm.mesh_domain(labels, labels="all", size=2.0)
+    m = wm.mesh_domain(labels, labels="all", size=3.0)
     check_regions(m, rest=0)
     assert m.info["filled_pockets"] == 0 and m.info["kept_cavities"] == 0 and m.info["pushed_cuts"] > 0
     assert cavities(m) == []

@@ -408,3 +408,26 @@ def test_spacing_and_origin_float64_cannot_place_are_refused():
             wm.mesh_domain(wm.Volume(vol, **kw), labels="all")
     m = wm.mesh_domain(wm.Volume(vol, spacing=1e-6, origin=(1e-2, 0.0, 0.0)), labels="all")
     assert len(np.unique(m.points, axis=0)) == len(m.points)
+
+
+@pytest.mark.parametrize("spacing", [1.0 + 1e-9, 1.0 - 1e-9, 0.7, 0.488281, 2.0 / 3.0])
+def test_the_mesh_does_not_depend_on_the_unit_of_the_spacing(spacing):
+    """At the default size (4 voxels) the lattice's nodes lie on the voxels' faces, and their
+    labels followed the rounding of the computed node positions (``np.rint``'s ties to even):
+    1e-9 of a voxel moved a region's volume by 8 % and spacing 0.7 made 2.6 times the
+    tetrahedra of spacing 1 (with counts of samples per edge rounded up besides). Now a point
+    on a face, or within ``VOXEL_TIE`` of it, is in the upper voxel, and the counts have a
+    tolerance: the same mesh in voxel units, whatever the spacing, its box faces exactly
+    on the volume's."""
+    vol = _balls(40, (15.0, 8.0))
+    unit = wm.mesh_domain(vol, labels="all")
+    m = wm.mesh_domain(wm.Volume(vol, spacing=spacing), labels="all")
+    check_regions(m, rest=m.info["rest"])
+    assert m.info["size"] == pytest.approx(4.0 * spacing)
+    assert len(m.cells["tetra"]) == len(unit.cells["tetra"])
+    assert np.array_equal(m.cells["tetra"], unit.cells["tetra"])
+    np.testing.assert_allclose(m.points / spacing, unit.points, rtol=0, atol=1e-9)
+    on_face = np.abs(m.points[:, 0] / spacing + 0.5) <= 1e-9  # the box face x = -0.5 voxel
+    assert on_face.sum() == (np.abs(unit.points[:, 0] + 0.5) <= 1e-9).sum() > 100
+    for label, r in unit.info["region_volumes"].items():
+        assert m.info["region_volumes"][label]["error"] == pytest.approx(r["error"], abs=1e-9)

@@ -31,7 +31,7 @@ def _pinches(m: wm.Mesh) -> dict[int, int]:
 CASES = {
     "ones": (lambda: np.ones((10, 10, 10), np.uint8), {}),
     "balls": (lambda: _balls(64, (25.0, 12.0)), {"size": 4.0}),
-    "layer": (_layer, {"size": 2.0}),
+    "layer": (_layer, {"size": 3.0}),
     "noisy": (lambda: wm.Volume(_noisy(30), spacing=NOISY_SPACING), {}),
 }
 

@@ -550,7 +550,7 @@ def _cut_edges(T: np.ndarray, L: np.ndarray, n_nodes: int):
 def _edge_cuts(codes, rest, spacing, p_lo, p_hi, c_lo, c_hi, chunk: int = 65536) -> np.ndarray:
     """(e,) the parameter of the label change along each edge p_lo -> p_hi."""
     n = max(4, int(math.ceil(SAMPLES_PER_VOXEL * np.max(np.linalg.norm(p_hi - p_lo, axis=1), initial=0.0)
-                             / float(spacing.min()))))
+                             / float(spacing.min()) - 1e-9)))  # 4 voxels' edge at spacing 0.7: 16, not 17
     s = (np.arange(n) + 0.5) / n
     t = np.empty(len(p_lo))
     for a in range(0, len(p_lo), chunk):

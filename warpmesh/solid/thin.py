@@ -69,17 +69,22 @@ MIN_RUN = 0.75
 
 
 def labels_at(codes: np.ndarray, local: np.ndarray, spacing: np.ndarray, rest: int) -> np.ndarray:
-    """The code of the voxel holding each local point (voxel i at i * spacing, the nearest,
-    ties to even), ``rest`` outside the box.
+    """The code of the voxel holding each local point (voxel i at i * spacing, the nearest),
+    ``rest`` outside the box. A point on a face between two voxels, or within
+    ``VOXEL_TIE`` = 2^-20 of a voxel of it, is in the upper one: the lattice's nodes and
+    samples lie on the faces at the default size, and their positions are computed, so a
+    tie broken by the rounding of the position (as ``np.rint``'s ties to even did) made the
+    mesh depend on the unit of the spacing (1e-9 of a voxel moved a region's volume by 8 %).
 
     (Called on every sample of every edge the graded lattice tests: one flat gather from the
     volume's memory where it is contiguous, one unsigned compare for both bounds.)
 
-    >>> labels_at(np.arange(8, dtype=np.uint8).reshape(2, 2, 2), np.array([[0.0, 0, 0], [2.4, 0, 0.6], [9, 0, 0]]),
-    ...           np.array([2.0, 1, 1]), 255).tolist()
-    [0, 5, 255]
+    >>> labels_at(np.arange(8, dtype=np.uint8).reshape(2, 2, 2),
+    ...           np.array([[0.0, 0, 0], [2.4, 0, 0.6], [1.0, 0.5, 0.5 - 1e-9], [9, 0, 0]]), np.array([2.0, 1, 1]),
+    ...           255).tolist()
+    [0, 5, 7, 255]
     """
-    ijk = np.rint(local / spacing).astype(np.int64)
+    ijk = np.rint(local / spacing + K.VOXEL_TIE).astype(np.int64)
     ok = ijk.view(np.uint64) < np.asarray(codes.shape, np.uint64)  # a negative index wraps to a huge one
     inside = ok[:, 0] & ok[:, 1] & ok[:, 2]
     if codes.flags.f_contiguous or codes.flags.c_contiguous:
@@ -136,7 +141,7 @@ def unresolved_edges(labels_at, a: np.ndarray, b: np.ndarray, spacing: np.ndarra
     if not len(a):
         return out
     length = np.linalg.norm(b - a, axis=1)
-    n = np.maximum(4, np.ceil(per_voxel * length / float(np.min(spacing))).astype(np.int64))
+    n = np.maximum(4, np.ceil(per_voxel * length / float(np.min(spacing)) - 1e-9).astype(np.int64))  # (not a rounding's +1)
     view = labels_at.kernel_codes() if kernel and isinstance(labels_at, VoxelLabels) else None
     if view is not None:
         flags = np.zeros(len(a), np.int8)
