@@ -422,6 +422,10 @@ class Mesh:
             s["area"], volume, surface_q = _topo.surface_figures(self._points, surface, volume=s["watertight"])
             if s["watertight"] and self.dim == 3:
                 s["volume"] = volume
+        if self._is_shared_surface:  # one closed surface per label, meeting at junction edges
+            from warpmesh.surface.multilabel import label_figures
+
+            s["label_boundaries"] = label_figures(self)
         if not len(tri) and "line" in self._cells and top == 1:  # a polyline: its connected pieces
             s["components"] = components(self._cells["line"], self.n_points)[0]
         if len(tri) or ("line" in self._cells and self.dim == 2) or ("tetra" in self._cells and self.dim == 3):
@@ -455,6 +459,13 @@ class Mesh:
             return find_tet_overlaps(self._points, self._cells["tetra"], faces=self._tet_faces,
                                      components=self.__dict__.get("_boundary_components"))
         return check(self)
+
+    @property
+    def _is_shared_surface(self) -> bool:
+        """Whether this is a multi-material surface of ``interfaces="shared"``: triangles only,
+        with each triangle's lower label (``cell_refs``) and higher (``cell_data["label_above"]``)."""
+        return (set(self._cells) == {"triangle"} and self._cell_refs is not None and "triangle" in self._cell_refs
+                and "triangle" in self._cell_data.get("label_above", {}))
 
     @property
     def _of_tetrahedra(self) -> bool:
@@ -505,7 +516,11 @@ class Mesh:
             else of crossing triangles and of faces out of order about a junction edge of a
             labelled shared surface, or of crossing segments of a planar polyline:
             :meth:`check`; 0 for an embedded mesh); ``mean_q``, ``worst_q`` ([FG
-            eq. 16.15] over tetra if any, else triangles); ``bounds`` (2, d). Every key of
+            eq. 16.15] over tetra if any, else triangles); ``bounds`` (2, d); for a
+            multi-material surface of ``interfaces="shared"`` (not a closed manifold as a
+            whole: its interfaces meet at junction edges), ``label_boundaries``: label ->
+            the figures of that label's boundary
+            (:func:`warpmesh.surface.multilabel.label_figures`). Every key of
             ``self.info`` is included too; computed keys win on a clash.
 
         Examples

@@ -127,10 +127,19 @@ def test_mesh_volume_shared_interfaces_once_each(slabs, tmp_path, capsys):
     assert np.unique(np.sort(tri, axis=1), axis=0).shape[0] == tri.shape[0]  # no face twice
     assert count_self_intersecting_faces(m.points, tri) == 0
     assert {(a, b) for a, b in zip(lo.tolist(), hi.tolist())} == {(0, 1), (0, 2), (1, 2), (0, 5)}
+    assert {label: (f["closed"], f["oriented"]) for label, f in stats["label_boundaries"].items()} == {
+        "0": (True, True), "1": (True, True), "2": (True, True), "5": (True, True)}
     # the separate surfaces (the default) mesh the 1|2 interface twice: the shared one is smaller
     assert main(["mesh", "--volume", str(path), "--labels", "all", "--json"]) == 0
     separate = json.loads(capsys.readouterr().out)
     assert separate["n_triangles"] > stats["n_triangles"]
+    # read by a person: the whole surface is not closed, and why; each label's boundary is
+    assert main(["mesh", "--volume", str(path), "--labels", "all", "--interfaces", "shared"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    watertight = next(line for line in lines if line.startswith("watertight"))
+    assert "interfaces meet at junction edges" in watertight
+    assert any(line.startswith("label boundaries") and "4 of 4 closed and oriented outward" in line
+               for line in lines), lines
 
 
 def test_mesh_volume_shared_interfaces_simplify_and_optimize(slabs, tmp_path, capsys):

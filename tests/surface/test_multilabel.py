@@ -80,6 +80,45 @@ def test_random_label_volumes_closed_oriented_embedded():
     assert np.isclose(m.to_trimesh().area, peer.area, rtol=1e-12)
 
 
+def test_stats_report_each_labels_boundary():
+    """As one surface a shared surface is not closed (its interfaces meet at junction edges);
+    ``stats()`` says so and describes each label's boundary: closed and oriented outward (as
+    the test's own ``_check_label_boundaries`` finds), the rest enclosing minus all of them.
+    A triangle removed opens the boundaries of exactly the two labels it separates."""
+    vol = _random_tiles()
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    s = m.stats()
+    assert (s["watertight"], s["manifold"]) == (False, False)
+    figures = s["label_boundaries"]
+    assert sorted(figures) == np.unique(vol).tolist()
+    for label, f in figures.items():
+        assert (f["closed"], f["oriented"]) == (True, True), label
+        b = label_boundary(m, label)
+        assert f["triangles"] == len(b.cells["triangle"])
+        p = b.points[b.cells["triangle"]]
+        assert f["volume"] == pytest.approx(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0)
+        if label != m.info["rest"]:
+            assert f["volume"] > 0
+    assert sum(f["volume"] for f in figures.values()) == pytest.approx(0.0, abs=1e-6 * len(m.points))
+    assert not all(label_boundary(m, label).stats()["manifold"] for label in figures)  # some touch themselves
+    cut = 123
+    lower, upper = int(m.cell_refs["triangle"][cut]), int(m.cell_data[LABEL_ABOVE]["triangle"][cut])
+    keep = np.arange(len(m.cells["triangle"])) != cut
+    broken = wm.Mesh(m.points, {"triangle": m.cells["triangle"][keep]},
+                     cell_refs={"triangle": m.cell_refs["triangle"][keep]},
+                     cell_data={LABEL_ABOVE: {"triangle": m.cell_data[LABEL_ABOVE]["triangle"][keep]}})
+    opened = {label for label, f in broken.stats()["label_boundaries"].items() if not f["closed"]}
+    assert opened == {lower, upper}
+    flip = m.cells["triangle"].copy()
+    flip[cut] = flip[cut, ::-1]  # closed still, but one face turned the wrong way for both labels
+    turned = wm.Mesh(m.points, {"triangle": flip}, cell_refs={"triangle": m.cell_refs["triangle"]},
+                     cell_data={LABEL_ABOVE: {"triangle": m.cell_data[LABEL_ABOVE]["triangle"]}})
+    wrong = {label: (f["closed"], f["oriented"]) for label, f in turned.stats()["label_boundaries"].items()
+             if not f["oriented"]}
+    assert wrong == {lower: (True, False), upper: (True, False)}
+    assert "label_boundaries" not in label_boundary(m, lower).stats()  # one label's surface is a plain one
+
+
 def _same_points(a, b):
     """The same positions (VTK's output may hold a position more than once)."""
     key = lambda p: np.unique(np.round(np.asarray(p, dtype=np.float64) * 64).astype(np.int64), axis=0)  # noqa: E731

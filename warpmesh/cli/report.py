@@ -44,7 +44,10 @@ def progress_bars() -> bool:
 _WIDTH = 32  # "boundary Euler characteristic" and its value
 #: stats keys said twice (another key holds the same figure) or stale after a later stage
 _HIDDEN = {"ne", "n_cells", "n_triangles", "n_tetra", "q_mean", "q_worst", "vertices", "triangles", "edges",
-           "signed_volume", "enclosed_volume", "written", "time", "optimize"}
+           "signed_volume", "enclosed_volume", "written", "time", "optimize", "label_boundaries"}
+#: the whole-surface figures a shared multi-material surface does not have (its interfaces
+#: meet at junction edges): said with a pointer to the per-label line
+_WHOLE = {"watertight", "manifold", "oriented"}
 #: the leading figures, in this order: key -> label
 _LEADING = {"watertight": "watertight", "manifold": "manifold", "oriented": "oriented",
             "orientation": "orientation", "euler": "Euler characteristic", "components": "components",
@@ -201,6 +204,38 @@ def _separate_labels(mesh) -> bool:
     return len(mesh.info.get("labels") or ()) > 1 and "label_above" not in mesh.cell_data
 
 
+def _label_boundaries(figures: dict, rest=None) -> str:
+    """One line on the labels' boundaries of a shared surface: how many are closed and
+    oriented outward, and which are not and what is wrong. ``rest``: the label holding the
+    outside of the box (default: the one enclosing the least volume).
+
+    Examples
+    --------
+    >>> ok = {"closed": True, "oriented": True, "volume": 2.0}
+    >>> _label_boundaries({0: {**ok, "volume": -3.0}, 1: ok, 2: ok})
+    '3 of 3 closed and oriented outward (the rest, 0, inward: it holds the outside)'
+    >>> _label_boundaries({0: {**ok, "volume": -2.0}, 1: ok, 4: {**ok, "closed": False, "oriented": False}}, rest=0)
+    '2 of 3 closed and oriented outward (the rest, 0, inward: it holds the outside); not 4 (open, not oriented)'
+    >>> _label_boundaries({0: {**ok, "volume": -2.0}, 1: {**ok, "volume": -1.0}}, rest=0)
+    '1 of 2 closed and oriented outward (the rest, 0, inward: it holds the outside); not 1 (inward)'
+    """
+    if rest not in figures:
+        rest = min(figures, key=lambda k: figures[k]["volume"]) if figures else None
+    bad = {}
+    for label, f in figures.items():
+        wrong = [word for key, word in (("closed", "open"), ("oriented", "not oriented")) if not f[key]]
+        if not wrong and (f["volume"] <= 0.0) != (label == rest):
+            wrong.append("inward")
+        if wrong:
+            bad[label] = ", ".join(wrong)
+    text = f"{len(figures) - len(bad)} of {len(figures)} closed and oriented outward"
+    if rest is not None and rest not in bad:
+        text += f" (the rest, {rest}, inward: it holds the outside)"
+    if bad:
+        text += "; not " + ", ".join(f"{label} ({why})" for label, why in sorted(bad.items()))
+    return text
+
+
 def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
     """The lines a person reads: figures, the optimisation table, the written file, the stage times."""
     from warpmesh.cells.quality import format_table
@@ -217,6 +252,7 @@ def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
     # its triangle block, which may hold interfaces between regions as well
     of_boundary = mesh.dim == 3 and len(mesh.cells.get("tetra", ())) > 0 and not any(
         t in mesh.cells for t in ("hexahedron", "wedge", "pyramid"))
+    noted = False  # the shared surface's note, said once
     for key, label in _LEADING.items():
         if key in shown_in_table or key not in stats:
             continue
@@ -225,7 +261,13 @@ def human_lines(mesh, stats: dict, times: dict | None = None) -> list[str]:
             if key == "self_intersections" and stats[key] and _separate_labels(mesh):
                 value += " (each label's own closed surface: where two labels touch, both are there; " \
                          "--interfaces shared meshes each interface once)"
+            if key in _WHOLE and stats[key] is False and isinstance(stats.get("label_boundaries"), dict) \
+                    and not noted:
+                value += " (as one surface: its interfaces meet at junction edges; see label boundaries)"
+                noted = True
             lines.append(_line(f"boundary {label}" if of_boundary and key in _BOUNDARY else label, value))
+        if key == "bounds" and isinstance(stats.get("label_boundaries"), dict):
+            lines.append(_line("label boundaries", _label_boundaries(stats["label_boundaries"], stats.get("rest"))))
     tables = []
     for key, v in stats.items():
         if key in _HIDDEN or key in _LEADING or key == "np":
