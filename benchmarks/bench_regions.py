@@ -67,6 +67,14 @@ a region's boundary is pinched (15,249 vertex-label pinches before: tests/solid/
 fixes; the same command, 2026-12-05, load 1.1, with the ``pinched`` column): frog defaults
 12,867,822 tets, 30.5 s wall / 34.9 s CPU, [7.07°, 167.58°], worst -3.17 %, 0 pinched vertices in
 every row (frog and balls, snap 0.3 and 0).
+
+Since a sample on a voxel face is in the upper voxel (``VOXEL_TIE``; the frog's lattice nodes lie
+on its voxels' faces along x and y, where ``np.rint``'s ties to even alternated between the two
+voxels): the same command at 64f56cf, 2026-12-05 02:45 UTC, load 1.6 (a test run beside it): frog
+defaults 13,043,568 tets, 30.2 s wall / 32.0 s CPU, dihedral [6.36°, 167.34°], worst region -3.16 %
+(label 1), none lost, 0 pinched; uniform 2,311,253 tets, [13.12°, 156.92°], 14.48 % (labels 1 -14.5 %,
+12 -8.8 %; before -15.7 %, -9.4 %), 4 lost (2 before: specks of 4-121 voxels, which only the
+default graded pass meshes); nested balls unchanged (every region within 0.19 %, [16.06°, 149.96°]).
 """
 
 from __future__ import annotations
