@@ -502,7 +502,8 @@ def label_figures(mesh) -> dict[int, dict]:
     Parameters
     ----------
     mesh : Mesh
-        From ``mesh_surface(..., interfaces="shared")``.
+        A multi-material surface (``mesh_surface(..., interfaces="shared")``, or one read
+        back from a file that kept both label arrays).
 
     Returns
     -------
@@ -515,15 +516,19 @@ def label_figures(mesh) -> dict[int, dict]:
     Raises
     ------
     ValueError
-        ``mesh`` without the two label arrays.
+        Without the two label arrays (not a shared surface).
 
     Example
     -------
+    Two blocks of 3 x 3 x 2 and 3 x 3 x 3 voxels, one on the other (the staircase surface
+    encloses exactly their voxels):
+
     >>> import numpy as np, warpmesh as wm
-    >>> vol = np.zeros((6, 6, 6), dtype=np.uint8); vol[1:5, 1:5, 1:3] = 1; vol[1:5, 1:5, 3:5] = 2
-    >>> f = label_figures(wm.mesh_surface(vol, labels="all", interfaces="shared"))
-    >>> [(label, f[label]["closed"], f[label]["oriented"], round(f[label]["volume"], 6)) for label in sorted(f)]
-    [(0, True, True, -64.0), (1, True, True, 32.0), (2, True, True, 32.0)]
+    >>> blocks = np.zeros((5, 5, 7), dtype=np.uint8)
+    >>> blocks[1:4, 1:4, 1:3], blocks[1:4, 1:4, 3:6] = 1, 3
+    >>> f = label_figures(wm.mesh_surface(blocks, labels="all", interfaces="shared"))
+    >>> {label: (f[label]["closed"], f[label]["oriented"], round(f[label]["volume"], 6)) for label in sorted(f)}
+    {0: (True, True, -45.0), 1: (True, True, 18.0), 3: (True, True, 27.0)}
     """
     refs, above = shared_labels(mesh)
     tris, points = np.asarray(mesh.cells["triangle"], np.int64), mesh.points
