@@ -329,6 +329,21 @@ def test_a_file_that_does_not_parse(tmp_path, name):
         wm.load_volume(path)
 
 
+@pytest.mark.parametrize("name", ["bad.vti", "bad.vtk"])
+def test_a_file_that_is_not_vtk_is_refused_quietly(tmp_path, name, capfd):
+    """VTK's reader printed a page of C++ errors (parser, pipeline) before pyvista's failure;
+    a file that does not start as a VTK file is refused before VTK sees it."""
+    path = tmp_path / name
+    path.write_bytes(b"this is not an image\n" * 8)
+    capfd.readouterr()
+    with pytest.raises(ReadError, match="does not start as a VTK file"):
+        wm.load_volume(path)
+    assert capfd.readouterr().err == ""
+    path.write_bytes(b'<?xml version="1.0"?>\n<VTKFile type="ImageData" version="1.0">\n<ImageData WholeExtent=')
+    with pytest.raises(ReadError, match="bad"):  # a VTK file cut short: VTK's own message
+        wm.load_volume(path)
+
+
 def test_a_mesh_file_is_not_an_image(tmp_path):
     pv.Sphere().save(tmp_path / "ball.vtk")
     with pytest.raises(ValueError, match="expected an image.*PolyData.*warpmesh.load"):

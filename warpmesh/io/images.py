@@ -318,11 +318,26 @@ def _read_npz(path: Path, name: str | None) -> Volume:
 
 
 # -- VTK images (pyvista) ----------------------------------------------------------------------
+#: how a VTK file starts: XML (``.vti``, after an optional declaration) or the legacy header (``.vtk``)
+_VTK_STARTS = (b"<VTKFile", b"# vtk DataFile")
+
+
 def _read_vtk(path: Path, name: str | None) -> Volume:
     import pyvista as pv
 
-    with warnings.catch_warnings(record=True) as caught:  # pyvista turns VTK's read errors into warnings
-        warnings.simplefilter("always")
+    try:
+        with open(path, "rb") as f:
+            head = f.read(512)
+    except OSError as exc:
+        raise ReadError(f"could not read {str(path)!r} as a VTK image: {exc}") from None
+    body = head.lstrip()
+    if body.startswith(b"<?xml"):
+        body = body[body.find(b"?>") + 2:].lstrip() if b"?>" in body else b""
+    if not body.startswith(_VTK_STARTS):  # VTK's reader would print a page of errors before failing
+        raise ReadError(f"could not read {str(path)!r} as a VTK image: it does not start as a VTK file "
+                        f"(an XML '<VTKFile' or a legacy '# vtk DataFile' header)")
+    with warnings.catch_warnings(record=True) as caught, pv.vtk_verbosity("off"):
+        warnings.simplefilter("always")  # pyvista turns VTK's read errors into warnings
         obj = pv.read(path)
     if caught and (obj is None or obj.n_points == 0):
         raise ReadError(f"could not read {str(path)!r} as a VTK image: {str(caught[0].message).strip()}")
