@@ -54,9 +54,12 @@ from __future__ import annotations
 import dataclasses
 import errno
 import importlib
+import logging
 import os
+import threading
 import warnings
 from collections.abc import Callable, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -318,6 +321,34 @@ def _read_npz(path: Path, name: str | None) -> Volume:
 
 
 # -- VTK images (pyvista) ----------------------------------------------------------------------
+class _ThisThread(logging.Filter):
+    """Keeps the messages logged from one thread in ``messages`` instead of passing them on."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.thread = threading.get_ident()
+        self.messages: list[str] = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.thread != self.thread:
+            return True
+        self.messages.append(record.getMessage())
+        return False
+
+
+@contextmanager
+def _quiet_root_log():
+    """The root logger keeps what this thread logs meanwhile (yielded: a list of messages):
+    pyvista logs each VTK read error there, a page for a file cut short."""
+    keep = _ThisThread()
+    root = logging.getLogger()
+    root.addFilter(keep)
+    try:
+        yield keep.messages
+    finally:
+        root.removeFilter(keep)
+
+
 #: how a VTK file starts: XML (``.vti``, after an optional declaration) or the legacy header (``.vtk``)
 _VTK_STARTS = (b"<VTKFile", b"# vtk DataFile")
 
@@ -336,11 +367,12 @@ def _read_vtk(path: Path, name: str | None) -> Volume:
     if not body.startswith(_VTK_STARTS):  # VTK's reader would print a page of errors before failing
         raise ReadError(f"could not read {str(path)!r} as a VTK image: it does not start as a VTK file "
                         f"(an XML '<VTKFile' or a legacy '# vtk DataFile' header)")
-    with warnings.catch_warnings(record=True) as caught, pv.vtk_verbosity("off"):
-        warnings.simplefilter("always")  # pyvista turns VTK's read errors into warnings
+    with warnings.catch_warnings(record=True) as caught, pv.vtk_verbosity("off"), _quiet_root_log() as logged:
+        warnings.simplefilter("always")  # pyvista turns VTK's read errors into warnings (and root-log lines)
         obj = pv.read(path)
     if caught and (obj is None or obj.n_points == 0):
-        raise ReadError(f"could not read {str(path)!r} as a VTK image: {str(caught[0].message).strip()}")
+        reason = logged[0].strip().splitlines()[0] if logged else str(caught[0].message).strip()  # (the first error)
+        raise ReadError(f"could not read {str(path)!r} as a VTK image: {reason}")
     if not isinstance(obj, pv.ImageData):
         raise ValueError(f"expected an image (ImageData) in {str(path)!r}, got a {type(obj).__name__}: "
                          "load a mesh file with warpmesh.load")
