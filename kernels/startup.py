@@ -22,16 +22,18 @@ to a launch goes through here (``import warpmesh`` alone does not import Warp at
    Xeon) over the warpmesh kernel modules imported so far whose cache folder is missing.
    :func:`compile_seconds` is the wall time spent compiling them in this process (the
    command line shows it as its own stage).
-4. :func:`freeze_at_exit` is registered with :mod:`atexit`: at interpreter exit it moves
-   every object then alive out of the reach of the exit's garbage collections
-   (:func:`gc.freeze`). Python's finalisation runs full cyclic collections over every
-   object still alive; Warp alone leaves about 93,000 (its builtins' tables), warpmesh's
-   kernel modules add about 37,000, and those collections made up most of the 0.1 s a
-   process spent exiting after its first mesh (``benchmarks/bench_startup.py``). The
-   objects are still freed by reference counting as the modules are cleared; what is
-   skipped is the collection of reference cycles alive at exit, whose ``__del__``
-   Python never promises to run at exit anyway. Exit handlers registered after warpmesh
-   started run before it, with the collector untouched; a program that needs the exit's
+4. :func:`freeze_at_exit` is registered with :mod:`atexit`: at interpreter exit it collects
+   the garbage once (:func:`gc.collect`: unreachable reference cycles are finalised, their
+   ``__del__`` run, as Python's first exit collection would) and then moves every object
+   still alive out of the reach of the later collections of Python's finalisation
+   (:func:`gc.freeze`). Those run over every object still alive; Warp alone leaves about
+   93,000 (its builtins' tables), warpmesh's kernel modules add about 37,000, and they made
+   up most of the 0.1 s a process spent exiting after its first mesh
+   (``benchmarks/bench_startup.py``). What changes: a reference cycle that is still
+   reachable at exit (from a module's globals) and only becomes garbage as the modules are
+   cleared is not collected, so its ``__del__`` does not run; Python never promises to run
+   ``__del__`` for objects alive at exit. Exit handlers registered after warpmesh started
+   run before it, with the collector untouched; a program that needs the exit's
    collections back calls ``atexit.unregister(freeze_at_exit)``.
 
 Warp compiles a module inside ``Module.load``, from its private ``Module._compile``,
@@ -118,10 +120,11 @@ def init_warp() -> None:
 
 
 def freeze_at_exit() -> None:
-    """At interpreter exit: keep the objects alive now out of the exit's garbage collections.
+    """At interpreter exit: collect the garbage once, then keep what is alive out of the exit's
+    later garbage collections.
 
     Registered by :func:`start` (see the module docstring, point 4); calling it earlier would
-    also exempt those objects from every later collection, so it is meant for exit only.
+    also exempt the live objects from every later collection, so it is meant for exit only.
 
     Example
     -------
@@ -129,6 +132,7 @@ def freeze_at_exit() -> None:
     >>> from warpmesh.kernels.startup import freeze_at_exit
     >>> atexit.unregister(freeze_at_exit)  # this program wants Python's full collections at exit
     """
+    gc.collect()
     gc.freeze()
 
 

@@ -912,8 +912,8 @@ def speck_sizes_kernel(first: int, nodes: wp.array(dtype=wp.vec3d), tets: wp.arr
     lo = wp.vec3i()
     hi = wp.vec3i()
     for a in range(3):
-        l = wp.floor(plo[a] + wp.float64(0.5))
-        h = wp.floor(phi[a] + wp.float64(0.5))
+        l = wp.floor(plo[a] + wp.float64(0.5) + _VOXEL_TIE)  # (voxel_code's voxels)
+        h = wp.floor(phi[a] + wp.float64(0.5) + _VOXEL_TIE)
         if h < wp.float64(0.0) or l >= wp.float64(shape[a]):
             return
         lo[a] = wp.max(int(l), 0)

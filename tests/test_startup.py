@@ -117,6 +117,24 @@ def test_exit_freezes_the_live_objects_after_the_programs_own_exit_handlers():
     assert counts["before"] > 10_000  # Warp's and warpmesh's objects are out of the exit's collections
 
 
+def test_garbage_cycles_are_still_finalised_at_exit(tmp_path):
+    """A reference cycle that is garbage at exit still has its ``__del__`` run and its
+    temporary file removed (the freeze came first and kept them for good)."""
+    code = ("import sys, tempfile, warpmesh as wm\n"
+            "m = wm.mesh_surface(wm.sphere(1), bounds=((-1.2,)*3, (1.2,)*3), resolution=8)\n"
+            "class Cycle:\n"
+            "    def __init__(self, path):\n        self.me, self.path = self, path\n"
+            "    def __del__(self):\n        open(self.path, 'w').write('finalised')\n"
+            "Cycle(sys.argv[1])\n"
+            "t = tempfile.NamedTemporaryFile(dir=sys.argv[2], delete=True)\nt.me = t\ndel t\n")
+    (tmp_path / "tmp").mkdir()
+    run = subprocess.run([sys.executable, "-c", code, str(tmp_path / "del.txt"), str(tmp_path / "tmp")],
+                         capture_output=True, encoding="utf-8", timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert (tmp_path / "del.txt").read_text() == "finalised"
+    assert list((tmp_path / "tmp").iterdir()) == []
+
+
 def test_the_exit_freeze_can_be_unregistered():
     counts = _exit_counts("from warpmesh.kernels.startup import freeze_at_exit\natexit.unregister(freeze_at_exit)\n")
     assert counts == {"after": 0, "before": 0}

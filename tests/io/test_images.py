@@ -352,6 +352,31 @@ def test_a_file_that_is_not_vtk_is_refused_quietly(tmp_path, name, capfd):
     assert capfd.readouterr().err == ""
 
 
+def test_a_failed_vtk_read_leaves_the_logging_alone(tmp_path):
+    """pyvista logs VTK's errors on the root logger, whose ``basicConfig`` then gave an
+    application without handlers a stderr handler for good (in a fresh process: pytest's
+    own handlers would hide it)."""
+    import subprocess
+
+    path = tmp_path / "cut.vti"
+    path.write_bytes(b'<?xml version="1.0"?>\n<VTKFile type="ImageData" version="1.0">\n<ImageData WholeExtent=')
+    code = ("import logging, sys, warpmesh as wm\nfrom warpmesh.errors import ReadError\n"
+            "try:\n    wm.load_volume(sys.argv[1])\nexcept ReadError as exc:\n    print('refused:', exc)\n"
+            "root = logging.getLogger()\nprint('handlers', len(root.handlers), 'filters', len(root.filters))")
+    run = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, encoding="utf-8", timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "refused:" in run.stdout and "Error parsing XML" in run.stdout
+    assert run.stdout.strip().endswith("handlers 0 filters 0") and run.stderr == ""
+
+
+def test_a_vti_after_a_byte_order_mark_reads(tmp_path):
+    img = pv.ImageData(dimensions=(3, 4, 5))
+    img.point_data["v"] = np.arange(60, dtype=np.float32)
+    img.save(tmp_path / "plain.vti")
+    (tmp_path / "bom.vti").write_bytes(b"\xef\xbb\xbf" + (tmp_path / "plain.vti").read_bytes())
+    assert np.array_equal(wm.load_volume(tmp_path / "bom.vti").values, wm.load_volume(tmp_path / "plain.vti").values)
+
+
 def test_a_mesh_file_is_not_an_image(tmp_path):
     pv.Sphere().save(tmp_path / "ball.vtk")
     with pytest.raises(ValueError, match="expected an image.*PolyData.*warpmesh.load"):

@@ -410,6 +410,27 @@ def test_spacing_and_origin_float64_cannot_place_are_refused():
     assert len(np.unique(m.points, axis=0)) == len(m.points)
 
 
+def _speck_cube():
+    """A 2^3 speck of label 2 in a 16^3 block of label 1 (the graded pass's speck sizes)."""
+    vol = np.ones((16, 16, 16), np.uint8)
+    vol[7:9, 7:9, 7:9] = 2
+    return vol
+
+
+@pytest.mark.parametrize("make, size", [(_speck_cube, None), (lambda: _balls(23, (9.0, 4.0)), 3.0)])
+@pytest.mark.parametrize("spacing", [1.0 - 1e-9, 2.0 / 3.0, 3.443432823179439, 2.650503896254843])
+def test_graded_and_speck_passes_do_not_depend_on_the_unit_either(make, size, spacing):
+    """The speck's asked size (2^floor(log2 of a ratio that is exactly a power of two: 2 - 4e-16
+    at some spacings) and the choice between the graded and the uniform mesh (their worst
+    errors equal but for rounding) followed the rounding as well."""
+    vol = make()
+    unit = wm.mesh_domain(vol, labels="all", size=size)
+    m = wm.mesh_domain(wm.Volume(vol, spacing=spacing), labels="all", size=None if size is None else size * spacing)
+    assert m.info["graded"] == unit.info["graded"]
+    assert len(m.cells["tetra"]) == len(unit.cells["tetra"])
+    np.testing.assert_allclose(m.points / spacing, unit.points, rtol=0, atol=1e-9)
+
+
 @pytest.mark.parametrize("spacing", [1.0 + 1e-9, 1.0 - 1e-9, 0.7, 0.488281, 2.0 / 3.0])
 def test_the_mesh_does_not_depend_on_the_unit_of_the_spacing(spacing):
     """At the default size (4 voxels) the lattice's nodes lie on the voxels' faces, and their

@@ -117,6 +117,9 @@ def test_stats_report_each_labels_boundary():
              if not f["oriented"]}
     assert wrong == {lower: (True, False), upper: (True, False)}
     assert "label_boundaries" not in label_boundary(m, lower).stats()  # one label's surface is a plain one
+    empty = wm.Mesh(np.zeros((0, 3)), {"triangle": np.zeros((0, 3), np.int64)}, cell_refs={"triangle": np.zeros(0, int)},
+                    cell_data={LABEL_ABOVE: {"triangle": np.zeros(0, int)}})
+    assert empty.stats()["label_boundaries"] == {}
 
 
 def _same_points(a, b):

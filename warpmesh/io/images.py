@@ -59,7 +59,7 @@ import os
 import threading
 import warnings
 from collections.abc import Callable, Mapping
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -321,7 +321,7 @@ def _read_npz(path: Path, name: str | None) -> Volume:
 
 
 # -- VTK images (pyvista) ----------------------------------------------------------------------
-class _ThisThread(logging.Filter):
+class _KeepLogged(logging.Filter):
     """Keeps the messages logged from one thread in ``messages`` instead of passing them on."""
 
     def __init__(self) -> None:
@@ -336,17 +336,31 @@ class _ThisThread(logging.Filter):
         return False
 
 
+#: one quiet VTK read at a time: VTK's verbosity and the root logger's filters and handlers are
+#: process-wide, and overlapping reads would leave them changed
+_QUIET_READ = threading.Lock()
+
+
 @contextmanager
-def _quiet_root_log():
-    """The root logger keeps what this thread logs meanwhile (yielded: a list of messages):
-    pyvista logs each VTK read error there, a page for a file cut short."""
-    keep = _ThisThread()
-    root = logging.getLogger()
-    root.addFilter(keep)
-    try:
-        yield keep.messages
-    finally:
-        root.removeFilter(keep)
+def _quiet_vtk_read(pv):
+    """VTK reads quietly meanwhile (yielded: the messages pyvista logged from this thread).
+
+    pyvista logs each VTK read error on the root logger (a page for a file cut short), which
+    also gives a root logger without handlers a stderr handler (``logging.basicConfig``) that
+    then prints the application's own warnings; the messages are kept here instead, the
+    handlers the read added removed, and VTK's own log turned off (where pyvista can)."""
+    verbosity = getattr(pv, "vtk_verbosity", None)  # (pyvista >= 0.45)
+    with _QUIET_READ, (verbosity("off") if verbosity is not None else nullcontext()):
+        keep = _KeepLogged()
+        root = logging.getLogger()
+        handlers = list(root.handlers)
+        root.addFilter(keep)
+        try:
+            yield keep.messages
+        finally:
+            root.removeFilter(keep)
+            for handler in [h for h in root.handlers if h not in handlers]:
+                root.removeHandler(handler)
 
 
 #: how a VTK file starts: XML (``.vti``, after an optional declaration) or the legacy header (``.vtk``)
@@ -361,13 +375,13 @@ def _read_vtk(path: Path, name: str | None) -> Volume:
             head = f.read(512)
     except OSError as exc:
         raise ReadError(f"could not read {str(path)!r} as a VTK image: {exc}") from None
-    body = head.lstrip()
+    body = head.lstrip().removeprefix(b"\xef\xbb\xbf").lstrip()  # (a UTF-8 byte order mark, which VTK reads past)
     if body.startswith(b"<?xml"):
         body = body[body.find(b"?>") + 2:].lstrip() if b"?>" in body else b""
     if not body.startswith(_VTK_STARTS):  # VTK's reader would print a page of errors before failing
         raise ReadError(f"could not read {str(path)!r} as a VTK image: it does not start as a VTK file "
                         f"(an XML '<VTKFile' or a legacy '# vtk DataFile' header)")
-    with warnings.catch_warnings(record=True) as caught, pv.vtk_verbosity("off"), _quiet_root_log() as logged:
+    with _quiet_vtk_read(pv) as logged, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")  # pyvista turns VTK's read errors into warnings (and root-log lines)
         obj = pv.read(path)
     if caught and (obj is None or obj.n_points == 0):

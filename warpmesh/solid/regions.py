@@ -352,7 +352,8 @@ def _mesh_regions(image, codes, ids, rest, spacing, h, snap, smallest, timings, 
             timings.update(more)
             meshed = _region_volumes(points, tets, tet_codes, len(ids))
             worst = (np.max(np.abs(error[focus])), np.max(np.abs(meshed / np.maximum(counts * voxel, 1e-300) - 1.0)[focus]))
-            if refined and worst[1] > worst[0]:  # the graded pass did worse (layers about as thin as min_size)
+            # the graded pass did worse (layers about as thin as min_size); a tie in rounding is not worse
+            if refined and worst[1] > worst[0] + 1e-9:
                 del graded, points, tets, tet_codes, tris, lower, upper
                 points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, snap, more)
                 info.update(graded=False, min_size=smallest, graded_rejected={
@@ -478,7 +479,7 @@ def _specks(codes: np.ndarray, focus: np.ndarray, spacing: np.ndarray, h: float,
     # SPECK_SIZE voxels for the thinnest (a lone voxel), doubling with the thickness (a few levels)
     floor = SPECK_SIZE * float(spacing.min())
     ratio = np.maximum(SPECK_THICKNESS * thickness / floor, 1.0)
-    size = np.minimum(floor * 2.0 ** np.floor(np.log2(ratio)), max(floor, 0.5 * h))
+    size = np.minimum(floor * 2.0 ** np.floor(np.log2(ratio) + 1e-9), max(floor, 0.5 * h))  # (2 - 4e-16 is 2)
     targets = np.full(len(volumes), np.nan)
     targets[whole] = volumes[whole]
     return Specks(voxels, size, codes.shape, spacing, h), targets if whole else None

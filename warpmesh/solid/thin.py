@@ -297,8 +297,8 @@ class Specks:
                          [cpu_view(out, wp.float64)])
             return out
         p = nodes[tets] / self.spacing  # voxel units: voxel i covers [i - 1/2, i + 1/2)
-        lo = np.floor(p.min(axis=1) + 0.5).astype(np.int64)
-        hi = np.floor(p.max(axis=1) + 0.5).astype(np.int64)
+        lo = np.floor(p.min(axis=1) + 0.5 + K.VOXEL_TIE).astype(np.int64)  # (labels_at's voxels)
+        hi = np.floor(p.max(axis=1) + 0.5 + K.VOXEL_TIE).astype(np.int64)
         inside = np.all((hi >= 0) & (lo < self.shape), axis=1)
         lo, hi = np.maximum(lo, 0), np.minimum(hi, self.shape - 1)
         centre = (lo + hi) >> 1
@@ -382,7 +382,7 @@ def _meshed_cells(codes: np.ndarray, rest: int, spacing: np.ndarray, dims: np.nd
     """(dims) bool: the cubes [origin + h c, origin + h (c + 1)) holding a meshed voxel's centre."""
     m = codes != rest
     for a in range(3):
-        cell = np.floor((np.arange(codes.shape[a]) * spacing[a] - origin[a]) / h).astype(np.int64)
+        cell = np.floor((np.arange(codes.shape[a]) * spacing[a] - origin[a]) / h + K.VOXEL_TIE).astype(np.int64)
         starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])
         red = np.logical_or.reduceat(m, starts, axis=a)
         shape = list(red.shape)

@@ -532,6 +532,8 @@ def label_figures(mesh) -> dict[int, dict]:
     """
     refs, above = shared_labels(mesh)
     tris, points = np.asarray(mesh.cells["triangle"], np.int64), mesh.points
+    if not len(tris):
+        return {}
     labels, code = np.unique(np.concatenate([refs, above]), return_inverse=True)
     m = len(tris)
     xor = np.zeros(m, np.uint64)
