@@ -52,7 +52,7 @@ def lattice_for(bounds: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """(dims, origin) of a lattice of cube side h covering bounds with one cube to spare on
     every side (its outer nodes lie outside the box, so the mesh closes on it)."""
     lo, hi = bounds
-    n = np.maximum(np.ceil((hi - lo) / h - 1e-9), 1).astype(np.int64)  # 40 / (40 / 4) rounded up is 4, not 5
+    n = np.maximum(np.ceil((hi - lo) / h - 1e-9), 1).astype(np.int64)  # 10.000000000000002 cubes are 10, not 11
     origin = lo - h - 0.5 * (n * h - (hi - lo))  # centred
     return n + 3, origin
 
