@@ -534,7 +534,6 @@ def label_figures(mesh) -> dict[int, dict]:
     tris, points = np.asarray(mesh.cells["triangle"], np.int64), mesh.points
     if not len(tris):
         return {}
-    labels, code = np.unique(np.concatenate([refs, above]), return_inverse=True)
     m = len(tris)
     xor = np.zeros(m, np.uint64)
     turn = np.zeros(m, np.uint64)
@@ -546,17 +545,20 @@ def label_figures(mesh) -> dict[int, dict]:
     centre = 0.5 * (points.min(axis=0) + points.max(axis=0)) if len(points) else np.zeros(3)
     p0, p1, p2 = (points[tris[:, k]] - centre for k in range(3))  # (about the box's centre: no cancellation)
     volume = np.einsum("ij,ij->i", p0, np.cross(p1, p2)) / 6.0
-    # each face twice: as its lower label's (as it is) and its upper label's (turned: negated)
-    order = np.argsort(code.astype(np.uint16) if len(labels) <= 1 << 16 else code, kind="stable")  # (radix sort)
-    starts = np.flatnonzero(np.r_[True, np.diff(code[order]) != 0])
+    # each face twice: as its lower label's (as it is) and its upper label's (turned: negated),
+    # grouped by label with one sort
+    both = np.concatenate([refs, above])
+    order = np.argsort(both, kind="stable")
+    grouped = both[order]
+    starts = np.flatnonzero(np.r_[True, grouped[1:] != grouped[:-1]])
     face = order % m
     seen_from_upper = order >= m
     xors = np.bitwise_xor.reduceat(xor[face], starts)
     turns = np.add.reduceat(np.where(seen_from_upper, np.uint64(0) - turn[face], turn[face]), starts)
     volumes = np.add.reduceat(np.where(seen_from_upper, -volume[face], volume[face]), starts)
     counts = np.diff(np.r_[starts, len(order)])
-    return {int(labels[code[order[s]]]): {"triangles": int(c), "closed": bool(x == 0), "oriented": bool(t == 0),
-                                          "volume": float(vol)}
+    return {int(grouped[s]): {"triangles": int(c), "closed": bool(x == 0), "oriented": bool(t == 0),
+                              "volume": float(vol)}
             for s, c, x, t, vol in zip(starts, counts, xors, turns, volumes)}
 
 
