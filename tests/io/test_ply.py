@@ -259,3 +259,18 @@ def test_writer_refuses_what_ply_cannot_hold(tmp_path):
     with pytest.warns(UserWarning, match="'v'"):
         back = wm.load(m.save(tmp_path / "b.ply"))
     assert set(back.point_data) == {"s"}
+
+
+def test_meshio_reads_the_labels_of_an_ascii_file(tmp_path):
+    """The workaround the module names for meshio, whose binary reader does not take face
+    properties: an ascii file gives meshio the same triangles and both label arrays."""
+    vol = np.zeros((8, 8, 8), dtype=np.uint8)
+    vol[1:7, 1:7, 1:4] = 1
+    vol[1:7, 1:7, 4:7] = 3
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    back = meshio.read(write_ply(tmp_path / "labels.ply", m.to_meshio(), binary=False))
+    assert [c.type for c in back.cells] == ["triangle"]
+    np.testing.assert_array_equal(back.cells[0].data, m.triangles)
+    np.testing.assert_allclose(back.points, m.points)
+    np.testing.assert_array_equal(back.cell_data["ref"][0], m.cell_refs["triangle"])
+    np.testing.assert_array_equal(back.cell_data["label_above"][0], m.cell_data["label_above"]["triangle"])

@@ -29,7 +29,8 @@ ext     format   cells                          besides points (precision) and c
 .ply    ply      triangle quad                  point and cell refs (``ref``), point and
                                                 cell data of one value each, as vertex
                                                 and face properties (binary;
-                                                :mod:`warpmesh.io.ply`)
+                                                :mod:`warpmesh.io.ply`; meshio
+                                                reads them from ascii files only)
 .obj    obj      triangle quad                  nothing else (17 digits)
 .stl    stl      triangle                       nothing else (binary float32;
                                                 points are merged and renumbered)

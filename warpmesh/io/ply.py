@@ -24,6 +24,14 @@ What is written
     are written as the smallest PLY type that holds their values (int64 data past 32 bits
     are refused: PLY has no 64-bit integers); booleans as ``uchar``.
 
+Other readers
+    trimesh reads every property; VTK (pyvista) reads the geometry and drops the face
+    properties. meshio (5.3) reads the face properties of an ascii file only: its binary
+    reader takes a face element with scalar properties as one list block followed by one
+    value per property (not the interleaved rows of the PLY format) and fails. For meshio,
+    write ``binary=False`` (``write_ply(path, mesh.to_meshio(), binary=False)``) or save
+    ``.vtu`` / ``.msh``, which keep the same arrays.
+
 Binary faces are read one run of equal vertex counts at a time (the rows of a run are a
 fixed-size record), so an all-triangle or all-quad file is one vectorised read; a file
 alternating triangles and quads costs one step per run.
