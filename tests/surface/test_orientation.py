@@ -202,7 +202,7 @@ def test_hollow_sphere_from_the_mesher_is_restored():
     mask = np.random.default_rng(4).random(len(mesh.triangles)) < 0.5
     out = orient(mesh.replace(cells={"triangle": _flip(mesh.triangles, mask)}))
     np.testing.assert_array_equal(out.triangles, mesh.triangles)
-    assert out.info["orientation"]["inward"] == 1
+    assert out.info["orient"]["inward"] == 1
 
 
 # ----------------------------------------------------------------------------- open surfaces
@@ -263,9 +263,11 @@ def test_mesh_keeps_rows_refs_data_and_other_blocks():
     np.testing.assert_array_equal(out.cell_data["q"]["triangle"], mesh.cell_data["q"]["triangle"])
     np.testing.assert_array_equal(out.cells["line"], mesh.cells["line"])
     assert out.info["source"] == "test" and "orientation" not in mesh.info
-    assert out.info["orientation"]["flipped"] == mask.sum()
+    assert out.info["orient"]["flipped"] == mask.sum()
+    assert out.info["orientation"] == f"outward (closed components; cavity walls inward, open ones by majority): " \
+        f"{mask.sum()} of {len(faces)} faces flipped"
     s = out.stats()
-    assert s["oriented"] and s["volume"] > 0 and s["orientation"]["closed"] == 1
+    assert s["oriented"] and s["volume"] > 0 and s["orient"]["closed"] == 1 and isinstance(s["orientation"], str)
 
 
 # ----------------------------------------------------------------------------- topology errors

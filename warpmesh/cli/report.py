@@ -44,7 +44,7 @@ def progress_bars() -> bool:
 _WIDTH = 32  # "boundary Euler characteristic" and its value
 #: stats keys said twice (another key holds the same figure) or stale after a later stage
 _HIDDEN = {"ne", "n_cells", "n_triangles", "n_tetra", "q_mean", "q_worst", "vertices", "triangles", "edges",
-           "signed_volume", "enclosed_volume", "written", "time", "optimize", "label_boundaries"}
+           "signed_volume", "enclosed_volume", "written", "time", "optimize", "label_boundaries", "orient"}
 #: the whole-surface figures a shared multi-material surface does not have (its interfaces
 #: meet at junction edges): said with a pointer to the per-label line
 _WHOLE = {"watertight", "manifold", "oriented"}

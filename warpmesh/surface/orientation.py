@@ -37,8 +37,8 @@ False
 >>> good = orient(bad)
 >>> good.stats()["oriented"], good.stats()["volume"] > 0, bool((good.triangles == tm.faces).all())
 (True, True, True)
->>> good.info["orientation"]["flipped"]
-27
+>>> good.info["orient"]["flipped"], good.info["orientation"]
+(27, 'outward (closed components; cavity walls inward, open ones by majority): 27 of 80 faces flipped')
 """
 
 from __future__ import annotations
@@ -320,8 +320,9 @@ def orient(mesh: Mesh, *, outward: bool = True) -> Mesh:
     -------
     Mesh
         A new mesh: triangle rows in the same order (refs and cell data still match), only
-        the vertex order within rows changed; ``info["orientation"]`` holds the report of
-        :func:`orient_faces`. The input mesh is untouched.
+        the vertex order within rows changed; ``info["orient"]`` holds the report of
+        :func:`orient_faces` and ``info["orientation"]`` says the rule applied in words (a
+        string, as the meshers' ``info["orientation"]`` is). The input mesh is untouched.
 
     Raises
     ------
@@ -337,7 +338,7 @@ def orient(mesh: Mesh, *, outward: bool = True) -> Mesh:
     >>> import warpmesh as wm
     >>> strip = wm.Mesh([[0, 0], [1, 0], [0, 1], [1, 1]], {"triangle": [[0, 1, 2], [1, 2, 3]]})
     >>> out = orient(strip)
-    >>> out.triangles.tolist(), out.info["orientation"]["open"]
+    >>> out.triangles.tolist(), out.info["orient"]["open"]
     ([[0, 1, 2], [1, 3, 2]], 1)
     """
     if not isinstance(mesh, Mesh):
@@ -353,6 +354,9 @@ def orient(mesh: Mesh, *, outward: bool = True) -> Mesh:
     if len(mesh.triangles) == 0:
         raise ValueError("expected at least one triangle in 'mesh', got an empty 'triangle' block")
     faces, report = orient_faces(mesh.points, mesh.triangles, outward=outward)
+    rule = ("outward (closed components; cavity walls inward, open ones by majority)" if outward
+            else "by majority in each component")
+    words = f"{rule}: {report['flipped']} of {len(faces)} faces flipped"
     return mesh.replace(
-        cells={**mesh.cells, "triangle": faces}, info={**mesh.info, "orientation": report}
+        cells={**mesh.cells, "triangle": faces}, info={**mesh.info, "orientation": words, "orient": report}
     )
