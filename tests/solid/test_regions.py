@@ -47,6 +47,9 @@ def check_regions(m: wm.Mesh, rest: int) -> dict:
     vols = signed_volumes(pts, tets)
     assert len(tets) and np.all(vols > 0), f"{int((vols <= 0).sum())} tetrahedra not positive"
     assert np.all(lower < upper) and not np.any(lab == rest)
+    # the rest's id is below every label (multilabel.label_codes: 0 for "all", else one below the
+    # lowest label), so its boundary is the triangles whose lower side it is, checked below
+    assert rest < lab.min(), f"the rest's id {rest} is not below the labels ({int(lab.min())}...)"
     # every face of a tetrahedron: in one tet (the boundary with the rest) or two (interior or interface)
     faces = np.concatenate([tets[:, list(f)] for f in _FACES])
     owner = np.tile(np.arange(len(tets)), 4)
