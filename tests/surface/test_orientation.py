@@ -358,3 +358,19 @@ def test_million_faces():
     fixed, report = orient_faces(points, _flip(faces, mask))
     np.testing.assert_array_equal(fixed, faces)
     assert report["flipped"] == mask.sum() and len(faces) == 1_310_720
+
+
+@pytest.mark.parametrize("dim,outward,rule", [
+    (2, True, "counter-clockwise (each component's signed area positive)"),
+    (3, True, "outward (closed components; cavity walls inward, open ones by majority)"),
+    (2, False, "by majority in each component"),
+    (3, False, "by majority in each component"),
+])
+def test_orientation_info_says_the_rule_in_words(dim, outward, rule):
+    """``info["orientation"]`` is a sentence whatever made the mesh (the meshers write one too);
+    the counts are in ``info["orient"]``."""
+    points, faces = _grid(6)
+    mask = np.random.default_rng(3).random(len(faces)) < 0.2
+    out = orient(wm.Mesh(points[:, :dim], {"triangle": _flip(faces, mask)}), outward=outward)
+    assert out.info["orientation"] == f"{rule}: {out.info['orient']['flipped']} of {len(faces)} faces flipped"
+    assert out.info["orient"]["flipped"] == mask.sum()

@@ -354,8 +354,12 @@ def orient(mesh: Mesh, *, outward: bool = True) -> Mesh:
     if len(mesh.triangles) == 0:
         raise ValueError("expected at least one triangle in 'mesh', got an empty 'triangle' block")
     faces, report = orient_faces(mesh.points, mesh.triangles, outward=outward)
-    rule = ("outward (closed components; cavity walls inward, open ones by majority)" if outward
-            else "by majority in each component")
+    if not outward:
+        rule = "by majority in each component"
+    elif mesh.dim == 2:
+        rule = "counter-clockwise (each component's signed area positive)"
+    else:
+        rule = "outward (closed components; cavity walls inward, open ones by majority)"
     words = f"{rule}: {report['flipped']} of {len(faces)} faces flipped"
     return mesh.replace(
         cells={**mesh.cells, "triangle": faces}, info={**mesh.info, "orientation": words, "orient": report}
