@@ -30,7 +30,8 @@ ext     format   cells                          besides points (precision) and c
                                                 cell data of one value each, as vertex
                                                 and face properties (binary;
                                                 :mod:`warpmesh.io.ply`; meshio
-                                                reads them from ascii files only)
+                                                cannot read these binary face
+                                                properties: use .vtu for it)
 .obj    obj      triangle quad                  nothing else (17 digits)
 .stl    stl      triangle                       nothing else (binary float32;
                                                 points are merged and renumbered)
