@@ -477,6 +477,40 @@ def test_save_warns_about_what_the_format_drops(surface, tmp_path):
         surface.save(tmp_path / "sphere.stl")
 
 
+def _is_ascii(data: bytes) -> bool:
+    return all(0 < c < 128 for c in data)
+
+
+@pytest.mark.parametrize("ext", [".vtk", ".ply", ".stl"])
+def test_save_binary_false_writes_ascii_that_reads_back_the_same(surface, tmp_path, ext):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # stl drops the refs and data
+        text = load(surface.save(tmp_path / f"text{ext}", binary=False))
+        raw = load(surface.save(tmp_path / f"raw{ext}"))
+        assert load(surface.save(tmp_path / f"raw2{ext}", binary=True)).n_cells == raw.n_cells
+    assert _is_ascii((tmp_path / f"text{ext}").read_bytes())
+    assert not _is_ascii((tmp_path / f"raw{ext}").read_bytes())  # the default stays binary
+    assert (tmp_path / f"raw{ext}").read_bytes() == (tmp_path / f"raw2{ext}").read_bytes()
+    np.testing.assert_array_equal(text.triangles, raw.triangles)
+    np.testing.assert_allclose(text.points, raw.points, rtol=1e-6, atol=1e-12)
+    assert (text.cell_refs is None) == (raw.cell_refs is None)
+    if raw.cell_refs is not None:
+        np.testing.assert_array_equal(text.cell_refs["triangle"], raw.cell_refs["triangle"])
+
+
+def test_save_binary_is_refused_where_the_format_has_one_encoding(surface, tmp_path):
+    for ext, name in ((".vtu", "vtu"), (".mesh", "medit"), (".obj", "obj")):
+        with pytest.raises(ValueError, match=rf"expected binary=None for a {name} file \(written in one encoding\); "
+                                             r"'binary' chooses between binary and ascii for vtk, ply, stl"):
+            surface.save(tmp_path / f"s{ext}", binary=False)
+    with pytest.raises(ValueError, match=r"expected binary=None for a gmsh file \(meshio's ascii gmsh writer puts "
+                                         r"numpy 2's repr"):
+        surface.save(tmp_path / "s.msh", binary=False)
+    with pytest.raises(TypeError, match="expected True, False or None for 'binary', got str"):
+        surface.save(tmp_path / "s.ply", binary="no")
+    assert not list(tmp_path.iterdir())
+
+
 def test_gmsh_drops_cell_data_of_several_blocks(cube, tmp_path):
     m = cube.replace(cell_data={"q": {t: np.ones(len(c)) for t, c in cube.cells.items()}})
     with pytest.warns(UserWarning, match=r"gmsh files cannot store \['q'\]"):

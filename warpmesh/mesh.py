@@ -864,10 +864,11 @@ class Mesh:
         return mesh_mimebundle(self).get("text/html")
 
     # ---------------------------------------------------------------- files
-    def save(self, path, *, file_format: FileFormat | None = None) -> Path:
+    def save(self, path, *, file_format: FileFormat | None = None, binary: bool | None = None) -> Path:
         """Write the mesh through meshio, atomically, and return ``path``.
 
-        See :func:`warpmesh.io.files.save` for the parameters and what each format keeps.
+        See :func:`warpmesh.io.files.save` for the parameters (``binary=False``: ascii for
+        vtk, ply and stl) and what each format keeps.
 
         Examples
         --------
@@ -879,7 +880,7 @@ class Mesh:
         """
         from warpmesh.io import files as _io
 
-        return _io.save_mesh(self, path, file_format, stacklevel=2)
+        return _io.save_mesh(self, path, file_format, stacklevel=2, binary=binary)
 
     @classmethod
     def load(

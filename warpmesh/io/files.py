@@ -30,8 +30,8 @@ ext     format   cells                          besides points (precision) and c
                                                 cell data of one value each, as vertex
                                                 and face properties (binary;
                                                 :mod:`warpmesh.io.ply`; meshio
-                                                cannot read these binary face
-                                                properties: use .vtu for it)
+                                                reads face properties from ascii
+                                                only: ``binary=False``)
 .obj    obj      triangle quad                  nothing else (17 digits)
 .stl    stl      triangle                       nothing else (binary float32;
                                                 points are merged and renumbered)
@@ -408,10 +408,16 @@ def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
     return meshio.Mesh(points, cells, point_data=pd, cell_data=cd)
 
 
-def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) -> Path:
+#: the formats written binary by default whose ascii encoding :func:`save` offers (``binary=False``)
+_TWO_ENCODINGS = ("vtk", "ply", "stl")
+
+
+def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int, binary: bool | None = None) -> Path:
     """:func:`save` with the stack level of its warnings (``Mesh.save`` passes its caller's)."""
     if not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"expected a str or os.PathLike 'path', got {type(path).__name__}")
+    if binary is not None and not isinstance(binary, (bool, np.bool_)):
+        raise TypeError(f"expected True, False or None for 'binary', got {type(binary).__name__}")
     path = Path(path)
     if not path.parent.is_dir():  # (else the error names the temporary file)
         raise FileNotFoundError(errno.ENOENT, f"no folder {str(path.parent)!r} to save {path.name!r} in",
@@ -420,6 +426,14 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         raise IsADirectoryError(errno.EISDIR, f"expected a file path to save to, got the folder {str(path)!r}",
                                 str(path))
     fmt = _find_format(path, file_format)
+    kwargs = dict(fmt.write_kwargs)
+    if binary is not None:
+        if fmt.name not in _TWO_ENCODINGS:
+            why = (" (meshio's ascii gmsh writer puts numpy 2's repr, 'np.float64(0.0)', in its data sections: "
+                   "no reader takes them)" if fmt.name == "gmsh" else " (written in one encoding)")
+            raise ValueError(f"expected binary=None for a {fmt.name} file{why}; 'binary' chooses between binary "
+                             f"and ascii for {', '.join(_TWO_ENCODINGS)}")
+        kwargs["binary"] = bool(binary)
     if mesh.n_points == 0 or mesh.n_cells == 0:
         raise ValueError(f"expected a mesh with points and cells to save to {str(path)!r}, got an empty "
                          f"mesh ({mesh.n_points} points, {mesh.n_cells} cells): mesh files cannot hold it")
@@ -430,16 +444,18 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int) ->
         _write_in_folder(data, mesh, dest, fmt)
         return path
     with atomic_path(dest) as tmp:
-        _write(fmt, tmp, data, mesh)
+        _write(fmt, tmp, data, mesh, kwargs)
     return path
 
 
-def _write(fmt: _Format, path: Path, data: meshio.Mesh, mesh: MeshLike) -> None:
-    """The format's own writer, else meshio's."""
+def _write(fmt: _Format, path: Path, data: meshio.Mesh, mesh: MeshLike, kwargs: Mapping | None = None) -> None:
+    """The format's own writer, else meshio's (``kwargs``: the writer's keywords, default
+    the format's)."""
+    kwargs = fmt.write_kwargs if kwargs is None else kwargs
     if fmt.write is not None:
-        fmt.write(path, data, mesh, **fmt.write_kwargs)
+        fmt.write(path, data, mesh, **kwargs)
     else:
-        _meshio_write(path, data, fmt.meshio_name, **fmt.write_kwargs)
+        _meshio_write(path, data, fmt.meshio_name, **kwargs)
 
 
 def _write_in_folder(data: meshio.Mesh, mesh: MeshLike, path: Path, fmt: _Format) -> None:
@@ -450,7 +466,7 @@ def _write_in_folder(data: meshio.Mesh, mesh: MeshLike, path: Path, fmt: _Format
         _write(fmt, tmp / path.name, data, mesh)
 
 
-def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path:
+def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None, binary: bool | None = None) -> Path:
     """Write ``mesh`` through meshio, atomically (also :meth:`Mesh.save <warpmesh.mesh.Mesh.save>`).
 
     The file is written to a temporary name in the same directory and renamed over
@@ -464,6 +480,11 @@ def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path
     path : str or os.PathLike
     file_format : {'vtu', 'pvtu', 'vtk', 'gmsh', 'medit', 'ply', 'obj', 'stl'}, optional
         Default: from the extension (:data:`FILE_FORMATS`).
+    binary : bool, optional
+        For vtk, ply and stl, written binary by default: False writes ascii instead (e.g. a
+        ``.ply`` with face properties for meshio, whose binary PLY reader cannot read them).
+        None: the format's default. (gmsh stays binary: meshio's ascii gmsh writer puts
+        numpy 2 scalar reprs in its data sections.)
 
     Returns
     -------
@@ -473,7 +494,10 @@ def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path
     Raises
     ------
     ValueError
-        Unknown extension or format, or cell types the format cannot store.
+        Unknown extension or format, cell types the format cannot store, or ``binary``
+        given for another format than vtk, ply and stl.
+    TypeError
+        ``binary`` not a bool or None.
 
     Examples
     --------
@@ -484,7 +508,7 @@ def save(mesh: MeshLike, path, *, file_format: FileFormat | None = None) -> Path
     ...     load(save(m, os.path.join(d, "t.vtu")), mesh_type=Mesh, dim=2).n_cells
     1
     """
-    return save_mesh(mesh, path, file_format, stacklevel=2)
+    return save_mesh(mesh, path, file_format, stacklevel=2, binary=binary)
 
 
 def load(path, *, mesh_type: type[MeshLike], file_format: FileFormat | None = None,

@@ -30,11 +30,9 @@ Other readers
     properties. meshio (5.3) reads the face properties of an ascii file only: its binary
     reader takes a face element with scalar properties as one list block followed by one
     value per property (not the interleaved rows of the PLY format) and fails, so it
-    cannot read a ``.ply`` that ``Mesh.save`` wrote with refs or cell data. For meshio,
-    save ``.vtu`` (refs as ``medit:ref``, every cell-data array), or write ascii with
-    ``write_ply(path, mesh.to_meshio(), binary=False)``: that takes 1-D point and cell data
-    only (it refuses what ``Mesh.save`` would drop with a warning) and does not write
-    through a temporary file.
+    cannot read a binary ``.ply`` with refs or cell data. For meshio, save ascii
+    (``mesh.save(path, binary=False)``) or ``.vtu`` (refs as ``medit:ref``, every
+    cell-data array).
 
 Binary faces are read one run of equal vertex counts at a time (the rows of a run are a
 fixed-size record), so an all-triangle or all-quad file is one vectorised read; a file
