@@ -206,3 +206,39 @@ def test_touching_labels_crossings_point_to_shared_interfaces(tmp_path, capsys):
         line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("self-intersections"))
         assert ("--interfaces shared meshes each interface once" in line) == hint, line
         assert line.split()[1] != "0" if hint else line.split()[1] == "0"
+
+
+def test_ascii_writes_a_labelled_ply_that_meshio_reads(tmp_path, capsys):
+    """``--ascii`` for meshio, whose binary PLY reader cannot read face properties: the same
+    triangles and labels as the binary file, read by meshio."""
+    import meshio
+
+    vol = np.zeros((8, 8, 8), np.uint8)
+    vol[1:7, 1:7, 1:4] = 1
+    vol[1:7, 1:7, 4:7] = 2
+    np.save(tmp_path / "labels.npy", vol)
+    for name, extra in (("text.ply", ["--ascii"]), ("raw.ply", [])):
+        assert main(["mesh", "--volume", str(tmp_path / "labels.npy"), "--labels", "all", "--interfaces", "shared",
+                     "-o", str(tmp_path / name), *extra]) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    assert (tmp_path / "text.ply").read_bytes().startswith(b"ply\nformat ascii 1.0\n")
+    assert (tmp_path / "raw.ply").read_bytes().startswith(b"ply\nformat binary_little_endian 1.0\n")
+    text, raw = meshio.read(tmp_path / "text.ply"), wm.load(tmp_path / "raw.ply")
+    np.testing.assert_array_equal(text.cells[0].data, raw.triangles)
+    np.testing.assert_array_equal(text.cell_data["label_above"][0], raw.cell_data["label_above"]["triangle"])
+
+
+def test_ascii_for_a_format_of_one_encoding_is_refused_before_any_work(tmp_path, capsys, no_meshing):
+    for argv in (["mesh", "--example", "part", "-o", str(tmp_path / "part.vtu"), "--ascii"],
+                 ["curve", "--example", "gear", "-o", str(tmp_path / "gear.mesh"), "--ascii"],
+                 ["domain", "--example", "part", "-o", str(tmp_path / "part.msh"), "--ascii"]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "--ascii applies to .vtk .ply .stl files" in err and argv[-2] in err, err
+    src = tmp_path / "in.vtk"
+    wm.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 2]]}).save(src)
+    assert main(["renumber", str(src), str(tmp_path / "out.obj"), "--ascii"]) == 2
+    assert "--ascii applies to" in capsys.readouterr().err
+    assert main(["renumber", str(src), str(tmp_path / "out.vtk"), "--ascii"]) == 0
+    assert (tmp_path / "out.vtk").read_bytes().splitlines()[2] == b"ASCII"
+    assert no_meshing == [] and sorted(p.name for p in tmp_path.iterdir()) == ["in.vtk", "out.vtk"]

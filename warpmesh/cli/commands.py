@@ -48,7 +48,7 @@ from warpmesh.cli.report import progress_bars
 
 def _parser() -> argparse.ArgumentParser:
     import warpmesh
-    from warpmesh.cli.output import extensions_text
+    from warpmesh.cli.output import add_ascii_argument, extensions_text
     from warpmesh.cli.sources import add_shape_arguments, add_volume_arguments
 
     p = argparse.ArgumentParser(prog="warpmesh", description="Meshes from implicit geometry.")
@@ -84,6 +84,7 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--no-cap", action="store_true", help="leave the surface open at the bounds")
     m.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
     m.add_argument("-o", "--output", help=f"mesh file to write ({extensions_text(('triangle',))})")
+    add_ascii_argument(m)
     m.add_argument("--root-iterations", type=int, help="iterations of bisection / Newton")
     m.add_argument("--evaluator", choices=["interpreter", "compiled"],
                    help="shapes: the tape interpreter (default, no compile) or a kernel generated for "
@@ -100,6 +101,7 @@ def _parser() -> argparse.ArgumentParser:
     r = sub.add_parser("renumber", help="renumber a mesh file's nodes and elements (bandwidth, profile)")
     r.add_argument("input", help=f"mesh file to read ({extensions_text(())})")
     r.add_argument("output", help=f"mesh file to write ({extensions_text(())})")
+    add_ascii_argument(r)
     r.add_argument("--method", choices=["gibbs", "rcm", "frontal", "frontal-diameter"], default="gibbs",
                    help="Gibbs-Poole-Stockmeyer (default), reverse Cuthill-McKee, or the frontal method "
                         "from a node of minimal degree or from the end of the pseudo-diameter ([FG §17.4])")
@@ -240,14 +242,14 @@ def _renumber(wm, args) -> int:
     from warpmesh.cli.report import mesh_figures
     from warpmesh.numbering.renumber import format_table
 
-    check_output(args.output, flag="output")  # before any work
+    check_output(args.output, flag="output", ascii=args.ascii)  # before any work
     mesh = read_mesh(args.input, "input")
     reverse = {"auto": "auto", "yes": True, "no": False}[args.reverse]
     out = mesh.renumber(args.method, reverse=reverse, higher_order=args.higher_order,
                         reduced=args.reduced, elements=not args.keep_elements)
     if args.color:
         out = out.color_elements(adjacency=args.color)
-    save_output(out, args.output, "output")
+    save_output(out, args.output, "output", ascii=args.ascii)
     keys = ["np", "ne", "bandwidth_before", "profile_before", "profile_mean_before", "bandwidth",
             "profile", "profile_mean", "profile_ratio", "nodes_per_second", "renumber_time",
             "graph_time"] + (["n_colors", "packet_sizes"] if args.color else [])
@@ -270,7 +272,7 @@ def _mesh(wm, args, clock) -> int:
     from warpmesh.cli.sources import parse_labels, shape_source, volume_source
 
     if args.output:
-        check_output(args.output, cells=("triangle",))  # before any work
+        check_output(args.output, cells=("triangle",), ascii=args.ascii)  # before any work
     _check_mesh_flags(args)
     common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
                   device=args.device, gradient=args.gradient, labels=parse_labels(args.labels),
@@ -314,7 +316,7 @@ def _mesh(wm, args, clock) -> int:
         mesh, distance = _improve(wm, args, mesh, bounds, target, clock)
     if args.output:
         with clock.stage("save"):
-            save_output(mesh, args.output)
+            save_output(mesh, args.output, ascii=args.ascii)
     with clock.stage("statistics"):
         stats = mesh.stats()
     if distance is not None:

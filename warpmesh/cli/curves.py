@@ -39,7 +39,7 @@ _VOLUME_ONLY = {"array": "--array", "spacing": "--spacing", "origin": "--origin"
 
 def add_parsers(sub) -> None:
     """Add the sub-commands to the ``warpmesh`` parser's sub-parsers."""
-    from warpmesh.cli.output import extensions_text
+    from warpmesh.cli.output import add_ascii_argument, extensions_text
     from warpmesh.cli.sources import add_shape_arguments, add_volume_arguments
     from warpmesh.planar.curves import CURVE_METHODS
 
@@ -74,6 +74,7 @@ def add_parsers(sub) -> None:
     d.add_argument("-o", "--output", help=f"mesh file to write (planar: {extensions_text(('triangle', 'line'))}; "
                                           f"3D: {extensions_text(('tetra', 'triangle'))})")
     for p in (c, d):
+        add_ascii_argument(p)
         p.add_argument("--json", action="store_true", help="print the whole statistics as JSON")
         p.add_argument("--device", default="cpu", help="Warp device (cpu, cuda)")
 
@@ -97,7 +98,7 @@ def run(wm, args, clock) -> int:
 
     if args.command == "curve":
         if args.output:
-            check_output(args.output, cells=("line",))
+            check_output(args.output, cells=("line",), ascii=args.ascii)
         with clock.stage("read input"):
             source = shape_source(args, dims=(2,))
         options = {} if args.resolution is None else {"resolution": args.resolution}
@@ -109,12 +110,13 @@ def run(wm, args, clock) -> int:
     else:
         _refuse(args, _VOLUME_ONLY, "a shape")
         if args.output:
-            check_output(args.output)  # extension and folder before any work; the cells once the bounds are known
+            check_output(args.output, ascii=args.ascii)  # extension and folder before any work; the cells once the bounds are known
         with clock.stage("read input"):
             source = shape_source(args, dims=(2, 3))
         solid = len(source.bounds[0]) == 3
         if args.output:  # the bounds say which cells the file must store
-            check_output(args.output, cells=("tetra", "triangle") if solid else ("triangle", "line"))
+            check_output(args.output, cells=("tetra", "triangle") if solid else ("triangle", "line"),
+                         ascii=args.ascii)
         if solid and (args.tolerance is not None or args.min_angle is not None):
             raise ValueError("--tolerance and --min-angle shape planar domains; 3D domains take --size and --smooth")
         if not solid and args.size == "curvature":
@@ -128,7 +130,7 @@ def run(wm, args, clock) -> int:
                                   smooth=args.smooth, device=args.device, **planar)
     if args.output:
         with clock.stage("save"):
-            save_output(mesh, args.output)
+            save_output(mesh, args.output, ascii=args.ascii)
     with clock.stage("statistics"):
         stats = mesh.stats()
     if args.output:
@@ -152,7 +154,7 @@ def _regions(wm, args, clock):
     from warpmesh.cli.sources import parse_labels, volume_source
 
     if args.output:
-        check_output(args.output, cells=("tetra", "triangle"))  # before any work
+        check_output(args.output, cells=("tetra", "triangle"), ascii=args.ascii)  # before any work
     _refuse(args, _SHAPE_ONLY, "--volume (a label image: --labels, --size, --snap, --min-size)")
     if args.size == "curvature":
         raise ValueError("--size curvature grades shapes; a --volume takes a number (world units)")

@@ -25,12 +25,13 @@ _SHOWN = ("np", "ne", "n_cells", "volume", "area", "worst_q", "mean_q")
 
 
 def _io(p: argparse.ArgumentParser, *inputs: str) -> None:
-    from warpmesh.cli.output import extensions_text
+    from warpmesh.cli.output import add_ascii_argument, extensions_text
 
     for name in inputs:
         p.add_argument(name, help=f"mesh file to read ({extensions_text(())})")
     p.add_argument("output", help=f"mesh file to write ({extensions_text(())}; the format must store the "
                                   "result's cells)")
+    add_ascii_argument(p)
     p.add_argument("--json", action="store_true", help="print the statistics as JSON")
 
 
@@ -150,7 +151,7 @@ def run(wm, args) -> int:
     """Run one of :data:`COMMANDS` (errors propagate to the caller, which prints them)."""
     from warpmesh.cli.output import check_output, read_mesh, save_output
 
-    check_output(args.output, flag="output")  # a bad extension or folder fails before any work
+    check_output(args.output, flag="output", ascii=args.ascii)  # a bad extension or folder fails before any work
     mesh = read_mesh(args.first if args.command == "merge" else args.input, "input")
     before = mesh.stats()
     if args.command == "transform":
@@ -181,6 +182,6 @@ def run(wm, args) -> int:
             out = mesh.crack(_array(args.facets, "--facets", np.int64), side_refs=side)
     else:
         out = mesh.periodic(_matrix(wm, args, mesh.dim), args.copies, tolerance=args.tolerance)
-    save_output(out, args.output, "output")
+    save_output(out, args.output, "output", ascii=args.ascii)
     _report(before, out, args)
     return 0

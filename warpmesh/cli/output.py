@@ -22,7 +22,7 @@ import warnings
 from functools import lru_cache
 from pathlib import Path
 
-__all__ = ["output_extensions", "check_output", "check_folder", "save_output", "read_mesh"]
+__all__ = ["output_extensions", "check_output", "check_folder", "save_output", "read_mesh", "add_ascii_argument"]
 
 #: a one-cell mesh of each probed type, on the corners of the unit tetrahedron
 _PROBE_POINTS = ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
@@ -91,11 +91,11 @@ def check_folder(path, flag: str) -> Path:
     return path
 
 
-def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output") -> Path:
+def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output", ascii: bool = False) -> Path:
     """Raise ValueError now, before any work, if the mesh cannot be written to ``path``.
 
-    Checks the extension (known, and storing ``cells``), that the folder exists and that a
-    file can be created in it.
+    Checks the extension (known, storing ``cells``, and with an ascii encoding when
+    ``ascii``: ``--ascii``), that the folder exists and that a file can be created in it.
 
     Examples
     --------
@@ -104,7 +104,7 @@ def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output"
     ...
     ValueError: unknown extension '.xyz' for -o/--output 'part.xyz'; expected one of .vtu .pvtu .vtk .msh .mesh .ply .obj .stl
     """
-    from warpmesh.io.files import FILE_FORMATS
+    from warpmesh.io.files import FILE_FORMATS, TWO_ENCODINGS
 
     path = Path(path)
     if path.is_dir():
@@ -116,13 +116,24 @@ def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output"
     if ext not in able:
         raise ValueError(f"{ext} files cannot store {' and '.join(cells)} cells ({flag} {str(path)!r}); "
                          f"expected one of {' '.join(able)}")
+    if ascii and FILE_FORMATS[ext] not in TWO_ENCODINGS:
+        exts = " ".join(e for e, name in FILE_FORMATS.items() if name in TWO_ENCODINGS)
+        raise ValueError(f"--ascii applies to {exts} files (written binary by default); got {flag} {str(path)!r}")
     return check_folder(path, flag)
 
 
-def save_output(mesh, path, flag: str = "-o/--output") -> Path:
-    """``mesh.save(path)`` (atomic), with OS errors reported for ``path`` and ``flag``."""
+def add_ascii_argument(parser) -> None:
+    """The ``--ascii`` flag of a command that writes a mesh file (:func:`save_output`)."""
+    parser.add_argument("--ascii", action="store_true",
+                        help="write .vtk, .ply or .stl as ascii instead of binary (e.g. a .ply with labels "
+                             "for meshio, whose binary PLY reader cannot read face properties)")
+
+
+def save_output(mesh, path, flag: str = "-o/--output", ascii: bool = False) -> Path:
+    """``mesh.save(path)`` (atomic; ``ascii``: ``binary=False``), with OS errors reported for
+    ``path`` and ``flag``."""
     try:
-        return mesh.save(path)
+        return mesh.save(path, binary=False if ascii else None)
     except OSError as exc:
         raise ValueError(f"cannot write {flag} {str(path)!r}: {exc.strerror or exc}") from None
 

@@ -409,7 +409,7 @@ def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
 
 
 #: the formats written binary by default whose ascii encoding :func:`save` offers (``binary=False``)
-_TWO_ENCODINGS = ("vtk", "ply", "stl")
+TWO_ENCODINGS = ("vtk", "ply", "stl")
 
 
 def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int, binary: bool | None = None) -> Path:
@@ -428,11 +428,11 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int, bi
     fmt = _find_format(path, file_format)
     kwargs = dict(fmt.write_kwargs)
     if binary is not None:
-        if fmt.name not in _TWO_ENCODINGS:
+        if fmt.name not in TWO_ENCODINGS:
             why = (" (meshio's ascii gmsh writer puts numpy 2's repr, 'np.float64(0.0)', in its data sections: "
                    "no reader takes them)" if fmt.name == "gmsh" else " (written in one encoding)")
             raise ValueError(f"expected binary=None for a {fmt.name} file{why}; 'binary' chooses between binary "
-                             f"and ascii for {', '.join(_TWO_ENCODINGS)}")
+                             f"and ascii for {', '.join(TWO_ENCODINGS)}")
         kwargs["binary"] = bool(binary)
     if mesh.n_points == 0 or mesh.n_cells == 0:
         raise ValueError(f"expected a mesh with points and cells to save to {str(path)!r}, got an empty "
