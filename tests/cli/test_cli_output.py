@@ -242,3 +242,15 @@ def test_ascii_for_a_format_of_one_encoding_is_refused_before_any_work(tmp_path,
     assert main(["renumber", str(src), str(tmp_path / "out.vtk"), "--ascii"]) == 0
     assert (tmp_path / "out.vtk").read_bytes().splitlines()[2] == b"ASCII"
     assert no_meshing == [] and sorted(p.name for p in tmp_path.iterdir()) == ["in.vtk", "out.vtk"]
+
+
+def test_ascii_without_an_output_file_is_refused_before_any_work(tmp_path, capsys, no_meshing, monkeypatch):
+    """``--ascii`` sets the encoding of the file ``-o`` writes: without ``-o`` (the commands
+    whose output is optional) it would be ignored, so it is refused, naming both flags."""
+    monkeypatch.chdir(tmp_path)
+    for argv in (["mesh", "--example", "part", "--ascii"], ["curve", "--example", "gear", "--ascii"],
+                 ["domain", "--example", "part", "--ascii"]):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert "--ascii" in err and "-o/--output" in err, err
+    assert no_meshing == [] and list(tmp_path.iterdir()) == []

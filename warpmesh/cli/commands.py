@@ -271,8 +271,7 @@ def _mesh(wm, args, clock) -> int:
     from warpmesh.cli.report import print_report
     from warpmesh.cli.sources import parse_labels, shape_source, volume_source
 
-    if args.output:
-        check_output(args.output, cells=("triangle",), ascii=args.ascii)  # before any work
+    check_output(args.output, cells=("triangle",), ascii=args.ascii)  # before any work
     _check_mesh_flags(args)
     common = dict(root=args.root, root_iterations=args.root_iterations, cap=not args.no_cap,
                   device=args.device, gradient=args.gradient, labels=parse_labels(args.labels),

@@ -97,8 +97,7 @@ def run(wm, args, clock) -> int:
     from warpmesh.cli.sources import shape_source
 
     if args.command == "curve":
-        if args.output:
-            check_output(args.output, cells=("line",), ascii=args.ascii)
+        check_output(args.output, cells=("line",), ascii=args.ascii)
         with clock.stage("read input"):
             source = shape_source(args, dims=(2,))
         options = {} if args.resolution is None else {"resolution": args.resolution}
@@ -109,8 +108,7 @@ def run(wm, args, clock) -> int:
         mesh = _regions(wm, args, clock)
     else:
         _refuse(args, _VOLUME_ONLY, "a shape")
-        if args.output:
-            check_output(args.output, ascii=args.ascii)  # extension and folder before any work; the cells once the bounds are known
+        check_output(args.output, ascii=args.ascii)  # extension and folder before any work; the cells once the bounds are known
         with clock.stage("read input"):
             source = shape_source(args, dims=(2, 3))
         solid = len(source.bounds[0]) == 3
@@ -153,8 +151,7 @@ def _regions(wm, args, clock):
     from warpmesh.cli.output import check_output
     from warpmesh.cli.sources import parse_labels, volume_source
 
-    if args.output:
-        check_output(args.output, cells=("tetra", "triangle"), ascii=args.ascii)  # before any work
+    check_output(args.output, cells=("tetra", "triangle"), ascii=args.ascii)  # before any work
     _refuse(args, _SHAPE_ONLY, "--volume (a label image: --labels, --size, --snap, --min-size)")
     if args.size == "curvature":
         raise ValueError("--size curvature grades shapes; a --volume takes a number (world units)")

@@ -91,11 +91,13 @@ def check_folder(path, flag: str) -> Path:
     return path
 
 
-def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output", ascii: bool = False) -> Path:
+def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output", ascii: bool = False) -> Path | None:
     """Raise ValueError now, before any work, if the mesh cannot be written to ``path``.
 
     Checks the extension (known, storing ``cells``, and with an ascii encoding when
     ``ascii``: ``--ascii``), that the folder exists and that a file can be created in it.
+    ``path`` None (a command whose output is optional, run without it): nothing to check,
+    unless ``ascii`` asks for an encoding of a file that will not be written.
 
     Examples
     --------
@@ -106,6 +108,10 @@ def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output"
     """
     from warpmesh.io.files import FILE_FORMATS, TWO_ENCODINGS
 
+    if path is None:
+        if ascii:
+            raise ValueError(f"--ascii sets the encoding of the file written with {flag}; give {flag} too")
+        return None
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"expected a file name for {flag}, got the folder {str(path)!r}")
