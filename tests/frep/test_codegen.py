@@ -46,6 +46,22 @@ def test_constants_change_without_a_new_kernel():
     assert np.array_equal(wm.evaluate(b, pts, evaluator="compiled"), wm.evaluate(b, pts, evaluator="interpreter"))
 
 
+def test_structure_key_is_computed_once_per_code_array(monkeypatch):
+    """The key is the hash of the generated source, remembered per code array: the same key
+    as computed afresh, shared by the tapes of other values (one code array), and a tape of
+    another structure gets its own."""
+    import hashlib
+
+    tape = wm.compile_tape(wm.sphere(wm.param("r", 0.5, lo=0.1, hi=1.0)).translate((0.1, 0.0, 0.0)))
+    key = codegen.structure_key(tape)
+    assert key == hashlib.sha1(codegen.source(tape).encode()).hexdigest()[:16]
+    calls = []
+    monkeypatch.setattr(codegen, "source", lambda t: calls.append(t) or "changed")
+    assert codegen.structure_key(tape.with_values({"r": 0.75})) == key and calls == []
+    other = wm.compile_tape(wm.box((1.0, 1.0, 1.0)) | wm.sphere(0.3))
+    assert codegen.structure_key(other) == hashlib.sha1(b"changed").hexdigest()[:16] and calls == [other]
+
+
 def test_auto_answers_first_with_the_interpreter_then_switches():
     x, y, z = wm.coords()
     shape = wm.Shape(0.7 - wm.sqrt(x * x + 2 * y * y + 3 * z * z) + 0.05 * wm.sin(7 * x))  # a fresh structure

@@ -69,10 +69,30 @@ _large_runs: dict[tuple[str, str], int] = {}  # large interpreted runs seen per 
 _modules: dict[str, object] = {}
 
 
+#: structure keys by the identity of the code array they were computed from (kept alive here,
+#: so an id is never reused while its entry stands): tapes of one structure share ``code``
+#: (:meth:`~warpmesh.frep.tape.Tape.with_values`), and a small evaluation (the curve
+#: samplers' steps) would otherwise spend most of its time generating the source again
+_keys: dict[int, tuple[object, str]] = {}
+_keys_lock = threading.Lock()  # its own: callers may hold _lock
+_KEYS_KEPT = 256
+
+
 def structure_key(tape) -> str:
     """A name for the tape's structure: a hash of the generated source (opcodes and
-    registers; not the constants), so a changed generator never reuses a stale file."""
-    return hashlib.sha1(source(tape).encode()).hexdigest()[:16]
+    registers; not the constants), so a changed generator never reuses a stale file.
+    Computed once per code array (a tape's code is not modified after compilation)."""
+    code = tape.code
+    with _keys_lock:
+        hit = _keys.get(id(code))
+    if hit is not None and hit[0] is code:
+        return hit[1]
+    key = hashlib.sha1(source(tape).encode()).hexdigest()[:16]
+    with _keys_lock:
+        if len(_keys) >= _KEYS_KEPT:
+            _keys.clear()
+        _keys[id(code)] = (code, key)
+    return key
 
 
 def source(tape) -> str:
