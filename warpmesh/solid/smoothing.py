@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from warpmesh.frep.tape import value_gradient_at
-from warpmesh.solid.adjacency import TRI_EDGES, unique_edges
+from warpmesh.solid.adjacency import TRI_EDGES, Neighbours, unique_edges
 from warpmesh.solid.dihedral import tet_quality
 
 __all__ = ["smooth_tets"]
@@ -35,15 +35,6 @@ PROJECTION_STEPS = 3
 MAX_ROUNDS = 12
 #: fractions of the move to the neighbours' centroid tried for each vertex (the best kept)
 STEPS = (1.0, 0.5, 0.25)
-
-
-def _centroids(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    n = len(points)
-    acc = np.zeros_like(points)
-    np.add.at(acc, edges[:, 0], points[edges[:, 1]])
-    np.add.at(acc, edges[:, 1], points[edges[:, 0]])
-    cnt = np.bincount(edges.ravel(), minlength=n)[:, None]
-    return np.where(cnt > 0, acc / np.maximum(cnt, 1), points)
 
 
 def _project(tape, x: np.ndarray, device) -> np.ndarray:
@@ -84,8 +75,8 @@ def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, devi
     if only is not None:
         free_in &= np.asarray(only)
         free_f &= np.asarray(only)
-    edges = unique_edges(tets)
-    surf_edges = unique_edges(tris, TRI_EDGES)
+    graph = Neighbours(unique_edges(tets), n)
+    surface = Neighbours(unique_edges(tris, TRI_EDGES), n)
     q = tet_quality(pts, tets, device)
     t_min, t_max = q[:, 0].copy(), q[:, 1].copy()
     ceiling = float(t_max.max()) if len(t_max) else 180.0
@@ -97,13 +88,10 @@ def smooth_tets(points, tets, tris, on_f, on_cap, tape, *, sweeps: int = 3, devi
             if not todo.any():
                 break
             prio = np.where(todo, rng.random(n), -1.0)
-            best = prio.copy()
-            np.maximum.at(best, edges[:, 0], prio[edges[:, 1]])
-            np.maximum.at(best, edges[:, 1], prio[edges[:, 0]])
-            sel = todo & (prio >= best) & (prio >= 0)
+            sel = todo & (prio >= graph.max_of(prio)) & (prio >= 0)
             todo &= ~sel
-            cin = _centroids(pts, edges)
-            csurf = _centroids(pts, surf_edges)
+            cin = graph.mean_of(pts)
+            csurf = surface.mean_of(pts)
             sf = np.flatnonzero(sel & free_f)
             # the tetrahedra around selected vertices: one selected vertex each (independent set)
             hit = sel[tets]
