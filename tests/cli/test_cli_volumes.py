@@ -72,7 +72,7 @@ def test_domain_volume_defaults_to_every_label_but_zero(slabs, capsys):
 
 
 @pytest.mark.parametrize("extra, needle", [
-    (["--smooth", "2"], "--smooth does not apply to --volume"),
+    (["--smooth", "-2"], "non-negative integer for --smooth"),
     (["--method", "delaunay"], "--method does not apply to --volume"),
     (["--bounds", "0", "0", "0", "1", "1", "1"], "--bounds does not apply to --volume"),
     (["--size", "curvature"], "--size curvature grades shapes"),

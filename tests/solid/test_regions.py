@@ -211,7 +211,7 @@ def test_pyvista_image_and_file_give_the_array_mesh(tmp_path):
         assert np.array_equal(m.cell_refs["tetra"], a.cell_refs["tetra"])
 
 
-def _two_material_error(h: float) -> tuple[float, float]:
+def two_material_error(h: float, smooth: int = 0) -> tuple[float, float]:
     """-div(k grad u) = 0 in a 40 x 12 x 12 box, k = 1 (label 1, x < 19.5) and k = 4 (label 2),
     u = 0 at x = -0.5 and u = 1 at x = 39.5: u is piecewise linear in x with the flux continuous.
     Returns the max and RMS nodal errors of P1 (scikit-fem) on the cleaved tetrahedra."""
@@ -220,7 +220,7 @@ def _two_material_error(h: float) -> tuple[float, float]:
 
     vol = np.ones((40, 12, 12), np.uint8)
     vol[20:] = 2
-    m = mesh_regions(vol, size=h)
+    m = mesh_regions(vol, size=h, smooth=smooth)
     check_regions(m, rest=0)
     mesh = skfem.MeshTet(m.points.T.copy(), m.cells["tetra"].T.copy())
     basis = skfem.Basis(mesh, skfem.ElementTetP1())
@@ -248,7 +248,7 @@ def test_scikit_fem_solves_a_two_material_problem():
     interface lies within a fraction of h of it (snapping, bent tet points), so the error
     falls linearly with h (measured: max 0.032 / 0.016 / 0.008 at h = 4 / 2 / 1)."""
     pytest.importorskip("skfem")
-    coarse, fine = _two_material_error(2.0), _two_material_error(1.0)
+    coarse, fine = two_material_error(2.0), two_material_error(1.0)
     assert fine[0] < 0.012 and fine[1] < 0.0015
     assert coarse[0] / fine[0] > 1.8 and coarse[1] / fine[1] > 1.8
 
@@ -283,8 +283,10 @@ def test_bad_input():
         wm.mesh_domain(vol, size=3.0, snap=0.5)
     with pytest.raises(ValueError, match="no 'bounds'"):
         wm.mesh_domain(vol, ((0, 0, 0), (1, 1, 1)), size=3.0)
-    with pytest.raises(ValueError, match="'smooth' is an option of a shape"):
-        wm.mesh_domain(vol, size=3.0, smooth=2)
+    with pytest.raises(ValueError, match="'flips' is an option of a shape"):
+        wm.mesh_domain(vol, size=3.0, flips=True)
+    with pytest.raises(ValueError, match="non-negative integer for 'smooth'"):
+        wm.mesh_domain(vol, size=3.0, smooth=-2)
     with pytest.raises(TypeError, match="'volume'"):
         wm.mesh_domain("not a volume object".split(), size=3.0)
     with pytest.raises(TypeError, match="'volume'"):

@@ -31,8 +31,7 @@ _FLAGS = {"size": "--size", "tolerance": "--tolerance", "min_angle": "--min-angl
           "labels": "--labels", "snap": "--snap", "min_size": "--min-size", "spacing": "--spacing",
           "origin": "--origin"}
 #: ``domain`` flags of a shape that a ``--volume`` does not take, and the other way round
-_SHAPE_ONLY = {"bounds": "--bounds", "tolerance": "--tolerance", "min_angle": "--min-angle", "method": "--method",
-               "smooth": "--smooth"}
+_SHAPE_ONLY = {"bounds": "--bounds", "tolerance": "--tolerance", "min_angle": "--min-angle", "method": "--method"}
 _VOLUME_ONLY = {"array": "--array", "spacing": "--spacing", "origin": "--origin", "labels": "--labels",
                 "snap": "--snap", "min_size": "--min-size"}
 
@@ -70,7 +69,8 @@ def add_parsers(sub) -> None:
     d.add_argument("--method", choices=["global", "triangle", "stuffing", "delaunay", "tetgen"],
                    help="planar: global (default) or triangle; 3D: stuffing (default), delaunay or tetgen")
     d.add_argument("--smooth", type=int, default=0, help="3D: smoothing sweeps that never lower the smallest "
-                                                         "dihedral angle")
+                                                         "dihedral angle; --volume: passes of interface smoothing "
+                                                         "(each vertex within a voxel of its cleaved place)")
     d.add_argument("-o", "--output", help=f"mesh file to write (planar: {extensions_text(('triangle', 'line'))}; "
                                           f"3D: {extensions_text(('tetra', 'triangle'))})")
     for p in (c, d):
@@ -152,11 +152,13 @@ def _regions(wm, args, clock):
     from warpmesh.cli.sources import parse_labels, volume_source
 
     check_output(args.output, cells=("tetra", "triangle"), ascii=args.ascii)  # before any work
-    _refuse(args, _SHAPE_ONLY, "--volume (a label image: --labels, --size, --snap, --min-size)")
+    _refuse(args, _SHAPE_ONLY, "--volume (a label image: --labels, --size, --snap, --min-size, --smooth)")
     if args.size == "curvature":
         raise ValueError("--size curvature grades shapes; a --volume takes a number (world units)")
     labels = parse_labels(args.labels)
     options = {k: v for k, v in (("snap", args.snap), ("min_size", args.min_size)) if v is not None}
+    if args.smooth:
+        options["smooth"] = args.smooth
     with clock.stage("read input"):
         volume = volume_source(args)
     with clock.stage("mesh"), in_flags(_FLAGS):

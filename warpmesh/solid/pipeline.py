@@ -98,6 +98,9 @@ def mesh_domain(shape, bounds=None, *, size=None, method: str | None = None, smo
         3D: sweeps of smoothing (interior vertices to the centroid of their neighbours,
         boundary vertices along f = 0), each move kept only when the smallest dihedral
         angle around the vertex does not drop (:func:`warpmesh.solid.smoothing.smooth_tets`).
+        A label volume: passes of interface smoothing (the staircase of the voxels towards
+        the smooth interfaces, junction curves along themselves, each vertex within a voxel
+        of its cleaved place, the dihedral range kept: :mod:`warpmesh.solid.region_smoothing`).
     features : bool
         3D: move boundary vertices onto the creases and corners of the exact surface (where
         primitives meet, and where the bounds cap the shape), each move kept only when every

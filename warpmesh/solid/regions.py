@@ -162,6 +162,7 @@ from warpmesh.mesh import Mesh
 from warpmesh.solid.dihedral import signed_volumes, tet_quality_summary
 from warpmesh.solid.lattice import lattice_tables
 from warpmesh.solid.pockets import fill_pockets
+from warpmesh.solid.region_smoothing import smooth_regions
 from warpmesh.solid.snapping import snap_cuts
 from warpmesh.solid.stuffing import lattice_for
 from warpmesh.solid.thin import Specks, VoxelLabels, graded_background, labels_at, speck_voxels
@@ -211,7 +212,7 @@ _FACES = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
 
 
 def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = SNAP, min_size=None,
-                 device: str = "cpu", progress=False, **refused) -> Mesh:
+                 smooth: int = 0, device: str = "cpu", progress=False, **refused) -> Mesh:
     """Conforming tetrahedra of the regions of a label volume (lattice cleaving).
 
     What :func:`warpmesh.mesh_domain` runs when its first argument is a volume.
@@ -258,6 +259,13 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         is returned, with ``info["graded_rejected"]`` (both worst errors). ``info``:
         ``graded``, ``refined_labels`` (when graded),
         ``graded_tets``, ``speck_offsets`` (label: the distance its interface moved, world units).
+    smooth : int
+        Passes of interface smoothing (:mod:`warpmesh.solid.region_smoothing`; default 0, the
+        cleaved staircase): each interface and junction curve smoothed on its own, every
+        vertex within ``REACH`` (1) voxel of its cleaved position, each move kept only when
+        the tetrahedra around it stay positive and within the mesh's dihedral range, then the
+        vertices on no interface smoothed for quality. ``info["smoothing"]`` reports it;
+        ``region_volumes`` are those of the smoothed mesh.
     device : str
     progress : bool or callable
         A bar over the stages (tqdm, shown once the call has taken a second; ``mesh_domain``
@@ -297,13 +305,15 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     t_start = time.perf_counter()
     if refused:
         raise ValueError(f"{sorted(refused)[0]!r} is an option of a shape's domain; a label volume takes "
-                         "'labels', 'size', 'snap' and 'min_size'")
+                         "'labels', 'size', 'snap', 'min_size' and 'smooth'")
     image = _as_image(volume)
     if bounds is not None:
         raise ValueError(f"expected no 'bounds' with a label volume (its extent is its samples), got {bounds!r}")
     device = check_device(device)
     if isinstance(snap, bool) or not isinstance(snap, (int, float, np.integer, np.floating)) or not 0 <= snap < 0.5:
         raise ValueError(f"expected 0 <= 'snap' < 0.5 (a fraction of the edge), got {snap!r}")
+    if isinstance(smooth, bool) or not isinstance(smooth, (int, np.integer)) or smooth < 0:
+        raise ValueError(f"expected a non-negative integer for 'smooth' (passes of interface smoothing), got {smooth!r}")
     codes, ids, rest = label_codes(image.values, labels)
     spacing = np.asarray(image.spacing, dtype=np.float64)
     h = _check_size(size, image.values.shape, spacing)
@@ -312,19 +322,20 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     bar = Progress(progress, _STAGES, "warpmesh mesh_domain (labels)", "stage")
     bar.stage("lattice", 0)
     try:
-        mesh = _mesh_regions(image, codes, ids, rest, spacing, h, float(snap), smallest, timings, bar.stage, t_start,
-                             device)
+        mesh = _mesh_regions(image, codes, ids, rest, spacing, h, float(snap), smallest, int(smooth), timings,
+                             bar.stage, t_start, device)
         bar.finish()
     finally:
         bar.close()
     return mesh
 
 
-#: the stages of the progress bar: the uniform pass's, the graded pass's, the quality
-_STAGES = 4 + 6 + 1
+#: the stages of the progress bar: the uniform pass's, the graded pass's, the smoothing, the quality
+_STAGES = 4 + 6 + 1 + 1
 
 
-def _mesh_regions(image, codes, ids, rest, spacing, h, snap, smallest, timings, tick, t_start, device) -> Mesh:
+def _mesh_regions(image, codes, ids, rest, spacing, h, snap, smallest, smooth, timings, tick, t_start,
+                  device) -> Mesh:
     """:func:`mesh_regions` after its checks (``tick(stage)`` as each stage ends)."""
     points, tets, tet_codes, tris, lower, upper, info = cleave(codes, rest, spacing, h, snap, timings, tick=tick)
     info.update(graded=False, min_size=smallest)
@@ -367,6 +378,14 @@ def _mesh_regions(image, codes, ids, rest, spacing, h, snap, smallest, timings, 
     if not len(tets):
         raise ValueError(f"no lattice node at size {h:g} lies in a region of 'labels' {ids[ids != ids[rest]].tolist()[:20]}"
                          ": the regions are thinner than the lattice; lower 'size'")
+    if smooth:
+        t0 = time.perf_counter()
+        tick("smoothing", 0)
+        points, info["smoothing"] = smooth_regions(points, tets, tris, lower, upper, passes=smooth, spacing=spacing,
+                                                   shape=image.values.shape, rest=rest, device=device)
+        meshed = _region_volumes(points, tets, tet_codes, len(ids))
+        tick("")
+        timings["smoothing"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     tick("quality", 0)
     quality = tet_quality_summary(points, tets, device)
