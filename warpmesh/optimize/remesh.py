@@ -1025,6 +1025,7 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
     """
     _check_iterations(iterations)
     _check_not_a_number(shape, "size")
+    _check_no_shape_for_labels(mesh, shape, "optimize", "optimize_labels")
     if shape is None and "label_above" in getattr(mesh, "cell_data", {}):  # a shared multi-material surface
         from warpmesh.optimize.label_remesh import optimize_labels
         given = [name for name, ignored in (("bounds", bounds is not None), ("features", features is not None),
@@ -1037,6 +1038,23 @@ def optimize(mesh: MeshLike, shape=None, *, bounds=None, size=None, tolerance: f
         return optimize_labels(mesh, size, tolerance=tolerance, iterations=int(iterations), progress=progress)
     return _drive(mesh, shape, bounds=bounds, size=size, tolerance=tolerance, features=features, angle=angle,
                   iterations=int(iterations), progress=progress, fraction=None, simplifying=False)
+
+
+def _check_no_shape_for_labels(mesh, shape, verb: str, labelled: str) -> None:
+    """A shape given with a shared multi-material surface (``cell_data["label_above"]``) of more than
+    one interface would pull every interface onto that shape's surface and drop the labels: refused,
+    saying what to do (one interface, a label against the rest, is that shape's surface: allowed)."""
+    if shape is None or "label_above" not in getattr(mesh, "cell_data", {}) or "triangle" not in mesh.cells:
+        return
+    pairs = np.unique(np.column_stack([mesh.cell_refs.get("triangle", np.zeros(len(mesh.cells["triangle"]), np.int64)),
+                                       mesh.cell_data["label_above"]["triangle"]]), axis=0)
+    if len(pairs) > 1:
+        raise ValueError(
+            f"this is a shared multi-material surface of {len(pairs)} interfaces (cell_data['label_above']): "
+            f"{verb}() without a shape "
+            f"runs {labelled}, which keeps every interface and junction curve; a 'shape' would move all its "
+            f"interfaces onto one surface and lose the labels. Drop 'shape', or {verb} one label's boundary "
+            f"(warpmesh.surface.multilabel.label_boundary(mesh, label)) against its shape")
 
 
 def _check_not_a_number(shape, keyword: str) -> None:
@@ -1084,6 +1102,7 @@ def simplify(mesh: MeshLike, shape=None, *, tolerance: float | None = None, frac
     if fraction is not None and (isinstance(fraction, bool) or not isinstance(fraction, (int, float, np.number))):
         raise TypeError(f"expected a number or None for 'fraction', got {type(fraction).__name__}")
     _check_not_a_number(shape, "fraction")
+    _check_no_shape_for_labels(mesh, shape, "simplify", "simplify_labels")
     if shape is None and "label_above" in getattr(mesh, "cell_data", {}):  # a shared multi-material surface
         from warpmesh.optimize.multimaterial import simplify_labels
         given = [name for name, ignored in (("bounds", bounds is not None), ("features", features is not None),
