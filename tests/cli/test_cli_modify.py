@@ -137,3 +137,40 @@ def test_bad_arguments_write_nothing(beam, tmp_path, capsys, argv):
     assert main(args) == 2
     assert "warpmesh: error:" in capsys.readouterr().err
     assert not dst.exists() and not bad.exists()
+
+
+def test_a_planar_mesh_read_back_3d_takes_2d_motions(tmp_path, capsys):
+    """A planar mesh saved as .vtu comes back with z = 0 columns (3D points): ``--translate X Y``
+    and ``--mirror A B C`` are its planar motion, lifted (they were refused, the message naming
+    Python calls); a 3D motion still applies to it as 3D."""
+    sq = wm.Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"triangle": [[0, 1, 2], [0, 2, 3]]})
+    src = sq.save(tmp_path / "sq.vtu")
+    assert wm.load(src).dim == 3
+    code, _ = run(capsys, "transform", src, tmp_path / "t.vtu", "--translate", 1, 2)
+    assert code == 0
+    np.testing.assert_allclose(wm.load(tmp_path / "t.vtu").points[:, :2], sq.points + [1, 2])
+    code, _ = run(capsys, "transform", src, tmp_path / "m.vtu", "--mirror", 1, 0, -1)  # about x = 1
+    got = wm.load(tmp_path / "m.vtu").points
+    assert code == 0
+    np.testing.assert_allclose(got[:, 0], 2.0 - sq.points[:, 0])
+    np.testing.assert_allclose(got[:, 2], 0.0)
+    code, report = run(capsys, "periodic", src, tmp_path / "p.vtu", "--translate", 1, 0, "--copies", 3)
+    assert code == 0 and report["after"]["np"] == 3 * 4 - 2 * 2
+    code, _ = run(capsys, "transform", src, tmp_path / "z.vtu", "--translate", 0, 0, 1)
+    assert code == 0 and np.allclose(wm.load(tmp_path / "z.vtu").points[:, 2], 1.0)
+
+
+def test_library_keywords_are_told_as_flags_and_one_facet_file_is_read(beam, tmp_path, capsys):
+    _, path = beam
+    for argv, flag in ((["refine", path, tmp_path / "o.vtu", "-n", "0"], "-n >= 1"),
+                       (["transform", path, tmp_path / "o.vtu", "--translate", "nan", "0", "0"], "--translate"),
+                       (["transform", path, tmp_path / "o.vtu", "--rotate", "nan"], "--rotate"),
+                       (["periodic", path, tmp_path / "o.vtu", "--translate", 0, 0, 5, "--copies", 0], "--copies")):
+        assert main([str(a) for a in argv]) == 2
+        err = capsys.readouterr().err
+        assert flag in err, err
+    sq = wm.Mesh([[0, 0], [1, 0], [1, 1], [0, 1]], {"triangle": [[0, 1, 2], [0, 2, 3]]})
+    src = sq.save(tmp_path / "sq.mesh")
+    (tmp_path / "one.txt").write_text("0 2\n")  # one facet: the diagonal
+    code, report = run(capsys, "crack", src, tmp_path / "c.mesh", "--facets", tmp_path / "one.txt")
+    assert code == 0 and report["after"]["np"] == 6

@@ -95,7 +95,7 @@ def add_parsers(sub) -> None:
 
 def _array(path: str, name: str, dtype) -> np.ndarray:
     try:
-        return np.load(path, allow_pickle=False) if path.endswith(".npy") else np.loadtxt(path, dtype=dtype)
+        return np.load(path, allow_pickle=False) if path.endswith(".npy") else np.loadtxt(path, dtype=dtype, ndmin=2)
     except (OSError, ValueError) as exc:
         raise ValueError(f"cannot read {name} {path!r}: {exc}") from None
 
@@ -128,6 +128,29 @@ def _matrix(wm, args, dim: int) -> np.ndarray:
     return tr.compose(*steps)
 
 
+def _motion_of(wm, mesh, args) -> np.ndarray:
+    """The homogeneous matrix of the motion flags for ``mesh``: 2D flags (``--translate X Y``,
+    ``--mirror A B C``, ``--center X Y``, ``--scale SX SY``) on a mesh in the plane z = 0 read
+    from a format that stores three coordinates (.vtu, .msh: a planar mesh comes back 3D) are
+    the planar motion, lifted to 3D (z kept)."""
+    if mesh.dim == 3 and args.matrix is None and args.axis is None and not np.any(mesh.points[:, 2]):
+        planar = [len(v) == k for v, k in ((args.translate, 2), (args.mirror, 3), (args.center, 2),
+                                           (args.scale, 2)) if v]
+        if any(planar) and all(planar):
+            m2 = _matrix(wm, args, 2)
+            m3 = np.eye(4)
+            m3[:2, :2], m3[:2, 3] = m2[:2, :2], m2[:2, 2]
+            return m3
+    return _matrix(wm, args, mesh.dim)
+
+
+#: the library's keywords that the modification commands' errors quote, as their flags
+_FLAGS = {"vector": "--translate", "angle": "--rotate", "factors": "--scale", "center": "--center",
+          "n": "-n", "max_length": "--max-length", "where": "--vertices", "tolerance": "--tolerance",
+          "copies": "--copies", "side_refs": "--side-refs", "facets": "--facets", "ref": "--ref",
+          "duplicates": "--duplicates", "quads": "--quads", "hexes": "--hexes"}
+
+
 def _report(before: dict, mesh, args) -> None:
     after = mesh.stats()
     facts = {k: v for k, v in mesh.info.items()
@@ -151,11 +174,24 @@ def run(wm, args) -> int:
     """Run one of :data:`COMMANDS` (errors propagate to the caller, which prints them)."""
     from warpmesh.cli.output import check_output, read_mesh, save_output
 
+    from warpmesh.cli.flags import in_flags
+
     check_output(args.output, flag="output", ascii=args.ascii)  # a bad extension or folder fails before any work
     mesh = read_mesh(args.first if args.command == "merge" else args.input, "input")
     before = mesh.stats()
+    with in_flags(_FLAGS):
+        out = _modified(wm, mesh, args)
+    save_output(out, args.output, "output", ascii=args.ascii)
+    _report(before, out, args)
+    return 0
+
+
+def _modified(wm, mesh, args):
+    """The command's result (:func:`run`)."""
+    from warpmesh.cli.output import read_mesh
+
     if args.command == "transform":
-        out = mesh.transform(_matrix(wm, args, mesh.dim))
+        out = mesh.transform(_motion_of(wm, mesh, args))
     elif args.command == "refine":
         where = None if args.vertices is None else _array(args.vertices, "--vertices", np.int64).ravel()
         shape = wm.example(args.example)[0] if args.example else None
@@ -181,7 +217,5 @@ def run(wm, args) -> int:
         else:
             out = mesh.crack(_array(args.facets, "--facets", np.int64), side_refs=side)
     else:
-        out = mesh.periodic(_matrix(wm, args, mesh.dim), args.copies, tolerance=args.tolerance)
-    save_output(out, args.output, "output", ascii=args.ascii)
-    _report(before, out, args)
-    return 0
+        out = mesh.periodic(_motion_of(wm, mesh, args), args.copies, tolerance=args.tolerance)
+    return out

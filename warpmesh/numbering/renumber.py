@@ -864,7 +864,7 @@ TABLE_ROWS = (
     ("beta (final)", "bandwidth", "{:,}"),
     ("pr (final)", "profile", "{:,}"),
     ("pr_mean (final)", "profile_mean", "{:,.0f}"),
-    ("pr ratio", "profile_ratio", "{:,.0f}"),
+    ("pr ratio", "profile_ratio", "{:,.2f}"),
     ("v (nodes/s)", "nodes_per_second", "{:,.0f}"),
 )
 
