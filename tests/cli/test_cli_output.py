@@ -77,8 +77,7 @@ def test_messages_name_flags_not_python_arguments(tmp_path, capsys):
     src = tmp_path / "in.msh"
     wm.Mesh([[0, 0], [1, 0], [0, 1]], {"triangle": [[0, 1, 2]]}).save(src)
     for argv in (["info", str(tmp_path / "m.xyz")], ["renumber", str(tmp_path / "m.xyz"), str(tmp_path / "o.msh")],
-                 ["renumber", str(src), str(tmp_path / "o.xyz")],
-                 ["transform", str(src), str(tmp_path / "o.inp"), "--translate", "1", "0"]):
+                 ["renumber", str(src), str(tmp_path / "o.xyz")]):
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert "file_format" not in err and "unknown extension" in err, err
@@ -254,3 +253,23 @@ def test_ascii_without_an_output_file_is_refused_before_any_work(tmp_path, capsy
         err = capsys.readouterr().err
         assert "--ascii" in err and "-o/--output" in err, err
     assert no_meshing == [] and list(tmp_path.iterdir()) == []
+
+
+def test_meshio_formats_beyond_the_curated_ones_in_and_out(tmp_path, capsys):
+    """What wm.load and Mesh.save take, the commands take: .off (triangles only) and .inp written
+    and read back; a cell type the format cannot hold, an unknown extension (the message lists
+    meshio's formats too) and a folder refused before any work."""
+    tri = wm.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], {"triangle": [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]})
+    src = tri.save(tmp_path / "t.vtu")
+    assert main(["renumber", str(src), str(tmp_path / "r.off")]) == 0
+    assert main(["transform", str(tmp_path / "r.off"), str(tmp_path / "m.inp"), "--translate", "1", "0", "0"]) == 0
+    capsys.readouterr()
+    np.testing.assert_allclose(np.sort(wm.load(tmp_path / "m.inp").points[:, 0]), np.sort(tri.points[:, 0] + 1))
+    assert main(["domain", "--example", "sphere", "--size", "0.3", "-o", str(tmp_path / "s.off")]) == 2
+    assert "cannot store tetra" in capsys.readouterr().err
+    assert main(["transform", str(src), str(tmp_path / "x.xyz9"), "--translate", "1", "0", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown extension '.xyz9'" in err and ".off" in err and ".inp" in err
+    assert main(["transform", str(tmp_path), str(tmp_path / "o.vtu"), "--translate", "1", "0", "0"]) == 2
+    assert "is a folder" in capsys.readouterr().err
+    assert not (tmp_path / "s.off").exists() and not (tmp_path / "o.vtu").exists()

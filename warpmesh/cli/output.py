@@ -5,7 +5,10 @@ argument).
 The extensions come from :data:`warpmesh.io.files.FILE_FORMATS`; which of them store a
 given cell type is asked of the writers themselves (a one-cell mesh saved per format into
 a temporary folder, once per process), so the help and the checks follow the formats
-:mod:`warpmesh.io.files` registers.
+:mod:`warpmesh.io.files` registers. meshio's other formats that round-trip a mesh on this
+installation (:func:`warpmesh.io.files.file_formats`, probed once) are taken too, as
+``wm.load`` and ``Mesh.save`` take them (.off, .inp, .xdmf, ...), with the cell types their
+probe found.
 
 Examples
 --------
@@ -118,7 +121,8 @@ def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output"
     ext = path.suffix.lower()
     able = output_extensions(tuple(cells))
     if ext not in FILE_FORMATS:
-        raise ValueError(f"unknown extension {ext!r} for {flag} {str(path)!r}; expected one of {' '.join(able)}")
+        _check_meshio_extension(ext, cells, flag, path, able, ascii)
+        return check_folder(path, flag)
     if ext not in able:
         raise ValueError(f"{ext} files cannot store {' and '.join(cells)} cells ({flag} {str(path)!r}); "
                          f"expected one of {' '.join(able)}")
@@ -150,7 +154,27 @@ def read_mesh(path, flag: str = "input"):
     from warpmesh.io.files import FILE_FORMATS
 
     ext = Path(path).suffix.lower()
+    if Path(path).is_dir():
+        raise ValueError(f"{flag} {str(path)!r} is a folder; expected a mesh file")
     if ext not in FILE_FORMATS:
-        raise ValueError(f"unknown extension {ext!r} for {flag} {str(path)!r}; expected one of "
-                         f"{' '.join(FILE_FORMATS)}")
+        _check_meshio_extension(ext, (), flag, Path(path), tuple(FILE_FORMATS), False)
     return wm.load(path)
+
+
+def _check_meshio_extension(ext: str, cells: tuple[str, ...], flag: str, path: Path, able: tuple, ascii: bool) -> None:
+    """An extension of meshio's other formats (:func:`warpmesh.io.files.file_formats`: those that
+    round-trip a mesh on this installation, probed once): known, storing ``cells``, and with no
+    ``--ascii`` (their encoding is meshio's choice); else a ValueError naming ``flag``."""
+    from warpmesh.io.files import file_formats
+    from warpmesh.io.formats import format_support
+
+    name = file_formats().get(ext)
+    if name is None:
+        raise ValueError(f"unknown extension {ext!r} for {flag} {str(path)!r}; expected one of {' '.join(able)} "
+                         f"(or another format meshio reads and writes: {' '.join(e for e in file_formats() if e not in able)})")
+    missing = [c for c in cells if c not in format_support()[name].cells]
+    if missing:
+        raise ValueError(f"{ext} files ({name}) cannot store {' and '.join(missing)} cells ({flag} {str(path)!r}); "
+                         f"expected one of {' '.join(able)}")
+    if ascii:
+        raise ValueError(f"--ascii applies to the .vtk .ply .stl files warpmesh writes; got {flag} {str(path)!r}")
