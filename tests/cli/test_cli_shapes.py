@@ -193,3 +193,13 @@ def test_domain_takes_every_3d_method_the_library_has(tmp_path):
         assert main(["domain", "--example", "torus", "--size", "0.2", "--method", method, "-o", str(out)]) == 0
         back = meshio.gmsh.read(str(out))
         assert "tetra" in back.cells_dict and len(back.cells_dict["tetra"]) > 100
+
+
+def test_bounds_in_scientific_notation_and_infinite_ones(capsys):
+    """``--bounds -1.2e0 ...`` are values (argparse took ``-1.2e0`` for an unknown flag and said
+    "--bounds: expected at least one argument"); ``-inf`` reaches the bounds check, which names it."""
+    argv = ["mesh", "--expr", "1 - x**2 - y**2 - z**2", "--resolution", "12", "--json", "--bounds"]
+    assert main(argv + ["-1.2e0", "-1.2E0", "-12e-1", "1.2", "1.2", "1.2"]) == 0
+    assert json.loads(capsys.readouterr().out)["euler"] == 2
+    assert main(argv + ["-inf", "-1", "-1", "1", "1", "1"]) == 2
+    assert "expected finite --bounds" in capsys.readouterr().err

@@ -37,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 import threading
 import warnings
@@ -46,14 +47,25 @@ import numpy as np
 from warpmesh.cli.report import progress_bars
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, with every negative number a value, never a flag: ``--bounds -1e0 -inf
+    ...`` (argparse's own pattern knows only ``-2`` and ``-2.5``, and took ``-1e0`` for an
+    unknown option)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$",
+                                                   re.IGNORECASE)
+
+
 def _parser() -> argparse.ArgumentParser:
     import warpmesh
     from warpmesh.cli.output import add_ascii_argument, extensions_text
     from warpmesh.cli.sources import add_shape_arguments, add_volume_arguments
 
-    p = argparse.ArgumentParser(prog="warpmesh", description="Meshes from implicit geometry.")
+    p = _Parser(prog="warpmesh", description="Meshes from implicit geometry.")
     p.add_argument("--version", action="version", version=f"warpmesh {warpmesh.__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     m = sub.add_parser("mesh", help="mesh a shape (example, Python file, expression) or a volume image and "
                                     "print statistics")
     src = m.add_mutually_exclusive_group(required=True)
