@@ -165,6 +165,14 @@ def test_refine_options_and_bad_values():
     assert _small_preview(refine=20).refine_options == {"resolution": 20}
     octree = wm.Preview(wm.sphere(1.0), bounds=BOUNDS, resolution=None, adaptive=True, max_level=5)
     assert octree.refine_options == {"max_level": 6}
+    # as the docstring shows it: max_level alone (resolution's default left out, not passed with it)
+    octree = wm.Preview(wm.sphere(1.0), bounds=BOUNDS, adaptive=True, max_level=5, tolerance=1e-4)
+    assert octree.refine_options == {"max_level": 6} and "max_level 5" in repr(octree)
+    assert octree.refined().n_cells > octree.mesh.n_cells
+    # adaptive with neither: resolution 128's level, refined to twice it
+    assert wm.Preview(wm.sphere(1.0), bounds=BOUNDS, adaptive=True).refine_options == {"resolution": 256}
+    with pytest.raises(ValueError, match="not both"):
+        wm.Preview(wm.sphere(1.0), bounds=BOUNDS, resolution=32, adaptive=True, max_level=5)
     with pytest.raises(ValueError, match="no refinement"):
         _small_preview(refine=None).refined()
     with pytest.raises(ValueError, match="'refine'"):

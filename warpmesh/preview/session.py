@@ -39,6 +39,11 @@ from warpmesh.frep.expr import check_values
 from warpmesh.frep.shapes import as_shape
 from warpmesh.surface.pipeline import mesh_surface
 
+#: the preview's grid resolution when none is given (and no max_level with adaptive=True)
+DEFAULT_RESOLUTION = 128
+#: the idle refinement of an adaptive preview stops at this level (2**10 cells a side)
+MAX_LEVEL = 10
+
 
 class Preview:
     """A shape re-meshed on every parameter edit; shows itself in notebooks.
@@ -50,8 +55,9 @@ class Preview:
         preview only shows it.
     bounds : ((x0, y0, z0), (x1, y1, z1))
         The meshing box.
-    resolution : int
-        Cells along the longest side of the box.
+    resolution : int, optional
+        Cells along the longest side of the box (default 128). With ``adaptive=True`` it is
+        the equivalent of ``max_level`` (2**max_level): give one of them (default 128).
     method : {'mc33', 'mt', 'mc'}
         Cell triangulation (see :func:`warpmesh.mesh_surface`; not with ``adaptive=True``).
     evaluator : {'compiled', 'interpreter'}
@@ -100,7 +106,7 @@ class Preview:
     ValueError: expected a value in [0.3, 0.7] for parameter 'boss' in 'values', got 0.9
     """
 
-    def __init__(self, shape, bounds, resolution: int = 128, *, method: str = "mc33",
+    def __init__(self, shape, bounds, resolution: int | None = None, *, method: str = "mc33",
                  evaluator: str = "compiled", device: str = C.DEFAULT_DEVICE, refine="auto", idle: float = 0.4,
                  **options):
         if evaluator not in ("compiled", "interpreter"):
@@ -110,7 +116,11 @@ class Preview:
         self.params = dict(self.shape.params)
         self.values = {name: p.value for name, p in self.params.items()}
         self.device = check_device(device)
-        self._options = dict(bounds=bounds, resolution=resolution, **options)
+        if resolution is None and not (options.get("adaptive") and options.get("max_level") is not None):
+            resolution = DEFAULT_RESOLUTION  # (adaptive with max_level: the level says it)
+        self._options = dict(bounds=bounds, **options)
+        if resolution is not None:
+            self._options["resolution"] = resolution
         if not options.get("adaptive"):  # the octree evaluates pruned tapes: no method, no evaluator
             self._options.update(method=method, evaluator=evaluator)
         self._refine = _refine_options(refine, self._options)
@@ -272,7 +282,8 @@ class Preview:
     def __repr__(self):
         vals = ", ".join(f"{n}={v:.4g}" for n, v in self.values.items())
         return (f"<Preview ({vals}) {self.mesh.n_points} points, {self.mesh.n_cells} triangles, "
-                f"resolution {self._options['resolution']}>")
+                + (f"max_level {self._options['max_level']}>" if "resolution" not in self._options
+                   else f"resolution {self._options['resolution']}>"))
 
 
 def _refine_options(refine, options: dict) -> dict:
@@ -283,9 +294,13 @@ def _refine_options(refine, options: dict) -> dict:
     if isinstance(refine, str):
         if refine != "auto":
             raise ValueError(f"Unknown refine {refine!r}. Pick one of ['auto'], an int resolution, a dict or None")
-        if adaptive:
+        if adaptive:  # one level finer: max_level + 1, or twice the equivalent resolution
             level = options.get("max_level")
-            return {"max_level": min(int(level) + 1, 10)} if level is not None else {}
+            if level is not None:
+                return {"max_level": min(int(level) + 1, MAX_LEVEL)} if int(level) < MAX_LEVEL else {}
+            res = options.get("resolution")
+            finest = 2**MAX_LEVEL
+            return {"resolution": min(2 * int(res), finest)} if isinstance(res, int) and res < finest else {}
         res = options.get("resolution")
         return {"resolution": min(2 * int(res), 512)} if isinstance(res, int) and res < 512 else {}
     if isinstance(refine, dict):
