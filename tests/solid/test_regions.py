@@ -283,8 +283,12 @@ def test_bad_input():
         wm.mesh_domain(vol, size=3.0, snap=0.5)
     with pytest.raises(ValueError, match="no 'bounds'"):
         wm.mesh_domain(vol, ((0, 0, 0), (1, 1, 1)), size=3.0)
-    with pytest.raises(ValueError, match="'flips' is an option of a shape"):
+    with pytest.raises(ValueError, match="'flips' is not an option of a label volume"):
         wm.mesh_domain(vol, size=3.0, flips=True)
+    with pytest.raises(ValueError, match=r"'spacing' belongs to the image: wrap the array, mesh_domain\(wm.Volume"):
+        wm.mesh_domain(vol, size=3.0, spacing=0.5)
+    with pytest.raises(ValueError, match=r"samples along every axis, got shape \(0, 8, 8\)"):
+        wm.mesh_domain(np.zeros((0, 8, 8), np.uint8), labels="all")
     with pytest.raises(ValueError, match="non-negative integer for 'smooth'"):
         wm.mesh_domain(vol, size=3.0, smooth=-2)
     with pytest.raises(TypeError, match="'volume'"):

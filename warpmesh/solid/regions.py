@@ -304,9 +304,17 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
     """
     t_start = time.perf_counter()
     if refused:
-        raise ValueError(f"{sorted(refused)[0]!r} is an option of a shape's domain; a label volume takes "
-                         "'labels', 'size', 'snap', 'min_size' and 'smooth'")
+        name = sorted(refused)[0]
+        if name in _IMAGE_KEYWORDS:
+            raise ValueError(f"{name!r} belongs to the image: wrap the array, mesh_domain(wm.Volume(array, "
+                             f"{name}=...), labels=...); a label volume takes 'labels', 'size', 'snap', "
+                             "'min_size' and 'smooth'")
+        raise ValueError(f"{name!r} is not an option of a label volume's regions (a shape's domain takes it, if "
+                         "any); a label volume takes 'labels', 'size', 'snap', 'min_size' and 'smooth'")
     image = _as_image(volume)
+    if image.values.ndim == 3 and 0 in image.values.shape:
+        raise ValueError(f"expected a 3D label array for 'volume' with samples along every axis, got shape "
+                         f"{image.values.shape}")
     if bounds is not None:
         raise ValueError(f"expected no 'bounds' with a label volume (its extent is its samples), got {bounds!r}")
     device = check_device(device)
@@ -329,6 +337,9 @@ def mesh_regions(volume, bounds=None, *, labels="all", size=None, snap: float = 
         bar.close()
     return mesh
 
+
+#: keywords of the image (wm.Volume), not of the meshing: a bare array given with them is told to wrap itself
+_IMAGE_KEYWORDS = ("spacing", "origin", "direction")
 
 #: the stages of the progress bar: the uniform pass's, the graded pass's, the smoothing, the quality
 _STAGES = 4 + 6 + 1 + 1
