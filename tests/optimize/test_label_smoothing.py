@@ -270,3 +270,24 @@ def test_quality_bound_holds_for_many_passes():
         assert triangle_quality(m.points, m.cells["triangle"]).max() <= SMOOTH_Q
         assert m.info["smoothing"]["reverted"] > 0
         assert len(find_self_intersections(m.points, m.cells["triangle"])) == 0
+
+
+def test_volume_changes_are_reported_and_large_ones_named():
+    """Each label's enclosed volume before and after (the same as stats()' label boundaries):
+    a 2-voxel cube shrinks by about half and is named in a UserWarning, the big region is not;
+    an open boundary (cap=False, the labels cut by the box) reports no change."""
+    vol = np.zeros((24, 24, 24), np.uint8)
+    vol[3:21, 3:21, 3:21] = 1
+    vol[10:12, 10:12, 10:12] = 2
+    raw = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    with pytest.warns(UserWarning, match=r"1 label\(s\)' volume by more than 2.5% \(label 2: -"):
+        m = smooth_labels(raw, passes=16)
+    change = m.info["smoothing"]["volume_change"]
+    before, after = raw.stats()["label_boundaries"], m.stats()["label_boundaries"]
+    for label in (1, 2):
+        assert change[label] == pytest.approx(after[label]["volume"] / before[label]["volume"] - 1.0, abs=1e-9)
+    assert change[2] < -0.3 and abs(change[1]) < 0.025
+    cut = np.zeros((12, 12, 12), np.uint8)
+    cut[:, :, 6:] = 1
+    open_ = wm.mesh_surface(cut, labels="all", interfaces="shared", cap=False)
+    assert smooth_labels(open_, passes=4).info["smoothing"]["volume_change"] == {}
