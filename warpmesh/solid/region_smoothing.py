@@ -33,8 +33,9 @@ judge of every move:
   cleaved one: conforming, every tetrahedron its label. Keeping the cleaved range instead
   (16.5°-150° on 64^3 nested balls at size 4) stopped the smoothing half way: interface
   area 1.42 -> 1.27 times the spheres', against 1.13 with these bounds (1.10 with 5°);
-* then the vertices on no interface are smoothed by
-  :func:`~warpmesh.solid.smoothing.smooth_tets` (moves that raise the local smallest angle).
+* then the vertices on no interface next to a moved one are smoothed by
+  :func:`~warpmesh.solid.smoothing.smooth_tets` (moves that raise the local smallest angle),
+  on the tetrahedra around them only: the rest of each region is the lattice's.
 
 Measured (``python benchmarks/bench_regions.py --smoothing``): see that benchmark's output;
 the figures of the nested balls are in ``tests/solid/test_region_smoothing.py``.
@@ -166,7 +167,7 @@ def smooth_regions(points, tets, tris, lower, upper, *, passes: int, spacing, sh
     mu = 1.0 / (PASS_BAND - 1.0 / RELAXATION)
     rng = np.random.default_rng(seed)
     reach = REACH * spacing
-    interior, none = ~on_face, np.zeros(n, bool)
+    interior, none = ~on_face, np.zeros(n, bool)  # (none: no vertex on f = 0 nor on a cap)
     to = np.concatenate([a[use_a], b[use_b]])  # each vertex's averaged neighbours: (to, of) pairs
     of = np.concatenate([b[use_a], a[use_b]])
 
@@ -181,9 +182,18 @@ def smooth_regions(points, tets, tris, lower, upper, *, passes: int, spacing, sh
         target = np.clip(half + mu * laplacian(half), raw - reach, raw + reach)
         target[~movable] = pts[~movable]
         info["moved"] += _move(pts, target, movable, sub, rows, graph, sub_min, sub_max, floor, ceiling, rng, device)
-    if interior.any():
-        pts, moved = smooth_tets(pts, tets, tris, none, none, None, sweeps=INTERIOR_SWEEPS, device=device,
-                                 seed=seed, only=interior)
+    # the vertices on no interface that share a tetrahedron with a moved one, smoothed on the
+    # tetrahedra around them only (the rest of each region is the lattice's, untouched)
+    ring = np.zeros(n, bool)
+    ring[sub.ravel()] = True
+    ring &= interior
+    if ring.any():
+        around = tets[ring[tets].any(axis=1)]
+        local, flat = np.unique(around, return_inverse=True)
+        moved_pts, moved = smooth_tets(pts[local], flat.reshape(-1, 4), np.zeros((0, 3), np.int64),
+                                       none[local], none[local], None, sweeps=INTERIOR_SWEEPS, device=device,
+                                       seed=seed, only=ring[local])
+        pts[local] = moved_pts
         info["interior_moved"] = int(moved)
     q = tet_quality(pts, tets, device)
     info["dihedral_after"] = [float(q[:, 0].min()), float(q[:, 1].max())]
@@ -215,21 +225,21 @@ def _move(pts, target, movable, tets, rows, graph, t_min, t_max, floor, ceiling,
         starts = np.r_[0, np.cumsum(counts)[:-1]]
         low = np.minimum(np.minimum.reduceat(t_min[around], starts), floor)
         high = np.maximum(np.maximum.reduceat(t_max[around], starts), ceiling)
-        uniq, local = np.unique(tets[around], return_inverse=True)
-        local = local.reshape(-1, 4)
-        corners = pts[uniq]
-        at = np.searchsorted(uniq, verts)  # the selected vertices among the local points
+        corner = tets[around]
+        slot = corner == verts[owner][:, None]  # the owner's corner of each tetrahedron
+        base = pts[corner]  # (k, 4, 3): each tetrahedron's own copy of its corners (no unique, no sort)
+        local = np.arange(base.shape[0] * 4).reshape(-1, 4)
         move = target[verts] - pts[verts]
         done = np.zeros(len(verts), bool)
         for step in STEPS:
-            trial = corners.copy()
-            trial[at[~done]] = pts[verts[~done]] + step * move[~done]
-            q = tet_quality(trial, local, device)
+            trial = base.copy()
+            trial[slot] = pts[verts[owner]] + step * move[owner]
+            q = tet_quality(trial.reshape(-1, 3), local, device)
             after_min = np.minimum.reduceat(np.where(q[:, 3] > 0, q[:, 0], -np.inf), starts)
             after_max = np.maximum.reduceat(q[:, 1], starts)
             ok = ~done & (after_min >= low) & (after_max <= high)
             if ok.any():
-                pts[verts[ok]] = trial[at[ok]]
+                pts[verts[ok]] = pts[verts[ok]] + step * move[ok]
                 take = ok[owner]
                 t_min[around[take]] = q[take, 0]
                 t_max[around[take]] = q[take, 1]
