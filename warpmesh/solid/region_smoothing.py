@@ -63,7 +63,7 @@ from warpmesh.solid.adjacency import Neighbours, gather_rows, unique_edges, vert
 from warpmesh.solid.dihedral import tet_quality
 from warpmesh.solid.smoothing import smooth_tets
 
-__all__ = ["smooth_regions", "REACH", "MIN_DIHEDRAL", "MAX_DIHEDRAL", "RELAXATION", "STEPS", "MAX_ROUNDS"]
+__all__ = ["smooth_regions", "VertexMover", "REACH", "MIN_DIHEDRAL", "MAX_DIHEDRAL", "RELAXATION", "STEPS", "MAX_ROUNDS"]
 
 #: a vertex moves at most this many voxels (spacings) along each axis from its cleaved position
 REACH = 1.0
@@ -157,15 +157,8 @@ def smooth_regions(points, tets, tris, lower, upper, *, passes: int, spacing, sh
     count = (np.bincount(a[use_a], minlength=n) + np.bincount(b[use_b], minlength=n)).astype(np.float64)
     movable &= count > 0
 
-    # the tetrahedra a move can change, and the edges between their vertices (two vertices of one
-    # tetrahedron are never in one independent set)
-    near = np.flatnonzero(movable[tets].any(axis=1))
-    sub = tets[near]
-    graph = Neighbours(unique_edges(sub), n)
-    rows = vertex_tets(sub, n)
-    sub_min, sub_max = t_min[near], t_max[near]
+    mover = VertexMover(pts, tets, movable, t_min, t_max, floor, ceiling, seed, device)
     mu = 1.0 / (PASS_BAND - 1.0 / RELAXATION)
-    rng = np.random.default_rng(seed)
     reach = REACH * spacing
     interior, none = ~on_face, np.zeros(n, bool)  # (none: no vertex on f = 0 nor on a cap)
     to = np.concatenate([a[use_a], b[use_b]])  # each vertex's averaged neighbours: (to, of) pairs
@@ -181,11 +174,11 @@ def smooth_regions(points, tets, tris, lower, upper, *, passes: int, spacing, sh
         half = pts + RELAXATION * laplacian(pts)
         target = np.clip(half + mu * laplacian(half), raw - reach, raw + reach)
         target[~movable] = pts[~movable]
-        info["moved"] += _move(pts, target, movable, sub, rows, graph, sub_min, sub_max, floor, ceiling, rng, device)
+        info["moved"] += mover.move(target)
     # the vertices on no interface that share a tetrahedron with a moved one, smoothed on the
     # tetrahedra around them only (the rest of each region is the lattice's, untouched)
     ring = np.zeros(n, bool)
-    ring[sub.ravel()] = True
+    ring[mover.tets.ravel()] = True
     ring &= interior
     if ring.any():
         around = tets[ring[tets].any(axis=1)]
@@ -201,48 +194,86 @@ def smooth_regions(points, tets, tris, lower, upper, *, passes: int, spacing, sh
     return pts, info
 
 
-def _move(pts, target, movable, tets, rows, graph, t_min, t_max, floor, ceiling, rng, device) -> int:
-    """Move the ``movable`` vertices towards ``target`` in rounds of an independent set, in place
-    (``pts``, and the tetrahedra's ``t_min`` / ``t_max``); the number of moves kept. Each round
-    works on the tetrahedra around its vertices only (vertex -> tetrahedra rows, a local copy of
-    their points; ``rows``: :func:`~warpmesh.solid.adjacency.vertex_tets` of ``tets``)."""
-    n = len(pts)
-    ptr, idx = rows
-    todo = movable & np.any(target != pts, axis=1)
-    kept = 0
-    for _ in range(MAX_ROUNDS):
-        if not todo.any():
-            break
-        prio = np.where(todo, rng.random(n), -1.0)
-        sel = todo & (prio >= graph.max_of(prio))
-        todo &= ~sel
-        verts = np.flatnonzero(sel)
-        counts = ptr[verts + 1] - ptr[verts]
-        verts, counts = verts[counts > 0], counts[counts > 0]
-        if not len(verts):
-            continue
-        owner, around = gather_rows(ptr, idx, verts)  # each tetrahedron has one selected vertex: its owner
-        starts = np.r_[0, np.cumsum(counts)[:-1]]
-        low = np.minimum(np.minimum.reduceat(t_min[around], starts), floor)
-        high = np.maximum(np.maximum.reduceat(t_max[around], starts), ceiling)
-        corner = tets[around]
-        slot = corner == verts[owner][:, None]  # the owner's corner of each tetrahedron
-        base = pts[corner]  # (k, 4, 3): each tetrahedron's own copy of its corners (no unique, no sort)
-        local = np.arange(base.shape[0] * 4).reshape(-1, 4)
-        move = target[verts] - pts[verts]
-        done = np.zeros(len(verts), bool)
-        for step in STEPS:
-            trial = base.copy()
-            trial[slot] = pts[verts[owner]] + step * move[owner]
-            q = tet_quality(trial.reshape(-1, 3), local, device)
-            after_min = np.minimum.reduceat(np.where(q[:, 3] > 0, q[:, 0], -np.inf), starts)
-            after_max = np.maximum.reduceat(q[:, 1], starts)
-            ok = ~done & (after_min >= low) & (after_max <= high)
-            if ok.any():
-                pts[verts[ok]] = pts[verts[ok]] + step * move[ok]
-                take = ok[owner]
-                t_min[around[take]] = q[take, 0]
-                t_max[around[take]] = q[take, 1]
-                done |= ok
-        kept += int(done.sum())
-    return kept
+class VertexMover:
+    """Moves of chosen vertices of a tetrahedral mesh towards targets, each kept only when the
+    tetrahedra around the vertex stay positive with dihedral angles within [``floor``,
+    ``ceiling``] or no worse than they were (the full move, half, a quarter: ``STEPS``; the
+    longest that passes), in rounds of an independent set (no two in one tetrahedron: each
+    move judged alone). Works on the tetrahedra around the ``movable`` vertices only; ``pts``
+    is moved in place.
+
+    Parameters
+    ----------
+    pts : (n, 3) float64, moved in place
+    tets : (m, 4) int
+    movable : (n,) bool
+    t_min, t_max : (m,) float
+        Each tetrahedron's smallest and largest dihedral angle (degrees) at ``pts``.
+    floor, ceiling : float
+    seed : int
+    device : str
+
+    Examples
+    --------
+    >>> pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    >>> q = tet_quality(pts, [[0, 1, 2, 3]])
+    >>> mover = VertexMover(pts, np.array([[0, 1, 2, 3]]), np.array([False, False, False, True]),
+    ...                     q[:, 0], q[:, 1], 10.0, 160.0, 0, "cpu")
+    >>> mover.move(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.2, 0.2, -4.0]]))  # through the base, even a quarter
+    0
+    >>> mover.move(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.3, 0.3, 0.8]])), pts[3].tolist()
+    (1, [0.3, 0.3, 0.8])
+    """
+
+    def __init__(self, pts, tets, movable, t_min, t_max, floor: float, ceiling: float, seed: int, device):
+        n = len(pts)
+        near = np.flatnonzero(np.asarray(movable)[tets].any(axis=1))
+        self.pts, self.movable, self.floor, self.ceiling, self.device = pts, np.asarray(movable), floor, ceiling, device
+        self.tets = tets[near]  # the tetrahedra a move can change
+        self.graph = Neighbours(unique_edges(self.tets), n)  # two vertices of one tetrahedron: not one set
+        self.rows = vertex_tets(self.tets, n)
+        self.t_min, self.t_max = np.asarray(t_min)[near].copy(), np.asarray(t_max)[near].copy()
+        self.rng = np.random.default_rng(seed)
+
+    def move(self, target) -> int:
+        """Move the movable vertices towards ``target`` ((n, 3)); the number of moves kept."""
+        pts, tets, n = self.pts, self.tets, len(self.pts)
+        ptr, idx = self.rows
+        todo = self.movable & np.any(target != pts, axis=1)
+        kept = 0
+        for _ in range(MAX_ROUNDS):
+            if not todo.any():
+                break
+            prio = np.where(todo, self.rng.random(n), -1.0)
+            sel = todo & (prio >= self.graph.max_of(prio))
+            todo &= ~sel
+            verts = np.flatnonzero(sel)
+            counts = ptr[verts + 1] - ptr[verts]
+            verts, counts = verts[counts > 0], counts[counts > 0]
+            if not len(verts):
+                continue
+            owner, around = gather_rows(ptr, idx, verts)  # each tetrahedron has one selected vertex: its owner
+            starts = np.r_[0, np.cumsum(counts)[:-1]]
+            low = np.minimum(np.minimum.reduceat(self.t_min[around], starts), self.floor)
+            high = np.maximum(np.maximum.reduceat(self.t_max[around], starts), self.ceiling)
+            corner = tets[around]
+            slot = corner == verts[owner][:, None]  # the owner's corner of each tetrahedron
+            base = pts[corner]  # (k, 4, 3): each tetrahedron's own copy of its corners (no unique, no sort)
+            local = np.arange(base.shape[0] * 4).reshape(-1, 4)
+            move = target[verts] - pts[verts]
+            done = np.zeros(len(verts), bool)
+            for step in STEPS:
+                trial = base.copy()
+                trial[slot] = pts[verts[owner]] + step * move[owner]
+                q = tet_quality(trial.reshape(-1, 3), local, self.device)
+                after_min = np.minimum.reduceat(np.where(q[:, 3] > 0, q[:, 0], -np.inf), starts)
+                after_max = np.maximum.reduceat(q[:, 1], starts)
+                ok = ~done & (after_min >= low) & (after_max <= high)
+                if ok.any():
+                    pts[verts[ok]] = pts[verts[ok]] + step * move[ok]
+                    take = ok[owner]
+                    self.t_min[around[take]] = q[take, 0]
+                    self.t_max[around[take]] = q[take, 1]
+                    done |= ok
+            kept += int(done.sum())
+        return kept
