@@ -475,3 +475,25 @@ def test_a_shape_that_is_nan_at_the_new_nodes_is_named():
     ball = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8)
     with pytest.raises(ValueError, match=r"the shape evaluates to NaN or infinity near [0-9]+ of the [0-9]+ nodes"):
         ball.refine(2, wm.log(wm.coords()[0]))
+
+
+def test_a_capped_mesh_keeps_its_caps_without_bounds():
+    """A ball cut by its bounds at z = 0.5 (cap faces, ref 2): refine(2, shape) and
+    to_order(2, shape) read the box from the cap faces (warpmesh.cells.caps), so the cap
+    nodes stay on z = 0.5 (they were projected onto the sphere: 164 inverted tetrahedra,
+    z up to 0.99) and the result is that of bounds= given."""
+    import warnings
+
+    ball, box = wm.sphere(1.0), ((-1.2, -1.2, -1.2), (1.2, 1.2, 0.5))
+    m = wm.mesh_domain(ball, bounds=box, size=0.25)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "inverted after projecting" warning
+        fine, given = m.refine(2, ball), m.refine(2, ball, bounds=box)
+        quadratic = m.to_order(2, ball)
+    np.testing.assert_allclose(fine.points, given.points, rtol=0, atol=1e-6)  # (float32 rounding of the caps)
+    assert fine.points[:, 2].max() <= 0.5 + 1e-6 and len(wm.check(fine)) == 0
+    assert quadratic.points[:, 2].max() <= 0.5 + 1e-6
+    uncapped = wm.mesh_domain(ball, bounds=((-1.2,) * 3, (1.2,) * 3), size=0.25)
+    from warpmesh.cells.caps import cap_bounds
+
+    assert cap_bounds(uncapped) is None and cap_bounds(m)[1][2] == pytest.approx(0.5)

@@ -63,7 +63,8 @@ from warpmesh.cells.types import require_mesh
 from warpmesh.cells.collapsed import reject_collapsed
 from warpmesh.frep.projection import as_target, check_shape_dim, project_nodes
 from warpmesh.cells.reference import (base_type, cell_measures, corner_jacobians, extend_point_values,
-                              reference_cell, weighted_nodes)
+                                      reference_cell, weighted_nodes)
+from warpmesh.cells.caps import cap_bounds
 
 __all__ = ["refine_uniform", "REFINABLE_TYPES"]
 
@@ -368,7 +369,9 @@ def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
     shape : Shape, Expr, VolumeField or projection target, optional
         The exact geometry (f > 0 inside). 2D meshes are read at z = 0.
     bounds : ((x0, y0, z0), (x1, y1, z1)), optional
-        The box the mesh was capped on (as in :func:`warpmesh.mesh_surface`).
+        The box the mesh was capped on (as in :func:`warpmesh.mesh_surface`); by default read
+        from the mesh's cap faces (ref ``CAP_REF``: :func:`warpmesh.cells.caps.cap_bounds`), so
+        their nodes stay on the box.
     tetra_diagonal : {"shortest", "fixed"}
         How each tetrahedron's inner octahedra are split: along their shortest diagonal
         (default), or along the one fixed by the local vertex order (0-2 | 1-3 midpoints),
@@ -421,6 +424,8 @@ def refine_uniform(mesh, n: int = 2, shape=None, *, bounds=None,
     nv_max = max(mesh.cells[t].shape[1] for t in types)
     check_budget(3 * n_after * (8 * nv_max + 8 * mesh.dim), f"refine(n={k}) of {mesh.n_cells} cells "
                  f"({n_after:.3g} cells after)", "lower 'n', or refine where needed (where=..., max_length=...)")
+    if shape is not None and bounds is None:  # a capped mesh: its cap faces stay on their box
+        bounds = cap_bounds(mesh)
     target = None if shape is None else as_target(shape, bounds=bounds)
     if shape is not None:
         check_shape_dim(shape, mesh.points)

@@ -43,6 +43,7 @@ from warpmesh.cells.lagrange import (ELEMENT_BY_NAME, ELEMENTS, HIGHER_TYPES, LA
                                      P1_TOPOLOGY, LagrangeElement)
 from warpmesh.cells.collapsed import reject_collapsed
 from warpmesh.cells.types import require_mesh
+from warpmesh.cells.caps import cap_bounds
 from warpmesh.frep.projection import as_target, check_shape_dim, project_nodes
 
 __all__ = ["to_order", "jacobians", "inverted_elements"]
@@ -230,7 +231,9 @@ def to_order(mesh, order: int, shape=None, *, bounds=None, check: bool = True, s
         The exact geometry (f > 0 inside, f = 0 on the boundary). 2D meshes are read at
         z = 0.
     bounds : ((x0, y0, z0), (x1, y1, z1)), optional
-        The box the mesh was capped on (as in :func:`warpmesh.mesh_surface`).
+        The box the mesh was capped on (as in :func:`warpmesh.mesh_surface`); by default read
+        from the mesh's cap faces (ref ``CAP_REF``: :func:`warpmesh.cells.caps.cap_bounds`), so
+        their nodes stay on the box.
     check : bool
         Compute :func:`jacobians` of the result, store ``info["n_inverted"]`` and warn
         when some elements are inverted (the mesh is not k-compatible, Definition 17.3).
@@ -280,6 +283,8 @@ def _to_order(mesh, order, shape=None, *, bounds=None, check=True, stacklevel: i
         raise TypeError(f"expected a bool for 'check', got {type(check).__name__}")
     if shape is None and bounds is not None:
         raise ValueError("expected a 'shape' with 'bounds' (the box caps that shape), got shape=None")
+    if shape is not None and bounds is None:  # a capped mesh: its cap faces stay on their box
+        bounds = cap_bounds(mesh)
     target = None if shape is None else as_target(shape, bounds=bounds)
     if shape is not None:
         check_shape_dim(shape, mesh.points)
