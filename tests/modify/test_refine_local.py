@@ -510,3 +510,21 @@ def test_max_rounds_hit():
 def test_not_a_shape():
     with pytest.raises(TypeError, match="shape"):
         refine_local(square()[0], max_length=0.1, shape="sphere")
+
+
+def test_local_refinement_of_a_capped_mesh_keeps_its_caps():
+    """A ball cut by its bounds (cap faces, ref 2) refined locally with its shape: the cap
+    midpoints stay on the cut (they were projected onto the sphere, folding the elements next
+    to the cap, whose edges then grew at every round: max_rounds ran out after 84,865
+    bisections); it finishes, valid, with every edge at most max_length."""
+    import warnings
+
+    ball = wm.sphere(1.0)
+    m = wm.mesh_domain(ball, bounds=((-1.2, -1.2, -1.2), (1.2, 1.2, 0.5)), size=0.3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = m.refine(shape=ball, max_length=0.2, max_rounds=16)
+    assert r.points[:, 2].max() <= 0.5 + 1e-6 and r.info["n_inverted"] == 0 and len(wm.check(r)) == 0
+    t = r.cells["tetra"]
+    lengths = np.linalg.norm(r.points[t[:, [0, 0, 0, 1, 1, 2]]] - r.points[t[:, [1, 2, 3, 2, 3, 3]]], axis=2)
+    assert lengths.max() <= 0.2 + 1e-9

@@ -67,6 +67,7 @@ from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
 from warpmesh._util.budget import check_budget
 from warpmesh.cells.types import CELL_TYPES, require_mesh
 from warpmesh.cells.collapsed import reject_collapsed
+from warpmesh.cells.caps import cap_bounds
 from warpmesh.frep.projection import as_target, check_shape_dim, project_nodes
 from warpmesh.errors import WarpMeshError
 from warpmesh.cells.quality import tetra_quality, triangle_quality
@@ -388,7 +389,8 @@ def refine_local(mesh, *, where=None, max_length=None, shape=None, max_rounds: i
         raise TypeError(f"expected an int for 'max_rounds', got {type(max_rounds).__name__}")
     if max_rounds < 1:
         raise ValueError(f"expected 'max_rounds' >= 1, got {max_rounds}")
-    target = None if shape is None else as_target(shape)
+    # a capped mesh: the midpoints of its cap faces stay on the box (read from those faces)
+    target = None if shape is None else as_target(shape, bounds=cap_bounds(mesh))
     if shape is not None:
         check_shape_dim(shape, mesh.points)
     if size is not None:
