@@ -263,3 +263,16 @@ def test_a_plate_thinner_than_the_size_is_named_in_a_warning():
         warnings.simplefilter("error")
         ball = wm.mesh_domain(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), size=0.25)
     assert ball.info["boundary_bad_edges"] == 0 and ball.stats()["watertight"]
+
+
+def test_bounds_far_from_the_origin_that_float32_cannot_resolve_are_refused():
+    """The lattice is evaluated in float32, as mesh_surface's grid: a unit ball at x = 1e7 at
+    size 0.2 gave a boundary 5 sizes off and -14 % of volume, silently; now refused, naming
+    'bounds' and what to do. Near the origin the same ball meshes."""
+    far = 1.0e7
+    with pytest.raises(ValueError, match=r"'bounds' whose cells float32 can resolve.*raise 'size'"):
+        wm.mesh_domain(wm.sphere(1.0, center=(far, 0, 0)), bounds=((far - 1.2, -1.2, -1.2), (far + 1.2, 1.2, 1.2)),
+                       size=0.2)
+    near = wm.mesh_domain(wm.sphere(1.0, center=(1e3, 0, 0)), bounds=((1e3 - 1.2, -1.2, -1.2), (1e3 + 1.2, 1.2, 1.2)),
+                          size=0.2)
+    assert near.stats()["watertight"]

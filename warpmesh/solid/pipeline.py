@@ -42,6 +42,7 @@ from warpmesh.solid.features import DIHEDRAL_CEILING, DIHEDRAL_FLOOR, FEATURE_AN
 from warpmesh.solid.regions import mesh_regions
 from warpmesh.solid.smoothing import smooth_tets
 from warpmesh.solid.stuffing import ALPHA_LONG, ALPHA_SHORT, ROOT_ITERATIONS, stuff
+from warpmesh.surface.options import check_float32_grid
 
 __all__ = ["mesh_domain", "METHODS_3D", "VOLUME_REF", "boundary_faces"]
 
@@ -335,6 +336,12 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, dev
         raise ValueError(f"method={method!r} takes a number 'size'; a graded 'size' ({size!r}) grades the "
                          "stuffing lattice only: use method='stuffing' (the default) or give 'size' as a number")
     h = _check_size(size, box)
+    # the lattice's nodes are evaluated in float32, as mesh_surface's grid is: a box far from the
+    # origin whose edges float32 cannot resolve is refused (it gave boundaries 5 sizes off, silently)
+    try:
+        check_float32_grid(box, np.maximum(1.0, np.ceil((box[1] - box[0]) / h)))
+    except ValueError as exc:
+        raise ValueError(str(exc).replace("lower the resolution", "raise 'size'")) from None
     opts = _check_options(options)
     if method == "delaunay":
         from warpmesh.solid.delaunay import mesh_delaunay  # scipy's Qhull: imported when asked for
