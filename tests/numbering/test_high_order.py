@@ -295,7 +295,7 @@ def test_flat_boundary_tetra_is_found_and_warned(ball):
     tets = np.vstack([ball.cells["tetra"], n + np.arange(4)])
     mesh = Mesh(np.vstack([ball.points, sliver]), {"tetra": tets})
     assert jacobians(mesh)["tetra"].min() == 1.0  # valid as P1
-    with pytest.warns(UserWarning, match=r"1 of \d+ elements are inverted .*inverted_elements"):
+    with pytest.warns(UserWarning, match=r"1 elements \(1 of \d+ tetra10\) are inverted .*inverted_elements"):
         p = to_order(mesh, 2, wm.sphere(R))
     assert p.info["n_inverted"] == 1
     bad = inverted_elements(p)

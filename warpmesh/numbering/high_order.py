@@ -328,8 +328,9 @@ def _to_order(mesh, order, shape=None, *, bounds=None, check=True, stacklevel: i
         bad = sum(int(np.count_nonzero(s <= 0)) for s in scores.values())
         info["n_inverted"] = bad
         if bad:
-            total = sum(len(s) for s in scores.values())
-            warnings.warn(f"{bad} of {total} elements are inverted after to_order(order={k}): the "
+            per_block = ", ".join(f"{int(np.count_nonzero(s <= 0))} of {len(s)} {t}" for t, s in scores.items()
+                                  if np.count_nonzero(s <= 0))
+            warnings.warn(f"{bad} elements ({per_block}) are inverted after to_order(order={k}): the "
                           f"mesh is not {k}-compatible [FG Definition 17.3]; list them with "
                           "warpmesh.numbering.high_order.inverted_elements(mesh)", UserWarning, stacklevel=stacklevel)
     info["to_order"]["time"] = time.perf_counter() - t0
