@@ -447,3 +447,15 @@ def test_full_check_refuses_meshes_that_overlap():
     rest = wm.Mesh(tets.points, {"tetra": tets.cells["tetra"][~keep]})
     whole = half.merge(rest, check="full")  # halves sharing an interface: no overlap
     assert len(whole.cells["tetra"]) == len(tets.cells["tetra"])
+
+
+def test_meshes_from_the_float32_meshers_weld_by_default():
+    """A stuffed box and its translate by the box's width: their common face's nodes are a few
+    float32 ulps apart (1.00000005 against 1.0), and the default tolerance (2 float32 epsilons
+    of the box) welds every one of them (at 1e-8, 81 of the 221 stayed apart, silently): a
+    conforming interface, every face of it shared."""
+    c = wm.mesh_domain(wm.box((2.0, 2.0, 2.0)), bounds=((-1.0,) * 3, (1.0,) * 3), size=0.2)
+    on_face = int(np.count_nonzero(np.abs(c.points[:, 0] - 1.0) < 1e-6))
+    m = c.merge(c.transform(wm.transforms.translation([2.0, 0.0, 0.0])))
+    assert m.info["n_common_points"] == on_face and m.n_points == 2 * c.n_points - on_face
+    assert m.info["n_common_faces"] > 0 and len(wm.check(m)) == 0

@@ -74,7 +74,7 @@ def add_parsers(sub) -> None:
     m = sub.add_parser("merge", help="merge two meshes along their common boundary ([FG §17.2])")
     _io(m, "first", "second")
     m.add_argument("--tolerance", type=float, help="absolute distance under which points merge "
-                   "(default 1e-8 of the bounding box)")
+                   "(default 2.4e-7 of the bounding box: a few float32 ulps)")
     m.add_argument("--refs", action="store_true", help="merge only points with equal refs")
     m.add_argument("--duplicates", choices=["merge", "keep", "drop"], default="merge",
                    help="cells found in both meshes: keep one (default), both, or none")

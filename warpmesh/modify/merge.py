@@ -234,7 +234,7 @@ def merge(a, b, tolerance: float | None = None, *, refs: bool = False,
         (up to round-off).
     tolerance : float, optional
         Absolute distance under which a vertex of ``b`` and one of ``a`` are the same
-        (:func:`match_points`). Default ``1e-8 × Δ``, Δ the largest side of the box
+        (:func:`match_points`). Default ``RELATIVE_TOLERANCE`` (2.4e-7, twice float32's epsilon) ``× Δ``, Δ the largest side of the box
         enclosing both meshes.
     refs : bool
         Only vertices with equal ``point_refs`` merge (missing refs are 0): coincident
