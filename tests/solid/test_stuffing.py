@@ -276,3 +276,15 @@ def test_bounds_far_from_the_origin_that_float32_cannot_resolve_are_refused():
     near = wm.mesh_domain(wm.sphere(1.0, center=(1e3, 0, 0)), bounds=((1e3 - 1.2, -1.2, -1.2), (1e3 + 1.2, 1.2, 1.2)),
                           size=0.2)
     assert near.stats()["watertight"]
+
+
+def test_a_box_filling_its_bounds_is_surface_not_cap():
+    """A box exactly filling its bounds: its faces are on f = 0 and on the bounds; they are the
+    shape's surface (SURFACE_REF 1; every one was CAP_REF 2, none 1, and boundary conditions on
+    the shape's surface found nothing). A ball cut by its bounds keeps its cap (ref 2)."""
+    box = wm.mesh_domain(wm.box((2.0, 2.0, 2.0)), bounds=((-1.0,) * 3, (1.0,) * 3), size=0.2)
+    assert set(box.cell_refs["triangle"].tolist()) == {1}
+    cut = wm.mesh_domain(wm.sphere(1.0), bounds=((-1.2, -1.2, -1.2), (1.2, 1.2, 0.5)), size=0.2)
+    refs = cut.cell_refs["triangle"]
+    caps = cut.points[cut.cells["triangle"][refs == 2]]
+    assert set(refs.tolist()) == {1, 2} and np.allclose(caps[:, :, 2], 0.5, atol=1e-6)

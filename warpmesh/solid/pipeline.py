@@ -297,6 +297,23 @@ def _face_refs(points: np.ndarray, tris: np.ndarray, box: np.ndarray, h: float) 
     return refs
 
 
+def _surface_refs_on_the_bounds(refs: np.ndarray, points: np.ndarray, tris: np.ndarray, tape, h: float,
+                                device) -> np.ndarray:
+    """The output refs: a face in a face of the box that is also on f = 0 (its centroid within
+    ``CAP_TOLERANCE`` h of the surface: a box filling its bounds) is the shape's surface,
+    SURFACE_REF, not a cap (every face of such a box was ref 2, none 1, so boundary conditions
+    on the shape's surface found nothing); caps proper (f > 0 there: the shape cut by the box)
+    stay CAP_REF. (The stages before keep their caps fixed either way.)"""
+    caps = np.flatnonzero(refs == C.CAP_REF)
+    if not len(caps):
+        return refs
+    f, g = value_gradient_at(tape, points[tris[caps]].mean(axis=1), device=device)
+    distance = np.abs(f) / np.maximum(np.linalg.norm(g, axis=1), 1e-300)
+    out = refs.copy()
+    out[caps[distance <= CAP_TOLERANCE * h]] = C.SURFACE_REF
+    return out
+
+
 def _boundary_distance(tape, points: np.ndarray, on_f: np.ndarray, h: float, device) -> float:
     idx = np.flatnonzero(on_f)
     if not len(idx):
@@ -427,6 +444,7 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, dev
     info["boundary_distance"] = _boundary_distance(tape, points, on_f, h, device)
     info["method"] = method
     _warn_open_boundary(tris, len(points), h, info)
+    refs = _surface_refs_on_the_bounds(refs, points, tris, tape, h, device)
     return Mesh(points, {"tetra": tets, "triangle": tris},
                 cell_refs={"tetra": np.full(len(tets), VOLUME_REF), "triangle": refs}, info=info)
 
