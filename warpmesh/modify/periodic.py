@@ -125,7 +125,7 @@ def periodic_pairs(mesh, matrix, tolerance: float | None = None) -> np.ndarray:
     matrix : (d+1, d+1) float
         Homogeneous affine transformation T, invertible.
     tolerance : float, optional
-        Absolute; default ``1e-8 × Δ`` of the mesh and its image (:func:`default_tolerance`).
+        Absolute; default ``RELATIVE_TOLERANCE × Δ`` (2.4e-7) of the mesh and its image (:func:`default_tolerance`).
 
     Returns
     -------
