@@ -154,8 +154,12 @@ def _pinched_nodes(T, L, cut_id, target, snapped) -> tuple[np.ndarray, np.ndarra
     rows = np.flatnonzero((index[np.maximum(cut_id, 0)] >= 0).any(axis=1))
     Tr, Lr, Cr = T[rows], L[rows], cut_id[rows]
     onto = {}
-    code_of = np.empty(n, np.int64)  # the code of the end a cut is not snapped onto
-    node_of = np.empty(n, np.int64)  # the node it is snapped onto
+    # the code of the end a cut is not snapped onto, and the node it is snapped onto; a snapped cut
+    # on no edge of these rows (the speck pass hands over the tetrahedra around its regions with
+    # every cut) is a group of its own, never pinched: it was left as np.empty's garbage, which
+    # grouped it with any node and made the pushes, and the mesh, change from run to run
+    code_of = np.zeros(n, np.int64)
+    node_of = -1 - np.arange(n, dtype=np.int64)
     for k, (i, j) in enumerate(_EDGES):
         e = Cr[:, k]
         c = np.where(e >= 0, index[np.maximum(e, 0)], -1)
@@ -210,4 +214,5 @@ def _pinched_nodes(T, L, cut_id, target, snapped) -> tuple[np.ndarray, np.ndarra
             largest = np.empty(n_groups, np.int64)
             largest[group_of[order][first]] = order[first]
             main = comp == largest[g]
-    return np.unique(np.concatenate(bad)), main
+    bad = np.unique(np.concatenate(bad))
+    return bad[bad >= 0], main
