@@ -43,8 +43,13 @@ judge of every move:
   back to their cleaved places, round by round, with those of tetrahedra that a return leaves
   outside their dihedral bounds, until none overlaps or leaves them (``info["reverted"]``).
 
-Measured (``python benchmarks/bench_regions.py --smoothing``): see that benchmark's output;
-the figures of the nested balls are in ``tests/solid/test_region_smoothing.py``.
+Measured (``python benchmarks/bench_regions.py --smoothing``, 2 cores, load 1.8-3.7): nested
+balls 128^3 (radii 51 and 26 voxels, size 4 voxels, 1.0 M tetrahedra): interface area 1.40 ->
+1.14 times the spheres' at 8 passes (11 s), 1.13 at 16 (16 s), VTK's smoothed
+``contour_labels`` surface 1.00; regions within 0.3 %; no overlap. pyvista's frog (13.0 M
+tetrahedra, graded): area 0.78 of the cleaved mesh's (VTK's smoothed surface 0.53), dihedral
+angles kept in the cleaved [6.4°, 167.3°], no overlap, the worst region 4.4 % off (3.2 %
+cleaved: the small ones shrink), 617 s of smoothing (numpy rounds over 13 M tetrahedra: slow).
 
 Example
 -------
