@@ -392,24 +392,3 @@ def test_a_region_physical_tag_is_its_label(tmp_path):
             assert volume[t] == pytest.approx(m.info["region_volumes"][int(name.split("_")[1])]["volume"])
         back = wm.load(tmp_path / "r.msh")
         assert set(back.cell_refs["tetra"].tolist()) == {int(n.split("_")[1]) for n in want}
-
-
-def test_a_surface_label_boundary_tag_is_its_label(tmp_path):
-    """On a multi-material surface too, the physical surface ``label_<k>`` carries tag k (a reader
-    that goes by tags, dolfinx's facet tags, gets label 2 as 2, not as the rank after the
-    interfaces'); the interfaces and label 0 take tags above the labels'; gmsh reads the same."""
-    vol = np.zeros((10, 10, 10), np.uint8)
-    vol[2:8, 2:8, 2:5] = 2
-    vol[2:8, 2:8, 5:8] = 3
-    path = wm.mesh_surface(vol, labels="all", interfaces="shared").save(tmp_path / "s.msh")
-    gmsh.initialize(["-v", "0"])
-    try:
-        gmsh.open(str(path))
-        tags = {gmsh.model.getPhysicalName(d, t): t for d, t in gmsh.model.getPhysicalGroups()}
-    finally:
-        gmsh.finalize()
-    assert tags["label_2"] == 2 and tags["label_3"] == 3
-    others = [t for n, t in tags.items() if n not in ("label_2", "label_3")]
-    assert len(set(tags.values())) == len(tags) and min(others) > 3
-    back = wm.load(path)
-    assert sorted(set(back.cell_data[LABEL_ABOVE]["triangle"].tolist())) == [2, 3]

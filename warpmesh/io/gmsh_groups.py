@@ -219,13 +219,11 @@ def _plan(mesh: MeshLike) -> tuple[list[_Entity], list[PhysicalGroup], dict]:
         return d, kind, nums, n
 
     # a region's physical volume takes its label as tag (solvers select materials by tag:
-    # dolfinx's cell tags, Elmer's bodies), when the label is positive, and so does a label's
-    # boundary on a multi-material surface (``label_<k>``: tag k, not a number after the
-    # interfaces'); the other groups of that dimension (interfaces, label 0, negative labels)
-    # follow the largest
+    # dolfinx's cell tags, Elmer's bodies), when the label is positive; the other groups of
+    # that dimension (label 0, negative labels) follow the largest
     phys: dict[tuple[int, str], int] = {}
     for d, n in groups:
-        r = _region_label(n) if d == top == 3 or (d == top == 2 and n.startswith("label_")) else None
+        r = _region_label(n) if d == 3 == top else None
         if r is not None and r >= 1:
             phys[(d, n)] = r
     count = {d: max((t for (dd, _), t in phys.items() if dd == d), default=0) for d, _ in groups}
