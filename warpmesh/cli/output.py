@@ -104,10 +104,10 @@ def check_output(path, *, cells: tuple[str, ...] = (), flag: str = "-o/--output"
 
     Examples
     --------
-    >>> check_output("part.xyz", cells=("triangle",))
+    >>> check_output("part.xyz", cells=("triangle",))  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ValueError: unknown extension '.xyz' for -o/--output 'part.xyz'; expected one of .vtu .pvtu .vtk .msh .mesh .ply .obj .stl
+    ValueError: unknown extension '.xyz' for -o/--output 'part.xyz'; expected one of .vtu .pvtu .vtk .msh .mesh .ply .obj .stl (or another format meshio reads and writes: ... .off ...)
     """
     from warpmesh.io.files import FILE_FORMATS, TWO_ENCODINGS
 
