@@ -273,3 +273,12 @@ def test_meshio_formats_beyond_the_curated_ones_in_and_out(tmp_path, capsys):
     assert main(["transform", str(tmp_path), str(tmp_path / "o.vtu"), "--translate", "1", "0", "0"]) == 2
     assert "is a folder" in capsys.readouterr().err
     assert not (tmp_path / "s.off").exists() and not (tmp_path / "o.vtu").exists()
+
+
+def test_an_ascii_vtk_is_written_without_meshio_calling_it_debugging(tmp_path, capsys):
+    """meshio prints "VTK ASCII files are only meant for debugging." on every ascii .vtk: the user
+    asked for ascii (--ascii), so it is not passed on; the file is ascii and reads back."""
+    out = tmp_path / "s.vtk"
+    assert main(["mesh", "--example", "sphere", "--resolution", "12", "--ascii", "-o", str(out)]) == 0
+    assert "meant for debugging" not in capsys.readouterr().err
+    assert out.read_bytes().splitlines()[2] == b"ASCII" and wm.load(out).n_cells > 0

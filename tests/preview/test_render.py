@@ -95,6 +95,10 @@ def test_cli_view(tmp_path, capsys):
     assert "s.ply" in capsys.readouterr().out
     assert main(["view", "--example", "sphere", "-o", str(tmp_path / "s.stl")]) == 2
     assert "for -o/--output" in capsys.readouterr().err  # the flag named, before any rendering
+    # --edges draws on the picture: with a page it was silently ignored
+    assert main(["view", "--example", "sphere", "--edges", "-o", str(tmp_path / "e.html")]) == 2
+    assert "--edges draws the triangle edges of a .png" in capsys.readouterr().err
+    assert not (tmp_path / "e.html").exists()
 
 
 def test_cli_view_cuts_a_tet_mesh_unless_told_not_to(tmp_path):

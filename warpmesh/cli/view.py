@@ -54,6 +54,9 @@ def run(wm, args) -> int:
         if os.path.splitext(out)[1].lower() not in _OUTPUTS:
             raise ValueError(f"expected an output ending in {' '.join(_OUTPUTS)} for -o/--output, got {out!r}")
         check_folder(out, "-o/--output")
+    if args.edges and (out is None or not out.lower().endswith(".png")):
+        raise ValueError("--edges draws the triangle edges of a .png picture; the .html page (the default without "
+                         "-o) has its own view: give -o out.png, or drop --edges")
     if args.path is not None and not is_shape_file(args.path):
         if args.bounds is not None:
             raise ValueError("--bounds sets the box of a shape; a mesh file has its own")

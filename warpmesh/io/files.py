@@ -269,10 +269,29 @@ def _meshio_write(path, data: meshio.Mesh, file_format: str, **kwargs) -> None:
         raise WriteError(f"meshio's {file_format} writer failed on this mesh: {type(exc).__name__}: {exc}") from exc
 
 
+#: what meshio prints (to stderr, through rich, not the warnings module) on every ascii .vtk it
+#: writes: the user asked for ascii (``binary=False``, the CLI's ``--ascii``), so it is not passed on
+_VTK_ASCII_NOTICE = "VTK ASCII files are only meant for debugging."
+
+
 def _write_vtk(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
     # meshio's writer reverses each wedge (io.vtu's module docstring): reversed first, the
     # file holds them as VTK measures them positive
-    _meshio_write(path, meshio_wedges(data), "vtk", **kwargs)
+    if kwargs.get("binary", True):
+        _meshio_write(path, meshio_wedges(data), "vtk", **kwargs)
+        return
+    import contextlib
+    import io
+    import sys
+
+    printed = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(printed):
+            _meshio_write(path, meshio_wedges(data), "vtk", **kwargs)
+    finally:  # anything else meshio printed still reaches the user
+        rest = "".join(line for line in printed.getvalue().splitlines(keepends=True) if _VTK_ASCII_NOTICE not in line)
+        if rest:
+            sys.stderr.write(rest)
 
 
 def _write_ply(path, data: meshio.Mesh, mesh: MeshLike, **kwargs) -> None:
