@@ -443,22 +443,21 @@ def _mesh_solid(shape, box: np.ndarray, size, method: str, smooth, switches, dev
     info["quality_stages"] = [{"stage": k, **v} for k, v in stages]
     info["boundary_distance"] = _boundary_distance(tape, points, on_f, h, device)
     info["method"] = method
-    _warn_open_boundary(tris, len(points), h, info)
+    _warn_open_boundary(tris, h, info)
     refs = _surface_refs_on_the_bounds(refs, points, tris, tape, h, device)
     return Mesh(points, {"tetra": tets, "triangle": tris},
                 cell_refs={"tetra": np.full(len(tets), VOLUME_REF), "triangle": refs}, info=info)
 
 
-def _warn_open_boundary(tris: np.ndarray, n: int, h: float, info: dict) -> None:
+def _warn_open_boundary(tris: np.ndarray, h: float, info: dict) -> None:
     """A UserWarning when the stuffed domain's boundary is not a closed 2-manifold (an edge in
     one boundary face, or in three or more): parts of the shape thinner than about the lattice's
     edge are met by no node, so the tetrahedra of a thin plate join along edges or leave holes
     (a plate 0.06 thick at size 0.1: volume -85 %, Euler characteristic 4, said nowhere before);
     ``info["boundary_bad_edges"]`` counts them."""
-    t = np.asarray(tris, dtype=np.int64)
-    e = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
-    bad = int(np.count_nonzero(counts != 2))
+    from warpmesh.cells.topology import unique_edges as triangle_edges
+
+    bad = int(np.count_nonzero(triangle_edges(tris)[2] != 2)) if len(tris) else 0
     info["boundary_bad_edges"] = bad
     if bad:
         warnings.warn(f"mesh_domain: the domain's boundary is not a closed manifold ({bad} edges in one boundary "
