@@ -738,22 +738,23 @@ def cube_rank(bits: wp.array(dtype=wp.uint64), row: int, w: int, words: int, bit
 
 
 @wp.func
-def write_quad(q: wp.vec4i, flip: bool, lo: int, hi: int, ids: wp.array(dtype=wp.int64),
-               pair_seen: wp.array(dtype=wp.uint8), n_codes: int, out: int, triangles: wp.array(dtype=wp.int64),
-               lower: wp.array(dtype=wp.int64), upper: wp.array(dtype=wp.int64)):
+def write_quad(q: wp.vec4i, flip: bool, lo: int, hi: int, ids: wp.array(dtype=Any),
+               pair_seen: wp.array(dtype=wp.uint8), n_codes: int, out: int, triangles: wp.array(dtype=wp.int32),
+               lower: wp.array(dtype=Any), upper: wp.array(dtype=Any)):
     """Quad ``q`` (counter-clockwise about its edge's + direction) as triangles 2 out and
-    2 out + 1, split along q0-q2, the winding reversed where ``flip``; flags the pair of
-    codes in ``pair_seen`` (codes ``n_codes`` a row) when ``n_codes`` > 0."""
+    2 out + 1, split along q0-q2, the winding reversed where ``flip``, with the labels
+    ``ids[lo]`` and ``ids[hi]`` (in the labels' own narrow type); flags the pair of codes in
+    ``pair_seen`` (codes ``n_codes`` a row) when ``n_codes`` > 0."""
     a = q
     if flip:
         a = wp.vec4i(q[3], q[2], q[1], q[0])
     t = 6 * out
-    triangles[t + 0] = wp.int64(a[0])
-    triangles[t + 1] = wp.int64(a[1])
-    triangles[t + 2] = wp.int64(a[2])
-    triangles[t + 3] = wp.int64(a[0])
-    triangles[t + 4] = wp.int64(a[2])
-    triangles[t + 5] = wp.int64(a[3])
+    triangles[t + 0] = a[0]
+    triangles[t + 1] = a[1]
+    triangles[t + 2] = a[2]
+    triangles[t + 3] = a[0]
+    triangles[t + 4] = a[2]
+    triangles[t + 5] = a[3]
     lower[2 * out] = ids[lo]
     lower[2 * out + 1] = ids[lo]
     upper[2 * out] = ids[hi]
@@ -767,9 +768,9 @@ def emit_label_quads_kernel(
     first: int, values: wp.array(dtype=Any), table: wp.array(dtype=wp.int32), rest: int, pad: int, n: wp.vec3i,
     p: wp.vec3i, words: int, bits: wp.array(dtype=wp.uint64), vertex_first: wp.array(dtype=wp.int32),
     quad_count: wp.array(dtype=wp.int32),
-    quad_first: wp.array(dtype=wp.int64), ids: wp.array(dtype=wp.int64), reverse: int,
-    pair_seen: wp.array(dtype=wp.uint8), n_codes: int, triangles: wp.array(dtype=wp.int64),
-    lower: wp.array(dtype=wp.int64), upper: wp.array(dtype=wp.int64),
+    quad_first: wp.array(dtype=wp.int64), ids: wp.array(dtype=Any), reverse: int,
+    pair_seen: wp.array(dtype=wp.uint8), n_codes: int, triangles: wp.array(dtype=wp.int32),
+    lower: wp.array(dtype=Any), upper: wp.array(dtype=Any),
 ):
     """One thread per row (i, j): the quads of the crossing edges starting on it, in k
     order and axis 0, 1, 2 at each k, as ``count_label_rows_kernel`` counted them. A
@@ -845,11 +846,12 @@ def emit_label_quads_kernel(
 @wp.kernel
 def emit_label_points_kernel(
     first: int, p: wp.vec3i, words: int, bits: wp.array(dtype=wp.uint64), vertex_first: wp.array(dtype=wp.int32),
-    origin: wp.vec3d, spacing: wp.vec3d, reverse: int, points: wp.array(dtype=wp.float64),
+    origin: wp.vec3d, spacing: wp.vec3d, reverse: int, points: wp.array(dtype=wp.float32),
 ):
     """One thread per cube row: each of its vertices at its cube's centre,
     ``origin + (index + 1/2) * spacing`` (``origin``: the virtual grid's sample 0), in k
-    order; the coordinates written z, y, x with ``reverse``."""
+    order, computed in float64 and stored in float32 (the compact mesh's points); the
+    coordinates written z, y, x with ``reverse``."""
     r = wp.tid() + first
     i = r / p[1]
     j = r % p[1]
@@ -863,15 +865,22 @@ def emit_label_points_kernel(
             m = m & (m - wp.uint64(1))
             z = origin[2] + (wp.float64(64 * w + bit) + wp.float64(0.5)) * spacing[2]
             if reverse != 0:
-                points[3 * v] = z
-                points[3 * v + 2] = x
+                points[3 * v] = wp.float32(z)
+                points[3 * v + 2] = wp.float32(x)
             else:
-                points[3 * v] = x
-                points[3 * v + 2] = z
-            points[3 * v + 1] = y
+                points[3 * v] = wp.float32(x)
+                points[3 * v + 2] = wp.float32(z)
+            points[3 * v + 1] = wp.float32(y)
             v += 1
 
 
+#: the label types of the triangles, per sample type: the narrowest of int16, int32 and int64
+#: that holds the region ids (8-bit samples: ids within [-129, 255]; 16-bit: [-32769, 65535];
+#: the int32 codes of wider samples: any)
+LABEL_OUT_DTYPES = {wp.uint8: (wp.int16,), wp.uint16: (wp.int16, wp.int32), wp.int32: (wp.int16, wp.int32, wp.int64)}
+
 for _dtype in LABEL_DTYPES:  # compiled with the module, once: no instance made at the first launch of a new type
     wp.overload(count_label_rows_kernel, {"values": wp.array(dtype=_dtype)})
-    wp.overload(emit_label_quads_kernel, {"values": wp.array(dtype=_dtype)})
+    for _out in LABEL_OUT_DTYPES[_dtype]:
+        wp.overload(emit_label_quads_kernel, {"values": wp.array(dtype=_dtype), "ids": wp.array(dtype=_out),
+                                              "lower": wp.array(dtype=_out), "upper": wp.array(dtype=_out)})

@@ -98,24 +98,25 @@ def _int_array(value, name: str) -> np.ndarray:
     return arr
 
 
-def _check_points(points) -> np.ndarray:
+def _check_points(points, compact: bool = False) -> np.ndarray:
     arr = np.asarray(points)
     if arr.dtype.kind not in "iuf":
         raise TypeError(f"expected a float array for 'points', got dtype {arr.dtype}")
     if arr.ndim != 2 or arr.shape[1] not in (2, 3):
         raise ValueError(f"expected 'points' of shape (n, 2) or (n, 3), got shape {arr.shape}")
-    arr = arr.astype(REAL_DTYPE, copy=False)
-    bad = ~np.isfinite(arr).all(axis=1)
+    out = arr.astype(np.float32 if compact else REAL_DTYPE, copy=False)
+    bad = ~np.isfinite(out).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
+        within = " within float32's range (compact=True)" if compact and np.isfinite(arr[i]).all() else ""
         raise ValueError(
-            f"expected finite coordinates in 'points', got {arr[i].tolist()} at row {i} "
+            f"expected finite coordinates{within} in 'points', got {arr[i].tolist()} at row {i} "
             f"({bad.sum()} bad rows)"
         )
-    return arr
+    return out
 
 
-def _check_cells(cells, n: int, d: int) -> dict[str, np.ndarray]:
+def _check_cells(cells, n: int, d: int, index_dtype=INDEX_DTYPE) -> dict[str, np.ndarray]:
     if isinstance(cells, Mapping):
         pairs = list(cells.items())
     elif isinstance(cells, (list, tuple)):
@@ -157,16 +158,18 @@ def _check_cells(cells, n: int, d: int) -> dict[str, np.ndarray]:
             raise ValueError(
                 f"expected indices < n_points = {n} in cells[{name!r}], got {arr.max()}"
             )
-        out[name] = _frozen(arr.astype(INDEX_DTYPE, copy=False))
+        out[name] = _frozen(arr.astype(index_dtype, copy=False))
     return out
 
 
-def _check_data(data, length: int, name: str, *, integer: bool = False) -> np.ndarray:
+def _check_data(data, length: int, name: str, *, integer: bool = False, compact: bool = False) -> np.ndarray:
     arr = _int_array(data, name) if integer else np.asarray(data)
     if arr.ndim == 0 or arr.shape[0] != length:
         raise ValueError(f"expected {name} of length {length}, got shape {arr.shape}")
     if integer and arr.ndim != 1:
         raise ValueError(f"expected {name} of shape ({length},), got shape {arr.shape}")
+    if integer and compact:
+        return _packed_ints(arr, int(arr.min(initial=0)), int(arr.max(initial=0)))
     return _frozen(arr.astype(INDEX_DTYPE, copy=False) if integer else arr)
 
 
@@ -192,6 +195,37 @@ def _check_mapping(value, name: str) -> Mapping:
     return value
 
 
+#: the most points a compact mesh numbers with int32 cells
+_INT32_LIMIT = 2**31
+#: the integer types of compact refs, narrowest first (:meth:`Mesh.compact`)
+_COMPACT_INTS = (np.uint8, np.int8, np.uint16, np.int16, np.int32, np.int64)
+
+
+def narrowest_int(lo: int, hi: int) -> type:
+    """The narrowest of :data:`_COMPACT_INTS` holding every integer in [lo, hi].
+
+    >>> narrowest_int(0, 255).__name__, narrowest_int(-1, 255).__name__, narrowest_int(0, 2**40).__name__
+    ('uint8', 'int16', 'int64')
+    """
+    return next(t for t in _COMPACT_INTS if np.iinfo(t).min <= lo and hi <= np.iinfo(t).max)
+
+
+def _packed_ints(arr: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """``arr`` (integers in [lo, hi]), read-only: as it is when its type has 32 bits or
+    fewer (no copy of what a producer wrote compact), else in the narrowest type holding
+    them."""
+    return _frozen(arr if arr.dtype.itemsize <= 4 else arr.astype(narrowest_int(lo, hi)))
+
+
+def _widened(arr: np.ndarray | None, dtype) -> np.ndarray | None:
+    """A compact mesh's array in the package's host type, read-only (itself if it is already)."""
+    if arr is None or arr.dtype == dtype:
+        return arr
+    out = arr.astype(dtype)
+    out.setflags(write=False)
+    return out
+
+
 # ----------------------------------------------------------------------------- Mesh
 class Mesh:
     """An immutable unstructured mesh (see the module docstring for the layout).
@@ -210,6 +244,15 @@ class Mesh:
     info : dict, optional
         Free-form facts from the producer (timings, counts, resolution), merged into
         :meth:`stats`.
+    compact : bool
+        Keep the points as float32, the cells as int32 and the refs in 32 bits or fewer
+        (as given, or the narrowest integer type that holds them) (about half the memory: what the label-volume
+        surfaces of ``interfaces="shared"`` return). The accessors still give float64 and
+        int64 arrays (:attr:`points`, :attr:`cells`, ...): each made on its first use and
+        kept; :meth:`save` and :meth:`to_meshio` write the compact arrays. Coordinates
+        are rounded to float32 (2**-24 relative). :meth:`replace` keeps it when only
+        ``info`` changes; a mesh made with other changes (every operation's result) is
+        not compact unless ``compact=True`` is passed.
 
     Raises
     ------
@@ -228,6 +271,9 @@ class Mesh:
     >>> m = Mesh(pts, [("triangle", [[0, 1, 2]])], cell_refs={"triangle": [7]})
     >>> m.n_points, m.n_cells, m.dim, m.cell_refs["triangle"].tolist()
     (3, 1, 3, [7])
+    >>> c = Mesh(pts, [("triangle", [[0, 1, 2]])], cell_refs={"triangle": [7]}, compact=True)
+    >>> c.nbytes, c.compact_arrays["cells"]["triangle"].dtype.name, c.triangles.dtype.name
+    (49, 'int32', 'int64')
     """
 
     def __init__(
@@ -240,14 +286,16 @@ class Mesh:
         point_refs=None,
         cell_refs=None,
         info=None,
+        compact: bool = False,
     ):
-        pts = _check_points(points)
+        if not isinstance(compact, (bool, np.bool_)):
+            raise TypeError(f"expected True or False for 'compact', got {compact!r}")
+        pts = _check_points(points, compact)
         n, d = pts.shape
-        self._points = _frozen(pts)
-        self._cells = _check_cells(cells, n, d)
-        sizes = {t: len(c) for t, c in self._cells.items()}
-        self._point_refs = (
-            None if point_refs is None else _check_data(point_refs, n, "'point_refs'", integer=True)
+        blocks = _check_cells(cells, n, d, np.int32 if compact and n <= _INT32_LIMIT else INDEX_DTYPE)
+        sizes = {t: len(c) for t, c in blocks.items()}
+        prefs = (
+            None if point_refs is None else _check_data(point_refs, n, "'point_refs'", integer=True, compact=compact)
         )
         crefs = _check_mapping(cell_refs, "cell_refs")
         for t in crefs:
@@ -255,9 +303,14 @@ class Mesh:
                 raise ValueError(
                     f"expected cell_refs keys among the cell types {list(sizes)}, got {t!r}"
                 )
-        self._cell_refs = {
-            t: _check_data(r, sizes[t], f"cell_refs[{t!r}]", integer=True) for t, r in crefs.items()
+        crefs = {
+            t: _check_data(r, sizes[t], f"cell_refs[{t!r}]", integer=True, compact=compact) for t, r in crefs.items()
         } or None  # an empty dict means no refs
+        if compact:  # widened on first use (the cached properties below)
+            self._packed = {"points": _frozen(pts), "cells": blocks, "point_refs": prefs, "cell_refs": crefs}
+        else:
+            self._packed = None
+            self._points, self._cells, self._point_refs, self._cell_refs = _frozen(pts), blocks, prefs, crefs
         pdata = _check_mapping(point_data, "point_data")
         self._point_data = {_check_key(k, "point_data"): _check_values(_check_data(v, n, f"point_data[{k!r}]"),
                                                                          f"point_data[{k!r}]") for k, v in pdata.items()}
@@ -287,11 +340,71 @@ class Mesh:
         """Points, cells per type and the points' sum: what a mesher's facts about its output
         (:data:`OUTPUT_FACTS`) were measured on; a renumbering keeps it, a transform or a
         refinement does not."""
-        return [len(self._points), sorted((t, len(c)) for t, c in self._cells.items()),
-                float(np.sum(self._points))]
+        return [self.n_points, sorted((t, len(c)) for t, c in self._stored("cells").items()),
+                float(np.sum(self._stored("points"), dtype=np.float64))]
+
+    # ---------------------------------------------------------------- storage
+    def _stored(self, name: str):
+        """``points``, ``cells``, ``point_refs`` or ``cell_refs`` as kept: compact or not,
+        never widened for the asking (counts, shapes, the compact writers)."""
+        return self._packed[name] if self._packed is not None else getattr(self, "_" + name)
+
+    # a compact mesh's arrays in the host types, made on first use (a mesh that is not
+    # compact sets these attributes in __init__, which hides the properties)
+    _points = cached_property(lambda self: _widened(self._packed["points"], REAL_DTYPE))
+    _cells = cached_property(lambda self: {t: _widened(c, INDEX_DTYPE) for t, c in self._packed["cells"].items()})
+    _point_refs = cached_property(lambda self: _widened(self._packed["point_refs"], INDEX_DTYPE))
+    _cell_refs = cached_property(lambda self: None if self._packed["cell_refs"] is None else
+                                 {t: _widened(r, INDEX_DTYPE) for t, r in self._packed["cell_refs"].items()})
+
+    @property
+    def is_compact(self) -> bool:
+        """Whether the mesh keeps compact arrays (``compact=True``, :meth:`compact`)."""
+        return self._packed is not None
+
+    @property
+    def compact_arrays(self) -> dict:
+        """The arrays as kept, without widening: ``points``, ``cells`` {type: array},
+        ``point_refs`` and ``cell_refs`` (or None); float32 / int32 / narrow integers for a
+        compact mesh, float64 / int64 otherwise. Read-only."""
+        cells, crefs = self._stored("cells"), self._stored("cell_refs")
+        return {"points": self._stored("points"), "cells": MappingProxyType(cells),
+                "point_refs": self._stored("point_refs"),
+                "cell_refs": None if crefs is None else MappingProxyType(crefs)}
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays this mesh holds now: points, cells, refs and data, the
+        compact ones and any float64 / int64 copies made from them (not the caches of
+        derived connectivity and statistics)."""
+        arrays = [self._stored("points"), *self._stored("cells").values(), self._stored("point_refs"),
+                  *(self._stored("cell_refs") or {}).values(), *self._point_data.values(),
+                  *(a for per in self._cell_data.values() for a in per.values())]
+        if self._packed is not None:  # the widened copies made so far
+            made = self.__dict__
+            arrays += [made.get("_points"), made.get("_point_refs"), *made.get("_cells", {}).values(),
+                       *(made.get("_cell_refs") or {}).values()]
+        seen, total = set(), 0
+        for a in arrays:
+            if a is not None and id(a) not in seen:
+                seen.add(id(a))
+                total += a.nbytes
+        return total
+
+    def compact(self) -> Mesh:
+        """This mesh with compact arrays (``compact=True``): float32 points, int32 cells,
+        the narrowest integer refs; itself if it is compact already.
+
+        Examples
+        --------
+        >>> m = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 2]]})
+        >>> m.nbytes, m.compact().nbytes, m.compact().points.dtype.name
+        (96, 48, 'float64')
+        """
+        return self if self._packed is not None else self.replace(compact=True)
 
     # ---------------------------------------------------------------- accessors
-    points = property(lambda self: self._points, doc="(n, d) float64, read-only.")
+    points = property(lambda self: self._points, doc="(n, d) float64, read-only (a compact mesh's: made on first use).")
     cells = property(
         lambda self: MappingProxyType(self._cells), doc="{type: (m, k) int64}, read-only."
     )
@@ -307,11 +420,11 @@ class Mesh:
     info = property(
         lambda self: MappingProxyType(self._info), doc="Producer facts merged into stats()."
     )
-    n_points = property(lambda self: len(self._points), doc="Number of points.")
+    n_points = property(lambda self: len(self._stored("points")), doc="Number of points.")
     n_cells = property(
-        lambda self: sum(len(c) for c in self._cells.values()), doc="Number of cells, all blocks."
+        lambda self: sum(len(c) for c in self._stored("cells").values()), doc="Number of cells, all blocks."
     )
-    dim = property(lambda self: self._points.shape[1], doc="Geometric dimension, 2 or 3.")
+    dim = property(lambda self: self._stored("points").shape[1], doc="Geometric dimension, 2 or 3.")
 
     @property
     def triangles(self) -> np.ndarray:
@@ -337,21 +450,24 @@ class Mesh:
         [1, 2, 3]
         """
         args = dict(
-            points=self._points,
-            cells=self._cells,
+            points=self._stored("points"),
+            cells=self._stored("cells"),
             point_data=self._point_data,
             cell_data=self._cell_data,
-            point_refs=self._point_refs,
-            cell_refs=self._cell_refs,
+            point_refs=self._stored("point_refs"),
+            cell_refs=self._stored("cell_refs"),
             info=self._info,
+            compact=False,  # derived arrays keep their float64 (an operation's checks hold for them)
         )
         unknown = set(changes) - set(args)
         if unknown:
             raise TypeError(f"expected keywords among {sorted(args)}, got {sorted(unknown)}")
         if set(changes) <= {"info"}:  # the arrays are this mesh's, checked and frozen: not checked again
             new = Mesh.__new__(Mesh)
+            new._packed = self._packed
             for name in ("_points", "_cells", "_point_refs", "_cell_refs", "_point_data", "_cell_data"):
-                setattr(new, name, getattr(self, name))
+                if name in self.__dict__:  # a compact mesh's widened copies, if made, are shared too
+                    setattr(new, name, self.__dict__[name])
             new._info = dict(_check_mapping(changes.get("info", self._info), "info"))
             return new
         args.update(changes)
@@ -370,17 +486,19 @@ class Mesh:
         [1.5]
         """
         kwargs = {"point_data": self._point_data, "cell_data": {k: dict(v) for k, v in self._cell_data.items()},
-                  "point_refs": self._point_refs, "cell_refs": self._cell_refs, "info": _plain(self._info)}
-        return _unpickle_mesh, (self._points, self._cells, kwargs)
+                  "point_refs": self._stored("point_refs"), "cell_refs": self._stored("cell_refs"),
+                  "info": _plain(self._info), "compact": self._packed is not None}
+        return _unpickle_mesh, (self._stored("points"), self._stored("cells"), kwargs)
 
     def __repr__(self) -> str:
-        blocks = ", ".join(f"{t}: {len(c)}" for t, c in self._cells.items())
+        blocks = ", ".join(f"{t}: {len(c)}" for t, c in self._stored("cells").items())
         extra = "".join(
             f", {k}"
-            for k, v in (("point_refs", self._point_refs), ("cell_refs", self._cell_refs))
-            if v is not None
+            for k in ("point_refs", "cell_refs")
+            if self._stored(k) is not None
         )
-        return f"Mesh(np={self.n_points}, dim={self.dim}, cells={{{blocks}}}{extra})"
+        compact = ", compact" if self._packed is not None else ""
+        return f"Mesh(np={self.n_points}, dim={self.dim}, cells={{{blocks}}}{extra}{compact})"
 
     # ---------------------------------------------------------------- statistics
     @cached_property
@@ -464,7 +582,8 @@ class Mesh:
     def _is_shared_surface(self) -> bool:
         """Whether this is a multi-material surface of ``interfaces="shared"``: triangles only,
         with each triangle's lower label (``cell_refs``) and higher (``cell_data["label_above"]``)."""
-        return (set(self._cells) == {"triangle"} and self._cell_refs is not None and "triangle" in self._cell_refs
+        crefs = self._stored("cell_refs")
+        return (set(self._stored("cells")) == {"triangle"} and crefs is not None and "triangle" in crefs
                 and "triangle" in self._cell_data.get("label_above", {}))
 
     @property

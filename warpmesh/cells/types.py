@@ -102,6 +102,9 @@ def points3(mesh) -> np.ndarray:
 
 
 def block_refs(mesh, t: str) -> np.ndarray:
-    """(m,) int64: the refs of the cell block ``t``, zeros when it has none."""
-    refs = None if mesh.cell_refs is None else mesh.cell_refs.get(t)
-    return np.zeros(len(mesh.cells[t]), dtype=INDEX_DTYPE) if refs is None else refs
+    """(m,) int64: the refs of the cell block ``t``, zeros when it has none (of a compact
+    mesh, :attr:`~warpmesh.mesh.Mesh.is_compact`: a copy, which the mesh does not keep)."""
+    kept = mesh.compact_arrays if getattr(mesh, "is_compact", False) else None
+    crefs, cells = (mesh.cell_refs, mesh.cells) if kept is None else (kept["cell_refs"], kept["cells"])
+    refs = None if crefs is None else crefs.get(t)
+    return np.zeros(len(cells[t]), dtype=INDEX_DTYPE) if refs is None else refs.astype(INDEX_DTYPE, copy=False)

@@ -30,6 +30,7 @@ from warpmesh.io.vtu import VTK_CELL_TYPES
 
 
 __all__ = [
+    "host_arrays",
     "to_meshio",
     "from_meshio",
     "to_trimesh",
@@ -138,15 +139,38 @@ def to_meshio(mesh: MeshLike) -> meshio.Mesh:
     ('triangle', [1, 2, 3])
     """
     require_mesh(mesh)
+    points, cells, point_refs, cell_refs = host_arrays(mesh)
     point_data = dict(mesh.point_data)
-    cell_data = {k: [v[t] for t in mesh.cells] for k, v in mesh.cell_data.items()}
-    if mesh.point_refs is not None:
-        point_data[REF_KEY] = mesh.point_refs
-    if mesh.cell_refs is not None:
-        cell_data[REF_KEY] = [block_refs(mesh, t) for t in mesh.cells]
-    return meshio.Mesh(
-        mesh.points, list(mesh.cells.items()), point_data=point_data, cell_data=cell_data
-    )
+    cell_data = {k: [v[t] for t in cells] for k, v in mesh.cell_data.items()}
+    if point_refs is not None:
+        point_data[REF_KEY] = point_refs
+    if cell_refs is not None:
+        cell_data[REF_KEY] = [block_refs(mesh, t) for t in cells]
+    return meshio.Mesh(points, list(cells.items()), point_data=point_data, cell_data=cell_data)
+
+
+def host_arrays(mesh: MeshLike) -> tuple:
+    """(points, cells, point_refs, cell_refs) in float64 / int64: the mesh's own, or for a
+    compact mesh (:attr:`~warpmesh.mesh.Mesh.is_compact`) copies made for the caller that
+    the mesh does not keep (a file written from a large compact mesh does not leave its
+    float64 copies behind).
+
+    >>> from warpmesh.mesh import Mesh
+    >>> m = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 2]]}, compact=True)
+    >>> p, c, _, _ = host_arrays(m)
+    >>> p.dtype.name, c["triangle"].dtype.name, m.nbytes
+    ('float64', 'int64', 48)
+    """
+    if not getattr(mesh, "is_compact", False):
+        return mesh.points, dict(mesh.cells), mesh.point_refs, mesh.cell_refs
+    kept = mesh.compact_arrays
+
+    def wide(a, dtype):
+        return None if a is None else a.astype(dtype)
+
+    crefs = kept["cell_refs"]
+    return (kept["points"].astype(np.float64), {t: c.astype(np.int64) for t, c in kept["cells"].items()},
+            wide(kept["point_refs"], np.int64), None if crefs is None else {t: wide(r, np.int64) for t, r in crefs.items()})
 
 
 def from_meshio(m: meshio.Mesh, *, mesh_type: type[MeshLike], dim: Literal[2, 3] | None = None,

@@ -80,7 +80,7 @@ import numpy as np
 
 from warpmesh._util.atomic import atomic_path
 from warpmesh._conventions import INDEX_DTYPE
-from warpmesh.cells.types import REF_KEY, MeshLike, block_refs, points3
+from warpmesh.cells.types import REF_KEY, MeshLike, block_refs
 from meshio._helpers import reader_map
 
 from warpmesh.io.eof_guard import guarded_reader
@@ -422,8 +422,10 @@ def _meshio_for(mesh: MeshLike, fmt: _Format, stacklevel: int) -> meshio.Mesh:
             UserWarning,
             stacklevel=stacklevel + 1,
         )
-    points = np.asarray(mesh.points) if fmt.keeps_2d else points3(mesh)
-    cells = [(t, c.astype(fmt.index_dtype, copy=False)) for t, c in mesh.cells.items()]
+    points = m.points  # (a compact mesh's float64 copies, which it does not keep)
+    if not fmt.keeps_2d and points.shape[1] == 2:
+        points = np.column_stack([points, np.zeros(len(points), dtype=points.dtype)])
+    cells = [(c.type, c.data.astype(fmt.index_dtype, copy=False)) for c in m.cells]
     return meshio.Mesh(points, cells, point_data=pd, cell_data=cd)
 
 
@@ -456,6 +458,8 @@ def save_mesh(mesh: MeshLike, path, file_format: str | None, stacklevel: int, bi
     if mesh.n_points == 0 or mesh.n_cells == 0:
         raise ValueError(f"expected a mesh with points and cells to save to {str(path)!r}, got an empty "
                          f"mesh ({mesh.n_points} points, {mesh.n_cells} cells): mesh files cannot hold it")
+    if getattr(mesh, "is_compact", False):  # written from float64 / int64 copies that the mesh does not keep
+        mesh = mesh.replace(compact=False)
     data = _meshio_for(mesh, fmt, stacklevel + 1)
     # through a symbolic link: its target is written (the rename would replace the link)
     dest = Path(os.path.realpath(path)) if path.is_symlink() else path

@@ -227,15 +227,19 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
 
     Returns
     -------
-    points : (n, 3) float64
+    points : (n, 3) float32, or float64 far from the origin
         Each at the centre of its cube (the 2 x 2 x 2 samples from its lowest, ``c``):
-        ``origin + (c + 1/2) * spacing``, so ``floor((point - origin) / spacing)`` is
-        ``c`` exactly, -1 to n - 1 per axis (-1 and n - 1: cubes reaching into the cap).
-        Read-only, as the other arrays.
-    triangles : (m, 3) int64
+        ``origin + (c + 1/2) * spacing`` rounded to float32, so ``floor((point - origin) /
+        spacing)`` is ``c``, -1 to n - 1 per axis (-1 and n - 1: cubes reaching into the
+        cap). Read-only, as the other arrays: all of them compact (a
+        :class:`~warpmesh.mesh.Mesh` with ``compact=True`` keeps them without a copy).
+        float64 when float32 cannot hold the centres to :data:`FLOAT32_CELL_ERROR` of a
+        cell (:func:`float32_cube_centres`: a grid far from the origin for its spacing).
+    triangles : (m, 3) int32
         Oriented from the lower label's side to the higher's.
-    lower, upper : (m,) int64
-        The two labels of each triangle, ``lower < upper``.
+    lower, upper : (m,) int16, int32 or int64
+        The two labels of each triangle, ``lower < upper``, in the narrowest of those
+        types that holds every region id (:func:`label_array_dtype`).
     info : dict
         ``labels`` (meshed), ``rest`` (its id), ``interfaces`` (count of label pairs),
         ``junction_vertices`` (vertices of cubes holding 3 labels or more), ``cubes``
@@ -258,6 +262,7 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     t0 = time.perf_counter()
     vol = _as_label_volume(np.asarray(vol))
     origin, spacing = np.asarray(origin, dtype=np.float64), np.asarray(spacing, dtype=np.float64)
+    user_origin, user_spacing = origin, spacing
     reverse = vol.flags.f_contiguous and not vol.flags.c_contiguous
     if reverse:  # x fastest (VTK, NIfTI): mesh the C-order view vol.T; the kernels write the axes back
         vol, origin, spacing = vol.T, origin[::-1], spacing[::-1]
@@ -295,21 +300,27 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     timings["cubes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    points = np.empty((n_vertices, 3), dtype=C.REAL_DTYPE)
-    tris = np.empty((2 * n_quads, 3), dtype=C.INDEX_DTYPE)
-    lower, upper = np.empty(2 * n_quads, dtype=C.INDEX_DTYPE), np.empty(2 * n_quads, dtype=C.INDEX_DTYPE)
-    out = {name: wp.array(a.reshape(-1), dtype=wp.float64 if a.dtype == np.float64 else wp.int64, device=dev,
-                          copy=not dev.is_cpu) for name, a in
-           (("points", points), ("tris", tris), ("lower", lower), ("upper", upper))}
+    # written compact (the kernels' own types): float32 points, int32 triangles, the labels in
+    # the narrowest of int16 / int32 / int64 that holds the ids (KF.LABEL_OUT_DTYPES)
+    label_dtype = label_array_dtype(ids)
+    # world coordinates when float32 holds every cube centre to FLOAT32_CELL_ERROR of a cell,
+    # else the cube indices (exact in float32), made world coordinates in float64 below
+    far = not float32_cube_centres(user_origin, user_spacing, vol.shape)
+    world = ((np.full(3, -float(pad)), np.ones(3)) if far else (origin - pad * spacing, spacing))
+    points = np.empty((n_vertices, 3), dtype=np.float32)
+    tris = np.empty((2 * n_quads, 3), dtype=np.int32)
+    lower, upper = np.empty(2 * n_quads, dtype=label_dtype), np.empty(2 * n_quads, dtype=label_dtype)
+    out = {name: wp.array(a.reshape(-1), dtype=wp.dtype_from_numpy(a.dtype), device=dev, copy=not dev.is_cpu)
+           for name, a in (("points", points), ("tris", tris), ("lower", lower), ("upper", upper))}
     seen_size = len(ids) ** 2 if len(ids) <= 2048 else 1  # a flag per pair of codes (4 MB at most)
     pair_seen = wp.zeros(seen_size, dtype=wp.uint8, device=dev)
     w_vertex_first = wp.array(vertex_first, dtype=wp.int32, device=dev)
     _launch_rows(KF.emit_label_quads_kernel, n_rows, grid + [
         bits, w_vertex_first, counts["quad"], wp.array(quad_first, dtype=wp.int64, device=dev),
-        wp.array(ids, dtype=wp.int64, device=dev), int(reverse), pair_seen, len(ids) if seen_size > 1 else 0,
+        wp.array(ids.astype(label_dtype), dtype=wp.dtype_from_numpy(label_dtype), device=dev), int(reverse), pair_seen, len(ids) if seen_size > 1 else 0,
         out["tris"], out["lower"], out["upper"]], dev, bar,
         extra=(KF.emit_label_points_kernel, [wp.vec3i(*p.tolist()), words, bits, w_vertex_first,
-                                             wp.vec3d(*(origin - pad * spacing)), wp.vec3d(*spacing), int(reverse),
+                                             wp.vec3d(*world[0]), wp.vec3d(*world[1]), int(reverse),
                                              out["points"]]))
     if not dev.is_cpu:  # sync point: the results back to the host
         points[:], tris[:] = out["points"].numpy().reshape(-1, 3), out["tris"].numpy().reshape(-1, 3)
@@ -323,9 +334,41 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
         n_pairs = len(np.unique(np.column_stack([lower[::2], upper[::2]]), axis=0))
     info = {"labels": [int(v) for v in meshed], "rest": int(ids[rest]), "interfaces": n_pairs,
             "junction_vertices": int(counts["junction"].numpy().sum(dtype=np.int64)), "cubes": n_vertices}
+    if far:  # float64 world coordinates from the exact float32 indices (not compact)
+        points = user_origin + points * user_spacing
     for a in (points, tris, lower, upper):  # handed to the Mesh, which keeps read-only arrays without a copy
         a.setflags(write=False)
     return points, tris, lower, upper, info
+
+
+#: the largest error of a float32 cube centre, in cells, for the compact points of
+#: :func:`shared_surface` (else float64)
+FLOAT32_CELL_ERROR = 2.0**-10
+
+
+def float32_cube_centres(origin, spacing, shape) -> bool:
+    """Whether float32 holds the cube centres ``origin + (c + 1/2) * spacing`` of a grid of
+    ``shape`` samples (c from -1 to n, the cap's included) to :data:`FLOAT32_CELL_ERROR`
+    of a cell: half a float32 ulp (2**-24 relative) of the largest coordinate, over the
+    smallest spacing.
+
+    >>> float32_cube_centres((0, 0, 0), (1, 1, 1), (512, 512, 512)), float32_cube_centres((1e6, 0, 0), (1, 1, 1), (8, 8, 8))
+    (True, False)
+    """
+    o, h = np.asarray(origin, dtype=np.float64), np.asarray(spacing, dtype=np.float64)
+    far = np.maximum(np.abs(o - h), np.abs(o + (np.asarray(shape) + 1) * h)).max()
+    return bool(far * 2.0**-24 <= FLOAT32_CELL_ERROR * np.abs(h).min())
+
+
+def label_array_dtype(ids: np.ndarray) -> type:
+    """The type of the triangles' labels for these region ids: the narrowest of int16,
+    int32 and int64 that holds them all (the emit kernel's overloads).
+
+    >>> label_array_dtype(np.array([0, 1, 255])).__name__, label_array_dtype(np.array([-1, 70000])).__name__
+    ('int16', 'int32')
+    """
+    lo, hi = int(ids.min()), int(ids.max())
+    return next(t for t in (np.int16, np.int32, np.int64) if np.iinfo(t).min <= lo and hi <= np.iinfo(t).max)
 
 
 def _launch_rows(kernel, n_rows: int, inputs: list, dev, bar: Progress, extra=None) -> None:

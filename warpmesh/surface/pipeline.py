@@ -594,13 +594,15 @@ def _mesh_shared(vol: np.ndarray, opts: VolumeOptions, device, t_start: float, p
                  C.GRID_INFO: {"origin": list(opts.origin), "spacing": list(opts.spacing), "shape": list(vol.shape)}})
     if opts.cap:
         info["orientation"] = "from the lower label to the higher (cell_refs: lower, cell_data['label_above'])"
-    mesh = Mesh(points, {"triangle": faces}, cell_refs={"triangle": lower},
-                cell_data={LABEL_ABOVE: {"triangle": upper}}, info=info)
+    mesh = Mesh(points, {"triangle": faces}, cell_refs={"triangle": lower},  # compact: the arrays as written
+                cell_data={LABEL_ABOVE: {"triangle": upper}}, info=info, compact=points.dtype == np.float32)
     if opts.smoothing:
         # imported when asked for: its fold checks load the remeshing and intersection
         # kernels (84 ms of a fresh process that only extracts)
         from warpmesh.optimize.label_smoothing import smooth_labels
 
+        # float64 points, not compact: float32 rounding could undo what its checks proved
+        # (every vertex within its cube's margin, no fold)
         mesh = smooth_labels(mesh, opts.smoothing, progress=progress)
         timings["smoothing"] = mesh.info["smoothing"]["time"]
     timings["total"] = time.perf_counter() - t_start
