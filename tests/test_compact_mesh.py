@@ -82,7 +82,7 @@ def test_files_of_a_compact_mesh_leave_it_compact(sphere, tmp_path, name):
     before = c.nbytes
     c.save(tmp_path / name)
     assert c.nbytes == before  # written from copies it does not keep
-    p, cells, prefs, crefs = host_arrays(c)
+    p, cells, _, crefs = host_arrays(c)
     assert p.dtype == np.float64 and cells["triangle"].dtype == np.int64 and crefs["triangle"].dtype == np.int64
     assert c.nbytes == before
     back = wm.load(tmp_path / name)

@@ -13,6 +13,10 @@ Index dtype
     device-side connectivity is int32.
 Coordinates
     Host-side points are ``REAL_DTYPE`` (float64); device-side points are float32.
+    A compact :class:`~warpmesh.mesh.Mesh` (``compact=True``: the label-volume surfaces
+    of ``interfaces="shared"``) *keeps* float32 points, int32 cells and narrow refs, as
+    the kernels wrote them, and still *gives* float64 / int64 through its accessors
+    (copies made on first use), so no code sees an int32 index it could overflow.
 """
 
 from __future__ import annotations

@@ -14,6 +14,12 @@ Layout
     convert). Refs travel as arrays named ``REF_KEY`` (``"medit:ref"``) in meshio,
     pyvista and trimesh objects, and as ``"gmsh:physical"`` in gmsh files. Refs that
     are all zero are read back as "no refs" (medit and gmsh always store one).
+Compact storage
+    ``Mesh(..., compact=True)`` (or :meth:`Mesh.compact`) keeps float32 points, int32
+    cells and refs of 32 bits or fewer, about half the memory, while every accessor
+    still gives float64 / int64 arrays (made on first use and kept):
+    :attr:`Mesh.nbytes` counts what is held, :attr:`Mesh.compact_arrays` gives the kept
+    arrays. Label-volume surfaces (``interfaces="shared"``) are returned compact.
 
 Conversions live in :mod:`warpmesh.io.convert` and files in :mod:`warpmesh.io.files` (with the
 table of what each format keeps); the methods below delegate to them.

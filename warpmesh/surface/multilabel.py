@@ -71,12 +71,25 @@ time ratios VTK / warpmesh 2.90 and 3.88 (CPU 1.87 and 2.49). A 512^3 Voronoi pa
 (50 labels, uint8): 9,536,054 triangles, the same area as VTK's staircase, 0.53 / 0.91
 against 2.65 / 2.70 and 3.94 / 3.99 (ratios 4.96 and 7.37). On the loaded machine (load
 5-10, other runs) wall times swing: the frog's ratio to VTK unsmoothed went from 0.83 to
-1.93 while the CPU ratio stayed 1.4-1.7. Peak extra memory of one call in a fresh
-process, the output alive: 85 MB on the frog (input 30.5 MB, output 78 MB: points
-float64, triangles and both label arrays int64) and 500 MB on the Voronoi volume (input
-128 MB, output 472 MB), i.e. the output plus 0.2x the input; VTK's took 16x the input
-(488 MB and 2,048 MB). The output alone outweighs twice the input, so "peak within 2x the
-input" cannot hold with int64 connectivity; peak / (input + output) is 0.78 and 0.83.
+1.93 while the CPU ratio stayed 1.4-1.7. With the compact output (below; same command,
+``--repeat 5``, load 1.4-1.6): the frog 0.14 / 0.25 against 0.35 / 0.36 and 0.52 / 0.54
+(ratios 2.47 and 3.68), the Voronoi volume 0.64 / 1.15 against 2.16 / 2.21 and 3.45 /
+3.50 (3.36 and 5.37).
+
+Memory: the output is written compact, as the kernels compute it (float32 points, int32
+triangles, the labels in int16 while the ids fit), and handed to a ``Mesh(...,
+compact=True)`` without a copy: 12 bytes a vertex and 16 a triangle, against 24 and 40 in
+float64 / int64 (its accessors still give float64 / int64, made on first use). Peak extra
+memory of one call in a fresh process, the output alive (``python
+benchmarks/bench_labels.py --repeat 5 --smoothing 0``, 2 cores): 39.6 MB on the frog
+(input 30.5 MB, output 32.9 MB: 1.30x the input) and 227.5 MB on the 512^3 Voronoi
+volume (input 128 MB, output 199.8 MB: 1.78x), against 16x the input for VTK (488 MB and
+2,048 MB, its output 218 MB); with float64 / int64 output they were 85 MB and 500 MB
+(2.79x and 3.91x). Beyond the output the call holds a bit per cube and a few int32 per
+row. The bound holds while the output is smaller than the input, as for these two: a
+surface has O(n^2) triangles for O(n^3) samples, so a coarse volume cut into many small
+regions can have more (the Voronoi partition at 256^3: 49.8 MB of output, 3.1x its
+16 MB input; VTK's output is as large).
 
 Manifoldness: two samples of one label touching only along a grid edge or at a node (a
 face of a cube with the label on one diagonal) make that label's boundary pass twice
