@@ -566,8 +566,10 @@ def _crossings(points, tris, faces, cells):
     m = len(tris)
     if len(faces) * 8 > m:  # most faces: the package's own check of the whole surface, 2.6x faster here
         return _all_crossings(points, tris, faces)
-    key, order, sorted_keys, offsets = cells
-    zone = (np.unique(key[tris[faces]])[:, None] + offsets[None, :]).ravel()
+    key, order, sorted_keys, stride = cells
+    zone = np.unique(key[tris[faces]])
+    for s in stride:  # the 7 x 7 x 7 block about each cube, one axis at a time (no key listed twice)
+        zone = np.unique((zone[:, None] + s * np.arange(-3, 4)[None, :]).ravel())
     pos = np.minimum(np.searchsorted(sorted_keys, zone), len(sorted_keys) - 1)
     marked = np.zeros(len(points), bool)
     marked[order[pos[sorted_keys[pos] == zone]]] = True
@@ -591,12 +593,12 @@ def _all_crossings(points, tris, faces):
 
 
 def _cube_index(cube):
-    """Each vertex's cube as one integer key (linear in the cube, so offsets add), the
-    vertices in key order, the sorted keys and the keys of the offsets within 3 cubes."""
+    """Each vertex's cube as one integer key (linear in the cube, so offsets add; 3 cubes of
+    padding on every side, so offsets within 3 cubes never wrap), the vertices in key order,
+    the sorted keys and the key stride of each axis."""
     lo = cube.min(axis=0) - 3
     span = cube.max(axis=0) - lo + 4
     stride = np.array([span[1] * span[2], span[2], 1], dtype=np.int64)
     key = (cube - lo) @ stride
     order = np.argsort(key)
-    offsets = np.stack(np.meshgrid(*[np.arange(-3, 4)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) @ stride
-    return key, order, key[order], offsets
+    return key, order, key[order], stride
