@@ -148,3 +148,48 @@ def test_shared_label_surface_far_from_the_origin_keeps_float64():
     assert np.array_equal(m.points, origin + (cube + 0.5) * (1.0, 0.5, 1.0))
     near = wm.mesh_surface(vol, labels="all", interfaces="shared")
     assert np.array_equal(m.triangles, near.triangles) and m.stats()["self_intersections"] == 0
+
+
+def test_conversions_and_checks_do_not_widen(sphere):
+    """require_mesh (every operation's entry check) reads no accessor of a compact mesh; to_meshio
+    works from copies the mesh does not keep."""
+    c = sphere.compact()
+    before = c.nbytes
+    mm = c.to_meshio()
+    assert c.nbytes == before
+    assert mm.points.dtype == np.float64 and np.array_equal(mm.cells[0].data, sphere.triangles)
+
+
+def test_compact_keeps_the_meshers_facts():
+    ball = wm.mesh_surface(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=16)
+    assert set(ball.stats()) == set(ball.compact().stats())
+    assert ball.compact().stats()["vertices"] == ball.stats()["vertices"]
+
+
+def test_refs_beyond_int64_refused():
+    pts, tri = [[0, 0, 0], [1, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 2]]}
+    for compact in (False, True):
+        with pytest.raises(ValueError, match=r"cell_refs\['triangle'\] within int64"):
+            Mesh(pts, tri, cell_refs={"triangle": np.array([2**63], np.uint64)}, compact=compact)
+        with pytest.raises(ValueError, match="'point_refs' within int64"):
+            Mesh(pts, tri, point_refs=np.array([0, 1, 2**64 - 1], np.uint64), compact=compact)
+
+
+def test_points_beyond_float32_refused_without_a_warning():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="float32's range"):
+            Mesh([[0, 0, 0], [1e39, 0, 0], [0, 1, 0]], {"triangle": [[0, 1, 2]]}, compact=True)
+
+
+@pytest.mark.parametrize("origin, spacing", [((0.0, 0.0, 0.0), (10.0, 0.01, 0.1)),
+                                             ((1e4, 0.0, 1e3), (100.0, 1.0, 10.0))])
+def test_fortran_order_decides_compact_as_c_order(origin, spacing):
+    v = np.random.default_rng(0).integers(0, 3, (4, 64, 16)).astype(np.uint8)
+    c = wm.mesh_surface(wm.Volume(v, origin=origin, spacing=spacing), labels="all", interfaces="shared")
+    f = wm.mesh_surface(wm.Volume(np.asfortranarray(v), origin=origin, spacing=spacing), labels="all",
+                        interfaces="shared")
+    assert c.is_compact == f.is_compact
+    assert np.array_equal(np.unique(c.points, axis=0), np.unique(f.points, axis=0))

@@ -16,7 +16,9 @@ Coordinates
     A compact :class:`~warpmesh.mesh.Mesh` (``compact=True``: the label-volume surfaces
     of ``interfaces="shared"``) *keeps* float32 points, int32 cells and narrow refs, as
     the kernels wrote them, and still *gives* float64 / int64 through its accessors
-    (copies made on first use), so no code sees an int32 index it could overflow.
+    (copies made on first use), so no code sees an int32 index it could overflow; its
+    cell data keeps its type (``label_above`` int16: read it with
+    ``multilabel.shared_labels``, which gives int64).
 """
 
 from __future__ import annotations

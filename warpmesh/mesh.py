@@ -110,7 +110,8 @@ def _check_points(points, compact: bool = False) -> np.ndarray:
         raise TypeError(f"expected a float array for 'points', got dtype {arr.dtype}")
     if arr.ndim != 2 or arr.shape[1] not in (2, 3):
         raise ValueError(f"expected 'points' of shape (n, 2) or (n, 3), got shape {arr.shape}")
-    out = arr.astype(np.float32 if compact else REAL_DTYPE, copy=False)
+    with np.errstate(over="ignore"):  # beyond float32: inf, refused below with the row
+        out = arr.astype(np.float32 if compact else REAL_DTYPE, copy=False)
     bad = ~np.isfinite(out).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
@@ -174,6 +175,8 @@ def _check_data(data, length: int, name: str, *, integer: bool = False, compact:
         raise ValueError(f"expected {name} of length {length}, got shape {arr.shape}")
     if integer and arr.ndim != 1:
         raise ValueError(f"expected {name} of shape ({length},), got shape {arr.shape}")
+    if integer and arr.size and arr.dtype == np.uint64 and int(arr.max()) > np.iinfo(INDEX_DTYPE).max:
+        raise ValueError(f"expected {name} within int64, got {int(arr.max())}")
     if integer and compact:
         return _packed_ints(arr, int(arr.min(initial=0)), int(arr.max(initial=0)))
     return _frozen(arr.astype(INDEX_DTYPE, copy=False) if integer else arr)
@@ -251,14 +254,17 @@ class Mesh:
         Free-form facts from the producer (timings, counts, resolution), merged into
         :meth:`stats`.
     compact : bool
-        Keep the points as float32, the cells as int32 and the refs in 32 bits or fewer
-        (as given, or the narrowest integer type that holds them) (about half the memory: what the label-volume
-        surfaces of ``interfaces="shared"`` return). The accessors still give float64 and
-        int64 arrays (:attr:`points`, :attr:`cells`, ...): each made on its first use and
-        kept; :meth:`save` and :meth:`to_meshio` write the compact arrays. Coordinates
-        are rounded to float32 (2**-24 relative). :meth:`replace` keeps it when only
-        ``info`` changes; a mesh made with other changes (every operation's result) is
-        not compact unless ``compact=True`` is passed.
+        Keep the points as float32, the cells as int32 (int64 past 2**31 points) and the
+        refs as given when of 32 bits or fewer, else in the narrowest integer type that
+        holds them: about half the memory (what the label-volume surfaces of
+        ``interfaces="shared"`` return). The accessors still give float64 and int64
+        arrays (:attr:`points`, :attr:`cells`, ...), each made on its first use and kept;
+        :meth:`save` and :meth:`to_meshio` work from float64 / int64 copies that the mesh
+        does not keep. Coordinates are rounded to float32 (2**-24 relative; below
+        float32's smallest normal, 1.2e-38, to its subnormal steps). Point and cell data
+        keep their types. :meth:`replace` keeps it when only ``info`` changes; a mesh made
+        with other changes (every operation's result) is not compact unless
+        ``compact=True`` is passed.
 
     Raises
     ------
@@ -407,7 +413,12 @@ class Mesh:
         >>> m.nbytes, m.compact().nbytes, m.compact().points.dtype.name
         (96, 48, 'float64')
         """
-        return self if self._packed is not None else self.replace(compact=True)
+        if self._packed is not None:
+            return self
+        new = self.replace(compact=True)
+        if FACTS_OF in self._info and _same_fingerprint(self._info[FACTS_OF], self._fingerprint()):
+            new._info[FACTS_OF] = new._fingerprint()  # the same mesh, rounded: the mesher's facts still hold
+        return new
 
     # ---------------------------------------------------------------- accessors
     points = property(lambda self: self._points, doc="(n, d) float64, read-only (a compact mesh's: made on first use).")

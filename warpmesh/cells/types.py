@@ -79,6 +79,9 @@ class MeshLike(Protocol):
     def replace(self, **changes): ...
 
 
+_MESH_ATTRIBUTES = ("points", "cells", "point_refs", "cell_refs", "point_data", "cell_data", "replace")
+
+
 def require_mesh(mesh, name: str = "mesh") -> None:
     """Raise TypeError unless ``mesh`` is a warpmesh Mesh (anything with its attributes).
 
@@ -89,6 +92,8 @@ def require_mesh(mesh, name: str = "mesh") -> None:
     ...
     TypeError: expected a warpmesh Mesh for 'mesh', got list; convert with Mesh.from_meshio / from_pyvista / from_trimesh
     """
+    if all(hasattr(type(mesh), a) for a in _MESH_ATTRIBUTES):  # declared by its class: no property evaluated
+        return  # (a compact Mesh makes float64 / int64 copies when its accessors are read)
     if not isinstance(mesh, MeshLike):
         raise TypeError(f"expected a warpmesh Mesh for {name!r}, got {type(mesh).__name__}; "
                         "convert with Mesh.from_meshio / from_pyvista / from_trimesh")

@@ -63,7 +63,6 @@ import numpy as np
 
 from warpmesh._conventions import GRID_INFO
 from warpmesh._util.progress import Progress, check_progress
-from warpmesh.cells.intersections import find_degenerate_faces, find_self_intersections
 from warpmesh.cells.quality import triangle_quality
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
 
@@ -564,8 +563,8 @@ def _crossings(points, tris, faces, cells):
     triangle's cubes span 2 along each axis at most), hence within 3 of each of its cubes.
     ``cells`` is :func:`_cube_index`'s."""
     m = len(tris)
-    if len(faces) * 8 > m:  # most faces: the package's own check of the whole surface, 2.6x faster here
-        return _all_crossings(points, tris, faces)
+    if len(faces) * 8 > m:
+        return face_violations(points, tris, faces, fold_cos=-2.0, partners=True)
     key, order, sorted_keys, stride = cells
     zone = np.unique(key[tris[faces]])
     for s in stride:  # the 7 x 7 x 7 block about each cube, one axis at a time (no key listed twice)
@@ -576,20 +575,6 @@ def _crossings(points, tris, faces, cells):
     keep = np.flatnonzero(marked[tris].any(axis=1))
     bad, others = face_violations(points, tris[keep], np.searchsorted(keep, faces), fold_cos=-2.0, partners=True)
     return bad, keep[others]
-
-
-def _all_crossings(points, tris, faces):
-    """:func:`_crossings` of many faces from the self-intersection check of the whole surface
-    and its degenerate faces (what :func:`face_violations` reports without its fold test):
-    on pyvista's frog smoothed (1.58 M triangles) 1.2 s against 3.1 s. (k,) bool over
-    ``faces``, and the faces not in ``faces`` that a failing one crosses."""
-    pairs = find_self_intersections(points, tris)
-    listed = np.zeros(len(tris), bool)
-    listed[faces] = True
-    failing = np.zeros(len(tris), bool)
-    failing[pairs[(listed[pairs[:, 0]] | listed[pairs[:, 1]])].ravel()] = True
-    failing[find_degenerate_faces(points, tris)] = True
-    return failing[faces], np.flatnonzero(failing & ~listed)
 
 
 def _cube_index(cube):

@@ -275,7 +275,7 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     t0 = time.perf_counter()
     vol = _as_label_volume(np.asarray(vol))
     origin, spacing = np.asarray(origin, dtype=np.float64), np.asarray(spacing, dtype=np.float64)
-    user_origin, user_spacing = origin, spacing
+    user_origin, user_spacing, user_shape = origin, spacing, vol.shape
     reverse = vol.flags.f_contiguous and not vol.flags.c_contiguous
     if reverse:  # x fastest (VTK, NIfTI): mesh the C-order view vol.T; the kernels write the axes back
         vol, origin, spacing = vol.T, origin[::-1], spacing[::-1]
@@ -318,7 +318,7 @@ def shared_surface(vol: np.ndarray, labels, *, origin, spacing, cap: bool = True
     label_dtype = label_array_dtype(ids)
     # world coordinates when float32 holds every cube centre to FLOAT32_CELL_ERROR of a cell,
     # else the cube indices (exact in float32), made world coordinates in float64 below
-    far = not float32_cube_centres(user_origin, user_spacing, vol.shape)
+    far = not float32_cube_centres(user_origin, user_spacing, user_shape)
     world = ((np.full(3, -float(pad)), np.ones(3)) if far else (origin - pad * spacing, spacing))
     points = np.empty((n_vertices, 3), dtype=np.float32)
     tris = np.empty((2 * n_quads, 3), dtype=np.int32)
@@ -488,7 +488,7 @@ def shared_labels(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
     if refs is None or above is None or set(mesh.cells) != {"triangle"}:
         raise ValueError(f"expected a surface from interfaces='shared' in {name!r} (triangles only, cell refs and "
                          f"cell_data[{LABEL_ABOVE!r}]), got one without them")
-    return np.asarray(refs), np.asarray(above)
+    return np.asarray(refs, dtype=C.INDEX_DTYPE), np.asarray(above, dtype=C.INDEX_DTYPE)  # (a compact mesh's: int16)
 
 
 def label_boundary(mesh, label: int):
