@@ -85,6 +85,28 @@ def test_widget_follows_updates():
     assert np.linalg.norm(pts, axis=1).max() == pytest.approx(0.2, abs=0.03)
 
 
+def test_a_new_widget_closes_the_one_before():
+    """Re-running the cell that shows a preview left every earlier view registered: each edit
+    sent its mesh to all of them, and every status watcher stayed."""
+    r = wm.param("r", 0.3, lo=0.1, hi=0.5)
+    view = wm.Preview(wm.sphere(r), bounds=BOUNDS, resolution=12, evaluator="interpreter")
+    first = view.widget()
+    second = view.widget()
+    old_view, new_view = first.children[1], second.children[1]
+    assert first.comm is None and old_view.comm is None  # closed, parts included
+    assert view._views == [new_view] and len(view._watchers) == 1
+    before = old_view.version
+    view.update(r=0.2)
+    assert old_view.version == before and new_view.version == before + 1
+    second.close()
+    assert view._views == [] and view._watchers == [] and view._widget is None
+    view.update(r=0.25)  # nothing shown: no idle refinement either
+    assert view._timer is None and new_view.version == before + 1
+    third = view.widget()  # a widget after a close works as the first
+    third.children[0].value = 0.4
+    assert view.values == {"r": 0.4} and third.children[1].version == 2
+
+
 def test_cli_view(tmp_path, capsys):
     assert main(["view", "--example", "sphere", "--resolution", "16", "-o", str(tmp_path / "s.html")]) == 0
     assert "createWarpmeshViewer" in (tmp_path / "s.html").read_text()

@@ -130,6 +130,7 @@ class Preview:
         self.timings: list[float] = []
         self._views: list = []
         self._watchers: list = []
+        self._widget = None  # the live widget (warpmesh.preview.widget), at most one
         self._generation = 0
         self._lock = threading.Lock()
         self._timer: threading.Timer | None = None
@@ -243,6 +244,26 @@ class Preview:
             raise TypeError(f"expected a callable for 'callback', got {type(callback).__name__}")
         self._watchers.append(callback)
 
+    def unwatch(self, callback) -> None:
+        """Stop calling ``callback`` (added by :meth:`watch`); a preview left with no watcher
+        and no view stops refining when idle. Unknown callbacks are ignored.
+
+        Examples
+        --------
+        >>> import warpmesh as wm
+        >>> view = wm.Preview(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=8,
+        ...                   evaluator="interpreter", refine=None)
+        >>> seen = []
+        >>> def note(mesh, kind):
+        ...     seen.append(kind)
+        >>> view.watch(note); _ = view.update()
+        >>> view.unwatch(note); _ = view.update()
+        >>> seen
+        ['update']
+        """
+        if callback in self._watchers:
+            self._watchers.remove(callback)
+
     def _show(self, mesh, kind: str) -> None:
         for view in list(self._views):
             view.show_mesh(mesh)
@@ -253,7 +274,9 @@ class Preview:
     def widget(self):
         """The Jupyter widget: a slider per parameter above the 3D view (ipywidgets,
         anywidget); moving a slider calls :meth:`update`, the view's buffers are
-        replaced in place and its camera kept."""
+        replaced in place and its camera kept. A preview drives one widget: a new one
+        (the cell run again, the preview displayed again) closes the one before, which
+        stops receiving meshes; ``close()`` on the widget detaches it too."""
         from warpmesh.preview.widget import preview_widget
 
         return preview_widget(self)

@@ -84,12 +84,34 @@ def status_line(preview, mesh, kind: str = "update") -> str:
     return f"{mesh.n_points} points, {mesh.n_cells} triangles, χ {chi}, {where}, {done}"
 
 
+class PreviewBox(ipywidgets.VBox):
+    """The sliders, view and status line of one preview; :meth:`close` detaches the view and
+    the status watcher from the preview (no more meshes sent to it) and closes the parts."""
+
+    def __init__(self, children, detach):
+        super().__init__(children)
+        self._detach = detach
+
+    def close(self):
+        detach, self._detach = self._detach, None
+        if detach is not None:
+            detach()
+            for child in self.children:
+                child.close()
+        super().close()
+
+
 def preview_widget(preview, *, height: int = 420):
-    """A VBox: one FloatSlider per parameter, then the :class:`MeshView` of ``preview``.
+    """A :class:`PreviewBox`: one FloatSlider per parameter, then the :class:`MeshView` of
+    ``preview``, then a status line.
 
     The view is registered with the preview, so ``preview.update(...)`` from code also
-    refreshes it.
+    refreshes it. The widget made before for the same preview is closed first: re-running a
+    cell left every earlier view registered, each sent every new mesh.
     """
+    before = getattr(preview, "_widget", None)
+    if before is not None:
+        before.close()
     view = MeshView(height=height, box=[list(map(float, preview.bounds[0])), list(map(float, preview.bounds[1]))])
     view.show_mesh(preview.mesh)
     preview._views.append(view)
@@ -113,4 +135,14 @@ def preview_widget(preview, *, height: int = 420):
         s.observe(changed, names="value")
         sliders.append(s)
     show_status()
-    return ipywidgets.VBox([*sliders, view, status])
+
+    def detach():
+        if view in preview._views:
+            preview._views.remove(view)
+        preview.unwatch(show_status)
+        if getattr(preview, "_widget", None) is box:
+            preview._widget = None
+
+    box = PreviewBox([*sliders, view, status], detach)
+    preview._widget = box
+    return box
