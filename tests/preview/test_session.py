@@ -153,6 +153,36 @@ def test_a_watched_preview_refines_when_idle_and_drops_stale_work():
     assert kinds.count("refined") == 1
 
 
+def test_a_newer_edit_cancels_a_running_refinement(monkeypatch):
+    """The stale refinement stops at the pipeline's next checkpoint instead of running to its
+    end: the first checkpoint of the 0.4 refinement is held until the 0.6 edit has come."""
+    from warpmesh._util import cancel
+
+    view = _small_preview(idle=0.0)
+    view.watch(lambda mesh, kind: None)
+    gate, entered = threading.Event(), threading.Event()
+    original = cancel.checkpoint
+    held = []
+
+    def checkpoint():
+        if threading.current_thread() is not threading.main_thread() and not held:
+            held.append(1)
+            entered.set()
+            gate.wait(30)
+        original()
+
+    monkeypatch.setattr(cancel, "checkpoint", checkpoint)
+    view.update(boss=0.4)
+    assert entered.wait(30), "the refinement never reached a checkpoint"
+    view.update(boss=0.6)
+    gate.set()
+    deadline = time.monotonic() + 60
+    while view.refined_mesh is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert view.cancelled == 1 and view.dropped >= 1
+    np.testing.assert_array_equal(view.refined_mesh.triangles, _fresh(0.6, 32).triangles)
+
+
 def test_a_headless_preview_starts_no_thread():
     view = _small_preview(idle=0.0)
     before = threading.active_count()

@@ -14,7 +14,9 @@ While a view is shown (the notebook widget, or any watcher added with
 mesh of the same values in a background thread (``refine``: twice the resolution by
 default, one more octree level for ``adaptive=True``); it replaces the preview mesh in
 the views when it is done, unless a newer edit arrived meanwhile, in which case it is
-dropped (``Preview.dropped`` counts them). Headless code asks for it with
+dropped (``Preview.dropped`` counts them): a refinement still running stops at the
+pipeline's next stage (``Preview.cancelled`` counts those; :mod:`warpmesh._util.cancel`),
+so it does not take a core from the edits that follow. Headless code asks for it with
 :meth:`Preview.refined`.
 
 Example
@@ -33,6 +35,7 @@ from __future__ import annotations
 import threading
 import time
 
+from warpmesh._util import cancel
 from warpmesh._util.validate import check_device
 from warpmesh import _conventions as C
 from warpmesh.frep.expr import check_values
@@ -136,6 +139,7 @@ class Preview:
         self._timer: threading.Timer | None = None
         self.refined_mesh = None
         self.dropped = 0
+        self.cancelled = 0
         self.mesh = self._mesh(self.values)  # set-up: tape, module loads, the generated kernel
 
     @property
@@ -226,8 +230,14 @@ class Preview:
             if generation != self._generation:
                 self.dropped += 1
                 return
-        try:
-            mesh = self._mesh(values, finer=True)
+        try:  # a newer edit stops it at the pipeline's next stage (cancel.checkpoint), not at its end
+            with cancel.cancellable(lambda: generation != self._generation):
+                mesh = self._mesh(values, finer=True)
+        except cancel.Cancelled:
+            with self._lock:
+                self.dropped += 1
+                self.cancelled += 1
+            return
         except Exception:  # noqa: BLE001 - the preview mesh stays; the next edit reports real errors
             return
         with self._lock:

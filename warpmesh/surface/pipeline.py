@@ -26,6 +26,7 @@ import numpy as np
 import warp as wp
 
 from warpmesh import _conventions as C
+from warpmesh._util import cancel
 from warpmesh._util.validate import check_device
 from warpmesh.distributed.bricks import refuse_bricking
 from warpmesh.errors import WarpMeshError
@@ -448,16 +449,20 @@ def _mesh_grid(source, opts: GridOptions | ContinuationOptions, device, t_start:
         cell_mask = _grow(grid, tape, opts.seeds, opts.cap, opts.evaluator, timings, info)
     else:
         grid.cull_shape(tape, opts.cull, cap_mask, timings)
+        cancel.checkpoint()  # a stale run (the preview's refinement after a newer edit) stops between stages
         grid.sample_shape(tape, opts.cull, opts.evaluator, timings)
     info["tape_length"] = len(tape)
 
+    cancel.checkpoint()
     grid.finish_values(cap_mask, timings)
     verts, tris, edges = grid.extract(opts.method, cap_mask, timings, cell_mask, clearance=opts.clearance)
+    cancel.checkpoint()
     if cell_mask is not None:  # continuation: drop the vertices of edges on no grown cell first
         verts, tris, edges = drop_unused(verts, tris, edges)
     if opts.root != "linear" and len(verts):
         refine_roots(tape, verts, edges, grid.worigin, opts.root, opts.root_iterations, timings, opts.evaluator,
                      opts.gradient, grid.h)
+        cancel.checkpoint()
 
     t0 = time.perf_counter()
     point_data = {}

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from warpmesh._util import cancel
 from warpmesh.frep import prune as P  # noqa: E402
 from warpmesh.errors import WarpMeshError
 from warpmesh.kernels import octree as KO
@@ -346,6 +347,7 @@ def build_octree(tape, lo, hi, *, max_level: int, min_level: int | None, toleran
     all_keys, all_status, all_leaf = [], [], []
     n_leaves = 0
     for level in range(base, max_level + 1 if last_level is None else min(last_level, max_level) + 1):
+        cancel.checkpoint()  # a stale run (the preview's refinement after a newer edit) stops between levels
         t0 = time.perf_counter()
         own = slice(None)  # the cells the level's statistics count
         if window is not None:  # only the cells that meet the window's box (or touch it: collar)
