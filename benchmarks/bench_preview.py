@@ -21,8 +21,13 @@ Printed per resolution: set-up time, p50 / p95 / max edit latency, triangles, an
 ratio of the peer's p50 to warpmesh's. Acceptance (issue 21): p95 < 100 ms at 128³ on two
 cores; the banner prints the load average, since other processes skew every figure.
 
+With ``--bursts GAP``: only the edits GAP seconds apart to a watched preview whose idle
+refinement each edit overtakes, the refinements cancelled at the pipeline's next stage
+(the default) against run to their end (``bench_bursts``).
+
 Run:  python benchmarks/bench_preview.py [--resolutions 64,128,256] [--edits 50] [--adaptive 8]
                                           [--evaluator compiled] [--no-peer] [--json out.json]
+      python benchmarks/bench_preview.py --bursts 0.12 --resolutions 128 --edits 40
 """
 
 from __future__ import annotations
@@ -85,6 +90,35 @@ def bench_warpmesh(wm, part, res, values, evaluator, max_level=None) -> dict:
             "warp_module_loads": counts.loads, "warp_compiles": counts.compiles}
 
 
+def bench_bursts(wm, part, res, values, gap: float, idle: float, cancelling: bool) -> dict:
+    """Edits ``gap`` seconds apart to a watched preview (as the notebook widget is): each edit's
+    idle refinement (twice the resolution) starts ``idle`` s after it and is still running
+    when the next edit comes. With ``cancelling`` the edit stops it at the pipeline's next
+    stage (``warpmesh._util.cancel``); without, its checkpoints are made no-ops, so it runs to
+    its end on a core the edit needs (the behaviour before the cancellation)."""
+    from warpmesh._util import cancel
+
+    original = cancel.checkpoint
+    cancel.checkpoint = original if cancelling else (lambda: None)
+    try:
+        view = wm.Preview(part, bounds=BOUNDS, resolution=res, idle=idle)
+        view.watch(lambda mesh, kind: None)
+        times, cpu = [], []
+        c0 = time.process_time()
+        for v in values:
+            t, c = time.perf_counter(), time.process_time()
+            view.update(**v)
+            times.append(time.perf_counter() - t)
+            cpu.append(time.process_time() - c)
+            time.sleep(gap)
+        time.sleep(max(1.0, 10 * gap))  # the last refinement lands
+        cpu_total = time.process_time() - c0  # every thread's: the edits and the refinements
+    finally:
+        cancel.checkpoint = original
+    return {**percentiles(times, cpu), "cpu_total_s": cpu_total, "dropped": view.dropped,
+            "cancelled": view.cancelled}
+
+
 def bench_numpy_peer(part, res, values, contour) -> dict:
     """numpy evaluation of each edit on the grid's nodes, then ``contour(vol, spacing)``
     (which returns the triangle count)."""
@@ -126,6 +160,8 @@ def main(argv=None) -> int:
     p.add_argument("--no-peer", action="store_true", help="skip the numpy + scikit-image / VTK peers")
     p.add_argument("--json", help="write the results to this file")
     p.add_argument("--default-malloc", action="store_true", help="measure with glibc's stock allocator")
+    p.add_argument("--bursts", type=float, default=0.0, metavar="GAP",
+                   help="only the edits GAP s apart to a watched preview, its idle refinements cancelled or not")
     args = p.parse_args(argv)
     t_start = time.perf_counter()
     load0 = _report.load_banner(f"bench_preview: {args.edits} edits of r and boss, CPU count {os.cpu_count()}")
@@ -135,6 +171,18 @@ def main(argv=None) -> int:
                      wm.param("boss", 0.5, lo=RANGES["boss"][0], hi=RANGES["boss"][1]))
     values = edits(args.edits)
     rows = []
+    if args.bursts:
+        print(f"\nedits {args.bursts:.2f} s apart, a watched preview (idle 0.05 s): each refinement overtaken")
+        for res in (int(r) for r in args.resolutions.split(",")):
+            for rep_ in range(2):  # interleaved, twice: the same load for both
+                for cancelling in (False, True):
+                    b = bench_bursts(wm, part, res, values, args.bursts, 0.05, cancelling)
+                    rows.append({"resolution": res, "cancelling": cancelling, **b})
+                    print(f"{res:>5} | refinements {'cancelled' if cancelling else 'run to their end':<17} | "
+                          f"p50 {b['p50_ms']:6.1f}ms | p95 {b['p95_ms']:6.1f}ms | max {b['max_ms']:6.1f}ms | "
+                          f"process CPU {b['cpu_total_s']:5.2f} s | dropped {b['dropped']}, cancelled {b['cancelled']}")
+        _report.finish(t_start, load0, args.json, {"rows": rows, "edits": args.edits})
+        return 0
     print(f"\n{'res':>5} | {'tool':<26} | {'set-up':>7} | {'p50':>8} | {'p95':>8} | {'max':>8} | "
           f"{'cpu p50':>8} | {'triangles':>9} | loads | p50 ratio")
     for res in (int(r) for r in args.resolutions.split(",")):
