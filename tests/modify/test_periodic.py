@@ -214,3 +214,33 @@ def test_overlapping_copies_are_warned_about_and_the_identity_refused():
         periodic(tets, T.translation((0.3, 0.0, 0.0)), 2)  # (at 0.5 the shared points fail the merge)
     with pytest.raises(ValueError, match="got the identity"):
         periodic(square, np.eye(3), 3)
+
+
+def test_copies_whose_seams_do_not_match_are_told_so():
+    """A pattern whose two sides are sampled differently (the planar mesher's left and right
+    sides of a rectangle) touches its copies along the seam without sharing vertices there:
+    the warning said the transform moved it by less than its extent, which it did not."""
+    import warpmesh as wm
+    from warpmesh.modify import transforms as T
+
+    pattern = wm.mesh_domain(wm.rectangle((2.0, 1.0)), bounds=((-1.5, -1), (1.5, 1)), size=0.1)
+    left, right = (np.sort(pattern.points[np.isclose(pattern.points[:, 0], x), 1]) for x in (-1.0, 1.0))
+    assert not np.array_equal(left, right)  # the premise: the sides differ
+    with pytest.warns(UserWarning, match=r"touch along their seams without sharing vertices there .* "
+                                         r"\(2 node pairs match under the transform\)") as record:
+        row = periodic(pattern, T.translation((2.0, 0.0)), 3)
+    assert not any("less than its extent" in str(w.message) for w in record)
+    assert row.stats()["components"] == 3
+    # the same sides, made to match (the right side's nodes copied from the left): no warning
+    square = Mesh([[0, 0], [1, 0], [1, 0.4], [1, 1], [0, 1], [0, 0.4]],
+                  {"triangle": [[0, 1, 2], [0, 2, 5], [5, 2, 3], [5, 3, 4]]})
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        joined = periodic(square, T.translation((1.0, 0.0)), 3)
+    assert joined.stats()["components"] == 1
+    skewed = Mesh([[0, 0], [1, 0], [1, 0.6], [1, 1], [0, 1], [0, 0.4]],
+                  {"triangle": [[0, 1, 2], [0, 2, 5], [5, 2, 3], [5, 3, 4]]})
+    with pytest.warns(UserWarning, match="touch along their seams"):
+        periodic(skewed, T.translation((1.0, 0.0)), 2)

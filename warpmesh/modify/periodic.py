@@ -245,18 +245,52 @@ def periodic(mesh, matrix, copies: int, tolerance: float | None = None, *, refs:
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]
     out = result.replace(info={**result.info, "copies": n, "periodic_pairs": pairs})
     if check is not False and n > 1:
-        _warn_if_copies_overlap(out)
+        _warn_if_copies_overlap(out, mesh, t, tol)
     return out
 
 
-def _warn_if_copies_overlap(mesh) -> None:
-    """A UserWarning when cells of the result cross (copies moved by less than the pattern's
-    extent, or a rotation that turns them onto each other): merged, they are no mesh a
-    solver can take, and the Euler check does not see it. Triangles and tetrahedra only."""
+def _warn_if_copies_overlap(mesh, pattern, matrix: np.ndarray, tol: float) -> None:
+    """A UserWarning when cells of the result cross: merged, they are no mesh a solver can
+    take, and the Euler check does not see it. Triangles and tetrahedra only. Two causes
+    are told apart for triangles: interiors that overlap (the copies moved by less than the
+    pattern's extent, or a rotation that turns them onto each other), and copies that only
+    touch along a seam where their vertices differ (the pattern's two sides sampled
+    differently: the copies are then not connected), found by shrinking the crossing
+    triangles a little about their centroids (:func:`_only_touching`)."""
     if not any(t in mesh.cells for t in ("triangle", "tetra")):
         return
     crossing = mesh.check()
-    if len(crossing):
-        warnings.warn(f"periodic: the copies overlap ({len(crossing)} pairs of cells cross, e.g. cells "
-                      f"{crossing[0].tolist()}): the transform moves the pattern by less than its extent",
-                      UserWarning, stacklevel=3)
+    if not len(crossing):
+        return
+    if "tetra" not in mesh.cells and _only_touching(mesh, crossing):
+        matched = len(periodic_pairs(pattern, matrix, tol))
+        warnings.warn(f"periodic: the copies touch along their seams without sharing vertices there "
+                      f"({len(crossing)} pairs of cells touch, e.g. cells {crossing[0].tolist()}): the pattern's two "
+                      f"sides are sampled differently ({matched} node pairs match under the transform), so the "
+                      "copies are not joined along the seam; mesh the two sides with the same boundary nodes, as periodic "
+                      "conditions need", UserWarning, stacklevel=3)
+        return
+    warnings.warn(f"periodic: the copies overlap ({len(crossing)} pairs of cells cross, e.g. cells "
+                  f"{crossing[0].tolist()}): the transform moves the pattern by less than its extent",
+                  UserWarning, stacklevel=3)
+
+
+#: how much the crossing triangles are shrunk about their centroids to tell touching from
+#: overlapping (relative to each triangle's size)
+_SHRINK = 1.0e-6
+
+
+def _only_touching(mesh, crossing: np.ndarray) -> bool:
+    """Whether the crossing triangle pairs only touch: shrunk by ``_SHRINK`` about their
+    centroids, each on vertices of its own, none of them crosses any more."""
+    from warpmesh.cells.intersections import find_self_intersections
+
+    cells = np.unique(crossing.ravel())
+    p = np.asarray(mesh.points, dtype=REAL_DTYPE)
+    if p.shape[1] == 2:
+        p = np.column_stack([p, np.zeros(len(p))])
+    corners = p[mesh.cells["triangle"][cells]]  # (k, 3, 3)
+    centroid = corners.mean(axis=1, keepdims=True)
+    shrunk = centroid + (corners - centroid) * (1.0 - _SHRINK)
+    own = np.arange(3 * len(cells)).reshape(-1, 3)
+    return len(find_self_intersections(shrunk.reshape(-1, 3), own)) == 0
