@@ -875,9 +875,11 @@ def emit_label_points_kernel(
 
 
 #: the label types of the triangles, per sample type: the narrowest of int16, int32 and int64
-#: that holds the region ids (8-bit samples: ids within [-129, 255]; 16-bit: [-32769, 65535];
-#: the int32 codes of wider samples: any)
-LABEL_OUT_DTYPES = {wp.uint8: (wp.int16,), wp.uint16: (wp.int16, wp.int32), wp.int32: (wp.int16, wp.int32, wp.int64)}
+#: that holds the region ids. Every pair is compiled with the module: 8-bit samples read in
+#: place have ids within [-129, 255] and 16-bit ones within [-32769, 65535], but wider
+#: volumes are coded first into uint8, uint16 or int32 codes by their count of regions
+#: (multilabel.label_codes), whatever their ids
+LABEL_OUT_DTYPES = {dtype: (wp.int16, wp.int32, wp.int64) for dtype in LABEL_DTYPES}
 
 for _dtype in LABEL_DTYPES:  # compiled with the module, once: no instance made at the first launch of a new type
     wp.overload(count_label_rows_kernel, {"values": wp.array(dtype=_dtype)})

@@ -193,3 +193,18 @@ def test_fortran_order_decides_compact_as_c_order(origin, spacing):
                         interfaces="shared")
     assert c.is_compact == f.is_compact
     assert np.array_equal(np.unique(c.points, axis=0), np.unique(f.points, axis=0))
+
+
+@pytest.mark.parametrize("dtype, top", [(np.int32, 100_000), (np.int64, 2**40), (np.float32, 70_000)])
+def test_wide_label_values_use_compiled_overloads(dtype, top):
+    """Wide volumes are coded by their count of regions (uint8 codes for a few), whatever their
+    ids: every code type with every label type is compiled with the module, none at a launch."""
+    import warpmesh.kernels.flying_edges as KF
+
+    vol = _voronoi(12, 3).astype(dtype)
+    vol[vol == 3] = top
+    before = len(KF.emit_label_quads_kernel.overloads)
+    m = wm.mesh_surface(vol, labels="all", interfaces="shared")
+    assert len(KF.emit_label_quads_kernel.overloads) == before
+    assert int(m.cell_data["label_above"]["triangle"].max()) == top
+    assert m.cell_data["label_above"]["triangle"].dtype == (np.int64 if top > 2**31 else np.int32)

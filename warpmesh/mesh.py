@@ -19,7 +19,8 @@ Compact storage
     cells and refs of 32 bits or fewer, about half the memory, while every accessor
     still gives float64 / int64 arrays (made on first use and kept):
     :attr:`Mesh.nbytes` counts what is held, :attr:`Mesh.compact_arrays` gives the kept
-    arrays. Label-volume surfaces (``interfaces="shared"``) are returned compact.
+    arrays. Label-volume surfaces (``interfaces="shared"``) are returned compact (not
+    with ``smoothing``, nor for a grid too far from the origin for float32).
 
 Conversions live in :mod:`warpmesh.io.convert` and files in :mod:`warpmesh.io.files` (with the
 table of what each format keeps); the methods below delegate to them.

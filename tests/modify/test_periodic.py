@@ -244,3 +244,7 @@ def test_copies_whose_seams_do_not_match_are_told_so():
                   {"triangle": [[0, 1, 2], [0, 2, 5], [5, 2, 3], [5, 3, 4]]})
     with pytest.warns(UserWarning, match="touch along their seams"):
         periodic(skewed, T.translation((1.0, 0.0)), 2)
+    # an overlap of 5e-7 of the side (deeper than the merge tolerance, 2.4e-7 of the box) is one
+    with pytest.warns(UserWarning, match="the copies overlap") as record:
+        periodic(square, T.translation((0.9999995, 0.0)), 2)
+    assert not any("seams" in str(w.message) for w in record)

@@ -262,7 +262,7 @@ def _warn_if_copies_overlap(mesh, pattern, matrix: np.ndarray, tol: float) -> No
     crossing = mesh.check()
     if not len(crossing):
         return
-    if "tetra" not in mesh.cells and _only_touching(mesh, crossing):
+    if "tetra" not in mesh.cells and _only_touching(mesh, crossing, tol):
         matched = len(periodic_pairs(pattern, matrix, tol))
         warnings.warn(f"periodic: the copies touch along their seams without sharing vertices there "
                       f"({len(crossing)} pairs of cells touch, e.g. cells {crossing[0].tolist()}): the pattern's two "
@@ -275,14 +275,11 @@ def _warn_if_copies_overlap(mesh, pattern, matrix: np.ndarray, tol: float) -> No
                   UserWarning, stacklevel=3)
 
 
-#: how much the crossing triangles are shrunk about their centroids to tell touching from
-#: overlapping (relative to each triangle's size)
-_SHRINK = 1.0e-6
-
-
-def _only_touching(mesh, crossing: np.ndarray) -> bool:
-    """Whether the crossing triangle pairs only touch: shrunk by ``_SHRINK`` about their
-    centroids, each on vertices of its own, none of them crosses any more."""
+def _only_touching(mesh, crossing: np.ndarray, tol: float) -> bool:
+    """Whether the crossing triangle pairs only touch: each shrunk about its centroid so its
+    corners move by a quarter of the merge tolerance ``tol`` (at most a millionth of its
+    size), on vertices of its own, none of them crosses any more. An overlap deeper than
+    that is one (closer points the merge would have welded)."""
     from warpmesh.cells.intersections import find_self_intersections
 
     cells = np.unique(crossing.ravel())
@@ -291,6 +288,8 @@ def _only_touching(mesh, crossing: np.ndarray) -> bool:
         p = np.column_stack([p, np.zeros(len(p))])
     corners = p[mesh.cells["triangle"][cells]]  # (k, 3, 3)
     centroid = corners.mean(axis=1, keepdims=True)
-    shrunk = centroid + (corners - centroid) * (1.0 - _SHRINK)
+    reach = np.linalg.norm(corners - centroid, axis=2).max(axis=1)[:, None, None]
+    shrink = np.minimum(0.25 * tol / np.maximum(reach, 1e-300), 1.0e-6)
+    shrunk = centroid + (corners - centroid) * (1.0 - shrink)
     own = np.arange(3 * len(cells)).reshape(-1, 3)
     return len(find_self_intersections(shrunk.reshape(-1, 3), own)) == 0

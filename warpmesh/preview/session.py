@@ -16,10 +16,12 @@ default, one more octree level for ``adaptive=True``); it replaces the preview m
 the views when it is done, unless a newer edit arrived meanwhile, in which case it is
 dropped (``Preview.dropped`` counts them): a refinement still running stops at the
 pipeline's next stage (``Preview.cancelled`` counts those; :mod:`warpmesh._util.cancel`)
-instead of at its end. The stages are coarse (about 0.1 s each at 256^3), so this saves
-CPU rather than edit latency: edits 0.12 s apart at 128^3, 5 % less process CPU, the
-same latency within noise (``python benchmarks/bench_preview.py --bursts 0.12
---resolutions 128 --edits 40``). Headless code asks for it with
+instead of at its end; an edit makes it stale as it starts, so the refinement stops while
+the edit meshes. Edits 0.12 s apart at 128^3 (``python benchmarks/bench_preview.py
+--bursts 0.12 --resolutions 128 --edits 40``, two runs of two interleaved pairs): edit
+latency p50 49-71 ms against 73-85 ms with the refinements run to their end, p95 80-89
+against 81-104 ms, process CPU 8.8-10.7 s against 12.4-12.7 s. The stages are coarse
+(about 0.1 s each at 256^3): a stale refinement still finishes the one it is in. Headless code asks for it with
 :meth:`Preview.refined`.
 
 Example
@@ -185,14 +187,16 @@ class Preview:
         checked = check_values(self.params, values, "values")
         t0 = time.perf_counter()
         new = {**self.values, **checked}
-        mesh = self._mesh(new)
-        with self._lock:
+        with self._lock:  # what refines the old values is stale from now: it stops at its next checkpoint
             self._generation += 1
-            generation = self._generation
-            self.values, self.mesh, self.refined_mesh = new, mesh, None
             if self._timer is not None:
                 self._timer.cancel()
                 self._timer = None
+        mesh = self._mesh(new)
+        with self._lock:  # (again: a refined() begun while this meshed refines the old values)
+            self._generation += 1
+            generation = self._generation
+            self.values, self.mesh, self.refined_mesh = new, mesh, None
         self.timings.append(time.perf_counter() - t0)
         self._show(mesh, "update")
         if self._refine and (self._views or self._watchers):

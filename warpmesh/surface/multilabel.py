@@ -488,7 +488,10 @@ def shared_labels(mesh, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
     if refs is None or above is None or set(mesh.cells) != {"triangle"}:
         raise ValueError(f"expected a surface from interfaces='shared' in {name!r} (triangles only, cell refs and "
                          f"cell_data[{LABEL_ABOVE!r}]), got one without them")
-    return np.asarray(refs, dtype=C.INDEX_DTYPE), np.asarray(above, dtype=C.INDEX_DTYPE)  # (a compact mesh's: int16)
+    refs, above = np.asarray(refs), np.asarray(above)
+    if above.dtype.kind in "iu" and above.dtype.itemsize < 8:  # a compact mesh's int16: widened for arithmetic
+        above = above.astype(C.INDEX_DTYPE)
+    return refs, above
 
 
 def label_boundary(mesh, label: int):
