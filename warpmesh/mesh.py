@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
+from warpmesh._util.arrays import narrowest_int
 from warpmesh.cells import topology as _topo
 from warpmesh.cells.quality import summarize_quality, tetra_figures, tetra_quality, triangle_quality
 from warpmesh.cells.types import CELL_TYPES, REF_KEY
@@ -207,19 +208,6 @@ def _check_mapping(value, name: str) -> Mapping:
 
 #: the most points a compact mesh numbers with int32 cells
 _INT32_LIMIT = 2**31
-#: the integer types of compact refs, narrowest first (:meth:`Mesh.compact`)
-_COMPACT_INTS = (np.uint8, np.int8, np.uint16, np.int16, np.int32, np.int64)
-
-
-def narrowest_int(lo: int, hi: int) -> type:
-    """The narrowest of :data:`_COMPACT_INTS` holding every integer in [lo, hi].
-
-    >>> narrowest_int(0, 255).__name__, narrowest_int(-1, 255).__name__, narrowest_int(0, 2**40).__name__
-    ('uint8', 'int16', 'int64')
-    """
-    return next(t for t in _COMPACT_INTS if np.iinfo(t).min <= lo and hi <= np.iinfo(t).max)
-
-
 def _packed_ints(arr: np.ndarray, lo: int, hi: int) -> np.ndarray:
     """``arr`` (integers in [lo, hi]), read-only: as it is when its type has 32 bits or
     fewer (no copy of what a producer wrote compact), else in the narrowest type holding

@@ -6,7 +6,21 @@ import numpy as np
 
 from warpmesh._conventions import INDEX_DTYPE
 
-__all__ = ["run_ranks", "sorted_unique", "unique_rows"]
+__all__ = ["narrowest_int", "run_ranks", "sorted_unique", "unique_rows"]
+
+#: integer types, narrowest first (:func:`narrowest_int`)
+INT_TYPES = (np.uint8, np.int8, np.uint16, np.int16, np.int32, np.int64)
+
+
+def narrowest_int(lo: int, hi: int, types=INT_TYPES) -> type:
+    """The first of ``types`` (narrowest first) holding every integer in [lo, hi].
+
+    >>> narrowest_int(0, 255).__name__, narrowest_int(-1, 255).__name__, narrowest_int(0, 2**40).__name__
+    ('uint8', 'int16', 'int64')
+    >>> narrowest_int(0, 255, (np.int16, np.int32, np.int64)).__name__
+    'int16'
+    """
+    return next(t for t in types if np.iinfo(t).min <= lo and hi <= np.iinfo(t).max)
 
 
 def run_ranks(counts: np.ndarray) -> np.ndarray:

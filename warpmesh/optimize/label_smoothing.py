@@ -62,6 +62,7 @@ import warnings
 import numpy as np
 
 from warpmesh._conventions import GRID_INFO
+from warpmesh._util.arrays import sorted_unique
 from warpmesh._util.progress import Progress, check_progress
 from warpmesh.cells.quality import triangle_quality
 from warpmesh.optimize.embedding import FOLD_COS, face_violations
@@ -566,9 +567,9 @@ def _crossings(points, tris, faces, cells):
     if len(faces) * 8 > m:
         return face_violations(points, tris, faces, fold_cos=-2.0, partners=True)
     key, order, sorted_keys, stride = cells
-    zone = np.unique(key[tris[faces]])
+    zone = sorted_unique(key[tris[faces]])
     for s in stride:  # the 7 x 7 x 7 block about each cube, one axis at a time (no key listed twice)
-        zone = np.unique((zone[:, None] + s * np.arange(-3, 4)[None, :]).ravel())
+        zone = sorted_unique(zone[:, None] + s * np.arange(-3, 4)[None, :])
     pos = np.minimum(np.searchsorted(sorted_keys, zone), len(sorted_keys) - 1)
     marked = np.zeros(len(points), bool)
     marked[order[pos[sorted_keys[pos] == zone]]] = True

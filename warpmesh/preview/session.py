@@ -21,7 +21,8 @@ the edit meshes. Edits 0.12 s apart at 128^3 (``python benchmarks/bench_preview.
 --bursts 0.12 --resolutions 128 --edits 40``, two runs of two interleaved pairs): edit
 latency p50 49-71 ms against 73-85 ms with the refinements run to their end, p95 80-89
 against 81-104 ms, process CPU 8.8-10.7 s against 12.4-12.7 s. The stages are coarse
-(about 0.1 s each at 256^3): a stale refinement still finishes the one it is in. Headless code asks for it with
+(about 0.1 s each at 256^3): a stale refinement still finishes the one it is in.
+Headless code asks for it with
 :meth:`Preview.refined`.
 
 Example

@@ -121,6 +121,7 @@ from functools import partial
 import numpy as np
 
 from warpmesh import _conventions as C
+from warpmesh._util.arrays import narrowest_int
 from warpmesh._util.parallel import parallel_ranges, run_parallel
 from warpmesh._util.progress import Progress
 from warpmesh.io.images import Volume
@@ -380,8 +381,7 @@ def label_array_dtype(ids: np.ndarray) -> type:
     >>> label_array_dtype(np.array([0, 1, 255])).__name__, label_array_dtype(np.array([-1, 70000])).__name__
     ('int16', 'int32')
     """
-    lo, hi = int(ids.min()), int(ids.max())
-    return next(t for t in (np.int16, np.int32, np.int64) if np.iinfo(t).min <= lo and hi <= np.iinfo(t).max)
+    return narrowest_int(int(ids.min()), int(ids.max()), (np.int16, np.int32, np.int64))
 
 
 def _launch_rows(kernel, n_rows: int, inputs: list, dev, bar: Progress, extra=None) -> None:
