@@ -570,6 +570,14 @@ def classify_faces_kernel(first: int, points: wp.array(dtype=wp.vec3d), tris: wp
     coordinates (k + 1, k + 2) (none for repeated indices), and bits 6 + 6r +
     :func:`_crossing_bits` of its rotation (v, a, b) starting at corner r."""
     f = first + wp.tid()
+    flag, code = classify_face(points, tris, f)
+    degenerate[f] = flag
+    codes[f] = code
+
+
+@wp.func
+def classify_face(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), f: int):
+    """Face f's degenerate flag and umbrella code (:func:`classify_faces_kernel`)."""
     t, it = load_triangle(points, tris, f)
     flag = int(1)
     code = int(0)
@@ -583,8 +591,7 @@ def classify_faces_kernel(first: int, points: wp.array(dtype=wp.vec3d), tris: wp
             if o < 0:
                 code = code | (2 << (2 * k))
     code = code | (_crossing_bits(t[0], t[1], t[2]) << 6) | (_crossing_bits(t[1], t[2], t[0]) << 12)
-    degenerate[f] = flag
-    codes[f] = code | (_crossing_bits(t[2], t[0], t[1]) << 18)
+    return flag, code | (_crossing_bits(t[2], t[0], t[1]) << 18)
 
 
 @wp.kernel
@@ -790,20 +797,34 @@ def face_box(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), 
     return wp.min(wp.min(c0, c1), c2), wp.max(wp.max(c0, c1), c2)
 
 
-@wp.kernel
-def face_boxes_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32),
-                      degenerate: wp.array(dtype=wp.int32), grow: float,
-                      lowers: wp.array(dtype=wp.vec3), uppers: wp.array(dtype=wp.vec3)):
-    """One thread per face position s = first + tid: its float32 box, the upper corner grown by ``grow``
-    (0 for the tree walk, which grows its query boxes; the grid walk compares lower
-    corners with grown upper ones, :func:`grid_walk_cell`); an empty box (lower corner
-    ``EMPTY`` above the upper one) for a degenerate face, so that it meets nothing."""
-    s = first + wp.tid()
+@wp.func
+def padded_face_box(points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), s: int, degenerate: int,
+                    grow: float):
+    """Face s's float32 box, its upper corner grown by ``grow`` (0 for the tree walk, which
+    grows its query boxes; the grid walk compares lower corners with grown upper ones,
+    :func:`grid_walk_cell`); an empty box (lower corner ``EMPTY`` above the upper one) for
+    a degenerate face, so that it meets nothing."""
     lo, hi = face_box(points32, tris, s)
     hi = hi + wp.vec3(grow, grow, grow)
-    if degenerate[s] != 0:
+    if degenerate != 0:
         lo = wp.vec3(EMPTY, EMPTY, EMPTY)
         hi = -lo
+    return lo, hi
+
+
+@wp.kernel
+def classify_and_box_kernel(first: int, points: wp.array(dtype=wp.vec3d), points32: wp.array(dtype=wp.vec3),
+                            tris: wp.array(dtype=wp.int32), grow: float, degenerate: wp.array(dtype=wp.int32),
+                            codes: wp.array(dtype=wp.int32), lowers: wp.array(dtype=wp.vec3),
+                            uppers: wp.array(dtype=wp.vec3)):
+    """One thread per face position s = first + tid: its degenerate flag and umbrella code
+    (:func:`classify_face`) and its box (:func:`padded_face_box`), in one pass over the
+    faces."""
+    s = first + wp.tid()
+    flag, code = classify_face(points, tris, s)
+    degenerate[s] = flag
+    codes[s] = code
+    lo, hi = padded_face_box(points32, tris, s, flag, grow)
     lowers[s] = lo
     uppers[s] = hi
 
@@ -1423,6 +1444,32 @@ def cell_table_kernel(first: int, cells: wp.array(dtype=wp.vec3i), blocks_per_ax
     table[b * BLOCK * BLOCK * BLOCK + ((p[0] % BLOCK) * BLOCK + p[1] % BLOCK) * BLOCK + p[2] % BLOCK] = c
 
 
+@wp.kernel
+def cell_reach_kernel(first: int, starts: wp.array(dtype=wp.int32), cells: wp.array(dtype=wp.vec3i),
+                      face_uppers: wp.array(dtype=wp.vec3), inv_cell: float, reach: wp.array(dtype=wp.int32)):
+    """One thread per occupied cell c = first + tid: the bits of the axes (x 4, y 2, z 1)
+    along which some face of c reaches the next cell up (the cell of its grown upper
+    corner is past c's, :func:`grid_coordinate`). A face of another cell can meet a face
+    of c only along the axes where it lies one cell up from c if c's faces reach there,
+    and along those where c lies one cell up from it if its own cell's faces reach
+    there (:func:`grid_walk_cell`)."""
+    c = first + wp.tid()
+    s1 = face_uppers.shape[0]
+    if c + 1 < starts.shape[0]:
+        s1 = starts[c + 1]
+    p = cells[c]
+    bits = int(0)
+    for s in range(starts[c], s1):
+        hi = face_uppers[s]
+        if grid_coordinate(hi[0], inv_cell) > p[0]:
+            bits = bits | 4
+        if grid_coordinate(hi[1], inv_cell) > p[1]:
+            bits = bits | 2
+        if grid_coordinate(hi[2], inv_cell) > p[2]:
+            bits = bits | 1
+    reach[c] = bits
+
+
 @wp.func
 def grid_cell_index(x: int, y: int, z: int, blocks_per_axis: int, block_used: wp.array(dtype=wp.int32),
                     block_slot: wp.array(dtype=wp.int32), table: wp.array(dtype=wp.int32)) -> int:
@@ -1447,15 +1494,15 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
                    table: wp.array(dtype=wp.int32), inv_cell: float, points: wp.array(dtype=wp.vec3d),
                    tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
                    face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3),
-                   certified: wp.array(dtype=wp.int8), c: int, keys: wp.array(dtype=wp.int64), start: wp.int64,
-                   limit: int) -> int:
+                   certified: wp.array(dtype=wp.int8), cell_reach: wp.array(dtype=wp.int32), c: int,
+                   keys: wp.array(dtype=wp.int64), start: wp.int64, limit: int) -> int:
     """The intersecting pairs of the faces of cell c (positions ``starts[c]`` to the next
     cell's start: the faces whose box's lower corner is in it) with the faces of the same
     cell after them and with every face of the 13 neighbouring cells (dx, dy, dz) > (0, 0,
     0) in lexicographic order. Each unordered pair of faces is met once: the pair of their
     cells is one of these (c, c2) in exactly one order. The screen compares each face's
     lower corner with the other's upper corner grown by the padding (``face_uppers``, as
-    :func:`face_boxes_kernel` grew them: the same float32 sums as ``grid_keys_kernel``'s),
+    :func:`padded_face_box` grew them: the same float32 sums as ``grid_keys_kernel``'s),
     which is symmetric in the two faces and conservative (float32 boxes of faces that meet
     meet before any growing). None is missed: the cell coordinate g
     (:func:`grid_coordinate`) is monotone, so lo_b <= up_a gives g(lo_b) <= g(up_a) <=
@@ -1464,7 +1511,12 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
     each axis. A face skips the neighbours one cell above it along an axis k when its
     grown upper corner stays in its own cell along k (g(up_a) = g(lo_a)): a face b there
     has g(lo_b) = g(lo_a) + 1 > g(up_a), so lo_b > up_a and the boxes cannot meet (about
-    half the box screens on a grid mesher's surface). A pair that passes is then
+    half the box screens on a grid mesher's surface); likewise a neighbour is skipped
+    whole, before its faces are read or even its index looked up, along the same argument
+    per cell (``cell_reach``, :func:`cell_reach_kernel`: the union of its faces' reach
+    bits): one up along k needs some face of c reaching k, one down along k (the
+    neighbours (1, -1, *), (1, *, -1), (0, 1, -1)) needs some face of that neighbour
+    reaching k into c (17 % of the walk on the ball at 512). A pair that passes is then
     skipped if it shares a certified vertex, else
     given the exact test in float64, as in :func:`walk_group`. Returns
     how many pairs intersect; the first ``limit`` are written to ``keys[start:]`` as
@@ -1481,33 +1533,39 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
     near[0] = c
     needs[0] = 0
     n_near = int(1)
+    up = cell_reach[c]
     for d in range(14, 27):  # the 3 x 3 x 3 neighbourhood numbered 9 (dx + 1) + 3 (dy + 1) + dz + 1
         dx = d / 9 - 1
         dy = (d / 3) % 3 - 1
         dz = d % 3 - 1
-        c2 = grid_cell_index(p[0] + dx, p[1] + dy, p[2] + dz, blocks_per_axis, block_used, block_slot, table)
-        if c2 >= 0:
-            near[n_near] = c2
-            need = int(0)
-            if dx == 1:
-                need = need | 4
-            if dy == 1:
-                need = need | 2
-            if dz == 1:
-                need = need | 1
-            needs[n_near] = need
-            n_near += 1
+        need = int(0)  # the axes along which c's faces must reach up into c2
+        down = int(0)  # those along which c2's faces must reach up into c
+        if dx == 1:
+            need = need | 4
+        if dy == 1:
+            need = need | 2
+        elif dy == -1:
+            down = down | 2
+        if dz == 1:
+            need = need | 1
+        elif dz == -1:
+            down = down | 1
+        if (need & up) == need:
+            c2 = grid_cell_index(p[0] + dx, p[1] + dy, p[2] + dz, blocks_per_axis, block_used, block_slot, table)
+            if c2 >= 0:
+                if (down & cell_reach[c2]) == down:
+                    near[n_near] = c2
+                    needs[n_near] = need
+                    n_near += 1
     n = int(0)
     for s in range(a0, a1):
         lo = face_lowers[s]
         hi = face_uppers[s]
-        loaded = bool(False)
         f = order[s]
-        t = wp.mat33d()
-        it = wp.vec3i()
-        cv = wp.vec3i()
-        nt = wp.vec3d()
-        na = wp.vec3d()
+        # face s loaded here, before its candidates: values set inside the loops would be
+        # carried through every iteration (Warp's code selects and copies each of them,
+        # a 72-byte matrix among them, on every pass of the box screen)
+        t, it, cv, nt, na = load_query(points, tris, certified, s)
         reach = int(0)  # bits of the axes along which the face's grown box reaches the next cell up
         if grid_coordinate(hi[0], inv_cell) > p[0]:
             reach = reach | 4
@@ -1527,9 +1585,6 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
                 b1 = starts[c2 + 1]
             for s2 in range(b0, b1):
                 if boxes_meet(lo, hi, face_lowers[s2], face_uppers[s2]):
-                    if not loaded:  # face s loaded at its first candidate
-                        loaded = True
-                        t, it, cv, nt, na = load_query(points, tris, certified, s)
                     n = test_candidate(points, tris, order, t, it, nt, na, f, cv, s2, keys, start, n, limit, m)
     return n
 
@@ -1540,15 +1595,15 @@ def grid_count_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
                             table: wp.array(dtype=wp.int32), inv_cell: float, points: wp.array(dtype=wp.vec3d),
                             tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
                             face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3),
-                            certified: wp.array(dtype=wp.int8), first: int, unused: wp.array(dtype=wp.int64),
-                            counts: wp.array(dtype=wp.int64)):
+                            certified: wp.array(dtype=wp.int8), reach: wp.array(dtype=wp.int32), first: int,
+                            unused: wp.array(dtype=wp.int64), counts: wp.array(dtype=wp.int64)):
     """One thread per occupied cell c = first + tid: how many pairs of its faces with the
     faces after them in it and in its 13 upper neighbours intersect (:func:`grid_walk_cell`,
     writing nothing)."""
     c = wp.tid() + first
     counts[c] = wp.int64(grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, inv_cell,
-                                        points, tris, order, face_lowers, face_uppers, certified, c, unused,
-                                        wp.int64(0), 0))
+                                        points, tris, order, face_lowers, face_uppers, certified, reach, c,
+                                        unused, wp.int64(0), 0))
 
 
 @wp.kernel
@@ -1557,8 +1612,9 @@ def grid_write_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
                             table: wp.array(dtype=wp.int32), inv_cell: float, points: wp.array(dtype=wp.vec3d),
                             tris: wp.array(dtype=wp.int32), order: wp.array(dtype=wp.int32),
                             face_lowers: wp.array(dtype=wp.vec3), face_uppers: wp.array(dtype=wp.vec3),
-                            certified: wp.array(dtype=wp.int8), first: int, counts: wp.array(dtype=wp.int64),
-                            offsets: wp.array(dtype=wp.int64), keys: wp.array(dtype=wp.int64)):
+                            certified: wp.array(dtype=wp.int8), reach: wp.array(dtype=wp.int32), first: int,
+                            counts: wp.array(dtype=wp.int64), offsets: wp.array(dtype=wp.int64),
+                            keys: wp.array(dtype=wp.int64)):
     """One thread per occupied cell c = first + tid with ``counts[c] > 0``: the walk of
     :func:`grid_count_pairs_kernel` again, writing its pairs' keys to ``keys[offsets[c]:]``."""
     c = wp.tid() + first
@@ -1566,4 +1622,4 @@ def grid_write_pairs_kernel(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dt
     if n == wp.int64(0):
         return
     grid_walk_cell(cells, starts, blocks_per_axis, block_used, block_slot, table, inv_cell, points, tris, order,
-                   face_lowers, face_uppers, certified, c, keys, offsets[c], int(n))
+                   face_lowers, face_uppers, certified, reach, c, keys, offsets[c], int(n))

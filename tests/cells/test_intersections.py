@@ -660,11 +660,10 @@ def test_bvh_coordinates_kernel_matches_the_numpy_map():
 
 def test_profile_reports_every_stage_and_the_same_pairs(monkeypatch):
     m = _two_spheres(2, [0.9, 0.13, 0.071])
-    for spread, search in ((wmi._GRID_SPREAD, "cells"), (0.0, "tree")):  # faces of about one size: the grid
+    for spread, search in ((wmi._GRID_SPREAD, ["cells"]), (0.0, ["boxes", "tree"])):  # faces of one size: the grid
         monkeypatch.setattr(wmi, "_GRID_SPREAD", spread)
         prof = wmi.profile_self_intersections(m.vertices, m.faces, workers=1)
-        stages = ["prepare", "order", "degenerate", "umbrellas", "boxes", search, "count walk", "scan", "write walk",
-                  "sort pairs"]
+        stages = ["prepare", "order", "faces", "umbrellas", *search, "count walk", "scan", "write walk", "sort pairs"]
         assert list(prof["cpu"]) == stages and list(prof["wall"]) == stages
         assert all(v >= 0.0 for v in [*prof["cpu"].values(), *prof["wall"].values()])
         assert prof["pairs"] == len(find_self_intersections(m.vertices, m.faces)) > 0
@@ -715,6 +714,41 @@ def test_cell_grid_at_its_finest_and_at_its_edges(monkeypatch):
     ref = wmi._all_pairs(pts, tris)
     assert len(ref) > 20
     assert np.array_equal(find_self_intersections(pts, tris, workers=1), ref)
+
+
+def _lower_corner_cells(pts, tris):
+    """The grid cell of each face's box's lower corner, as the check computes it (the
+    float32 map of ``_bvh_coordinates``, then floor((x + 1) / cell))."""
+    import warp as wp
+
+    scaled = power_of_two_scaled(np.asarray(pts, float))
+    dev = wp.get_device("cpu")
+    points64, tris32 = wmi._device_arrays(scaled, np.asarray(tris), dev)
+    points32 = wmi._bvh_coordinates(scaled, points64, dev)
+    inv_cell = wmi._grid_cell(points32, tris32, dev)
+    lower = points32.numpy()[np.asarray(tris)].min(axis=1).astype(np.float64)
+    return np.clip(((lower + 1.0) * np.float32(inv_cell)).astype(np.int64), 0, 1023)
+
+
+def test_cell_grid_finds_pairs_across_every_neighbour_offset():
+    # the walk looks at a cell's 13 upper neighbours, skipping those its faces cannot reach
+    # (the reach bits: along +1 axes its own faces', along -1 axes the neighbour's); a dense
+    # soup of small crossing triangles, pairs in every offset class, against every pair
+    rng = np.random.default_rng(41)
+    centres = rng.uniform(0.0, 1.0, (6000, 3))
+    pts = (centres[:, None, :] + rng.uniform(-0.05, 0.05, (6000, 3, 3))).reshape(-1, 3)
+    tris = np.arange(len(pts)).reshape(-1, 3)
+    assert "cells" in wmi.profile_self_intersections(pts, tris, workers=1)["cpu"]
+    ref = wmi._all_pairs(pts, tris)
+    got = find_self_intersections(pts, tris, workers=1)
+    assert np.array_equal(got, ref)
+    cells = _lower_corner_cells(pts, tris)
+    d = cells[ref[:, 1]] - cells[ref[:, 0]]
+    flip = (d[:, 0] < 0) | ((d[:, 0] == 0) & (d[:, 1] < 0)) | ((d[:, 0] == 0) & (d[:, 1] == 0) & (d[:, 2] < 0))
+    d[flip] *= -1  # each pair as the walk meets it: from the lower cell to an upper neighbour
+    offsets = {tuple(x) for x in d.tolist()}
+    upper = {o for o in itertools.product((-1, 0, 1), repeat=3) if o > (0, 0, 0)}
+    assert offsets == upper | {(0, 0, 0)}, sorted(offsets ^ (upper | {(0, 0, 0)}))
 
 
 def test_all_pairs_reference_refuses_large_meshes():

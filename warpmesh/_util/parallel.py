@@ -14,7 +14,8 @@ import threading
 import numpy as np
 import warp as wp
 
-__all__ = ["cpu_view", "launch_split", "n_workers", "parallel_ranges", "run_parallel"]
+__all__ = ["cpu_view", "device_empty", "device_full", "device_zeros", "launch_split", "n_workers",
+           "parallel_ranges", "run_parallel"]
 
 
 def n_workers(device) -> int:
@@ -119,3 +120,45 @@ def cpu_view(a: np.ndarray, dtype) -> wp.array:
     [7, 7, 7]
     """
     return wp.array(np.ascontiguousarray(a), dtype=dtype, device="cpu", copy=False)
+
+
+def device_empty(n: int, dtype, device) -> wp.array:
+    """``wp.empty(n, dtype, device)``, but on the CPU in memory from numpy: numpy asks the
+    kernel for transparent huge pages on large blocks, so a fresh array's first touch
+    faults 512 times less often (a 40 MB array written once: 8 ms against 20 ms from
+    Warp's own allocator on this project's 2-core VM). Pipelines that allocate a few
+    hundred MB of scratch per call (the self-intersection check) spend that difference on
+    every call.
+
+    >>> a = device_empty(4, wp.vec3, "cpu")
+    >>> a.shape, a.dtype is wp.vec3
+    ((4,), True)
+    """
+    device = wp.get_device(device)
+    if not device.is_cpu:
+        return wp.empty(n, dtype=dtype, device=device)
+    if wp.types.type_is_vector(dtype):
+        host = np.empty((n, dtype._length_), dtype=wp.dtype_to_numpy(dtype._wp_scalar_type_))
+    else:
+        host = np.empty(n, dtype=wp.dtype_to_numpy(dtype))
+    return wp.array(host, dtype=dtype, device="cpu", copy=False)
+
+
+def device_full(n: int, value, dtype, device) -> wp.array:
+    """:func:`device_empty` filled with ``value``.
+
+    >>> device_full(3, -1, wp.int32, "cpu").numpy().tolist()
+    [-1, -1, -1]
+    """
+    a = device_empty(n, dtype, device)
+    a.fill_(value)
+    return a
+
+
+def device_zeros(n: int, dtype, device) -> wp.array:
+    """:func:`device_empty` filled with zeros.
+
+    >>> device_zeros(2, wp.int8, "cpu").numpy().tolist()
+    [0, 0]
+    """
+    return device_full(n, 0, dtype, device)

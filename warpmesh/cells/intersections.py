@@ -112,7 +112,7 @@ import warp as wp
 
 from warpmesh._util.validate import check_device
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh._util.parallel import cpu_view, run_parallel, usable_cores
+from warpmesh._util.parallel import cpu_view, device_empty, device_full, device_zeros, run_parallel, usable_cores
 from warpmesh.cells.rays import ray_windings
 from warpmesh.cells.predicates import orient3d_signs, power_of_two_scaled
 from warpmesh.cells.types import points3, require_mesh
@@ -265,10 +265,11 @@ def profile_self_intersections(points, triangles, *, device: str = "cpu", worker
     device synchronised after each stage and the clocks read there.
 
     Stages: ``prepare`` (validation, scaling, upload, float32 BVH coordinates), ``order``
-    (the choice of search, Morton keys, radix sort, gather), ``degenerate`` (the faces'
-    flags and codes), ``umbrellas`` (the umbrella certificate), ``boxes`` (face boxes, and
-    group boxes for the tree), ``cells`` (the grid's cell table) or ``tree`` (the group
-    tree's build), ``count walk`` (the walk with every exact test), ``scan``, and
+    (the choice of search, Morton keys, radix sort, gather), ``faces`` (the faces'
+    degenerate flags, codes and boxes), ``umbrellas`` (the umbrella certificate), then
+    ``cells`` (the grid's cell table and reach bits), or ``boxes`` and ``tree`` (the
+    group boxes and the group tree's build), ``count walk`` (the walk with every exact
+    test), ``scan``, and
     when there are pairs ``write walk`` and ``sort pairs``. The synchronisations cost a
     little: the stages add up to slightly more than an unprofiled call.
 
@@ -294,7 +295,7 @@ def profile_self_intersections(points, triangles, *, device: str = "cpu", worker
     >>> square = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
     >>> prof = profile_self_intersections(square, [[0, 1, 2], [0, 2, 3]])
     >>> list(prof["cpu"]), prof["pairs"]
-    (['prepare', 'order', 'degenerate', 'umbrellas', 'boxes', 'cells', 'count walk', 'scan'], 0)
+    (['prepare', 'order', 'faces', 'umbrellas', 'cells', 'count walk', 'scan'], 0)
     """
     cpu: dict[str, float] = {}
     wall: dict[str, float] = {}
@@ -501,7 +502,7 @@ def find_tet_overlaps(points, tetra, *, device: str = "cpu", faces: TetFaces | N
     with wp.ScopedDevice(device):
         dev = wp.get_device(device)
         points64, tets32 = _device_arrays(power_of_two_scaled(pts), tets, dev)
-        signs = wp.empty(m, dtype=wp.int32, device=dev)
+        signs = device_empty(m, wp.int32, dev)
         wp.launch(K.tet_signs_kernel, dim=m, inputs=[points64, tets32], outputs=[signs], device=dev)
         bad = np.flatnonzero(signs.numpy() <= 0).astype(INDEX_DTYPE)
         pairs = [np.column_stack([bad, bad])]
@@ -977,27 +978,31 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     grid = None if inv_cell is None else _grid_order(points32, tris32, inv_cell, device, n_workers)
     order, sorted_tris = grid[:2] if grid is not None else _spatial_order(points32, tris32, device, n_workers)
     mark("order")
-    degenerate, codes = _classify_faces(points64, sorted_tris, device, n_workers)
-    mark("degenerate")
-    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY, n_workers)
-    mark("umbrellas")
-    face_lowers = wp.empty(m, dtype=wp.vec3, device=device)
-    face_uppers = wp.empty(m, dtype=wp.vec3, device=device)
+    degenerate = device_empty(m, wp.int32, device)
+    codes = device_empty(m, wp.int32, device)
+    face_lowers = device_empty(m, wp.vec3, device)
+    face_uppers = device_empty(m, wp.vec3, device)
     # the grid compares lower corners with upper ones grown by the padding, the tree grows its queries
     grow = 0.0 if grid is None else _QUERY_PAD
-    _each(K.face_boxes_kernel, m, [points32, sorted_tris, degenerate, grow], [face_lowers, face_uppers], device,
-          n_workers)
+    _each(K.classify_and_box_kernel, m, [points64, points32, sorted_tris, grow],
+          [degenerate, codes, face_lowers, face_uppers], device, n_workers)
+    mark("faces")
+    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY, n_workers)
+    mark("umbrellas")
     faces = [points64, sorted_tris, order, face_lowers, face_uppers, _QUERY_PAD, certified]
     if grid is not None:  # one thread per occupied cell (K.grid_walk_cell)
-        mark("boxes")
-        walk = [*_cell_table(grid[2], inv_cell, device, n_workers), inv_cell, *faces[:5], certified]
+        table = _cell_table(grid[2], inv_cell, device, n_workers)
+        reach = device_empty(table[0].shape[0], wp.int32, device)
+        _each(K.cell_reach_kernel, reach.shape[0], [table[1], table[0], face_uppers, inv_cell], [reach], device,
+              n_workers)
+        walk = [*table, inv_cell, *faces[:5], certified, reach]
         count_kernel, write_kernel = K.grid_count_pairs_kernel, K.grid_write_pairs_kernel
         n_threads = walk[0].shape[0]
         mark("cells")
     else:  # one thread per group of GROUP faces (K.walk_group)
         n_groups = (m + K.GROUP - 1) // K.GROUP
-        lowers = wp.empty(n_groups, dtype=wp.vec3, device=device)
-        uppers = wp.empty(n_groups, dtype=wp.vec3, device=device)
+        lowers = device_empty(n_groups, wp.vec3, device)
+        uppers = device_empty(n_groups, wp.vec3, device)
         wp.launch(K.group_boxes_kernel, dim=n_groups, inputs=[face_lowers, face_uppers, m], outputs=[lowers, uppers],
                   device=device)
         mark("boxes")
@@ -1009,23 +1014,23 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     split = _split(n_threads, m, device, n_workers)
 
     wp.load_module(K, device=device)  # compiled/loaded once here, not by two worker threads at once
-    counts = wp.empty(n_threads, dtype=wp.int64, device=device)
-    unused = wp.empty(1, dtype=wp.int64, device=device)
+    counts = device_empty(n_threads, wp.int64, device)
+    unused = device_empty(1, wp.int64, device)
     split(lambda a, b: wp.launch(count_kernel, dim=b - a, inputs=[*walk, a, unused], outputs=[counts],
                                  device=device))
     mark("count walk")
-    offsets = wp.empty(n_threads, dtype=wp.int64, device=device)
+    offsets = device_empty(n_threads, wp.int64, device)
     wp.utils.array_scan(counts, offsets, inclusive=False)
     total = int(offsets[n_threads - 1:].numpy()[0] + counts[n_threads - 1:].numpy()[0])  # sync point: output size
     mark("scan")
     if total == 0:
         return np.zeros((0, 2), dtype=INDEX_DTYPE)
 
-    keys = wp.empty(2 * total, dtype=wp.int64, device=device)  # radix sort's scratch: 2 total
+    keys = device_empty(2 * total, wp.int64, device)  # radix sort's scratch: 2 total
     split(lambda a, b: wp.launch(write_kernel, dim=b - a, inputs=[*walk, a, counts, offsets],
                                  outputs=[keys], device=device))
     mark("write walk")
-    values = wp.empty(2 * total, dtype=wp.int32, device=device)
+    values = device_empty(2 * total, wp.int32, device)
     wp.utils.radix_sort_pairs(keys, values, total, end_bit=max(1, (m * m - 1).bit_length()))
     k = keys[:total].numpy()  # sync point
     first = k // m
@@ -1040,12 +1045,12 @@ def _spatial_order(points32: wp.array, tris32: wp.array, device, n_workers: int 
     neighbours in space, so a range of positions is a compact region (one BVH each) and
     the walks stay in cache."""
     m = tris32.shape[0] // 3
-    keys = wp.empty(2 * m, dtype=wp.int32, device=device)  # radix sort's scratch: 2m
-    ids = wp.empty(2 * m, dtype=wp.int32, device=device)
+    keys = device_empty(2 * m, wp.int32, device)  # radix sort's scratch: 2m
+    ids = device_empty(2 * m, wp.int32, device)
     _each(K.morton_codes_kernel, m, [points32, tris32], [keys, ids], device, n_workers)
     wp.utils.radix_sort_pairs(keys, ids, m)
     order = ids[:m]
-    sorted_tris = wp.empty(3 * m, dtype=wp.int32, device=device)
+    sorted_tris = device_empty(3 * m, wp.int32, device)
     _each(K.gather_faces_kernel, m, [tris32, order], [sorted_tris], device, n_workers)
     return order, sorted_tris
 
@@ -1058,7 +1063,7 @@ def _grid_cell(points32: wp.array, tris32: wp.array, device, n_workers: int = 1)
     padding, and at least 2 / (``K.GRID_CELLS`` - 2) (the coordinates span [-1, 1]: at most
     1022 cells a side)."""
     m = tris32.shape[0] // 3
-    extents = wp.empty(m, dtype=wp.float32, device=device)
+    extents = device_empty(m, wp.float32, device)
     _each(K.face_extents_kernel, m, [points32, tris32], [extents], device, n_workers)
     ext = extents.numpy()  # sync point: the grid's cell size
     largest = float(ext.max())
@@ -1074,15 +1079,15 @@ def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device, n
     keys), or None when some face's box spans more than two cells along an axis (the
     grid's walk would miss its pairs: the group tree is used then)."""
     m = tris32.shape[0] // 3
-    keys = wp.empty(2 * m, dtype=wp.int32, device=device)  # radix sort's scratch: 2m
-    ids = wp.empty(2 * m, dtype=wp.int32, device=device)
-    wide = wp.zeros(1, dtype=wp.int32, device=device)
+    keys = device_empty(2 * m, wp.int32, device)  # radix sort's scratch: 2m
+    ids = device_empty(2 * m, wp.int32, device)
+    wide = device_zeros(1, wp.int32, device)
     _each(K.grid_keys_kernel, m, [points32, tris32, _QUERY_PAD, inv_cell], [keys, ids, wide], device, n_workers)
     if int(wide.numpy()[0]):  # sync point: the grid cannot hold these faces
         return None
     wp.utils.radix_sort_pairs(keys, ids, m)
     order = ids[:m]
-    sorted_tris = wp.empty(3 * m, dtype=wp.int32, device=device)
+    sorted_tris = device_empty(3 * m, wp.int32, device)
     _each(K.gather_faces_kernel, m, [tris32, order], [sorted_tris], device, n_workers)
     return order, sorted_tris, keys[:m]
 
@@ -1094,21 +1099,21 @@ def _cell_table(keys: wp.array, inv_cell: float, device, n_workers: int = 1) -> 
     slots, table], the grid walk's first arguments (its next one is the inverse cell size,
     :func:`~warpmesh.kernels.intersect.grid_walk_cell`). Count -> scan -> write twice."""
     m = keys.shape[0]
-    heads = wp.empty(m, dtype=wp.int32, device=device)
+    heads = device_empty(m, wp.int32, device)
     _each(K.cell_heads_kernel, m, [keys], [heads], device, n_workers)
-    cell_of = wp.empty(m, dtype=wp.int32, device=device)
+    cell_of = device_empty(m, wp.int32, device)
     wp.utils.array_scan(heads, cell_of, inclusive=True)
     n_cells = int(cell_of[m - 1:].numpy()[0])  # sync point: the number of cells
     side = min(K.GRID_CELLS, int(2.0 * 1.001 * inv_cell) + 2)  # every cell coordinate is below it
     per_axis = (side + K.BLOCK - 1) // K.BLOCK
-    starts = wp.empty(n_cells, dtype=wp.int32, device=device)
-    cells = wp.empty(n_cells, dtype=wp.vec3i, device=device)
-    used = wp.zeros(per_axis**3, dtype=wp.int32, device=device)
+    starts = device_empty(n_cells, wp.int32, device)
+    cells = device_empty(n_cells, wp.vec3i, device)
+    used = device_zeros(per_axis**3, wp.int32, device)
     _each(K.cell_starts_kernel, m, [keys, heads, cell_of, per_axis], [starts, cells, used], device, n_workers)
-    slots = wp.empty(per_axis**3, dtype=wp.int32, device=device)
+    slots = device_empty(per_axis**3, wp.int32, device)
     wp.utils.array_scan(used, slots, inclusive=False)
     n_blocks = int(slots[-1:].numpy()[0] + used[-1:].numpy()[0])  # sync point: the table's size
-    table = wp.full(n_blocks * K.BLOCK**3, -1, dtype=wp.int32, device=device)
+    table = device_full(n_blocks * K.BLOCK**3, -1, wp.int32, device)
     _each(K.cell_table_kernel, n_cells, [cells, per_axis, slots], [table], device, n_workers)
     return [cells, starts, per_axis, used, slots, table]
 
@@ -1121,8 +1126,8 @@ def _group_tree(lowers: wp.array, uppers: wp.array, device) -> tuple[wp.array, w
     n_groups = lowers.shape[0]
     depth = max(0, (n_groups - 1).bit_length())
     leaves = 1 << depth
-    tree_lowers = wp.empty(2 * leaves, dtype=wp.vec3, device=device)
-    tree_uppers = wp.empty(2 * leaves, dtype=wp.vec3, device=device)
+    tree_lowers = device_empty(2 * leaves, wp.vec3, device)
+    tree_uppers = device_empty(2 * leaves, wp.vec3, device)
     wp.launch(K.tree_leaves_kernel, dim=leaves, inputs=[lowers, uppers, n_groups, leaves],
               outputs=[tree_lowers, tree_uppers], device=device)
     level = leaves // 2
@@ -1133,9 +1138,12 @@ def _group_tree(lowers: wp.array, uppers: wp.array, device) -> tuple[wp.array, w
 
 
 def _device_arrays(scaled: np.ndarray, tris: np.ndarray, device) -> tuple[wp.array, wp.array]:
-    """The points as vec3d; the triangles as one flat int32 array."""
-    return (wp.array(scaled, dtype=wp.vec3d, device=device),
-            wp.array(tris.astype(np.int32).ravel(), dtype=wp.int32, device=device))
+    """The points as vec3d; the triangles as one flat int32 array (on the CPU, views of
+    host arrays: no copy; the kernels only read them)."""
+    flat = tris.astype(np.int32).ravel()
+    if device.is_cpu:
+        return cpu_view(scaled, wp.vec3d), cpu_view(flat, wp.int32)
+    return wp.array(scaled, dtype=wp.vec3d, device=device), wp.array(flat, dtype=wp.int32, device=device)
 
 
 def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device, n_workers: int = 1) -> wp.array:
@@ -1147,7 +1155,7 @@ def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device, n_workers: 
     hi = np.array([scaled[:, k].max() for k in range(3)])
     centre = 0.5 * (lo + hi)
     half = float(0.5 * (hi - lo).max())
-    points32 = wp.empty(len(scaled), dtype=wp.vec3, device=device)
+    points32 = device_empty(len(scaled), wp.vec3, device)
     _each(K.bvh_coordinates_kernel, len(scaled), [points64, wp.vec3d(*centre.tolist()), half if half > 0.0 else 1.0],
           [points32], device, n_workers)
     return points32
@@ -1162,12 +1170,12 @@ def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: 
     (count -> scan -> write), then one thread per vertex (split over ``n_workers`` CPU
     threads like the walk: each writes its own vertices' corners only)."""
     if not certify or n == 0:
-        return wp.zeros(tris32.shape[0], dtype=wp.int8, device=device)
-    certified = wp.empty(tris32.shape[0], dtype=wp.int8, device=device)  # every corner is some vertex's
-    corners = wp.empty(tris32.shape[0], dtype=wp.int32, device=device)
-    counts = wp.zeros(n, dtype=wp.int32, device=device)
+        return device_zeros(tris32.shape[0], wp.int8, device)
+    certified = device_empty(tris32.shape[0], wp.int8, device)  # every corner is some vertex's
+    corners = device_empty(tris32.shape[0], wp.int32, device)
+    counts = device_zeros(n, wp.int32, device)
     wp.launch(K.count_corners_kernel, dim=tris32.shape[0], inputs=[tris32], outputs=[counts], device=device)
-    starts = wp.empty(n, dtype=wp.int32, device=device)
+    starts = device_empty(n, wp.int32, device)
     wp.utils.array_scan(counts, starts, inclusive=True)
     wp.launch(K.fill_corners_kernel, dim=tris32.shape[0], inputs=[tris32, starts], outputs=[corners], device=device)
     _split(n, tris32.shape[0] // 3, device, n_workers)(
@@ -1179,8 +1187,8 @@ def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: 
 def _classify_faces(points64: wp.array, tris32: wp.array, device, n_workers: int = 1) -> tuple[wp.array, wp.array]:
     """Per face: the degenerate flag, and the code of its orientation signs and crossings
     for the umbrella certificate (:func:`~warpmesh.kernels.intersect.classify_faces_kernel`)."""
-    flags = wp.empty(tris32.shape[0] // 3, dtype=wp.int32, device=device)
-    codes = wp.empty(tris32.shape[0] // 3, dtype=wp.int32, device=device)
+    flags = device_empty(tris32.shape[0] // 3, wp.int32, device)
+    codes = device_empty(tris32.shape[0] // 3, wp.int32, device)
     _each(K.classify_faces_kernel, flags.shape[0], [points64, tris32], [flags, codes], device, n_workers)
     return flags, codes
 
