@@ -1368,10 +1368,11 @@ def face_extents_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.
 
 @wp.kernel
 def grid_keys_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.int32), pad: float,
-                     inv_cell: float, keys: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32),
+                     inv_cell: float, base: int, keys: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32),
                      wide: wp.array(dtype=wp.int32)):
     """One thread per face f = first + tid: the Morton key of the cell of its box's lower
-    corner (the sort key; f the value), and 1 in ``wide[0]`` (a plain store of a constant:
+    corner (the sort key; f the value), at ``keys[f - base]`` and ``ids[f - base]`` (a base
+    other than 0 puts a range of faces where its own sort wants it), and 1 in ``wide[0]`` (a plain store of a constant:
     no lost update matters when launches on two CPU threads both write it, where an
     atomic add is not atomic on the CPU) when the cell of its upper corner grown
     by ``pad`` is more than one cell past it along some axis (the grid then cannot be used:
@@ -1385,8 +1386,48 @@ def grid_keys_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.arr
     if (grid_coordinate(q[0], inv_cell) > x + 1 or grid_coordinate(q[1], inv_cell) > y + 1
             or grid_coordinate(q[2], inv_cell) > z + 1):
         wide[0] = 1
-    keys[f] = (spread_bits(x) << 2) | (spread_bits(y) << 1) | spread_bits(z)
-    ids[f] = f
+    keys[f - base] = (spread_bits(x) << 2) | (spread_bits(y) << 1) | spread_bits(z)
+    ids[f - base] = f
+
+
+@wp.kernel
+def merge_runs_kernel(first: int, keys: wp.array(dtype=wp.int32), ids: wp.array(dtype=wp.int32), a0: int, na: int,
+                      b0: int, nb: int, chunk: int, out_keys: wp.array(dtype=wp.int32),
+                      out_ids: wp.array(dtype=wp.int32)):
+    """One thread per output chunk t = first + tid: positions [t chunk, (t + 1) chunk) of the
+    stable merge of the sorted runs A = keys[a0:a0 + na] and B = keys[b0:b0 + nb] (their
+    ids alongside), A's items first among equal keys (A holds the lower ids: the merge of
+    two stably sorted halves is then the stable sort of the whole). The chunk's start on
+    the merge path is found by a binary search: the number i of A's items among the first
+    d outputs is the first i with A[i] > B[d - i - 1], a predicate true then false as i
+    grows; then an ordinary merge."""
+    t = first + wp.tid()
+    d = t * chunk
+    end = wp.min(d + chunk, na + nb)
+    if d >= end:
+        return
+    lo = wp.max(0, d - nb)
+    hi = wp.min(d, na)
+    while lo < hi:
+        mid = (lo + hi) / 2
+        if keys[a0 + mid] <= keys[b0 + d - mid - 1]:
+            lo = mid + 1
+        else:
+            hi = mid
+    ia = lo
+    ib = d - lo
+    for k in range(d, end):
+        take_a = ia < na
+        if take_a and ib < nb:
+            take_a = keys[a0 + ia] <= keys[b0 + ib]
+        if take_a:
+            out_keys[k] = keys[a0 + ia]
+            out_ids[k] = ids[a0 + ia]
+            ia += 1
+        else:
+            out_keys[k] = keys[b0 + ib]
+            out_ids[k] = ids[b0 + ib]
+            ib += 1
 
 
 @wp.kernel

@@ -751,6 +751,30 @@ def test_cell_grid_finds_pairs_across_every_neighbour_offset():
     assert offsets == upper | {(0, 0, 0)}, sorted(offsets ^ (upper | {(0, 0, 0)}))
 
 
+@pytest.mark.parametrize("m", [2, 3, 17, 1000, 4097])
+def test_grid_order_sorted_in_two_halves_is_the_one_sort(m, monkeypatch):
+    # on two CPU threads the faces' keys are sorted by halves and the runs merged; the
+    # result must be the one stable sort's, item for item: many faces share a cell (equal
+    # keys, lower ids first), odd counts, halves of one face
+    import warp as wp
+
+    rng = np.random.default_rng(m)
+    pts = rng.integers(0, 4, (3 * m, 3)).astype(float) + rng.uniform(0, 0.2, (3 * m, 3))
+    tris = np.arange(3 * m).reshape(-1, 3)
+    scaled = power_of_two_scaled(pts)
+    dev = wp.get_device("cpu")
+    points64, tris32 = wmi._device_arrays(scaled, tris, dev)
+    points32 = wmi._bvh_coordinates(scaled, points64, dev)
+    inv_cell = wmi._grid_cell(points32, tris32, dev)
+    monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 1)
+    one = [a.numpy() for a in wmi._grid_order(points32, tris32, inv_cell, dev, 1)]
+    two = [a.numpy() for a in wmi._grid_order(points32, tris32, inv_cell, dev, 2)]
+    assert all(np.array_equal(a, b) for a, b in zip(one, two))
+    order, _, keys = two
+    assert np.array_equal(order, np.argsort(keys[np.argsort(order)], kind="stable"))
+    assert len(np.unique(keys)) < m or m < 20  # equal keys: the merge's ties
+
+
 def test_all_pairs_reference_refuses_large_meshes():
     with pytest.raises(ValueError, match="'triangles'"):
         wmi._all_pairs(np.zeros((3, 3)), np.zeros((10_001, 3), int))

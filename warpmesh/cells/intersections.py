@@ -1082,14 +1082,52 @@ def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device, n
     keys = device_empty(2 * m, wp.int32, device)  # radix sort's scratch: 2m
     ids = device_empty(2 * m, wp.int32, device)
     wide = device_zeros(1, wp.int32, device)
-    _each(K.grid_keys_kernel, m, [points32, tris32, _QUERY_PAD, inv_cell], [keys, ids, wide], device, n_workers)
-    if int(wide.numpy()[0]):  # sync point: the grid cannot hold these faces
-        return None
-    wp.utils.radix_sort_pairs(keys, ids, m)
-    order = ids[:m]
+    side = min(K.GRID_CELLS, int(2.0 * 1.001 * inv_cell) + 2)  # every cell coordinate is below it
+    end_bit = 3 * max(1, (side - 1).bit_length())  # the keys' bits (the sort's passes: 8 bits each)
+    if device.is_cuda or n_workers < 2 or m < 2 * _MIN_FACES_PER_WORKER:
+        _each(K.grid_keys_kernel, m, [points32, tris32, _QUERY_PAD, inv_cell, 0], [keys, ids, wide], device,
+              n_workers)
+        if int(wide.numpy()[0]):  # sync point: the grid cannot hold these faces
+            return None
+        wp.utils.radix_sort_pairs(keys, ids, m, end_bit=end_bit)
+        keys, order = keys[:m], ids[:m]
+    else:
+        keys, order = _split_sort(points32, tris32, inv_cell, end_bit, keys, ids, wide, device, n_workers)
+        if int(wide.numpy()[0]):
+            return None
     sorted_tris = device_empty(3 * m, wp.int32, device)
     _each(K.gather_faces_kernel, m, [tris32, order], [sorted_tris], device, n_workers)
-    return order, sorted_tris, keys[:m]
+    return order, sorted_tris, keys
+
+
+def _split_sort(points32: wp.array, tris32: wp.array, inv_cell: float, end_bit: int, keys: wp.array, ids: wp.array,
+                wide: wp.array, device, n_workers: int) -> tuple[wp.array, wp.array]:
+    """The grid keys of the faces sorted on two CPU threads (Warp's radix sort runs on
+    one): each thread computes the keys of one half of the faces into its own half of
+    ``keys`` and ``ids`` (2m each: its data, then the sort's scratch) and sorts them, then
+    the two sorted runs are merged stably (:func:`~warpmesh.kernels.intersect.merge_runs_kernel`),
+    so the result is the one sort's, item for item. Returns (sorted keys, ids)."""
+    m = tris32.shape[0] // 3
+    half = m // 2
+    # part 0's keys at [0, half), part 1's at [2 half, 2 half + m - half): each region twice its count
+    parts = [(0, half, 0), (half, m, -half)]
+
+    def part(a, b, base):
+        wp.launch(K.grid_keys_kernel, dim=b - a, inputs=[a, points32, tris32, _QUERY_PAD, inv_cell, base],
+                  outputs=[keys, ids, wide], device=device)
+        region = slice(a - base, a - base + 2 * (b - a))
+        wp.utils.radix_sort_pairs(keys[region], ids[region], b - a, end_bit=end_bit)
+
+    run_parallel([lambda a=a, b=b, base=base: part(a, b, base) for a, b, base in parts])
+    out_keys = device_empty(m, wp.int32, device)
+    out_ids = device_empty(m, wp.int32, device)
+    n_chunks = _CHUNKS * n_workers
+    chunk = (m + n_chunks - 1) // n_chunks
+    _split(n_chunks, m, device, n_workers)(
+        lambda a, b: wp.launch(K.merge_runs_kernel, dim=b - a, inputs=[a, keys, ids, 0, half, 2 * half, m - half,
+                                                                       chunk], outputs=[out_keys, out_ids],
+                               device=device))
+    return out_keys, out_ids
 
 
 def _cell_table(keys: wp.array, inv_cell: float, device, n_workers: int = 1) -> list:
