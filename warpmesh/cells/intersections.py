@@ -10,10 +10,11 @@ validity checks run this geometric one too. The pipeline (kernels in
 2. the candidate search chosen (:func:`_grid_cell`): a cell grid when the faces are about
    one size (the largest side of a face's float32 box at most ``_GRID_SPREAD`` = 2 times
    the mean: the grid methods' surfaces, icospheres), else a tree over groups of faces
-   (adaptive meshes, a few large faces among small ones); faces sorted (radix sort) by
-   the Morton key of the grid cell of their box's lower corner, or for the tree of
-   their centroid; degenerate faces flagged and given an empty box (they meet
-   nothing), each face's float32 box stored once;
+   (adaptive meshes, a few large faces among small ones); faces sorted (radix sort; for
+   the grid on two CPU threads, by halves then merged: :func:`_split_sort`) by the
+   Morton key of the grid cell of their box's lower corner, or for the tree of their
+   centroid; then in one pass degenerate faces flagged and given an empty box (they
+   meet nothing), each face's float32 box stored once;
 3. the umbrella certificate: vertex -> corners on the device (counts by atomic add,
    ``wp.utils.array_scan``, fill), then one thread per vertex v decides from F_v, its
    faces, alone whether any two of them can meet other than in what they share
@@ -25,14 +26,16 @@ validity checks run this geometric one too. The pipeline (kernels in
    (each face's box then spans at most two cells per axis; a face that spans more, by
    rounding, sends the check to the tree), at most 1022 cells per axis; the occupied
    cells are the runs of equal keys (heads, scan), and a two-level table (blocks of 8^3
-   cells, a slot for each used block) maps cell coordinates to cells. The tree: a
+   cells, a slot for each used block) maps cell coordinates to cells; each cell keeps
+   the axes along which its faces reach the next cell up (``cell_reach``). The tree: a
    complete binary tree over groups of ``GROUP`` = 16 consecutive faces (compact
    patches) in heap order, leaves padded to a power of two with empty boxes, nodes
    holding the union of their leaves' float32 boxes, built bottom up, one launch per
    level;
 5. the grid walk (:func:`~warpmesh.kernels.intersect.grid_walk_cell`): one thread per
-   occupied cell, its faces against the later faces of the cell and every face of its
-   13 upper neighbours (each unordered pair once; none missed, the cell coordinate being
+   occupied cell, its faces against the later faces of the cell and every face of those
+   of its 13 upper neighbours that the two cells' faces can reach (each unordered pair
+   once; none missed, the cell coordinate being
    a monotone function of the float32 coordinate: boxes that meet have lower corners at
    most one cell apart per axis), each face screened by its own grown box; or one
    thread per group g: a depth-first walk of the tree with g's box
@@ -48,34 +51,39 @@ validity checks run this geometric one too. The pipeline (kernels in
    radix sort of the keys on the device gives the output sorted, with no host sort
    (count -> scan -> allocate -> write).
 
-Where the time goes (:func:`profile_self_intersections`, ``workers=1``, CPU s, 2-3 runs,
-load 2.5-4.5; the bundled part at resolution 512, 1.5 M triangles with large
-grid-aligned flat regions / a ball at 512, 1.7 M; both take the grid): prepare 0.05 /
-0.06, order 0.09 / 0.11 (the face extents read back to choose the search: 0.02 of it),
-degenerate flags and face codes 0.04 / 0.04, umbrellas 0.10 / 0.11, boxes 0.02, cells
-0.035, the walk 0.47 / 0.42: 0.80 / 0.78 in all, against 1.15 / 1.29 with the group
-tree in the same runs (its walk 0.86 / 0.88). Each face meets about 10 (part) / 20
-(ball: faces smaller than the largest) faces of its cell and its 13 upper neighbours,
-against 46 face-face box tests a face in the tree walk. Screen alone (the exact test
-replaced by a constant, the second face's points still loaded): 0.21 / 0.30 of the walk,
-so the exact tests are about 0.26 / 0.12: the pairs that share no vertex, 2.2 / 1.3 a
-face (3.3 M / 2.2 M), about half of the part's coplanar (its flat regions). Every vertex
-of both is certified: the 6.0 candidates a face that share a vertex skip the exact test
-(the certificate costs 0.10 s and saved 0.5 s of the tree walk). Grid variants measured:
-face s reloaded for each neighbour cell (the cell loop outside) 0.63 against 0.47; the
-float64 boxes compared before the predicate for strict apartness only (exact, the same
-pairs) 1.09 / 1.3 of the walk — but with the faces whose boxes only *touch* along an
-axis decided there too (:func:`~warpmesh.kernels.intersect._apart_on_touching_boxes`:
-their parts in the common plane compared; the pairs of neighbouring grid cells, which
-meet at most in the cells' common side), kept (stop 36): the part's walk
-0.46 -> 0.32 s wall (0.89 -> 0.60 CPU s), the ball's 0.39 -> 0.36 (2 workers, medians
-of 5, same-run A/B); the grid on an adaptive surface (the part adaptive at 256, 92 k faces, largest
-side 4.5 x the mean) 0.136 CPU s against the tree's 0.067, hence ``_GRID_SPREAD``.
-Estimated in numpy on the part (box tests a face): cells of one face side with each face
-in every cell it meets, 15.5, but 4.2 entries a face to sort; lower-corner cells, taken,
-10.4 at 1x the largest side, 16.8 at 1.25x, 43 at 2x. Not met: the check at half the
-meshing's CPU time; left are the exact tests (a third of the part's check), the screen,
-and the stages before the walk (0.33 s together, each already one or two launches).
+Where the time goes (:func:`profile_self_intersections`, ``workers=1``, CPU s, medians
+of 5, load about 1; the bundled part at resolution 512, 1.5 M triangles with large
+grid-aligned flat regions / a ball at 512, 1.7 M; both take the grid): prepare 0.013 /
+0.018, order 0.068 / 0.090, faces (flags, codes, boxes) 0.050 / 0.061, umbrellas 0.082 /
+0.102, cells 0.025 / 0.029, the walk 0.262 / 0.296: 0.50 / 0.60 in all (stop 49: 0.80 /
+0.78 before its walk tuning, then about 0.60 / 0.69). The ball's walk, per face: 12 box
+tests, 7.5 pass, 6.2 of those share a certified vertex and skip the exact test, 1.3 get
+it; measured by cutting the walk short, the neighbour lookups cost 0.05 CPU s, the box
+screen with the query faces' loads 0.14, the shared-vertex skips 0.06, the exact tests
+0.05. Stop 50's changes, same-run A/B on the ball (walk CPU s, 2 workers): whole
+neighbour cells skipped by their faces' reach bits (``cell_reach``) 0.418 -> 0.349; the
+query face loaded before its candidates, not at its first one (a value set inside the
+loops is carried through every iteration by Warp's code: a select and a copy of a
+72-byte matrix, and more, on each box test) 0.351 -> 0.303 (part 0.307 -> 0.268); the
+grid keys sorted by halves on two threads and merged, the order stage 53 -> 40 ms wall;
+scratch from numpy (huge pages: a fresh 40 MB array's first touch 8 ms against Warp's
+allocator's 20 ms). Tried and not kept: the box passes gathered branch-free into a list
+first (0.30 -> 0.35: the list is carried through the loop), the shared-vertex test
+inlined before the candidate call (0.35 -> 0.40), the plane sides of the second face
+before the box confirmation (slower on both), vertices renumbered in the faces' order for
+the umbrellas (5 %), ``counting_sort`` for the vertex -> corner table (31 ms against the
+atomics' 19 ms on one thread). Not met: the check at half the meshing's time on the
+ball (its meshing, a sphere's field, is the cheapest there is); the walk alone is 0.39x
+of it. Earlier measurements: the tree walk costs 1.4-2x the grid's on these surfaces
+(46 face-face box tests a face against 10-20); the grid on an adaptive surface (the part
+adaptive at 256, 92 k faces, largest side 4.5 x the mean) 0.136 CPU s against the tree's
+0.067, hence ``_GRID_SPREAD``; faces whose boxes only *touch* along an axis are decided
+before the predicate (:func:`~warpmesh.kernels.intersect._apart_on_touching_boxes`:
+their parts in the common plane compared; the pairs of neighbouring grid cells), the
+part's walk 0.89 -> 0.60 CPU s at stop 36. Estimated in numpy on the part (box tests a
+face): cells of one face side with each face in every cell it meets, 15.5, but 4.2
+entries a face to sort; lower-corner cells, taken, 10.4 at 1x the largest side, 16.8 at
+1.25x, 43 at 2x.
 Tried on the tree walk and not kept (same-run ratios 0.99-1.10): the plane sides of the
 second face taken first and passed to the predicate; the predicate's plane-side exits in
 a function of their own; one call site of the predicate; both normals passed in or read
