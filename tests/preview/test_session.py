@@ -183,6 +183,61 @@ def test_a_newer_edit_cancels_a_running_refinement(monkeypatch):
     np.testing.assert_array_equal(view.refined_mesh.triangles, _fresh(0.6, 32).triangles)
 
 
+def test_a_refinement_whose_show_comes_after_a_newer_edit_is_not_shown():
+    """The race: a refinement passes its staleness check, then its thread is held before it
+    draws; an edit meshes and shows meanwhile. The late show must not replace the edit's
+    mesh (it was shown over it before), and a watcher may edit from its callback."""
+    before = set(threading.enumerate())
+    view = _small_preview(idle=0.0)
+    shown = []
+    view.watch(lambda mesh, kind: shown.append((kind, mesh)))
+    held, release = threading.Event(), threading.Event()
+
+    class HoldingLock:  # holds the refinement's thread just before it takes the show lock
+        def __init__(self, lock):
+            self.lock = lock
+
+        def __enter__(self):
+            if threading.current_thread() is not threading.main_thread() and not held.is_set():
+                held.set()
+                release.wait(30)
+            return self.lock.__enter__()
+
+        def __exit__(self, *exc):
+            return self.lock.__exit__(*exc)
+
+    view._show_lock = HoldingLock(view._show_lock)
+    view.update(boss=0.4)
+    assert held.wait(60), "the 0.4 refinement never came to show"
+    latest = view.update(boss=0.6)  # meshes and shows while the 0.4 refinement waits to draw
+    release.set()
+    deadline = time.monotonic() + 60
+    while view.refined_mesh is None or view.dropped == 0:
+        assert time.monotonic() < deadline, "neither the stale show was dropped nor the 0.6 refinement landed"
+        time.sleep(0.02)
+    kinds = [k for k, _ in shown]
+    assert kinds[:2] == ["update", "update"] and shown[1][1] is latest
+    refined = [m for k, m in shown if k == "refined"]  # only the 0.6 refinement, if it landed yet
+    assert all(np.array_equal(m.triangles, _fresh(0.6, 32).triangles) for m in refined)
+    for thread in set(threading.enumerate()) - before:  # the refinements' threads end with the test
+        thread.join(60)
+
+    again = _small_preview(idle=0.0, refine=None)  # a watcher that edits from its callback: no deadlock
+    edits = []
+
+    def editor(mesh, kind):
+        if kind == "update" and not edits:
+            edits.append(1)
+            again.update(boss=0.5)
+
+    again.watch(editor)
+    worker = threading.Thread(target=again.update, kwargs={"boss": 0.4}, daemon=True)
+    worker.start()
+    worker.join(60)
+    assert not worker.is_alive(), "an edit from a watcher's callback deadlocked on the show lock"
+    assert again.values == {"boss": 0.5}
+
+
 def test_a_headless_preview_starts_no_thread():
     view = _small_preview(idle=0.0)
     before = threading.active_count()

@@ -14,7 +14,9 @@ While a view is shown (the notebook widget, or any watcher added with
 mesh of the same values in a background thread (``refine``: twice the resolution by
 default, one more octree level for ``adaptive=True``); it replaces the preview mesh in
 the views when it is done, unless a newer edit arrived meanwhile, in which case it is
-dropped (``Preview.dropped`` counts them): a refinement still running stops at the
+dropped (``Preview.dropped`` counts them; checked again under the lock every show holds,
+so a refinement whose thread is delayed between its check and its drawing never lands
+over a newer edit's mesh): a refinement still running stops at the
 pipeline's next stage (``Preview.cancelled`` counts those; :mod:`warpmesh._util.cancel`)
 instead of at its end; an edit makes it stale as it starts, so the refinement stops while
 the edit meshes. Edits 0.12 s apart at 128^3 (``python benchmarks/bench_preview.py
@@ -142,6 +144,7 @@ class Preview:
         self._widget = None  # the live widget (warpmesh.preview.widget), at most one
         self._generation = 0
         self._lock = threading.Lock()
+        self._show_lock = threading.RLock()  # held while the views draw (:meth:`_show`; a watcher may edit)
         self._timer: threading.Timer | None = None
         self.refined_mesh = None
         self.dropped = 0
@@ -199,7 +202,7 @@ class Preview:
             generation = self._generation
             self.values, self.mesh, self.refined_mesh = new, mesh, None
         self.timings.append(time.perf_counter() - t0)
-        self._show(mesh, "update")
+        self._show(mesh, "update", generation)
         if self._refine and (self._views or self._watchers):
             timer = threading.Timer(self.idle, self._refine_in_background, args=(generation, new))
             timer.daemon = True
@@ -253,7 +256,7 @@ class Preview:
                 self.dropped += 1
                 return
             self.refined_mesh = mesh
-        self._show(mesh, "refined")
+        self._show(mesh, "refined", generation)
 
     def watch(self, callback) -> None:
         """Call ``callback(mesh, kind)`` after every update (``kind`` "update") and when a
@@ -282,11 +285,23 @@ class Preview:
         if callback in self._watchers:
             self._watchers.remove(callback)
 
-    def _show(self, mesh, kind: str) -> None:
-        for view in list(self._views):
-            view.show_mesh(mesh)
-        for callback in list(self._watchers):
-            callback(mesh, kind)
+    def _show(self, mesh, kind: str, generation: int) -> None:
+        """Hand ``mesh`` to the views and watchers if it is still the current values' mesh
+        (``generation`` is still the current one), checked under a lock that every show
+        holds: a refinement that passed its own check just before an edit, and whose show
+        comes after the edit's, is dropped instead of replacing the newer mesh; and two
+        threads never draw at once."""
+        with self._show_lock:
+            with self._lock:
+                stale = generation != self._generation
+                if stale and kind == "refined":
+                    self.dropped += 1
+            if stale:
+                return
+            for view in list(self._views):
+                view.show_mesh(mesh)
+            for callback in list(self._watchers):
+                callback(mesh, kind)
 
     # -- showing -----------------------------------------------------------------------
     def widget(self):
