@@ -998,21 +998,24 @@ umbrella_ids = wp.types.vector(length=UMBRELLA_CAP, dtype=wp.int32)
 
 
 @wp.kernel
-def count_corners_kernel(tris: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
-    """One thread per corner c (entry c of the flat face array): one more corner for its
-    vertex (``counts`` zeroed beforehand)."""
-    c = wp.tid()
+def count_corners_kernel(first: int, tris: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
+    """One thread per corner c = first + tid (entry c of the flat face array): one more
+    corner for its vertex (``counts`` zeroed beforehand; on the CPU each concurrent
+    launch counts into its own array: an atomic is not atomic across them)."""
+    c = first + wp.tid()
     wp.atomic_add(counts, tris[c], 1)
 
 
 @wp.kernel
-def fill_corners_kernel(tris: wp.array(dtype=wp.int32), ends: wp.array(dtype=wp.int32),
+def fill_corners_kernel(first: int, tris: wp.array(dtype=wp.int32), ends: wp.array(dtype=wp.int32),
                         corners: wp.array(dtype=wp.int32)):
-    """One thread per corner c: c written into its vertex's range of ``corners``, from the
-    end down (``ends``: the inclusive prefix sum of the counts; afterwards each entry is
-    its vertex's first slot). The order within a range is whatever the atomics give:
+    """One thread per corner c = first + tid: c written into its vertex's range of
+    ``corners``, from the end down (``ends``: the inclusive prefix sum of the counts, or
+    for concurrent CPU launches each its own cursors, ending where the next launch's
+    corners begin; afterwards each entry is where this launch's corners of the vertex
+    start). The order within a range is whatever the atomics give:
     :func:`umbrella_certified` does not depend on it."""
-    c = wp.tid()
+    c = first + wp.tid()
     slot = wp.atomic_sub(ends, tris[c], 1) - 1
     corners[slot] = c
 

@@ -775,6 +775,32 @@ def test_grid_order_sorted_in_two_halves_is_the_one_sort(m, monkeypatch):
     assert len(np.unique(keys)) < m or m < 20  # equal keys: the merge's ties
 
 
+def test_vertex_corner_table_on_two_threads_certifies_as_on_one(monkeypatch):
+    # the umbrella certificate's vertex -> corners table, made by halves on two CPU threads
+    # (each half counted and placed with arrays of its own), gives every corner the flag of
+    # the one-launch table: a closed sphere (all certified), a crossing pair of spheres, a
+    # soup with open fans, duplicate faces and unused vertices
+    import warp as wp
+
+    rng = np.random.default_rng(9)
+    sphere = _two_spheres(2, [0.9, 0.13, 0.071])
+    soup_pts, soup_tris = _soup(rng, n_points=60, n_tris=400, grid=4)
+    ico = trimesh.creation.icosphere(subdivisions=3)
+    cases = [(np.asarray(ico.vertices), np.asarray(ico.faces)), (np.asarray(sphere.vertices), np.asarray(sphere.faces)),
+             (np.vstack([soup_pts, [[9.0, 9.0, 9.0]]]), np.vstack([soup_tris, soup_tris[:5]]))]
+    dev = wp.get_device("cpu")
+    monkeypatch.setattr(wmi, "_MIN_FACES_PER_WORKER", 1)
+    flags = []
+    for pts, tris in cases:
+        points64, tris32 = wmi._device_arrays(power_of_two_scaled(pts), tris, dev)
+        _, codes = wmi._classify_faces(points64, tris32, dev)
+        one = wmi._umbrella_flags(codes, tris32, len(pts), dev, True, 1).numpy()
+        two = wmi._umbrella_flags(codes, tris32, len(pts), dev, True, 2).numpy()
+        assert np.array_equal(one, two)
+        flags.append(two)
+    assert flags[0].all() and flags[1].mean() > 0.9 and not flags[2].all()
+
+
 def test_all_pairs_reference_refuses_large_meshes():
     with pytest.raises(ValueError, match="'triangles'"):
         wmi._all_pairs(np.zeros((3, 3)), np.zeros((10_001, 3), int))

@@ -1219,15 +1219,39 @@ def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: 
         return device_zeros(tris32.shape[0], wp.int8, device)
     certified = device_empty(tris32.shape[0], wp.int8, device)  # every corner is some vertex's
     corners = device_empty(tris32.shape[0], wp.int32, device)
-    counts = device_zeros(n, wp.int32, device)
-    wp.launch(K.count_corners_kernel, dim=tris32.shape[0], inputs=[tris32], outputs=[counts], device=device)
-    starts = device_empty(n, wp.int32, device)
-    wp.utils.array_scan(counts, starts, inclusive=True)
-    wp.launch(K.fill_corners_kernel, dim=tris32.shape[0], inputs=[tris32, starts], outputs=[corners], device=device)
+    c = tris32.shape[0]
+    if device.is_cuda or n_workers < 2 or c < 6 * _MIN_FACES_PER_WORKER:
+        counts = device_zeros(n, wp.int32, device)
+        wp.launch(K.count_corners_kernel, dim=c, inputs=[0, tris32], outputs=[counts], device=device)
+        starts = device_empty(n, wp.int32, device)
+        wp.utils.array_scan(counts, starts, inclusive=True)
+        wp.launch(K.fill_corners_kernel, dim=c, inputs=[0, tris32, starts], outputs=[corners], device=device)
+    else:  # two CPU threads, each counting and placing the corners of its half in arrays of its own
+        starts = _split_corner_table(tris32, n, corners, device)
     _split(n, tris32.shape[0] // 3, device, n_workers)(
         lambda a, b: wp.launch(K.certify_umbrellas_kernel, dim=b - a, inputs=[codes, tris32, starts, corners, a],
                                outputs=[certified], device=device))
     return certified
+
+
+def _split_corner_table(tris32: wp.array, n: int, corners: wp.array, device) -> wp.array:
+    """The vertex -> corners table of :func:`_umbrella_flags` made on two CPU threads (the
+    atomics of one launch are only atomic within it): each half of the corners counted
+    into its own counts, the ends from their sum, and each half placed from its own
+    cursors, the second half's at the ends, the first's where the second's begin.
+    Returns each vertex's first slot in ``corners`` (filled here)."""
+    c = tris32.shape[0]
+    half = c // 2
+    counts = [device_zeros(n, wp.int32, device), device_zeros(n, wp.int32, device)]
+    run_parallel([lambda a=a, b=b, out=out: wp.launch(K.count_corners_kernel, dim=b - a, inputs=[a, tris32],
+                                                      outputs=[out], device=device)
+                  for (a, b), out in zip(((0, half), (half, c)), counts)])
+    ends = np.cumsum(counts[0].numpy() + counts[1].numpy(), dtype=np.int32)  # sync point (views: no copy)
+    cursors = [cpu_view(ends - counts[1].numpy(), wp.int32), cpu_view(ends, wp.int32)]
+    run_parallel([lambda a=a, b=b, cur=cur: wp.launch(K.fill_corners_kernel, dim=b - a, inputs=[a, tris32, cur],
+                                                      outputs=[corners], device=device)
+                  for (a, b), cur in zip(((0, half), (half, c)), cursors)])
+    return cursors[0]
 
 
 def _classify_faces(points64: wp.array, tris32: wp.array, device, n_workers: int = 1) -> tuple[wp.array, wp.array]:
