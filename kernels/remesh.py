@@ -425,6 +425,8 @@ def face_violations_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tri
     while wp.bvh_query_next(query, group):
         for s in range(GROUP * group, wp.min(GROUP * group + GROUP, m)):
             g = order[s]
+            if not boxes_meet(lo, hi, lowers[g], uppers[g]):  # most of a group's faces: first, cheapest
+                continue
             j = listed[g]
             if j <= i and j >= 0:  # itself, or a pair of listed faces tested by the other's thread
                 continue
@@ -432,7 +434,7 @@ def face_violations_kernel(bvh: wp.uint64, points: wp.array(dtype=wp.vec3d), tri
             shared, ca, cb = shared_corners(ia, ib)
             if shared == 1 and fan_ok[ia[ca]] != 0:  # a fan that projects one-to-one: no crossing
                 continue
-            if degenerate[g] == 0 and boxes_meet(lo, hi, lowers[g], uppers[g]):
+            if degenerate[g] == 0:
                 B, ib = load_triangle(points, tris, g)
                 if pair_violates(A, center_a, radius_a, edge_a, B, shared, ca, cb, rel, ulp, pad, fold_cos):
                     bad[i] = 1
