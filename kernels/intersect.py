@@ -1556,9 +1556,9 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
     grown upper corner stays in its own cell along k (g(up_a) = g(lo_a)): a face b there
     has g(lo_b) = g(lo_a) + 1 > g(up_a), so lo_b > up_a and the boxes cannot meet (about
     half the box screens on a grid mesher's surface); likewise a neighbour is skipped
-    whole, before its faces are read or even its index looked up, along the same argument
-    per cell (``cell_reach``, :func:`cell_reach_kernel`: the union of its faces' reach
-    bits): one up along k needs some face of c reaching k, one down along k (the
+    whole, before its faces are read (one up along every axis it lies on: before its
+    index is even looked up), along the same argument per cell (``cell_reach``,
+    :func:`cell_reach_kernel`: the union of its faces' reach bits): one up along k needs some face of c reaching k, one down along k (the
     neighbours (1, -1, *), (1, *, -1), (0, 1, -1)) needs some face of that neighbour
     reaching k into c (17 % of the walk on the ball at 512). A pair that passes is then
     skipped if it shares a certified vertex, else

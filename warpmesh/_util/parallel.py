@@ -123,7 +123,8 @@ def cpu_view(a: np.ndarray, dtype) -> wp.array:
 
 
 def device_empty(n: int, dtype, device) -> wp.array:
-    """``wp.empty(n, dtype, device)``, but on the CPU in memory from numpy: numpy asks the
+    """``wp.empty(n, dtype, device)`` for a Warp scalar or vector ``dtype``, but on the CPU
+    in memory from numpy: numpy asks the
     kernel for transparent huge pages on large blocks, so a fresh array's first touch
     faults 512 times less often (a 40 MB array written once: 8 ms against 20 ms from
     Warp's own allocator on this project's 2-core VM). Pipelines that allocate a few

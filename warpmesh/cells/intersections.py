@@ -1091,7 +1091,8 @@ def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device, n
     ids = device_empty(2 * m, wp.int32, device)
     wide = device_zeros(1, wp.int32, device)
     side = min(K.GRID_CELLS, int(2.0 * 1.001 * inv_cell) + 2)  # every cell coordinate is below it
-    end_bit = 3 * max(1, (side - 1).bit_length())  # the keys' bits (the sort's passes: 8 bits each)
+    # the keys' bits: fewer is less work (1.7 M keys on one thread: 32 bits 29 ms, 24 bits 25, 16 bits 18)
+    end_bit = 3 * max(1, (side - 1).bit_length())
     if device.is_cuda or n_workers < 2 or m < 2 * _MIN_FACES_PER_WORKER:
         _each(K.grid_keys_kernel, m, [points32, tris32, _QUERY_PAD, inv_cell, 0], [keys, ids, wide], device,
               n_workers)
