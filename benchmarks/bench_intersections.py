@@ -116,6 +116,12 @@ load 4.4-5.0, the same pairs): grid / tree CPU 0.65 (part at 512, 1.13 -> 0.74 s
 still agree with pymeshlab. The target, at most half the meshing's CPU time, is not met
 (see benchmarks/README.md).
 
+Sixth round (2026-12-05, stop 50, commits 3000866-70edce3: neighbour cells skipped by reach bits, the
+query face loaded eagerly, faces classified and boxed in one pass, keys and the vertex -> corner table
+made by halves on two threads, numpy scratch), ``--cases part,ball --resolution 512 --repeat 5``, load
+about 1, wall s with 2 workers before (f5c4c9b) / after, and after / meshing wall: part 0.359 / 0.280
+(0.52x), ball 0.406 / 0.333 (0.88x); at 1024 (``--repeat 2``): part 1.130 s, 0.49x; ball 1.321 s, 0.81x.
+
 Tetrahedra (2026-12-03, commit 3926e0f + find_tet_overlaps, load 2.5, ``--cases part-tets
 --repeat 3``): 1,031,312 tetrahedra, find_tet_overlaps 0.50 CPU s (0.75 s wall) against the
 ``features=False`` stuffing's 0.89 CPU s (1.36 wall): 0.56x the meshing; the face sort and
