@@ -1504,14 +1504,22 @@ def cell_reach_kernel(first: int, starts: wp.array(dtype=wp.int32), cells: wp.ar
     p = cells[c]
     bits = int(0)
     for s in range(starts[c], s1):
-        hi = face_uppers[s]
-        if grid_coordinate(hi[0], inv_cell) > p[0]:
-            bits = bits | 4
-        if grid_coordinate(hi[1], inv_cell) > p[1]:
-            bits = bits | 2
-        if grid_coordinate(hi[2], inv_cell) > p[2]:
-            bits = bits | 1
+        bits = bits | reach_bits(face_uppers[s], p, inv_cell)
     reach[c] = bits
+
+
+@wp.func
+def reach_bits(hi: wp.vec3, p: wp.vec3i, inv_cell: float) -> int:
+    """The bits of the axes (x 4, y 2, z 1) along which a face of cell p whose grown upper
+    corner is ``hi`` reaches the next cell up (:func:`grid_coordinate` past p's)."""
+    bits = int(0)
+    if grid_coordinate(hi[0], inv_cell) > p[0]:
+        bits = bits | 4
+    if grid_coordinate(hi[1], inv_cell) > p[1]:
+        bits = bits | 2
+    if grid_coordinate(hi[2], inv_cell) > p[2]:
+        bits = bits | 1
+    return bits
 
 
 @wp.func
@@ -1610,13 +1618,7 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
         # carried through every iteration (Warp's code selects and copies each of them,
         # a 72-byte matrix among them, on every pass of the box screen)
         t, it, cv, nt, na = load_query(points, tris, certified, s)
-        reach = int(0)  # bits of the axes along which the face's grown box reaches the next cell up
-        if grid_coordinate(hi[0], inv_cell) > p[0]:
-            reach = reach | 4
-        if grid_coordinate(hi[1], inv_cell) > p[1]:
-            reach = reach | 2
-        if grid_coordinate(hi[2], inv_cell) > p[2]:
-            reach = reach | 1
+        reach = reach_bits(hi, p, inv_cell)  # the axes along which the face's grown box reaches the next cell up
         for k in range(n_near):
             if (needs[k] & reach) != needs[k]:
                 continue
