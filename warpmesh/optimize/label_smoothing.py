@@ -307,14 +307,15 @@ def _normals(points, tris):
 
 def _edge_table(tris, n):
     """The 3 m face edges sorted by edge: (their (3m, 2) sorted ends, their faces, the start
-    of each edge's run and its length)."""
+    of each edge's run, its length, and each sorted entry's face edge 3 f + k: edge k of
+    face f runs from corner k to corner k + 1)."""
     e = np.sort(np.stack([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
     key = e[:, 0] * n + e[:, 1]
     order = np.argsort(key)
     key = key[order]
     starts = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]]))
     count = np.diff(np.append(starts, len(key)))
-    return e[order], order // 3, starts, count
+    return e[order], order // 3, starts, count, order
 
 
 def classify_edges(triangles, lower, upper, n: int, side_bits=None, table=None):
@@ -358,7 +359,7 @@ def classify_edges(triangles, lower, upper, n: int, side_bits=None, table=None):
     (16, [0, 16, 91])
     """
     tris = np.asarray(triangles, np.int64)
-    ends, face, starts, count = _edge_table(tris, n) if table is None else table
+    ends, face, starts, count, order = _edge_table(tris, n) if table is None else table
     if side_bits is None:
         side_bits = np.zeros(n, np.int64)
     common = side_bits[tris[:, 0]] & side_bits[tris[:, 1]] & side_bits[tris[:, 2]]
@@ -384,24 +385,39 @@ def classify_edges(triangles, lower, upper, n: int, side_bits=None, table=None):
     kind = np.where(degree == 0, 2, np.where((degree == 2) & (smin == smax), 1, 0))
     # a vertex on no feature edge whose faces are not one fan (two cones touching at it, a label
     # meeting itself at a grid node, may carry two interfaces or one twice) is fixed too
-    kind[(kind == 2) & (_fans(tris, n) != 1)] = 0
+    kind[(kind == 2) & (_fans(tris, n, (ends, face, starts, count, order)) != 1)] = 0
     return a, b, feature, kind
 
 
-def _fans(tris, n):
-    """How many fans (edge-connected groups of faces around it) each vertex has."""
+def _fans(tris, n, table=None):
+    """How many fans (edge-connected groups of faces around it) each vertex has.
+
+    The graph's nodes are the (edge, end) pairs, numbered from the edge table (2 e + 1 for
+    the edge's larger end), and each corner links the two edges of its face that meet
+    there; a component lies at one vertex, so a vertex's fans are the components there.
+
+    >>> _fans(np.array([[0, 1, 2], [0, 2, 3], [0, 4, 5], [0, 5, 6]]), 7).tolist()  # two fans at 0
+    [2, 1, 1, 1, 1, 1, 1]
+    """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    own = tris.ravel()
-    nxt, prv = tris[:, [1, 2, 0]].ravel(), tris[:, [2, 0, 1]].ravel()
-    nodes, inverse = np.unique(np.concatenate([own * n + nxt, own * n + prv]), return_inverse=True)
-    inverse = inverse.ravel()
-    k = len(own)
-    graph = coo_matrix((np.ones(k), (inverse[:k], inverse[k:])), shape=(len(nodes), len(nodes)))
-    _, comp = connected_components(graph, directed=False)
-    first = np.unique(comp, return_index=True)[1]
-    return np.bincount(nodes[first] // n, minlength=n)
+    ends, _, starts, _, order = _edge_table(tris, n) if table is None else table
+    head = np.zeros(len(order), np.int64)
+    head[starts] = 1
+    edge = np.empty(len(order), np.int64)
+    edge[order] = np.cumsum(head) - 1  # face edge 3 f + k -> its edge
+    edge = edge.reshape(-1, 3)
+    low = ends[starts, 0]  # each edge's smaller end
+    out_edge, in_edge = edge, edge[:, [2, 0, 1]]  # at corner k: edge k leaves it, edge k - 1 arrives
+    node_out = 2 * out_edge + (tris != low[out_edge])
+    node_in = 2 * in_edge + (tris != low[in_edge])
+    n_nodes = 2 * len(starts)
+    graph = coo_matrix((np.ones(node_out.size), (node_out.ravel(), node_in.ravel())), shape=(n_nodes, n_nodes))
+    n_comp, comp = connected_components(graph, directed=False)
+    vertex_of = np.full(n_comp, -1, np.int64)
+    vertex_of[comp[node_out.ravel()]] = tris.ravel()
+    return np.bincount(vertex_of[vertex_of >= 0], minlength=n)
 
 
 def _neighbour_weights(a, b, feature, kind, n):
@@ -423,7 +439,7 @@ def _wing_pairs(points, tris, table):
 
 
 def _pairs_of(table):
-    ends, face, _, _ = table
+    ends, face, _, _, _ = table
     rows = []
     for lag in (1, 2, 3):  # up to 4 faces around an edge (a label touching itself along a grid edge)
         i = np.flatnonzero(np.all(ends[lag:] == ends[:-lag], axis=1))
