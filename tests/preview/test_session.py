@@ -268,3 +268,88 @@ def test_refine_options_and_bad_values():
         _small_preview(idle=-1)
     with pytest.raises(TypeError, match="'callback'"):
         _small_preview().watch(3)
+
+
+# -- found by a new-user probe (stop 50): watchers that edit or raise, edits from two threads, refine options
+
+
+def _sphere_preview(**kw):
+    r = wm.param("r", 0.5, lo=0.3, hi=0.7)
+    return wm.Preview(wm.sphere(r), bounds=((-1,) * 3, (1,) * 3), resolution=16, evaluator="interpreter", **kw)
+
+
+def test_a_watcher_that_edits_leaves_every_watcher_with_the_final_mesh():
+    view = _sphere_preview(refine=None)
+    seen = []
+    view.watch(lambda mesh, kind: view.update(r=0.6) if view.values["r"] == 0.4 else None)
+    view.watch(lambda mesh, kind: seen.append(mesh))
+    view.update(r=0.4)
+    assert view.values == {"r": 0.6}
+    assert seen[-1] is view.mesh, "the older edit's show went on after the watcher's own edit"
+    fresh = wm.mesh_surface(wm.sphere(0.6), bounds=((-1,) * 3, (1,) * 3), resolution=16)
+    np.testing.assert_array_equal(seen[-1].triangles, fresh.triangles)
+
+
+def test_edits_from_two_threads_keep_both_and_the_newest_mesh():
+    r, h = wm.param("r", 0.5, lo=0.3, hi=0.7), wm.param("h", 0.5, lo=0.2, hi=0.9)
+    shape = wm.sphere(r) | wm.box((0.4, 0.4, 1.0)).translate((0.0, 0.0, h))
+    bounds = ((-1.0, -1.0, -1.0), (1.0, 1.0, 1.5))
+    view = wm.Preview(shape, bounds=bounds, resolution=12, evaluator="interpreter", refine=None)
+    shown = []
+    view.watch(lambda mesh, kind: shown.append(mesh))
+    rs, hs = np.linspace(0.3, 0.7, 12), np.linspace(0.9, 0.2, 12)
+    threads = [threading.Thread(target=lambda: [view.update(r=float(x)) for x in rs]),
+               threading.Thread(target=lambda: [view.update(h=float(x)) for x in hs])]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(120)
+    assert view.values == {"r": float(rs[-1]), "h": float(hs[-1])}, "an edit from one thread was lost"
+    fresh = wm.mesh_surface(shape, bounds=bounds, resolution=12, params=view.values)
+    np.testing.assert_array_equal(view.mesh.triangles, fresh.triangles)
+    assert shown[-1] is view.mesh
+
+
+def test_a_watcher_that_raises_does_not_stop_the_others_or_the_refinement():
+    view = _sphere_preview(idle=0.0)
+    good, landed = [], threading.Event()
+
+    def bad(mesh, kind):
+        if kind == "update":
+            raise RuntimeError("watcher failed")
+
+    def note(mesh, kind):
+        good.append(kind)
+        if kind == "refined":
+            landed.set()
+
+    view.watch(bad)
+    view.watch(note)
+    with pytest.raises(RuntimeError, match="watcher failed"):
+        view.update(r=0.4)
+    assert view.values == {"r": 0.4} and good[0] == "update"
+    assert len(view.errors) == 1 and isinstance(view.errors[0], RuntimeError)
+    assert landed.wait(60), "no refinement after the watcher's error"
+
+
+def test_refine_options_are_checked_at_set_up_and_background_failures_are_kept():
+    with pytest.raises(ValueError, match="'refine'.*'resolution'"):
+        _sphere_preview(refine={"resolution": -3})
+    with pytest.raises(ValueError, match="'refine'.*resolutoin"):
+        _sphere_preview(refine={"resolutoin": 3})
+    view = _sphere_preview(idle=0.0)
+    original = view._mesh
+
+    def failing(values, finer=False):
+        if finer:
+            raise MemoryError("refinement ran out of memory")
+        return original(values, finer)
+
+    view._mesh = failing
+    view.watch(lambda mesh, kind: None)
+    view.update(r=0.45)
+    deadline = time.monotonic() + 60
+    while not view.errors:
+        assert time.monotonic() < deadline, "the refinement's failure was swallowed"
+        time.sleep(0.02)
+    assert isinstance(view.errors[0], MemoryError) and view.refined_mesh is None

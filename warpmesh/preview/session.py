@@ -48,7 +48,7 @@ from warpmesh._util.validate import check_device
 from warpmesh import _conventions as C
 from warpmesh.frep.expr import check_values
 from warpmesh.frep.shapes import as_shape
-from warpmesh.surface.pipeline import mesh_surface
+from warpmesh.surface.pipeline import mesh_surface, surface_options
 
 #: the preview's grid resolution when none is given (and no max_level with adaptive=True)
 DEFAULT_RESOLUTION = 128
@@ -104,6 +104,10 @@ class Preview:
         The finer mesh of the current values, once made (None after every edit until then).
     dropped : int
         Background refinements whose result was thrown away because an edit came first.
+    errors : list of Exception
+        What went wrong where no caller could be told at once: a background refinement
+        that failed, a view or watcher that raised (:meth:`update` re-raises the first of
+        its own show's too).
 
     Examples
     --------
@@ -135,6 +139,11 @@ class Preview:
         if not options.get("adaptive"):  # the octree evaluates pruned tapes: no method, no evaluator
             self._options.update(method=method, evaluator=evaluator)
         self._refine = _refine_options(refine, self._options)
+        if self._refine:  # checked now: the refinement runs later, in a thread no caller sees
+            try:
+                surface_options(self.shape, **{**self._options, **self._refine})
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"expected mesh_surface keywords for 'refine', got {refine!r}: {exc}") from exc
         if isinstance(idle, bool) or not isinstance(idle, (int, float)) or not 0 <= idle < float("inf"):
             raise ValueError(f"expected a non-negative number of seconds for 'idle', got {idle!r}")
         self.idle = float(idle)
@@ -149,6 +158,10 @@ class Preview:
         self.refined_mesh = None
         self.dropped = 0
         self.cancelled = 0
+        self.errors: list[BaseException] = []
+        self._wanted = dict(self.values)  # every edit requested so far (update)
+        self._edits = 0  # edits requested, and the newest that landed
+        self._landed = 0
         self.mesh = self._mesh(self.values)  # set-up: tape, module loads, the generated kernel
 
     @property
@@ -181,34 +194,51 @@ class Preview:
         Returns
         -------
         Mesh
-            The mesh of the new values (also ``self.mesh``).
+            The mesh of the new values (also ``self.mesh``, unless a newer edit from another
+            thread has landed meanwhile: the newest edit's values and mesh are kept, and
+            every edit's values hold all the edits requested before it).
 
         Raises
         ------
         ValueError
             An unknown parameter name or a value outside its range (naming it).
+        Exception
+            The first exception a watcher raised, re-raised once every view and watcher has
+            had the mesh and the refinement is scheduled (the edit stays made; the error is
+            in ``errors`` too).
         """
         checked = check_values(self.params, values, "values")
         t0 = time.perf_counter()
-        new = {**self.values, **checked}
         with self._lock:  # what refines the old values is stale from now: it stops at its next checkpoint
             self._generation += 1
+            self._edits += 1
+            edit = self._edits
+            self._wanted.update(checked)  # every edit so far, whichever thread made it
+            new = dict(self._wanted)
             if self._timer is not None:
                 self._timer.cancel()
                 self._timer = None
         mesh = self._mesh(new)
         with self._lock:  # (again: a refined() begun while this meshed refines the old values)
-            self._generation += 1
-            generation = self._generation
-            self.values, self.mesh, self.refined_mesh = new, mesh, None
+            current = edit > self._landed  # a newer edit from another thread may have landed first
+            if current:
+                self._landed = edit
+                self._generation += 1
+                generation = self._generation
+                self.values, self.mesh, self.refined_mesh = new, mesh, None
         self.timings.append(time.perf_counter() - t0)
-        self._show(mesh, "update", generation)
+        if not current:
+            return mesh
+        error = self._show(mesh, "update", generation)
         if self._refine and (self._views or self._watchers):
             timer = threading.Timer(self.idle, self._refine_in_background, args=(generation, new))
             timer.daemon = True
             with self._lock:
-                self._timer = timer
-            timer.start()
+                if generation == self._generation:  # not if a watcher's own edit came meanwhile
+                    self._timer = timer
+                    timer.start()
+        if error is not None:
+            raise error
         return mesh
 
     def refined(self):
@@ -249,14 +279,16 @@ class Preview:
                 self.dropped += 1
                 self.cancelled += 1
             return
-        except Exception:  # noqa: BLE001 - the preview mesh stays; the next edit reports real errors
+        except Exception as exc:  # noqa: BLE001 - no caller on this thread: kept in errors, the preview mesh stays
+            with self._lock:
+                self.errors.append(exc)
             return
         with self._lock:
             if generation != self._generation:  # an edit came while we meshed: stale
                 self.dropped += 1
                 return
             self.refined_mesh = mesh
-        self._show(mesh, "refined", generation)
+        self._show(mesh, "refined", generation)  # a watcher's error is kept in errors: no caller here
 
     def watch(self, callback) -> None:
         """Call ``callback(mesh, kind)`` after every update (``kind`` "update") and when a
@@ -285,23 +317,33 @@ class Preview:
         if callback in self._watchers:
             self._watchers.remove(callback)
 
-    def _show(self, mesh, kind: str, generation: int) -> None:
-        """Hand ``mesh`` to the views and watchers if it is still the current values' mesh
+    def _show(self, mesh, kind: str, generation: int):
+        """Hand ``mesh`` to the views and watchers while it is still the current values' mesh
         (``generation`` is still the current one), checked under a lock that every show
-        holds: a refinement that passed its own check just before an edit, and whose show
-        comes after the edit's, is dropped instead of replacing the newer mesh; and two
-        threads never draw at once."""
+        holds and again before each view and watcher: a refinement that passed its own check
+        just before an edit, and whose show comes after the edit's, is dropped instead of
+        replacing the newer mesh; a watcher that edits (its edit shown to everyone inside
+        its call) ends this older show; two threads never draw at once. A view or watcher
+        that raises does not stop the others: the first exception is returned (and kept in
+        ``errors``), None when there was none."""
+        first = None
         with self._show_lock:
-            with self._lock:
-                stale = generation != self._generation
-                if stale and kind == "refined":
-                    self.dropped += 1
-            if stale:
-                return
-            for view in list(self._views):
-                view.show_mesh(mesh)
-            for callback in list(self._watchers):
-                callback(mesh, kind)
+            targets = [*(view.show_mesh for view in list(self._views)),
+                       *(lambda m, w=w: w(m, kind) for w in list(self._watchers))]
+            for k, target in enumerate(targets):
+                with self._lock:
+                    stale = generation != self._generation
+                    if stale and k == 0 and kind == "refined":  # a refinement no one was shown
+                        self.dropped += 1
+                if stale:
+                    break
+                try:
+                    target(mesh)
+                except Exception as exc:  # noqa: BLE001 - the others still get the mesh; reported after
+                    with self._lock:
+                        self.errors.append(exc)
+                    first = exc if first is None else first
+        return first
 
     # -- showing -----------------------------------------------------------------------
     def widget(self):

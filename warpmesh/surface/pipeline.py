@@ -241,6 +241,29 @@ def mesh_surface(
     return _tag_primitives(as_shape(source), mesh) if refs == "primitives" and mesh.n_cells else mesh
 
 
+def surface_options(source, *, covering=None, adaptive: bool = False, **keywords) -> SurfaceOptions:
+    """The options :func:`mesh_surface` builds from these keywords, checked, without meshing:
+    for a caller that keeps keywords for later (the live preview's idle refinement) and
+    wants their errors now.
+
+    Raises
+    ------
+    TypeError, ValueError
+        As :func:`mesh_surface` for the same keywords.
+
+    Examples
+    --------
+    >>> import warpmesh as wm
+    >>> surface_options(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=40).resolution
+    40
+    >>> surface_options(wm.sphere(1.0), bounds=((-1.2,) * 3, (1.2,) * 3), resolution=-3)
+    Traceback (most recent call last):
+    ...
+    ValueError: expected 1 <= 'resolution' <= 2048, got -3
+    """
+    return _options_from_keywords(source, covering, adaptive, keywords)
+
+
 def _mesh_bricked(source, options, covering, adaptive, device, refs, keywords: dict, t_start: float, **run):
     """``client=``: the options group as for one process, then :func:`warpmesh.distributed.run.mesh_bricks`."""
     from warpmesh.distributed.run import mesh_bricks
