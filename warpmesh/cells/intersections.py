@@ -73,7 +73,7 @@ inlined before the candidate call (0.35 -> 0.40), the plane sides of the second 
 before the box confirmation (slower on both), vertices renumbered in the faces' order for
 the umbrellas (5 %), ``counting_sort`` for the vertex -> corner table (31 ms against the
 atomics' 19 ms on one thread). Not met: the check at half the meshing's time on the
-ball (its meshing, a sphere's field, is the cheapest there is); the walk alone is 0.39x
+ball (its meshing, a sphere's field, is the cheapest there is); the walk alone is about 0.4x
 of it. Earlier measurements: the tree walk costs 1.4-2x the grid's on these surfaces
 (46 face-face box tests a face against 10-20); the grid on an adaptive surface (the part
 adaptive at 256, 92 k faces, largest side 4.5 x the mean) 0.136 CPU s against the tree's
