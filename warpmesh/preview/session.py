@@ -27,6 +27,13 @@ against 81-104 ms, process CPU 8.8-10.7 s against 12.4-12.7 s. The stages are co
 Headless code asks for it with
 :meth:`Preview.refined`.
 
+Edits may come from several threads: the newest lands, its values holding every edit
+requested before it. A watcher may edit from its callback (the other watchers end with
+that edit's mesh). A view or watcher that raises does not stop the others or the
+refinement: :meth:`Preview.update` re-raises the first error afterwards, and
+``Preview.errors`` keeps it, with any failure of a background refinement (no caller
+sees that thread).
+
 Example
 -------
 >>> import warpmesh as wm
