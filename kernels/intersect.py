@@ -1141,14 +1141,45 @@ def umbrella_certified(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.
     return True
 
 
+@wp.func
+def _pair_wide_umbrella(tris: wp.array(dtype=wp.int32), corners: wp.array(dtype=wp.int32), lo: int, hi: int,
+                        partners: wp.array(dtype=wp.int32)):
+    """The partners of :func:`certify_umbrellas_kernel` for a vertex of more than 8 faces:
+    the same with loops over its faces; none past ``UMBRELLA_CAP``."""
+    for k in range(lo, hi):
+        c = corners[k]
+        f = c / 3
+        ia = tris[3 * f + (c - 3 * f + 1) % 3]
+        across = int(-1)
+        back = int(0)
+        same = int(0)
+        if hi - lo <= UMBRELLA_CAP:
+            for l in range(lo, hi):
+                c2 = corners[l]
+                g = c2 / 3
+                if tris[3 * g + (c2 - 3 * g + 2) % 3] == ia:
+                    across = g
+                    back += 1
+                if tris[3 * g + (c2 - 3 * g + 1) % 3] == ia:
+                    same += 1
+        if back != 1 or same != 1:
+            across = -1
+        partners[c] = across
+
+
 @wp.kernel
 def certify_umbrellas_kernel(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.int32),
                              starts: wp.array(dtype=wp.int32), corners: wp.array(dtype=wp.int32), first: int,
-                             certified: wp.array(dtype=wp.int8)):
+                             with_partners: int, certified: wp.array(dtype=wp.int8),
+                             partners: wp.array(dtype=wp.int32)):
     """One thread per vertex v = first + tid (its corners at ``corners[starts[v]:starts[v +
     1]]``, the last vertex's up to the end): 1 in ``certified[c]`` for each of its corners
     c when :func:`umbrella_certified`, else 0 (every corner belongs to one vertex: each
-    entry is written once)."""
+    entry is written once). With ``with_partners``, also for each corner c = 3 f + r:
+    ``partners[c]``, the face across face f's edge r (from its corner r to corner r + 1,
+    u = v -> w) when exactly one face holds w -> v and f is the only one with v -> w, else
+    -1 (a property of the edge: w's thread, looking at the reversed edge, finds f): the
+    block certificate's pairing of edges (:func:`edge_paired`)."""
     v = wp.tid() + first
     lo = starts[v]
     hi = corners.shape[0]
@@ -1161,6 +1192,44 @@ def certify_umbrellas_kernel(codes: wp.array(dtype=wp.int32), tris: wp.array(dty
         flag = wp.int8(1)
     for k in range(lo, hi):
         certified[corners[k]] = flag
+    if with_partners == 0:
+        return
+    if hi - lo > 8:
+        _pair_wide_umbrella(tris, corners, lo, hi, partners)
+        return
+    # face k's edge v -> a_k is reversed in face l when e_l = a_k; named when that face is
+    # the only one, and face k the only one with v -> a_k (each corner's entry is written
+    # by its vertex's thread only)
+    d = hi - lo
+    fs = umbrella_ids8()
+    rs = umbrella_ids8()
+    a = umbrella_ids8()
+    e = umbrella_ids8()
+    for k in range(8):
+        if k < d:
+            c = corners[lo + k]
+            f = c / 3
+            r = c - 3 * f
+            fs[k] = f
+            rs[k] = r
+            a[k] = tris[3 * f + (r + 1) % 3]
+            e[k] = tris[3 * f + (r + 2) % 3]
+        else:
+            a[k] = -1 - k
+            e[k] = -2 - k
+    for k in range(8):
+        if k < d:
+            l = int(0)
+            back = int(0)
+            same = int(0)
+            for m in range(8):
+                l += m * int(e[m] == a[k])
+                back += int(e[m] == a[k])
+                same += int(a[m] == a[k])
+            across = int(-1)
+            if back == 1 and same == 1:
+                across = fs[l]
+            partners[3 * fs[k] + rs[k]] = across
 
 
 @wp.func
@@ -1508,6 +1577,293 @@ def cell_reach_kernel(first: int, starts: wp.array(dtype=wp.int32), cells: wp.ar
     reach[c] = bits
 
 
+#: the block sizes tried, as shifts (blocks of 2^shift cells per axis), largest first: a
+#: block that fails is tried again as its eight halves (:func:`certify_blocks_kernel`)
+BLOCK_SHIFTS = (5, 4, 3)
+#: ``cell_reach`` >> LEVEL_BIT (3 bits): the shift of the cell's certified block, 0 if none
+LEVEL_BIT = wp.constant(3)
+
+
+#: the most unpaired edges a block of 2^shift cells per axis may have for
+#: :func:`_simple_loop` (its scratch per block): LOOP_CAP_PER_CELL << shift
+LOOP_CAP_PER_CELL = 16
+
+
+@wp.kernel
+def block_heads_kernel(first: int, cells: wp.array(dtype=wp.vec3i), shift: int, heads: wp.array(dtype=wp.int32)):
+    """One thread per occupied cell c = first + tid (in Morton order, so the cells of a block
+    of 2^shift per axis are consecutive): 1 when c is its block's first, else 0."""
+    c = first + wp.tid()
+    head = int(1)
+    if c > 0:
+        p = cells[c]
+        q = cells[c - 1]
+        if p[0] >> shift == q[0] >> shift and p[1] >> shift == q[1] >> shift and p[2] >> shift == q[2] >> shift:
+            head = 0
+    heads[c] = head
+
+
+@wp.kernel
+def block_firsts_kernel(first: int, heads: wp.array(dtype=wp.int32), block_of: wp.array(dtype=wp.int32),
+                        firsts: wp.array(dtype=wp.int32)):
+    """One thread per occupied cell c = first + tid that starts a block (``block_of``: the
+    inclusive scan of the heads): the block's first cell."""
+    c = first + wp.tid()
+    if heads[c] != 0:
+        firsts[block_of[c] - 1] = c
+
+
+@wp.func
+def edge_paired(degenerate: wp.array(dtype=wp.int32), partners: wp.array(dtype=wp.int32), f0: int, f1: int, s: int,
+                r: int) -> bool:
+    """Edge r of face s (from its corner r to corner r + 1, u -> v) is *paired* when the face
+    g = ``partners[3 s + r]`` across it (:func:`certify_umbrellas_kernel`: the only face
+    with v -> u, s the only one with u -> v) is a non-degenerate face at a position in
+    [f0, f1). Symmetric among the non-degenerate faces there: g's edge v -> u names s (the
+    same two facts, seen from v), so pairing matches edges with their reverses one to
+    one."""
+    g = partners[3 * s + r]
+    if g < f0 or g >= f1:
+        return False
+    return degenerate[g] == 0
+
+
+@wp.func
+def _adjacent_edges_meet_once(ax: wp.float64, ay: wp.float64, bx: wp.float64, by: wp.float64, cx: wp.float64,
+                              cy: wp.float64) -> bool:
+    """Whether the segments [a, b] and [b, c] have only b in common: a, b, c certified not
+    collinear, or strictly monotone along x or along y (then every other point of [a, b]
+    has that coordinate on one side of b's and every other point of [b, c] on the other)."""
+    if (ax < bx and bx < cx) or (ax > bx and bx > cx) or (ay < by and by < cy) or (ay > by and by > cy):
+        return True
+    return orient2d(wp.vec3d(ax, ay, wp.float64(0.0)), wp.vec3d(bx, by, wp.float64(0.0)),
+                    wp.vec3d(cx, cy, wp.float64(0.0)), 0, 1) != 0
+
+
+@wp.func
+def _segments_apart(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, d: wp.vec3d) -> bool:
+    """Whether the closed segments [a, b] and [c, d] (coordinates 0 and 1) are certified
+    disjoint: their boxes apart (exact comparisons), or one's two ends strictly on one side
+    of the other's line (filtered signs; 0, unknown, proves nothing)."""
+    if (wp.max(a[0], b[0]) < wp.min(c[0], d[0]) or wp.max(c[0], d[0]) < wp.min(a[0], b[0])
+            or wp.max(a[1], b[1]) < wp.min(c[1], d[1]) or wp.max(c[1], d[1]) < wp.min(a[1], b[1])):
+        return True
+    o1 = orient2d(a, b, c, 0, 1)
+    if o1 != 0 and o1 == orient2d(a, b, d, 0, 1):
+        return True
+    o3 = orient2d(c, d, a, 0, 1)
+    return o3 != 0 and o3 == orient2d(c, d, b, 0, 1)
+
+
+@wp.func
+def _star_loop(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), degenerate: wp.array(dtype=wp.int32),
+               open_edges: wp.array(dtype=wp.int8), f0: int, f1: int, centre: wp.vec3d, k: int) -> bool:
+    """Whether the unpaired edges of the faces at [f0, f1), projected with coordinates (i, j)
+    kept (k / 2 the dropped one; read in the order that makes the faces with sign bit k
+    of :func:`classify_face` positive), all turn strictly counter-clockwise about the
+    centre's projection and cross the ray from it along +i upwards once in all."""
+    i = (k / 2 + 1) % 3
+    j = (k / 2 + 2) % 3
+    if k % 2 == 1:
+        i = (k / 2 + 2) % 3
+        j = (k / 2 + 1) % 3
+    o = wp.vec3d(centre[i], centre[j], wp.float64(0.0))
+    crossings = int(0)
+    for s in range(f0, f1):
+        if degenerate[s] != 0:
+            continue
+        for r in range(3):
+            if (int(open_edges[s]) >> r) & 1 != 0:
+                x = points[tris[3 * s + r]]
+                y = points[tris[3 * s + (r + 1) % 3]]
+                a = wp.vec3d(x[i], x[j], wp.float64(0.0))
+                b = wp.vec3d(y[i], y[j], wp.float64(0.0))
+                if orient2d(o, a, b, 0, 1) <= 0:
+                    return False
+                if a[1] < o[1] and o[1] <= b[1]:
+                    crossings += 1
+    return crossings == 1
+
+
+@wp.func
+def _simple_loop(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), degenerate: wp.array(dtype=wp.int32),
+                 open_edges: wp.array(dtype=wp.int8), f0: int, f1: int, k: int, n: int, ids: wp.array(dtype=wp.vec2i),
+                 segments: wp.array(dtype=wp.vec4d), nexts: wp.array(dtype=wp.int32), base: int) -> bool:
+    """Whether the n unpaired edges of the faces at [f0, f1), projected as in
+    :func:`_star_loop`, form one closed loop whose projection is a simple polygon: no
+    vertex is the tail (or the head) of two of them, each edge's successor is the one
+    whose tail is its head, following successors from the first edge meets all n before
+    coming back, consecutive segments have only their common end in common
+    (:func:`_adjacent_edges_meet_once`) and any other two are certified disjoint
+    (:func:`_segments_apart`). The edges are written to ``ids``, ``segments`` and
+    ``nexts`` from ``base`` on (scratch: n at most the block's ``LOOP_CAP_PER_CELL << shift``)."""
+    i = (k / 2 + 1) % 3
+    j = (k / 2 + 2) % 3
+    if k % 2 == 1:
+        i = (k / 2 + 2) % 3
+        j = (k / 2 + 1) % 3
+    e = base
+    for s in range(f0, f1):
+        if degenerate[s] != 0:
+            continue
+        for r in range(3):
+            if (int(open_edges[s]) >> r) & 1 != 0:
+                u = tris[3 * s + r]
+                v = tris[3 * s + (r + 1) % 3]
+                x = points[u]
+                y = points[v]
+                ids[e] = wp.vec2i(u, v)
+                segments[e] = wp.vec4d(x[i], x[j], y[i], y[j])
+                nexts[e] = -1
+                e += 1
+    for e in range(base, base + n):
+        p = ids[e]
+        a = segments[e]
+        lo_x = wp.min(a[0], a[2])
+        hi_x = wp.max(a[0], a[2])
+        lo_y = wp.min(a[1], a[3])
+        hi_y = wp.max(a[1], a[3])
+        for e2 in range(e + 1, base + n):
+            q = ids[e2]
+            b = segments[e2]
+            if p[0] == q[0] or p[1] == q[1]:
+                return False  # two edges leave (or enter) one vertex
+            if p[1] == q[0]:  # e then e2
+                nexts[e] = e2
+                if not _adjacent_edges_meet_once(a[0], a[1], a[2], a[3], b[2], b[3]):
+                    return False
+            elif q[1] == p[0]:  # e2 then e
+                nexts[e2] = e
+                if not _adjacent_edges_meet_once(b[0], b[1], b[2], b[3], a[2], a[3]):
+                    return False
+            elif not (wp.max(b[0], b[2]) < lo_x or wp.min(b[0], b[2]) > hi_x or wp.max(b[1], b[3]) < lo_y
+                      or wp.min(b[1], b[3]) > hi_y):
+                if not _segments_apart(wp.vec3d(a[0], a[1], wp.float64(0.0)), wp.vec3d(a[2], a[3], wp.float64(0.0)),
+                                       wp.vec3d(b[0], b[1], wp.float64(0.0)), wp.vec3d(b[2], b[3], wp.float64(0.0))):
+                    return False
+    e = base
+    for step in range(1, n + 1):
+        e = nexts[e]
+        if e < 0 or (e == base and step < n):
+            return False
+    return e == base
+
+
+@wp.func
+def block_certified(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+                    degenerate: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32),
+                    partners: wp.array(dtype=wp.int32), f0: int, f1: int,
+                    open_edges: wp.array(dtype=wp.int8),
+                    ids: wp.array(dtype=wp.vec2i), segments: wp.array(dtype=wp.vec4d), nexts: wp.array(dtype=wp.int32),
+                    base: int, cap: int) -> bool:
+    """Whether no two faces at sorted positions [f0, f1) (a block's) meet other than in
+    what they share (a vertex or an edge, by index), certified from those faces alone
+    (and which faces hold each of their edges), so that the grid walk can skip every pair
+    of them. Degenerate faces meet nothing and are left out; P is the rest.
+
+    Certified when:
+
+    1. some projection dropping a coordinate has every face of P strictly of one
+       orientation (bit k of the faces' codes, :func:`classify_face`: exact signs), made
+       positive by reading the two kept coordinates in the right order (:func:`_star_loop`);
+    2. E, the edges of P's faces that are not *paired* (:func:`edge_paired`: the face
+       across is the only one with the reversed edge, in the block and not degenerate;
+       pairing matches edges with their reverses one to one) is, projected, a simple
+       closed polygon:
+       either every edge of E turns strictly counter-clockwise about the mean of E's tails
+       and the ray from it crosses E upwards once (:func:`_star_loop`: E is a closed
+       chain, as the sum of the faces' boundaries less the pairs that cancel; each of
+       its cycles winds at least once about the point, all of them once in all, so E is
+       one cycle around it, each edge in its own sector), or, in the first projection
+       that condition 1 allows, E is one loop of at most ``cap`` edges with consecutive
+       segments meeting only at their common end and any other two certified disjoint
+       (:func:`_simple_loop`).
+
+    Proof. For a point y of the plane off every projected edge of P, let N(y) be the
+    number of faces of P whose projection holds y. A positive triangle's boundary winds
+    once about the points inside it and not about those outside, so N(y) is the winding
+    number of the chain of all the faces' edges; paired edges cancel with their
+    reverses, so N(y) is the winding number of E, a simple polygon: 0 or 1 (and not -1:
+    N >= 0). Let x be a common point of faces f != g of P, y its projection. (a) y inside
+    f's projection: a neighbourhood of y lies in it, and meets the inside of g's (g is
+    proper, y in it): an open set where N >= 2. So y is on the boundary of both
+    projections, and x (each face projects one to one) on an edge or a vertex of each.
+    (b) x inside an edge e of f, e paired with f': the projections of f and f' lie on the
+    two sides of e's (both positive, e reversed in f'), so they cover a neighbourhood of y
+    and g overlaps one of them on an open set unless g = f', and then x, on e, is in what
+    f and f' share. (c) x inside an edge e of f, e in E: f lies on one side of e's
+    projection near y, where N = 1, so N = 0 on the other side (N changes by one across a
+    polygon's side). If x is inside an edge of g: paired, (b) with g for f; in E, two
+    sides of a simple polygon that meet inside one of them, unless they are one: then
+    g = f. If x is a vertex of g, g's projection holds a sector at y, on f's side
+    (N >= 2) or the other (N >= 1 where N = 0). (d) x a vertex v of f not in g: if x is
+    inside an edge of g, (b) or (c) with g for f; else x is a vertex w != v of g (the
+    same point). If every edge at v is paired, the faces at v form closed fans of
+    positive wedges, which cover a neighbourhood of y (winding at least once), and g's
+    sector at y overlaps them; so v is a vertex of the polygon, and so is w: two
+    vertices of a simple polygon at one point, which it is not. So f and g meet only in
+    what they share. Filtered signs of 0 fail the conditions."""
+    signs = int(63)
+    n = int(0)
+    sums = wp.vec3d()
+    for s in range(f0, f1):
+        if degenerate[s] != 0:
+            continue
+        signs = signs & codes[s]
+        if signs & 63 == 0:
+            return False
+        bits = int(0)
+        for r in range(3):
+            if not edge_paired(degenerate, partners, f0, f1, s, r):
+                sums += points[tris[3 * s + r]]
+                n += 1
+                bits = bits | (1 << r)
+        open_edges[s] = wp.int8(bits)
+    if n < 3:
+        return False
+    first = int(-1)
+    for k in range(6):
+        if (signs >> k) & 1 != 0:
+            if _star_loop(points, tris, degenerate, open_edges, f0, f1, sums / wp.float64(n), k):
+                return True
+            if first < 0:
+                first = k
+    if n > cap:
+        return False
+    return _simple_loop(points, tris, degenerate, open_edges, f0, f1, first, n, ids, segments, nexts, base)
+
+
+@wp.kernel
+def certify_blocks_kernel(first: int, firsts: wp.array(dtype=wp.int32), starts: wp.array(dtype=wp.int32), shift: int,
+                          points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
+                          degenerate: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32),
+                          partners: wp.array(dtype=wp.int32),
+                          open_edges: wp.array(dtype=wp.int8), ids: wp.array(dtype=wp.vec2i),
+                          segments: wp.array(dtype=wp.vec4d), nexts: wp.array(dtype=wp.int32),
+                          reach: wp.array(dtype=wp.int32)):
+    """One thread per block b = first + tid of 2^shift cells per axis (its cells from
+    ``firsts[b]`` to the next block's first, its faces from the first cell's start to the
+    next block's): the shift written in the bits ``LEVEL_BIT`` of ``reach`` of each of its
+    cells when :func:`block_certified`. A block inside a larger certified one (its first
+    cell has a level already) is skipped."""
+    b = first + wp.tid()
+    n_cells = starts.shape[0]
+    c0 = firsts[b]
+    if (reach[c0] >> LEVEL_BIT) & 7 != 0:
+        return
+    c1 = n_cells
+    if b + 1 < firsts.shape[0]:
+        c1 = firsts[b + 1]
+    f1 = degenerate.shape[0]
+    if c1 < n_cells:
+        f1 = starts[c1]
+    cap = LOOP_CAP_PER_CELL << shift
+    if block_certified(points, tris, degenerate, codes, partners, starts[c0], f1, open_edges, ids, segments,
+                       nexts, b * cap, cap):
+        for c in range(c0, c1):
+            reach[c] = reach[c] | (shift << LEVEL_BIT)
+
+
 @wp.func
 def reach_bits(hi: wp.vec3, p: wp.vec3i, inv_cell: float) -> int:
     """The bits of the axes (x 4, y 2, z 1) along which a face of cell p whose grown upper
@@ -1582,10 +1938,14 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
     p = cells[c]
     near = neighbour_cells()  # c itself, then its occupied upper neighbours
     needs = neighbour_cells()  # bits of the axes (x 4, y 2, z 1) along which that neighbour is one cell up
-    near[0] = c
-    needs[0] = 0
-    n_near = int(1)
+    n_near = int(0)
     up = cell_reach[c]
+    level = (up >> LEVEL_BIT) & 7  # c's certified block, 2^level cells per axis: its pairs in it are skipped
+    whole = level != 0
+    if not whole:
+        near[0] = c
+        needs[0] = 0
+        n_near = 1
     for d in range(14, 27):  # the 3 x 3 x 3 neighbourhood numbered 9 (dx + 1) + 3 (dy + 1) + dz + 1
         dx = d / 9 - 1
         dy = (d / 3) % 3 - 1
@@ -1602,6 +1962,10 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
             need = need | 1
         elif dz == -1:
             down = down | 1
+        if whole:
+            if (p[0] >> level == (p[0] + dx) >> level and p[1] >> level == (p[1] + dy) >> level
+                    and p[2] >> level == (p[2] + dz) >> level):
+                continue
         if (need & up) == need:
             c2 = grid_cell_index(p[0] + dx, p[1] + dy, p[2] + dz, blocks_per_axis, block_used, block_slot, table)
             if c2 >= 0:
@@ -1610,6 +1974,8 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
                     needs[n_near] = need
                     n_near += 1
     n = int(0)
+    if n_near == 0:
+        return n
     for s in range(a0, a1):
         lo = face_lowers[s]
         hi = face_uppers[s]
@@ -1623,9 +1989,9 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
             if (needs[k] & reach) != needs[k]:
                 continue
             c2 = near[k]
-            b0 = s + 1  # in c itself: the faces after s
-            if k > 0:
-                b0 = starts[c2]
+            b0 = starts[c2]
+            if c2 == c:  # in c itself: the faces after s
+                b0 = s + 1
             b1 = m
             if c2 + 1 < n_cells:
                 b1 = starts[c2 + 1]

@@ -137,6 +137,9 @@ _MIN_FACES_PER_WORKER = 1 << 13
 #: ranges of groups per CPU worker
 _CHUNKS = 8
 _INT32_MAX = np.iinfo(np.int32).max
+#: let the grid walk skip the pairs inside blocks of cells certified whole (the kernels'
+#: ``block_certified``); off only to measure or test the check without it
+_CERTIFY_BLOCKS = True
 #: skip the pairs that share a vertex whose umbrella is certified (the kernels'
 #: ``umbrella_certified``); off only to measure or test the check without it
 _CERTIFY = True
@@ -995,7 +998,8 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
     _each(K.classify_and_box_kernel, m, [points64, points32, sorted_tris, grow],
           [degenerate, codes, face_lowers, face_uppers], device, n_workers)
     mark("faces")
-    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY, n_workers)
+    partners = device_empty(3 * m, wp.int32, device) if grid is not None else None
+    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY, n_workers, partners)
     mark("umbrellas")
     faces = [points64, sorted_tris, order, face_lowers, face_uppers, _QUERY_PAD, certified]
     if grid is not None:  # one thread per occupied cell (K.grid_walk_cell)
@@ -1003,6 +1007,9 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
         reach = device_empty(table[0].shape[0], wp.int32, device)
         _each(K.cell_reach_kernel, reach.shape[0], [table[1], table[0], face_uppers, inv_cell], [reach], device,
               n_workers)
+        if _CERTIFY_BLOCKS:
+            _certify_blocks(table[0], table[1], points64, sorted_tris, degenerate, codes, partners, reach, device,
+                            n_workers)
         walk = [*table, inv_cell, *faces[:5], certified, reach]
         count_kernel, write_kernel = K.grid_count_pairs_kernel, K.grid_write_pairs_kernel
         n_threads = walk[0].shape[0]
@@ -1208,15 +1215,47 @@ def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device, n_workers: 
     return points32
 
 
+def _certify_blocks(cells: wp.array, starts: wp.array, points64: wp.array, tris32: wp.array, degenerate: wp.array,
+                    codes: wp.array, partners: wp.array, reach: wp.array, device, n_workers: int = 1) -> None:
+    """The grid's blocks whose faces are certified to meet only in what they share
+    (:func:`~warpmesh.kernels.intersect.block_certified`) get their size in ``reach``
+    (bits ``K.LEVEL_BIT``: blocks of 2^shift cells per axis): the walk skips the pairs
+    inside them. Tried for each shift of ``K.BLOCK_SHIFTS``, largest first, in the blocks
+    not inside a certified one. The cells of a block are consecutive (Morton order):
+    heads, scan, firsts, then one thread per block."""
+    n_cells = cells.shape[0]
+    m = degenerate.shape[0]
+    heads = device_empty(n_cells, wp.int32, device)
+    block_of = device_empty(n_cells, wp.int32, device)
+    open_edges = device_empty(m, wp.int8, device)  # each face's unpaired edges, by its block
+    for shift in K.BLOCK_SHIFTS:
+        _each(K.block_heads_kernel, n_cells, [cells, shift], [heads], device, n_workers)
+        wp.utils.array_scan(heads, block_of, inclusive=True)
+        n_blocks = int(block_of[n_cells - 1:].numpy()[0])  # sync point: the number of blocks
+        firsts = device_empty(n_blocks, wp.int32, device)
+        _each(K.block_firsts_kernel, n_cells, [heads, block_of], [firsts], device, n_workers)
+        cap = K.LOOP_CAP_PER_CELL << shift
+        scratch = [device_empty(n_blocks * cap, dtype, device) for dtype in (wp.vec2i, wp.vec4d, wp.int32)]
+        inputs = [firsts, starts, shift, points64, tris32, degenerate, codes, partners]
+        _split(n_blocks, m, device, n_workers)(  # split by faces: blocks are few
+            lambda a, b: wp.launch(K.certify_blocks_kernel, dim=b - a, inputs=[a, *inputs],
+                                   outputs=[open_edges, *scratch, reach], device=device))
+
+
 def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: bool = True,
-                    n_workers: int = 1) -> wp.array:
+                    n_workers: int = 1, partners: wp.array | None = None) -> wp.array:
     """1 for each corner (entry of the flat face array) whose vertex has a certified
     umbrella (:func:`~warpmesh.kernels.intersect.umbrella_certified`; ``codes`` from
     :func:`_classify_faces`, n points), else 0; all 0 when not ``certify``. Vertex ->
     corners on the device: counts by atomic add, inclusive scan, fill from the ends down
     (count -> scan -> write), then one thread per vertex (split over ``n_workers`` CPU
-    threads like the walk: each writes its own vertices' corners only)."""
+    threads like the walk: each writes its own vertices' corners only). ``partners``, when
+    given (one entry per corner), receives the face across each corner's outgoing edge
+    when that face is the only one with the reversed edge and the corner's face the only
+    one with the edge, else -1 (:func:`~warpmesh.kernels.intersect.edge_paired`)."""
     if not certify or n == 0:
+        if partners is not None:
+            partners.fill_(-1)
         return device_zeros(tris32.shape[0], wp.int8, device)
     certified = device_empty(tris32.shape[0], wp.int8, device)  # every corner is some vertex's
     corners = device_empty(tris32.shape[0], wp.int32, device)
@@ -1229,9 +1268,11 @@ def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: 
         wp.launch(K.fill_corners_kernel, dim=c, inputs=[0, tris32, starts], outputs=[corners], device=device)
     else:  # two CPU threads, each counting and placing the corners of its half in arrays of its own
         starts = _split_corner_table(tris32, n, corners, device)
+    certified_partners = partners if partners is not None else device_empty(1, wp.int32, device)
     _split(n, tris32.shape[0] // 3, device, n_workers)(
-        lambda a, b: wp.launch(K.certify_umbrellas_kernel, dim=b - a, inputs=[codes, tris32, starts, corners, a],
-                               outputs=[certified], device=device))
+        lambda a, b: wp.launch(K.certify_umbrellas_kernel, dim=b - a,
+                               inputs=[codes, tris32, starts, corners, a, int(partners is not None)],
+                               outputs=[certified, certified_partners], device=device))
     return certified
 
 
