@@ -1924,7 +1924,10 @@ def grid_walk_cell(cells: wp.array(dtype=wp.vec3i), starts: wp.array(dtype=wp.in
     index is even looked up), along the same argument per cell (``cell_reach``,
     :func:`cell_reach_kernel`: the union of its faces' reach bits): one up along k needs some face of c reaching k, one down along k (the
     neighbours (1, -1, *), (1, *, -1), (0, 1, -1)) needs some face of that neighbour
-    reaching k into c (17 % of the walk on the ball at 512). A pair that passes is then
+    reaching k into c (17 % of the walk on the ball at 512). When c's block of 2^level
+    cells per axis is certified (``cell_reach`` >> ``LEVEL_BIT``, :func:`block_certified`),
+    c itself and the neighbours in that block are skipped: no two of its faces meet but
+    in what they share. A pair that passes is then
     skipped if it shares a certified vertex, else
     given the exact test in float64, as in :func:`walk_group`. Returns
     how many pairs intersect; the first ``limit`` are written to ``keys[start:]`` as
