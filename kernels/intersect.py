@@ -1167,6 +1167,66 @@ def _pair_wide_umbrella(tris: wp.array(dtype=wp.int32), corners: wp.array(dtype=
         partners[c] = across
 
 
+@wp.func
+def _umbrella_of_up_to_8(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.int32),
+                         corners: wp.array(dtype=wp.int32), v: int, lo: int, d: int, with_partners: int,
+                         certified: wp.array(dtype=wp.int8), partners: wp.array(dtype=wp.int32)):
+    """:func:`certify_umbrellas_kernel` for a vertex of at most 8 faces, its faces read
+    once: the flags of :func:`umbrella_certified` (the same conditions: d >= 3, no
+    repeated index, the signs and the winding, a_i -> b_i one to one) and, with
+    ``with_partners``, each corner's partner: face k's edge v -> a_k is reversed in face l
+    when b_l = a_k, named when that face is the only one and face k the only one with
+    v -> a_k (each corner's entry is written by its vertex's thread only)."""
+    fs = umbrella_ids8()
+    rs = umbrella_ids8()
+    a = umbrella_ids8()
+    b = umbrella_ids8()
+    signs = int(63)
+    counts = int(0)
+    repeated = int(0)
+    for k in range(8):
+        if k < d:
+            c = corners[lo + k]
+            f = c / 3
+            r = c - 3 * f
+            fs[k] = f
+            rs[k] = r
+            ia = tris[3 * f + (r + 1) % 3]
+            ib = tris[3 * f + (r + 2) % 3]
+            a[k] = ia
+            b[k] = ib
+            repeated = repeated | int(ia == v) | int(ib == v)
+            code = codes[f]
+            signs = signs & code
+            counts += _spread_bits6((code >> (6 + 6 * r)) & 63)
+        else:  # past d: a[k] = b[k] = -1 - k, fixed points of no index (see _one_to_one8)
+            a[k] = -1 - k
+            b[k] = -1 - k
+    flag = wp.int8(0)
+    if d >= 3 and repeated == 0:
+        if _winds_once(signs, counts, 0) or _winds_once(signs, counts, 1) or _winds_once(signs, counts, 2):
+            if _one_to_one8(a, b):
+                flag = wp.int8(1)
+    for k in range(8):
+        if k < d:
+            certified[3 * fs[k] + rs[k]] = flag
+    if with_partners == 0:
+        return
+    for k in range(8):
+        if k < d:
+            l = int(0)
+            back = int(0)
+            same = int(0)
+            for m in range(8):
+                l += m * int(b[m] == a[k])
+                back += int(b[m] == a[k])
+                same += int(a[m] == a[k])
+            across = int(-1)
+            if back == 1 and same == 1:
+                across = fs[l]
+            partners[3 * fs[k] + rs[k]] = across
+
+
 @wp.kernel
 def certify_umbrellas_kernel(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.int32),
                              starts: wp.array(dtype=wp.int32), corners: wp.array(dtype=wp.int32), first: int,
@@ -1187,49 +1247,16 @@ def certify_umbrellas_kernel(codes: wp.array(dtype=wp.int32), tris: wp.array(dty
         hi = starts[v + 1]
     if hi == lo:
         return
+    if hi - lo <= 8:
+        _umbrella_of_up_to_8(codes, tris, corners, v, lo, hi - lo, with_partners, certified, partners)
+        return
     flag = wp.int8(0)
     if umbrella_certified(codes, tris, corners, v, lo, hi - lo):
         flag = wp.int8(1)
     for k in range(lo, hi):
         certified[corners[k]] = flag
-    if with_partners == 0:
-        return
-    if hi - lo > 8:
+    if with_partners != 0:
         _pair_wide_umbrella(tris, corners, lo, hi, partners)
-        return
-    # face k's edge v -> a_k is reversed in face l when e_l = a_k; named when that face is
-    # the only one, and face k the only one with v -> a_k (each corner's entry is written
-    # by its vertex's thread only)
-    d = hi - lo
-    fs = umbrella_ids8()
-    rs = umbrella_ids8()
-    a = umbrella_ids8()
-    e = umbrella_ids8()
-    for k in range(8):
-        if k < d:
-            c = corners[lo + k]
-            f = c / 3
-            r = c - 3 * f
-            fs[k] = f
-            rs[k] = r
-            a[k] = tris[3 * f + (r + 1) % 3]
-            e[k] = tris[3 * f + (r + 2) % 3]
-        else:
-            a[k] = -1 - k
-            e[k] = -2 - k
-    for k in range(8):
-        if k < d:
-            l = int(0)
-            back = int(0)
-            same = int(0)
-            for m in range(8):
-                l += m * int(e[m] == a[k])
-                back += int(e[m] == a[k])
-                same += int(a[m] == a[k])
-            across = int(-1)
-            if back == 1 and same == 1:
-                across = fs[l]
-            partners[3 * fs[k] + rs[k]] = across
 
 
 @wp.func
