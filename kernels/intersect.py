@@ -1606,7 +1606,9 @@ def cell_reach_kernel(first: int, starts: wp.array(dtype=wp.int32), cells: wp.ar
 
 #: the block sizes tried, as shifts (blocks of 2^shift cells per axis), largest first: a
 #: block that fails is tried again as its eight halves (:func:`certify_blocks_kernel`)
-BLOCK_SHIFTS = (5, 4, 3)
+BLOCK_SHIFT_TOP = 5
+BLOCK_LEVELS = 3
+BLOCK_SHIFTS = tuple(BLOCK_SHIFT_TOP - i for i in range(BLOCK_LEVELS))
 #: ``cell_reach`` >> LEVEL_BIT (3 bits): the shift of the cell's certified block, 0 if none
 LEVEL_BIT = wp.constant(3)
 
@@ -1617,27 +1619,21 @@ LOOP_CAP_PER_CELL = 16
 
 
 @wp.kernel
-def block_heads_kernel(first: int, cells: wp.array(dtype=wp.vec3i), shift: int, heads: wp.array(dtype=wp.int32)):
+def block_heads_kernel(first: int, cells: wp.array(dtype=wp.vec3i), heads: wp.array(dtype=wp.int8)):
     """One thread per occupied cell c = first + tid (in Morton order, so the cells of a block
-    of 2^shift per axis are consecutive): 1 when c is its block's first, else 0."""
+    of 2^shift per axis are consecutive): bit i set when c is the first of its block for
+    the shift ``BLOCK_SHIFTS[i]``."""
     c = first + wp.tid()
-    head = int(1)
+    bits = int(7)
     if c > 0:
         p = cells[c]
         q = cells[c - 1]
-        if p[0] >> shift == q[0] >> shift and p[1] >> shift == q[1] >> shift and p[2] >> shift == q[2] >> shift:
-            head = 0
-    heads[c] = head
-
-
-@wp.kernel
-def block_firsts_kernel(first: int, heads: wp.array(dtype=wp.int32), block_of: wp.array(dtype=wp.int32),
-                        firsts: wp.array(dtype=wp.int32)):
-    """One thread per occupied cell c = first + tid that starts a block (``block_of``: the
-    inclusive scan of the heads): the block's first cell."""
-    c = first + wp.tid()
-    if heads[c] != 0:
-        firsts[block_of[c] - 1] = c
+        bits = 0
+        for i in range(BLOCK_LEVELS):
+            shift = BLOCK_SHIFT_TOP - i
+            if p[0] >> shift != q[0] >> shift or p[1] >> shift != q[1] >> shift or p[2] >> shift != q[2] >> shift:
+                bits = bits | (1 << i)
+    heads[c] = wp.int8(bits)
 
 
 @wp.func
@@ -1713,17 +1709,67 @@ def _star_loop(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
 
 
 @wp.func
+def _projected(points: wp.array(dtype=wp.vec3d), v: int, i: int, j: int) -> wp.vec3d:
+    """Point v's coordinates i and j as the first two of a vector (the third 0)."""
+    x = points[v]
+    return wp.vec3d(x[i], x[j], wp.float64(0.0))
+
+
+#: edges per run of :func:`_simple_loop`'s box screen
+LOOP_RUN = 16
+
+
+@wp.func
+def _loop_edge_clear(points: wp.array(dtype=wp.vec3d), ids: wp.array(dtype=wp.vec2i), nexts: wp.array(dtype=wp.int32),
+                     e: int, e0: int, e1: int, i: int, j: int) -> bool:
+    """Edge e against the edges [e0, e1) of :func:`_simple_loop` (coordinates i, j): False
+    when two leave or enter one vertex, when consecutive ones (recorded in ``nexts``)
+    meet other than at their common end, or when others are not certified apart."""
+    p = ids[e]
+    a = _projected(points, p[0], i, j)
+    b = _projected(points, p[1], i, j)
+    lo_x = wp.min(a[0], b[0])
+    hi_x = wp.max(a[0], b[0])
+    lo_y = wp.min(a[1], b[1])
+    hi_y = wp.max(a[1], b[1])
+    for e2 in range(e0, e1):
+        q = ids[e2]
+        if p[0] == q[0] or p[1] == q[1]:
+            return False  # two edges leave (or enter) one vertex
+        if p[1] == q[0]:  # e then e2
+            nexts[e] = e2
+            c = _projected(points, q[1], i, j)
+            if not _adjacent_edges_meet_once(a[0], a[1], b[0], b[1], c[0], c[1]):
+                return False
+        elif q[1] == p[0]:  # e2 then e
+            nexts[e2] = e
+            c = _projected(points, q[0], i, j)
+            if not _adjacent_edges_meet_once(c[0], c[1], a[0], a[1], b[0], b[1]):
+                return False
+        else:
+            c = _projected(points, q[0], i, j)
+            d = _projected(points, q[1], i, j)
+            if not (wp.max(c[0], d[0]) < lo_x or wp.min(c[0], d[0]) > hi_x or wp.max(c[1], d[1]) < lo_y
+                    or wp.min(c[1], d[1]) > hi_y):
+                if not _segments_apart(a, b, c, d):
+                    return False
+    return True
+
+
+@wp.func
 def _simple_loop(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), degenerate: wp.array(dtype=wp.int32),
                  open_edges: wp.array(dtype=wp.int8), f0: int, f1: int, k: int, n: int, ids: wp.array(dtype=wp.vec2i),
-                 segments: wp.array(dtype=wp.vec4d), nexts: wp.array(dtype=wp.int32), base: int) -> bool:
+                 nexts: wp.array(dtype=wp.int32), base: int, runs: wp.array(dtype=wp.vec4d), run_base: int) -> bool:
     """Whether the n unpaired edges of the faces at [f0, f1), projected as in
     :func:`_star_loop`, form one closed loop whose projection is a simple polygon: no
     vertex is the tail (or the head) of two of them, each edge's successor is the one
     whose tail is its head, following successors from the first edge meets all n before
     coming back, consecutive segments have only their common end in common
     (:func:`_adjacent_edges_meet_once`) and any other two are certified disjoint
-    (:func:`_segments_apart`). The edges are written to ``ids``, ``segments`` and
-    ``nexts`` from ``base`` on (scratch: n at most the block's ``LOOP_CAP_PER_CELL << shift``)."""
+    (:func:`_segments_apart`). The edges' ends are written to ``ids``, their successors
+    to ``nexts``, from ``base`` on, and the boxes of runs of ``LOOP_RUN`` of them to
+    ``runs`` from ``run_base`` on (scratch: n at most the block's ``LOOP_CAP_PER_CELL <<
+    shift``)."""
     i = (k / 2 + 1) % 3
     j = (k / 2 + 2) % 3
     if k % 2 == 1:
@@ -1735,38 +1781,31 @@ def _simple_loop(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32
             continue
         for r in range(3):
             if (int(open_edges[s]) >> r) & 1 != 0:
-                u = tris[3 * s + r]
-                v = tris[3 * s + (r + 1) % 3]
-                x = points[u]
-                y = points[v]
-                ids[e] = wp.vec2i(u, v)
-                segments[e] = wp.vec4d(x[i], x[j], y[i], y[j])
+                ids[e] = wp.vec2i(tris[3 * s + r], tris[3 * s + (r + 1) % 3])
                 nexts[e] = -1
                 e += 1
-    for e in range(base, base + n):
-        p = ids[e]
-        a = segments[e]
-        lo_x = wp.min(a[0], a[2])
-        hi_x = wp.max(a[0], a[2])
-        lo_y = wp.min(a[1], a[3])
-        hi_y = wp.max(a[1], a[3])
-        for e2 in range(e + 1, base + n):
-            q = ids[e2]
-            b = segments[e2]
-            if p[0] == q[0] or p[1] == q[1]:
-                return False  # two edges leave (or enter) one vertex
-            if p[1] == q[0]:  # e then e2
-                nexts[e] = e2
-                if not _adjacent_edges_meet_once(a[0], a[1], a[2], a[3], b[2], b[3]):
-                    return False
-            elif q[1] == p[0]:  # e2 then e
-                nexts[e2] = e
-                if not _adjacent_edges_meet_once(b[0], b[1], b[2], b[3], a[2], a[3]):
-                    return False
-            elif not (wp.max(b[0], b[2]) < lo_x or wp.min(b[0], b[2]) > hi_x or wp.max(b[1], b[3]) < lo_y
-                      or wp.min(b[1], b[3]) > hi_y):
-                if not _segments_apart(wp.vec3d(a[0], a[1], wp.float64(0.0)), wp.vec3d(a[2], a[3], wp.float64(0.0)),
-                                       wp.vec3d(b[0], b[1], wp.float64(0.0)), wp.vec3d(b[2], b[3], wp.float64(0.0))):
+    # runs of LOOP_RUN edges in the faces' (Morton) order are compact: their boxes screen
+    # the pairs (two segments that meet lie in two boxes that meet)
+    n_runs = (n + LOOP_RUN - 1) / LOOP_RUN
+    for t in range(n_runs):
+        lo = wp.vec2d(wp.float64(1.0e300), wp.float64(1.0e300))
+        hi = wp.vec2d(wp.float64(-1.0e300), wp.float64(-1.0e300))
+        for e in range(base + t * LOOP_RUN, wp.min(base + n, base + (t + 1) * LOOP_RUN)):
+            p = ids[e]
+            a = _projected(points, p[0], i, j)
+            b = _projected(points, p[1], i, j)
+            lo = wp.vec2d(wp.min(lo[0], wp.min(a[0], b[0])), wp.min(lo[1], wp.min(a[1], b[1])))
+            hi = wp.vec2d(wp.max(hi[0], wp.max(a[0], b[0])), wp.max(hi[1], wp.max(a[1], b[1])))
+        runs[run_base + t] = wp.vec4d(lo[0], lo[1], hi[0], hi[1])
+    for t in range(n_runs):
+        box = runs[run_base + t]
+        for t2 in range(t, n_runs):
+            box2 = runs[run_base + t2]
+            if box2[0] > box[2] or box[0] > box2[2] or box2[1] > box[3] or box[1] > box2[3]:
+                continue
+            for e in range(base + t * LOOP_RUN, wp.min(base + n, base + (t + 1) * LOOP_RUN)):
+                if not _loop_edge_clear(points, ids, nexts, e, wp.max(e + 1, base + t2 * LOOP_RUN),
+                                        wp.min(base + n, base + (t2 + 1) * LOOP_RUN), i, j):
                     return False
     e = base
     for step in range(1, n + 1):
@@ -1780,9 +1819,8 @@ def _simple_loop(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32
 def block_certified(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                     degenerate: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32),
                     partners: wp.array(dtype=wp.int32), f0: int, f1: int,
-                    open_edges: wp.array(dtype=wp.int8),
-                    ids: wp.array(dtype=wp.vec2i), segments: wp.array(dtype=wp.vec4d), nexts: wp.array(dtype=wp.int32),
-                    base: int, cap: int) -> bool:
+                    open_edges: wp.array(dtype=wp.int8), ids: wp.array(dtype=wp.vec2i),
+                    nexts: wp.array(dtype=wp.int32), runs: wp.array(dtype=wp.vec4d), base: int, cap: int) -> bool:
     """Whether no two faces at sorted positions [f0, f1) (a block's) meet other than in
     what they share (a vertex or an edge, by index), certified from those faces alone
     (and which faces hold each of their edges), so that the grid walk can skip every pair
@@ -1857,7 +1895,8 @@ def block_certified(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.in
                 first = k
     if n > cap:
         return False
-    return _simple_loop(points, tris, degenerate, open_edges, f0, f1, first, n, ids, segments, nexts, base)
+    return _simple_loop(points, tris, degenerate, open_edges, f0, f1, first, n, ids, nexts, base, runs,
+                        base / LOOP_RUN)
 
 
 @wp.kernel
@@ -1866,7 +1905,7 @@ def certify_blocks_kernel(first: int, firsts: wp.array(dtype=wp.int32), starts: 
                           degenerate: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32),
                           partners: wp.array(dtype=wp.int32),
                           open_edges: wp.array(dtype=wp.int8), ids: wp.array(dtype=wp.vec2i),
-                          segments: wp.array(dtype=wp.vec4d), nexts: wp.array(dtype=wp.int32),
+                          nexts: wp.array(dtype=wp.int32), runs: wp.array(dtype=wp.vec4d),
                           reach: wp.array(dtype=wp.int32)):
     """One thread per block b = first + tid of 2^shift cells per axis (its cells from
     ``firsts[b]`` to the next block's first, its faces from the first cell's start to the
@@ -1885,8 +1924,8 @@ def certify_blocks_kernel(first: int, firsts: wp.array(dtype=wp.int32), starts: 
     if c1 < n_cells:
         f1 = starts[c1]
     cap = LOOP_CAP_PER_CELL << shift
-    if block_certified(points, tris, degenerate, codes, partners, starts[c0], f1, open_edges, ids, segments,
-                       nexts, b * cap, cap):
+    if block_certified(points, tris, degenerate, codes, partners, starts[c0], f1, open_edges, ids, nexts,
+                       runs, b * cap, cap):
         for c in range(c0, c1):
             reach[c] = reach[c] | (shift << LEVEL_BIT)
 

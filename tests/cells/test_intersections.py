@@ -1016,7 +1016,8 @@ def _one_block_level(pts, tris, shift: int = 5) -> int:
     wmi._umbrella_flags(codes, tris32, len(pts), dev, True, 1, partners)
     cap = wmi.K.LOOP_CAP_PER_CELL << shift
     scratch = [wp.empty(len(tris), dtype=wp.int8, device=dev)]
-    scratch += [wp.empty(cap, dtype=dtype, device=dev) for dtype in (wp.vec2i, wp.vec4d, wp.int32)]
+    scratch += [wp.empty(cap, dtype=dtype, device=dev) for dtype in (wp.vec2i, wp.int32)]
+    scratch.append(wp.empty(cap // wmi.K.LOOP_RUN, dtype=wp.vec4d, device=dev))
     reach = wp.zeros(1, dtype=wp.int32, device=dev)
     one = wp.zeros(1, dtype=wp.int32, device=dev)
     wp.launch(wmi.K.certify_blocks_kernel, dim=1,

@@ -1247,21 +1247,20 @@ def _certify_blocks(cells: wp.array, starts: wp.array, points64: wp.array, tris3
     (:func:`~warpmesh.kernels.intersect.block_certified`) get their size in ``reach``
     (bits ``K.LEVEL_BIT``: blocks of 2^shift cells per axis): the walk skips the pairs
     inside them. Tried for each shift of ``K.BLOCK_SHIFTS``, largest first, in the blocks
-    not inside a certified one. The cells of a block are consecutive (Morton order):
-    heads, scan, firsts, then one thread per block."""
+    not inside a certified one. The cells of a block are consecutive (Morton order): a
+    pass marks the first cell of each block of each size, then one thread per block."""
     n_cells = cells.shape[0]
     m = degenerate.shape[0]
-    heads = device_empty(n_cells, wp.int32, device)
-    block_of = device_empty(n_cells, wp.int32, device)
+    heads = device_empty(n_cells, wp.int8, device)
+    _each(K.block_heads_kernel, n_cells, [cells], [heads], device, n_workers)
+    heads = heads.numpy()  # sync point (a view on the CPU)
     open_edges = device_empty(m, wp.int8, device)  # each face's unpaired edges, by its block
-    for shift in K.BLOCK_SHIFTS:
-        _each(K.block_heads_kernel, n_cells, [cells, shift], [heads], device, n_workers)
-        wp.utils.array_scan(heads, block_of, inclusive=True)
-        n_blocks = int(block_of[n_cells - 1:].numpy()[0])  # sync point: the number of blocks
-        firsts = device_empty(n_blocks, wp.int32, device)
-        _each(K.block_firsts_kernel, n_cells, [heads, block_of], [firsts], device, n_workers)
+    for i, shift in enumerate(K.BLOCK_SHIFTS):
+        firsts = wp.array(np.flatnonzero(heads & (1 << i)).astype(np.int32), dtype=wp.int32, device=device)
+        n_blocks = firsts.shape[0]
         cap = K.LOOP_CAP_PER_CELL << shift
-        scratch = [device_empty(n_blocks * cap, dtype, device) for dtype in (wp.vec2i, wp.vec4d, wp.int32)]
+        scratch = [device_empty(n_blocks * cap, dtype, device) for dtype in (wp.vec2i, wp.int32)]
+        scratch.append(device_empty(n_blocks * cap // K.LOOP_RUN, wp.vec4d, device))
         inputs = [firsts, starts, shift, points64, tris32, degenerate, codes, partners]
         _split(n_blocks, m, device, n_workers)(  # split by faces: blocks are few
             lambda a, b: wp.launch(K.certify_blocks_kernel, dim=b - a, inputs=[a, *inputs],
