@@ -1606,8 +1606,8 @@ def cell_reach_kernel(first: int, starts: wp.array(dtype=wp.int32), cells: wp.ar
 
 #: the block sizes tried, as shifts (blocks of 2^shift cells per axis), largest first: a
 #: block that fails is tried again as its eight halves (:func:`certify_blocks_kernel`)
-BLOCK_SHIFT_TOP = 5
-BLOCK_LEVELS = 3
+BLOCK_SHIFT_TOP = 6
+BLOCK_LEVELS = 4
 BLOCK_SHIFTS = tuple(BLOCK_SHIFT_TOP - i for i in range(BLOCK_LEVELS))
 #: ``cell_reach`` >> LEVEL_BIT (3 bits): the shift of the cell's certified block, 0 if none
 LEVEL_BIT = wp.constant(3)

@@ -32,7 +32,7 @@ validity checks run this geometric one too. The pipeline (kernels in
    cells, a slot for each used block) maps cell coordinates to cells; each cell keeps
    the axes along which its faces reach the next cell up (``cell_reach``). Then the
    block certificate (:func:`_certify_blocks`,
-   :func:`~warpmesh.kernels.intersect.block_certified`): blocks of 32, then 16, then 8
+   :func:`~warpmesh.kernels.intersect.block_certified`): blocks of 64, 32, 16, then 8
    cells per axis (consecutive cells in Morton order), one thread each, certified when
    their faces keep one strict orientation in some coordinate projection and the edges
    not paired inside the block project to a simple polygon (every edge turning strictly
