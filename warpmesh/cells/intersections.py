@@ -65,17 +65,23 @@ validity checks run this geometric one too. The pipeline (kernels in
    (count -> scan -> allocate -> write).
 
 Stop 51, the block certificate (``--cases part,ball --resolution 512 --repeat 5``, 2
-workers, wall s, load 1.2-1.4): the ball's check 0.318 -> 0.263 (0.81 -> 0.68x its
-meshing), the part's 0.251 -> 0.21-0.24 (0.46 -> 0.39-0.42x). On the ball 99 % of the
-faces lie in certified blocks (a sixth of the blocks at 8^3 need the pair-by-pair
-polygon test: the star test fails on the zigzags of their boundaries), the part 94 %;
-the walk 0.155 -> 0.030 wall, for 0.04 of block certificate and 0.025 of pairing in
-the umbrella pass. Profile of the ball after it (wall s): prepare 0.019, order 0.051,
-faces 0.029, umbrellas (with the pairing) 0.092, cells (with the blocks) 0.062, walk
-0.030. Tried: blocks of 8^3 only (walk 0.065), 16^3 only (0.038), 32^3 only (0.024,
-but the part's certified share falls to 72 %): hence the three sizes; the pairing
-checked both ways in the block kernel (``partners`` names back) instead of made a
-property of the edge in the umbrella pass: slower.
+workers, stop 50's code (60ec228, installed in a venv of its own) and this one run
+alternately, twice each, load about 1.1): the ball's check 0.332 / 0.333 -> 0.264 /
+0.324 s wall, 0.606 / 0.620 -> 0.456 / 0.512 CPU s (0.81 / 0.78 -> 0.66 / 0.71x its
+meshing's wall time); the part's 0.290 / 0.286 -> 0.202 / 0.238 wall, 0.544 / 0.532 ->
+0.365 / 0.402 CPU (0.53 / 0.50 -> 0.36 / 0.39x). Of the ball's occupied cells 99.95 % lie
+in certified blocks (most at 64^3), of the part's 94 %. Profile of the ball (wall s,
+stop 50 -> 51): walk 0.155 -> 0.014, cells 0.021 -> 0.050 (the blocks' 0.03: a pass over
+the faces, the star test, the pair-by-pair polygon test where that fails), umbrellas
+0.063 -> 0.072 (the pairing, made in the same read of each vertex's faces). Tried:
+blocks of one size, 8^3 (walk 0.065), 16^3 (0.038), 32^3 (0.024, but the part's
+certified share falls to 72 %): hence the sizes tried largest first; the simple-polygon
+test pair by pair without the run boxes (the ball's blocks 48 -> 32 ms with them), with
+float64 segments in the scratch (44 bytes an edge: fresh pages, 25-78 ms on the part
+from one call to the next, against 21-24 ms with 12 bytes); the pairing made at
+certified vertices only, then at both ends (no block of an open surface could be
+certified: its boundary vertices are never certified); the umbrella's permutation test
+and the pairing's counts in one 8 x 8 loop (no faster: the pass is memory bound).
 
 Where the time goes (:func:`profile_self_intersections`, ``workers=1``, CPU s, medians
 of 5, load about 1; the bundled part at resolution 512, 1.5 M triangles with large
