@@ -125,7 +125,8 @@ about 1, wall s with 2 workers before (f5c4c9b) / after, and after / meshing wal
 Seventh round (2026-12-05, stop 51: the block certificate, blocks of grid cells whose pairs the walk
 skips), ``--cases part,ball --resolution 512 --repeat 5``, stop 50's code in a venv of its own and this
 one run alternately, load about 1.1, wall s with 2 workers before / after, and after / meshing wall:
-part 0.290, 0.286 / 0.202, 0.238 (0.36x, 0.39x), ball 0.332, 0.333 / 0.264, 0.324 (0.66x, 0.71x).
+part 0.290, 0.286 / 0.202, 0.238 (0.36x, 0.39x), ball 0.332, 0.333 / 0.264, 0.324 (0.66x, 0.71x); at
+1024 (``--repeat 2``, after): part 0.773 s, 0.35x; ball 0.937 s, 0.64x.
 
 Tetrahedra (2026-12-03, commit 3926e0f + find_tet_overlaps, load 2.5, ``--cases part-tets
 --repeat 3``): 1,031,312 tetrahedra, find_tet_overlaps 0.50 CPU s (0.75 s wall) against the
