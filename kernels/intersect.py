@@ -575,6 +575,11 @@ def classify_faces_kernel(first: int, points: wp.array(dtype=wp.vec3d), tris: wp
     codes[f] = code
 
 
+#: the bit where a face code's signs by a margin (:func:`orient2d_margin`) begin, laid out
+#: as its exact ones (bits 0-5)
+MARGIN_SIGNS = wp.constant(24)
+
+
 @wp.func
 def classify_face(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32), f: int):
     """Face f's degenerate flag and umbrella code (:func:`classify_faces_kernel`)."""
@@ -590,6 +595,11 @@ def classify_face(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int3
                 code = code | (1 << (2 * k))
             if o < 0:
                 code = code | (2 << (2 * k))
+            om = orient2d_margin(t[0], t[1], t[2], (k + 1) % 3, (k + 2) % 3)
+            if om > 0:
+                code = code | (1 << (MARGIN_SIGNS + 2 * k))
+            if om < 0:
+                code = code | (2 << (MARGIN_SIGNS + 2 * k))
     code = code | (_crossing_bits(t[0], t[1], t[2]) << 6) | (_crossing_bits(t[1], t[2], t[0]) << 12)
     return flag, code | (_crossing_bits(t[2], t[0], t[1]) << 18)
 
@@ -1145,7 +1155,8 @@ def umbrella_certified(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.
 def _pair_wide_umbrella(tris: wp.array(dtype=wp.int32), corners: wp.array(dtype=wp.int32), lo: int, hi: int,
                         partners: wp.array(dtype=wp.int32)):
     """The partners of :func:`certify_umbrellas_kernel` for a vertex of more than 8 faces:
-    the same with loops over its faces; none past ``UMBRELLA_CAP``."""
+    the same with loops over its faces, however many (past ``UMBRELLA_CAP`` too: the
+    pairing is a property of the edge, which the other end's thread decides alike)."""
     for k in range(lo, hi):
         c = corners[k]
         f = c / 3
@@ -1153,15 +1164,14 @@ def _pair_wide_umbrella(tris: wp.array(dtype=wp.int32), corners: wp.array(dtype=
         across = int(-1)
         back = int(0)
         same = int(0)
-        if hi - lo <= UMBRELLA_CAP:
-            for l in range(lo, hi):
-                c2 = corners[l]
-                g = c2 / 3
-                if tris[3 * g + (c2 - 3 * g + 2) % 3] == ia:
-                    across = g
-                    back += 1
-                if tris[3 * g + (c2 - 3 * g + 1) % 3] == ia:
-                    same += 1
+        for l in range(lo, hi):
+            c2 = corners[l]
+            g = c2 / 3
+            if tris[3 * g + (c2 - 3 * g + 2) % 3] == ia:
+                across = g
+                back += 1
+            if tris[3 * g + (c2 - 3 * g + 1) % 3] == ia:
+                same += 1
         if back != 1 or same != 1:
             across = -1
         partners[c] = across
@@ -1624,7 +1634,7 @@ def block_heads_kernel(first: int, cells: wp.array(dtype=wp.vec3i), heads: wp.ar
     of 2^shift per axis are consecutive): bit i set when c is the first of its block for
     the shift ``BLOCK_SHIFTS[i]``."""
     c = first + wp.tid()
-    bits = int(7)
+    bits = (1 << BLOCK_LEVELS) - 1
     if c > 0:
         p = cells[c]
         q = cells[c - 1]
@@ -1651,31 +1661,40 @@ def edge_paired(degenerate: wp.array(dtype=wp.int32), partners: wp.array(dtype=w
     return degenerate[g] == 0
 
 
+#: two coordinates differ "by a margin" when by more than this: 2 ``INPUT_TOL`` (each may move
+#: by ``INPUT_TOL``)
+APART = wp.constant(wp.float64(2.0**-47))
+
+
 @wp.func
 def _adjacent_edges_meet_once(ax: wp.float64, ay: wp.float64, bx: wp.float64, by: wp.float64, cx: wp.float64,
                               cy: wp.float64) -> bool:
-    """Whether the segments [a, b] and [b, c] have only b in common: a, b, c certified not
-    collinear, or strictly monotone along x or along y (then every other point of [a, b]
-    has that coordinate on one side of b's and every other point of [b, c] on the other)."""
-    if (ax < bx and bx < cx) or (ax > bx and bx > cx) or (ay < by and by < cy) or (ay > by and by > cy):
+    """Whether the segments [a, b] and [b, c] have only b in common, for every move of the
+    points within ``INPUT_TOL``: a, b, c certified not collinear by a margin
+    (:func:`orient2d_margin`), or strictly monotone along x or along y by more than
+    ``APART`` a step (then every other point of [a, b] has that coordinate on one side
+    of b's and every other point of [b, c] on the other)."""
+    if ((bx - ax > APART and cx - bx > APART) or (ax - bx > APART and bx - cx > APART)
+            or (by - ay > APART and cy - by > APART) or (ay - by > APART and by - cy > APART)):
         return True
-    return orient2d(wp.vec3d(ax, ay, wp.float64(0.0)), wp.vec3d(bx, by, wp.float64(0.0)),
-                    wp.vec3d(cx, cy, wp.float64(0.0)), 0, 1) != 0
+    return orient2d_margin(wp.vec3d(ax, ay, wp.float64(0.0)), wp.vec3d(bx, by, wp.float64(0.0)),
+                           wp.vec3d(cx, cy, wp.float64(0.0)), 0, 1) != 0
 
 
 @wp.func
 def _segments_apart(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, d: wp.vec3d) -> bool:
     """Whether the closed segments [a, b] and [c, d] (coordinates 0 and 1) are certified
-    disjoint: their boxes apart (exact comparisons), or one's two ends strictly on one side
-    of the other's line (filtered signs; 0, unknown, proves nothing)."""
-    if (wp.max(a[0], b[0]) < wp.min(c[0], d[0]) or wp.max(c[0], d[0]) < wp.min(a[0], b[0])
-            or wp.max(a[1], b[1]) < wp.min(c[1], d[1]) or wp.max(c[1], d[1]) < wp.min(a[1], b[1])):
+    disjoint for every move of the points within ``INPUT_TOL``: their boxes apart by more
+    than ``APART``, or one's two ends on one side of the other's line by a margin
+    (:func:`orient2d_margin`; 0, unknown, proves nothing)."""
+    if (wp.min(c[0], d[0]) - wp.max(a[0], b[0]) > APART or wp.min(a[0], b[0]) - wp.max(c[0], d[0]) > APART
+            or wp.min(c[1], d[1]) - wp.max(a[1], b[1]) > APART or wp.min(a[1], b[1]) - wp.max(c[1], d[1]) > APART):
         return True
-    o1 = orient2d(a, b, c, 0, 1)
-    if o1 != 0 and o1 == orient2d(a, b, d, 0, 1):
+    o1 = orient2d_margin(a, b, c, 0, 1)
+    if o1 != 0 and o1 == orient2d_margin(a, b, d, 0, 1):
         return True
-    o3 = orient2d(c, d, a, 0, 1)
-    return o3 != 0 and o3 == orient2d(c, d, b, 0, 1)
+    o3 = orient2d_margin(c, d, a, 0, 1)
+    return o3 != 0 and o3 == orient2d_margin(c, d, b, 0, 1)
 
 
 @wp.func
@@ -1701,7 +1720,7 @@ def _star_loop(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                 y = points[tris[3 * s + (r + 1) % 3]]
                 a = wp.vec3d(x[i], x[j], wp.float64(0.0))
                 b = wp.vec3d(y[i], y[j], wp.float64(0.0))
-                if orient2d(o, a, b, 0, 1) <= 0:
+                if orient2d_margin(o, a, b, 0, 1) <= 0:
                     return False
                 if a[1] < o[1] and o[1] <= b[1]:
                     crossings += 1
@@ -1820,7 +1839,8 @@ def block_certified(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.in
                     degenerate: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32),
                     partners: wp.array(dtype=wp.int32), f0: int, f1: int,
                     open_edges: wp.array(dtype=wp.int8), ids: wp.array(dtype=wp.vec2i),
-                    nexts: wp.array(dtype=wp.int32), runs: wp.array(dtype=wp.vec4d), base: int, cap: int) -> bool:
+                    nexts: wp.array(dtype=wp.int32), runs: wp.array(dtype=wp.vec4d), base: int, run_base: int,
+                    cap: int) -> bool:
     """Whether no two faces at sorted positions [f0, f1) (a block's) meet other than in
     what they share (a vertex or an edge, by index), certified from those faces alone
     (and which faces hold each of their edges), so that the grid walk can skip every pair
@@ -1829,12 +1849,14 @@ def block_certified(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.in
     Certified when:
 
     1. some projection dropping a coordinate has every face of P strictly of one
-       orientation (bit k of the faces' codes, :func:`classify_face`: exact signs), made
-       positive by reading the two kept coordinates in the right order (:func:`_star_loop`);
+       orientation by a margin (bit k of the faces' codes from ``MARGIN_SIGNS``,
+       :func:`classify_face`), made positive by reading the two kept coordinates in the
+       right order (:func:`_star_loop`);
     2. E, the edges of P's faces that are not *paired* (:func:`edge_paired`: the face
-       across is the only one with the reversed edge, in the block and not degenerate;
-       pairing matches edges with their reverses one to one) is, projected, a simple
-       closed polygon:
+       across is the only one with the reversed edge, in the block and not degenerate,
+       decided alike from either end of the edge, whatever its number of faces; pairing
+       matches edges with their reverses one to one) is, projected, a simple closed
+       polygon:
        either every edge of E turns strictly counter-clockwise about the mean of E's tails
        and the ray from it crosses E upwards once (:func:`_star_loop`: E is a closed
        chain, as the sum of the faces' boundaries less the pairs that cancel; each of
@@ -1867,14 +1889,20 @@ def block_certified(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.in
     positive wedges, which cover a neighbourhood of y (winding at least once), and g's
     sector at y overlaps them; so v is a vertex of the polygon, and so is w: two
     vertices of a simple polygon at one point, which it is not. So f and g meet only in
-    what they share. Filtered signs of 0 fail the conditions."""
+    what they share. Filtered signs of 0 fail the conditions.
+
+    Every sign and comparison here holds by a margin (:func:`orient2d_margin`, ``APART``):
+    for every move of the points within ``INPUT_TOL``, as the predicate's certificates of
+    separation are made (:func:`pair_intersects`), so a pair that it reports as touching
+    within rounding is never inside a certified block (exact signs certified a fan with
+    a slit 2^-50 wide, whose two sides every pair reports)."""
     signs = int(63)
     n = int(0)
     sums = wp.vec3d()
     for s in range(f0, f1):
         if degenerate[s] != 0:
             continue
-        signs = signs & codes[s]
+        signs = signs & (codes[s] >> MARGIN_SIGNS)
         if signs & 63 == 0:
             return False
         bits = int(0)
@@ -1895,15 +1923,14 @@ def block_certified(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.in
                 first = k
     if n > cap:
         return False
-    return _simple_loop(points, tris, degenerate, open_edges, f0, f1, first, n, ids, nexts, base, runs,
-                        base / LOOP_RUN)
+    return _simple_loop(points, tris, degenerate, open_edges, f0, f1, first, n, ids, nexts, base, runs, run_base)
 
 
 @wp.kernel
 def certify_blocks_kernel(first: int, firsts: wp.array(dtype=wp.int32), starts: wp.array(dtype=wp.int32), shift: int,
-                          points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
-                          degenerate: wp.array(dtype=wp.int32), codes: wp.array(dtype=wp.int32),
-                          partners: wp.array(dtype=wp.int32),
+                          bases: wp.array(dtype=wp.vec2i), points: wp.array(dtype=wp.vec3d),
+                          tris: wp.array(dtype=wp.int32), degenerate: wp.array(dtype=wp.int32),
+                          codes: wp.array(dtype=wp.int32), partners: wp.array(dtype=wp.int32),
                           open_edges: wp.array(dtype=wp.int8), ids: wp.array(dtype=wp.vec2i),
                           nexts: wp.array(dtype=wp.int32), runs: wp.array(dtype=wp.vec4d),
                           reach: wp.array(dtype=wp.int32)):
@@ -1911,7 +1938,9 @@ def certify_blocks_kernel(first: int, firsts: wp.array(dtype=wp.int32), starts: 
     ``firsts[b]`` to the next block's first, its faces from the first cell's start to the
     next block's): the shift written in the bits ``LEVEL_BIT`` of ``reach`` of each of its
     cells when :func:`block_certified`. A block inside a larger certified one (its first
-    cell has a level already) is skipped."""
+    cell has a level already) is skipped. Its scratch: ``ids`` and ``nexts`` from
+    ``bases[b][0]`` (room for the smaller of ``LOOP_CAP_PER_CELL << shift`` and 3 edges a
+    face), ``runs`` from ``bases[b][1]`` (one per ``LOOP_RUN`` of those)."""
     b = first + wp.tid()
     n_cells = starts.shape[0]
     c0 = firsts[b]
@@ -1923,9 +1952,9 @@ def certify_blocks_kernel(first: int, firsts: wp.array(dtype=wp.int32), starts: 
     f1 = degenerate.shape[0]
     if c1 < n_cells:
         f1 = starts[c1]
-    cap = LOOP_CAP_PER_CELL << shift
+    cap = wp.min(LOOP_CAP_PER_CELL << shift, 3 * (f1 - starts[c0]))
     if block_certified(points, tris, degenerate, codes, partners, starts[c0], f1, open_edges, ids, nexts,
-                       runs, b * cap, cap):
+                       runs, bases[b][0], bases[b][1], cap):
         for c in range(c0, c1):
             reach[c] = reach[c] | (shift << LEVEL_BIT)
 

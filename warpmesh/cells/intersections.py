@@ -1260,14 +1260,21 @@ def _certify_blocks(cells: wp.array, starts: wp.array, points64: wp.array, tris3
     heads = device_empty(n_cells, wp.int8, device)
     _each(K.block_heads_kernel, n_cells, [cells], [heads], device, n_workers)
     heads = heads.numpy()  # sync point (a view on the CPU)
+    face_starts = np.append(starts.numpy(), m)  # each cell's first face, then the end
     open_edges = device_empty(m, wp.int8, device)  # each face's unpaired edges, by its block
     for i, shift in enumerate(K.BLOCK_SHIFTS):
-        firsts = wp.array(np.flatnonzero(heads & (1 << i)).astype(np.int32), dtype=wp.int32, device=device)
-        n_blocks = firsts.shape[0]
-        cap = K.LOOP_CAP_PER_CELL << shift
-        scratch = [device_empty(n_blocks * cap, dtype, device) for dtype in (wp.vec2i, wp.int32)]
-        scratch.append(device_empty(n_blocks * cap // K.LOOP_RUN, wp.vec4d, device))
-        inputs = [firsts, starts, shift, points64, tris32, degenerate, codes, partners]
+        first_cells = np.flatnonzero(heads & (1 << i))
+        n_blocks = len(first_cells)
+        firsts = wp.array(first_cells.astype(np.int32), dtype=wp.int32, device=device)
+        # scratch: each block room for min(cap, 3 edges a face) edges, and their runs' boxes
+        n_faces = np.diff(face_starts[np.append(first_cells, n_cells)])
+        room = np.minimum(K.LOOP_CAP_PER_CELL << shift, 3 * n_faces)
+        runs = (room + K.LOOP_RUN - 1) // K.LOOP_RUN
+        bases = np.column_stack([np.cumsum(room) - room, np.cumsum(runs) - runs]).astype(np.int32)
+        scratch = [device_empty(max(1, int(room.sum())), dtype, device) for dtype in (wp.vec2i, wp.int32)]
+        scratch.append(device_empty(max(1, int(runs.sum())), wp.vec4d, device))
+        inputs = [firsts, starts, shift, wp.array(bases, dtype=wp.vec2i, device=device), points64, tris32, degenerate,
+                  codes, partners]
         _split(n_blocks, m, device, n_workers)(  # split by faces: blocks are few
             lambda a, b: wp.launch(K.certify_blocks_kernel, dim=b - a, inputs=[a, *inputs],
                                    outputs=[open_edges, *scratch, reach], device=device))
