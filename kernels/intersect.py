@@ -1702,8 +1702,9 @@ def _star_loop(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int32),
                open_edges: wp.array(dtype=wp.int8), f0: int, f1: int, centre: wp.vec3d, k: int) -> bool:
     """Whether the unpaired edges of the faces at [f0, f1), projected with coordinates (i, j)
     kept (k / 2 the dropped one; read in the order that makes the faces with sign bit k
-    of :func:`classify_face` positive), all turn strictly counter-clockwise about the
-    centre's projection and cross the ray from it along +i upwards once in all."""
+    of :func:`classify_face` positive), all turn counter-clockwise by a margin
+    (:func:`orient2d_margin`) about the centre's projection and cross the ray from it
+    along +i upwards once in all."""
     i = (k / 2 + 1) % 3
     j = (k / 2 + 2) % 3
     if k % 2 == 1:
