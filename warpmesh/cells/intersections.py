@@ -37,9 +37,12 @@ validity checks run this geometric one too. The pipeline (kernels in
    their faces keep one strict orientation in some coordinate projection and the edges
    not paired inside the block project to a simple polygon (every edge turning strictly
    counter-clockwise about their mean with one crossing of a ray from it, else tested
-   pair by pair); no two faces of such a block meet other than in what they share (the
-   proof is in its docstring), and each cell records the size of its certified block.
-   A block inside a certified larger one is not tried. The tree: a
+   pair by pair), every sign and comparison holding by a margin (``INPUT_TOL``, as the
+   predicate's certificates of separation: a pair it reports as touching within
+   rounding is never in a certified block); no two faces of such a block meet other
+   than in what they share (the proof is in its docstring), and each cell records the
+   size of its certified block. A block inside a certified larger one is not tried.
+   The tree: a
    complete binary tree over groups of ``GROUP`` = 16 consecutive faces (compact
    patches) in heap order, leaves padded to a power of two with empty boxes, nodes
    holding the union of their leaves' float32 boxes, built bottom up, one launch per
