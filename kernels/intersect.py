@@ -575,6 +575,36 @@ def classify_faces_kernel(first: int, points: wp.array(dtype=wp.vec3d), tris: wp
     codes[f] = code
 
 
+#: a bound on :func:`orient2d_margin`'s allowance for moves of the points for coordinates
+#: in [-1, 1] (the scaled points): 2 ``INPUT_TOL`` lin (1 + ``O2_BOUND``) + 8
+#: ``INPUT_TOL``^2 with lin, a sum of four differences, below 8: under 17 ``INPUT_TOL``
+FACE_MOVED = wp.constant(wp.float64(32.0 * 2.0**-48))
+
+
+@wp.func
+def _orient2d_and_margin(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, i: int, j: int) -> wp.vec2i:
+    """(:func:`orient2d`, a sign by a margin) of (a, b, c) on coordinates (i, j), from one
+    evaluation of the determinant; the second is :func:`orient2d_margin`'s with its
+    allowance for moves bounded by ``FACE_MOVED`` (points in [-1, 1]: never less
+    conservative)."""
+    acx = a[i] - c[i]
+    bcx = b[i] - c[i]
+    acy = a[j] - c[j]
+    bcy = b[j] - c[j]
+    l = acx * bcy
+    r = acy * bcx
+    det = l - r
+    perm = wp.abs(l) + wp.abs(r)
+    exact = _filtered_sign(det, perm, O2_BOUND)
+    bound = O2_BOUND * perm + FACE_MOVED + TINY
+    margin = int(0)
+    if det > bound:
+        margin = 1
+    if det < -bound:
+        margin = -1
+    return wp.vec2i(exact, margin)
+
+
 #: the bit where a face code's signs by a margin (:func:`orient2d_margin`) begin, laid out
 #: as its exact ones (bits 0-5)
 MARGIN_SIGNS = wp.constant(24)
@@ -588,14 +618,15 @@ def classify_face(points: wp.array(dtype=wp.vec3d), tris: wp.array(dtype=wp.int3
     code = int(0)
     if it[0] != it[1] and it[1] != it[2] and it[0] != it[2]:
         for k in range(3):
-            o = orient2d(t[0], t[1], t[2], (k + 1) % 3, (k + 2) % 3)
+            signs = _orient2d_and_margin(t[0], t[1], t[2], (k + 1) % 3, (k + 2) % 3)
+            o = signs[0]
             if o != 0:
                 flag = 0
             if o > 0:
                 code = code | (1 << (2 * k))
             if o < 0:
                 code = code | (2 << (2 * k))
-            om = orient2d_margin(t[0], t[1], t[2], (k + 1) % 3, (k + 2) % 3)
+            om = signs[1]
             if om > 0:
                 code = code | (1 << (MARGIN_SIGNS + 2 * k))
             if om < 0:
