@@ -86,16 +86,24 @@ def orient3d(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, d: wp.vec3d) -> int:
 
 
 @wp.func
-def orient2d(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, i: int, j: int) -> int:
-    """Sign of the 2D orientation of (a, b, c) on coordinates (i, j): positive when
-    counter-clockwise."""
+def _det2d(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, i: int, j: int) -> wp.vec2d:
+    """The 2D orientation determinant of (a, b, c) on coordinates (i, j) and its permanent
+    (the sum of the two products' magnitudes, for the error bound)."""
     acx = a[i] - c[i]
     bcx = b[i] - c[i]
     acy = a[j] - c[j]
     bcy = b[j] - c[j]
     l = acx * bcy
     r = acy * bcx
-    return _filtered_sign(l - r, wp.abs(l) + wp.abs(r), O2_BOUND)
+    return wp.vec2d(l - r, wp.abs(l) + wp.abs(r))
+
+
+@wp.func
+def orient2d(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, i: int, j: int) -> int:
+    """Sign of the 2D orientation of (a, b, c) on coordinates (i, j): positive when
+    counter-clockwise."""
+    d = _det2d(a, b, c, i, j)
+    return _filtered_sign(d[0], d[1], O2_BOUND)
 
 
 @wp.func
@@ -587,22 +595,9 @@ def _orient2d_and_margin(a: wp.vec3d, b: wp.vec3d, c: wp.vec3d, i: int, j: int) 
     evaluation of the determinant; the second is :func:`orient2d_margin`'s with its
     allowance for moves bounded by ``FACE_MOVED`` (points in [-1, 1]: never less
     conservative)."""
-    acx = a[i] - c[i]
-    bcx = b[i] - c[i]
-    acy = a[j] - c[j]
-    bcy = b[j] - c[j]
-    l = acx * bcy
-    r = acy * bcx
-    det = l - r
-    perm = wp.abs(l) + wp.abs(r)
-    exact = _filtered_sign(det, perm, O2_BOUND)
-    bound = O2_BOUND * perm + FACE_MOVED + TINY
-    margin = int(0)
-    if det > bound:
-        margin = 1
-    if det < -bound:
-        margin = -1
-    return wp.vec2i(exact, margin)
+    d = _det2d(a, b, c, i, j)
+    bound = O2_BOUND * d[1] + FACE_MOVED + TINY  # the exact sign's bound, and the moves'
+    return wp.vec2i(_filtered_sign(d[0], d[1], O2_BOUND), int(d[0] > bound) - int(d[0] < -bound))
 
 
 #: the bit where a face code's signs by a margin (:func:`orient2d_margin`) begin, laid out
