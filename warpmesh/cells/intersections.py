@@ -82,8 +82,8 @@ certified share falls to 72 %): hence the sizes tried largest first (after a rev
 every decision of the certificate holds by a margin; measured after it, load 1.7: part
 0.225 s, ball 0.281 s, the same cells certified; the faces' signs by a margin cost
 the faces pass 0.033 -> 0.044 s on the ball, 0.037 once taken from the same
-determinant as the exact ones with a constant allowance for moves, ``FACE_MOVED``); the simple-polygon
-test pair by pair without the run boxes (the ball's blocks 48 -> 32 ms with them), with
+determinant as the exact ones with a constant allowance for moves, ``FACE_MOVED``);
+the simple-polygon test pair by pair without the run boxes (the ball's blocks 48 -> 32 ms with them), with
 float64 segments in the scratch (44 bytes an edge: fresh pages, 25-78 ms on the part
 from one call to the next, against 21-24 ms with 12 bytes); the pairing made at
 certified vertices only, then at both ends (no block of an open surface could be
