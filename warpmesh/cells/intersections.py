@@ -159,7 +159,7 @@ import warp as wp
 
 from warpmesh._util.validate import check_device
 from warpmesh._conventions import INDEX_DTYPE, REAL_DTYPE
-from warpmesh._util.parallel import cpu_view, device_empty, device_full, device_zeros, run_parallel, usable_cores
+from warpmesh._util.parallel import cpu_view, device_empty, device_zeros, run_parallel, usable_cores
 from warpmesh.cells.rays import ray_windings
 from warpmesh.cells.predicates import orient3d_signs, power_of_two_scaled
 from warpmesh.cells.types import points3, require_mesh
@@ -1188,8 +1188,10 @@ def _split_sort(points32: wp.array, tris32: wp.array, inv_cell: float, end_bit: 
 def _cell_table(keys: wp.array, inv_cell: float, device, n_workers: int = 1) -> list:
     """The occupied cells of the sorted keys (:func:`_grid_order`) and a two-level table
     from cell coordinates to cell index (blocks of ``K.BLOCK``^3 cells, a slot for each
-    used block): [cells' coordinates, first positions, blocks per axis, used blocks, block
-    slots, table], the grid walk's first arguments (its next one is the inverse cell size,
+    used block, holding the block's occupancy mask and ranks:
+    :func:`~warpmesh.kernels.intersect.cell_masks_kernel`): [cells' coordinates, first
+    positions, blocks per axis, used blocks, block slots, masks, ranks], the grid walk's
+    first arguments (its next one is the inverse cell size,
     :func:`~warpmesh.kernels.intersect.grid_walk_cell`). Count -> scan -> write twice."""
     m = keys.shape[0]
     heads = device_empty(m, wp.int32, device)
@@ -1206,9 +1208,10 @@ def _cell_table(keys: wp.array, inv_cell: float, device, n_workers: int = 1) -> 
     slots = device_empty(per_axis**3, wp.int32, device)
     wp.utils.array_scan(used, slots, inclusive=False)
     n_blocks = int(slots[-1:].numpy()[0] + used[-1:].numpy()[0])  # sync point: the table's size
-    table = device_full(n_blocks * K.BLOCK**3, -1, wp.int32, device)
-    _each(K.cell_table_kernel, n_cells, [cells, per_axis, slots], [table], device, n_workers)
-    return [cells, starts, per_axis, used, slots, table]
+    masks = device_empty(n_blocks * K.BLOCK_WORDS, wp.uint64, device)
+    ranks = device_empty(n_blocks * K.BLOCK_WORDS, wp.int32, device)
+    _each(K.cell_masks_kernel, n_cells, [cells, per_axis, slots], [masks, ranks], device, n_workers)
+    return [cells, starts, per_axis, used, slots, masks, ranks]
 
 
 def _group_tree(lowers: wp.array, uppers: wp.array, device) -> tuple[wp.array, wp.array, int]:
