@@ -764,17 +764,77 @@ def gather_tet_faces_kernel(first: int, tets: wp.array(dtype=wp.int32), ids: wp.
     out[3 * i + 2] = v[2]
 
 
+@wp.func
+def bvh_coordinates(x: wp.vec3d, centre: wp.vec3d, half: wp.float64) -> wp.vec3:
+    """((x - centre) / half) rounded to float32, coordinate by coordinate (each step rounded
+    to nearest, as numpy's float64 arithmetic then ``astype(float32)``): a map monotone in
+    each coordinate."""
+    return wp.vec3(wp.float32((x[0] - centre[0]) / half), wp.float32((x[1] - centre[1]) / half),
+                   wp.float32((x[2] - centre[2]) / half))
+
+
 @wp.kernel
 def bvh_coordinates_kernel(first: int, points: wp.array(dtype=wp.vec3d), centre: wp.vec3d, half: wp.float64,
                            points32: wp.array(dtype=wp.vec3)):
-    """One thread per point: ((x - centre) / half) rounded to float32, coordinate by
-    coordinate (each step rounded to nearest, as numpy's float64 arithmetic then
-    ``astype(float32)``): a map monotone in each coordinate. Point v = first + tid (the
-    host splits a launch across the CPU cores, as for the kernels below that take ``first``)."""
+    """One thread per point v = first + tid (the host splits a launch across the CPU cores,
+    as for the kernels below that take ``first``): its :func:`bvh_coordinates`."""
     v = first + wp.tid()
-    x = points[v]
-    points32[v] = wp.vec3(wp.float32((x[0] - centre[0]) / half), wp.float32((x[1] - centre[1]) / half),
-                          wp.float32((x[2] - centre[2]) / half))
+    points32[v] = bvh_coordinates(points[v], centre, half)
+
+
+@wp.kernel
+def point_bounds_kernel(first: int, points: wp.array(dtype=wp.vec3d), per: int, lows: wp.array(dtype=wp.vec3d),
+                        highs: wp.array(dtype=wp.vec3d), bad: wp.array(dtype=wp.int32)):
+    """One thread per run t = first + tid of ``per`` points (the last one shorter): their
+    smallest and largest coordinates, and 1 in ``bad[t]`` when one is NaN or infinite
+    (else 0). A run past the end (fewer points than runs) gives the first point's bounds."""
+    t = first + wp.tid()
+    a = wp.min(t * per, points.shape[0] - 1)
+    b = wp.min(t * per + per, points.shape[0])
+    lo = points[a]
+    hi = lo
+    zero = wp.vec3d()  # x * 0 is 0, or NaN for a NaN or infinite x: the sum of them is NaN if any is
+    for v in range(a, b):
+        x = points[v]
+        zero = zero + x * wp.float64(0.0)
+        lo = wp.min(lo, x)
+        hi = wp.max(hi, x)
+    lows[t] = lo
+    highs[t] = hi
+    bad[t] = 1 - int(wp.isfinite(zero[0] + zero[1] + zero[2]))
+
+
+@wp.kernel
+def scaled_points_kernel(first: int, points: wp.array(dtype=wp.vec3d), scale: wp.float64, centre: wp.vec3d,
+                         half: wp.float64, scaled: wp.array(dtype=wp.vec3d), points32: wp.array(dtype=wp.vec3)):
+    """One thread per point v = first + tid: the point times ``scale`` (a power of two: as
+    exact as ``np.ldexp``, the one rounding of the exact product) and the
+    :func:`bvh_coordinates` of that."""
+    v = first + wp.tid()
+    x = points[v] * scale
+    scaled[v] = x
+    points32[v] = bvh_coordinates(x, centre, half)
+
+
+@wp.kernel
+def flat_indices_kernel(first: int, tris: wp.array(dtype=wp.int64), per: int, flat: wp.array(dtype=wp.int32),
+                        lows: wp.array(dtype=wp.int64), highs: wp.array(dtype=wp.int64)):
+    """One thread per run t = first + tid of ``per`` indices (the last one shorter): each
+    index as int32 in ``flat`` (the caller checks the run's smallest and largest, in
+    ``lows[t]`` and ``highs[t]``, before any kernel reads ``flat``; a run past the end gives
+    the last index's)."""
+    t = first + wp.tid()
+    a = wp.min(t * per, tris.shape[0] - 1)
+    b = wp.min(t * per + per, tris.shape[0])
+    lo = tris[a]
+    hi = lo
+    for i in range(a, b):
+        x = tris[i]
+        lo = wp.min(lo, x)
+        hi = wp.max(hi, x)
+        flat[i] = wp.int32(x)
+    lows[t] = lo
+    highs[t] = hi
 
 
 @wp.func

@@ -658,6 +658,63 @@ def test_bvh_coordinates_kernel_matches_the_numpy_map():
         assert np.array_equal(got.numpy(), ((scaled - 0.5 * (lo + hi)) / half).astype(np.float32))
 
 
+def _numpy_prepare(pts, tris):
+    """The inputs of the pipeline as numpy makes them: the reference of _prepare's passes."""
+    scaled = power_of_two_scaled(pts)
+    lo, hi = scaled.min(axis=0), scaled.max(axis=0)
+    half = float(0.5 * (hi - lo).max()) or 1.0
+    points32 = ((scaled - 0.5 * (lo + hi)) / half).astype(np.float32)
+    return scaled, tris.astype(np.int32).ravel(), points32
+
+
+@pytest.mark.parametrize("case", ["normal", "huge range", "tiny", "zeros", "few points"])
+def test_prepare_on_all_cores_gives_numpys_points_bit_for_bit(case):
+    # _prepare's passes (bounds by runs, then scale and float32 map in one pass) against
+    # numpy's seven: the same float64 and float32 points, the same int32 indices, at
+    # scales where the power of two rounds (subnormal results) or cannot be one float64
+    rng = np.random.default_rng(5)
+    m = 2 * wmi._MIN_FACES_PER_WORKER + 3
+    n = {"few points": 3}.get(case, 5000)
+    pts = rng.normal(size=(n, 3)) * 3.7 + 1.1
+    if case == "huge range":
+        pts[:, 0] *= 1e300
+        pts[:, 1] *= 1e-300  # scaled down by 2^-997: subnormal, rounded
+    elif case == "tiny":
+        pts *= 1e-310  # the scale 2^1030 is no float64: numpy's path
+    elif case == "zeros":
+        pts[:] = 0.0
+    tris = rng.integers(0, n, size=(m, 3)).astype(np.int64)
+    import warp as wp
+
+    points64, tris32, points32 = wmi._prepare(pts, tris, wp.get_device("cpu"), 2)
+    want64, want_tris, want32 = _numpy_prepare(pts, tris)
+    assert np.array_equal(points64.numpy(), want64)
+    assert np.array_equal(tris32.numpy(), want_tris)
+    assert np.array_equal(points32.numpy(), want32)
+
+
+@pytest.mark.parametrize("bad, match", [("nan", "'points'.*NaN.*row 4321"), ("inf", "'points'.*row 4321"),
+                                        ("high", r"indices in \[0, 5000\).*got 5000"),
+                                        ("negative", "'triangles'.*got -2")])
+def test_prepare_on_all_cores_refuses_bad_values_naming_them(bad, match):
+    # the values unchecked by _validate(values=False) are checked by _prepare's passes
+    rng = np.random.default_rng(6)
+    pts = rng.normal(size=(5000, 3))
+    tris = rng.integers(0, 5000, size=(2 * wmi._MIN_FACES_PER_WORKER + 1, 3))
+    if bad == "nan":
+        pts[4321, 2] = np.nan
+    elif bad == "inf":
+        pts[4321, 0] = -np.inf
+    elif bad == "high":
+        tris[9999, 1] = 5000
+    else:
+        tris[17, 0] = -2
+    with pytest.raises(ValueError, match=match):
+        find_self_intersections(pts, tris)
+    with pytest.raises(ValueError, match=match):
+        wmi.profile_self_intersections(pts, tris)
+
+
 def test_profile_reports_every_stage_and_the_same_pairs(monkeypatch):
     m = _two_spheres(2, [0.9, 0.13, 0.071])
     for spread, search in ((wmi._GRID_SPREAD, ["cells"]), (0.0, ["boxes", "tree"])):  # faces of one size: the grid
