@@ -787,10 +787,13 @@ def _lower_corner_cells(pts, tris):
     return np.clip(((lower + 1.0) * np.float32(inv_cell)).astype(np.int64), 0, 1023)
 
 
-def test_cell_grid_finds_pairs_across_every_neighbour_offset():
+def test_cell_grid_finds_pairs_across_every_neighbour_offset(monkeypatch):
     # the walk looks at a cell's 13 upper neighbours, skipping those its faces cannot reach
     # (the reach bits: along +1 axes its own faces', along -1 axes the neighbour's); a dense
-    # soup of small crossing triangles, pairs in every offset class, against every pair
+    # soup of small crossing triangles, pairs in every offset class, against every pair;
+    # on the finest grid the faces allow (cells as large as the largest face), where the
+    # soup's pairs reach every class
+    monkeypatch.setattr(wmi, "_GRID_CELL_SCALE", 1.0 + 2.0**-10)
     rng = np.random.default_rng(41)
     centres = rng.uniform(0.0, 1.0, (6000, 3))
     pts = (centres[:, None, :] + rng.uniform(-0.05, 0.05, (6000, 3, 3))).reshape(-1, 3)
@@ -1153,15 +1156,16 @@ def test_blocks_keep_pairs_that_touch_within_rounding(monkeypatch):
 
 def test_the_first_cell_block_is_tried_at_every_size(monkeypatch):
     # found by a review: the first occupied cell was marked as a block's first for three
-    # sizes only, so its 8^3 block was never tried; a sheet there, a crossing pair in the
-    # same 16^3 block (so that block fails): the sheet's cells are certified at 8^3
+    # sizes only, so its smallest block was never tried; a sheet there, a crossing pair in
+    # the next larger block (so that block fails): the sheet's cells are certified in the
+    # smallest
     pts, tris = _sheet(3)
     cross = np.array([[9, 0, -0.5], [10, 0, 0.5], [9, 1, 0], [9, 0.5, 0.5], [10, 0.5, -0.5], [10, 0.2, 0.3]])
     both = np.vstack([pts, cross])
     faces = np.vstack([tris, len(pts) + np.arange(6).reshape(2, 3)])
     got, levels = _block_levels(monkeypatch, both, faces)
     assert got.tolist() == [[len(tris), len(tris) + 1]]
-    assert (levels == 3).any() and (levels == 0).any()
+    assert (levels == min(wmi.K.BLOCK_SHIFTS)).any() and (levels == 0).any()
 
 
 def test_a_ramp_covering_its_projection_twice_is_walked_where_it_does(monkeypatch):
@@ -1221,7 +1225,7 @@ def test_swirled_surfaces_give_the_same_pairs_with_and_without_blocks(monkeypatc
         assert np.array_equal(got, _block_levels(monkeypatch, pts, tris, blocks=False, spread=np.inf)[0]), k
         if k < 2:
             assert np.array_equal(got, find_self_intersections(pts, tris)), k  # the search chosen
-    assert crossing >= 5 and mostly_certified >= 8, (crossing, mostly_certified)
+    assert crossing >= 5 and mostly_certified >= 6, (crossing, mostly_certified)  # both paths exercised
 
 
 def test_two_crossing_sheets_are_reported_as_by_every_pair(monkeypatch):

@@ -25,9 +25,9 @@ validity checks run this geometric one too. The pipeline (kernels in
    grid, in the same pass, the face across each corner's outgoing edge when it is the
    only face with the reversed edge and the corner's face the only one with the edge
    (``partners``: the pairing of edges the block certificate uses);
-4. the grid: the cell side is the largest box side grown by a margin and the padding
-   (each face's box then spans at most two cells per axis; a face that spans more, by
-   rounding, sends the check to the tree), at most 1022 cells per axis; the occupied
+4. the grid: the cell side is twice the largest box side, and the padding (each face's
+   box then spans at most two cells per axis; a face that spans more, by rounding, would
+   send the check to the tree), at most 1022 cells per axis; the occupied
    cells are the runs of equal keys (heads, scan), and a two-level table (blocks of 8^3
    cells, a slot for each used block) maps cell coordinates to cells; each cell keeps
    the axes along which its faces reach the next cell up (``cell_reach``). Then the
@@ -185,9 +185,13 @@ _CERTIFY = True
 #: the cell grid is the candidate search when the largest face box side is at most this
 #: times the mean one (:func:`_grid_cell`), else the group tree
 _GRID_SPREAD = 2.0
-#: the grid's cell side over the largest face box side (a margin for the rounding of the
-#: cell coordinates: :func:`_grid_order` falls back to the tree if a face spans more)
-_GRID_CELL_SCALE = 1.0 + 2.0**-10
+#: the grid's cell side over the largest face box side (at least 1 and a margin for the
+#: rounding of the cell coordinates: :func:`_grid_order` falls back to the tree if a face
+#: spans more than two cells). Twice: with the blocks certified, the passes per cell cost
+#: more than the candidates per face (wall ms, the ball / the part at 512, with blocks of
+#: 128^3 to 4^3 cells: 1.5x 230 / 235, 2x 211 / 210, 2.5x 209 / 202; with 64^3 to 8^3,
+#: 1.001x 242 / 225, 2x 220 / 218, 3x 280 / 226)
+_GRID_CELL_SCALE = 2.0
 _TINY_LENGTH = 1.0e-30
 
 
@@ -1112,9 +1116,8 @@ def _spatial_order(points32: wp.array, tris32: wp.array, device, n_workers: int 
 def _grid_cell(points32: wp.array, tris32: wp.array, device, n_workers: int = 1) -> float | None:
     """The cell grid's inverse cell size (BVH coordinates), or None for the group tree: the
     grid when the faces are about one size (the largest face box side at most
-    ``_GRID_SPREAD`` times the mean one: each face then meets 10-20 others in its cell
-    and its 13 upper neighbours), its cell the largest side grown by a margin and the
-    padding, and at least 2 / (``K.GRID_CELLS`` - 2) (the coordinates span [-1, 1]: at most
+    ``_GRID_SPREAD`` times the mean one), its cell the largest side times
+    ``_GRID_CELL_SCALE`` and the padding, and at least 2 / (``K.GRID_CELLS`` - 2) (the coordinates span [-1, 1]: at most
     1022 cells a side)."""
     m = tris32.shape[0] // 3
     extents = device_empty(m, wp.float32, device)
