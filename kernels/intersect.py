@@ -817,24 +817,49 @@ def scaled_points_kernel(first: int, points: wp.array(dtype=wp.vec3d), scale: wp
 
 
 @wp.kernel
-def flat_indices_kernel(first: int, tris: wp.array(dtype=wp.int64), per: int, flat: wp.array(dtype=wp.int32),
-                        lows: wp.array(dtype=wp.int64), highs: wp.array(dtype=wp.int64)):
-    """One thread per run t = first + tid of ``per`` indices (the last one shorter): each
-    index as int32 in ``flat`` (the caller checks the run's smallest and largest, in
-    ``lows[t]`` and ``highs[t]``, before any kernel reads ``flat``; a run past the end gives
-    the last index's)."""
+def flat_faces_kernel(first: int, tris: wp.array(dtype=wp.int64), per: int, points32: wp.array(dtype=wp.vec3),
+                      flat: wp.array(dtype=wp.int32), lows: wp.array(dtype=wp.int64),
+                      highs: wp.array(dtype=wp.int64), largest: wp.array(dtype=wp.float32),
+                      sums: wp.array(dtype=wp.float64)):
+    """One thread per run t = first + tid of ``per`` faces (the last one shorter; a run past
+    the end takes the last face): each face's indices (``tris``: the flat (m, 3) array) as
+    int32 in ``flat``, the run's smallest and largest index in ``lows[t]`` and ``highs[t]``
+    (the caller checks them before any kernel reads ``flat``), and the largest side of
+    the faces' float32 boxes (:func:`face_extents_kernel`'s) in ``largest[t]``, their sum
+    in ``sums[t]`` (the points read at indices clamped to the points: an index out of
+    range reads some point, and is refused afterwards)."""
     t = first + wp.tid()
-    a = wp.min(t * per, tris.shape[0] - 1)
-    b = wp.min(t * per + per, tris.shape[0])
-    lo = tris[a]
+    m = tris.shape[0] / 3
+    a = wp.min(t * per, m - 1)
+    b = wp.min(t * per + per, m)
+    n = points32.shape[0]
+    lo = tris[3 * a]
     hi = lo
-    for i in range(a, b):
-        x = tris[i]
-        lo = wp.min(lo, x)
-        hi = wp.max(hi, x)
-        flat[i] = wp.int32(x)
+    big = wp.float32(0.0)
+    total = wp.float64(0.0)
+    for f in range(a, b):
+        i0 = tris[3 * f]
+        i1 = tris[3 * f + 1]
+        i2 = tris[3 * f + 2]
+        lo = wp.min(lo, wp.min(i0, wp.min(i1, i2)))
+        hi = wp.max(hi, wp.max(i0, wp.max(i1, i2)))
+        j0 = wp.int32(wp.clamp(i0, wp.int64(0), wp.int64(n - 1)))
+        j1 = wp.int32(wp.clamp(i1, wp.int64(0), wp.int64(n - 1)))
+        j2 = wp.int32(wp.clamp(i2, wp.int64(0), wp.int64(n - 1)))
+        flat[3 * f] = wp.int32(i0)
+        flat[3 * f + 1] = wp.int32(i1)
+        flat[3 * f + 2] = wp.int32(i2)
+        c0 = points32[j0]
+        c1 = points32[j1]
+        c2 = points32[j2]
+        e = wp.max(wp.max(c0, c1), c2) - wp.min(wp.min(c0, c1), c2)
+        side = wp.max(wp.max(e[0], e[1]), e[2])
+        big = wp.max(big, side)
+        total = total + wp.float64(side)
     lows[t] = lo
     highs[t] = hi
+    largest[t] = big
+    sums[t] = total
 
 
 @wp.func

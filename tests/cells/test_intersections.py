@@ -686,11 +686,14 @@ def test_prepare_on_all_cores_gives_numpys_points_bit_for_bit(case):
     tris = rng.integers(0, n, size=(m, 3)).astype(np.int64)
     import warp as wp
 
-    points64, tris32, points32 = wmi._prepare(pts, tris, wp.get_device("cpu"), 2)
+    points64, tris32, points32, sides = wmi._prepare(pts, tris, wp.get_device("cpu"), 2)
     want64, want_tris, want32 = _numpy_prepare(pts, tris)
     assert np.array_equal(points64.numpy(), want64)
     assert np.array_equal(tris32.numpy(), want_tris)
     assert np.array_equal(points32.numpy(), want32)
+    box = want32[tris]
+    side = (box.max(axis=1) - box.min(axis=1)).max(axis=1)  # each face's largest float32 box side
+    assert sides[0] == side.max() and sides[1] == pytest.approx(side.mean(dtype=np.float64), rel=1e-12)
 
 
 @pytest.mark.parametrize("bad, match", [("nan", "'points'.*NaN.*row 4321"), ("inf", "'points'.*row 4321"),

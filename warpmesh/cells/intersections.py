@@ -1026,9 +1026,9 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
         def mark(stage):
             return None
     m = len(tris)
-    points64, tris32, points32 = _prepare(pts, tris, device, n_workers)
+    points64, tris32, points32, sides = _prepare(pts, tris, device, n_workers)
     mark("prepare")
-    inv_cell = _grid_cell(points32, tris32, device, n_workers)
+    inv_cell = _grid_cell(points32, tris32, device, n_workers, sides)
     grid = None if inv_cell is None else _grid_order(points32, tris32, inv_cell, device, n_workers)
     order, sorted_tris = grid[:2] if grid is not None else _spatial_order(points32, tris32, device, n_workers)
     mark("order")
@@ -1113,18 +1113,21 @@ def _spatial_order(points32: wp.array, tris32: wp.array, device, n_workers: int 
     return order, sorted_tris
 
 
-def _grid_cell(points32: wp.array, tris32: wp.array, device, n_workers: int = 1) -> float | None:
+def _grid_cell(points32: wp.array, tris32: wp.array, device, n_workers: int = 1,
+               sides: tuple[float, float] | None = None) -> float | None:
     """The cell grid's inverse cell size (BVH coordinates), or None for the group tree: the
     grid when the faces are about one size (the largest face box side at most
     ``_GRID_SPREAD`` times the mean one), its cell the largest side times
     ``_GRID_CELL_SCALE`` and the padding, and at least 2 / (``K.GRID_CELLS`` - 2) (the coordinates span [-1, 1]: at most
-    1022 cells a side)."""
-    m = tris32.shape[0] // 3
-    extents = device_empty(m, wp.float32, device)
-    _each(K.face_extents_kernel, m, [points32, tris32], [extents], device, n_workers)
-    ext = extents.numpy()  # sync point: the grid's cell size
-    largest = float(ext.max())
-    if largest > _GRID_SPREAD * float(ext.mean(dtype=np.float64)):
+    1022 cells a side). ``sides``: (largest, mean) side when known (:func:`_prepare`)."""
+    if sides is None:
+        m = tris32.shape[0] // 3
+        extents = device_empty(m, wp.float32, device)
+        _each(K.face_extents_kernel, m, [points32, tris32], [extents], device, n_workers)
+        ext = extents.numpy()  # sync point: the grid's cell size
+        sides = float(ext.max()), float(ext.mean(dtype=np.float64))
+    largest, mean = sides
+    if largest > _GRID_SPREAD * mean:
         return None
     cell = max(largest * _GRID_CELL_SCALE + 4.0 * _QUERY_PAD, 2.0 / (K.GRID_CELLS - 2))
     return float(np.float32(1.0 / cell))
@@ -1245,38 +1248,34 @@ def _device_arrays(scaled: np.ndarray, tris: np.ndarray, device) -> tuple[wp.arr
     return wp.array(scaled, dtype=wp.vec3d, device=device), wp.array(flat, dtype=wp.int32, device=device)
 
 
-def _prepare(pts: np.ndarray, tris: np.ndarray, device, n_workers: int = 1) -> tuple[wp.array, wp.array, wp.array]:
+def _prepare(pts: np.ndarray, tris: np.ndarray, device,
+             n_workers: int = 1) -> tuple[wp.array, wp.array, wp.array, tuple[float, float] | None]:
     """The pipeline's inputs from :func:`_validate`'s arrays (``values=False``): the points
     scaled by a power of two (:func:`~warpmesh.cells.predicates.power_of_two_scaled`) as
-    vec3d, the triangles as one flat int32 array, and the float32 BVH coordinates
-    (:func:`_bvh_coordinates`); the ValueError of :func:`_check_values` for a NaN,
-    infinite or out-of-range value. On the CPU, for many points, in three passes split
-    across the cores (each point's bounds and finiteness by runs, then the scaled and the
-    float32 points in one pass; the indices' range and int32 copy in one), where numpy
-    would take seven passes on one core (15 ms of the 1.7 M-face sphere's check)."""
+    vec3d, the triangles as one flat int32 array, the float32 BVH coordinates
+    (:func:`_bvh_coordinates`), and (largest, mean) of the faces' float32 box sides (for
+    :func:`_grid_cell`; None when not made here); the ValueError of :func:`_check_values`
+    for a NaN, infinite or out-of-range value. On the CPU, for many faces, in three passes
+    split across the cores (each point's bounds and finiteness by runs; the scaled and the
+    float32 points; each face's int32 indices, their range and its box side), where numpy
+    would take seven passes on one core and the box sides one more (15 + 8 ms of the
+    1.7 M-face sphere's check)."""
     n = len(pts)
     if not device.is_cpu or n_workers < 2 or len(tris) < 2 * _MIN_FACES_PER_WORKER:
         _check_values(pts, tris)
         scaled = power_of_two_scaled(pts)
         points64, tris32 = _device_arrays(scaled, tris, device)
-        return points64, tris32, _bvh_coordinates(scaled, points64, device, n_workers)
+        return points64, tris32, _bvh_coordinates(scaled, points64, device, n_workers), None
     runs = _CHUNKS * n_workers
     wpts = cpu_view(pts, wp.vec3d)
     lows = device_empty(runs, wp.vec3d, device)
     highs = device_empty(runs, wp.vec3d, device)
     bad = device_empty(runs, wp.int32, device)
-    flat = tris.reshape(-1)
-    tris32 = device_empty(len(flat), wp.int32, device)
-    ilows = device_empty(runs, wp.int64, device)
-    ihighs = device_empty(runs, wp.int64, device)
-    split = _split(runs, len(tris), device, n_workers)  # runs of points (indices), each worker every k-th
+    split = _split(runs, len(tris), device, n_workers)  # runs of points (faces), each worker every k-th
     split(lambda a, b: wp.launch(K.point_bounds_kernel, dim=b - a, inputs=[a, wpts, (n + runs - 1) // runs],
                                  outputs=[lows, highs, bad], device=device))
-    split(lambda a, b: wp.launch(K.flat_indices_kernel, dim=b - a,
-                                 inputs=[a, cpu_view(flat, wp.int64), (len(flat) + runs - 1) // runs],
-                                 outputs=[tris32, ilows, ihighs], device=device))
-    if bad.numpy().any() or ilows.numpy().min() < 0 or ihighs.numpy().max() >= n:
-        _check_values(pts, tris)  # raises, naming the row or the index
+    if bad.numpy().any():
+        _check_values(pts, tris)  # raises, naming the row
     lo = lows.numpy().min(axis=0)
     hi = highs.numpy().max(axis=0)
     big = float(max(np.abs(lo).max(), np.abs(hi).max()))
@@ -1284,16 +1283,28 @@ def _prepare(pts: np.ndarray, tris: np.ndarray, device, n_workers: int = 1) -> t
     if big == 0.0 or not -1074 <= -exponent <= 1023:  # all zero, or a scale 2^-exponent that is no float64
         scaled = power_of_two_scaled(pts)
         points64 = cpu_view(scaled, wp.vec3d)
-        return points64, tris32, _bvh_coordinates(scaled, points64, device, n_workers)
-    scale = float(np.ldexp(1.0, -exponent))
-    lo, hi = np.ldexp(lo, -exponent), np.ldexp(hi, -exponent)  # the scaled points' bounds (rounding is monotone)
-    centre = 0.5 * (lo + hi)
-    half = float(0.5 * (hi - lo).max())
-    points64 = device_empty(n, wp.vec3d, device)
-    points32 = device_empty(n, wp.vec3, device)
-    _each(K.scaled_points_kernel, n, [wpts, scale, wp.vec3d(*centre.tolist()), half if half > 0.0 else 1.0],
-          [points64, points32], device, n_workers)
-    return points64, tris32, points32
+        points32 = _bvh_coordinates(scaled, points64, device, n_workers)
+    else:
+        scale = float(np.ldexp(1.0, -exponent))
+        lo, hi = np.ldexp(lo, -exponent), np.ldexp(hi, -exponent)  # the scaled bounds (rounding is monotone)
+        centre = 0.5 * (lo + hi)
+        half = float(0.5 * (hi - lo).max())
+        points64 = device_empty(n, wp.vec3d, device)
+        points32 = device_empty(n, wp.vec3, device)
+        _each(K.scaled_points_kernel, n, [wpts, scale, wp.vec3d(*centre.tolist()), half if half > 0.0 else 1.0],
+              [points64, points32], device, n_workers)
+    tris32 = device_empty(3 * len(tris), wp.int32, device)
+    ilows = device_empty(runs, wp.int64, device)
+    ihighs = device_empty(runs, wp.int64, device)
+    largest = device_empty(runs, wp.float32, device)
+    sums = device_empty(runs, wp.float64, device)
+    split(lambda a, b: wp.launch(K.flat_faces_kernel, dim=b - a,
+                                 inputs=[a, cpu_view(tris.reshape(-1), wp.int64), (len(tris) + runs - 1) // runs,
+                                         points32],
+                                 outputs=[tris32, ilows, ihighs, largest, sums], device=device))
+    if ilows.numpy().min() < 0 or ihighs.numpy().max() >= n:
+        _check_values(pts, tris)  # raises, naming the index
+    return points64, tris32, points32, (float(largest.numpy().max()), float(sums.numpy().sum()) / len(tris))
 
 
 def _bvh_coordinates(scaled: np.ndarray, points64: wp.array, device, n_workers: int = 1) -> wp.array:
