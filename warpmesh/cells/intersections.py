@@ -1403,8 +1403,12 @@ def _split_corner_table(tris32: wp.array, n: int, corners: wp.array, device) -> 
     run_parallel([lambda a=a, b=b, out=out: wp.launch(K.count_corners_kernel, dim=b - a, inputs=[a, tris32],
                                                       outputs=[out], device=device)
                   for (a, b), out in zip(((0, half), (half, c)), counts)])
-    ends = np.cumsum(counts[0].numpy() + counts[1].numpy(), dtype=np.int32)  # sync point (views: no copy)
-    cursors = [cpu_view(ends - counts[1].numpy(), wp.int32), cpu_view(ends, wp.int32)]
+    both, second = counts[0].numpy(), counts[1].numpy()  # sync point (views: no copy)
+    np.add(both, second, out=both)
+    ends = device_empty(n, wp.int32, device)
+    wp.utils.array_scan(counts[0], ends, inclusive=True)  # (numpy's cumsum: 4 ms of 1.7 M faces' check, this 1)
+    np.subtract(ends.numpy(), second, out=second)
+    cursors = [counts[1], ends]
     run_parallel([lambda a=a, b=b, cur=cur: wp.launch(K.fill_corners_kernel, dim=b - a, inputs=[a, tris32, cur],
                                                       outputs=[corners], device=device)
                   for (a, b), cur in zip(((0, half), (half, c)), cursors)])
