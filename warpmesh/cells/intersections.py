@@ -1145,15 +1145,17 @@ def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device, n
     side = min(K.GRID_CELLS, int(2.0 * 1.001 * inv_cell) + 2)  # every cell coordinate is below it
     # the keys' bits: fewer is less work (1.7 M keys on one thread: 32 bits 29 ms, 24 bits 25, 16 bits 18)
     end_bit = 3 * max(1, (side - 1).bit_length())
+    spread = device_empty(K.GRID_CELLS, wp.int32, device)
+    wp.launch(K.spread_table_kernel, dim=K.GRID_CELLS, inputs=[], outputs=[spread], device=device)
     if device.is_cuda or n_workers < 2 or m < 2 * _MIN_FACES_PER_WORKER:
-        _each(K.grid_keys_kernel, m, [points32, tris32, _QUERY_PAD, inv_cell, 0], [keys, ids, wide], device,
+        _each(K.grid_keys_kernel, m, [points32, tris32, _QUERY_PAD, inv_cell, 0, spread], [keys, ids, wide], device,
               n_workers)
         if int(wide.numpy()[0]):  # sync point: the grid cannot hold these faces
             return None
         wp.utils.radix_sort_pairs(keys, ids, m, end_bit=end_bit)
         keys, order = keys[:m], ids[:m]
     else:
-        keys, order = _split_sort(points32, tris32, inv_cell, end_bit, keys, ids, wide, device, n_workers)
+        keys, order = _split_sort(points32, tris32, inv_cell, end_bit, spread, keys, ids, wide, device, n_workers)
         if int(wide.numpy()[0]):
             return None
     sorted_tris = device_empty(3 * m, wp.int32, device)
@@ -1161,8 +1163,8 @@ def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device, n
     return order, sorted_tris, keys
 
 
-def _split_sort(points32: wp.array, tris32: wp.array, inv_cell: float, end_bit: int, keys: wp.array, ids: wp.array,
-                wide: wp.array, device, n_workers: int) -> tuple[wp.array, wp.array]:
+def _split_sort(points32: wp.array, tris32: wp.array, inv_cell: float, end_bit: int, spread: wp.array,
+                keys: wp.array, ids: wp.array, wide: wp.array, device, n_workers: int) -> tuple[wp.array, wp.array]:
     """The grid keys of the faces sorted on two CPU threads (Warp's radix sort runs on
     one): each thread computes the keys of one half of the faces into its own half of
     ``keys`` and ``ids`` (2m each: its data, then the sort's scratch) and sorts them, then
@@ -1174,7 +1176,7 @@ def _split_sort(points32: wp.array, tris32: wp.array, inv_cell: float, end_bit: 
     parts = [(0, half, 0), (half, m, -half)]
 
     def part(a, b, base):
-        wp.launch(K.grid_keys_kernel, dim=b - a, inputs=[a, points32, tris32, _QUERY_PAD, inv_cell, base],
+        wp.launch(K.grid_keys_kernel, dim=b - a, inputs=[a, points32, tris32, _QUERY_PAD, inv_cell, base, spread],
                   outputs=[keys, ids, wide], device=device)
         region = slice(a - base, a - base + 2 * (b - a))
         wp.utils.radix_sort_pairs(keys[region], ids[region], b - a, end_bit=end_bit)
