@@ -1159,28 +1159,6 @@ def _winds_once(signs: int, counts: int, k: int) -> bool:
     return ((signs >> (2 * k)) & 1 == 1 and up == 1) or ((signs >> (2 * k + 1)) & 1 == 1 and down == 1)
 
 
-#: the a_i and b_i of up to 8 faces, as :func:`_one_to_one8` takes them
-umbrella_ids8 = wp.types.vector(length=8, dtype=wp.int32)
-
-
-@wp.func
-def _one_to_one8(a: umbrella_ids8, b: umbrella_ids8) -> bool:
-    """Whether a_i -> b_i is a permutation: each b_k equals exactly one a_l and each a_k
-    exactly one b_l (then a and b are each without repeats and hold the same values). The
-    entries past the fan's size are a_k = b_k = -1 - k: distinct negative values, each
-    matching only itself, so they pass and change nothing. Unrolled and branch-free: 64
-    comparisons cost less than a search whose branches are data-dependent."""
-    ok = int(1)
-    for k in range(8):
-        row = int(0)
-        col = int(0)
-        for l in range(8):
-            row += int(b[k] == a[l])
-            col += int(a[k] == b[l])
-        ok = ok & int(row == 1) & int(col == 1)
-    return ok == 1
-
-
 @wp.func
 def umbrella_certified(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.int32),
                        corners: wp.array(dtype=wp.int32), v: int, lo: int, d: int) -> bool:
@@ -1228,9 +1206,6 @@ def umbrella_certified(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.
         return False
     a = umbrella_ids()
     b = umbrella_ids()
-    for k in range(8):  # past d: a[k] = b[k] = -1 - k, fixed points of no index (see _one_to_one8)
-        a[k] = -1 - k
-        b[k] = -1 - k
     signs = int(63)
     counts = int(0)
     for k in range(d):
@@ -1248,9 +1223,6 @@ def umbrella_certified(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.
         counts += _spread_bits6((code >> (6 + 6 * r)) & 63)
     if not (_winds_once(signs, counts, 0) or _winds_once(signs, counts, 1) or _winds_once(signs, counts, 2)):
         return False
-    if d <= 8:
-        return _one_to_one8(umbrella_ids8(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]),
-                            umbrella_ids8(b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]))
     for k in range(d):
         row = int(0)
         col = int(0)
@@ -1288,64 +1260,96 @@ def _pair_wide_umbrella(tris: wp.array(dtype=wp.int32), corners: wp.array(dtype=
         partners[c] = across
 
 
-@wp.func
-def _umbrella_of_up_to_8(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.int32),
-                         corners: wp.array(dtype=wp.int32), v: int, lo: int, d: int, with_partners: int,
-                         certified: wp.array(dtype=wp.int8), partners: wp.array(dtype=wp.int32)):
-    """:func:`certify_umbrellas_kernel` for a vertex of at most 8 faces, its faces read
-    once: the flags of :func:`umbrella_certified` (the same conditions: d >= 3, no
-    repeated index, the signs and the winding, a_i -> b_i one to one) and, with
-    ``with_partners``, each corner's partner: face k's edge v -> a_k is reversed in face l
-    when b_l = a_k, named when that face is the only one and face k the only one with
-    v -> a_k (each corner's entry is written by its vertex's thread only)."""
-    fs = umbrella_ids8()
-    rs = umbrella_ids8()
-    a = umbrella_ids8()
-    b = umbrella_ids8()
-    signs = int(63)
-    counts = int(0)
-    repeated = int(0)
-    for k in range(8):
-        if k < d:
-            c = corners[lo + k]
-            f = c / 3
-            r = c - 3 * f
-            fs[k] = f
-            rs[k] = r
-            ia = tris[3 * f + (r + 1) % 3]
-            ib = tris[3 * f + (r + 2) % 3]
-            a[k] = ia
-            b[k] = ib
-            repeated = repeated | int(ia == v) | int(ib == v)
-            code = codes[f]
-            signs = signs & code
-            counts += _spread_bits6((code >> (6 + 6 * r)) & 63)
-        else:  # past d: a[k] = b[k] = -1 - k, fixed points of no index (see _one_to_one8)
-            a[k] = -1 - k
-            b[k] = -1 - k
-    flag = wp.int8(0)
-    if d >= 3 and repeated == 0:
-        if _winds_once(signs, counts, 0) or _winds_once(signs, counts, 1) or _winds_once(signs, counts, 2):
-            if _one_to_one8(a, b):
-                flag = wp.int8(1)
-    for k in range(8):
-        if k < d:
-            certified[3 * fs[k] + rs[k]] = flag
-    if with_partners == 0:
-        return
-    for k in range(8):
-        if k < d:
-            l = int(0)
-            back = int(0)
-            same = int(0)
-            for m in range(8):
-                l += m * int(b[m] == a[k])
-                back += int(b[m] == a[k])
-                same += int(a[m] == a[k])
-            across = int(-1)
-            if back == 1 and same == 1:
-                across = fs[l]
-            partners[3 * fs[k] + rs[k]] = across
+def _small_umbrella(size: int):
+    """:func:`certify_umbrellas_kernel` for a vertex of at most ``size`` faces, a function
+    of its own for each size (loops of a constant length, unrolled: a vertex of 6 faces
+    costs 36 comparisons, not the 64 of the largest size; the sizes 5 to 8 cut the pass
+    by a fifth on the ball and the part). Its faces read once: the flags of
+    :func:`umbrella_certified` (the same conditions: d >= 3, no repeated index, the signs
+    and the winding, a_i -> b_i one to one) and, with ``with_partners``, each corner's
+    partner: face k's edge v -> a_k is reversed in face l when b_l = a_k, named when that
+    face is the only one and face k the only one with v -> a_k (each corner's entry is
+    written by its vertex's thread only)."""
+    ids = wp.types.vector(length=size, dtype=wp.int32)
+
+    @wp.func
+    def one_to_one(a: ids, b: ids) -> bool:
+        """Whether a_i -> b_i is a permutation: each b_k equals exactly one a_l and each a_k
+        exactly one b_l (then a and b are each without repeats and hold the same values).
+        The entries past the fan's size are a_k = b_k = -1 - k: distinct negative values,
+        each matching only itself, so they pass and change nothing. Unrolled and
+        branch-free: the comparisons cost less than a search whose branches are
+        data-dependent."""
+        ok = int(1)
+        for k in range(size):
+            row = int(0)
+            col = int(0)
+            for l in range(size):
+                row += int(b[k] == a[l])
+                col += int(a[k] == b[l])
+            ok = ok & int(row == 1) & int(col == 1)
+        return ok == 1
+
+    @wp.func
+    def umbrella(codes: wp.array(dtype=wp.int32), tris: wp.array(dtype=wp.int32), corners: wp.array(dtype=wp.int32),
+                 v: int, lo: int, d: int, with_partners: int, certified: wp.array(dtype=wp.int8),
+                 partners: wp.array(dtype=wp.int32)):
+        fs = ids()
+        rs = ids()
+        a = ids()
+        b = ids()
+        signs = int(63)
+        counts = int(0)
+        repeated = int(0)
+        for k in range(size):
+            if k < d:
+                c = corners[lo + k]
+                f = c / 3
+                r = c - 3 * f
+                fs[k] = f
+                rs[k] = r
+                ia = tris[3 * f + (r + 1) % 3]
+                ib = tris[3 * f + (r + 2) % 3]
+                a[k] = ia
+                b[k] = ib
+                repeated = repeated | int(ia == v) | int(ib == v)
+                code = codes[f]
+                signs = signs & code
+                counts += _spread_bits6((code >> (6 + 6 * r)) & 63)
+            else:  # past d: a[k] = b[k] = -1 - k, fixed points of no index (see one_to_one)
+                a[k] = -1 - k
+                b[k] = -1 - k
+        flag = wp.int8(0)
+        if d >= 3 and repeated == 0:
+            if _winds_once(signs, counts, 0) or _winds_once(signs, counts, 1) or _winds_once(signs, counts, 2):
+                if one_to_one(a, b):
+                    flag = wp.int8(1)
+        for k in range(size):
+            if k < d:
+                certified[3 * fs[k] + rs[k]] = flag
+        if with_partners == 0:
+            return
+        for k in range(size):
+            if k < d:
+                l = int(0)
+                back = int(0)
+                same = int(0)
+                for m in range(size):
+                    l += m * int(b[m] == a[k])
+                    back += int(b[m] == a[k])
+                    same += int(a[m] == a[k])
+                across = int(-1)
+                if back == 1 and same == 1:
+                    across = fs[l]
+                partners[3 * fs[k] + rs[k]] = across
+
+    return umbrella
+
+
+_umbrella_of_up_to_5 = _small_umbrella(5)
+_umbrella_of_6 = _small_umbrella(6)
+_umbrella_of_7 = _small_umbrella(7)
+_umbrella_of_8 = _small_umbrella(8)
 
 
 @wp.kernel
@@ -1366,10 +1370,20 @@ def certify_umbrellas_kernel(codes: wp.array(dtype=wp.int32), tris: wp.array(dty
     hi = corners.shape[0]
     if v + 1 < starts.shape[0]:
         hi = starts[v + 1]
-    if hi == lo:
+    d = hi - lo
+    if d == 0:
         return
-    if hi - lo <= 8:
-        _umbrella_of_up_to_8(codes, tris, corners, v, lo, hi - lo, with_partners, certified, partners)
+    if d <= 5:
+        _umbrella_of_up_to_5(codes, tris, corners, v, lo, d, with_partners, certified, partners)
+        return
+    if d == 6:
+        _umbrella_of_6(codes, tris, corners, v, lo, d, with_partners, certified, partners)
+        return
+    if d == 7:
+        _umbrella_of_7(codes, tris, corners, v, lo, d, with_partners, certified, partners)
+        return
+    if d == 8:
+        _umbrella_of_8(codes, tris, corners, v, lo, d, with_partners, certified, partners)
         return
     flag = wp.int8(0)
     if umbrella_certified(codes, tris, corners, v, lo, hi - lo):
