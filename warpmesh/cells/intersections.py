@@ -1042,11 +1042,12 @@ def _find_pairs(pts: np.ndarray, tris: np.ndarray, device, n_workers: int, mark=
           [degenerate, codes, face_lowers, face_uppers], device, n_workers)
     mark("faces")
     partners = device_empty(3 * m, wp.int32, device) if grid is not None else None
-    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY, n_workers, partners)
+    # the input order's faces are no longer read: their array holds the vertex -> corners table
+    certified = _umbrella_flags(codes, sorted_tris, len(pts), device, _CERTIFY, n_workers, partners, tris32)
     mark("umbrellas")
     faces = [points64, sorted_tris, order, face_lowers, face_uppers, _QUERY_PAD, certified]
     if grid is not None:  # one thread per occupied cell (K.grid_walk_cell)
-        table = _cell_table(grid[2], inv_cell, device, n_workers)
+        table = _cell_table(grid[2], inv_cell, device, n_workers, tris32)  # the corner table is read no more
         reach = device_empty(table[0].shape[0], wp.int32, device)
         _each(K.cell_reach_kernel, reach.shape[0], [table[1], table[0], face_uppers, inv_cell], [reach], device,
               n_workers)
@@ -1139,8 +1140,8 @@ def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device, n
     keys), or None when some face's box spans more than two cells along an axis (the
     grid's walk would miss its pairs: the group tree is used then)."""
     m = tris32.shape[0] // 3
-    keys = device_empty(2 * m, wp.int32, device)  # radix sort's scratch: 2m
-    ids = device_empty(2 * m, wp.int32, device)
+    scratch = device_empty(4 * m, wp.int32, device)  # the keys and ids, 2m each (the radix sort's scratch)
+    keys, ids = scratch[:2 * m], scratch[2 * m:]
     wide = device_zeros(1, wp.int32, device)
     side = min(K.GRID_CELLS, int(2.0 * 1.001 * inv_cell) + 2)  # every cell coordinate is below it
     # the keys' bits: fewer is less work (1.7 M keys on one thread: 32 bits 29 ms, 24 bits 25, 16 bits 18)
@@ -1154,11 +1155,12 @@ def _grid_order(points32: wp.array, tris32: wp.array, inv_cell: float, device, n
             return None
         wp.utils.radix_sort_pairs(keys, ids, m, end_bit=end_bit)
         keys, order = keys[:m], ids[:m]
+        sorted_tris = device_empty(3 * m, wp.int32, device)
     else:
         keys, order = _split_sort(points32, tris32, inv_cell, end_bit, spread, keys, ids, wide, device, n_workers)
         if int(wide.numpy()[0]):
             return None
-    sorted_tris = device_empty(3 * m, wp.int32, device)
+        sorted_tris = scratch[:3 * m]  # the merge's output is elsewhere: the scratch is free (no fresh pages)
     _each(K.gather_faces_kernel, m, [tris32, order], [sorted_tris], device, n_workers)
     return order, sorted_tris, keys
 
@@ -1193,18 +1195,22 @@ def _split_sort(points32: wp.array, tris32: wp.array, inv_cell: float, end_bit: 
     return out_keys, out_ids
 
 
-def _cell_table(keys: wp.array, inv_cell: float, device, n_workers: int = 1) -> list:
+def _cell_table(keys: wp.array, inv_cell: float, device, n_workers: int = 1, spare: wp.array | None = None) -> list:
     """The occupied cells of the sorted keys (:func:`_grid_order`) and a two-level table
     from cell coordinates to cell index (blocks of ``K.BLOCK``^3 cells, a slot for each
     used block, holding the block's occupancy mask and ranks:
     :func:`~warpmesh.kernels.intersect.cell_masks_kernel`): [cells' coordinates, first
     positions, blocks per axis, used blocks, block slots, masks, ranks], the grid walk's
     first arguments (its next one is the inverse cell size,
-    :func:`~warpmesh.kernels.intersect.grid_walk_cell`). Count -> scan -> write twice."""
+    :func:`~warpmesh.kernels.intersect.grid_walk_cell`). Count -> scan -> write twice.
+    ``spare``: an int32 array of at least 2 m entries the caller no longer needs, for the
+    heads and their scan (memory already touched: no fresh pages)."""
     m = keys.shape[0]
-    heads = device_empty(m, wp.int32, device)
+    if spare is not None and spare.shape[0] >= 2 * m:
+        heads, cell_of = spare[:m], spare[m:2 * m]
+    else:
+        heads, cell_of = device_empty(m, wp.int32, device), device_empty(m, wp.int32, device)
     _each(K.cell_heads_kernel, m, [keys], [heads], device, n_workers)
-    cell_of = device_empty(m, wp.int32, device)
     wp.utils.array_scan(heads, cell_of, inclusive=True)
     n_cells = int(cell_of[m - 1:].numpy()[0])  # sync point: the number of cells
     side = min(K.GRID_CELLS, int(2.0 * 1.001 * inv_cell) + 2)  # every cell coordinate is below it
@@ -1360,7 +1366,8 @@ def _certify_blocks(cells: wp.array, starts: wp.array, points64: wp.array, tris3
 
 
 def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: bool = True,
-                    n_workers: int = 1, partners: wp.array | None = None) -> wp.array:
+                    n_workers: int = 1, partners: wp.array | None = None,
+                    spare: wp.array | None = None) -> wp.array:
     """1 for each corner (entry of the flat face array) whose vertex has a certified
     umbrella (:func:`~warpmesh.kernels.intersect.umbrella_certified`; ``codes`` from
     :func:`_classify_faces`, n points), else 0; all 0 when not ``certify``. Vertex ->
@@ -1369,13 +1376,15 @@ def _umbrella_flags(codes: wp.array, tris32: wp.array, n: int, device, certify: 
     threads like the walk: each writes its own vertices' corners only). ``partners``, when
     given (one entry per corner), receives the face across each corner's outgoing edge
     when that face is the only one with the reversed edge and the corner's face the only
-    one with the edge, else -1 (:func:`~warpmesh.kernels.intersect.edge_paired`)."""
+    one with the edge, else -1 (:func:`~warpmesh.kernels.intersect.edge_paired`). ``spare``:
+    an int32 array of one entry per corner that the caller no longer needs, for the
+    vertex -> corners table (memory already touched: no fresh pages)."""
     if not certify or n == 0:
         if partners is not None:
             partners.fill_(-1)
         return device_zeros(tris32.shape[0], wp.int8, device)
     certified = device_empty(tris32.shape[0], wp.int8, device)  # every corner is some vertex's
-    corners = device_empty(tris32.shape[0], wp.int32, device)
+    corners = spare if spare is not None else device_empty(tris32.shape[0], wp.int32, device)
     c = tris32.shape[0]
     if device.is_cuda or n_workers < 2 or c < 6 * _MIN_FACES_PER_WORKER:
         counts = device_zeros(n, wp.int32, device)
