@@ -128,6 +128,15 @@ one run alternately, load about 1.1, wall s with 2 workers before / after, and a
 part 0.290, 0.286 / 0.202, 0.238 (0.36x, 0.39x), ball 0.332, 0.333 / 0.264, 0.324 (0.66x, 0.71x); at
 1024 (``--repeat 2``, after): part 0.773 s, 0.35x; ball 0.937 s, 0.64x.
 
+Eighth round (2026-12-05, stop 52: the passes before the walk: a coarser grid with blocks of
+128^3 to 4^3 cells, the inputs prepared on both cores, the keys from a table, an umbrella function
+per fan size, six comparisons a coordinate for the crossing bits, dead scratch reused),
+``--cases part,ball --resolution 512 --repeat 5``, stop 51's code in a venv of its own and this
+one run alternately, load about 1.0, wall s with 2 workers before / after, and after / meshing
+wall (CPU): part 0.215, 0.213 / 0.181, 0.181 (0.33x, 0.34x; CPU 0.34x), ball 0.239, 0.244 /
+0.193, 0.189 (0.49x, 0.48x; CPU 0.53x, 0.55x); at 1024 (``--repeat 3``, after): part 0.660 s,
+0.29x; ball 0.698 s, 0.47x (CPU 0.51x); pymeshlab 5.6 / 9.4 s.
+
 Tetrahedra (2026-12-03, commit 3926e0f + find_tet_overlaps, load 2.5, ``--cases part-tets
 --repeat 3``): 1,031,312 tetrahedra, find_tet_overlaps 0.50 CPU s (0.75 s wall) against the
 ``features=False`` stuffing's 0.89 CPU s (1.36 wall): 0.56x the meshing; the face sort and

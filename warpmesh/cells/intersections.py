@@ -90,6 +90,38 @@ certified vertices only, then at both ends (no block of an open surface could be
 certified: its boundary vertices are never certified); the umbrella's permutation test
 and the pairing's counts in one 8 x 8 loop (no faster: the pass is memory bound).
 
+Stop 52, the passes before the walk (``--cases part,ball --resolution 512 --repeat 5``, 2
+workers, stop 51's code (3983e1f, in a venv of its own) and this one run alternately,
+twice each, load about 1.0): the ball's check 0.239 / 0.244 -> 0.193 / 0.189 s wall,
+0.428 / 0.441 -> 0.341 / 0.348 CPU s (0.59 / 0.61 -> 0.49 / 0.48x its meshing's wall
+time, 0.64 / 0.68 -> 0.53 / 0.55x its CPU time); the part's 0.215 / 0.213 -> 0.181 /
+0.181 wall, 0.382 / 0.383 -> 0.331 / 0.334 CPU (0.40 / 0.39 -> 0.33 / 0.34x). At 1024
+(``--repeat 3``): the ball 0.698 s, 0.47x (stop 51: 0.64x), the part 0.660 s, 0.29x. What
+did it, each measured alone (wall ms on the ball unless said): the grid's cell twice the
+largest face side and blocks of 128^3 down to 4^3 cells (``_GRID_CELL_SCALE``,
+``BLOCK_SHIFTS``: fewer cells, so fewer passes per cell, while the blocks keep the
+candidates away; profile total 242 -> 211, the part 225 -> 210); the inputs prepared in
+three passes on both cores (:func:`_prepare`, 15 -> 9, with the faces' box sides for the
+grid taken in its pass over the faces: order 51 -> 42); the grid keys' interleave from
+a table and their width test branch-free (half the ball's keys 16 -> 10 on one thread);
+a function per umbrella size (5 to 8 faces: loops of constant length; the pass -10 to
+-25 %); the crossing bits of the three rotations from six comparisons a coordinate (the
+faces pass on one thread 31 -> 24); numpy's cumsum replaced by Warp's scan in the corner
+table; dead arrays reused for the sorted faces, the corner table and the cell table's
+heads (269 -> 214 MB of fresh pages a call: the system time, 25-130 ms a call from the
+kernel zeroing and compacting huge pages, falls to about 40). The cell table keeps a
+512-bit mask and 8 ranks per used block of 8^3 cells (1.2 MB on the ball, was 26 MB of
+cell indices; no faster). Profile of the ball now (wall ms): prepare 14, order 36, faces
+33, corner table 13, umbrellas 51, cells and blocks 34, walk 5. Tried and not kept: the
+umbrella flags computed after the blocks, for the vertices of cells the walk visits only
+(the ball -7 to -9 ms, but 48 % of the part's vertices are in such cells: +3 to +17 there);
+the faces gathered in the classifying pass (the random reads move, no gain); the float32
+boxes computed from the float64 points in that pass (-2 ms); a radix sort of our own on
+both cores (3 passes of 9 bits: 40 ms against Warp's 33 on one core for 1.7 M keys); the
+corner table holding each corner's two other vertices and code (16 bytes a slot: fresh
+pages, 77 against 73 ms); the permutation test and the partners from one set of
+comparisons; a branch-free classification; ``-O3``.
+
 Where the time goes (:func:`profile_self_intersections`, ``workers=1``, CPU s, medians
 of 5, load about 1; the bundled part at resolution 512, 1.5 M triangles with large
 grid-aligned flat regions / a ball at 512, 1.7 M; both take the grid): prepare 0.013 /
@@ -111,9 +143,9 @@ first (0.30 -> 0.35: the list is carried through the loop), the shared-vertex te
 inlined before the candidate call (0.35 -> 0.40), the plane sides of the second face
 before the box confirmation (slower on both), vertices renumbered in the faces' order for
 the umbrellas (5 %), ``counting_sort`` for the vertex -> corner table (31 ms against the
-atomics' 19 ms on one thread). Not met: the check at half the meshing's time on the
-ball (its meshing, a sphere's field, is the cheapest there is); the walk alone is about 0.4x
-of it. Earlier measurements: the tree walk costs 1.4-2x the grid's on these surfaces
+atomics' 19 ms on one thread). Not met at stop 50: the check at half the meshing's time
+on the ball (its meshing, a sphere's field, is the cheapest there is); the walk alone was
+about 0.4x of it. Earlier measurements: the tree walk costs 1.4-2x the grid's on these surfaces
 (46 face-face box tests a face against 10-20); the grid on an adaptive surface (the part
 adaptive at 256, 92 k faces, largest side 4.5 x the mean) 0.136 CPU s against the tree's
 0.067, hence ``_GRID_SPREAD``; faces whose boxes only *touch* along an axis are decided
