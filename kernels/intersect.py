@@ -800,11 +800,12 @@ def point_bounds_kernel(first: int, points: wp.array(dtype=wp.vec3d), per: int, 
                         highs: wp.array(dtype=wp.vec3d), bad: wp.array(dtype=wp.int32)):
     """One thread per run t = first + tid of ``per`` points (the last one shorter): their
     smallest and largest coordinates, and 1 in ``bad[t]`` when one is NaN or infinite
-    (else 0). A run past the end (fewer points than runs) gives the first point's bounds."""
+    (else 0). A run past the end (fewer points than runs) gives the last point's bounds
+    (the caller has at least one point)."""
     t = first + wp.tid()
-    a = wp.min(t * per, points.shape[0] - 1)
-    b = wp.min(t * per + per, points.shape[0])
-    lo = points[a]
+    a = t * per
+    b = wp.min(a + per, points.shape[0])
+    lo = points[wp.min(a, points.shape[0] - 1)]
     hi = lo
     zero = wp.vec3d()  # x * 0 is 0, or NaN for a NaN or infinite x: the sum of them is NaN if any is
     for v in range(a, b):
@@ -835,18 +836,18 @@ def flat_faces_kernel(first: int, tris: wp.array(dtype=wp.int64), per: int, poin
                       highs: wp.array(dtype=wp.int64), largest: wp.array(dtype=wp.float32),
                       sums: wp.array(dtype=wp.float64)):
     """One thread per run t = first + tid of ``per`` faces (the last one shorter; a run past
-    the end takes the last face): each face's indices (``tris``: the flat (m, 3) array) as
+    the end has no faces, its bounds the last face's first index, its sides 0): each face's indices (``tris``: the flat (m, 3) array) as
     int32 in ``flat``, the run's smallest and largest index in ``lows[t]`` and ``highs[t]``
     (the caller checks them before any kernel reads ``flat``), and the largest side of
     the faces' float32 boxes (:func:`face_extents_kernel`'s) in ``largest[t]``, their sum
-    in ``sums[t]`` (the points read at indices clamped to the points: an index out of
-    range reads some point, and is refused afterwards)."""
+    in ``sums[t]`` (the points read at indices clamped to the points, of which there is at
+    least one: an index out of range reads some point, and is refused afterwards)."""
     t = first + wp.tid()
     m = tris.shape[0] / 3
-    a = wp.min(t * per, m - 1)
-    b = wp.min(t * per + per, m)
+    a = t * per
+    b = wp.min(a + per, m)
     n = points32.shape[0]
-    lo = tris[3 * a]
+    lo = tris[3 * wp.min(a, m - 1)]
     hi = lo
     big = wp.float32(0.0)
     total = wp.float64(0.0)

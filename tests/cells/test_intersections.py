@@ -686,14 +686,15 @@ def test_prepare_on_all_cores_gives_numpys_points_bit_for_bit(case):
     tris = rng.integers(0, n, size=(m, 3)).astype(np.int64)
     import warp as wp
 
-    points64, tris32, points32, sides = wmi._prepare(pts, tris, wp.get_device("cpu"), 2)
     want64, want_tris, want32 = _numpy_prepare(pts, tris)
-    assert np.array_equal(points64.numpy(), want64)
-    assert np.array_equal(tris32.numpy(), want_tris)
-    assert np.array_equal(points32.numpy(), want32)
     box = want32[tris]
     side = (box.max(axis=1) - box.min(axis=1)).max(axis=1)  # each face's largest float32 box side
-    assert sides[0] == side.max() and sides[1] == pytest.approx(side.mean(dtype=np.float64), rel=1e-12)
+    for workers in (2, 64):  # 64: 512 runs of 33 faces, the last ones past the end (found by a review)
+        points64, tris32, points32, sides = wmi._prepare(pts, tris, wp.get_device("cpu"), workers)
+        assert np.array_equal(points64.numpy(), want64)
+        assert np.array_equal(tris32.numpy(), want_tris)
+        assert np.array_equal(points32.numpy(), want32)
+        assert sides[0] == side.max() and sides[1] == pytest.approx(side.mean(dtype=np.float64), rel=1e-12)
 
 
 @pytest.mark.parametrize("bad, match", [("nan", "'points'.*NaN.*row 4321"), ("inf", "'points'.*row 4321"),
@@ -1397,6 +1398,20 @@ def test_index_out_of_range():
 def test_negative_index():
     with pytest.raises(ValueError, match="'triangles'.*got -1"):
         find_degenerate_faces(TRI, [[0, -1, 2]])
+
+
+def test_no_points_for_many_faces():
+    # found by a review: with no points, the passes on all cores read before the check
+    with pytest.raises(ValueError, match=r"indices in \[0, 0\) for 'triangles'.*got 0"):
+        find_self_intersections(np.zeros((0, 3)), np.zeros((2 * wmi._MIN_FACES_PER_WORKER + 1, 3), int))
+
+
+def test_unsigned_index_beyond_int64_is_named_as_given():
+    # found by a review: converted to int64 first, 2^63 + 5 was reported as a negative index
+    big = np.array([[0, 0, 0], [0, 2**63 + 5, 0], [0, 0, 0]], np.uint64)
+    for check in (find_self_intersections, find_degenerate_faces):
+        with pytest.raises(ValueError, match="got 9223372036854775813"):
+            check(TRI, big)
 
 
 def test_bad_workers():

@@ -1301,7 +1301,7 @@ def _prepare(pts: np.ndarray, tris: np.ndarray, device,
     would take seven passes on one core and the box sides one more (15 + 8 ms of the
     1.7 M-face sphere's check)."""
     n = len(pts)
-    if not device.is_cpu or n_workers < 2 or len(tris) < 2 * _MIN_FACES_PER_WORKER:
+    if not device.is_cpu or n_workers < 2 or len(tris) < 2 * _MIN_FACES_PER_WORKER or n == 0:
         _check_values(pts, tris)
         scaled = power_of_two_scaled(pts)
         points64, tris32 = _device_arrays(scaled, tris, device)
@@ -1504,6 +1504,8 @@ def _validate(points, triangles, k: int = 3, name: str = "triangles", *,
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"expected an (n, 3) array for 'points', got shape {pts.shape}")
     pts = np.ascontiguousarray(pts, dtype=REAL_DTYPE)
+    if values:
+        _check_finite(pts)
     tris = np.asarray(triangles)
     if tris.size == 0 and tris.dtype.kind == "f":  # an empty list: no triangles
         tris = tris.astype(INDEX_DTYPE)
@@ -1516,18 +1518,25 @@ def _validate(points, triangles, k: int = 3, name: str = "triangles", *,
     if len(pts) > _INT32_MAX or k * len(tris) > _INT32_MAX:
         raise ValueError(f"expected fewer than 2**31 points and 2**31 / {k} cells, got {len(pts)} points "
                          f"and {len(tris)} {name}")
-    tris = np.ascontiguousarray(tris, dtype=INDEX_DTYPE)
-    if values:
-        _check_values(pts, tris, name)
-    return pts, tris
+    if values or (tris.dtype.kind == "u" and tris.dtype.itemsize >= 8):  # (as int64 those would wrap)
+        _check_indices(pts, tris, name)
+    return pts, np.ascontiguousarray(tris, dtype=INDEX_DTYPE)
 
 
 def _check_values(pts: np.ndarray, tris: np.ndarray, name: str = "triangles") -> None:
     """The ValueError of :func:`_validate` for a NaN or infinite coordinate (naming its
     row) or an index out of range (naming it), if any."""
+    _check_finite(pts)
+    _check_indices(pts, tris, name)
+
+
+def _check_finite(pts: np.ndarray) -> None:
     if not np.isfinite(pts).all():
         raise ValueError("expected finite coordinates in 'points', got NaN or infinity "
                          f"in row {int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])}")
+
+
+def _check_indices(pts: np.ndarray, tris: np.ndarray, name: str) -> None:
     if tris.size and (tris.min() < 0 or tris.max() >= len(pts)):
         bad = tris.min() if tris.min() < 0 else tris.max()
         raise ValueError(f"expected indices in [0, {len(pts)}) for '{name}' (the number of points), "
