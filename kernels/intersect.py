@@ -786,6 +786,14 @@ def bvh_coordinates(x: wp.vec3d, centre: wp.vec3d, half: wp.float64) -> wp.vec3:
                    wp.float32((x[2] - centre[2]) / half))
 
 
+@wp.func
+def largest_side(lo: wp.vec3, hi: wp.vec3) -> wp.float32:
+    """The largest side of the float32 box [lo, hi] (what sizes the grid's cell:
+    :func:`face_extents_kernel`, :func:`flat_faces_kernel`)."""
+    e = hi - lo
+    return wp.max(wp.max(e[0], e[1]), e[2])
+
+
 @wp.kernel
 def bvh_coordinates_kernel(first: int, points: wp.array(dtype=wp.vec3d), centre: wp.vec3d, half: wp.float64,
                            points32: wp.array(dtype=wp.vec3)):
@@ -866,8 +874,7 @@ def flat_faces_kernel(first: int, tris: wp.array(dtype=wp.int64), per: int, poin
         c0 = points32[j0]
         c1 = points32[j1]
         c2 = points32[j2]
-        e = wp.max(wp.max(c0, c1), c2) - wp.min(wp.min(c0, c1), c2)
-        side = wp.max(wp.max(e[0], e[1]), e[2])
+        side = largest_side(wp.min(wp.min(c0, c1), c2), wp.max(wp.max(c0, c1), c2))
         big = wp.max(big, side)
         total = total + wp.float64(side)
     lows[t] = lo
@@ -1614,8 +1621,7 @@ def face_extents_kernel(first: int, points32: wp.array(dtype=wp.vec3), tris: wp.
     """One thread per face f = first + tid: the largest side of its float32 box."""
     f = first + wp.tid()
     lo, hi = face_box(points32, tris, f)
-    e = hi - lo
-    extents[f] = wp.max(wp.max(e[0], e[1]), e[2])
+    extents[f] = largest_side(lo, hi)
 
 
 @wp.kernel
